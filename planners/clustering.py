@@ -1,0 +1,39 @@
+"""Cluster divider (dissertation Algorithm 3.1)."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+from planners.timing import dist
+
+_TIE = 1e-9
+
+
+def divide_cluster(
+    members: Sequence[int],
+    points: Sequence[Sequence[float]],
+    prev_point: Sequence[float],
+) -> tuple[list[int], list[int]]:
+    """Split a cluster in two around its (approximately) farthest pair of tasks.
+
+    1) from an arbitrary task (the first) find the farthest task A, then the task B farthest
+       from A; 2) every task joins the cluster of the nearer of A and B. If several tasks tie as
+       farthest from A, the pair with the task nearest to the carrier wins (ch. 3.3's tie rule).
+    Returns ``(near, far)``: the part whose seed is nearer to ``prev_point`` first (GET_ORDER).
+    """
+    if len(members) < 2:
+        raise ValueError("a cluster of one task cannot be divided")
+    first = points[members[0]]
+    a = max(members, key=lambda i: dist(points[i], first))  # first maximum = Algorithm 3.1's strict '>'
+    d_a = {i: dist(points[i], points[a]) for i in members}
+    far = max(d_a.values())
+    ties = [i for i in members if d_a[i] >= far - _TIE * max(1.0, far)]
+    b = min(ties, key=lambda i: dist(points[i], prev_point)) if len(ties) > 1 else ties[0]
+    if dist(points[a], prev_point) > dist(points[b], prev_point):
+        a, b = b, a
+    near, far_part = [], []
+    for i in members:
+        (near if dist(points[i], points[a]) <= dist(points[i], points[b]) else far_part).append(i)
+    if not far_part:  # all tasks coincide with A: split off one so the divider always divides
+        far_part.append(near.pop())
+    return near, far_part

@@ -1,0 +1,323 @@
+"""Open-space deployment (dissertation ch. 4): the two-cluster optimum and the path generator.
+
+Vocabulary follows the chapter: tasks are grouped into clusters P_ω; the carrier stops once
+per cluster at a deployment point q_ω, unloads, and the cluster's rovers fly to their tasks.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+from planners.clustering import divide_cluster
+from planners.geometry import enclosing_ball, minimize_1d
+from planners.plan import Plan, RoverLeg, Stop
+from planners.problem import DeployProblem, PlanningError, Vec3
+from planners.timing import RANGE_MARGIN, carrier_hop, leg_time, retime
+
+Point2 = tuple[float, float]
+
+
+@dataclass(frozen=True)
+class ClusterGeometry:
+    """Where a cluster can be served from.
+
+    ``center`` is the ground point whose farthest task is nearest (a power-weighted enclosing
+    circle, see planners.geometry), ``reach`` that farthest 3D distance, ``slack`` the radius
+    of the disc around ``center`` from every point of which all tasks are within d_deploy
+    (the disc of eq. 4.23: (Δd)² + z² = (d_deploy − π)² in the chapter's sphere form).
+    """
+
+    members: tuple[int, ...]
+    center: Point2
+    reach: float
+    slack: float
+
+
+class _Instance:
+    """Per-problem caches: task coordinates and cluster geometry by membership."""
+
+    def __init__(self, problem: DeployProblem) -> None:
+        self.problem = problem
+        self.pts: list[Vec3] = [t.position for t in problem.tasks]
+        self.range = problem.deploy_range
+        self.d = max(problem.deploy_range - RANGE_MARGIN, 0.0)  # planned flights stay inside this
+        self._geo: dict[tuple[int, ...], ClusterGeometry] = {}
+        for i, p in enumerate(self.pts):
+            if p[2] > self.range or p[2] < 0:
+                raise PlanningError(
+                    f"task {problem.tasks[i].id} at height {p[2]:g} m cannot be reached with a "
+                    f"deploy range of {problem.deploy_range:g} m")
+
+    def geometry(self, members: Sequence[int]) -> ClusterGeometry:
+        key = tuple(sorted(members))
+        g = self._geo.get(key)
+        if g is None:
+            pts = [self.pts[i] for i in key]
+            ball = enclosing_ball([(p[0], p[1]) for p in pts], [p[2] ** 2 for p in pts])
+            c = (ball.center[0], ball.center[1])
+            slack = max(0.0, min(math.sqrt(max(self.d**2 - p[2] ** 2, 0.0))
+                                 - math.hypot(p[0] - c[0], p[1] - c[1]) for p in pts))
+            g = ClusterGeometry(key, c, ball.radius, slack)
+            self._geo[key] = g
+        return g
+
+    def fits(self, members: Sequence[int]) -> bool:
+        return self.geometry(members).reach <= self.range
+
+    def reach_from(self, p: Point2, members: Sequence[int]) -> float:
+        """Longest rover flight from ground point ``p`` to the cluster's tasks (eq. 4.5 numerator)."""
+        x, y = p
+        return max(math.dist((x, y, 0.0), self.pts[i]) for i in members)
+
+    def feasible_from(self, a: Point2, b: Point2, members: Sequence[int]) -> float:
+        """Smallest s in [0, 1] such that a + s·(b − a) serves every task (b must serve them)."""
+        s_lo = 0.0
+        dx, dy = b[0] - a[0], b[1] - a[1]
+        qa = dx * dx + dy * dy
+        for i in members:
+            x, y, z = self.pts[i]
+            r2 = max(self.d**2 - z * z, 0.0)
+            ex, ey = a[0] - x, a[1] - y
+            qc = ex * ex + ey * ey - r2
+            if qc <= 0:
+                continue
+            if qa == 0:
+                return 1.0
+            qb = 2 * (dx * ex + dy * ey)
+            disc = qb * qb - 4 * qa * qc
+            s1 = (-qb - math.sqrt(max(disc, 0.0))) / (2 * qa)
+            s_lo = max(s_lo, s1)
+        return min(max(s_lo, 0.0), 1.0)
+
+
+def _lerp(a: Point2, b: Point2, s: float) -> Point2:
+    return (a[0] + s * (b[0] - a[0]), a[1] + s * (b[1] - a[1]))
+
+
+def max_range_point(prev: Point2, geo: ClusterGeometry, nxt: Point2) -> Point2:
+    """Deployment point of an early cluster (eq. 4.21–4.23): at the rovers' maximum range,
+    moved from the cluster centre toward the carrier's line to the next cluster.
+
+    The point is the one of the disc (centre, slack) nearest the line prev → next: on the
+    perpendicular through the centre (4.22) at Δd = slack (4.23), or the foot of the
+    perpendicular when the line already crosses the disc.
+    """
+    cx, cy = geo.center
+    dx, dy = nxt[0] - prev[0], nxt[1] - prev[1]
+    n2 = dx * dx + dy * dy
+    if n2 < 1e-18:
+        fx, fy = prev
+    else:
+        s = ((cx - prev[0]) * dx + (cy - prev[1]) * dy) / n2
+        fx, fy = prev[0] + s * dx, prev[1] + s * dy  # foot of the perpendicular (4.21 ∩ 4.22)
+    ox, oy = fx - cx, fy - cy
+    off = math.hypot(ox, oy)
+    step = max(geo.slack, 0.0)
+    if off <= step:
+        return (fx, fy)
+    return (cx + ox / off * step, cy + oy / off * step)
+
+
+class _PathBuilder:
+    """GET_DEPLOY_PATH and CALC_TIME of Algorithm 4.1–4.2 for ordered lists of clusters."""
+
+    def __init__(self, inst: _Instance) -> None:
+        self.inst = inst
+        p = inst.problem
+        self.carrier, self.rover = p.carrier, p.rover
+        self.unload = p.carrier.unload_time
+        self.start: Point2 = (p.start[0], p.start[1])
+
+    def finish(self, pos: Point2, members: Sequence[int]) -> float:
+        """Rover flight time to the cluster's farthest task from ``pos`` (eq. 4.5)."""
+        return leg_time(self.inst.reach_from(pos, members), self.rover)
+
+    def place(self, clusters: Sequence[Sequence[int]], geos: Sequence[ClusterGeometry], k: int,
+              prev: Point2, t: float, heading: float, worst: float, fine: bool) -> Point2:
+        """Deployment point of cluster k given the carrier's state after the previous stop."""
+        if k < len(clusters) - 2:
+            return max_range_point(prev, geos[k], geos[k + 1].center)
+        return self._best_on_segment(prev, t, heading, worst, clusters, geos, k, fine)
+
+    def _best_on_segment(self, prev: Point2, t: float, heading: float, worst: float,
+                         clusters: Sequence[Sequence[int]], geos: Sequence[ClusterGeometry], k: int,
+                         fine: bool) -> Point2:
+        """The last two clusters (eq. 4.14–4.20): slide the stop along prev → centre so that this
+        cluster's rovers and the next stop's rovers finish as early as possible, never beyond
+        d_deploy. Solved on the exact time model instead of the linearised rotation of eq. 4.16."""
+        center = geos[k].center
+        s_lo = self.inst.feasible_from(prev, center, clusters[k])
+        last = k == len(clusters) - 1
+        nxt = None if last else geos[k + 1].center
+
+        def makespan(s: float) -> float:
+            pos = _lerp(prev, center, s)
+            dt, h = carrier_hop(prev, pos, heading, self.carrier)
+            t1 = t + dt + self.unload
+            m = max(worst, t1 + self.finish(pos, clusters[k]))
+            if nxt is not None:
+                dt2, _ = carrier_hop(pos, nxt, h, self.carrier)
+                m = max(m, t1 + dt2 + self.unload + self.finish(nxt, clusters[k + 1]))
+            return m
+
+        s, best = minimize_1d(makespan, s_lo, 1.0, samples=12 if fine else 6, tol=1e-7 if fine else 1e-4)
+        for cand in (s_lo, 1.0):
+            if makespan(cand) <= best:
+                s, best = cand, makespan(cand)
+        return _lerp(prev, center, s)
+
+    def route(self, clusters: list[list[int]], fine: bool = False) -> _Route:
+        """GET_DEPLOY_PATH for every cluster, then the route's times."""
+        geos = [self.inst.geometry(c) for c in clusters]
+        positions: list[Point2] = []
+        prev, t, heading, worst = self.start, 0.0, self.inst.problem.heading, 0.0
+        for k in range(len(clusters)):
+            pos = self.place(clusters, geos, k, prev, t, heading, worst, fine)
+            dt, heading = carrier_hop(prev, pos, heading, self.carrier)
+            t += dt + self.unload
+            worst = max(worst, t + self.finish(pos, clusters[k]))
+            positions.append(pos)
+            prev = pos
+        return _Route(self, clusters, geos, positions)
+
+
+class _Route:
+    """An ordered cluster list with its stops and the times needed to re-time a local change.
+
+    ``arrive[j]`` is the carrier's arrival at stop j, ``heading[j]`` its heading on arrival,
+    ``done[j]`` when stop j's last rover reaches its task, ``tail[j]`` = max(done[j:]).
+    """
+
+    def __init__(self, b: _PathBuilder, clusters: list[list[int]], geos: list[ClusterGeometry],
+                 positions: list[Point2]) -> None:
+        self.b, self.clusters, self.geos, self.positions = b, clusters, geos, positions
+        self.arrive: list[float] = []
+        self.heading: list[float] = []
+        self.done: list[float] = []
+        prev, t, h = b.start, 0.0, b.inst.problem.heading
+        for members, pos in zip(clusters, positions, strict=True):
+            dt, h = carrier_hop(prev, pos, h, b.carrier)
+            t += dt
+            self.arrive.append(t)
+            self.heading.append(h)
+            t += b.unload
+            self.done.append(t + b.finish(pos, members))
+            prev = pos
+        self.tail = self.done[:]
+        for j in range(len(self.tail) - 2, -1, -1):
+            self.tail[j] = max(self.tail[j], self.tail[j + 1])
+        self.makespan = self.tail[0] if self.tail else 0.0
+
+    def replace(self, i: int, pieces: list[list[int]]) -> tuple[float, list[list[int]], list[Point2]]:
+        """Makespan after cluster i is replaced by ``pieces``, recomputing the stops around the
+        change (the one before, the pieces, the one after) and keeping later stops in place."""
+        b, old = self.b, self.clusters
+        clusters = old[:i] + pieces + old[i + 1:]
+        geos = self.geos[:i] + [b.inst.geometry(p) for p in pieces] + self.geos[i + 1:]
+        lo = max(i - 1, 0)
+        hi = i + len(pieces) + 1  # first new index kept from the old route (exclusive window end)
+        if hi >= len(clusters) - 2:
+            hi = len(clusters)  # the last two clusters are placed together (eq. 4.20)
+        if lo == 0:
+            prev, t, h, worst = b.start, 0.0, b.inst.problem.heading, 0.0
+        else:
+            prev = self.positions[lo - 1]
+            t, h = self.arrive[lo - 1] + b.unload, self.heading[lo - 1]
+            worst = max(self.done[: lo])
+        positions = self.positions[:lo]
+        for k in range(lo, hi):
+            pos = b.place(clusters, geos, k, prev, t, h, worst, fine=False)
+            dt, h = carrier_hop(prev, pos, h, b.carrier)
+            t += dt + b.unload
+            worst = max(worst, t + b.finish(pos, clusters[k]))
+            positions.append(pos)
+            prev = pos
+        m = hi - len(pieces) + 1  # old index of the first kept stop
+        if m < len(old):
+            pos = self.positions[m]
+            dt, h = carrier_hop(prev, pos, h, b.carrier)
+            t += dt + b.unload
+            worst = max(worst, t + b.finish(pos, old[m]))
+            if m + 1 < len(old):
+                dt, _ = carrier_hop(pos, self.positions[m + 1], h, b.carrier)
+                shift = t + dt - self.arrive[m + 1]
+                worst = max(worst, self.tail[m + 1] + shift)
+            positions += self.positions[m:]
+        return worst, clusters, positions
+
+
+def lee_clusters(problem: DeployProblem) -> tuple[list[list[int]], list[Point2], float]:
+    """Algorithm 4.1–4.2: divide until every cluster fits d_deploy, then the split/swap/merge loop
+    that keeps the fastest path. Returns clusters in visiting order, stops and makespan."""
+    inst = _Instance(problem)
+    builder = _PathBuilder(inst)
+    start = builder.start
+    n = len(inst.pts)
+    if n == 0:
+        return [], [], 0.0
+
+    # Initial clustering (Algorithm 4.1): divide until every cluster fits d_deploy.
+    clusters: list[list[int]] = [list(range(n))]
+    idx = 0
+    while idx < len(clusters):
+        if not inst.fits(clusters[idx]):
+            prev = start if idx == 0 else inst.geometry(clusters[idx - 1]).center
+            near, far = divide_cluster(clusters[idx], inst.pts, (*prev, 0.0))
+            clusters[idx: idx + 1] = [near, far]
+        else:
+            idx += 1
+    route = builder.route(clusters)
+
+    # Compare and update (Algorithm 4.2): divide, try the swapped order, keep or merge back.
+    idx = 0
+    while idx < len(route.clusters):
+        members = route.clusters[idx]
+        if len(members) == 1:
+            idx += 1
+            continue
+        prev = start if idx == 0 else route.positions[idx - 1]
+        near, far = divide_cluster(members, inst.pts, (*prev, 0.0))
+        t_cand, c_cand, p_cand = route.replace(idx, [near, far])
+        t_swap, c_swap, p_swap = route.replace(idx, [far, near])
+        if t_swap < t_cand:
+            t_cand, c_cand, p_cand = t_swap, c_swap, p_swap
+        if t_cand <= route.makespan:
+            route = _Route(builder, c_cand, [inst.geometry(c) for c in c_cand], p_cand)
+        else:
+            idx += 1
+
+    # The loop re-placed stops only around each change; place every stop afresh, finely, and
+    # keep whichever of the two routes is faster.
+    fresh = builder.route(route.clusters, fine=True)
+    best = fresh if fresh.makespan <= route.makespan else route
+    return best.clusters, best.positions, best.makespan
+
+
+def build_plan(problem: DeployProblem, planner: str, clusters: Sequence[Sequence[int]],
+               positions: Sequence[Point2], compute_ms: float = 0.0) -> Plan:
+    """Turn clusters and stops into a timed Plan; rovers leave the deck in order."""
+    rover_ids = iter(problem.rover_ids())
+    stops: list[Stop] = []
+    prev: Vec3 = problem.start
+    for members, pos in zip(clusters, positions, strict=True):
+        here: Vec3 = (pos[0], pos[1], 0.0)
+        legs = [RoverLeg(rover=next(rover_ids), task=problem.tasks[i].id,
+                         path=[here, problem.tasks[i].position]) for i in members]
+        stops.append(Stop(position=here, carrier_path=[prev, here], rovers=legs))
+        prev = here
+    plan = Plan(kind="deploy", planner=planner, start=problem.start, heading=problem.heading, stops=stops,
+                compute_ms=compute_ms)
+    return retime(plan, problem.carrier, problem.rover)
+
+
+def plan_lee(problem: DeployProblem) -> Plan:
+    """The dissertation's deployment path generator (ch. 4.4), planner name ``lee``."""
+    t0 = time.perf_counter()
+    if len(problem.rover_ids()) < len(problem.tasks):
+        raise PlanningError(f"{len(problem.tasks)} tasks need as many rovers, only "
+                            f"{len(problem.rover_ids())} on the carrier")
+    clusters, positions, _ = lee_clusters(problem)
+    return build_plan(problem, "lee", clusters, positions, (time.perf_counter() - t0) * 1e3)

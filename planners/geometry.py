@@ -1,0 +1,168 @@
+"""Geometry for the planners: minimum enclosing circle/sphere (ch. 3.4) and small helpers.
+
+The enclosing ball is Welzl's algorithm (iterative move-to-front form) generalised to *power
+weights*: it minimises ``max_i |c - p_i|² + w_i`` over centres ``c``. With all weights zero it
+is the minimum enclosing circle (2D points) or sphere (3D points) of eq. 3.1; with 2D ground
+points and ``w_i = z_i²`` it is the ground point whose farthest 3D task is nearest — the best
+place on the ground to deploy a cluster of tasks at heights.
+"""
+
+from __future__ import annotations
+
+import math
+import random
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+_REL_EPS = 1e-9
+
+
+@dataclass(frozen=True)
+class Ball:
+    center: tuple[float, ...]
+    radius: float  # sqrt of the minimised maximum power distance
+
+    def contains(self, p: Sequence[float], weight: float = 0.0, eps: float = 1e-7) -> bool:
+        return _power(self.center, p, weight) <= (self.radius + eps) ** 2
+
+
+def _power(c: Sequence[float], p: Sequence[float], w: float) -> float:
+    return math.dist(c, p) ** 2 + w
+
+
+def _ball_on_boundary(pts: list[tuple[float, ...]], ws: list[float]) -> Ball:
+    """Smallest-value centre with every given point on the boundary (equal power distance).
+
+    Minimises |c - p0|² + w0 subject to |c - pj|² + wj = |c - p0|² + w0: a linear system in
+    the affine hull of the points (eq. 3.5–3.6 and 3.10–3.11 are its unweighted 2D/3D forms).
+    Degenerate sets (collinear, duplicate) are solved in the least-squares sense.
+    """
+    if len(pts) == 1:
+        return Ball(tuple(pts[0]), math.sqrt(max(ws[0], 0.0)))
+    if len(pts[0]) == 2 and len(pts) <= 3:  # closed forms for the planners' hot path
+        fast = _ball_2d(pts, ws)
+        if fast is not None:
+            return fast
+    p0, w0 = np.asarray(pts[0], dtype=float), ws[0]
+    u = np.asarray(pts[1:], dtype=float) - p0
+    b = np.einsum("ij,ij->i", u, u) + np.asarray(ws[1:]) - w0
+    gram = 2.0 * (u @ u.T)
+    lam, *_ = np.linalg.lstsq(gram, b, rcond=None)
+    c = p0 + lam @ u
+    value = max(_power(c, q, w) for q, w in zip(pts, ws, strict=True))
+    return Ball(tuple(float(x) for x in c), math.sqrt(max(value, 0.0)))
+
+
+def _ball_2d(pts: list[tuple[float, ...]], ws: list[float]) -> Ball | None:
+    (x0, y0), w0 = pts[0], ws[0]
+    u1x, u1y = pts[1][0] - x0, pts[1][1] - y0
+    b1 = u1x * u1x + u1y * u1y + ws[1] - w0
+    if len(pts) == 2:
+        n = u1x * u1x + u1y * u1y
+        if n < 1e-24:
+            return None
+        lam = b1 / (2.0 * n)
+        c = (x0 + lam * u1x, y0 + lam * u1y)
+    else:
+        u2x, u2y = pts[2][0] - x0, pts[2][1] - y0
+        b2 = u2x * u2x + u2y * u2y + ws[2] - w0
+        det = u1x * u2y - u1y * u2x  # solve 2 u_j · (c − p0) = b_j directly
+        if abs(det) < 1e-12 * max(1.0, (u1x * u1x + u1y * u1y) * (u2x * u2x + u2y * u2y)) ** 0.5:
+            return None
+        dx = (b1 * u2y - b2 * u1y) / (2.0 * det)
+        dy = (u1x * b2 - u2x * b1) / (2.0 * det)
+        c = (x0 + dx, y0 + dy)
+    value = max(_power(c, q, w) for q, w in zip(pts, ws, strict=True))
+    return Ball(c, math.sqrt(max(value, 0.0)))
+
+
+def enclosing_ball(points: Sequence[Sequence[float]], weights: Sequence[float] | None = None,
+                   seed: int = 0) -> Ball:
+    """Minimum enclosing circle/sphere (optionally power-weighted) by Welzl's algorithm.
+
+    Expected linear time; exact for 1, 2, 3+ points, collinear and duplicate points.
+    """
+    if not points:
+        raise ValueError("enclosing_ball of no points")
+    pts = [tuple(float(c) for c in p) for p in points]
+    ws = [0.0] * len(pts) if weights is None else [float(w) for w in weights]
+    dim = len(pts[0])
+    order = list(range(len(pts)))
+    random.Random(seed).shuffle(order)
+    pts = [pts[i] for i in order]
+    ws = [ws[i] for i in order]
+    scale = max(1.0, max(abs(c) for p in pts for c in p), math.sqrt(max(ws)))
+    eps = _REL_EPS * scale
+
+    def outside(ball: Ball, k: int) -> bool:
+        return not ball.contains(pts[k], ws[k], eps)
+
+    def solve(fixed: list[int], upto: int, depth: int) -> Ball:
+        # Smallest ball of pts[:upto] with pts[fixed] on its boundary.
+        ball = _ball_on_boundary([pts[i] for i in fixed], [ws[i] for i in fixed]) if fixed else None
+        for k in range(upto):
+            if ball is None or outside(ball, k):
+                if depth == dim:  # d+1 boundary points determine the ball
+                    ball = _ball_on_boundary([pts[i] for i in [*fixed, k]], [ws[i] for i in [*fixed, k]])
+                else:
+                    ball = solve([*fixed, k], k, depth + 1)
+        assert ball is not None
+        return ball
+
+    if len(pts) == 1:
+        return _ball_on_boundary([pts[0]], [ws[0]])
+    if dim == 2:
+        return _welzl_2d(pts, ws, eps)
+    return solve([], len(pts), 0)
+
+
+def _welzl_2d(pts: list[tuple[float, ...]], ws: list[float], eps: float) -> Ball:
+    """The same three nested loops as ``solve`` for the plane, unrolled for speed."""
+
+    def out(ball: Ball, k: int) -> bool:
+        (cx, cy), (x, y) = ball.center, pts[k]
+        return (cx - x) ** 2 + (cy - y) ** 2 + ws[k] > (ball.radius + eps) ** 2
+
+    ball = _ball_on_boundary([pts[0]], [ws[0]])
+    for i in range(1, len(pts)):
+        if not out(ball, i):
+            continue
+        ball = _ball_on_boundary([pts[i]], [ws[i]])
+        for j in range(i):
+            if not out(ball, j):
+                continue
+            ball = _ball_on_boundary([pts[i], pts[j]], [ws[i], ws[j]])
+            for k in range(j):
+                if out(ball, k):
+                    ball = _ball_on_boundary([pts[i], pts[j], pts[k]], [ws[i], ws[j], ws[k]])
+    return ball
+
+
+def minimize_1d(f: Callable[[float], float], lo: float, hi: float, samples: int = 12,
+                tol: float = 1e-6) -> tuple[float, float]:
+    """Global-ish minimum of a 1D function: coarse sampling, then golden-section refinement."""
+    if hi <= lo:
+        return lo, f(lo)
+    xs = [lo + (hi - lo) * i / samples for i in range(samples + 1)]
+    vals = [f(x) for x in xs]
+    i = min(range(len(xs)), key=vals.__getitem__)
+    best_x, best_v = xs[i], vals[i]
+    a, b = xs[max(i - 1, 0)], xs[min(i + 1, samples)]
+    g = (math.sqrt(5.0) - 1.0) / 2.0
+    c, d = b - g * (b - a), a + g * (b - a)
+    fc, fd = f(c), f(d)
+    while b - a > tol * max(1.0, hi - lo):
+        if fc < fd:
+            b, d, fd = d, c, fc
+            c = b - g * (b - a)
+            fc = f(c)
+        else:
+            a, c, fc = c, d, fd
+            d = a + g * (b - a)
+            fd = f(d)
+    for x, v in ((c, fc), (d, fd)):
+        if v < best_v:
+            best_x, best_v = x, v
+    return best_x, best_v

@@ -1,0 +1,85 @@
+"""Plan types and their JSON form (DESIGN.md "Plan (JSON) — the contract")."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, Literal
+
+from planners.problem import Vec3
+
+PLAN_SCHEMA = "fleetctl.plan/1"
+
+
+@dataclass
+class RoverLeg:
+    """One rover's flight: deploy (stop → task) or collect (rover's position → meeting point)."""
+
+    rover: str
+    path: list[Vec3]
+    arrive: float = 0.0
+    task: str | None = None  # deployment only
+
+    @property
+    def start(self) -> Vec3:
+        return self.path[0]
+
+    @property
+    def end(self) -> Vec3:
+        return self.path[-1]
+
+
+@dataclass
+class Stop:
+    position: Vec3
+    carrier_path: list[Vec3]  # from the previous stop (or the start) to this stop
+    rovers: list[RoverLeg]
+    arrive: float = 0.0
+    depart: float = 0.0
+
+
+@dataclass
+class Plan:
+    kind: Literal["deploy", "collect"]
+    planner: str
+    start: Vec3
+    heading: float
+    stops: list[Stop]
+    makespan: float = 0.0
+    carrier_distance: float = 0.0
+    compute_ms: float = 0.0
+    notes: list[str] = field(default_factory=list)
+
+    def legs(self) -> list[RoverLeg]:
+        return [leg for stop in self.stops for leg in stop.rovers]
+
+    def to_json(self) -> dict[str, Any]:
+        stops = []
+        for s in self.stops:
+            rovers: list[dict[str, Any]] = []
+            for leg in s.rovers:
+                if self.kind == "deploy":
+                    rovers.append({"rover": leg.rover, "task": leg.task, "target": _pt(leg.end),
+                                   "path": [_pt(p) for p in leg.path], "arrive": _t(leg.arrive)})
+                else:
+                    rovers.append({"rover": leg.rover, "from": _pt(leg.start),
+                                   "path": [_pt(p) for p in leg.path], "arrive": _t(leg.arrive)})
+            stops.append({"position": _pt(s.position), "arrive": _t(s.arrive), "depart": _t(s.depart),
+                          "carrier_path": [_pt(p) for p in s.carrier_path], "rovers": rovers})
+        return {
+            "schema": PLAN_SCHEMA,
+            "kind": self.kind,
+            "planner": self.planner,
+            "carrier": {"start": _pt(self.start), "heading": round(self.heading, 6)},
+            "stops": stops,
+            "makespan": _t(self.makespan),
+            "carrier_distance": round(self.carrier_distance, 4),
+            "compute_ms": round(self.compute_ms, 3),
+        }
+
+
+def _pt(p: Vec3) -> list[float]:
+    return [round(float(c), 6) for c in p]
+
+
+def _t(t: float) -> float:
+    return round(float(t), 6)
