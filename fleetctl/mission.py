@@ -436,7 +436,7 @@ def _point(ctx: _Ctx, d: dict[str, Any], path: KeyPath, origin: Origin | None) -
 # --------------------------------------------------------------------------- the contract
 
 _POS = _number(gt=0, unit="m/s")
-_ACCEL = _number(gt=0, null=True, unit="m/s²; null = constant speed")
+_ACCEL = _number(gt=0, null=True, unit="m/s²")
 _TIME = _number(ge=0, unit="seconds")
 _ID = _string()
 _OPT_STR = _string(null=True)
@@ -454,7 +454,7 @@ _CARRIER = {
     "heading_deg": (_number(unit="compass degrees, 0 = north, 90 = east"), 0.0),
     "max_speed": (_POS, _REQUIRED),
     "accel": (_ACCEL, None),
-    "turn_rate": (_number(gt=0, null=True, unit="rad/s; null = instantaneous turns"), None),
+    "turn_rate": (_number(gt=0, null=True, unit="rad/s"), None),
     "unload_time": (_TIME, 0.0),
     "load_time": (_TIME, 0.0),
 }
@@ -602,8 +602,9 @@ def _polygon(ctx: _Ctx, pts: list[Vec2], path: KeyPath) -> Polygon:
     if len(pts) < 3:
         ctx.fail(path, f"an obstacle polygon needs at least 3 vertices [x, y], got {len(pts)}")
     poly = Polygon(pts)
-    if not poly.is_valid or poly.area <= 0.0:
-        reason = explain_validity(poly) if not poly.is_valid else "it has zero area"
+    if poly.convex_hull.area <= 0.0 or not poly.is_valid or poly.area <= 0.0:
+        flat = poly.convex_hull.area <= 0.0
+        reason = "zero area: collinear or repeated vertices" if flat else explain_validity(poly)
         ctx.fail(
             path,
             f"invalid polygon ({reason}); list the vertices in order around the outline "
@@ -729,7 +730,7 @@ def _build(ctx: _Ctx, data: Any, path: Path | None) -> Mission:
     if len(units) < len(tasks):
         ctx.fail(
             fleet_key,
-            f"{len(units)} rovers for {len(tasks)} tasks; every task needs its own rover, "
+            f"only {len(units)} rover(s) for {len(tasks)} tasks; every task needs its own rover, "
             f"give at least {len(tasks)} rovers",
         )
 
@@ -867,8 +868,12 @@ def load_mission(path: str | Path) -> Mission:
     except yaml.MarkedYAMLError as exc:
         mark = exc.problem_mark or exc.context_mark
         line = f":{mark.line + 1}" if mark is not None else ""
-        what = " ".join(str(s) for s in (exc.context, exc.problem) if s)
-        raise MissionError(f"{source}{line}: malformed YAML: {what}; fix the syntax at that line") from None
+        what = str(exc.problem or exc.context or "syntax error")
+        if exc.context and exc.problem:
+            started = exc.context_mark
+            at = f" started at line {started.line + 1}" if started is not None else ""
+            what += f" ({exc.context}{at})"
+        raise MissionError(f"{source}{line}: malformed YAML: {what}; fix the syntax there") from None
     except yaml.YAMLError as exc:
         raise MissionError(f"{source}: malformed YAML: {exc}") from None
     if node is not None:
