@@ -1,0 +1,246 @@
+"""Plain configuration of a simulated fleet, and its reading from a parsed mission-file dict.
+
+sitl does not import fleetctl: ``FleetConfig.from_mission_dict`` takes the raw YAML mapping of a
+mission file (see DESIGN.md, "Mission file") and keeps only what the simulation needs. Keys the
+simulation does not use (tasks, planner, obstacles, ...) are ignored here; validating them is the
+mission loader's job.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+from .faults import Fault, FaultError
+
+AUTOPILOTS = ("px4", "ardupilot")
+CARRIER_FRAMES = ("ground", "multirotor")
+
+
+class ConfigError(ValueError):
+    """A configuration the simulated fleet cannot run; the message names the key and the fix."""
+
+
+@dataclass
+class VehicleSpec:
+    """One simulated vehicle. Positions are ENU metres relative to the fleet origin.
+
+    ``connection`` is written from the controller's side (``sim``, ``udp://H:P``, ``udpout://H:P``,
+    ``udpin://H:P``); None for a rover means: share the carrier's link.
+    """
+
+    id: str
+    sysid: int
+    role: str  # "carrier" | "rover"
+    max_speed: float
+    accel: float | None = None
+    connection: str | None = None
+    position: tuple[float, float, float] | None = None  # None for a rover = loaded on the carrier
+    heading_deg: float = 0.0
+    turn_rate: float | None = None  # carrier only, rad/s; None = instantaneous
+    climb_rate: float | None = None  # rover only, m/s; None = max_speed
+    land_speed: float | None = None  # rover only, m/s; None = climb rate
+    endurance_range: float | None = None  # rover only, metres of flight on a full battery; None = no drain
+    frame: str = "multirotor"  # carrier: "ground" | "multirotor"; rovers are multirotors
+    compid: int = 1
+
+    def __post_init__(self) -> None:
+        where = f"vehicle {self.id!r}"
+        if not 1 <= int(self.sysid) <= 255:
+            raise ConfigError(f"{where}: sysid must be 1..255, got {self.sysid}")
+        if self.role not in ("carrier", "rover"):
+            raise ConfigError(f"{where}: role must be 'carrier' or 'rover'")
+        _positive(self.max_speed, f"{where}: max_speed")
+        for name in ("accel", "turn_rate", "climb_rate", "land_speed", "endurance_range"):
+            val = getattr(self, name)
+            if val is not None:
+                _positive(val, f"{where}: {name}")
+        if self.role == "carrier" and self.frame not in CARRIER_FRAMES:
+            raise ConfigError(f"{where}: frame must be one of {CARRIER_FRAMES}, got {self.frame!r}")
+
+
+@dataclass
+class FleetConfig:
+    """Everything the simulated fleet needs. Time values are simulated seconds unless noted."""
+
+    origin: tuple[float, float, float]  # lat, lon (degrees), alt (m AMSL) of the ENU origin
+    carrier: VehicleSpec
+    rovers: list[VehicleSpec] = field(default_factory=list)
+    speedup: float = 1.0  # simulated seconds per wall second
+    seed: int = 0
+    faults: list[Fault] = field(default_factory=list)
+    autopilot: str = "px4"  # "px4" | "ardupilot": HEARTBEAT, modes, mission item 0 = home
+    step: float = 0.05  # simulated seconds per physics step
+    tick_hz: float = 50.0  # wall-clock rate of the simulation loop (streams are scheduled on it)
+    position_hz: float = 10.0  # default GLOBAL_POSITION_INT rate (wall Hz), SET_MESSAGE_INTERVAL overrides
+    name: str = "sim"
+
+    def __post_init__(self) -> None:
+        _positive(self.speedup, "sim.speedup")
+        _positive(self.step, "step")
+        _positive(self.tick_hz, "tick_hz")
+        _positive(self.position_hz, "position_hz")
+        if self.autopilot not in AUTOPILOTS:
+            raise ConfigError(f"sim.autopilot: use one of {AUTOPILOTS}, got {self.autopilot!r}")
+        if self.carrier.role != "carrier":
+            raise ConfigError("carrier: its role must be 'carrier'")
+        seen_ids: set[str] = set()
+        seen_sysids: set[int] = set()
+        for v in self.vehicles:
+            if v.id in seen_ids:
+                raise ConfigError(f"vehicle id {v.id!r} is used twice")
+            if v.sysid in seen_sysids:
+                raise ConfigError(f"sysid {v.sysid} is used twice (vehicle {v.id!r})")
+            seen_ids.add(v.id)
+            seen_sysids.add(v.sysid)
+        for f in self.faults:
+            if f.vehicle is not None and f.vehicle not in seen_ids:
+                raise ConfigError(f"sim.faults: vehicle {f.vehicle!r} is not in the fleet")
+
+    @property
+    def vehicles(self) -> list[VehicleSpec]:
+        return [self.carrier, *self.rovers]
+
+    @classmethod
+    def from_mission_dict(
+        cls,
+        d: Mapping[str, Any],
+        *,
+        speedup: float | None = None,
+        seed: int | None = None,
+        autopilot: str | None = None,
+    ) -> FleetConfig:
+        """Build the fleet of a parsed mission file. Keyword arguments override the file
+        (e.g. ``--speedup`` on the command line).
+
+        Read: ``origin``, ``carrier`` (id, connection, sysid, position, heading_deg, max_speed, accel,
+        turn_rate, optional frame), ``rovers`` (max_speed, accel, endurance_range, optional
+        climb_rate/land_speed, ``fleet: {count, sysid_start}`` or ``units: [{id, sysid, connection,
+        position?}]``), ``sim`` (speedup, faults; optional seed, autopilot, position_hz) and
+        ``planner.seed`` as the seed fallback.
+        """
+        if not isinstance(d, Mapping):
+            raise ConfigError("mission: expected a mapping at the top level")
+        origin = _mapping(d.get("origin"), "origin")
+        try:
+            lat, lon = float(origin["lat"]), float(origin["lon"])
+            alt = float(origin.get("alt", 0.0))
+        except (KeyError, TypeError, ValueError):
+            raise ConfigError("origin: needs numbers lat, lon (degrees) and alt (m)") from None
+        if not (-90 <= lat <= 90 and -180 <= lon <= 180):
+            raise ConfigError(f"origin: lat/lon out of range ({lat}, {lon})")
+
+        c = _mapping(d.get("carrier"), "carrier")
+        carrier = VehicleSpec(
+            id=str(c.get("id", "carrier")),
+            sysid=_int(c.get("sysid", 1), "carrier.sysid"),
+            role="carrier",
+            connection=str(c.get("connection", "sim")),
+            position=_position(c.get("position", (0.0, 0.0)), "carrier.position", ground=True),
+            heading_deg=_num(c.get("heading_deg", 0.0), "carrier.heading_deg"),
+            max_speed=_num(c.get("max_speed"), "carrier.max_speed"),
+            accel=_opt_num(c.get("accel"), "carrier.accel"),
+            turn_rate=_opt_num(c.get("turn_rate"), "carrier.turn_rate"),
+            frame=str(c.get("frame", "ground")),
+        )
+
+        r = _mapping(d.get("rovers"), "rovers")
+        common = dict(
+            role="rover",
+            max_speed=_num(r.get("max_speed"), "rovers.max_speed"),
+            accel=_opt_num(r.get("accel"), "rovers.accel"),
+            climb_rate=_opt_num(r.get("climb_rate"), "rovers.climb_rate"),
+            land_speed=_opt_num(r.get("land_speed"), "rovers.land_speed"),
+            endurance_range=_opt_num(r.get("endurance_range"), "rovers.endurance_range"),
+        )
+        rovers: list[VehicleSpec] = []
+        if "units" in r and r["units"] is not None:
+            units = r["units"]
+            if not isinstance(units, list) or not units:
+                raise ConfigError("rovers.units: expected a non-empty list of {id, sysid, connection}")
+            for i, u in enumerate(units):
+                u = _mapping(u, f"rovers.units[{i}]")
+                if "id" not in u or "sysid" not in u:
+                    raise ConfigError(f"rovers.units[{i}]: needs id and sysid")
+                pos = u.get("position")
+                rovers.append(VehicleSpec(
+                    id=str(u["id"]),
+                    sysid=_int(u["sysid"], f"rovers.units[{i}].sysid"),
+                    connection=None if u.get("connection") is None else str(u["connection"]),
+                    position=None if pos is None else _position(pos, f"rovers.units[{i}].position"),
+                    **common,
+                ))
+        else:
+            fl = _mapping(r.get("fleet"), "rovers.fleet")
+            count = _int(fl.get("count"), "rovers.fleet.count")
+            start = _int(fl.get("sysid_start", carrier.sysid + 1), "rovers.fleet.sysid_start")
+            if count < 0 or start + count - 1 > 255:
+                raise ConfigError(f"rovers.fleet: sysids {start}..{start + count - 1} do not fit in 1..255")
+            rovers = [VehicleSpec(id=f"r{k + 1}", sysid=start + k, **common) for k in range(count)]
+
+        sim = d.get("sim") or {}
+        sim = _mapping(sim, "sim")
+        faults: list[Fault] = []
+        raw_faults = sim.get("faults") or []
+        if not isinstance(raw_faults, list):
+            raise ConfigError("sim.faults: expected a list")
+        for i, fd in enumerate(raw_faults):
+            try:
+                faults.append(Fault.from_dict(fd, f"sim.faults[{i}]"))
+            except FaultError as exc:
+                raise ConfigError(str(exc)) from None
+        planner = d.get("planner") if isinstance(d.get("planner"), Mapping) else {}
+        seed_val = seed if seed is not None else sim.get("seed", planner.get("seed", 0))
+        kw: dict[str, Any] = {}
+        if sim.get("position_hz") is not None:
+            kw["position_hz"] = _num(sim["position_hz"], "sim.position_hz")
+        return cls(
+            origin=(lat, lon, alt),
+            carrier=carrier,
+            rovers=rovers,
+            speedup=speedup if speedup is not None else _num(sim.get("speedup", 1.0), "sim.speedup"),
+            seed=_int(seed_val, "sim.seed"),
+            faults=faults,
+            autopilot=autopilot or str(sim.get("autopilot", "px4")),
+            name=str(d.get("name", "sim")),
+            **kw,
+        )
+
+
+def _positive(val: Any, where: str) -> None:
+    if isinstance(val, bool) or not isinstance(val, int | float) or not math.isfinite(val) or val <= 0:
+        raise ConfigError(f"{where}: expected a number > 0, got {val!r}")
+
+
+def _mapping(val: Any, where: str) -> Mapping[str, Any]:
+    if not isinstance(val, Mapping):
+        raise ConfigError(f"{where}: expected a mapping, got {type(val).__name__}")
+    return val
+
+
+def _num(val: Any, where: str) -> float:
+    if isinstance(val, bool) or not isinstance(val, int | float) or not math.isfinite(val):
+        raise ConfigError(f"{where}: expected a number, got {val!r}")
+    return float(val)
+
+
+def _opt_num(val: Any, where: str) -> float | None:
+    return None if val is None else _num(val, where)
+
+
+def _int(val: Any, where: str) -> int:
+    if isinstance(val, bool) or not isinstance(val, int):
+        raise ConfigError(f"{where}: expected an integer, got {val!r}")
+    return val
+
+
+def _position(val: Any, where: str, ground: bool = False) -> tuple[float, float, float]:
+    if not isinstance(val, list | tuple) or len(val) not in (2, 3):
+        raise ConfigError(f"{where}: expected [x, y] or [x, y, z] in metres")
+    x, y = _num(val[0], where), _num(val[1], where)
+    z = 0.0 if ground or len(val) == 2 else _num(val[2], where)
+    if z < 0:
+        raise ConfigError(f"{where}: z must be >= 0 (ground is z = 0)")
+    return (x, y, z)

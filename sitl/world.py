@@ -1,0 +1,360 @@
+"""The simulated world: one carrier and its rovers, kinematics, battery, loading and unloading.
+
+Pure Python, no I/O, no MAVLink: advance it with ``World.step(dt)``. ENU metres, z up, ground
+at z = 0, the carrier's deck at z = 0 too. Motion model (matches the planners' time model):
+
+* the carrier drives straight legs with a trapezoidal speed profile (``accel``; None = constant
+  speed) and turns on the spot at ``turn_rate`` (None = instantly) before a leg; it stops at
+  every target.
+* a rover flies straight 3D lines at up to ``max_speed`` (vertical speed capped by
+  ``climb_rate``) with the same speed profile, lands vertically at ``land_speed``.
+* battery: ``flown_distance * drain_factor / endurance_range`` of the battery is used; an empty
+  rover in the air lands where it is.
+* a rover loaded on the carrier moves with it; any flight command detaches it; touching down
+  within ``LOAD_RADIUS`` (horizontal) of the stopped carrier loads it again.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from enum import Enum
+
+from .config import VehicleSpec
+
+LOAD_RADIUS = 1.5  # m, horizontal distance to the stopped carrier at touchdown that loads a rover
+_EPS = 1e-6
+
+
+class Phase(Enum):
+    LOADED = "loaded"  # riding on the carrier
+    GROUND = "ground"  # landed somewhere else
+    AIR = "air"
+
+
+def _approach(speed: float, vmax: float, accel: float | None, dist: float, dt: float) -> float:
+    """Speed for the next step on a leg of remaining length ``dist``: accelerate up to ``vmax``,
+    brake so that the vehicle stops at the end of the leg."""
+    if accel is None:
+        return vmax
+    return max(0.0, min(vmax, speed + accel * dt, math.sqrt(2.0 * accel * dist)))
+
+
+def _brake(speed: float, accel: float | None, dt: float) -> float:
+    return 0.0 if accel is None else max(0.0, speed - accel * dt)
+
+
+class Body:
+    """State shared by the carrier and the rovers."""
+
+    def __init__(self, spec: VehicleSpec, position: tuple[float, float, float]) -> None:
+        self.spec = spec
+        self.id = spec.id
+        self._pos = [float(position[0]), float(position[1]), float(position[2])]
+        self.vel = (0.0, 0.0, 0.0)  # m/s ENU
+        self.speed = 0.0  # scalar speed along the current leg
+        self.heading = math.radians(90.0 - spec.heading_deg)  # math radians (0 = east, CCW)
+        self.target: tuple[float, float, float] | None = None
+        self.cruise_speed = spec.max_speed
+        self.moves = 0  # bumped whenever the position changes
+        self.odometer = 0.0
+
+    @property
+    def position(self) -> tuple[float, float, float]:
+        return (self._pos[0], self._pos[1], self._pos[2])
+
+    def pos_key(self) -> object:
+        """Changes whenever the reported position may have changed (for caches)."""
+        return self.moves
+
+    @property
+    def arrived(self) -> bool:
+        """No target left and at rest."""
+        return self.target is None and self.speed == 0.0
+
+    def set_speed(self, speed: float) -> None:
+        self.cruise_speed = max(0.0, min(float(speed), self.spec.max_speed))
+
+    def hold(self) -> None:
+        self.target = None
+
+
+class Carrier(Body):
+    """A ground vehicle (or a large multirotor) on z = 0."""
+
+    def __init__(self, spec: VehicleSpec) -> None:
+        pos = spec.position or (0.0, 0.0, 0.0)
+        super().__init__(spec, (pos[0], pos[1], 0.0))
+        self.turn_rate = None if spec.frame == "multirotor" else spec.turn_rate
+
+    @property
+    def stopped(self) -> bool:
+        return self.speed == 0.0
+
+    def goto(self, x: float, y: float, z: float = 0.0, speed: float | None = None) -> bool:
+        self.target = (float(x), float(y), 0.0)
+        if speed is not None and speed > 0:
+            self.set_speed(speed)
+        return True
+
+    def step(self, dt: float) -> None:
+        accel = self.spec.accel
+        if self.target is None:
+            if self.speed > 0.0:
+                self._advance(_brake(self.speed, accel, dt), dt, None)
+            return
+        tx, ty, _ = self.target
+        dx, dy = tx - self._pos[0], ty - self._pos[1]
+        dist = math.hypot(dx, dy)
+        if dist < 1e-4:
+            self._arrive()
+            return
+        want = math.atan2(dy, dx)
+        err = (want - self.heading + math.pi) % (2 * math.pi) - math.pi
+        if abs(err) > 1e-3 and self.turn_rate is not None:
+            if self.speed > 0.0:  # stop before turning on the spot
+                self._advance(_brake(self.speed, accel, dt), dt, None)
+                return
+            turn = self.turn_rate * dt
+            self.heading = want if abs(err) <= turn else self.heading + math.copysign(turn, err)
+            return
+        self.heading = want
+        speed = _approach(self.speed, self.cruise_speed, accel, dist, dt)
+        self._advance(speed, dt, (dx / dist, dy / dist, dist))
+
+    def _advance(self, speed: float, dt: float, leg: tuple[float, float, float] | None) -> None:
+        self.speed = speed
+        if speed <= 0.0:
+            self.speed = 0.0
+            self.vel = (0.0, 0.0, 0.0)
+            return
+        if leg is None:
+            ux, uy = math.cos(self.heading), math.sin(self.heading)
+            step = speed * dt
+        else:
+            ux, uy, dist = leg
+            step = min(dist, speed * dt)
+        self._pos[0] += ux * step
+        self._pos[1] += uy * step
+        self.vel = (ux * speed, uy * speed, 0.0)
+        self.odometer += step
+        self.moves += 1
+        if leg is not None and step >= leg[2] - _EPS:
+            self._arrive()
+
+    def _arrive(self) -> None:
+        if self.target is not None:
+            self._pos[0], self._pos[1] = self.target[0], self.target[1]
+            self.moves += 1
+        self.target = None
+        self.speed = 0.0
+        self.vel = (0.0, 0.0, 0.0)
+
+
+class Rover(Body):
+    """A small multirotor that rides on the carrier, flies and lands."""
+
+    def __init__(self, spec: VehicleSpec, carrier: Carrier) -> None:
+        super().__init__(spec, spec.position or carrier.position)
+        self.carrier = carrier
+        if spec.position is None:
+            self.phase = Phase.LOADED
+        else:
+            self.phase = Phase.AIR if spec.position[2] > 0 else Phase.GROUND
+        self.climb_rate = spec.climb_rate or spec.max_speed
+        self.land_speed = spec.land_speed or self.climb_rate
+        self.battery = 1.0  # 0..1
+        self.flown = 0.0  # metres flown in total
+        self.landing = False
+        self._land_xy: tuple[float, float] | None = None
+        self.drain_factor: Callable[[], float] = lambda: 1.0
+        self.events: list[str] = []  # "touchdown", "loaded", "battery_empty", "takeoff"
+
+    # -- state -----------------------------------------------------------------------------
+    @property
+    def position(self) -> tuple[float, float, float]:
+        if self.phase is Phase.LOADED:
+            return self.carrier.position
+        return (self._pos[0], self._pos[1], self._pos[2])
+
+    def pos_key(self) -> object:
+        return ("L", self.carrier.moves) if self.phase is Phase.LOADED else self.moves
+
+    @property
+    def loaded(self) -> bool:
+        return self.phase is Phase.LOADED
+
+    @property
+    def on_ground(self) -> bool:
+        return self.phase is not Phase.AIR
+
+    @property
+    def velocity(self) -> tuple[float, float, float]:
+        return self.carrier.vel if self.phase is Phase.LOADED else self.vel
+
+    # -- commands --------------------------------------------------------------------------
+    def _lift_off(self) -> bool:
+        if self.phase is Phase.AIR:
+            return True
+        if self.battery <= 0.0:
+            return False
+        if self.phase is Phase.LOADED:
+            self._pos = list(self.carrier.position)
+        self.phase = Phase.AIR
+        self.speed = 0.0
+        self.events.append("takeoff")
+        return True
+
+    def takeoff(self, alt: float) -> bool:
+        """Climb vertically to height ``alt`` above the ground (detaches from the carrier)."""
+        if not self._lift_off():
+            return False
+        x, y, _ = self.position
+        self.landing = False
+        self.target = (x, y, max(float(alt), 0.1))
+        return True
+
+    def goto(self, x: float, y: float, z: float, speed: float | None = None) -> bool:
+        if speed is not None and speed > 0:
+            self.set_speed(speed)
+        if self.phase is not Phase.AIR and z <= 0.05:
+            return False  # a rover does not drive on the ground
+        if not self._lift_off():
+            return False
+        self.landing = False
+        self.target = (float(x), float(y), max(float(z), 0.0))
+        return True
+
+    def land(self, x: float | None = None, y: float | None = None) -> None:
+        """Land here, or fly to (x, y) at the current height and land there."""
+        if self.phase is not Phase.AIR:
+            return
+        self.landing = True
+        self._land_xy = None if x is None or y is None else (float(x), float(y))
+        self.target = None if self._land_xy is None else (self._land_xy[0], self._land_xy[1], self._pos[2])
+
+    def hold(self) -> None:
+        self.target = None
+        self.landing = False
+
+    # -- physics ---------------------------------------------------------------------------
+    def step(self, dt: float) -> None:
+        if self.phase is not Phase.AIR:
+            return
+        before = self.flown
+        if self.landing and self.target is None and self.speed == 0.0:
+            self._descend(dt)
+        elif self.target is not None:
+            self._fly_to(self.target, dt)
+        elif self.speed > 0.0:
+            self._coast(_brake(self.speed, self.spec.accel, dt), dt)
+        elif self.landing:
+            self._descend(dt)
+        used = self.flown - before
+        if used > 0.0 and self.spec.endurance_range is not None and self.battery > 0.0:
+            self.battery = max(0.0, self.battery - used * self.drain_factor() / self.spec.endurance_range)
+            if self.battery <= 0.0:
+                self.events.append("battery_empty")
+                if self.phase is Phase.AIR and not (self.landing and self._land_xy is None):
+                    self.land()
+                    self.target = None  # straight down where it is
+
+    def _fly_to(self, target: tuple[float, float, float], dt: float) -> None:
+        p = self._pos
+        dx, dy, dz = target[0] - p[0], target[1] - p[1], target[2] - p[2]
+        dist = math.sqrt(dx * dx + dy * dy + dz * dz)
+        if dist < 1e-4:
+            self._stop_at(target)
+            return
+        vmax = self.cruise_speed
+        if abs(dz) > _EPS:
+            vmax = min(vmax, self.climb_rate * dist / abs(dz))
+        speed = _approach(self.speed, vmax, self.spec.accel, dist, dt)
+        step = min(dist, speed * dt)
+        ux, uy, uz = dx / dist, dy / dist, dz / dist
+        p[0] += ux * step
+        p[1] += uy * step
+        p[2] += uz * step
+        self.speed = speed
+        self.vel = (ux * speed, uy * speed, uz * speed)
+        if abs(ux) + abs(uy) > 1e-9:
+            self.heading = math.atan2(uy, ux)
+        self.flown += step
+        self.moves += 1
+        if step >= dist - _EPS:
+            self._stop_at(target)
+
+    def _stop_at(self, target: tuple[float, float, float]) -> None:
+        self._pos = [target[0], target[1], target[2]]
+        self.target = None
+        self.speed = 0.0
+        self.vel = (0.0, 0.0, 0.0)
+        self.moves += 1
+        if self.landing and target[2] <= 0.0:
+            self._touchdown()
+
+    def _coast(self, speed: float, dt: float) -> None:
+        vx, vy, vz = self.vel
+        norm = math.sqrt(vx * vx + vy * vy + vz * vz)
+        self.speed = speed
+        if speed <= 0.0 or norm <= 0.0:
+            self.speed = 0.0
+            self.vel = (0.0, 0.0, 0.0)
+            return
+        k = speed / norm
+        self.vel = (vx * k, vy * k, vz * k)
+        step = speed * dt
+        self._pos[0] += self.vel[0] * dt
+        self._pos[1] += self.vel[1] * dt
+        self._pos[2] = max(0.0, self._pos[2] + self.vel[2] * dt)
+        self.flown += step
+        self.moves += 1
+
+    def _descend(self, dt: float) -> None:
+        z = self._pos[2]
+        step = min(z, self.land_speed * dt)
+        self._pos[2] = z - step
+        self.vel = (0.0, 0.0, -self.land_speed)
+        self.flown += step
+        self.moves += 1
+        if self._pos[2] <= 1e-9:
+            self._touchdown()
+
+    def _touchdown(self) -> None:
+        self._pos[2] = 0.0
+        self.vel = (0.0, 0.0, 0.0)
+        self.speed = 0.0
+        self.landing = False
+        self._land_xy = None
+        self.target = None
+        cx, cy, _ = self.carrier.position
+        if self.carrier.stopped and math.hypot(self._pos[0] - cx, self._pos[1] - cy) <= LOAD_RADIUS:
+            self.phase = Phase.LOADED
+            self.events.append("loaded")
+        else:
+            self.phase = Phase.GROUND
+        self.moves += 1
+        self.events.append("touchdown")
+
+
+class World:
+    """The carrier and its rovers, advanced together in fixed steps."""
+
+    def __init__(self, carrier: VehicleSpec, rovers: list[VehicleSpec]) -> None:
+        self.time = 0.0
+        self.carrier = Carrier(carrier)
+        self.rovers: dict[str, Rover] = {r.id: Rover(r, self.carrier) for r in rovers}
+        self.bodies: dict[str, Body] = {carrier.id: self.carrier, **self.rovers}
+
+    def body(self, vehicle_id: str) -> Body:
+        return self.bodies[vehicle_id]
+
+    def loaded_rovers(self) -> list[str]:
+        return [r.id for r in self.rovers.values() if r.loaded]
+
+    def step(self, dt: float) -> None:
+        self.carrier.step(dt)
+        for r in self.rovers.values():
+            if r.phase is Phase.AIR:
+                r.step(dt)
+        self.time += dt

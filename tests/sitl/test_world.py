@@ -1,0 +1,161 @@
+"""World kinematics, battery and loading/unloading, without any network."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from sitl import LOAD_RADIUS, Phase, VehicleSpec, World
+
+DT = 0.05
+
+
+def world(*, carrier_accel: float | None = 5.0, turn_rate: float | None = None,
+          rover_accel: float | None = None, endurance: float | None = 60.0, heading_deg: float = 90.0,
+          n: int = 1) -> World:
+    carrier = VehicleSpec(id="c", sysid=1, role="carrier", max_speed=10.0, accel=carrier_accel,
+                          turn_rate=turn_rate, position=(0.0, 0.0, 0.0), heading_deg=heading_deg,
+                          frame="ground")
+    rovers = [VehicleSpec(id=f"r{k + 1}", sysid=11 + k, role="rover", max_speed=2.0, accel=rover_accel,
+                          endurance_range=endurance) for k in range(n)]
+    return World(carrier, rovers)
+
+
+def run_until(w: World, cond, limit: float = 600.0) -> float:
+    t0 = w.time
+    while not cond():
+        w.step(DT)
+        assert w.time - t0 < limit, "condition never reached"
+    return w.time - t0
+
+
+@pytest.mark.parametrize("dist", [100.0, 4.0])
+def test_carrier_leg_time_matches_the_time_model(dist: float) -> None:
+    w = world(carrier_accel=5.0)
+    w.carrier.goto(dist, 0.0)
+    t = run_until(w, lambda: w.carrier.arrived)
+    v, a = 10.0, 5.0
+    expected = dist / v + v / a if dist >= v * v / a else 2 * math.sqrt(dist / a)
+    assert t == pytest.approx(expected, abs=3 * DT)
+    assert w.carrier.position == pytest.approx((dist, 0.0, 0.0))
+
+
+def test_carrier_constant_speed_and_turn_on_the_spot() -> None:
+    w = world(carrier_accel=None, turn_rate=1.0, heading_deg=0.0)  # facing north
+    w.carrier.goto(50.0, 0.0)  # east: a quarter turn first
+    t = run_until(w, lambda: w.carrier.arrived)
+    assert t == pytest.approx(math.pi / 2 / 1.0 + 50.0 / 10.0, abs=2 * DT)
+    assert math.degrees(w.carrier.heading) == pytest.approx(0.0, abs=1e-6)
+
+
+def test_loaded_rover_rides_with_the_carrier() -> None:
+    w = world()
+    r = w.rovers["r1"]
+    assert r.loaded and r.phase is Phase.LOADED
+    w.carrier.goto(30.0, 0.0)
+    run_until(w, lambda: w.carrier.arrived)
+    assert r.position == pytest.approx((30.0, 0.0, 0.0))
+    assert r.battery == 1.0  # riding does not use the battery
+
+
+def test_takeoff_detaches_and_landing_on_the_stopped_carrier_loads() -> None:
+    w = world()
+    r = w.rovers["r1"]
+    assert r.takeoff(5.0)
+    assert r.phase is Phase.AIR and not r.loaded
+    run_until(w, lambda: r.arrived)
+    assert r.position == pytest.approx((0.0, 0.0, 5.0))
+    w.carrier.goto(20.0, 0.0)  # the carrier drives away; the rover stays
+    run_until(w, lambda: w.carrier.arrived)
+    assert r.position == pytest.approx((0.0, 0.0, 5.0))
+    r.goto(20.0 + LOAD_RADIUS * 0.9, 0.0, 5.0)
+    run_until(w, lambda: r.arrived)
+    r.land()
+    run_until(w, lambda: r.on_ground)
+    assert r.loaded
+    assert "loaded" in r.events and "touchdown" in r.events
+    assert r.position == pytest.approx(w.carrier.position)
+
+
+def test_landing_away_from_the_carrier_stays_on_the_ground() -> None:
+    w = world()
+    r = w.rovers["r1"]
+    r.takeoff(2.0)
+    run_until(w, lambda: r.arrived)
+    r.land(LOAD_RADIUS + 0.5, 0.0)  # fly there, then land
+    run_until(w, lambda: r.on_ground)
+    assert r.phase is Phase.GROUND
+    assert r.position == pytest.approx((LOAD_RADIUS + 0.5, 0.0, 0.0))
+    w.carrier.goto(10.0, 0.0)
+    run_until(w, lambda: w.carrier.arrived)
+    assert r.position == pytest.approx((LOAD_RADIUS + 0.5, 0.0, 0.0))
+
+
+def test_landing_on_a_moving_carrier_does_not_load() -> None:
+    w = world(carrier_accel=None)
+    r = w.rovers["r1"]
+    r.takeoff(0.5)
+    run_until(w, lambda: r.arrived)
+    w.carrier.goto(1000.0, 0.0, speed=0.5)  # slow: still within the load radius at touchdown
+    w.step(DT)
+    r.land()
+    run_until(w, lambda: r.on_ground)
+    assert math.dist(r.position[:2], w.carrier.position[:2]) < LOAD_RADIUS
+    assert r.phase is Phase.GROUND
+
+
+def test_battery_drains_with_distance_flown() -> None:
+    w = world(endurance=60.0)
+    r = w.rovers["r1"]
+    r.takeoff(10.0)
+    run_until(w, lambda: r.arrived)
+    r.goto(20.0, 0.0, 10.0)
+    run_until(w, lambda: r.arrived)
+    assert r.flown == pytest.approx(30.0, abs=1e-6)
+    assert r.battery == pytest.approx(1.0 - 30.0 / 60.0, abs=1e-6)
+
+
+def test_drain_factor_and_empty_battery_lands_where_it_is() -> None:
+    w = world(endurance=60.0)
+    r = w.rovers["r1"]
+    r.drain_factor = lambda: 2.0
+    r.takeoff(5.0)
+    run_until(w, lambda: r.arrived)
+    assert r.battery == pytest.approx(1.0 - 2 * 5.0 / 60.0, abs=1e-6)
+    r.goto(100.0, 0.0, 5.0)  # 30 m of battery left at factor 2: 25 m horizontally after the climb
+    run_until(w, lambda: r.on_ground)
+    assert "battery_empty" in r.events
+    assert r.battery == 0.0
+    x, y, z = r.position
+    assert z == 0.0 and r.phase is Phase.GROUND
+    assert x == pytest.approx(25.0, abs=2 * DT * 2.0)
+    assert not r.takeoff(5.0)  # an empty battery cannot lift off
+
+
+def test_rover_acceleration_profile() -> None:
+    w = world(rover_accel=1.0)
+    r = w.rovers["r1"]
+    r.takeoff(1.0)
+    run_until(w, lambda: r.arrived)
+    r.goto(40.0, 0.0, 1.0)
+    t = run_until(w, lambda: r.arrived)
+    assert t == pytest.approx(40.0 / 2.0 + 2.0 / 1.0, abs=3 * DT)
+
+
+def test_world_is_deterministic() -> None:
+    def trace() -> list[tuple[float, ...]]:
+        w = world(n=3, rover_accel=0.5)
+        for k, r in enumerate(w.rovers.values()):
+            r.takeoff(2.0 + k)
+        w.carrier.goto(15.0, 5.0)
+        out = []
+        for i in range(400):
+            w.step(DT)
+            if i == 100:
+                for r in w.rovers.values():
+                    r.goto(10.0, 10.0, 3.0)
+            out.append(tuple(c for r in w.rovers.values() for c in r.position) + w.carrier.position)
+        return out
+
+    assert trace() == trace()
