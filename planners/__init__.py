@@ -5,6 +5,7 @@ from __future__ import annotations
 from collections.abc import Callable
 
 from planners.baselines import plan_direct, plan_greedy2opt
+from planners.bounds import deploy_lower_bound
 from planners.deploy import plan_lee
 from planners.plan import Plan
 from planners.problem import DeployProblem, PlanningError
@@ -17,4 +18,4 @@ DEPLOY_PLANNERS: dict[str, Callable[[DeployProblem], Plan]] = {
     "two-task": plan_two_tasks,
 }
 
-__all__ = ["DEPLOY_PLANNERS", "Plan", "PlanningError"]
+__all__ = ["DEPLOY_PLANNERS", "Plan", "PlanningError", "deploy_lower_bound"]

@@ -1,5 +1,7 @@
 """Deployment baselines: ``greedy2opt`` (ch. 4.6.2's comparison) and ``direct``."""
 
+
+
 from __future__ import annotations
 
 import time
@@ -9,42 +11,7 @@ import numpy as np
 from planners.deploy import build_plan
 from planners.plan import Plan
 from planners.problem import DeployProblem, PlanningError
-
-
-def two_opt_route(points: np.ndarray, start: np.ndarray) -> list[int]:
-    """Open tour from ``start`` through every point: nearest neighbour, then 2-opt to a local optimum."""
-    n = len(points)
-    if n == 0:
-        return []
-    nodes = np.vstack([start[None, :], points])
-    dmat = np.linalg.norm(nodes[:, None, :] - nodes[None, :, :], axis=2)
-    # Nearest-neighbour construction from the start (node 0).
-    route = [0]
-    left = np.ones(n + 1, dtype=bool)
-    left[0] = False
-    for _ in range(n):
-        row = np.where(left, dmat[route[-1]], np.inf)
-        nxt = int(np.argmin(row))
-        route.append(nxt)
-        left[nxt] = False
-    # 2-opt on the open path: reverse route[i..j]; the start stays first, the end is free.
-    path = np.array(route)
-    improved = True
-    while improved:
-        improved = False
-        for i in range(1, n):
-            a, b = path[i - 1], path[i]
-            js = np.arange(i + 1, n + 1)
-            c = path[js]
-            d_next = np.append(dmat[c[:-1], path[js[:-1] + 1]], 0.0)  # edge after j (none at the end)
-            after = np.append(dmat[b, path[js[:-1] + 1]], 0.0)
-            gain = dmat[a, b] + d_next - dmat[a, c] - after
-            k = int(np.argmax(gain))
-            if gain[k] > 1e-9:
-                j = int(js[k])
-                path[i: j + 1] = path[i: j + 1][::-1].copy()
-                improved = True
-    return [int(v) - 1 for v in path[1:]]
+from planners.routing import two_opt_route  # noqa: F401  (re-exported for collection)
 
 
 def plan_greedy2opt(problem: DeployProblem) -> Plan:

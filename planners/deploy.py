@@ -11,10 +11,13 @@ import time
 from collections.abc import Sequence
 from dataclasses import dataclass
 
+import numpy as np
+
 from planners.clustering import divide_cluster
 from planners.geometry import enclosing_ball, minimize_1d
 from planners.plan import Plan, RoverLeg, Stop
 from planners.problem import DeployProblem, PlanningError, Vec3
+from planners.routing import two_opt_route
 from planners.timing import RANGE_MARGIN, carrier_hop, leg_time, retime
 
 Point2 = tuple[float, float]
@@ -211,12 +214,13 @@ class _Route:
             self.tail[j] = max(self.tail[j], self.tail[j + 1])
         self.makespan = self.tail[0] if self.tail else 0.0
 
-    def replace(self, i: int, pieces: list[list[int]]) -> tuple[float, list[list[int]], list[Point2]]:
-        """Makespan after cluster i is replaced by ``pieces``, recomputing the stops around the
-        change (the one before, the pieces, the one after) and keeping later stops in place."""
+    def replace(self, i: int, pieces: list[list[int]],
+                count: int = 1) -> tuple[float, list[list[int]], list[Point2]]:
+        """Makespan after clusters i..i+count-1 are replaced by ``pieces``, recomputing the stops
+        around the change (the one before, the pieces, the one after) and keeping later stops."""
         b, old = self.b, self.clusters
-        clusters = old[:i] + pieces + old[i + 1:]
-        geos = self.geos[:i] + [b.inst.geometry(p) for p in pieces] + self.geos[i + 1:]
+        clusters = old[:i] + pieces + old[i + count:]
+        geos = self.geos[:i] + [b.inst.geometry(p) for p in pieces] + self.geos[i + count:]
         lo = max(i - 1, 0)
         hi = i + len(pieces) + 1  # first new index kept from the old route (exclusive window end)
         if hi >= len(clusters) - 2:
@@ -235,7 +239,7 @@ class _Route:
             worst = max(worst, t + b.finish(pos, clusters[k]))
             positions.append(pos)
             prev = pos
-        m = hi - len(pieces) + 1  # old index of the first kept stop
+        m = hi - len(pieces) + count  # old index of the first kept stop
         if m < len(old):
             pos = self.positions[m]
             dt, h = carrier_hop(prev, pos, h, b.carrier)
@@ -249,9 +253,67 @@ class _Route:
         return worst, clusters, positions
 
 
-def lee_clusters(problem: DeployProblem) -> tuple[list[list[int]], list[Point2], float]:
+def _split_loop(builder: _PathBuilder, route: _Route) -> _Route:
+    """Algorithm 4.2: divide each cluster, try the swapped order, keep the faster or merge back."""
+    inst = builder.inst
+    idx = 0
+    while idx < len(route.clusters):
+        members = route.clusters[idx]
+        if len(members) == 1:
+            idx += 1
+            continue
+        prev = builder.start if idx == 0 else route.positions[idx - 1]
+        near, far = divide_cluster(members, inst.pts, (*prev, 0.0))
+        t_cand, c_cand, p_cand = route.replace(idx, [near, far])
+        t_swap, c_swap, p_swap = route.replace(idx, [far, near])
+        if t_swap < t_cand:
+            t_cand, c_cand, p_cand = t_swap, c_swap, p_swap
+        if t_cand <= route.makespan:
+            route = _Route(builder, c_cand, [inst.geometry(c) for c in c_cand], p_cand)
+        else:
+            idx += 1
+    return route
+
+
+def _merge_neighbours(builder: _PathBuilder, route: _Route) -> _Route:
+    """Merge consecutive clusters that fit d_deploy together when that is faster (one unload less)."""
+    inst = builder.inst
+    k = 0
+    while k + 1 < len(route.clusters):
+        union = route.clusters[k] + route.clusters[k + 1]
+        near_enough = math.dist(inst.pts[union[0]], inst.pts[union[-1]]) <= 2 * inst.range  # cheap test
+        if near_enough and inst.fits(union):
+            t, c, p = route.replace(k, [union], count=2)
+            if t < route.makespan:
+                route = _Route(builder, c, [inst.geometry(x) for x in c], p)
+                continue
+        k += 1
+    return route
+
+
+def _reorder(builder: _PathBuilder, route: _Route) -> _Route:
+    """Improvement beyond the dissertation: the split order can make the carrier's path cross
+    itself; re-sequence the clusters as an open tour over their centres (2-opt from the current
+    order, and nearest neighbour + 2-opt) and keep the faster route."""
+    if len(route.clusters) < 3:
+        return route
+    centers = np.array([g.center for g in route.geos])
+    start = np.array(builder.start)
+    best = route
+    for initial in (list(range(len(centers))), None):
+        order = two_opt_route(centers, start, initial)
+        if order == list(range(len(centers))):
+            continue
+        cand = builder.route([route.clusters[i] for i in order])
+        if cand.makespan < best.makespan:
+            best = cand
+    return best
+
+
+def lee_clusters(problem: DeployProblem, improve: bool = True) -> tuple[list[list[int]], list[Point2], float]:
     """Algorithm 4.1–4.2: divide until every cluster fits d_deploy, then the split/swap/merge loop
-    that keeps the fastest path. Returns clusters in visiting order, stops and makespan."""
+    that keeps the fastest path; with ``improve``, then re-sequence and merge clusters and run
+    the loop again while that helps. Returns clusters in visiting order, stops and makespan."""
     inst = _Instance(problem)
     builder = _PathBuilder(inst)
     start = builder.start
@@ -269,25 +331,12 @@ def lee_clusters(problem: DeployProblem) -> tuple[list[list[int]], list[Point2],
             clusters[idx: idx + 1] = [near, far]
         else:
             idx += 1
-    route = builder.route(clusters)
-
-    # Compare and update (Algorithm 4.2): divide, try the swapped order, keep or merge back.
-    idx = 0
-    while idx < len(route.clusters):
-        members = route.clusters[idx]
-        if len(members) == 1:
-            idx += 1
-            continue
-        prev = start if idx == 0 else route.positions[idx - 1]
-        near, far = divide_cluster(members, inst.pts, (*prev, 0.0))
-        t_cand, c_cand, p_cand = route.replace(idx, [near, far])
-        t_swap, c_swap, p_swap = route.replace(idx, [far, near])
-        if t_swap < t_cand:
-            t_cand, c_cand, p_cand = t_swap, c_swap, p_swap
-        if t_cand <= route.makespan:
-            route = _Route(builder, c_cand, [inst.geometry(c) for c in c_cand], p_cand)
-        else:
-            idx += 1
+    route = _split_loop(builder, builder.route(clusters))
+    for _ in range(3 if improve else 0):
+        better = _split_loop(builder, _merge_neighbours(builder, _reorder(builder, route)))
+        if better.makespan >= route.makespan - 1e-9:
+            break
+        route = better
 
     # The loop re-placed stops only around each change; place every stop afresh, finely, and
     # keep whichever of the two routes is faster.

@@ -7,6 +7,7 @@ All positions are local ENU metres (x east, y north, z up); headings are math ra
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cached_property
 
 Vec3 = tuple[float, float, float]
 
@@ -31,7 +32,7 @@ class CarrierSpec:
     unload_time: float = 0.0
     load_time: float = 0.0
 
-    @property
+    @cached_property
     def motion(self) -> Motion:
         return Motion(self.max_speed, self.accel)
 

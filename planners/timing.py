@@ -79,7 +79,8 @@ def carrier_hop(p: Sequence[float], q: Sequence[float], heading: float,
     if dx * dx + dy * dy <= 1e-18:
         return 0.0, heading
     h = math.atan2(dy, dx)
-    return turn_time(heading, h, carrier.turn_rate) + leg_time(math.hypot(dx, dy), carrier.motion), h
+    turn = 0.0 if carrier.turn_rate is None else heading_change(heading, h) / carrier.turn_rate
+    return turn + leg_time(math.hypot(dx, dy), carrier.motion), h
 
 
 def deploy_schedule(

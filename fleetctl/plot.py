@@ -1,0 +1,108 @@
+"""Draw a plan with matplotlib (``fleetctl plan --plot OUT.png``)."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+from matplotlib.patches import Circle  # noqa: E402
+from matplotlib.patches import Polygon as PolygonPatch  # noqa: E402
+
+from fleetctl.mission import Mission  # noqa: E402
+from planners.plan import Plan  # noqa: E402
+
+
+def plot_plan(mission: Mission, plan: Plan, out: str | Path, lower_bound: float | None = None) -> Path:
+    """Top view (and a side view when anything flies above the ground) of a deploy or collect plan.
+
+    Deploy: tasks, stops, carrier route, rover flights, d_deploy circles around the stops.
+    Collect: rovers, their reach circles on the ground, meeting points, carrier route, rover
+    flights; one colour per stop (cluster).
+    """
+    out = Path(out)
+    legs = plan.legs()
+    heights = [p[2] for leg in legs for p in leg.path]
+    three_d = any(abs(z) > 1e-9 for z in heights)
+    if three_d:
+        fig, (ax, side) = plt.subplots(1, 2, figsize=(15, 7.5), gridspec_kw={"width_ratios": [3, 2]})
+    else:
+        fig, ax = plt.subplots(figsize=(9, 9))
+        side = None
+    cmap = plt.get_cmap("tab10" if len(plan.stops) <= 10 else "tab20")
+
+    for poly in mission.obstacles:
+        ax.add_patch(PolygonPatch(poly, closed=True, facecolor="0.6", edgecolor="0.3", alpha=0.6))
+    if mission.bounds is not None:
+        (x0, y0), (x1, y1) = mission.bounds
+        ax.plot([x0, x1, x1, x0, x0], [y0, y0, y1, y1, y0], color="0.8", lw=0.8)
+
+    route_x = [plan.start[0]]
+    route_y = [plan.start[1]]
+    for stop in plan.stops:
+        for p in stop.carrier_path[1:]:
+            route_x.append(p[0])
+            route_y.append(p[1])
+    ax.plot(route_x, route_y, "-", color="black", lw=2.0, label="carrier route", zorder=3)
+    ax.plot(*plan.start[:2], marker="s", color="black", ms=10, ls="none", label="carrier start", zorder=4)
+    ax.annotate("", xy=(plan.start[0] + 4 * math.cos(plan.heading), plan.start[1] + 4 * math.sin(plan.heading)),
+                xytext=plan.start[:2], arrowprops={"arrowstyle": "->", "color": "black"})
+
+    reach = {r.id: r for r in (mission.collection or ())}
+    for k, stop in enumerate(plan.stops):
+        colour = cmap(k % cmap.N)
+        sx, sy = stop.position[0], stop.position[1]
+        ax.plot(sx, sy, marker="D", color=colour, ms=9, mec="black", ls="none", zorder=5,
+                label="stops" if k == 0 else None)
+        ax.annotate(f"{k + 1}", (sx, sy), textcoords="offset points", xytext=(6, 6), fontsize=9, weight="bold")
+        if plan.kind == "deploy":
+            ax.add_patch(Circle((sx, sy), mission.rovers.deploy_range, fill=False, ls=":", color=colour, lw=1))
+        for leg in stop.rovers:
+            xs, ys = [p[0] for p in leg.path], [p[1] for p in leg.path]
+            ax.plot(xs, ys, "--", color=colour, lw=1.2, zorder=2)
+            if plan.kind == "deploy":
+                tx, ty, tz = leg.end
+                ax.plot(tx, ty, marker="o", color=colour, ms=7, mec="black", ls="none", zorder=4)
+                label = f"{leg.task}" + (f" ({tz:g} m)" if three_d else "")
+                ax.annotate(label, (tx, ty), textcoords="offset points", xytext=(4, -10), fontsize=7)
+            else:
+                fx, fy, fz = leg.start
+                ax.plot(fx, fy, marker="^", color=colour, ms=7, mec="black", ls="none", zorder=4)
+                ax.annotate(leg.rover, (fx, fy), textcoords="offset points", xytext=(4, -10), fontsize=7)
+                rov = reach.get(leg.rover)
+                if rov is not None:
+                    ground = math.sqrt(max(rov.range**2 - fz**2, 0.0))
+                    ax.add_patch(Circle((fx, fy), ground, fill=False, ls=":", color=colour, lw=1))
+            if side is not None:
+                side.plot([p[0] for p in leg.path], [p[2] for p in leg.path], "--", color=colour, lw=1.2)
+                end = leg.end if plan.kind == "deploy" else leg.start
+                side.plot(end[0], end[2], marker="o" if plan.kind == "deploy" else "^", color=colour,
+                          mec="black", ls="none")
+        if side is not None:
+            side.plot(sx, 0.0, marker="D", color=colour, mec="black", ls="none")
+
+    what = "deployment" if plan.kind == "deploy" else "collection"
+    title = (f"{mission.name}: {what} by {plan.planner} — makespan {plan.makespan:.2f} s, "
+             f"carrier {plan.carrier_distance:.1f} m, {len(plan.stops)} stops")
+    if lower_bound is not None:
+        title += f" (lower bound {lower_bound:.2f} s)"
+    ax.set_title(title, fontsize=10)
+    ax.set_xlabel("east (m)")
+    ax.set_ylabel("north (m)")
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.grid(True, color="0.92")
+    ax.legend(loc="best", fontsize=8)
+    if side is not None:
+        side.set_title("side view (east vs height)", fontsize=10)
+        side.set_xlabel("east (m)")
+        side.set_ylabel("height (m)")
+        side.axhline(0.0, color="0.5", lw=0.8)
+        side.grid(True, color="0.92")
+    fig.tight_layout()
+    out.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(out, dpi=110)
+    plt.close(fig)
+    return out
