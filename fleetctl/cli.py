@@ -116,7 +116,8 @@ def build_parser() -> argparse.ArgumentParser:
     )
     plan.add_argument("--mission", "-m", required=True, help="mission YAML file (see missions/)")
     plan.add_argument("--collect", action="store_true",
-                      help="plan the collection of the mission's 'collection' rovers instead of the deployment")
+                      help="plan the collection of the mission's 'collection' rovers "
+                           "instead of the deployment")
     plan.add_argument("--planner", "-p",
                       help="deployment: lee (default), greedy2opt, direct, two-task; "
                            "collection: lee (default), lee-convex, visit-all, gather")

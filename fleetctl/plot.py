@@ -48,8 +48,8 @@ def plot_plan(mission: Mission, plan: Plan, out: str | Path, lower_bound: float 
             route_y.append(p[1])
     ax.plot(route_x, route_y, "-", color="black", lw=2.0, label="carrier route", zorder=3)
     ax.plot(*plan.start[:2], marker="s", color="black", ms=10, ls="none", label="carrier start", zorder=4)
-    ax.annotate("", xy=(plan.start[0] + 4 * math.cos(plan.heading), plan.start[1] + 4 * math.sin(plan.heading)),
-                xytext=plan.start[:2], arrowprops={"arrowstyle": "->", "color": "black"})
+    tip = (plan.start[0] + 4 * math.cos(plan.heading), plan.start[1] + 4 * math.sin(plan.heading))
+    ax.annotate("", xy=tip, xytext=plan.start[:2], arrowprops={"arrowstyle": "->", "color": "black"})
 
     reach = {r.id: r for r in (mission.collection or ())}
     for k, stop in enumerate(plan.stops):
@@ -57,9 +57,11 @@ def plot_plan(mission: Mission, plan: Plan, out: str | Path, lower_bound: float 
         sx, sy = stop.position[0], stop.position[1]
         ax.plot(sx, sy, marker="D", color=colour, ms=9, mec="black", ls="none", zorder=5,
                 label="stops" if k == 0 else None)
-        ax.annotate(f"{k + 1}", (sx, sy), textcoords="offset points", xytext=(6, 6), fontsize=9, weight="bold")
+        ax.annotate(f"{k + 1}", (sx, sy), textcoords="offset points", xytext=(6, 6), fontsize=9,
+                    weight="bold")
         if plan.kind == "deploy":
-            ax.add_patch(Circle((sx, sy), mission.rovers.deploy_range, fill=False, ls=":", color=colour, lw=1))
+            ax.add_patch(Circle((sx, sy), mission.rovers.deploy_range, fill=False, ls=":", color=colour,
+                                lw=1))
         for leg in stop.rovers:
             xs, ys = [p[0] for p in leg.path], [p[1] for p in leg.path]
             ax.plot(xs, ys, "--", color=colour, lw=1.2, zorder=2)
