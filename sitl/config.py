@@ -140,20 +140,20 @@ class FleetConfig:
             connection=str(c.get("connection", "sim")),
             position=_position(c.get("position", (0.0, 0.0)), "carrier.position", ground=True),
             heading_deg=_num(c.get("heading_deg", 0.0), "carrier.heading_deg"),
-            max_speed=_num(c.get("max_speed"), "carrier.max_speed"),
-            accel=_opt_num(c.get("accel"), "carrier.accel"),
-            turn_rate=_opt_num(c.get("turn_rate"), "carrier.turn_rate"),
+            max_speed=_pos_num(c.get("max_speed"), "carrier.max_speed"),
+            accel=_opt_pos(c.get("accel"), "carrier.accel"),
+            turn_rate=_opt_pos(c.get("turn_rate"), "carrier.turn_rate"),
             frame=str(c.get("frame", "ground")),
         )
 
         r = _mapping(d.get("rovers"), "rovers")
         common = dict(
             role="rover",
-            max_speed=_num(r.get("max_speed"), "rovers.max_speed"),
-            accel=_opt_num(r.get("accel"), "rovers.accel"),
-            climb_rate=_opt_num(r.get("climb_rate"), "rovers.climb_rate"),
-            land_speed=_opt_num(r.get("land_speed"), "rovers.land_speed"),
-            endurance_range=_opt_num(r.get("endurance_range"), "rovers.endurance_range"),
+            max_speed=_pos_num(r.get("max_speed"), "rovers.max_speed"),
+            accel=_opt_pos(r.get("accel"), "rovers.accel"),
+            climb_rate=_opt_pos(r.get("climb_rate"), "rovers.climb_rate"),
+            land_speed=_opt_pos(r.get("land_speed"), "rovers.land_speed"),
+            endurance_range=_opt_pos(r.get("endurance_range"), "rovers.endurance_range"),
         )
         rovers: list[VehicleSpec] = []
         if "units" in r and r["units"] is not None:
@@ -200,7 +200,7 @@ class FleetConfig:
             origin=(lat, lon, alt),
             carrier=carrier,
             rovers=rovers,
-            speedup=speedup if speedup is not None else _num(sim.get("speedup", 1.0), "sim.speedup"),
+            speedup=speedup if speedup is not None else _pos_num(sim.get("speedup", 1.0), "sim.speedup"),
             seed=_int(seed_val, "sim.seed"),
             faults=faults,
             autopilot=autopilot or str(sim.get("autopilot", "px4")),
@@ -226,8 +226,13 @@ def _num(val: Any, where: str) -> float:
     return float(val)
 
 
-def _opt_num(val: Any, where: str) -> float | None:
-    return None if val is None else _num(val, where)
+def _pos_num(val: Any, where: str) -> float:
+    _positive(val, where)
+    return float(val)
+
+
+def _opt_pos(val: Any, where: str) -> float | None:
+    return None if val is None else _pos_num(val, where)
 
 
 def _int(val: Any, where: str) -> int:
