@@ -5,7 +5,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy.sparse.csgraph import minimum_spanning_tree
 
 from planners.problem import DeployProblem
 from planners.timing import leg_time
@@ -49,10 +48,8 @@ def _stops_bound(problem: DeployProblem) -> float:
     w = np.zeros((k + 1, k + 1))
     w[0, 1:] = np.maximum(np.linalg.norm(pts - start, axis=1) - r, 0.0)
     w[1:, 1:] = np.maximum(np.linalg.norm(pts[:, None] - pts[None], axis=2) - r[:, None] - r[None, :], 0.0)
-    w = np.triu(w, 1)
-    eps = 1e-9  # scipy reads a zero as "no edge": lift every edge, then take the lift back off
-    tree = minimum_spanning_tree(np.where(np.triu(np.ones_like(w), 1) > 0, w + eps, 0.0))
-    length = max(float(tree.sum()) - k * eps, 0.0)
+    w = np.maximum(w, w.T)
+    length = _mst_length(w)
     return leg_time(length, problem.carrier.motion) + k * problem.carrier.unload_time
 
 
@@ -89,3 +86,21 @@ def _task_bound(problem: DeployProblem) -> float:
             bound = min(car[j] + rov[j + 1] for j in range(_GRID))
         best = max(best, c.unload_time + bound)
     return best
+
+
+def _mst_length(w: np.ndarray) -> float:
+    """Total weight of a minimum spanning tree of a complete graph (Prim, dense)."""
+    n = len(w)
+    if n <= 1:
+        return 0.0
+    in_tree = np.zeros(n, dtype=bool)
+    in_tree[0] = True
+    best = w[0].copy()
+    total = 0.0
+    for _ in range(n - 1):
+        cand = np.where(in_tree, np.inf, best)
+        j = int(np.argmin(cand))
+        total += float(cand[j])
+        in_tree[j] = True
+        best = np.minimum(best, w[j])
+    return total

@@ -156,17 +156,26 @@ class _PathBuilder:
         last = k == len(clusters) - 1
         nxt = None if last else geos[k + 1].center
 
+        def last_stop(pos: Point2, h: float, t1: float, u: float) -> float:
+            q = _lerp(pos, nxt, u)
+            dt2, _ = carrier_hop(pos, q, h, self.carrier)
+            return t1 + dt2 + self.unload + self.finish(q, clusters[k + 1])
+
         def makespan(s: float) -> float:
             pos = _lerp(prev, center, s)
             dt, h = carrier_hop(prev, pos, heading, self.carrier)
             t1 = t + dt + self.unload
             m = max(worst, t1 + self.finish(pos, clusters[k]))
             if nxt is not None:
-                dt2, _ = carrier_hop(pos, nxt, h, self.carrier)
-                m = max(m, t1 + dt2 + self.unload + self.finish(nxt, clusters[k + 1]))
+                tail = last_stop(pos, h, t1, 1.0)
+                if fine:  # the last stop may stop short of its centre too: optimise both jointly
+                    u_lo = self.inst.feasible_from(pos, nxt, clusters[k + 1])
+                    tail = min(tail, minimize_1d(lambda u: last_stop(pos, h, t1, u), u_lo, 1.0,
+                                                 samples=6, tol=1e-6)[1])
+                m = max(m, tail)
             return m
 
-        s, best = minimize_1d(makespan, s_lo, 1.0, samples=12 if fine else 6, tol=1e-7 if fine else 1e-4)
+        s, best = minimize_1d(makespan, s_lo, 1.0, samples=24 if fine else 6, tol=1e-7 if fine else 1e-4)
         for cand in (s_lo, 1.0):
             if makespan(cand) <= best:
                 s, best = cand, makespan(cand)
@@ -291,6 +300,18 @@ def _merge_neighbours(builder: _PathBuilder, route: _Route) -> _Route:
     return route
 
 
+def _swap_neighbours(builder: _PathBuilder, route: _Route) -> _Route:
+    """Visit consecutive clusters the other way round when that is faster (the SWAP_CLUSTERS of
+    Algorithm 4.2 applied to every neighbouring pair, including the initial split's)."""
+    k = 0
+    while k + 1 < len(route.clusters):
+        t, c, p = route.replace(k, [route.clusters[k + 1], route.clusters[k]], count=2)
+        if t < route.makespan - 1e-9:
+            route = _Route(builder, c, [builder.inst.geometry(x) for x in c], p)
+        k += 1
+    return route
+
+
 def _reorder(builder: _PathBuilder, route: _Route) -> _Route:
     """Improvement beyond the dissertation: the split order can make the carrier's path cross
     itself; re-sequence the clusters as an open tour over their centres (2-opt from the current
@@ -333,7 +354,8 @@ def lee_clusters(problem: DeployProblem, improve: bool = True) -> tuple[list[lis
             idx += 1
     route = _split_loop(builder, builder.route(clusters))
     for _ in range(3 if improve else 0):
-        better = _split_loop(builder, _merge_neighbours(builder, _reorder(builder, route)))
+        better = _reorder(builder, route)
+        better = _split_loop(builder, _merge_neighbours(builder, _swap_neighbours(builder, better)))
         if better.makespan >= route.makespan - 1e-9:
             break
         route = better
@@ -369,4 +391,14 @@ def plan_lee(problem: DeployProblem) -> Plan:
         raise PlanningError(f"{len(problem.tasks)} tasks need as many rovers, only "
                             f"{len(problem.rover_ids())} on the carrier")
     clusters, positions, _ = lee_clusters(problem)
-    return build_plan(problem, "lee", clusters, positions, (time.perf_counter() - t0) * 1e3)
+    plan = build_plan(problem, "lee", clusters, positions)
+    if len(problem.tasks) == 2:  # where it applies, the two-task optimum of ch. 4.3 (jointly placed stops)
+        from planners.two_task import plan_two_tasks
+
+        two = plan_two_tasks(problem)
+        if two.makespan < plan.makespan:
+            index = {t.id: i for i, t in enumerate(problem.tasks)}
+            plan = build_plan(problem, "lee", [[index[leg.task] for leg in s.rovers] for s in two.stops],
+                              [(s.position[0], s.position[1]) for s in two.stops])
+    plan.compute_ms = (time.perf_counter() - t0) * 1e3
+    return plan

@@ -1,0 +1,91 @@
+"""The time model (DESIGN.md, eq. 4.2/4.3/5.2) against hand-computed values."""
+
+import math
+
+import pytest
+
+from planners.plan import Plan, RoverLeg, Stop
+from planners.problem import CarrierSpec, Motion
+from planners.timing import (
+    carrier_leg,
+    collect_schedule,
+    deploy_schedule,
+    heading_change,
+    leg_time,
+    retime,
+    turn_time,
+)
+
+
+def test_leg_reaches_top_speed():
+    # S = 100 >= v²/a = 225/10 = 22.5: S/v + v/a = 6.6667 + 1.5
+    assert leg_time(100.0, Motion(15.0, 10.0)) == pytest.approx(100 / 15 + 1.5)
+
+
+def test_leg_too_short_for_top_speed():
+    # S = 10 < 22.5: 2·sqrt(S/a) = 2·1 = 2
+    assert leg_time(10.0, Motion(15.0, 10.0)) == pytest.approx(2.0)
+
+
+def test_leg_branches_meet_at_the_threshold():
+    m = Motion(15.0, 10.0)
+    s = 15.0**2 / 10.0
+    assert leg_time(s - 1e-9, m) == pytest.approx(leg_time(s, m), abs=1e-6)
+    assert leg_time(s, m) == pytest.approx(2 * 15 / 10)
+
+
+def test_constant_speed_and_zero_length():
+    assert leg_time(30.0, Motion(2.0, None)) == pytest.approx(15.0)
+    assert leg_time(0.0, Motion(2.0, 1.0)) == 0.0
+
+
+def test_rotation():
+    assert heading_change(0.1, 2 * math.pi - 0.1) == pytest.approx(0.2)
+    assert heading_change(0.0, math.pi) == pytest.approx(math.pi)
+    assert turn_time(0.0, math.pi / 2, 2.0) == pytest.approx(math.pi / 4)
+    assert turn_time(0.0, math.pi / 2, None) == 0.0
+
+
+def test_carrier_leg_turns_at_the_start_only():
+    c = CarrierSpec(max_speed=10.0, accel=None, turn_rate=1.0)
+    # heading east, leg goes north then east: turn π/2 at the start (charged), π/2 at the vertex (not)
+    t, h = carrier_leg([(0, 0, 0), (0, 10, 0), (10, 10, 0)], 0.0, c)
+    assert t == pytest.approx(math.pi / 2 + 2.0)
+    assert h == pytest.approx(0.0)
+
+
+def test_deploy_schedule_by_hand():
+    c = CarrierSpec(max_speed=10.0, accel=5.0, turn_rate=2.0, unload_time=1.0)
+    r = Motion(2.0)
+    # start (0,0) heading north; stop 1 at (0, 40): no turn, S = 40 >= 20: 4 + 2 = 6 s; unload 1
+    # stop 2 at (10, 40): turn π/2 → π/4 s, S = 10 < 20: 2·sqrt(2) s; unload 1
+    paths = [[(0, 0, 0), (0, 40, 0)], [(0, 40, 0), (10, 40, 0)]]
+    lengths = [[6.0], [4.0, 0.0]]
+    arrive, depart, rovers, makespan = deploy_schedule((0, 0, 0), math.pi / 2, paths, lengths, c, r)
+    assert arrive[0] == pytest.approx(6.0)
+    assert depart[0] == pytest.approx(7.0)
+    assert rovers[0][0] == pytest.approx(10.0)
+    assert arrive[1] == pytest.approx(7.0 + math.pi / 4 + 2 * math.sqrt(2))
+    assert depart[1] == pytest.approx(arrive[1] + 1.0)
+    assert rovers[1] == pytest.approx([depart[1] + 2.0, depart[1]])
+    assert makespan == pytest.approx(max(10.0, depart[1] + 2.0))
+
+
+def test_collect_schedule_waits_for_late_rovers():
+    c = CarrierSpec(max_speed=10.0, accel=None, turn_rate=None, load_time=2.0)
+    r = Motion(1.0)
+    paths = [[(0, 0, 0), (10, 0, 0)], [(10, 0, 0), (20, 0, 0)]]
+    # stop 1: carrier at 1 s, rover arrives at 5 s → eta 7; stop 2: carrier 8 s, rover 3 s → eta 10
+    arrive, depart, rovers, makespan = collect_schedule((0, 0, 0), 0.0, paths, [[5.0], [3.0]], c, r)
+    assert arrive == pytest.approx([1.0, 8.0])
+    assert depart == pytest.approx([7.0, 10.0])
+    assert makespan == pytest.approx(10.0)
+
+
+def test_retime_fills_a_plan():
+    c = CarrierSpec(max_speed=10.0, accel=None, turn_rate=None, unload_time=1.0)
+    stop = Stop(position=(10, 0, 0), carrier_path=[(0, 0, 0), (10, 0, 0)],
+                rovers=[RoverLeg("r1", [(10, 0, 0), (10, 3, 4)], task="t1")])
+    plan = retime(Plan("deploy", "x", (0, 0, 0), 0.0, [stop]), c, Motion(1.0))
+    assert plan.makespan == pytest.approx(1.0 + 1.0 + 5.0)
+    assert plan.carrier_distance == pytest.approx(10.0)
