@@ -73,7 +73,14 @@ class _Instance:
     def reach_from(self, p: Point2, members: Sequence[int]) -> float:
         """Longest rover flight from ground point ``p`` to the cluster's tasks (eq. 4.5 numerator)."""
         x, y = p
-        return max(math.dist((x, y, 0.0), self.pts[i]) for i in members)
+        pts = self.pts
+        worst = 0.0
+        for i in members:
+            q = pts[i]
+            d2 = (q[0] - x) ** 2 + (q[1] - y) ** 2 + q[2] * q[2]
+            if d2 > worst:
+                worst = d2
+        return math.sqrt(worst)
 
     def feasible_from(self, a: Point2, b: Point2, members: Sequence[int]) -> float:
         """Smallest s in [0, 1] such that a + s·(b − a) serves every task (b must serve them)."""
@@ -161,24 +168,35 @@ class _PathBuilder:
             dt2, _ = carrier_hop(pos, q, h, self.carrier)
             return t1 + dt2 + self.unload + self.finish(q, clusters[k + 1])
 
-        def makespan(s: float) -> float:
+        def makespan(s: float, u: float = 1.0) -> float:
             pos = _lerp(prev, center, s)
             dt, h = carrier_hop(prev, pos, heading, self.carrier)
             t1 = t + dt + self.unload
             m = max(worst, t1 + self.finish(pos, clusters[k]))
             if nxt is not None:
-                tail = last_stop(pos, h, t1, 1.0)
-                if fine:  # the last stop may stop short of its centre too: optimise both jointly
-                    u_lo = self.inst.feasible_from(pos, nxt, clusters[k + 1])
-                    tail = min(tail, minimize_1d(lambda u: last_stop(pos, h, t1, u), u_lo, 1.0,
-                                                 samples=6, tol=1e-6)[1])
-                m = max(m, tail)
+                m = max(m, last_stop(pos, h, t1, u))
             return m
 
-        s, best = minimize_1d(makespan, s_lo, 1.0, samples=24 if fine else 6, tol=1e-7 if fine else 1e-4)
-        for cand in (s_lo, 1.0):
-            if makespan(cand) <= best:
-                s, best = cand, makespan(cand)
+        def best_s(u: float) -> tuple[float, float]:
+            s, best = minimize_1d(lambda x: makespan(x, u), s_lo, 1.0, samples=24 if fine else 6,
+                                  tol=1e-7 if fine else 2e-3)
+            for cand in (s_lo, 1.0):
+                if makespan(cand, u) <= best:
+                    s, best = cand, makespan(cand, u)
+            return s, best
+
+        s, best = best_s(1.0)
+        if fine and nxt is not None:
+            # The last stop may stop short of its centre too: place both by coordinate descent on
+            # (s, u), u the fraction of the way from this stop to the next centre.
+            for _ in range(2):
+                pos = _lerp(prev, center, s)
+                u_lo = self.inst.feasible_from(pos, nxt, clusters[k + 1])
+                u, _ = minimize_1d(lambda x, s=s: makespan(s, x), u_lo, 1.0, samples=8, tol=1e-7)
+                s2, best2 = best_s(u)
+                if best2 >= best - 1e-9:
+                    break
+                s, best = s2, best2
         return _lerp(prev, center, s)
 
     def route(self, clusters: list[list[int]], fine: bool = False) -> _Route:
@@ -262,13 +280,23 @@ class _Route:
         return worst, clusters, positions
 
 
-def _split_loop(builder: _PathBuilder, route: _Route) -> _Route:
-    """Algorithm 4.2: divide each cluster, try the swapped order, keep the faster or merge back."""
+def _split_loop(builder: _PathBuilder, route: _Route, tried: set | None = None) -> _Route:
+    """Algorithm 4.2: divide each cluster, try the swapped order, keep the faster or merge back.
+
+    ``tried`` remembers rejected divisions (cluster with its neighbours) so that later rounds of
+    the improvement search do not evaluate them again.
+    """
     inst = builder.inst
+    tried = set() if tried is None else tried
     idx = 0
     while idx < len(route.clusters):
         members = route.clusters[idx]
         if len(members) == 1:
+            idx += 1
+            continue
+        key = (tuple(route.clusters[idx - 1]) if idx else (), tuple(members),
+               tuple(route.clusters[idx + 1]) if idx + 1 < len(route.clusters) else ())
+        if key in tried:
             idx += 1
             continue
         prev = builder.start if idx == 0 else route.positions[idx - 1]
@@ -280,6 +308,7 @@ def _split_loop(builder: _PathBuilder, route: _Route) -> _Route:
         if t_cand <= route.makespan:
             route = _Route(builder, c_cand, [inst.geometry(c) for c in c_cand], p_cand)
         else:
+            tried.add(key)
             idx += 1
     return route
 
@@ -352,10 +381,11 @@ def lee_clusters(problem: DeployProblem, improve: bool = True) -> tuple[list[lis
             clusters[idx: idx + 1] = [near, far]
         else:
             idx += 1
-    route = _split_loop(builder, builder.route(clusters))
+    tried: set = set()
+    route = _split_loop(builder, builder.route(clusters), tried)
     for _ in range(3 if improve else 0):
         better = _reorder(builder, route)
-        better = _split_loop(builder, _merge_neighbours(builder, _swap_neighbours(builder, better)))
+        better = _split_loop(builder, _merge_neighbours(builder, _swap_neighbours(builder, better)), tried)
         if better.makespan >= route.makespan - 1e-9:
             break
         route = better
