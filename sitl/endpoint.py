@@ -112,11 +112,11 @@ def _new_parser() -> Any:
 class UdpEndpoint(asyncio.DatagramProtocol):
     """asyncio UDP endpoint for the vehicles attached to it."""
 
-    def __init__(self, spec: LinkSpec, clock: Clock, faults: FaultBook, seed: int) -> None:
+    def __init__(self, spec: LinkSpec, clock: Clock, faults: FaultBook, seed: int, name: str = "") -> None:
         self.spec = spec
         self.clock = clock
         self.faults = faults
-        self.rng = random.Random(f"{seed}:{spec.url}")
+        self.rng = random.Random(f"{seed}:{spec.url}:{name}")  # packet loss: deterministic per seed
         self.vehicles: dict[int, SimVehicle] = {}
         self.stats = LinkStats()
         self.peers: dict[Any, float] = {}

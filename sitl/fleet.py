@@ -109,7 +109,7 @@ class SimFleet:
             return
         try:
             for spec, ids in self._links:
-                ep = UdpEndpoint(spec, self, self.faults, self.config.seed)
+                ep = UdpEndpoint(spec, self, self.faults, self.config.seed, name=ids[0])
                 for vid in ids:
                     ep.attach(self.vehicles[vid])
                     self._endpoint_of[vid] = ep

@@ -169,3 +169,35 @@ def test_python_m_sitl_reports_a_bad_mission(tmp_path: Path) -> None:
                          text=True, timeout=30)
     assert out.returncode == 2
     assert "carrier.max_speed" in out.stderr and "Traceback" not in out.stderr
+
+
+async def test_port_in_use_is_reported() -> None:
+    import socket
+
+    sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    sock.bind(("127.0.0.1", 0))
+    try:
+        d = copy.deepcopy(MISSION)
+        d["carrier"]["connection"] = f"udp://127.0.0.1:{sock.getsockname()[1]}"
+        fleet = SimFleet(FleetConfig.from_mission_dict(d))
+        with pytest.raises(LinkError, match="choose another port"):
+            await fleet.start()
+        assert not fleet.running
+    finally:
+        sock.close()
+
+
+async def test_rovers_placed_in_the_field() -> None:
+    d = copy.deepcopy(MISSION)
+    d["rovers"].pop("fleet")
+    d["rovers"]["units"] = [{"id": "a", "sysid": 21, "position": [57, 11, 8]},
+                            {"id": "b", "sysid": 22, "position": [40, 20]}]
+    async with SimFleet(FleetConfig.from_mission_dict(d)) as fleet:
+        snap = fleet.snapshot()
+        a, b = snap["a"], snap["b"]
+        assert a["position"] == (57.0, 11.0, 8.0) and a["armed"] and not a["on_ground"]
+        assert b["position"] == (40.0, 20.0, 0.0) and b["on_ground"] and not b["loaded"]
+        assert snap["carrier"]["position"] == (52.0, 60.0, 0.0)
+        t = fleet.sim_time
+        await fleet.wait_sim_time(t + 0.5, timeout=3)
+        assert fleet.rover("a").position == (57.0, 11.0, 8.0)  # hovers in place
