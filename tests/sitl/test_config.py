@@ -192,6 +192,7 @@ async def test_rovers_placed_in_the_field() -> None:
     d["rovers"].pop("fleet")
     d["rovers"]["units"] = [{"id": "a", "sysid": 21, "position": [57, 11, 8]},
                             {"id": "b", "sysid": 22, "position": [40, 20]}]
+    d["sim"] = {"speedup": 10}
     async with SimFleet(FleetConfig.from_mission_dict(d)) as fleet:
         snap = fleet.snapshot()
         a, b = snap["a"], snap["b"]
