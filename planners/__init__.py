@@ -6,9 +6,13 @@ from collections.abc import Callable
 
 from planners.baselines import plan_direct, plan_greedy2opt
 from planners.bounds import deploy_lower_bound
+from planners.collection import plan_collect_lee
+from planners.collection_baselines import plan_collect_gather, plan_collect_visit_all
+from planners.collection_bounds import collect_lower_bound
+from planners.collection_convex import plan_collect_lee_convex
 from planners.deploy import plan_lee
 from planners.plan import Plan
-from planners.problem import DeployProblem, PlanningError
+from planners.problem import CollectProblem, DeployProblem, PlanningError
 from planners.two_task import plan_two_tasks
 
 DEPLOY_PLANNERS: dict[str, Callable[[DeployProblem], Plan]] = {
@@ -18,4 +22,12 @@ DEPLOY_PLANNERS: dict[str, Callable[[DeployProblem], Plan]] = {
     "two-task": plan_two_tasks,
 }
 
-__all__ = ["DEPLOY_PLANNERS", "Plan", "PlanningError", "deploy_lower_bound"]
+COLLECT_PLANNERS: dict[str, Callable[[CollectProblem], Plan]] = {
+    "lee": plan_collect_lee,
+    "lee-convex": plan_collect_lee_convex,
+    "visit-all": plan_collect_visit_all,
+    "gather": plan_collect_gather,
+}
+
+__all__ = ["COLLECT_PLANNERS", "DEPLOY_PLANNERS", "Plan", "PlanningError", "collect_lower_bound",
+           "deploy_lower_bound"]

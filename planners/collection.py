@@ -1,0 +1,417 @@
+"""Open-space collection (dissertation ch. 5): clusters of rovers meet the carrier at one stop each.
+
+Vocabulary follows the chapter: rovers are grouped into clusters P_γβ whose reach discs share a
+region I_β (eq. 5.12, ``planners.reach``); the carrier stops once per cluster at a collection
+location q_γβ in I_β; every rover starts flying to its meeting point at t = 0 and the carrier waits
+for the cluster's last rover, then loads (eq. 5.2). The makespan is the last stop's departure.
+
+Algorithm 5.1 divides the rovers until every cluster has a common region; Algorithm 5.2 then
+tries to divide each cluster, in both orders (SWAP_CLUSTERS), keeps the division when the path
+gets faster and merges it back otherwise. GET_COLLECT_PATH places every cluster's stop in turn
+(``_PathBuilder.place``): the fast way scores the chapter's candidate points (the circles'
+intersection points and the points of I_β nearest the carrier's line, eq. 5.13–5.16) on the time
+model; ``planners.collection_convex`` solves the same placement as a constrained program.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable, Sequence
+
+import numpy as np
+
+from planners.clustering import divide_cluster
+from planners.geometry import minimize_1d
+from planners.plan import Plan, RoverLeg, Stop
+from planners.problem import CollectProblem, PlanningError, Vec3
+from planners.reach import Point2, Region, make_region
+from planners.routing import two_opt_route
+from planners.timing import RANGE_MARGIN, carrier_hop, leg_time, retime
+
+
+class CollectInstance:
+    """Per-problem caches: rover ground positions, reach radii and cluster regions by membership."""
+
+    def __init__(self, problem: CollectProblem) -> None:
+        check_rovers(problem)
+        self.problem = problem
+        rovers = problem.rovers
+        self.ground = np.array([[r.position[0], r.position[1]] for r in rovers], dtype=float).reshape(-1, 2)
+        z = np.array([r.position[2] for r in rovers], dtype=float)
+        self.heights2 = z * z
+        rng = np.array([r.range for r in rovers], dtype=float)
+        # Reach radius on the ground, kept RANGE_MARGIN inside the range (timing.RANGE_MARGIN).
+        self.radii = np.sqrt(np.maximum(np.maximum(rng - RANGE_MARGIN, 0.0) ** 2 - self.heights2, 0.0))
+        self.pts2: list[Point2] = [(float(x), float(y)) for x, y in self.ground.tolist()]
+        self._regions: dict[tuple[int, ...], Region] = {}
+
+    def region(self, members: Sequence[int]) -> Region:
+        key = tuple(sorted(members))
+        reg = self._regions.get(key)
+        if reg is None:
+            reg = make_region(key, self.ground, self.radii, self.heights2)
+            self._regions[key] = reg
+        return reg
+
+    def fits(self, members: Sequence[int]) -> bool:
+        """GET_INTERPTS of Algorithm 5.1 is non-empty: the cluster's reach discs intersect."""
+        if len(members) > 1:  # cheap necessary test: every pair of discs must overlap
+            a, b = members[0], members[-1]
+            if math.dist(self.pts2[a], self.pts2[b]) > self.radii[a] + self.radii[b]:
+                return False
+        return self.region(members).feasible
+
+
+def check_rovers(problem: CollectProblem) -> None:
+    """Reject rovers no plan can collect, by id: a rover must at least be able to land below itself."""
+    seen: set[str] = set()
+    for r in problem.rovers:
+        if r.id in seen:
+            raise PlanningError(f"rover {r.id} is listed twice in the collection; give each rover once")
+        seen.add(r.id)
+        z = r.position[2]
+        if z < 0:
+            raise PlanningError(f"rover {r.id} is below the ground (z = {z:g} m); heights are above ground")
+        if not r.range >= z:
+            raise PlanningError(
+                f"rover {r.id} cannot be collected: it hovers {z:g} m up with only {r.range:g} m of range "
+                f"left, so it cannot even land below itself; it needs a range of at least {z:g} m")
+
+
+class _PathBuilder:
+    """GET_COLLECT_PATH and CALC_TIME of Algorithm 5.1–5.2 for ordered lists of clusters."""
+
+    def __init__(self, inst: CollectInstance) -> None:
+        self.inst = inst
+        p = inst.problem
+        self.carrier, self.rover = p.carrier, p.rover
+        self.load = p.carrier.load_time
+        self.start: Point2 = (p.start[0], p.start[1])
+        self.heading0 = p.heading
+
+    def ready(self, region: Region, p: Point2) -> float:
+        """g(q_γ) of eq. 5.2: when the cluster's last rover lands at ``p`` (all leave at t = 0)."""
+        return leg_time(region.farthest_flight(p), self.rover)
+
+    def local_time(self, region: Region, p: Point2, prev: Point2, t: float, heading: float,
+                   nxt: Point2 | None) -> float:
+        """η_β of eq. 5.2 at ``p`` plus the hop on to the next stop: what placing q_γβ at p costs."""
+        dt, h = carrier_hop(prev, p, heading, self.carrier)
+        eta = max(t + dt, self.ready(region, p)) + self.load
+        if nxt is not None:
+            eta += carrier_hop(p, nxt, h, self.carrier)[0]
+        return eta
+
+    def place(self, region: Region, prev: Point2, t: float, heading: float, nxt: Point2 | None,
+              level: int = 0) -> Point2:
+        """Collection location of one cluster given the carrier's state after the previous stop.
+
+        Level 0 (the clustering search) scores a few points: the time centre, the point nearest
+        the previous stop and the carrier's line point (eq. 5.13). Levels 1–2 score the chapter's
+        full candidate set (Fig. 5.6: the circles' intersection points, eq. 5.13–5.16) and slide the
+        best toward the time centre and the line point (level 2: toward every candidate); I_β is
+        convex, so every such segment stays inside it.
+        """
+        def cost(p: Point2) -> float:
+            return self.local_time(region, p, prev, t, heading, nxt)
+
+        if level == 0:
+            return min(region.quick_candidates(prev, nxt), key=cost)
+        cands = region.candidates(prev, nxt)
+        vals = [cost(p) for p in cands]
+        j = min(range(len(cands)), key=vals.__getitem__)
+        best, best_v = cands[j], vals[j]
+        targets = cands if level >= 2 else [region.time_center, region.line_point(prev, nxt)]
+        for q in targets:
+            if math.dist(q, best) < 1e-6:
+                continue
+            a = best
+
+            def along(s: float, a: Point2 = a, q: Point2 = q) -> float:
+                return cost((a[0] + s * (q[0] - a[0]), a[1] + s * (q[1] - a[1])))
+
+            s, v = minimize_1d(along, 0.0, 1.0, samples=8 if level >= 2 else 4,
+                               tol=1e-7 if level >= 2 else 1e-4)
+            if v < best_v:
+                best, best_v = (a[0] + s * (q[0] - a[0]), a[1] + s * (q[1] - a[1])), v
+        return best
+
+    def route(self, clusters: list[list[int]], level: int = 0) -> _Route:
+        """GET_COLLECT_PATH for every cluster in order, then the route's times (CALC_TIME)."""
+        regions = [self.inst.region(c) for c in clusters]
+        positions: list[Point2] = []
+        prev, t, heading = self.start, 0.0, self.heading0
+        for k, reg in enumerate(regions):
+            nxt = regions[k + 1].center if k + 1 < len(regions) else None  # next stop not known yet
+            pos = self.place(reg, prev, t, heading, nxt, level)
+            dt, heading = carrier_hop(prev, pos, heading, self.carrier)
+            t = max(t + dt, self.ready(reg, pos)) + self.load
+            positions.append(pos)
+            prev = pos
+        return _Route(self, clusters, regions, positions)
+
+
+class _Route:
+    """An ordered cluster list with its stops and the times eq. 5.2 gives them.
+
+    ``hop[j]`` is the carrier's rotation + drive into stop j, ``heading[j]`` its heading on arrival,
+    ``ready[j]`` when stop j's last rover lands, ``eta[j]`` the departure from stop j.
+    """
+
+    def __init__(self, b: _PathBuilder, clusters: list[list[int]], regions: list[Region],
+                 positions: list[Point2]) -> None:
+        self.b, self.clusters, self.regions, self.positions = b, clusters, regions, positions
+        self.hop: list[float] = []
+        self.heading: list[float] = []
+        self.ready: list[float] = []
+        self.eta: list[float] = []
+        prev, t, h = b.start, 0.0, b.heading0
+        for reg, pos in zip(regions, positions, strict=True):
+            dt, h = carrier_hop(prev, pos, h, b.carrier)
+            ready = b.ready(reg, pos)
+            t = max(t + dt, ready) + b.load
+            self.hop.append(dt)
+            self.heading.append(h)
+            self.ready.append(ready)
+            self.eta.append(t)
+            prev = pos
+        self.makespan = self.eta[-1] if self.eta else 0.0
+
+    def state_before(self, k: int) -> tuple[Point2, float, float]:
+        """Carrier position, time and heading when it leaves the stop before stop k."""
+        if k == 0:
+            return self.b.start, 0.0, self.b.heading0
+        return self.positions[k - 1], self.eta[k - 1], self.heading[k - 1]
+
+    def _finish(self, m: int, prev: Point2, t: float, h: float) -> float:
+        """Makespan when the carrier leaves ``prev`` at ``t`` with heading ``h`` for old stop m."""
+        b = self.b
+        for j in range(m, len(self.positions)):
+            pos = self.positions[j]
+            if j <= m + 1:  # the heading into m changed, so the rotation at m (into m + 1) too
+                dt, h = carrier_hop(prev, pos, h, b.carrier)
+            else:
+                dt = self.hop[j]
+            t = max(t + dt, self.ready[j]) + b.load
+            if j > m and abs(t - self.eta[j]) <= 1e-12:
+                return self.makespan  # the schedule has rejoined the old one (eq. 5.2 is a max)
+            prev = pos
+        return t
+
+    def replace(self, i: int, pieces: list[list[int]],
+                count: int = 1) -> tuple[float, list[list[int]], list[Point2]]:
+        """Makespan after clusters i..i+count-1 are replaced by ``pieces``: the stop before, the
+        pieces and their stops are placed afresh; later stops keep their places and are re-timed."""
+        b, old = self.b, self.clusters
+        clusters = old[:i] + pieces + old[i + count:]
+        regions = self.regions[:i] + [b.inst.region(p) for p in pieces] + self.regions[i + count:]
+        lo = max(i - 1, 0)
+        hi = min(i + len(pieces), len(clusters))  # new indices lo..hi-1 are placed afresh
+        m = hi - len(pieces) + count  # old index of the first kept stop
+        prev, t, h = self.state_before(lo)
+        positions = self.positions[:lo]
+        for k in range(lo, hi):
+            if k + 1 < hi:
+                nxt: Point2 | None = regions[k + 1].center
+            else:
+                nxt = self.positions[m] if m < len(old) else None
+            pos = b.place(regions[k], prev, t, h, nxt)
+            dt, h = carrier_hop(prev, pos, h, b.carrier)
+            t = max(t + dt, b.ready(regions[k], pos)) + b.load
+            positions.append(pos)
+            prev = pos
+        if m < len(old):
+            t = self._finish(m, prev, t, h)
+            positions = positions + self.positions[m:]
+        return t, clusters, positions
+
+
+def _split_loop(builder: _PathBuilder, route: _Route) -> _Route:
+    """Algorithm 5.2: divide each cluster, try the swapped order, keep the faster or merge back."""
+    inst = builder.inst
+    idx = 0
+    while idx < len(route.clusters):
+        members = route.clusters[idx]
+        if len(members) == 1:  # a cluster of one rover cannot be divided
+            idx += 1
+            continue
+        prev = builder.start if idx == 0 else route.positions[idx - 1]
+        near, far = divide_cluster(members, inst.pts2, prev)  # DIVIDE_CLUSTER (Algorithm 3.1)
+        t_cand, c_cand, p_cand = route.replace(idx, [near, far])
+        t_swap, c_swap, p_swap = route.replace(idx, [far, near])  # SWAP_CLUSTERS
+        if t_swap < t_cand:
+            t_cand, c_cand, p_cand = t_swap, c_swap, p_swap
+        if t_cand < route.makespan - 1e-9:
+            route = _Route(builder, c_cand, [inst.region(c) for c in c_cand], p_cand)
+        else:  # MERGE_CLUSTERS
+            idx += 1
+    return route
+
+
+def _merge_neighbours(builder: _PathBuilder, route: _Route) -> _Route:
+    """Merge consecutive clusters whose discs still intersect when that is faster (one load less)."""
+    inst = builder.inst
+    k = 0
+    while k + 1 < len(route.clusters):
+        union = route.clusters[k] + route.clusters[k + 1]
+        if inst.fits(union):
+            t, c, p = route.replace(k, [union], count=2)
+            if t < route.makespan - 1e-9:
+                route = _Route(builder, c, [inst.region(x) for x in c], p)
+                continue
+        k += 1
+    return route
+
+
+def _move_rovers(builder: _PathBuilder, route: _Route) -> _Route:
+    """Beyond the dissertation: hand a rover over to the neighbouring cluster when its disc meets
+    that cluster's region and the route gets faster (the divider's straight cut can misplace it)."""
+    inst = builder.inst
+    k = 0
+    while k + 1 < len(route.clusters):
+        moved = False
+        for src, dst in ((k, k + 1), (k + 1, k)):
+            a, b = route.clusters[src], route.clusters[dst]
+            if len(a) < 2:
+                continue
+            for r in list(a):
+                if not inst.fits([*b, r]):
+                    continue
+                pieces = [[x for x in a if x != r], [*b, r]]
+                if src > dst:
+                    pieces.reverse()
+                t, c, p = route.replace(k, pieces, count=2)
+                if t < route.makespan - 1e-9:
+                    route = _Route(builder, c, [inst.region(x) for x in c], p)
+                    moved = True
+                    break
+            if moved:
+                break
+        if not moved:
+            k += 1
+    return route
+
+
+def _reorder(builder: _PathBuilder, route: _Route) -> _Route:
+    """Beyond the dissertation: re-sequence the clusters as an open tour over their stops (2-opt from
+    the current order, and nearest neighbour + 2-opt) and keep the faster route."""
+    if len(route.clusters) < 3:
+        return route
+    stops = np.array(route.positions)
+    start = np.array(builder.start)
+    best = route
+    for initial in (list(range(len(stops))), None):
+        order = two_opt_route(stops, start, initial)
+        if order == list(range(len(stops))):
+            continue
+        cand = builder.route([route.clusters[i] for i in order])
+        if cand.makespan < best.makespan:
+            best = cand
+    return best
+
+
+def polish(builder: _PathBuilder, route: _Route,
+           place: Callable[[Region, Point2, float, float, Point2 | None, Point2], Point2] | None = None,
+           sweeps: int = 2, level: int = 1) -> _Route:
+    """Re-place every stop now that both neighbours are known (the improvement ch. 5.5.1 suggests
+    for Fig. 5.9d: q_γ5 moved onto the segment q_γ4 q_γ6); keep a move only if the makespan drops."""
+    if place is None:
+        def place(reg: Region, prev: Point2, t: float, h: float, nxt: Point2 | None, now: Point2) -> Point2:
+            return builder.place(reg, prev, t, h, nxt, level)
+    for _ in range(sweeps):
+        improved = False
+        for k in range(len(route.clusters)):
+            prev, t, h = route.state_before(k)
+            nxt = route.positions[k + 1] if k + 1 < len(route.positions) else None
+            pos = place(route.regions[k], prev, t, h, nxt, route.positions[k])
+            if math.dist(pos, route.positions[k]) < 1e-9:
+                continue
+            positions = route.positions[:k] + [pos] + route.positions[k + 1:]
+            cand = _Route(builder, route.clusters, route.regions, positions)
+            if cand.makespan < route.makespan - 1e-9:
+                route, improved = cand, True
+        if not improved:
+            break
+    return route
+
+
+def _initial_clusters(builder: _PathBuilder) -> list[list[int]]:
+    """Algorithm 5.1, initial clustering: divide until every cluster has a common region."""
+    inst = builder.inst
+    clusters: list[list[int]] = [list(range(len(inst.pts2)))]
+    idx = 0
+    while idx < len(clusters):
+        if not inst.fits(clusters[idx]):
+            prev = builder.start if idx == 0 else inst.region(clusters[idx - 1]).center
+            near, far = divide_cluster(clusters[idx], inst.pts2, prev)
+            clusters[idx: idx + 1] = [near, far]
+        else:
+            idx += 1
+    return clusters
+
+
+def lee_route(problem: CollectProblem, improve: bool = True,
+              fine_upto: int = 30) -> tuple[_PathBuilder, _Route]:
+    """Algorithm 5.1–5.2, then (with ``improve``) re-sequencing, merging and handing rovers over
+    while that helps, and a final fine placement of every stop with both neighbours known."""
+    inst = CollectInstance(problem)
+    builder = _PathBuilder(inst)
+    if not problem.rovers:
+        return builder, _Route(builder, [], [], [])
+    route = _split_loop(builder, builder.route(_initial_clusters(builder)))
+    for _ in range(3 if improve else 0):
+        better = _merge_neighbours(builder, _reorder(builder, route))
+        better = _split_loop(builder, _move_rovers(builder, better))
+        if better.makespan >= route.makespan - 1e-9:
+            break
+        route = better
+    level = 2 if len(problem.rovers) <= fine_upto else 1
+    fresh = builder.route(route.clusters, level)
+    route = fresh if fresh.makespan <= route.makespan else route
+    route = polish(builder, route, level=level)
+    if len(problem.rovers) == 2:
+        from planners.collection_two import two_rover_route  # the ch. 5.3 optimum, where it applies
+
+        two = two_rover_route(builder)
+        if two.makespan < route.makespan:
+            route = two
+    return builder, route
+
+
+def build_collect_plan(problem: CollectProblem, planner: str, clusters: Sequence[Sequence[int]],
+                       positions: Sequence[Point2], compute_ms: float = 0.0) -> Plan:
+    """Turn clusters and collection locations into a Plan timed by ``timing.retime``: each rover
+    flies a straight 3D line from where it is to its meeting point on the ground."""
+    stops: list[Stop] = []
+    prev: Vec3 = problem.start
+    for members, pos in zip(clusters, positions, strict=True):
+        here: Vec3 = _snap(problem, members, prev, (float(pos[0]), float(pos[1]), 0.0))
+        legs = [RoverLeg(rover=problem.rovers[i].id, path=[problem.rovers[i].position, here])
+                for i in members]
+        stops.append(Stop(position=here, carrier_path=[prev, here], rovers=legs))
+        prev = here
+    plan = Plan(kind="collect", planner=planner, start=problem.start, heading=problem.heading, stops=stops,
+                compute_ms=compute_ms)
+    return retime(plan, problem.carrier, problem.rover)
+
+
+def _snap(problem: CollectProblem, members: Sequence[int], prev: Vec3, here: Vec3) -> Vec3:
+    """A stop a hair's breadth (< 1 cm) from the previous one is put exactly on it when every rover
+    can still reach it: a hop of micrometres has an arbitrary heading once the plan's coordinates
+    are rounded for JSON, and turning to it would cost real time."""
+    if 0.0 < math.dist(prev[:2], here[:2]) < 1e-2:
+        snapped: Vec3 = (prev[0], prev[1], 0.0)
+        if all(math.dist(problem.rovers[i].position, snapped) <= problem.rovers[i].range - 1e-5
+               for i in members):
+            return snapped
+    return here
+
+
+def plan_collect_lee(problem: CollectProblem) -> Plan:
+    """The dissertation's collection path generator (ch. 5.4) with the fast meeting points; ``lee``."""
+    t0 = time.perf_counter()
+    _, route = lee_route(problem)
+    ms = (time.perf_counter() - t0) * 1e3
+    return build_collect_plan(problem, "lee", route.clusters, route.positions, ms)
+

@@ -1,0 +1,272 @@
+"""Reach regions of rovers to collect and the meeting points inside them (dissertation ch. 5.4).
+
+A rover hovering at height z with d_collect metres of flight left must fly to the carrier and land
+on it, so the ground points it can reach form the disc of radius sqrt(d_collect² − z²) around its
+ground position (in 2D, z = 0, the disc of radius d_collect — the "circle of maximum travel
+distance" O_D of the chapter). A cluster of rovers can be collected at one stop exactly when the
+discs of all its rovers intersect (eq. 5.12); the intersection I_β is convex.
+
+Everything here is plane geometry on those discs:
+
+* ``Region``: the intersection of a cluster's discs, its *power centre* (the point minimising
+  max_i |c − g_i|² − ρ_i², found with the power-weighted enclosing ball of ch. 3.4; it lies in
+  I_β whenever I_β is non-empty, so it doubles as the feasibility test of Algorithm 5.1's
+  GET_INTERPTS), the intersection points of the circles that bound I_β (Fig. 5.6's black dots)
+  and its *time centre* (the point of I_β whose farthest rover, in 3D, is nearest).
+* projections onto I_β and the points of I_β nearest a segment (eq. 5.13–5.16), computed exactly
+  from the fact that a nearest point of an intersection of discs lies either on one circle or at
+  an intersection point of two.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from planners.geometry import enclosing_ball
+
+Point2 = tuple[float, float]
+
+# Points within this many metres outside a disc count as inside (flights keep RANGE_MARGIN spare).
+INSIDE_TOL = 1e-9
+
+
+@dataclass
+class Region:
+    """The common reach region I_β of a cluster (eq. 5.12)."""
+
+    members: tuple[int, ...]
+    centers: np.ndarray  # (k, 2) ground positions g_i
+    radii: np.ndarray  # (k,) reach radii ρ_i
+    heights2: np.ndarray  # (k,) z_i²
+    center: Point2  # power centre: in I_β when I_β is non-empty
+    depth: float  # min_i (ρ_i − |center − g_i|) ≥ 0 when feasible
+    feasible: bool
+    _vertices: np.ndarray | None = field(default=None, repr=False)
+    _time_center: Point2 | None = field(default=None, repr=False)
+    _rows: list[tuple[float, float, float]] | None = field(default=None, repr=False)
+    _discs: list[tuple[float, float, float]] | None = field(default=None, repr=False)
+    _vertex_list: list[Point2] | None = field(default=None, repr=False)
+
+    @property
+    def rows(self) -> list[tuple[float, float, float]]:
+        """(x, y, z²) of every member, for fast pure-Python loops."""
+        if self._rows is None:
+            self._rows = [(float(x), float(y), float(z2))
+                          for (x, y), z2 in zip(self.centers.tolist(), self.heights2.tolist(), strict=True)]
+        return self._rows
+
+    def contains(self, p: Sequence[float], tol: float = INSIDE_TOL) -> bool:
+        x, y = p[0], p[1]
+        return all((x - cx) ** 2 + (y - cy) ** 2 <= (r + tol) ** 2 for cx, cy, r in self.discs)
+
+    @property
+    def discs(self) -> list[tuple[float, float, float]]:
+        """(x, y, ρ) of every member."""
+        if self._discs is None:
+            self._discs = [(float(x), float(y), float(r))
+                           for (x, y), r in zip(self.centers.tolist(), self.radii.tolist(), strict=True)]
+        return self._discs
+
+    def farthest_flight(self, p: Sequence[float]) -> float:
+        """Longest 3D flight of a member to ground point ``p``: the cluster's last arrival there."""
+        x, y = p[0], p[1]
+        return math.sqrt(max((x - gx) ** 2 + (y - gy) ** 2 + z2 for gx, gy, z2 in self.rows))
+
+    @property
+    def vertices(self) -> np.ndarray:
+        """Intersection points of the cluster's circles that lie in I_β (Fig. 5.6, GET_INTERPTS)."""
+        if self._vertices is None:
+            self._vertices = circle_vertices(self.centers, self.radii)
+        return self._vertices
+
+    @property
+    def time_center(self) -> Point2:
+        """The point of I_β whose farthest rover is nearest (minimises the cluster's last arrival).
+
+        Without the range constraint it is the power-weighted enclosing circle of the ground
+        positions with weights z² (ch. 3.4); when that point lies outside I_β, its projection.
+        """
+        if self._time_center is None:
+            ball = enclosing_ball(self.centers.tolist(), self.heights2.tolist())
+            c = (float(ball.center[0]), float(ball.center[1]))
+            self._time_center = c if self.contains(c) else self.project(c)
+        return self._time_center
+
+    @property
+    def vertex_list(self) -> list[Point2]:
+        if self._vertex_list is None:
+            self._vertex_list = [(float(x), float(y)) for x, y in self.vertices.tolist()]
+        return self._vertex_list
+
+    def project(self, p: Sequence[float]) -> Point2:
+        """Nearest point of I_β to ``p``: ``p`` itself, its projection onto one disc, or a vertex
+        (a nearest point of an intersection of discs has one or two active constraints)."""
+        x, y = float(p[0]), float(p[1])
+        if self.contains((x, y)):
+            return (x, y)
+        discs = self.discs
+        if len(discs) == 1:
+            cx, cy, r = discs[0]
+            n = math.hypot(x - cx, y - cy)
+            return (cx + (x - cx) * r / n, cy + (y - cy) * r / n)
+        best, best_d = self.center, math.inf  # numerically empty region: the power centre
+        for cx, cy, r in discs:
+            n = math.hypot(x - cx, y - cy)
+            if n <= r:
+                continue
+            q = (cx + (x - cx) * r / n, cy + (y - cy) * r / n)
+            d = n - r
+            if d < best_d and self.contains(q):
+                best, best_d = q, d
+        for q in self.vertex_list:
+            d = math.hypot(q[0] - x, q[1] - y)
+            if d < best_d:
+                best, best_d = q, d
+        return best
+
+    def clip_segment(self, a: Point2, b: Point2) -> tuple[float, float] | None:
+        """Parameters [s0, s1] ⊂ [0, 1] of the part of segment a → b inside I_β, or None."""
+        dx, dy = b[0] - a[0], b[1] - a[1]
+        qa = dx * dx + dy * dy
+        lo, hi = 0.0, 1.0
+        for cx, cy, r in self.discs:
+            ex, ey = a[0] - cx, a[1] - cy
+            qc = ex * ex + ey * ey - r * r
+            if qa < 1e-18:
+                if qc > 0:
+                    return None
+                continue
+            qb = 2.0 * (dx * ex + dy * ey)
+            disc = qb * qb - 4.0 * qa * qc
+            if disc < 0:
+                return None
+            sq = math.sqrt(disc)
+            lo = max(lo, (-qb - sq) / (2.0 * qa))
+            hi = min(hi, (-qb + sq) / (2.0 * qa))
+            if lo > hi:
+                return None
+        return lo, hi
+
+    def nearest_to_segment(self, a: Point2, b: Point2) -> list[Point2]:
+        """Eq. 5.13–5.16: the point(s) of I_β nearest the carrier's line a → b.
+
+        If the segment crosses I_β, where it enters and leaves (any point between is as near; the
+        entry is the carrier's earliest chance). Otherwise the nearest point of I_β to the segment
+        (eq. 5.13 when the foot lies inside the segment, eq. 5.16 beyond its ends): a projection of
+        an end point, a circle's point nearest the line, or a vertex.
+        """
+        seg = self.clip_segment(a, b)
+        if seg is not None:
+            s0, s1 = seg
+            p0 = (a[0] + s0 * (b[0] - a[0]), a[1] + s0 * (b[1] - a[1]))
+            p1 = (a[0] + s1 * (b[0] - a[0]), a[1] + s1 * (b[1] - a[1]))
+            return [p0, p1]
+        cands: list[Point2] = [self.project(a), self.project(b)]
+        dx, dy = b[0] - a[0], b[1] - a[1]
+        length = math.hypot(dx, dy)
+        if length > 1e-9:
+            nx, ny = -dy / length, dx / length  # unit normal of the line (eq. 5.13's objective)
+            side = (self.centers[:, 0] - a[0]) * nx + (self.centers[:, 1] - a[1]) * ny
+            sign = np.where(side > 0, -1.0, 1.0)  # step from each centre toward the line
+            pts = self.centers + (sign * self.radii)[:, None] * np.array([nx, ny])
+            if len(self.vertices):
+                pts = np.vstack([pts, self.vertices])
+            pts = pts[_inside_all(pts, self.centers, self.radii)]
+            if len(pts):
+                d = np.array([_seg_dist(p, a, b) for p in pts.tolist()])
+                j = int(np.argmin(d))
+                cands.append((float(pts[j, 0]), float(pts[j, 1])))
+        return [min(cands, key=lambda p: _seg_dist(p, a, b))]
+
+    def line_point(self, prev: Point2, nxt: Point2 | None) -> Point2:
+        """A quick eq. 5.13: where the carrier's line prev → next enters I_β, else the projection of
+        the line's point nearest the time centre."""
+        if nxt is None:
+            return self.project(prev)
+        seg = self.clip_segment(prev, nxt)
+        if seg is not None:
+            s0 = seg[0]
+            return (prev[0] + s0 * (nxt[0] - prev[0]), prev[1] + s0 * (nxt[1] - prev[1]))
+        c = self.time_center
+        dx, dy = nxt[0] - prev[0], nxt[1] - prev[1]
+        qa = dx * dx + dy * dy
+        s = 0.0 if qa < 1e-18 else min(max(((c[0] - prev[0]) * dx + (c[1] - prev[1]) * dy) / qa, 0.0), 1.0)
+        return self.project((prev[0] + s * dx, prev[1] + s * dy))
+
+    def quick_candidates(self, prev: Point2, nxt: Point2 | None) -> list[Point2]:
+        """A small candidate set for the clustering search: time centre, the point nearest the
+        previous stop, and the carrier's line point."""
+        pts = [self.time_center, self.project(prev)]
+        if nxt is not None:
+            pts.append(self.line_point(prev, nxt))
+        return pts
+
+    def candidates(self, prev: Point2, nxt: Point2 | None) -> list[Point2]:
+        """The fast planner's candidate meeting points (ch. 5.4, Fig. 5.6): the circles'
+        intersection points, the points nearest the carrier's line prev → next (eq. 5.13–5.16),
+        the points nearest prev and next, the power centre and the time centre."""
+        pts: list[Point2] = [self.center, self.time_center, self.project(prev)]
+        if nxt is not None:
+            pts.append(self.project(nxt))
+            pts += self.nearest_to_segment(prev, nxt)
+        pts += [(float(x), float(y)) for x, y in self.vertices.tolist()]
+        return pts
+
+
+def _seg_dist(p: Sequence[float], a: Point2, b: Point2) -> float:
+    dx, dy = b[0] - a[0], b[1] - a[1]
+    qa = dx * dx + dy * dy
+    s = 0.0 if qa < 1e-18 else min(max(((p[0] - a[0]) * dx + (p[1] - a[1]) * dy) / qa, 0.0), 1.0)
+    return math.hypot(p[0] - a[0] - s * dx, p[1] - a[1] - s * dy)
+
+
+def _inside_all(pts: np.ndarray, centers: np.ndarray, radii: np.ndarray,
+                tol: float = INSIDE_TOL) -> np.ndarray:
+    d = np.hypot(pts[:, None, 0] - centers[None, :, 0], pts[:, None, 1] - centers[None, :, 1])
+    return np.all(d <= radii[None, :] + tol, axis=1)
+
+
+def circle_vertices(centers: np.ndarray, radii: np.ndarray) -> np.ndarray:
+    """Pairwise intersection points of the circles (g_i, ρ_i) that lie inside every disc."""
+    k = len(radii)
+    if k < 2:
+        return np.empty((0, 2))
+    i, j = np.triu_indices(k, 1)
+    d = centers[j] - centers[i]
+    dist = np.hypot(d[:, 0], d[:, 1])
+    ri, rj = radii[i], radii[j]
+    ok = (dist > 1e-12) & (dist <= ri + rj + INSIDE_TOL) & (dist >= np.abs(ri - rj) - INSIDE_TOL)
+    if not ok.any():
+        return np.empty((0, 2))
+    d, dist, ri, rj, ci = d[ok], dist[ok], ri[ok], rj[ok], centers[i[ok]]
+    a = (ri * ri - rj * rj + dist * dist) / (2.0 * dist)
+    h = np.sqrt(np.maximum(ri * ri - a * a, 0.0))
+    u = d / dist[:, None]
+    base = ci + a[:, None] * u
+    perp = np.stack([-u[:, 1], u[:, 0]], axis=1) * h[:, None]
+    pts = np.vstack([base + perp, base - perp])
+    return pts[_inside_all(pts, centers, radii)]
+
+
+def make_region(members: Sequence[int], ground: np.ndarray, radii: np.ndarray,
+                heights2: np.ndarray) -> Region:
+    """I_β of ``members`` with its power centre (the feasibility test of Algorithm 5.1).
+
+    The power centre minimises max_i |c − g_i|² − ρ_i²; shifting every weight by W = max ρ² keeps
+    them non-negative for the enclosing-ball routine without moving the minimiser. I_β is
+    non-empty exactly when the minimum is ≤ 0, and then the centre lies in I_β.
+    """
+    idx = np.asarray(members, dtype=int)
+    c, r, z2 = ground[idx], radii[idx], heights2[idx]
+    if len(idx) == 1:
+        p = (float(c[0, 0]), float(c[0, 1]))
+        return Region(tuple(members), c, r, z2, p, float(r[0]), True)
+    shift = float(np.max(r)) ** 2
+    ball = enclosing_ball(c.tolist(), (shift - r * r).tolist())
+    p = (float(ball.center[0]), float(ball.center[1]))
+    depth = float(np.min(r - np.hypot(c[:, 0] - p[0], c[:, 1] - p[1])))
+    return Region(tuple(members), c, r, z2, p, depth, depth >= -INSIDE_TOL)
