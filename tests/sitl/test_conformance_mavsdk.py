@@ -36,15 +36,16 @@ async def first(gen: AsyncIterator[Any], where=lambda _: True, timeout: float = 
         await gen.aclose()
 
 
-def waypoint(seq: int, x: float, y: float, z: float) -> MissionItem:
+def waypoint(seq: int, x: float, y: float, z: float, frame: int = REL_INT) -> MissionItem:
     lat, lon = enu_to_latlon(x, y)
-    return MissionItem(seq=seq, frame=REL_INT, command=NAV_WAYPOINT, current=1 if seq == 0 else 0,
+    return MissionItem(seq=seq, frame=frame, command=NAV_WAYPOINT, current=1 if seq == 0 else 0,
                        autocontinue=1, param1=0.0, param2=0.5, param3=0.0, param4=float("nan"),
                        x=int(round(lat * 1e7)), y=int(round(lon * 1e7)), z=z, mission_type=0)
 
 
-async def test_mavsdk_flies_a_simulated_rover() -> None:
-    cfg = make_config(1, speedup=10.0, rover_connections=["sim"])
+@pytest.mark.parametrize("autopilot", ["px4", "ardupilot"])
+async def test_mavsdk_flies_a_simulated_rover(autopilot: str) -> None:
+    cfg = make_config(1, speedup=10.0, rover_connections=["sim"], autopilot=autopilot)
     async with SimFleet(cfg) as fleet:
         url = fleet.endpoints["r1"].replace("udp://", "udpout://")  # MAVSDK: udpout = we send there
         conf = Configuration.create_with_component_type(ComponentType.GROUND_STATION)
@@ -53,6 +54,8 @@ async def test_mavsdk_flies_a_simulated_rover() -> None:
             system = await sdk.first_autopilot(timeout_s=10.0)
             assert system is not None and await system.get_system_id() == 11
             tel, action, mission = TelemetryAsync(system), ActionAsync(system), MissionRawAsync(system)
+            for set_rate in (tel.set_rate_position, tel.set_rate_battery, tel.set_rate_landed_state):
+                await asyncio.wait_for(set_rate(10.0), 10)  # SET_MESSAGE_INTERVAL, must be ACKed
 
             pos = await first(tel.subscribe_position())
             assert pos.latitude_deg == pytest.approx(47.397742, abs=1e-6)
@@ -62,7 +65,10 @@ async def test_mavsdk_flies_a_simulated_rover() -> None:
             assert await first(tel.subscribe_landed_state()) == LandedState.ON_GROUND
             assert await first(tel.subscribe_flight_mode()) == FlightMode.HOLD
 
-            items = [waypoint(0, 10, 0, 5), waypoint(1, 10, 10, 5), waypoint(2, 0, 0, 5)]
+            points = [(10, 0, 5, REL_INT), (10, 10, 5, REL_INT), (0, 0, 5, REL_INT)]
+            if autopilot == "ardupilot":
+                points.insert(0, (0, 0, 488.0, 0))  # ArduPilot: item 0 is home (MAV_FRAME_GLOBAL)
+            items = [waypoint(seq, *p) for seq, p in enumerate(points)]
             await asyncio.wait_for(mission.upload_mission(items), 10)
             down = await asyncio.wait_for(mission.download_mission(), 10)
             assert [(i.seq, i.command, i.frame, i.x, i.y, i.z) for i in down] == [
@@ -80,8 +86,9 @@ async def test_mavsdk_flies_a_simulated_rover() -> None:
             progress = mission.subscribe_mission_progress()
             await asyncio.wait_for(mission.start_mission(), 10)
             assert await first(tel.subscribe_flight_mode(), where=lambda m: m == FlightMode.MISSION)
-            done = await first(progress, where=lambda p: p.total == 3 and p.current == 3, timeout=20)
-            assert done.current == done.total == 3
+            n = len(items)
+            done = await first(progress, where=lambda p: p.total == n and p.current == n, timeout=20)
+            assert done.current == done.total == n
             assert await asyncio.wait_for(mission.is_mission_finished(), 10)
             assert fleet.rover("r1").position == pytest.approx((0.0, 0.0, 5.0), abs=0.02)
 
