@@ -68,6 +68,12 @@ class _Instance:
         return g
 
     def fits(self, members: Sequence[int]) -> bool:
+        """Can one stop serve every task of the cluster within d_deploy (Algorithm 4.1's test)?"""
+        if len(members) > 3:  # cheap necessary test before the enclosing circle: two tasks farther
+            xs = [self.pts[i][0] for i in members]  # apart than 2·d_deploy never share a stop
+            ys = [self.pts[i][1] for i in members]
+            if max(xs) - min(xs) > 2 * self.range or max(ys) - min(ys) > 2 * self.range:
+                return False
         return self.geometry(members).reach <= self.range
 
     def reach_from(self, p: Point2, members: Sequence[int]) -> float:
@@ -242,7 +248,7 @@ class _Route:
         self.makespan = self.tail[0] if self.tail else 0.0
 
     def replace(self, i: int, pieces: list[list[int]],
-                count: int = 1) -> tuple[float, list[list[int]], list[Point2]]:
+                count: int = 1) -> tuple[float, list[list[int]], list[ClusterGeometry], list[Point2]]:
         """Makespan after clusters i..i+count-1 are replaced by ``pieces``, recomputing the stops
         around the change (the one before, the pieces, the one after) and keeping later stops."""
         b, old = self.b, self.clusters
@@ -277,7 +283,7 @@ class _Route:
                 shift = t + dt - self.arrive[m + 1]
                 worst = max(worst, self.tail[m + 1] + shift)
             positions += self.positions[m:]
-        return worst, clusters, positions
+        return worst, clusters, geos, positions
 
 
 def _split_loop(builder: _PathBuilder, route: _Route, tried: set | None = None) -> _Route:
@@ -301,12 +307,12 @@ def _split_loop(builder: _PathBuilder, route: _Route, tried: set | None = None) 
             continue
         prev = builder.start if idx == 0 else route.positions[idx - 1]
         near, far = divide_cluster(members, inst.pts, (*prev, 0.0))
-        t_cand, c_cand, p_cand = route.replace(idx, [near, far])
-        t_swap, c_swap, p_swap = route.replace(idx, [far, near])
-        if t_swap < t_cand:
-            t_cand, c_cand, p_cand = t_swap, c_swap, p_swap
-        if t_cand <= route.makespan:
-            route = _Route(builder, c_cand, [inst.geometry(c) for c in c_cand], p_cand)
+        cand = route.replace(idx, [near, far])
+        swapped = route.replace(idx, [far, near])
+        if swapped[0] < cand[0]:
+            cand = swapped
+        if cand[0] <= route.makespan:
+            route = _Route(builder, *cand[1:])
         else:
             tried.add(key)
             idx += 1
@@ -321,9 +327,9 @@ def _merge_neighbours(builder: _PathBuilder, route: _Route) -> _Route:
         union = route.clusters[k] + route.clusters[k + 1]
         near_enough = math.dist(inst.pts[union[0]], inst.pts[union[-1]]) <= 2 * inst.range  # cheap test
         if near_enough and inst.fits(union):
-            t, c, p = route.replace(k, [union], count=2)
-            if t < route.makespan:
-                route = _Route(builder, c, [inst.geometry(x) for x in c], p)
+            cand = route.replace(k, [union], count=2)
+            if cand[0] < route.makespan:
+                route = _Route(builder, *cand[1:])
                 continue
         k += 1
     return route
@@ -334,9 +340,9 @@ def _swap_neighbours(builder: _PathBuilder, route: _Route) -> _Route:
     Algorithm 4.2 applied to every neighbouring pair, including the initial split's)."""
     k = 0
     while k + 1 < len(route.clusters):
-        t, c, p = route.replace(k, [route.clusters[k + 1], route.clusters[k]], count=2)
-        if t < route.makespan - 1e-9:
-            route = _Route(builder, c, [builder.inst.geometry(x) for x in c], p)
+        cand = route.replace(k, [route.clusters[k + 1], route.clusters[k]], count=2)
+        if cand[0] < route.makespan - 1e-9:
+            route = _Route(builder, *cand[1:])
         k += 1
     return route
 
@@ -383,7 +389,7 @@ def lee_clusters(problem: DeployProblem, improve: bool = True) -> tuple[list[lis
             idx += 1
     tried: set = set()
     route = _split_loop(builder, builder.route(clusters), tried)
-    for _ in range(3 if improve else 0):
+    for _ in range(2 if improve else 0):
         better = _reorder(builder, route)
         better = _split_loop(builder, _merge_neighbours(builder, _swap_neighbours(builder, better)), tried)
         if better.makespan >= route.makespan - 1e-9:
