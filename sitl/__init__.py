@@ -1,6 +1,6 @@
 """sitl - a simulated marsupial fleet (one carrier, many rovers) speaking real MAVLink 2 over UDP.
 
-Public API (sitl never imports fleetctl or planners)::
+Public API (sitl depends on neither the controller nor the planners)::
 
     from sitl import FleetConfig, SimFleet, Fault, serve, run_forever
 

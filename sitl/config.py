@@ -1,9 +1,9 @@
 """Plain configuration of a simulated fleet, and its reading from a parsed mission-file dict.
 
-sitl does not import fleetctl: ``FleetConfig.from_mission_dict`` takes the raw YAML mapping of a
-mission file (see DESIGN.md, "Mission file") and keeps only what the simulation needs. Keys the
-simulation does not use (tasks, planner, obstacles, ...) are ignored here; validating them is the
-mission loader's job.
+sitl is independent of the controller package: ``FleetConfig.from_mission_dict`` takes the raw
+YAML mapping of a mission file (see DESIGN.md, "Mission file") and keeps only what the
+simulation needs. Keys the simulation does not use (tasks, planner, obstacles, ...) are ignored
+here; validating them is the mission loader's job.
 """
 
 from __future__ import annotations
