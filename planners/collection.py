@@ -56,11 +56,17 @@ class CollectInstance:
 
     def fits(self, members: Sequence[int]) -> bool:
         """GET_INTERPTS of Algorithm 5.1 is non-empty: the cluster's reach discs intersect."""
-        if len(members) > 1:  # cheap necessary test: every pair of discs must overlap
-            a, b = members[0], members[-1]
-            if math.dist(self.pts2[a], self.pts2[b]) > self.radii[a] + self.radii[b]:
+        key = tuple(sorted(members))
+        reg = self._regions.get(key)
+        if reg is not None:
+            return reg.feasible
+        if len(members) > 1:  # cheap necessary test: the last rover's disc meets every other disc
+            last = members[-1]
+            idx = np.asarray(members[:-1])
+            gap = np.hypot(*(self.ground[idx] - self.ground[last]).T) - self.radii[idx] - self.radii[last]
+            if gap.max() > 1e-9:
                 return False
-        return self.region(members).feasible
+        return self.region(key).feasible
 
 
 def check_rovers(problem: CollectProblem) -> None:
@@ -227,9 +233,13 @@ class _Route:
         return t, clusters, positions
 
 
-def _split_loop(builder: _PathBuilder, route: _Route) -> _Route:
-    """Algorithm 5.2: divide each cluster, try the swapped order, keep the faster or merge back."""
+def _split_loop(builder: _PathBuilder, route: _Route, rejected: set[tuple] | None = None) -> _Route:
+    """Algorithm 5.2: divide each cluster, try the swapped order, keep the faster or merge back.
+
+    ``rejected`` remembers divisions merged back, with the stop before and the cluster after them,
+    so that later rounds do not try them again in the same surroundings."""
     inst = builder.inst
+    rejected = set() if rejected is None else rejected
     idx = 0
     while idx < len(route.clusters):
         members = route.clusters[idx]
@@ -237,6 +247,10 @@ def _split_loop(builder: _PathBuilder, route: _Route) -> _Route:
             idx += 1
             continue
         prev = builder.start if idx == 0 else route.positions[idx - 1]
+        key = (tuple(members), prev, tuple(route.clusters[idx + 1]) if idx + 1 < len(route.clusters) else ())
+        if key in rejected:
+            idx += 1
+            continue
         near, far = divide_cluster(members, inst.pts2, prev)  # DIVIDE_CLUSTER (Algorithm 3.1)
         t_cand, c_cand, p_cand = route.replace(idx, [near, far])
         t_swap, c_swap, p_swap = route.replace(idx, [far, near])  # SWAP_CLUSTERS
@@ -245,6 +259,7 @@ def _split_loop(builder: _PathBuilder, route: _Route) -> _Route:
         if t_cand < route.makespan - 1e-9:
             route = _Route(builder, c_cand, [inst.region(c) for c in c_cand], p_cand)
         else:  # MERGE_CLUSTERS
+            rejected.add(key)
             idx += 1
     return route
 
@@ -265,8 +280,8 @@ def _merge_neighbours(builder: _PathBuilder, route: _Route) -> _Route:
 
 
 def _move_rovers(builder: _PathBuilder, route: _Route) -> _Route:
-    """Beyond the dissertation: hand a rover over to the neighbouring cluster when its disc meets
-    that cluster's region and the route gets faster (the divider's straight cut can misplace it)."""
+    """Beyond the dissertation: hand a rover over to the neighbouring cluster when it can reach that
+    cluster's stop and the route gets faster (the divider's straight cut can misplace it)."""
     inst = builder.inst
     k = 0
     while k + 1 < len(route.clusters):
@@ -275,8 +290,10 @@ def _move_rovers(builder: _PathBuilder, route: _Route) -> _Route:
             a, b = route.clusters[src], route.clusters[dst]
             if len(a) < 2:
                 continue
+            stop = route.positions[dst]
             for r in list(a):
-                if not inst.fits([*b, r]):
+                # only rovers that reach the neighbour's present stop: that cluster keeps a stop
+                if math.dist(inst.pts2[r], stop) > inst.radii[r] or not inst.fits([*b, r]):
                     continue
                 pieces = [[x for x in a if x != r], [*b, r]]
                 if src > dst:
@@ -359,17 +376,19 @@ def lee_route(problem: CollectProblem, improve: bool = True,
     builder = _PathBuilder(inst)
     if not problem.rovers:
         return builder, _Route(builder, [], [], [])
-    route = _split_loop(builder, builder.route(_initial_clusters(builder)))
+    rejected: set[tuple] = set()
+    route = _split_loop(builder, builder.route(_initial_clusters(builder)), rejected)
     for _ in range(3 if improve else 0):
-        better = _merge_neighbours(builder, _reorder(builder, route))
-        better = _split_loop(builder, _move_rovers(builder, better))
+        better = _move_rovers(builder, _merge_neighbours(builder, _reorder(builder, route)))
+        better = _split_loop(builder, better, rejected)
         if better.makespan >= route.makespan - 1e-9:
             break
         route = better
-    level = 2 if len(problem.rovers) <= fine_upto else 1
-    fresh = builder.route(route.clusters, level)
-    route = fresh if fresh.makespan <= route.makespan else route
-    route = polish(builder, route, level=level)
+    small = len(problem.rovers) <= fine_upto
+    if small:  # place every stop afresh, finely, and keep the faster
+        fresh = builder.route(route.clusters, 2)
+        route = fresh if fresh.makespan <= route.makespan else route
+    route = polish(builder, route, sweeps=2 if small else 1, level=2 if small else 1)
     if len(problem.rovers) == 2:
         from planners.collection_two import two_rover_route  # the ch. 5.3 optimum, where it applies
 
