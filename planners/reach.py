@@ -265,8 +265,8 @@ def make_region(members: Sequence[int], ground: np.ndarray, radii: np.ndarray,
     if len(idx) == 1:
         p = (float(c[0, 0]), float(c[0, 1]))
         return Region(tuple(members), c, r, z2, p, float(r[0]), True)
-    shift = float(np.max(r)) ** 2
-    ball = enclosing_ball(c.tolist(), (shift - r * r).tolist())
+    r2 = r * r
+    ball = enclosing_ball(c.tolist(), np.maximum(float(np.max(r2)) - r2, 0.0).tolist())
     p = (float(ball.center[0]), float(ball.center[1]))
     depth = float(np.min(r - np.hypot(c[:, 0] - p[0], c[:, 1] - p[1])))
     return Region(tuple(members), c, r, z2, p, depth, depth >= -INSIDE_TOL)
