@@ -3,10 +3,11 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import numpy as np
 
-from planners.problem import DeployProblem
+from planners.problem import DeployProblem, Motion
 from planners.timing import leg_time
 
 _GRID = 48
@@ -37,8 +38,17 @@ def _stops_bound(problem: DeployProblem) -> float:
     xy = np.array([t.position[:2] for t in problem.tasks], dtype=float)
     z = np.array([t.position[2] for t in problem.tasks], dtype=float)
     reach = np.sqrt(np.maximum(problem.deploy_range**2 - z**2, 0.0))
-    start = np.array(problem.start[:2], dtype=float)
-    order = np.argsort(np.linalg.norm(xy - start, axis=1))
+    return separated_stops_bound(xy, reach, problem.start[:2], problem.carrier.motion,
+                                 problem.carrier.unload_time)
+
+
+def separated_stops_bound(xy: np.ndarray, reach: np.ndarray, start: Sequence[float], carrier: Motion,
+                          per_stop: float) -> float:
+    """leg_time(W) + K · per_stop for the discs (centre xy, radius reach) that each need a stop of
+    their own: K discs chosen greedily (nearest the start first) pairwise disjoint, W the minimum
+    spanning tree over the start and those discs with gap distances (see ``_stops_bound``)."""
+    origin = np.asarray(start, dtype=float)
+    order = np.argsort(np.linalg.norm(xy - origin, axis=1))
     chosen: list[int] = []
     for i in order:
         if all(np.linalg.norm(xy[i] - xy[j]) > reach[i] + reach[j] for j in chosen):
@@ -46,11 +56,10 @@ def _stops_bound(problem: DeployProblem) -> float:
     pts, r = xy[chosen], reach[chosen]
     k = len(chosen)
     w = np.zeros((k + 1, k + 1))
-    w[0, 1:] = np.maximum(np.linalg.norm(pts - start, axis=1) - r, 0.0)
+    w[0, 1:] = np.maximum(np.linalg.norm(pts - origin, axis=1) - r, 0.0)
     w[1:, 1:] = np.maximum(np.linalg.norm(pts[:, None] - pts[None], axis=2) - r[:, None] - r[None, :], 0.0)
     w = np.maximum(w, w.T)
-    length = _mst_length(w)
-    return leg_time(length, problem.carrier.motion) + k * problem.carrier.unload_time
+    return leg_time(_mst_length(w), carrier) + k * per_stop
 
 
 def _task_bound(problem: DeployProblem) -> float:

@@ -6,6 +6,7 @@ import math
 
 import numpy as np
 
+from planners.bounds import separated_stops_bound
 from planners.collection import CollectInstance
 from planners.problem import CollectProblem
 from planners.timing import leg_time
@@ -96,35 +97,7 @@ def _stops_bound(problem: CollectProblem) -> float:
     the makespan (the last departure) is at least that.
     """
     xy, _, reach = _reach(problem)
-    start = np.array(problem.start[:2], dtype=float)
-    order = np.argsort(np.linalg.norm(xy - start, axis=1))
-    chosen: list[int] = []
-    for i in order:
-        if all(np.linalg.norm(xy[i] - xy[j]) > reach[i] + reach[j] for j in chosen):
-            chosen.append(int(i))
-    pts, rad = xy[chosen], reach[chosen]
-    k = len(chosen)
-    w = np.zeros((k + 1, k + 1))
-    w[0, 1:] = np.maximum(np.linalg.norm(pts - start, axis=1) - rad, 0.0)
-    gap = np.linalg.norm(pts[:, None] - pts[None], axis=2) - rad[:, None] - rad[None, :]
-    w[1:, 1:] = np.maximum(gap, 0.0)
-    w[1:, 0] = w[0, 1:]
-    return leg_time(_mst_length(w), problem.carrier.motion) + k * problem.carrier.load_time
+    carrier = problem.carrier
+    return separated_stops_bound(xy, reach, problem.start[:2], carrier.motion, carrier.load_time)
 
 
-def _mst_length(w: np.ndarray) -> float:
-    """Prim's minimum spanning tree on a dense symmetric matrix. (scipy's csgraph reads entries it
-    deems zero — 1e-9 included — as missing edges, which can overstate the tree.)"""
-    n = len(w)
-    if n <= 1:
-        return 0.0
-    best = w[0].copy()
-    done = np.zeros(n, dtype=bool)
-    done[0] = True
-    total = 0.0
-    for _ in range(n - 1):
-        j = int(np.argmin(np.where(done, np.inf, best)))
-        total += float(best[j])
-        done[j] = True
-        best = np.minimum(best, w[j])
-    return total
