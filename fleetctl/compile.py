@@ -1,0 +1,204 @@
+"""Plan → MAVLink mission items per vehicle (DESIGN.md "MAVLink mapping").
+
+Positions are converted from the plan's ENU frame with :func:`fleetctl.geo.local_to_geodetic` and
+written as ``_INT`` coordinates (degrees·1e7) in ``MAV_FRAME_GLOBAL_RELATIVE_ALT_INT``; ``z`` is
+the height above home, i.e. the plan's height above the origin altitude minus ``home_height``
+(the height of the vehicles' home above the origin altitude; 0 on flat ground).
+
+Carrier route (both plan kinds), for each stop k::
+
+    NAV_WAYPOINT  per intermediate vertex of stop k's carrier_path (no hold)
+    NAV_WAYPOINT  at the stop                       -> stops[k].arrive_seq (MISSION_ITEM_REACHED = arrived)
+    NAV_LOITER_UNLIM at the stop                    -> stops[k].hold_seq   (holds there indefinitely)
+
+**Hold and release**: a NAV_LOITER_UNLIM never completes, so the carrier waits at the stop
+while rovers take off from (or land on) it. The controller releases it with
+``vehicle.set_current(stops[k].release_seq)`` (MAV_CMD_DO_SET_MISSION_CURRENT to the item after
+the hold, i.e. the first item of the way to the next stop). The last stop has
+``release_seq = None``: the carrier stays there until told otherwise.
+
+Deployment rover: ``NAV_TAKEOFF`` (at the stop, to the task height), ``NAV_WAYPOINT`` per vertex
+of its path after the start (3D; the last one is the task → ``target_seq``), ``NAV_LOITER_UNLIM``
+at the task (``final_seq``).
+
+Collection rover: ``NAV_TAKEOFF`` to the meeting height when its path starts on the ground,
+``NAV_WAYPOINT`` per intermediate vertex of its path, ``NAV_WAYPOINT`` to the meeting point above
+the carrier's stop at ``max(meet_height, path end height)`` (``target_seq``), ``NAV_LAND`` on the
+stop (``final_seq``).
+
+ArduPilot (``home_is_item0``): item 0 is a home placeholder (NAV_WAYPOINT at the vehicle's start,
+``MAV_FRAME_GLOBAL``, AMSL); every index above counts it.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+from pymavlink.dialects.v20 import ardupilotmega as mavlink2
+
+from fleetctl.autopilot import Autopilot
+from fleetctl.geo import Origin, geodetic_to_local, local_to_geodetic
+from fleetctl.link import MissionItem
+from planners.plan import Plan
+
+if TYPE_CHECKING:
+    from fleetctl.vehicle import Fleet
+
+M = mavlink2
+FRAME = M.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT
+ON_GROUND_Z = 0.2  # m: a collection path starting this low starts on the ground (take off first)
+
+
+class CompileError(ValueError):
+    """A plan that cannot be turned into missions (e.g. no origin)."""
+
+
+@dataclass(frozen=True)
+class StopItems:
+    """Where stop ``index`` is in the carrier's mission."""
+
+    index: int
+    arrive_seq: int  # NAV_WAYPOINT at the stop: reached = the carrier has arrived
+    hold_seq: int  # NAV_LOITER_UNLIM at the stop: the carrier waits here
+    release_seq: int | None  # set_current(release_seq) lets it go on; None for the last stop
+    rovers: tuple[str, ...]  # rovers launched (deploy) or picked up (collect) at this stop
+
+
+@dataclass(frozen=True)
+class RoverMission:
+    rover: str
+    stop: int  # index of the carrier stop it departs from (deploy) or lands on (collect)
+    items: tuple[MissionItem, ...]
+    target_seq: int  # NAV_WAYPOINT at the task (deploy) / above the meeting point (collect)
+    final_seq: int  # NAV_LOITER_UNLIM at the task (deploy) / NAV_LAND on the stop (collect)
+    task: str | None = None  # deploy only
+
+
+@dataclass(frozen=True)
+class CompiledPlan:
+    """Mission items per vehicle, and where the executor's checkpoints are in them."""
+
+    kind: str  # "deploy" | "collect"
+    carrier_id: str
+    carrier: tuple[MissionItem, ...]
+    stops: tuple[StopItems, ...]
+    rovers: dict[str, RoverMission]
+
+    @property
+    def missions(self) -> dict[str, list[MissionItem]]:
+        """vehicle id -> the item list to upload (carrier first)."""
+        out = {self.carrier_id: list(self.carrier)}
+        out.update({rid: list(rm.items) for rid, rm in self.rovers.items()})
+        return out
+
+
+AutopilotSpec = Autopilot | Mapping[str, Autopilot] | None
+
+
+def compile_plan(
+    plan: Plan, origin: Origin | None, *, carrier_id: str = "carrier", autopilot: AutopilotSpec = None,
+    home_height: float = 0.0, meet_height: float = 3.0, min_takeoff_height: float = 1.0,
+) -> CompiledPlan:
+    """Turn a deployment or collection :class:`~planners.plan.Plan` into mission items.
+
+    ``autopilot``: one :class:`~fleetctl.autopilot.Autopilot` for all vehicles or a mapping
+    vehicle id -> autopilot (e.g. ``{vid: v.autopilot for vid, v in fleet.vehicles.items()}``);
+    only ``home_is_item0`` matters here. None = no home item (PX4 / generic).
+    ``meet_height``: the safe height (above home) of the approach point above a collection stop;
+    ``min_takeoff_height``: lowest take-off height for a task on the ground.
+    """
+    if origin is None:
+        raise CompileError("the mission has no origin: mission items need WGS84 coordinates; "
+                           "add origin: {lat, lon, alt} to the mission file")
+    if plan.kind not in ("deploy", "collect"):
+        raise CompileError(f"unknown plan kind {plan.kind!r}")
+
+    def home0(vid: str) -> bool:
+        if autopilot is None:
+            return False
+        ap = autopilot if isinstance(autopilot, Autopilot) else autopilot.get(vid)
+        return bool(ap is not None and ap.home_is_item0)
+
+    def wp(cmd: int, p: Sequence[float], hold: float = 0.0) -> MissionItem:
+        lat, lon, _alt = local_to_geodetic(p[0], p[1], p[2], origin)
+        return MissionItem(cmd, FRAME, param1=hold, param4=math.nan if cmd != M.MAV_CMD_NAV_LAND else 0.0,
+                           x=_e7(lat), y=_e7(lon), z=float(p[2]) - home_height)
+
+    def home_item(p: Sequence[float]) -> MissionItem:
+        lat, lon, alt = local_to_geodetic(p[0], p[1], home_height, origin)
+        return MissionItem(M.MAV_CMD_NAV_WAYPOINT, M.MAV_FRAME_GLOBAL, x=_e7(lat), y=_e7(lon), z=alt)
+
+    # -- carrier -----------------------------------------------------------------------------
+    carrier: list[MissionItem] = [home_item(plan.start)] if home0(carrier_id) else []
+    stop_items: list[StopItems] = []
+    for k, stop in enumerate(plan.stops):
+        for v in stop.carrier_path[1:-1]:
+            carrier.append(wp(M.MAV_CMD_NAV_WAYPOINT, _ground(v)))
+        pos = _ground(stop.position)
+        carrier.append(wp(M.MAV_CMD_NAV_WAYPOINT, pos))
+        carrier.append(wp(M.MAV_CMD_NAV_LOITER_UNLIM, pos))
+        hold = len(carrier) - 1
+        stop_items.append(StopItems(k, hold - 1, hold, None, tuple(leg.rover for leg in stop.rovers)))
+    stop_items = [StopItems(s.index, s.arrive_seq, s.hold_seq,
+                            s.hold_seq + 1 if i + 1 < len(stop_items) else None, s.rovers)
+                  for i, s in enumerate(stop_items)]
+
+    # -- rovers -------------------------------------------------------------------------------
+    rovers: dict[str, RoverMission] = {}
+    for k, stop in enumerate(plan.stops):
+        for leg in stop.rovers:
+            items: list[MissionItem] = []
+            if plan.kind == "deploy":
+                start = _ground(leg.path[0] if leg.path else stop.position)
+                if home0(leg.rover):
+                    items.append(home_item(start))
+                target = leg.end
+                takeoff_z = max(float(target[2]), min_takeoff_height)
+                items.append(wp(M.MAV_CMD_NAV_TAKEOFF, (start[0], start[1], takeoff_z)))
+                for v in leg.path[1:]:
+                    items.append(wp(M.MAV_CMD_NAV_WAYPOINT, v))
+                target_seq = len(items) - 1
+                items.append(wp(M.MAV_CMD_NAV_LOITER_UNLIM, target))
+            else:
+                start = leg.path[0]
+                if home0(leg.rover):
+                    items.append(home_item(start))
+                pos = _ground(stop.position)
+                meet_z = max(meet_height, float(leg.end[2]))
+                if float(start[2]) <= ON_GROUND_Z:
+                    items.append(wp(M.MAV_CMD_NAV_TAKEOFF, (start[0], start[1], meet_z)))
+                for v in leg.path[1:-1]:
+                    items.append(wp(M.MAV_CMD_NAV_WAYPOINT, v))
+                items.append(wp(M.MAV_CMD_NAV_WAYPOINT, (pos[0], pos[1], meet_z)))
+                target_seq = len(items) - 1
+                items.append(wp(M.MAV_CMD_NAV_LAND, pos))
+            rovers[leg.rover] = RoverMission(leg.rover, k, tuple(items), target_seq, len(items) - 1, leg.task)
+    return CompiledPlan(plan.kind, carrier_id, tuple(carrier), tuple(stop_items), rovers)
+
+
+def compile_for_fleet(plan: Plan, fleet: Fleet, **kw: float) -> CompiledPlan:
+    """:func:`compile_plan` with the carrier id, origin and autopilots of a connected fleet."""
+    aps = {vid: v.autopilot for vid, v in fleet.vehicles.items() if v.autopilot is not None}
+    return compile_plan(plan, fleet.carrier.origin, carrier_id=fleet.carrier_id, autopilot=aps, **kw)
+
+
+def item_position(item: MissionItem, origin: Origin, home_height: float = 0.0) -> tuple[float, float, float]:
+    """The mission-frame (ENU) point of a compiled item: the inverse of the conversion above."""
+    if item.frame == M.MAV_FRAME_GLOBAL:
+        return geodetic_to_local(item.lat, item.lon, item.z, origin)
+    return geodetic_to_local(item.lat, item.lon, origin.alt + item.z + home_height, origin)
+
+
+def _ground(p: Sequence[float]) -> tuple[float, float, float]:
+    return (float(p[0]), float(p[1]), 0.0)
+
+
+def _e7(deg: float) -> int:
+    return int(round(deg * 1e7))
+
+
+__all__ = ["CompileError", "CompiledPlan", "RoverMission", "StopItems", "compile_for_fleet", "compile_plan",
+           "item_position"]

@@ -1,0 +1,815 @@
+"""Async MAVLink 2 transport: one :class:`Link` per connection URL, hosting any number of vehicles.
+
+pymavlink is used only as the codec (``pymavlink.dialects.v20.ardupilotmega``); sockets, timers
+and retries are asyncio. Nothing here blocks the event loop.
+
+Connection URLs are written from the controller's side (DESIGN.md "Mission file"):
+
+* ``udpin://HOST:PORT`` - listen there; a reply goes to the address its system id was last heard
+  from, a broadcast (heartbeat) to every address heard from.
+* ``udp://HOST:PORT`` (alias ``udpout://``) - send to a vehicle listening there and receive on
+  the same socket.
+* ``tcp://HOST:PORT`` - connect (reconnects after a drop while the link is open).
+* ``serial:///dev/ttyX?baud=57600`` - needs the optional ``pyserial-asyncio`` package.
+
+Layers, bottom up:
+
+1. transport + one parser per remote address; incoming messages are routed by source system id
+   (``Link.subscribe``) and offered to the registered expectations;
+2. single request/response: :meth:`Link.expect` (one future) and :meth:`Link.collect` (an inbox
+   for a whole exchange) are registered *before* the request is sent;
+3. retries: :meth:`Link.command` (COMMAND_LONG/COMMAND_INT with COMMAND_ACK, resent with
+   ``confirmation`` incremented, a longer wait after MAV_RESULT_IN_PROGRESS) and the mission
+   protocol (:meth:`Link.upload_mission`, :meth:`Link.download_mission`,
+   :meth:`Link.clear_mission`) with the spec's 1.5 s timeout, 5 retries and re-requested items.
+
+Every message in and out can be observed with :meth:`Link.add_tap` (``callback(direction,
+unix_time, raw_bytes)``, direction ``"in"`` or ``"out"``), e.g. by :class:`fleetctl.tlog.TlogWriter`.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import logging
+import math
+import time
+from collections.abc import Callable, Iterable, Iterator
+from dataclasses import dataclass
+from typing import Any
+from urllib.parse import parse_qs, urlsplit
+
+from pymavlink.dialects.v20 import ardupilotmega as mavlink2
+
+log = logging.getLogger(__name__)
+
+M = mavlink2
+GCS_SYSID = 255
+GCS_COMPID = M.MAV_COMP_ID_MISSIONPLANNER  # 190
+
+MISSION_TIMEOUT = 1.5  # s, MAVLink mission protocol default
+MISSION_ITEM_TIMEOUT = 0.25  # s, first wait for one item; doubles on each retry up to MISSION_TIMEOUT
+MISSION_RETRIES = 5
+COMMAND_TIMEOUT = 1.0  # s per attempt
+COMMAND_RETRIES = 4  # resends after the first attempt
+COMMAND_PROGRESS_TIMEOUT = 10.0  # s to wait for the final ACK after MAV_RESULT_IN_PROGRESS
+MAX_PEERS = 64
+
+Tap = Callable[[str, float, bytes], None]
+Handler = Callable[[Any], None]
+
+
+# ------------------------------------------------------------------------------------ errors
+
+
+class LinkError(Exception):
+    """A link that cannot be opened or used (bad URL, port in use, unreachable peer)."""
+
+
+class LinkTimeout(LinkError, TimeoutError):
+    """No (final) reply from a vehicle after every retry."""
+
+
+class MissionRejected(LinkError):
+    """The vehicle ended a mission transfer with an error MISSION_ACK (final, per the spec)."""
+
+    def __init__(self, sysid: int, operation: str, result: int) -> None:
+        self.sysid = sysid
+        self.operation = operation
+        self.result = result
+        self.result_name = enum_name("MAV_MISSION_RESULT", result)
+        super().__init__(f"system {sysid} rejected the mission {operation}: {self.result_name}")
+
+
+def enum_name(enum: str, value: int) -> str:
+    """The MAVLink name of ``value`` in ``enum`` (e.g. ``MAV_RESULT_DENIED``), or ``ENUM(value)``."""
+    entry = M.enums.get(enum, {}).get(value)
+    return entry.name if entry is not None else f"{enum}({value})"
+
+
+def command_name(command: int) -> str:
+    return enum_name("MAV_CMD", command)
+
+
+# ------------------------------------------------------------------------------------ URLs
+
+
+@dataclass(frozen=True)
+class LinkAddress:
+    """A parsed connection URL. ``kind`` is ``udpin``, ``udpout``, ``tcp`` or ``serial``."""
+
+    url: str
+    kind: str
+    host: str = ""
+    port: int = 0
+    device: str = ""
+    baud: int = 57600
+
+
+def parse_url(url: str) -> LinkAddress:
+    """Parse a controller-side connection URL; :class:`LinkError` says what to write instead."""
+    parts = urlsplit(url)
+    scheme = parts.scheme.lower()
+    if scheme == "serial":
+        device = parts.path or parts.netloc
+        if not device:
+            raise LinkError(f"connection {url!r}: needs a device, e.g. serial:///dev/ttyACM0?baud=57600")
+        q = parse_qs(parts.query)
+        try:
+            baud = int(q.get("baud", q.get("baudrate", ["57600"]))[0])
+        except ValueError:
+            raise LinkError(f"connection {url!r}: baud must be an integer") from None
+        return LinkAddress(url, "serial", device=device, baud=baud)
+    if scheme not in ("udpin", "udp", "udpout", "tcp"):
+        raise LinkError(f"connection {url!r}: unknown scheme; use udpin://HOST:PORT, udp://HOST:PORT, "
+                        "tcp://HOST:PORT or serial:///dev/X?baud=N")
+    try:
+        port = parts.port
+    except ValueError:
+        port = None
+    if port is None or (port == 0 and scheme != "udpin"):
+        raise LinkError(f"connection {url!r}: needs a port, e.g. {scheme}://127.0.0.1:14550")
+    host = parts.hostname or ("0.0.0.0" if scheme == "udpin" else "127.0.0.1")
+    kind = "udpout" if scheme in ("udp", "udpout") else scheme
+    return LinkAddress(url, kind, host=host, port=port)
+
+
+# ------------------------------------------------------------------------------------ mission items
+
+
+@dataclass(frozen=True)
+class MissionItem:
+    """One mission item in MISSION_ITEM_INT form: ``x``/``y`` are degrees·1e7 in global frames,
+    ``z`` metres (relative to home in ``MAV_FRAME_GLOBAL_RELATIVE_ALT_INT``)."""
+
+    command: int
+    frame: int = M.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT
+    param1: float = 0.0
+    param2: float = 0.0
+    param3: float = 0.0
+    param4: float = 0.0
+    x: int = 0
+    y: int = 0
+    z: float = 0.0
+    autocontinue: int = 1
+    current: int = 0
+
+    @property
+    def lat(self) -> float:
+        return self.x / 1e7
+
+    @property
+    def lon(self) -> float:
+        return self.y / 1e7
+
+    @property
+    def name(self) -> str:
+        return command_name(self.command).removeprefix("MAV_CMD_")
+
+    @classmethod
+    def from_msg(cls, msg: Any) -> MissionItem:
+        """From a MISSION_ITEM_INT (or legacy float MISSION_ITEM) message."""
+        x, y = msg.x, msg.y
+        if msg.get_type() == "MISSION_ITEM":
+            x = int(round(x * 1e7)) if math.isfinite(x) else 0
+            y = int(round(y * 1e7)) if math.isfinite(y) else 0
+        return cls(command=msg.command, frame=msg.frame, param1=msg.param1, param2=msg.param2,
+                   param3=msg.param3, param4=msg.param4, x=int(x), y=int(y), z=msg.z,
+                   autocontinue=msg.autocontinue, current=msg.current)
+
+    def same_as(self, other: MissionItem, tol: float = 1e-3) -> bool:
+        """Equal up to float32 rounding of the parameters and ``z`` (what survives a round trip)."""
+        def close(a: float, b: float) -> bool:
+            return (math.isnan(a) and math.isnan(b)) or math.isclose(a, b, rel_tol=1e-6, abs_tol=tol)
+
+        return (self.command == other.command and self.frame == other.frame and self.x == other.x
+                and self.y == other.y and self.autocontinue == other.autocontinue
+                and all(close(a, b) for a, b in zip(
+                    (self.param1, self.param2, self.param3, self.param4, self.z),
+                    (other.param1, other.param2, other.param3, other.param4, other.z), strict=True)))
+
+
+@dataclass(frozen=True)
+class CommandAck:
+    """The final COMMAND_ACK of a command (after retries)."""
+
+    sysid: int
+    command: int
+    result: int
+    attempts: int
+    progress: int = 0
+    result_param2: int = 0
+
+    @property
+    def accepted(self) -> bool:
+        return self.result == M.MAV_RESULT_ACCEPTED
+
+    @property
+    def result_name(self) -> str:
+        return enum_name("MAV_RESULT", self.result)
+
+    @property
+    def command_name(self) -> str:
+        return command_name(self.command)
+
+
+# ------------------------------------------------------------------------------------ expectations
+
+
+class _Waiter:
+    """A registered expectation: message types from one system (or any), optionally filtered."""
+
+    __slots__ = ("types", "sysid", "match", "fut", "queue")
+
+    def __init__(self, types: frozenset[str], sysid: int | None, match: Callable[[Any], bool] | None,
+                 fut: asyncio.Future[Any] | None, queue: asyncio.Queue[Any] | None) -> None:
+        self.types = types
+        self.sysid = sysid
+        self.match = match
+        self.fut = fut
+        self.queue = queue
+
+    def offer(self, msg: Any) -> bool:
+        """Deliver ``msg`` if it matches; True when this one-shot waiter is done."""
+        if self.sysid is not None and msg.get_srcSystem() != self.sysid:
+            return False
+        if self.match is not None:
+            try:
+                if not self.match(msg):
+                    return False
+            except Exception:  # noqa: BLE001 - a faulty matcher must not break the receive path
+                log.exception("expectation matcher failed on %s", msg.get_type())
+                return False
+        if self.queue is not None:
+            self.queue.put_nowait(msg)
+            return False
+        assert self.fut is not None
+        if not self.fut.done():
+            self.fut.set_result(msg)
+        return True
+
+
+class Inbox:
+    """Messages matching an expectation, queued for the duration of one exchange (see
+    :meth:`Link.collect`)."""
+
+    def __init__(self, queue: asyncio.Queue[Any]) -> None:
+        self._queue = queue
+
+    async def get(self, timeout: float) -> Any:
+        """The next matching message; ``TimeoutError`` after ``timeout`` seconds."""
+        async with asyncio.timeout(timeout):
+            return await self._queue.get()
+
+
+# ------------------------------------------------------------------------------------ transports
+
+
+class _Udp(asyncio.DatagramProtocol):
+    def __init__(self, link: Link) -> None:
+        self.link = link
+        self.transport: asyncio.DatagramTransport | None = None
+
+    def connection_made(self, transport: asyncio.BaseTransport) -> None:
+        self.transport = transport  # type: ignore[assignment]
+
+    def datagram_received(self, data: bytes, addr: Any) -> None:
+        self.link._received(data, addr)
+
+    def error_received(self, exc: Exception) -> None:
+        log.debug("%s: %s", self.link.url, exc)  # e.g. ICMP port unreachable before the vehicle is up
+
+    def connection_lost(self, exc: Exception | None) -> None:
+        self.transport = None
+
+
+def _new_parser() -> Any:
+    p = M.MAVLink(None)
+    p.robust_parsing = True
+    return p
+
+
+# ------------------------------------------------------------------------------------ the link
+
+
+class Link:
+    """One MAVLink 2 connection (a URL) carrying any number of vehicles, told apart by system id.
+
+    ``async with Link("udp://127.0.0.1:14550") as link:`` opens it and starts the 1 Hz GCS
+    heartbeat; ``close()`` cancels every background task and pending expectation.
+    """
+
+    def __init__(self, url: str, *, sysid: int = GCS_SYSID, compid: int = GCS_COMPID,
+                 heartbeat_hz: float = 1.0) -> None:
+        self.address = parse_url(url)
+        self.url = url
+        self.sysid = sysid
+        self.compid = compid
+        self.heartbeat_hz = heartbeat_hz
+        self.mav = M.MAVLink(None, srcSystem=sysid, srcComponent=compid)
+        self.routes: dict[int, Any] = {}  # remote sysid -> address it was last heard from
+        self.last_heard: dict[int, float] = {}  # remote sysid -> time.monotonic()
+        self.rx_messages = 0
+        self.rx_bad = 0
+        self.tx_messages = 0
+        self._peers: dict[Any, float] = {}
+        self._parsers: dict[Any, Any] = {}
+        self._udp: _Udp | None = None
+        self._writer: asyncio.StreamWriter | None = None
+        self._tasks: set[asyncio.Task[Any]] = set()
+        self._taps: list[Tap] = []
+        self._subs: list[tuple[int | None, frozenset[str] | None, Handler]] = []
+        self._waiters: dict[str, list[_Waiter]] = {}
+        self._locks: dict[Any, asyncio.Lock] = {}
+        self._open = False
+        self._last_rtt = 0.0  # of the last mission exchange; sets the item timeout of a download
+
+    # -- lifecycle -----------------------------------------------------------------------------
+    async def open(self, timeout: float = 5.0) -> Link:
+        """Open the transport and start the GCS heartbeat; :class:`LinkError` if that fails."""
+        if self._open:
+            return self
+        a = self.address
+        loop = asyncio.get_running_loop()
+        try:
+            if a.kind == "udpin":
+                await loop.create_datagram_endpoint(lambda: self._make_udp(), local_addr=(a.host, a.port))
+            elif a.kind == "udpout":
+                local = "127.0.0.1" if a.host.startswith("127.") or a.host == "localhost" else "0.0.0.0"
+                await loop.create_datagram_endpoint(lambda: self._make_udp(), local_addr=(local, 0))
+                self._peers[(a.host, a.port)] = time.monotonic()
+            elif a.kind == "tcp":
+                async with asyncio.timeout(timeout):
+                    reader, writer = await asyncio.open_connection(a.host, a.port)
+                self._start_stream(reader, writer, reconnect=True)
+            else:
+                reader, writer = await self._open_serial(timeout)
+                self._start_stream(reader, writer, reconnect=False)
+        except TimeoutError:
+            raise LinkError(f"connection {self.url!r}: no answer within {timeout:g} s") from None
+        except OSError as exc:
+            raise LinkError(f"connection {self.url!r}: cannot open ({exc.strerror or exc}); "
+                            "check the address, or stop what uses that port") from None
+        self._open = True
+        if self.heartbeat_hz > 0:
+            self._spawn(self._heartbeat_loop(), "heartbeat")
+        log.info("link %s open", self.url)
+        return self
+
+    def _make_udp(self) -> _Udp:
+        self._udp = _Udp(self)
+        return self._udp
+
+    async def _open_serial(self, timeout: float) -> tuple[asyncio.StreamReader, asyncio.StreamWriter]:
+        try:
+            import serial_asyncio  # type: ignore[import-untyped]
+        except ImportError:
+            raise LinkError(f"connection {self.url!r}: serial links need the pyserial-asyncio package "
+                            "(pip install pyserial-asyncio)") from None
+        try:
+            async with asyncio.timeout(timeout):
+                return await serial_asyncio.open_serial_connection(url=self.address.device,
+                                                                   baudrate=self.address.baud)
+        except Exception as exc:  # serial.SerialException is not an OSError
+            if isinstance(exc, TimeoutError):
+                raise
+            raise LinkError(f"connection {self.url!r}: cannot open {self.address.device} ({exc})") from None
+
+    def _start_stream(self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter,
+                      reconnect: bool) -> None:
+        self._writer = writer
+        self._spawn(self._read_stream(reader, writer, reconnect), "reader")
+
+    async def _read_stream(self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter,
+                           reconnect: bool) -> None:
+        addr = self.address.device or (self.address.host, self.address.port)
+        while True:
+            try:
+                while data := await reader.read(4096):
+                    self._received(data, addr)
+            except (OSError, asyncio.IncompleteReadError) as exc:
+                log.warning("%s: read failed: %s", self.url, exc)
+            self._writer = None
+            with contextlib.suppress(Exception):
+                writer.close()
+            self._parsers.pop(addr, None)
+            if not reconnect:
+                log.warning("%s: closed by the other side", self.url)
+                return
+            log.warning("%s: connection dropped; reconnecting", self.url)
+            while True:
+                await asyncio.sleep(1.0)
+                try:
+                    async with asyncio.timeout(5.0):
+                        reader, writer = await asyncio.open_connection(self.address.host, self.address.port)
+                    self._writer = writer
+                    log.info("%s: reconnected", self.url)
+                    break
+                except (OSError, TimeoutError) as exc:
+                    log.debug("%s: reconnect failed: %s", self.url, exc)
+
+    def _spawn(self, coro: Any, name: str) -> None:
+        task = asyncio.get_running_loop().create_task(coro, name=f"link {self.url} {name}")
+        self._tasks.add(task)
+        task.add_done_callback(self._task_done)
+
+    def _task_done(self, task: asyncio.Task[Any]) -> None:
+        self._tasks.discard(task)
+        if not task.cancelled() and task.exception() is not None:
+            log.error("%s: background task %s failed", self.url, task.get_name(), exc_info=task.exception())
+
+    async def close(self) -> None:
+        """Stop the heartbeat and readers, fail pending expectations, close the transport."""
+        self._open = False
+        tasks = list(self._tasks)
+        for t in tasks:
+            t.cancel()
+        for t in tasks:
+            with contextlib.suppress(asyncio.CancelledError, Exception):
+                await t
+        for waiters in self._waiters.values():
+            for w in waiters:
+                if w.fut is not None and not w.fut.done():
+                    w.fut.cancel()
+        self._waiters.clear()
+        if self._udp is not None and self._udp.transport is not None:
+            self._udp.transport.close()
+        self._udp = None
+        if self._writer is not None:
+            self._writer.close()
+            with contextlib.suppress(Exception):
+                async with asyncio.timeout(1.0):
+                    await self._writer.wait_closed()
+            self._writer = None
+
+    async def __aenter__(self) -> Link:
+        return await self.open()
+
+    async def __aexit__(self, *exc: object) -> None:
+        await self.close()
+
+    @property
+    def is_open(self) -> bool:
+        return self._open
+
+    @property
+    def local_port(self) -> int | None:
+        """The local UDP port (useful with ``udpin://HOST:0``)."""
+        if self._udp is None or self._udp.transport is None:
+            return None
+        return int(self._udp.transport.get_extra_info("sockname")[1])
+
+    # -- observers -------------------------------------------------------------------------------
+    def add_tap(self, tap: Tap) -> Callable[[], None]:
+        """Call ``tap(direction, unix_time, raw_bytes)`` for every message ("in" and "out").
+        Returns a function that removes the tap."""
+        self._taps.append(tap)
+        return lambda: self._taps.remove(tap) if tap in self._taps else None
+
+    def subscribe(self, handler: Handler, *, sysid: int | None = None,
+                  types: Iterable[str] | None = None) -> Callable[[], None]:
+        """Call ``handler(msg)`` for messages from ``sysid`` (None = any) of ``types`` (None = all).
+        Returns a function that unsubscribes."""
+        entry = (sysid, None if types is None else frozenset(types), handler)
+        self._subs.append(entry)
+        return lambda: self._subs.remove(entry) if entry in self._subs else None
+
+    # -- receive -----------------------------------------------------------------------------------
+    def _received(self, data: bytes, addr: Any) -> None:
+        parser = self._parsers.get(addr)
+        if parser is None:
+            if len(self._parsers) >= MAX_PEERS:
+                self._parsers.pop(next(iter(self._parsers)))
+            parser = self._parsers[addr] = _new_parser()
+        if self.address.kind == "udpin":
+            if addr not in self._peers and len(self._peers) >= MAX_PEERS:
+                del self._peers[min(self._peers, key=self._peers.__getitem__)]
+            self._peers[addr] = time.monotonic()
+        try:
+            msgs = parser.parse_buffer(data) or []
+        except Exception as exc:  # noqa: BLE001 - garbage on the wire must not kill the link
+            log.debug("%s: undecodable data from %s: %s", self.url, addr, exc)
+            self.rx_bad += 1
+            self._parsers[addr] = _new_parser()
+            return
+        for msg in msgs:
+            self._dispatch(msg, addr)
+
+    def _dispatch(self, msg: Any, addr: Any) -> None:
+        mtype = msg.get_type()
+        if mtype == "BAD_DATA":
+            self.rx_bad += 1
+            return
+        src = msg.get_srcSystem()
+        if src == self.sysid and msg.get_srcComponent() == self.compid:
+            return  # our own traffic reflected back
+        self.rx_messages += 1
+        now = time.monotonic()
+        self.routes[src] = addr
+        self.last_heard[src] = now
+        if self._taps:
+            self._tap("in", msg.get_msgbuf())
+        target = getattr(msg, "target_system", 0)
+        waiters = self._waiters.get(mtype)
+        if waiters and target in (0, self.sysid):
+            for w in list(waiters):
+                if w.offer(msg):
+                    self._remove_waiter(w)
+        for sysid, types, handler in list(self._subs):
+            if (sysid is None or sysid == src) and (types is None or mtype in types):
+                try:
+                    handler(msg)
+                except Exception:  # noqa: BLE001 - one faulty subscriber must not starve others
+                    log.exception("%s: handler failed on %s from %d", self.url, mtype, src)
+
+    def _tap(self, direction: str, data: bytes) -> None:
+        ts = time.time()
+        for tap in list(self._taps):
+            try:
+                tap(direction, ts, bytes(data))
+            except Exception:  # noqa: BLE001
+                log.exception("%s: tap failed", self.url)
+
+    # -- send ----------------------------------------------------------------------------------------
+    def send(self, msg: Any, sysid: int | None = None) -> None:
+        """Encode and send ``msg`` (built with ``link.mav.<name>_encode``) to the address ``sysid``
+        was last heard from; ``sysid=None`` broadcasts (every peer of a udpin link)."""
+        data = msg.pack(self.mav)
+        self.mav.seq = (self.mav.seq + 1) & 0xFF
+        self.tx_messages += 1
+        if self._taps:
+            self._tap("out", data)
+        if self._writer is not None:
+            self._writer.write(data)
+            return
+        udp = self._udp
+        if udp is None or udp.transport is None:
+            log.debug("%s: not open, %s dropped", self.url, msg.get_type())
+            return
+        addr = self.routes.get(sysid) if sysid else None
+        if addr is not None:
+            udp.transport.sendto(data, addr)
+            return
+        if not self._peers:
+            log.debug("%s: nobody heard yet, %s not sent", self.url, msg.get_type())
+        for peer in list(self._peers):
+            udp.transport.sendto(data, peer)
+
+    async def _heartbeat_loop(self) -> None:
+        period = 1.0 / self.heartbeat_hz
+        while True:
+            self.send(self.mav.heartbeat_encode(M.MAV_TYPE_GCS, M.MAV_AUTOPILOT_INVALID, 0, 0,
+                                                M.MAV_STATE_ACTIVE))
+            await asyncio.sleep(period)
+
+    # -- request / response ----------------------------------------------------------------------------
+    def _register(self, w: _Waiter) -> None:
+        for t in w.types:
+            self._waiters.setdefault(t, []).append(w)
+
+    def _remove_waiter(self, w: _Waiter) -> None:
+        for t in w.types:
+            lst = self._waiters.get(t)
+            if lst is not None and w in lst:
+                lst.remove(w)
+                if not lst:
+                    del self._waiters[t]
+
+    def expect(self, types: str | Iterable[str], *, sysid: int | None = None,
+               match: Callable[[Any], bool] | None = None) -> asyncio.Future[Any]:
+        """A future for the next message of ``types`` from ``sysid`` addressed to us (or broadcast)
+        for which ``match(msg)`` holds. Register it before sending the request; cancelling the
+        future (e.g. ``asyncio.wait_for`` timing out) unregisters it."""
+        fut: asyncio.Future[Any] = asyncio.get_running_loop().create_future()
+        w = _Waiter(frozenset([types] if isinstance(types, str) else types), sysid, match, fut, None)
+        self._register(w)
+        fut.add_done_callback(lambda _f: self._remove_waiter(w))
+        return fut
+
+    @contextlib.contextmanager
+    def collect(self, types: str | Iterable[str], *, sysid: int | None = None,
+                match: Callable[[Any], bool] | None = None) -> Iterator[Inbox]:
+        """``with link.collect(...) as inbox:`` queues every matching message until the block ends
+        (for exchanges with several replies: command progress, mission transfers)."""
+        queue: asyncio.Queue[Any] = asyncio.Queue()
+        w = _Waiter(frozenset([types] if isinstance(types, str) else types), sysid, match, None, queue)
+        self._register(w)
+        try:
+            yield Inbox(queue)
+        finally:
+            self._remove_waiter(w)
+
+    async def request(self, msg: Any, sysid: int, types: str | Iterable[str], *,
+                      match: Callable[[Any], bool] | None = None, timeout: float = 1.0) -> Any:
+        """Send ``msg`` to ``sysid`` once and return the first matching reply (``TimeoutError``)."""
+        fut = self.expect(types, sysid=sysid, match=match)
+        self.send(msg, sysid)
+        return await asyncio.wait_for(fut, timeout)
+
+    def _lock(self, key: Any) -> asyncio.Lock:
+        lock = self._locks.get(key)
+        if lock is None:
+            lock = self._locks[key] = asyncio.Lock()
+        return lock
+
+    # -- commands ------------------------------------------------------------------------------------------
+    async def command(
+        self, sysid: int, command: int, params: Iterable[float] = (), *, compid: int = 1,
+        frame: int | None = None, timeout: float = COMMAND_TIMEOUT, retries: int = COMMAND_RETRIES,
+        progress_timeout: float = COMMAND_PROGRESS_TIMEOUT,
+    ) -> CommandAck:
+        """Send a command and return its final :class:`CommandAck` (any result; check ``accepted``).
+
+        ``params`` are param1..param7. ``frame=None`` sends COMMAND_LONG (resent with
+        ``confirmation`` incremented); a frame sends COMMAND_INT with param5/param6 as latitude/
+        longitude in degrees (encoded ·1e7) and param7 as z. After MAV_RESULT_IN_PROGRESS the
+        final ACK is awaited up to ``progress_timeout``. :class:`LinkTimeout` when no ACK comes.
+        """
+        p = [float(v) for v in params]
+        if len(p) > 7:
+            raise ValueError("a command has at most 7 parameters")
+        p += [0.0] * (7 - len(p))
+        name = command_name(command)
+        attempts = 0
+        async with self._lock(("command", sysid, command)):
+            with self.collect("COMMAND_ACK", sysid=sysid, match=lambda m: m.command == command) as inbox:
+                for attempt in range(retries + 1):
+                    attempts = attempt + 1
+                    if frame is None:
+                        msg = self.mav.command_long_encode(sysid, compid, command, min(attempt, 255), *p)
+                    else:
+                        msg = self.mav.command_int_encode(sysid, compid, frame, command, 0, 0, *p[:4],
+                                                          _deg_e7(p[4]), _deg_e7(p[5]), p[6])
+                    self.send(msg, sysid)
+                    try:
+                        ack = await inbox.get(timeout)
+                    except TimeoutError:
+                        log.debug("%s: no ACK for %s from %d (attempt %d)", self.url, name, sysid, attempts)
+                        continue
+                    while ack.result == M.MAV_RESULT_IN_PROGRESS:
+                        try:
+                            ack = await inbox.get(progress_timeout)
+                        except TimeoutError:
+                            raise LinkTimeout(f"system {sysid}: {name} still in progress after "
+                                              f"{progress_timeout:g} s") from None
+                    return CommandAck(sysid, command, ack.result, attempts, getattr(ack, "progress", 0),
+                                      getattr(ack, "result_param2", 0))
+        raise LinkTimeout(f"system {sysid} did not acknowledge {name} "
+                          f"({attempts} attempts, {timeout:g} s each) on {self.url}")
+
+    async def set_message_interval(self, sysid: int, msgid: int, hz: float, *, compid: int = 1) -> CommandAck:
+        """MAV_CMD_SET_MESSAGE_INTERVAL: stream ``msgid`` at ``hz`` (0 = the default rate, < 0 = off)."""
+        interval = 0.0 if hz == 0 else (-1.0 if hz < 0 else 1e6 / hz)
+        return await self.command(sysid, M.MAV_CMD_SET_MESSAGE_INTERVAL, (msgid, interval), compid=compid)
+
+    # -- mission protocol ------------------------------------------------------------------------------------
+    def _mission_match(self, mission_type: int) -> Callable[[Any], bool]:
+        return lambda m: getattr(m, "mission_type", 0) == mission_type
+
+    async def upload_mission(
+        self, sysid: int, items: list[MissionItem], *, compid: int = 1, mission_type: int = 0,
+        timeout: float = MISSION_TIMEOUT, item_timeout: float = MISSION_ITEM_TIMEOUT,
+        retries: int = MISSION_RETRIES,
+    ) -> None:
+        """Upload ``items`` (MISSION_COUNT → MISSION_REQUEST_INT → MISSION_ITEM_INT → MISSION_ACK).
+
+        The vehicle drives the transfer: whatever item it requests is sent, so re-requested and
+        out-of-order items are served. Without an answer the last message is resent (COUNT after
+        ``timeout``; an item after ``item_timeout``, doubling up to ``timeout``), at most
+        ``retries`` times in a row. :class:`MissionRejected` on an error ACK (the vehicle keeps its
+        previous mission), :class:`LinkTimeout` after the retries (the transfer is cancelled).
+        """
+        n = len(items)
+        types = ("MISSION_REQUEST_INT", "MISSION_REQUEST", "MISSION_ACK")
+        async with self._lock(("mission", sysid)):
+            with self.collect(types, sysid=sysid, match=self._mission_match(mission_type)) as inbox:
+                count_msg = self.mav.mission_count_encode(sysid, compid, n, mission_type)
+                self.send(count_msg, sysid)
+                t0 = time.monotonic()
+                last: Any = count_msg
+                started = False
+                base = wait = timeout
+                left = retries
+                served = 0
+                while True:
+                    try:
+                        m = await inbox.get(wait)
+                    except TimeoutError:
+                        if left == 0:
+                            cancel = M.MAV_MISSION_OPERATION_CANCELLED
+                            self.send(self.mav.mission_ack_encode(sysid, compid, cancel, mission_type), sysid)
+                            raise LinkTimeout(f"system {sysid}: mission upload timed out after {retries} "
+                                              f"retries ({served} of {n} items sent) on {self.url}") from None
+                        left -= 1
+                        self.send(last, sysid)
+                        t0 = time.monotonic()  # the round trip is measured from the last send
+                        wait = min(wait * 2, timeout) if started else timeout
+                        continue
+                    if m.get_type() == "MISSION_ACK":
+                        if m.type == M.MAV_MISSION_ACCEPTED:
+                            if started or n == 0:
+                                log.info("%s: mission of %d items uploaded to %d", self.url, n, sysid)
+                                return
+                            continue  # a stale ACK of an earlier transfer
+                        raise MissionRejected(sysid, "upload", m.type)
+                    seq = m.seq
+                    if not 0 <= seq < n:
+                        log.warning("%s: system %d requested item %d of %d; ignored", self.url, sysid, seq, n)
+                        continue
+                    if not started:
+                        started = True
+                        base = max(item_timeout, 3.0 * (time.monotonic() - t0))
+                    it = items[seq]
+                    if m.get_type() == "MISSION_REQUEST":
+                        last = self.mav.mission_item_encode(
+                            sysid, compid, seq, it.frame, it.command, it.current, it.autocontinue, it.param1,
+                            it.param2, it.param3, it.param4, it.x / 1e7, it.y / 1e7, it.z, mission_type)
+                    else:
+                        last = self.mav.mission_item_int_encode(
+                            sysid, compid, seq, it.frame, it.command, it.current, it.autocontinue, it.param1,
+                            it.param2, it.param3, it.param4, it.x, it.y, it.z, mission_type)
+                    self.send(last, sysid)
+                    served = max(served, seq + 1)
+                    left, wait = retries, base
+
+    async def download_mission(
+        self, sysid: int, *, compid: int = 1, mission_type: int = 0, timeout: float = MISSION_TIMEOUT,
+        item_timeout: float = MISSION_ITEM_TIMEOUT, retries: int = MISSION_RETRIES,
+    ) -> list[MissionItem]:
+        """Download the vehicle's mission (MISSION_REQUEST_LIST → COUNT → REQUEST_INT → ITEM_INT → ACK).
+        On ArduPilot item 0 is home."""
+        types = ("MISSION_COUNT", "MISSION_ITEM_INT", "MISSION_ITEM", "MISSION_ACK")
+        async with self._lock(("mission", sysid)):
+            with self.collect(types, sysid=sysid, match=self._mission_match(mission_type)) as inbox:
+                count_msg = await self._exchange(
+                    inbox, self.mav.mission_request_list_encode(sysid, compid, mission_type), sysid,
+                    lambda m: m.get_type() == "MISSION_COUNT", timeout, timeout, retries, "download")
+                n = count_msg.count
+                base = max(item_timeout, 3.0 * self._last_rtt)
+                items: list[MissionItem] = []
+                for seq in range(n):
+                    m = await self._exchange(
+                        inbox, self.mav.mission_request_int_encode(sysid, compid, seq, mission_type), sysid,
+                        lambda m, s=seq: m.get_type() in ("MISSION_ITEM_INT", "MISSION_ITEM") and m.seq == s,
+                        base, timeout, retries, "download")
+                    items.append(MissionItem.from_msg(m))
+                if n:
+                    ok = M.MAV_MISSION_ACCEPTED
+                    self.send(self.mav.mission_ack_encode(sysid, compid, ok, mission_type), sysid)
+                return items
+
+    async def clear_mission(self, sysid: int, *, compid: int = 1, mission_type: int = 0,
+                            timeout: float = MISSION_TIMEOUT, retries: int = MISSION_RETRIES) -> None:
+        """MISSION_CLEAR_ALL → MISSION_ACK."""
+        async with self._lock(("mission", sysid)):
+            with self.collect("MISSION_ACK", sysid=sysid, match=self._mission_match(mission_type)) as inbox:
+                await self._exchange(inbox, self.mav.mission_clear_all_encode(sysid, compid, mission_type),
+                                     sysid, lambda m: True, timeout, timeout, retries, "clear")
+
+    async def _exchange(self, inbox: Inbox, msg: Any, sysid: int, accept: Callable[[Any], bool],
+                        first_wait: float, max_wait: float, retries: int, operation: str) -> Any:
+        """Send ``msg`` until a message passing ``accept`` arrives; an error MISSION_ACK is final."""
+        wait = first_wait
+        for attempt in range(retries + 1):
+            if attempt:
+                log.debug("%s: resending %s to %d (retry %d)", self.url, msg.get_type(), sysid, attempt)
+            self.send(msg, sysid)
+            sent = time.monotonic()
+            deadline = sent + wait
+            while (remaining := deadline - time.monotonic()) > 0:
+                try:
+                    m = await inbox.get(remaining)
+                except TimeoutError:
+                    break
+                if m.get_type() == "MISSION_ACK" and m.type != M.MAV_MISSION_ACCEPTED:
+                    raise MissionRejected(sysid, operation, m.type)
+                if accept(m):
+                    self._last_rtt = time.monotonic() - sent
+                    return m
+            wait = min(wait * 2, max_wait)
+        raise LinkTimeout(f"system {sysid}: mission {operation} timed out ({msg.get_type()} unanswered "
+                          f"after {retries} retries) on {self.url}")
+
+
+def _deg_e7(deg: float) -> int:
+    """Degrees → degrees·1e7 for COMMAND_INT; NaN means 'not given' (INT32_MAX)."""
+    if not math.isfinite(deg):
+        return 0x7FFFFFFF
+    return int(round(deg * 1e7))
+
+
+__all__ = [
+    "CommandAck",
+    "GCS_COMPID",
+    "GCS_SYSID",
+    "Inbox",
+    "Link",
+    "LinkAddress",
+    "LinkError",
+    "LinkTimeout",
+    "MissionItem",
+    "MissionRejected",
+    "command_name",
+    "enum_name",
+    "parse_url",
+]

@@ -1,0 +1,623 @@
+"""Vehicle proxies: one :class:`Vehicle` per system id on a :class:`fleetctl.link.Link`, and the
+:class:`Fleet` of a mission (:func:`connect_fleet`).
+
+A ``Vehicle`` keeps the live state decoded from standard MAVLink telemetry (HEARTBEAT,
+GLOBAL_POSITION_INT, HOME_POSITION, EXTENDED_SYS_STATE, BATTERY_STATUS/SYS_STATUS,
+MISSION_CURRENT, MISSION_ITEM_REACHED, STATUSTEXT), emits :class:`VehicleEvent` s and offers async
+commands that raise :class:`CommandRejected` when the autopilot refuses and
+:class:`fleetctl.link.LinkTimeout` when it does not answer. Firmware differences go through
+``vehicle.autopilot`` (:mod:`fleetctl.autopilot`), chosen from the first HEARTBEAT.
+
+Events (``VehicleEvent.kind``): ``connected`` (first heartbeat), ``lost`` (no heartbeat for
+``heartbeat_timeout`` s), ``back`` (a heartbeat after ``lost``), ``armed``, ``disarmed``, ``mode``
+(data: mode, previous), ``landed_state`` (data: state), ``item_reached`` (data: seq),
+``mission_current`` (data: seq), ``statustext`` (data: text, severity). Receive them with
+``vehicle.add_listener(callback)`` or ``queue = vehicle.event_queue()``.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import logging
+import math
+import time
+from collections import deque
+from collections.abc import Callable, Iterable, Mapping
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
+
+from pymavlink.dialects.v20 import ardupilotmega as mavlink2
+
+from fleetctl.autopilot import Autopilot
+from fleetctl.geo import Origin, geodetic_to_local, local_to_geodetic
+from fleetctl.link import CommandAck, Link, LinkError, MissionItem, command_name, enum_name
+
+if TYPE_CHECKING:
+    from fleetctl.mission import Mission
+
+log = logging.getLogger(__name__)
+
+M = mavlink2
+FORCE_MAGIC = 21196.0  # MAV_CMD_COMPONENT_ARM_DISARM param2: force (ignore checks)
+DEFAULT_POSITION_HZ = 10.0
+DEFAULT_BATTERY_HZ = 1.0
+_STATUS_REASON_S = 2.0  # a STATUSTEXT this recent explains a rejected command
+
+Listener = Callable[["VehicleEvent"], None]
+
+
+class CommandRejected(Exception):
+    """The autopilot answered a command with something other than MAV_RESULT_ACCEPTED."""
+
+    def __init__(self, vehicle: str, ack: CommandAck, reason: str | None = None) -> None:
+        self.vehicle = vehicle
+        self.ack = ack
+        self.reason = reason
+        text = f"{vehicle}: {ack.command_name} rejected ({ack.result_name})"
+        super().__init__(f"{text}: {reason}" if reason else text)
+
+
+@dataclass(frozen=True)
+class VehicleEvent:
+    kind: str
+    vehicle: str
+    sysid: int
+    time: float  # time.monotonic()
+    data: dict[str, Any] = field(default_factory=dict)
+
+
+class Vehicle:
+    """Live state and commands of one vehicle (system id ``sysid``) on ``link``.
+
+    ``origin`` (the mission's ENU origin) enables :attr:`enu`; ``heartbeat_timeout`` is the
+    silence after which the vehicle is *lost*. Call :meth:`close` when done (it cancels the timer
+    and unsubscribes from the link; the link itself is not closed).
+    """
+
+    def __init__(self, link: Link, sysid: int, *, name: str | None = None, origin: Origin | None = None,
+                 heartbeat_timeout: float = 3.0) -> None:
+        self.link = link
+        self.sysid = sysid
+        self.name = name or f"sys{sysid}"
+        self.origin = origin
+        self.heartbeat_timeout = heartbeat_timeout
+        self.compid = 1
+        # identity / heartbeat
+        self.autopilot: Autopilot | None = None
+        self.mav_type: int | None = None
+        self.system_status: int | None = None
+        self.base_mode = 0
+        self.custom_mode = 0
+        self.armed = False
+        self.mode: str | None = None  # generic (HOLD, MISSION, ...) where known, else the firmware's
+        self.mode_firmware: str | None = None  # the firmware's own name (AUTO.LOITER, GUIDED, ...)
+        self.connected = False  # a heartbeat was ever heard
+        self.lost = False
+        self.last_heartbeat: float | None = None  # time.monotonic()
+        # position
+        self.lat: float | None = None
+        self.lon: float | None = None
+        self.alt: float | None = None  # metres AMSL (GLOBAL_POSITION_INT.alt)
+        self.relative_alt: float | None = None  # metres above home
+        self.velocity: tuple[float, float, float] | None = None  # east, north, up (m/s)
+        self.heading_deg: float | None = None  # compass degrees
+        self.home: tuple[float, float, float] | None = None  # lat, lon, alt AMSL (HOME_POSITION)
+        self.landed_state: int | None = None  # MAV_LANDED_STATE
+        self.battery_pct: float | None = None  # 0..100
+        # mission
+        self.mission_current: int | None = None
+        self.mission_total: int | None = None
+        self.mission_state: int | None = None
+        self.items_reached: set[int] = set()
+        self.statustexts: deque[tuple[float, int, str]] = deque(maxlen=50)
+        self._enu_key: tuple[float, float, float] | None = None
+        self._enu: tuple[float, float, float] | None = None
+        self._listeners: list[Listener] = []
+        self._tick: asyncio.Future[None] | None = None
+        self._lost_timer: asyncio.TimerHandle | None = None
+        self._unsubscribe = link.subscribe(self._on_message, sysid=sysid)
+        self._handlers: dict[str, Callable[[Any], None]] = {
+            "HEARTBEAT": self._on_heartbeat,
+            "GLOBAL_POSITION_INT": self._on_position,
+            "HOME_POSITION": self._on_home,
+            "EXTENDED_SYS_STATE": self._on_extended_state,
+            "BATTERY_STATUS": self._on_battery,
+            "SYS_STATUS": self._on_sys_status,
+            "MISSION_CURRENT": self._on_mission_current,
+            "MISSION_ITEM_REACHED": self._on_item_reached,
+            "STATUSTEXT": self._on_statustext,
+        }
+
+    def __repr__(self) -> str:
+        return f"<Vehicle {self.name} sysid={self.sysid} {self.link.url}>"
+
+    def close(self) -> None:
+        """Stop tracking: unsubscribe from the link, cancel the heartbeat timer, wake waiters."""
+        self._unsubscribe()
+        if self._lost_timer is not None:
+            self._lost_timer.cancel()
+            self._lost_timer = None
+        self._wake()
+
+    # -- derived state ------------------------------------------------------------------------------------
+    @property
+    def position(self) -> tuple[float, float, float] | None:
+        """WGS84 latitude, longitude (degrees) and altitude AMSL (m), or None before telemetry."""
+        if self.lat is None or self.lon is None or self.alt is None:
+            return None
+        return self.lat, self.lon, self.alt
+
+    @property
+    def enu(self) -> tuple[float, float, float] | None:
+        """Position in the mission frame (ENU east, north; z = altitude - origin altitude) via
+        :func:`fleetctl.geo.geodetic_to_local`; None without telemetry or origin."""
+        pos = self.position
+        if pos is None or self.origin is None:
+            return None
+        if pos != self._enu_key:
+            self._enu = geodetic_to_local(*pos, self.origin)
+            self._enu_key = pos
+        return self._enu
+
+    @property
+    def home_amsl(self) -> float | None:
+        """Home altitude AMSL: from HOME_POSITION, else altitude − relative altitude."""
+        if self.home is not None:
+            return self.home[2]
+        if self.alt is not None and self.relative_alt is not None:
+            return self.alt - self.relative_alt
+        return None
+
+    @property
+    def ground_speed(self) -> float | None:
+        return None if self.velocity is None else math.hypot(self.velocity[0], self.velocity[1])
+
+    @property
+    def battery_fraction(self) -> float | None:
+        """Battery remaining in 0..1 (None if the vehicle does not report it)."""
+        return None if self.battery_pct is None else self.battery_pct / 100.0
+
+    @property
+    def landed_state_name(self) -> str | None:
+        if self.landed_state is None:
+            return None
+        return enum_name("MAV_LANDED_STATE", self.landed_state).removeprefix("MAV_LANDED_STATE_")
+
+    @property
+    def on_ground(self) -> bool | None:
+        """True when EXTENDED_SYS_STATE says ON_GROUND (None when not reported)."""
+        if self.landed_state is None or self.landed_state == M.MAV_LANDED_STATE_UNDEFINED:
+            return None
+        return self.landed_state == M.MAV_LANDED_STATE_ON_GROUND
+
+    @property
+    def last_heard_age(self) -> float | None:
+        """Seconds since any message from this system (None if never)."""
+        t = self.link.last_heard.get(self.sysid)
+        return None if t is None else time.monotonic() - t
+
+    # -- events ------------------------------------------------------------------------------------------
+    def add_listener(self, listener: Listener) -> Callable[[], None]:
+        """Call ``listener(event)`` for every :class:`VehicleEvent`; returns the remover."""
+        self._listeners.append(listener)
+        return lambda: self._listeners.remove(listener) if listener in self._listeners else None
+
+    def event_queue(self, maxsize: int = 0) -> asyncio.Queue[VehicleEvent]:
+        """A new queue receiving every event from now on (events are dropped when it is full)."""
+        q: asyncio.Queue[VehicleEvent] = asyncio.Queue(maxsize)
+        self.add_listener(lambda ev: _put(q, ev))
+        return q
+
+    def _emit(self, kind: str, **data: Any) -> None:
+        ev = VehicleEvent(kind, self.name, self.sysid, time.monotonic(), data)
+        log.debug("%s: %s %s", self.name, kind, data or "")
+        for listener in list(self._listeners):
+            try:
+                listener(ev)
+            except Exception:  # noqa: BLE001
+                log.exception("%s: event listener failed", self.name)
+
+    # -- waiting -------------------------------------------------------------------------------------------
+    def _wake(self) -> None:
+        tick, self._tick = self._tick, None
+        if tick is not None and not tick.done():
+            tick.set_result(None)
+
+    async def wait_until(self, predicate: Callable[[Vehicle], bool], timeout: float,
+                         what: str = "condition") -> None:
+        """Return once ``predicate(vehicle)`` holds (checked after every message and event);
+        ``TimeoutError`` naming the vehicle and ``what`` after ``timeout`` seconds."""
+        try:
+            async with asyncio.timeout(timeout):
+                while not predicate(self):
+                    if self._tick is None:
+                        self._tick = asyncio.get_running_loop().create_future()
+                    await asyncio.shield(self._tick)
+        except TimeoutError:
+            raise TimeoutError(f"{self.name} (sysid {self.sysid}): {what} not reached within "
+                               f"{timeout:g} s") from None
+
+    async def wait_heartbeat(self, timeout: float) -> None:
+        await self.wait_until(lambda v: v.connected and not v.lost, timeout, "heartbeat")
+
+    async def wait_item_reached(self, seq: int, timeout: float) -> None:
+        """Wait until mission item ``seq`` was reached (MISSION_ITEM_REACHED, or MISSION_CURRENT
+        moved past it - the reached message may be lost)."""
+        await self.wait_until(
+            lambda v: seq in v.items_reached or (v.mission_current is not None and v.mission_current > seq),
+            timeout, f"mission item {seq}")
+
+    # -- receive -----------------------------------------------------------------------------------------
+    def _on_message(self, msg: Any) -> None:
+        handler = self._handlers.get(msg.get_type())
+        if handler is not None:
+            handler(msg)
+        self._wake()
+
+    def _on_heartbeat(self, msg: Any) -> None:
+        if msg.autopilot == M.MAV_AUTOPILOT_INVALID or msg.type == M.MAV_TYPE_GCS:
+            return  # another component (camera, gimbal) or a ground station with this sysid
+        now = time.monotonic()
+        first = not self.connected
+        if first or self.autopilot is None or msg.type != self.mav_type:
+            self.autopilot = Autopilot.from_heartbeat(msg)
+            self.mav_type = msg.type
+            self.compid = msg.get_srcComponent()
+        self.connected = True
+        self.last_heartbeat = now
+        self.system_status = msg.system_status
+        self._arm_lost_timer()
+        if first:
+            self._emit("connected", autopilot=self.autopilot.name)
+        elif self.lost:
+            self.lost = False
+            self._emit("back")
+        self.base_mode, self.custom_mode = msg.base_mode, msg.custom_mode
+        armed = bool(msg.base_mode & M.MAV_MODE_FLAG_SAFETY_ARMED)
+        if armed != self.armed:
+            self.armed = armed
+            if not first:
+                self._emit("armed" if armed else "disarmed")
+        mode = self.autopilot.mode_name(msg.base_mode, msg.custom_mode)
+        self.mode_firmware = self.autopilot.firmware_mode(msg.base_mode, msg.custom_mode)
+        if mode != self.mode:
+            previous, self.mode = self.mode, mode
+            self._emit("mode", mode=mode, previous=previous)
+
+    def _arm_lost_timer(self) -> None:
+        if self._lost_timer is not None:
+            self._lost_timer.cancel()
+        self._lost_timer = asyncio.get_running_loop().call_later(self.heartbeat_timeout, self._on_silence)
+
+    def _on_silence(self) -> None:
+        self._lost_timer = None
+        if not self.lost:
+            self.lost = True
+            log.warning("%s (sysid %d): no heartbeat for %.1f s", self.name, self.sysid,
+                        self.heartbeat_timeout)
+            self._emit("lost", timeout=self.heartbeat_timeout)
+            self._wake()
+
+    def _on_position(self, msg: Any) -> None:
+        self.lat, self.lon = msg.lat / 1e7, msg.lon / 1e7
+        self.alt = msg.alt / 1000.0
+        self.relative_alt = msg.relative_alt / 1000.0
+        self.velocity = (msg.vy / 100.0, msg.vx / 100.0, -msg.vz / 100.0)
+        self.heading_deg = None if msg.hdg == 0xFFFF else msg.hdg / 100.0
+
+    def _on_home(self, msg: Any) -> None:
+        self.home = (msg.latitude / 1e7, msg.longitude / 1e7, msg.altitude / 1000.0)
+
+    def _on_extended_state(self, msg: Any) -> None:
+        if msg.landed_state != self.landed_state:
+            self.landed_state = msg.landed_state
+            self._emit("landed_state", state=self.landed_state_name)
+
+    def _on_battery(self, msg: Any) -> None:
+        if msg.battery_remaining >= 0:
+            self.battery_pct = float(msg.battery_remaining)
+
+    def _on_sys_status(self, msg: Any) -> None:
+        if msg.battery_remaining >= 0 and self.battery_pct is None:
+            self.battery_pct = float(msg.battery_remaining)
+
+    def _on_mission_current(self, msg: Any) -> None:
+        self.mission_total = getattr(msg, "total", None)
+        self.mission_state = getattr(msg, "mission_state", None)
+        if msg.seq != self.mission_current:
+            self.mission_current = msg.seq
+            self._emit("mission_current", seq=msg.seq)
+
+    def _on_item_reached(self, msg: Any) -> None:
+        if msg.seq not in self.items_reached:
+            self.items_reached.add(msg.seq)
+            self._emit("item_reached", seq=msg.seq)
+
+    def _on_statustext(self, msg: Any) -> None:
+        text = msg.text if isinstance(msg.text, str) else msg.text.decode("utf-8", "replace")
+        text = text.split("\x00", 1)[0]
+        self.statustexts.append((time.monotonic(), msg.severity, text))
+        self._emit("statustext", text=text, severity=msg.severity)
+
+    # -- commands --------------------------------------------------------------------------------------------
+    def _require_autopilot(self) -> Autopilot:
+        if self.autopilot is None:
+            raise LinkError(f"{self.name} (sysid {self.sysid}): no heartbeat heard yet on {self.link.url}")
+        return self.autopilot
+
+    async def command(self, command: int, params: Iterable[float] = (), *, frame: int | None = None,
+                      check: bool = True, timeout: float | None = None) -> CommandAck:
+        """Send a command (COMMAND_LONG, or COMMAND_INT when ``frame`` is given; see
+        :meth:`Link.command`) with retries. ``check``: raise :class:`CommandRejected` unless accepted."""
+        kw: dict[str, Any] = {} if timeout is None else {"timeout": timeout}
+        sent = time.monotonic()
+        ack = await self.link.command(self.sysid, command, params, compid=self.compid, frame=frame, **kw)
+        if check and not ack.accepted:
+            reason = next((t for ts, _sev, t in reversed(self.statustexts)
+                           if ts >= sent - _STATUS_REASON_S), None)
+            raise CommandRejected(self.name, ack, reason)
+        log.debug("%s: %s -> %s", self.name, command_name(command), ack.result_name)
+        return ack
+
+    async def arm(self, force: bool = False) -> None:
+        await self.command(M.MAV_CMD_COMPONENT_ARM_DISARM, (1, FORCE_MAGIC if force else 0))
+
+    async def disarm(self, force: bool = False) -> None:
+        await self.command(M.MAV_CMD_COMPONENT_ARM_DISARM, (0, FORCE_MAGIC if force else 0))
+
+    async def set_mode(self, mode: str) -> None:
+        """Switch to a generic mode (HOLD, GUIDED, MISSION, TAKEOFF, LAND, RTL, MANUAL) or a
+        firmware mode name, with DO_SET_MODE."""
+        params = self._require_autopilot().set_mode_params(mode)
+        await self.command(M.MAV_CMD_DO_SET_MODE, params)
+
+    async def takeoff(self, height: float) -> None:
+        """Take off to ``height`` metres above home (arm first)."""
+        await self._require_autopilot().takeoff(self, height)
+
+    async def land(self, lat: float | None = None, lon: float | None = None) -> None:
+        """Land here, or at ``lat``/``lon`` (degrees) when given (NAV_LAND)."""
+        nan = math.nan
+        if lat is None or lon is None:
+            await self.command(M.MAV_CMD_NAV_LAND, (0, 0, 0, nan, nan, nan, 0))
+        else:
+            await self.command(M.MAV_CMD_NAV_LAND, (0, 0, 0, nan, lat, lon, 0),
+                               frame=M.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT)
+
+    async def goto(self, lat: float, lon: float, alt: float, speed: float | None = None) -> None:
+        """Fly to ``lat``/``lon`` (degrees) at ``alt`` metres above home (DO_REPOSITION as
+        COMMAND_INT, switching to the guided/hold mode that flies it)."""
+        await self.command(M.MAV_CMD_DO_REPOSITION,
+                           (speed if speed else -1, M.MAV_DO_REPOSITION_FLAGS_CHANGE_MODE, 0, math.nan,
+                            lat, lon, alt), frame=M.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT)
+
+    async def goto_enu(self, x: float, y: float, z: float, speed: float | None = None) -> None:
+        """:meth:`goto` a point of the mission frame (``z`` = height above the origin altitude,
+        taken as height above home)."""
+        if self.origin is None:
+            raise ValueError(f"{self.name}: goto_enu needs the mission origin")
+        lat, lon, _alt = local_to_geodetic(x, y, z, self.origin)
+        await self.goto(lat, lon, z, speed)
+
+    async def upload_mission(self, items: list[MissionItem]) -> None:
+        """Upload ``items`` as given (on ArduPilot item 0 must be home: see :mod:`fleetctl.compile`).
+        Raises :class:`fleetctl.link.MissionRejected` with the autopilot's MAV_MISSION_RESULT."""
+        await self.link.upload_mission(self.sysid, items, compid=self.compid)
+        self.items_reached.clear()
+
+    async def download_mission(self) -> list[MissionItem]:
+        return await self.link.download_mission(self.sysid, compid=self.compid)
+
+    async def clear_mission(self) -> None:
+        await self.link.clear_mission(self.sysid, compid=self.compid)
+        self.items_reached.clear()
+
+    async def start_mission(self, first: int = 0) -> None:
+        """Fly the uploaded mission (from item ``first`` when > 0). Arm first."""
+        await self._require_autopilot().start_mission(self, first)
+
+    async def set_current(self, seq: int) -> None:
+        """Make mission item ``seq`` current (MAV_CMD_DO_SET_MISSION_CURRENT; falls back to the
+        MISSION_SET_CURRENT message, confirmed by MISSION_CURRENT, when the command is unsupported)."""
+        ack = await self.command(M.MAV_CMD_DO_SET_MISSION_CURRENT, (seq, 0), check=False)
+        if ack.result == M.MAV_RESULT_UNSUPPORTED:
+            for _attempt in range(3):
+                msg = self.link.mav.mission_set_current_encode(self.sysid, self.compid, seq)
+                self.link.send(msg, self.sysid)
+                with contextlib.suppress(TimeoutError):
+                    await self.wait_until(lambda v: v.mission_current == seq, 1.5, f"current item {seq}")
+                    return
+            raise TimeoutError(f"{self.name}: MISSION_SET_CURRENT {seq} not confirmed")
+        if not ack.accepted:
+            raise CommandRejected(self.name, ack)
+
+    async def pause(self) -> None:
+        """Hold position in the middle of a mission (DO_PAUSE_CONTINUE 0)."""
+        await self.command(M.MAV_CMD_DO_PAUSE_CONTINUE, (0,))
+
+    async def resume(self) -> None:
+        """Continue a paused mission (DO_PAUSE_CONTINUE 1)."""
+        await self.command(M.MAV_CMD_DO_PAUSE_CONTINUE, (1,))
+
+    async def configure_streams(self, position_hz: float = DEFAULT_POSITION_HZ,
+                                battery_hz: float = DEFAULT_BATTERY_HZ) -> dict[str, str]:
+        """Ask for GLOBAL_POSITION_INT at ``position_hz`` and battery/state messages at
+        ``battery_hz`` (SET_MESSAGE_INTERVAL). Returns message name -> MAV_RESULT name (or the
+        error); a vehicle that refuses keeps its default streams."""
+        rates = {
+            "GLOBAL_POSITION_INT": position_hz,
+            "BATTERY_STATUS": battery_hz,
+            "SYS_STATUS": battery_hz,
+            "EXTENDED_SYS_STATE": battery_hz,
+            "MISSION_CURRENT": battery_hz,
+        }
+
+        async def one(name: str, hz: float) -> str:
+            msgid = getattr(M, f"MAVLINK_MSG_ID_{name}")
+            try:
+                ack = await self.link.set_message_interval(self.sysid, msgid, hz, compid=self.compid)
+                return ack.result_name
+            except LinkError as exc:
+                return str(exc)
+
+        results = await asyncio.gather(*(one(n, hz) for n, hz in rates.items()))
+        out = dict(zip(rates, results, strict=True))
+        bad = {k: v for k, v in out.items() if v != "MAV_RESULT_ACCEPTED"}
+        if bad:
+            log.warning("%s: message intervals not set: %s", self.name, bad)
+        return out
+
+
+def _put(q: asyncio.Queue[VehicleEvent], ev: VehicleEvent) -> None:
+    with contextlib.suppress(asyncio.QueueFull):
+        q.put_nowait(ev)
+
+
+# ============================================================================================ fleet
+
+
+class FleetConnectError(Exception):
+    """Some vehicles of the mission did not answer; ``missing`` maps vehicle id -> its URL."""
+
+    def __init__(self, missing: Mapping[str, str], reasons: Mapping[str, str]) -> None:
+        self.missing = dict(missing)
+        self.reasons = dict(reasons)
+        lines = [f"{vid} at {url}: {reasons.get(vid, 'no answer')}" for vid, url in self.missing.items()]
+        super().__init__(f"{len(lines)} vehicle(s) did not answer: " + "; ".join(lines))
+
+
+class Fleet:
+    """The mission's vehicles on their links. Close it (or use ``async with``) to close the links."""
+
+    def __init__(self, carrier_id: str, vehicles: dict[str, Vehicle], links: dict[str, Link],
+                 urls: dict[str, str], errors: dict[str, str]) -> None:
+        self.carrier_id = carrier_id
+        self.vehicles = vehicles  # id -> Vehicle (carrier first, then rovers in mission order)
+        self.links = links  # url -> open Link
+        self.urls = urls  # id -> url
+        self.errors = errors  # id -> why it is not connected (link errors, no heartbeat)
+
+    @property
+    def carrier(self) -> Vehicle:
+        return self.vehicles[self.carrier_id]
+
+    @property
+    def rovers(self) -> dict[str, Vehicle]:
+        return {k: v for k, v in self.vehicles.items() if k != self.carrier_id}
+
+    def missing(self) -> dict[str, str]:
+        """id -> URL of every vehicle never heard from."""
+        return {vid: self.urls[vid] for vid, v in self.vehicles.items() if not v.connected}
+
+    def add_listener(self, listener: Listener) -> Callable[[], None]:
+        """``listener(event)`` for every vehicle's events; returns the remover."""
+        return _all_of([v.add_listener(listener) for v in self.vehicles.values()])
+
+    def event_queue(self, maxsize: int = 0) -> asyncio.Queue[VehicleEvent]:
+        q: asyncio.Queue[VehicleEvent] = asyncio.Queue(maxsize)
+        self.add_listener(lambda ev: _put(q, ev))
+        return q
+
+    def add_tap(self, tap: Callable[[str, float, bytes], None]) -> Callable[[], None]:
+        """Tap every link (e.g. a :class:`fleetctl.tlog.TlogWriter`); returns the remover."""
+        return _all_of([link.add_tap(tap) for link in self.links.values()])
+
+    async def close(self) -> None:
+        for v in self.vehicles.values():
+            v.close()
+        await asyncio.gather(*(link.close() for link in self.links.values()))
+
+    async def __aenter__(self) -> Fleet:
+        return self
+
+    async def __aexit__(self, *exc: object) -> None:
+        await self.close()
+
+
+def _all_of(removers: list[Callable[[], None]]) -> Callable[[], None]:
+    def remove() -> None:
+        for r in removers:
+            r()
+
+    return remove
+
+
+def fleet_urls(mission: Mission, endpoints: Mapping[str, str] | None = None) -> dict[str, str]:
+    """vehicle id -> connection URL: ``endpoints`` first (e.g. ``SimFleet.endpoints``), else the
+    mission's connection; a rover without one shares the carrier's. ``sim`` without endpoints is
+    an error (start the simulated fleet and pass its endpoints)."""
+    eps = dict(endpoints or {})
+    c = mission.carrier
+    carrier_url = eps.get(c.id, c.connection)
+    urls = {c.id: carrier_url}
+    for u in mission.rovers.units:
+        urls[u.id] = eps.get(u.id) or u.connection or carrier_url
+    sim = [vid for vid, url in urls.items() if url == "sim"]
+    if sim:
+        raise LinkError(f"connection 'sim' of {', '.join(sim)}: start the simulated fleet "
+                        "(sitl.SimFleet) and pass its endpoints, or give a real connection URL")
+    return urls
+
+
+async def connect_fleet(
+    mission: Mission, endpoints: Mapping[str, str] | None = None, *, timeout: float = 10.0,
+    require_all: bool = True, gcs_sysid: int = 255, configure_streams: bool = True,
+    position_hz: float = DEFAULT_POSITION_HZ,
+) -> Fleet:
+    """Open the links the mission names and wait up to ``timeout`` s for every vehicle's first
+    heartbeat (then set its message rates).
+
+    ``endpoints``: vehicle id -> URL overriding the mission (needed for ``connection: sim``:
+    pass ``SimFleet.endpoints``). With ``require_all`` a missing vehicle raises
+    :class:`FleetConnectError` naming each one and its URL (and closes everything); otherwise the
+    fleet is returned with ``fleet.missing()``/``fleet.errors`` filled in.
+    """
+    urls = fleet_urls(mission, endpoints)
+    origin = mission.origin
+    hb_timeout = mission.links.heartbeat_timeout
+    sysids = {mission.carrier.id: mission.carrier.sysid} | {u.id: u.sysid for u in mission.rovers.units}
+    links: dict[str, Link] = {}
+    errors: dict[str, str] = {}
+    all_links = {url: Link(url, sysid=gcs_sysid) for url in dict.fromkeys(urls.values())}  # URL errors raise
+    for url, link in all_links.items():
+        try:
+            await link.open(timeout=min(timeout, 5.0))
+            links[url] = link
+        except LinkError as exc:
+            for vid, u in urls.items():
+                if u == url:
+                    errors[vid] = str(exc)
+    # a vehicle whose link failed to open keeps a proxy on the unopened link: it is reported, never heard
+    vehicles = {vid: Vehicle(all_links[url], sysids[vid], name=vid, origin=origin,
+                             heartbeat_timeout=hb_timeout) for vid, url in urls.items()}
+    fleet = Fleet(mission.carrier.id, vehicles, links, urls, errors)
+
+    async def first_heartbeat(vid: str, v: Vehicle) -> None:
+        if vid in errors:
+            return
+        try:
+            await v.wait_heartbeat(timeout)
+        except TimeoutError:
+            errors[vid] = (f"no heartbeat from system {v.sysid} within {timeout:g} s "
+                           "(check the URL, the system id and that the vehicle is powered)")
+
+    await asyncio.gather(*(first_heartbeat(vid, v) for vid, v in vehicles.items()))
+    missing = fleet.missing()
+    if missing and require_all:
+        await fleet.close()
+        raise FleetConnectError(missing, errors)
+    if configure_streams:
+        await asyncio.gather(*(v.configure_streams(position_hz) for v in vehicles.values() if v.connected))
+    return fleet
+
+
+__all__ = [
+    "CommandRejected",
+    "Fleet",
+    "FleetConnectError",
+    "Vehicle",
+    "VehicleEvent",
+    "connect_fleet",
+    "fleet_urls",
+]
