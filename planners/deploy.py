@@ -12,6 +12,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.optimize import brentq
 
 from planners.clustering import divide_cluster
 from planners.geometry import enclosing_ball, minimize_1d
@@ -174,14 +175,28 @@ class _PathBuilder:
             dt2, _ = carrier_hop(pos, q, h, self.carrier)
             return t1 + dt2 + self.unload + self.finish(q, clusters[k + 1])
 
-        def makespan(s: float, u: float = 1.0) -> float:
+        def both(s: float, u: float = 1.0) -> tuple[float, float]:
+            """This cluster's last arrival and the next (last) cluster's, with the stop at s."""
             pos = _lerp(prev, center, s)
             dt, h = carrier_hop(prev, pos, heading, self.carrier)
             t1 = t + dt + self.unload
-            m = max(worst, t1 + self.finish(pos, clusters[k]))
-            if nxt is not None:
-                m = max(m, last_stop(pos, h, t1, u))
-            return m
+            return t1 + self.finish(pos, clusters[k]), (last_stop(pos, h, t1, u) if nxt is not None else 0.0)
+
+        def makespan(s: float, u: float = 1.0) -> float:
+            return max(worst, *both(s, u))
+
+        if not fine and nxt is not None:
+            # Eq. 4.20: both clusters' rovers arrive together. This cluster finishes later as the
+            # stop moves back toward the carrier, the next one earlier: find the crossing.
+            def gap(x: float) -> float:
+                a, b = both(x)
+                return a - b
+
+            cands = [s_lo, 1.0]
+            g_lo, g_hi = gap(s_lo), gap(1.0)
+            if g_lo * g_hi < 0:
+                cands.append(brentq(gap, s_lo, 1.0, xtol=1e-4))
+            return _lerp(prev, center, min(cands, key=makespan))
 
         def best_s(u: float) -> tuple[float, float]:
             s, best = minimize_1d(lambda x: makespan(x, u), s_lo, 1.0, samples=24 if fine else 6,
