@@ -74,7 +74,12 @@ class Region:
     def farthest_flight(self, p: Sequence[float]) -> float:
         """Longest 3D flight of a member to ground point ``p``: the cluster's last arrival there."""
         x, y = p[0], p[1]
-        return math.sqrt(max((x - gx) ** 2 + (y - gy) ** 2 + z2 for gx, gy, z2 in self.rows))
+        worst = 0.0
+        for gx, gy, z2 in self.rows:
+            d2 = (x - gx) * (x - gx) + (y - gy) * (y - gy) + z2
+            if d2 > worst:
+                worst = d2
+        return math.sqrt(worst)
 
     @property
     def vertices(self) -> np.ndarray:

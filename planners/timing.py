@@ -15,6 +15,7 @@ from planners.problem import CarrierSpec, Motion, Vec3
 # Planners keep rover flights this far inside their range so that a plan whose coordinates are
 # rounded for JSON still satisfies the range when recomputed.
 RANGE_MARGIN = 1e-5
+_TAU = 2.0 * math.pi
 
 
 def leg_time(length: float, motion: Motion) -> float:
@@ -74,13 +75,28 @@ def carrier_leg(path: Sequence[Vec3], heading: float, carrier: CarrierSpec) -> t
 
 def carrier_hop(p: Sequence[float], q: Sequence[float], heading: float,
                 carrier: CarrierSpec) -> tuple[float, float]:
-    """``carrier_leg`` for a straight ground leg p → q, for planners' inner loops (same numbers)."""
+    """``carrier_leg`` for a straight ground leg p → q, for planners' inner loops.
+
+    The same numbers as ``carrier_leg`` (turn at the start + eq. 4.2), written out inline because
+    planners call it hundreds of thousands of times; tests check that the two agree.
+    """
     dx, dy = q[0] - p[0], q[1] - p[1]
-    if dx * dx + dy * dy <= 1e-18:
+    d2 = dx * dx + dy * dy
+    if d2 <= 1e-18:
         return 0.0, heading
     h = math.atan2(dy, dx)
-    turn = 0.0 if carrier.turn_rate is None else heading_change(heading, h) / carrier.turn_rate
-    return turn + leg_time(math.hypot(dx, dy), carrier.motion), h
+    length = math.sqrt(d2)
+    v, a = carrier.max_speed, carrier.accel
+    if a is None:
+        t = length / v
+    elif length >= v * v / a:
+        t = length / v + v / a
+    else:
+        t = 2.0 * math.sqrt(length / a)
+    if carrier.turn_rate is not None:
+        turn = (h - heading) % _TAU
+        t += min(turn, _TAU - turn) / carrier.turn_rate
+    return t, h
 
 
 def deploy_schedule(

@@ -89,3 +89,20 @@ def test_retime_fills_a_plan():
     plan = retime(Plan("deploy", "x", (0, 0, 0), 0.0, [stop]), c, Motion(1.0))
     assert plan.makespan == pytest.approx(1.0 + 1.0 + 5.0)
     assert plan.carrier_distance == pytest.approx(10.0)
+
+
+def test_carrier_hop_agrees_with_carrier_leg():
+    import random
+
+    from planners.timing import carrier_hop
+
+    rng = random.Random(3)
+    for _ in range(500):
+        c = CarrierSpec(rng.uniform(1, 20), rng.choice([None, rng.uniform(0.5, 10)]),
+                        rng.choice([None, rng.uniform(0.2, 4)]))
+        p = (rng.uniform(-50, 50), rng.uniform(-50, 50), 0.0)
+        q = p if rng.random() < 0.1 else (rng.uniform(-50, 50), rng.uniform(-50, 50), 0.0)
+        h = rng.uniform(-7, 7)
+        t1, h1 = carrier_hop(p, q, h, c)
+        t2, h2 = carrier_leg([p, q], h, c)
+        assert t1 == pytest.approx(t2, rel=1e-12, abs=1e-12) and h1 == pytest.approx(h2)
