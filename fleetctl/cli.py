@@ -98,6 +98,85 @@ def _print_summary(mission: Mission, plan: object, bound: float | None) -> None:
     console.print(f"computed in     {plan.compute_ms:.1f} ms")
 
 
+# ---------------------------------------------------------------------------- flying (deploy, collect, run)
+
+_FLY_EPILOG = """\
+connection: sim starts the embedded simulated fleet in this process (at the mission's sim.speedup,
+or --speedup). Its rovers start on the carrier's deck, so 'collect' on a sim mission first places
+the rovers named in the mission's 'collection:' section at their positions there (with the battery
+their 'range' implies; the others stay on the deck) and refuses a mission without that section -
+fly 'run' to deploy, dwell and collect in one go.
+
+Records: runs/<mission>-<timestamp>/ holds journal.jsonl, traffic.tlog (all MAVLink traffic),
+plan.json and summary.json (schema fleetctl.summary/1; also written to --summary).
+Exit status: 0 mission complete, 1 not complete (or a vehicle did not answer, an upload was
+rejected), 2 bad mission file or option, 130 interrupted (airborne rovers were told to hold).
+"""
+
+
+def cmd_fly(args: argparse.Namespace) -> int:
+    import asyncio
+
+    from fleetctl.dashboard import make_view
+    from fleetctl.executor import ExecutionError, execute
+
+    mission = load_mission(args.mission)
+    if args.speedup is not None and args.speedup <= 0:
+        raise CliError(f"--speedup must be > 0, got {args.speedup}")
+    if getattr(args, "dwell", None) is not None and args.dwell < 0:
+        raise CliError(f"--dwell must be >= 0 s, got {args.dwell}")
+    view = make_view(True if args.headless else None)
+    try:
+        outcome = asyncio.run(execute(
+            mission, args.command, speedup=args.speedup, planner=args.planner,
+            dwell=getattr(args, "dwell", None), summary_path=args.summary, runs_dir=args.runs,
+            view=view, connect_timeout=args.timeout))
+    except ExecutionError as e:  # raised before anything flew (e.g. collect on a sim mission)
+        raise CliError(str(e)) from None
+    s = outcome.summary
+    if outcome.error:
+        print(f"fleetctl: error: {outcome.error}", file=sys.stderr)
+    print(f"{args.command} {s['result']}: "
+          + (f"{len(s['tasks_reached'])}/{len(mission.tasks)} tasks reached" if args.command != "collect"
+             else f"{len(s['rovers_loaded'])} rovers loaded")
+          + (f", makespan {s['makespan_flown']:.1f} s (planned {s['makespan_planned']:.1f} s)"
+             if s.get("makespan_flown") is not None and s.get("makespan_planned") is not None else "")
+          + f"; records in {outcome.run_dir}", file=sys.stderr if outcome.exit_code else sys.stdout)
+    return outcome.exit_code
+
+
+def _add_fly_commands(sub: argparse._SubParsersAction) -> None:
+    helps = {
+        "deploy": ("fly the deployment: drop every rover near its task",
+                   "Connect to the mission's vehicles (or start the embedded simulated fleet for "
+                   "connection: sim), plan the deployment from the carrier's live position, and fly it "
+                   "stop by stop with a live terminal view."),
+        "collect": ("fly the collection: pick every rover up again",
+                    "Plan the collection from live telemetry (rover positions, battery-derived ranges) "
+                    "and fly it: each rover flies above its meeting point and lands on the carrier."),
+        "run": ("deploy, dwell on task, collect",
+                "Fly the deployment, wait --dwell seconds with the rovers on task, then collect them."),
+    }
+    for name, (short, desc) in helps.items():
+        p = sub.add_parser(name, help=short, description=desc, epilog=_FLY_EPILOG,
+                           formatter_class=argparse.RawDescriptionHelpFormatter)
+        p.add_argument("--mission", "-m", required=True, help="mission YAML file (see missions/)")
+        p.add_argument("--headless", action="store_true",
+                       help="one log line per event instead of the live view (automatic when stdout "
+                            "is not a terminal)")
+        p.add_argument("--speedup", type=float, metavar="X",
+                       help="simulated seconds per wall second of the embedded sim (default: sim.speedup)")
+        p.add_argument("--summary", metavar="OUT.json", help="also write the run summary JSON here")
+        p.add_argument("--planner", "-p", help="planner name (default: the mission's planner section)")
+        if name == "run":
+            p.add_argument("--dwell", type=float, metavar="S",
+                           help="seconds on task before collection (default: the mission's dwell)")
+        p.add_argument("--runs", default="runs", metavar="DIR", help="where run records go (default: runs)")
+        p.add_argument("--timeout", type=float, default=10.0, metavar="S",
+                       help="seconds to wait for every vehicle's first heartbeat (default: 10)")
+        p.set_defaults(func=cmd_fly)
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog="fleetctl",
@@ -124,7 +203,205 @@ def build_parser() -> argparse.ArgumentParser:
     plan.add_argument("--json", action="store_true", help="print only the plan JSON (schema fleetctl.plan/1)")
     plan.add_argument("--plot", metavar="OUT.png", help="draw the plan to a PNG file")
     plan.set_defaults(func=cmd_plan)
+    _add_fly_commands(sub)
+    _add_controller_commands(sub)
     return p
+
+
+# ---------------------------------------------------------------------------------------------------
+# status and sim: preflight against live (or simulated) vehicles, and serving the simulated fleet
+# ---------------------------------------------------------------------------------------------------
+
+EXIT_NOT_READY = 1
+DECK_RADIUS = 1.5  # m: a landed rover this close (horizontally) to the carrier is on its deck
+
+
+def _add_controller_commands(sub: argparse._SubParsersAction) -> None:
+    status = sub.add_parser(
+        "status", help="preflight: connect to every vehicle of the mission and show its state",
+        description="Connect to the carrier and every rover the mission names (starting the embedded "
+                    "simulated fleet for 'connection: sim') and show one row each: link, autopilot, "
+                    "armed, mode, battery, position and whether a rover sits on the carrier's deck. "
+                    "Exit status 1 when a vehicle does not answer or is not ready.",
+    )
+    status.add_argument("--mission", "-m", required=True, help="mission YAML file (see missions/)")
+    status.add_argument("--timeout", type=float, default=5.0,
+                        help="seconds to wait for each vehicle's first heartbeat (default 5)")
+    status.add_argument("--speedup", type=float, default=None,
+                        help="simulated time factor for 'connection: sim' (default: the mission's)")
+    status.set_defaults(func=cmd_status)
+
+    sim = sub.add_parser(
+        "sim", help="serve the mission's simulated fleet until Ctrl-C",
+        description="Run the simulated carrier and rovers of the mission, speaking MAVLink 2 over UDP on "
+                    "the mission's connection URLs ('sim' = free loopback ports), and print each "
+                    "vehicle's URL as the controller uses it. Stops on Ctrl-C or SIGTERM.",
+    )
+    sim.add_argument("--mission", "-m", required=True, help="mission YAML file (see missions/)")
+    sim.add_argument("--speedup", type=float, default=None,
+                     help="simulated seconds per wall second (default: the mission's sim.speedup)")
+    sim.set_defaults(func=cmd_sim)
+
+
+def _sim_config(mission: Mission, speedup: float | None) -> object:
+    from sitl import ConfigError, FleetConfig
+
+    if speedup is not None and not speedup > 0:
+        raise CliError(f"--speedup must be > 0, got {speedup}")
+    try:
+        return FleetConfig.from_mission_dict(mission.raw, speedup=speedup)
+    except ConfigError as e:
+        raise CliError(f"{mission.path or mission.name}: {e}") from None
+
+
+def cmd_sim(args: argparse.Namespace) -> int:
+    from sitl import LinkError as SimLinkError
+    from sitl import SimFleet, serve
+
+    mission = load_mission(args.mission)
+    config = _sim_config(mission, args.speedup)
+
+    def ready(fleet: SimFleet) -> None:
+        print(f"simulated fleet {mission.name!r} running at {fleet.speedup:g}x; "
+              "controller-side URLs (Ctrl-C to stop):")
+        sysids = {s.id: s.sysid for s in fleet.config.vehicles}
+        for vid, url in fleet.endpoints.items():
+            print(f"  {vid:<12} sysid {sysids[vid]:<4} {url}")
+        sys.stdout.flush()
+
+    try:
+        serve(config, on_ready=ready)  # type: ignore[arg-type]
+    except SimLinkError as e:
+        raise CliError(str(e)) from None
+    print("simulated fleet stopped")
+    return 0
+
+
+def cmd_status(args: argparse.Namespace) -> int:
+    import asyncio
+
+    mission = load_mission(args.mission)
+    if not args.timeout > 0:
+        raise CliError(f"--timeout must be > 0, got {args.timeout}")
+    return asyncio.run(_status(mission, args.timeout, args.speedup))
+
+
+async def _status(mission: Mission, timeout: float, speedup: float | None) -> int:
+    import asyncio
+    import contextlib
+
+    from fleetctl.link import LinkError
+    from fleetctl.vehicle import connect_fleet
+
+    sim = None
+    endpoints = None
+    if mission.carrier.connection == "sim":
+        from sitl import LinkError as SimLinkError
+        from sitl import SimFleet
+
+        sim = SimFleet(_sim_config(mission, speedup))  # type: ignore[arg-type]
+        try:
+            await sim.start()
+        except SimLinkError as e:
+            raise CliError(str(e)) from None
+        endpoints = sim.endpoints
+    try:
+        try:
+            fleet = await connect_fleet(mission, endpoints, timeout=timeout, require_all=False)
+        except LinkError as e:
+            raise CliError(str(e)) from None
+        try:
+            async def telemetry(v: object) -> None:
+                with contextlib.suppress(TimeoutError):
+                    await v.wait_until(  # type: ignore[attr-defined]
+                        lambda v: v.position is not None and v.battery_pct is not None
+                        and v.landed_state is not None, min(timeout, 3.0), "telemetry")
+
+            await asyncio.gather(*(telemetry(v) for v in fleet.vehicles.values() if v.connected))
+            rows, problems = _status_rows(mission, fleet)
+        finally:
+            await fleet.close()
+    finally:
+        if sim is not None:
+            await sim.stop()
+    _print_status(mission, rows)
+    if problems:
+        print(f"fleetctl: {len(problems)} vehicle(s) missing or not ready:", file=sys.stderr)
+        for line in problems:
+            print(f"  {line}", file=sys.stderr)
+        return EXIT_NOT_READY
+    print(f"all {len(rows)} vehicles connected and ready")
+    return 0
+
+
+def _status_rows(mission: Mission, fleet: object) -> tuple[list[dict[str, str]], list[str]]:
+    from fleetctl.geo import Origin, geodetic_to_enu
+
+    carrier = fleet.carrier  # type: ignore[attr-defined]
+    reserve = mission.rovers.reserve
+    rows: list[dict[str, str]] = []
+    problems: list[str] = []
+    for vid, v in fleet.vehicles.items():  # type: ignore[attr-defined]
+        url = fleet.urls[vid]  # type: ignore[attr-defined]
+        is_carrier = v is carrier
+        row = {"id": vid, "role": "carrier" if is_carrier else "rover", "sysid": str(v.sysid), "url": url,
+               "link": "-", "autopilot": "-", "armed": "-", "mode": "-", "battery": "-", "position": "-",
+               "deck": "-", "ready": "no"}
+        reasons: list[str] = []
+        if not v.connected:
+            row["link"] = "no answer"
+            reasons.append(fleet.errors.get(vid, "no heartbeat"))  # type: ignore[attr-defined]
+        else:
+            row["link"] = "lost" if v.lost else f"ok ({v.last_heard_age or 0.0:.1f} s)"
+            row["autopilot"] = v.autopilot.name if v.autopilot else "?"
+            row["armed"] = "armed" if v.armed else "disarmed"
+            row["mode"] = v.mode_firmware or "?"
+            if v.lost:
+                reasons.append("link lost")
+            if v.system_status in (6, 7, 8):  # MAV_STATE_CRITICAL, EMERGENCY, POWEROFF
+                reasons.append(f"system status {v.system_status} (critical)")
+            if v.battery_pct is not None:
+                row["battery"] = f"{v.battery_pct:.0f} %"
+                if not is_carrier and v.battery_pct / 100.0 <= reserve:
+                    reasons.append(f"battery {v.battery_pct:.0f} % is not above the reserve {reserve:.0%}")
+            if v.position is None:
+                reasons.append("no position (GLOBAL_POSITION_INT) received")
+            else:
+                enu = v.enu
+                lat, lon, alt = v.position
+                row["position"] = (f"{enu[0]:.1f}, {enu[1]:.1f}, {enu[2]:.1f}" if enu else
+                                   f"{lat:.7f}, {lon:.7f}, {alt:.1f}")
+            if not is_carrier:
+                if v.position is not None and carrier.position is not None and v.on_ground is not None:
+                    e, n, _u = geodetic_to_enu(*v.position, Origin(*carrier.position))
+                    on_deck = v.on_ground and (e * e + n * n) ** 0.5 <= DECK_RADIUS
+                    row["deck"] = "on deck" if on_deck else "off deck"
+                else:
+                    row["deck"] = "?"
+        if reasons:
+            problems.append(f"{vid} (sysid {v.sysid}) at {url}: " + "; ".join(reasons))
+        else:
+            row["ready"] = "ready"
+        rows.append(row)
+    return rows, problems
+
+
+def _print_status(mission: Mission, rows: list[dict[str, str]]) -> None:
+    from rich.console import Console
+    from rich.table import Table
+
+    console = Console() if sys.stdout.isatty() else Console(width=200)
+    table = Table(title=f"Preflight of {mission.name}", title_justify="left")
+    columns = [("id", "vehicle"), ("role", "role"), ("sysid", "sysid"), ("url", "connection"),
+               ("link", "link"), ("autopilot", "autopilot"), ("armed", "armed"), ("mode", "mode"),
+               ("battery", "battery"),
+               ("position", "position E, N, U m"), ("deck", "deck"), ("ready", "ready")]
+    for _key, title in columns:
+        table.add_column(title, no_wrap=True)
+    for row in rows:
+        style = None if row["ready"] == "ready" else "red"
+        table.add_row(*(row[k] for k, _ in columns), style=style)
+    console.print(table)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
