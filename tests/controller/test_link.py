@@ -197,3 +197,48 @@ async def test_latency_fault_does_not_break_the_mission_protocol(sim: SimFleet) 
         await link.upload_mission(11, items)
         back = await link.download_mission(11)
     assert all(a.same_as(b) for a, b in zip(items, back, strict=True)) and len(back) == 12
+
+
+async def test_tcp_link_through_a_tcp_to_udp_relay(sim: SimFleet) -> None:
+    """A TCP byte stream (like a telemetry radio bridge or SITL's TCP port) relayed to the sim's UDP."""
+    import asyncio
+    from urllib.parse import urlsplit
+
+    target = urlsplit(sim.endpoints["carrier"])
+    loop = asyncio.get_running_loop()
+    writers: list[asyncio.StreamWriter] = []
+
+    class ToTcp(asyncio.DatagramProtocol):
+        def datagram_received(self, data: bytes, addr: object) -> None:
+            for w in writers:
+                w.write(data)
+
+    udp, _ = await loop.create_datagram_endpoint(ToTcp, local_addr=("127.0.0.1", 0),
+                                                 remote_addr=(target.hostname, target.port))
+
+    async def client(reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
+        writers.append(writer)
+        while data := await reader.read(4096):
+            udp.sendto(data)
+
+    server = await asyncio.start_server(client, "127.0.0.1", 0)
+    port = server.sockets[0].getsockname()[1]
+    try:
+        async with Link(f"tcp://127.0.0.1:{port}") as link:
+            await link.expect("HEARTBEAT", sysid=11)
+            ack = await link.command(11, M.MAV_CMD_COMPONENT_ARM_DISARM, (1,))
+            assert ack.accepted and sim.vehicle("r1").armed
+            items = waypoints(6)
+            await link.upload_mission(12, items)
+            assert all(a.same_as(b) for a, b in zip(items, await link.download_mission(12), strict=True))
+    finally:
+        server.close()
+        udp.close()
+
+
+async def test_tcp_link_to_nobody_is_a_clear_error() -> None:
+    from ctl_helpers import free_udp_port
+
+    url = f"tcp://127.0.0.1:{free_udp_port()}"
+    with pytest.raises(LinkError, match=f"connection '{url}': cannot open"):
+        await Link(url).open(timeout=2.0)
