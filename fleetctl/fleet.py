@@ -1,0 +1,209 @@
+"""The controller's state model: what the dashboard and the journal read.
+
+:class:`FleetState` holds one :class:`VehicleState` per vehicle (role, controller state, ENU
+position, altitude, speed, battery, range, link age), the mission phase, the stop being served
+(k of N), planned vs elapsed time and the latest :class:`Event` s. The executor writes the
+controller-side fields (``state``, ``task``, phase, stop) and raises events; :meth:`FleetState.refresh`
+copies the telemetry of the live :class:`fleetctl.vehicle.Fleet` into it. Listeners (journal,
+headless log) get every event as it happens.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import time
+from collections import deque
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
+
+from fleetctl.energy import range_from_percent
+
+if TYPE_CHECKING:
+    from fleetctl.mission import Mission
+    from fleetctl.vehicle import Fleet
+
+log = logging.getLogger(__name__)
+
+# controller states of a vehicle
+ON_DECK = "on_deck"
+CLIMBING = "climbing"
+EN_ROUTE = "en_route"
+ON_TASK = "on_task"
+RETURNING = "returning"
+LANDED = "landed"
+LOADED = "loaded"
+LOST = "lost"
+REFUSED = "refused"
+IDLE = "idle"  # carrier before/after its route
+DRIVING = "driving"
+HOLDING = "holding"  # carrier waiting at a stop
+UNKNOWN = "unknown"
+
+PHASES = ("connect", "plan", "deploy", "dwell", "collect", "done", "failed", "interrupted")
+
+
+@dataclass
+class VehicleState:
+    id: str
+    role: str  # "carrier" | "rover"
+    sysid: int
+    url: str = ""
+    state: str = UNKNOWN
+    task: str | None = None
+    enu: tuple[float, float, float] | None = None
+    alt: float | None = None  # height above home (m)
+    speed: float | None = None  # ground speed (m/s)
+    battery_pct: float | None = None
+    range_m: float | None = None  # from fleetctl.energy (rovers)
+    link_age: float | None = None  # s since last message
+    connected: bool = False
+    lost: bool = False
+    armed: bool = False
+    mode: str | None = None
+    on_ground: bool | None = None
+
+
+@dataclass(frozen=True)
+class Event:
+    elapsed: float  # s since the run started (wall clock)
+    kind: str
+    vehicle: str | None
+    text: str
+    data: dict[str, Any] = field(default_factory=dict)
+    time: float = 0.0  # Unix time
+
+
+EventListener = Callable[[Event], None]
+
+
+class FleetState:
+    """Everything the operator sees about a run, updated by the executor and from telemetry."""
+
+    def __init__(self, mission: Mission, urls: dict[str, str] | None = None, max_events: int = 12) -> None:
+        self.mission_name = mission.name
+        self.reserve = mission.rovers.reserve
+        self.endurance_range = mission.rovers.endurance_range
+        urls = urls or {}
+        self.vehicles: dict[str, VehicleState] = {
+            mission.carrier.id: VehicleState(mission.carrier.id, "carrier", mission.carrier.sysid,
+                                             urls.get(mission.carrier.id, ""))}
+        for u in mission.rovers.units:
+            self.vehicles[u.id] = VehicleState(u.id, "rover", u.sysid, urls.get(u.id, ""))
+        self.carrier_id = mission.carrier.id
+        self.phase = "connect"
+        self.stop_index = 0  # 1-based stop being driven to / served; 0 before the first
+        self.stop_count = 0
+        self.planned: float | None = None  # planned makespan of the current phase (mission seconds)
+        self.phase_started: float | None = None  # mission clock at the phase start
+        self.mission_clock: Callable[[], float] = time.monotonic
+        self.started = time.monotonic()
+        self.events: deque[Event] = deque(maxlen=max_events)
+        self._listeners: list[EventListener] = []
+
+    # -- events ---------------------------------------------------------------------------------
+    def add_listener(self, listener: EventListener) -> Callable[[], None]:
+        self._listeners.append(listener)
+        return lambda: self._listeners.remove(listener) if listener in self._listeners else None
+
+    def event(self, kind: str, text: str, vehicle: str | None = None, **data: Any) -> Event:
+        """Record an event and tell every listener."""
+        ev = Event(time.monotonic() - self.started, kind, vehicle, text, data, time.time())
+        self.events.append(ev)
+        log.info("%s", text)
+        for listener in list(self._listeners):
+            try:
+                listener(ev)
+            except Exception:  # noqa: BLE001 - a broken listener must not stop the mission
+                log.exception("event listener failed")
+        return ev
+
+    # -- phase / stops --------------------------------------------------------------------------
+    def set_phase(self, phase: str, planned: float | None = None, stops: int = 0) -> None:
+        self.phase = phase
+        self.planned = planned
+        self.stop_count = stops
+        self.stop_index = 0
+        self.phase_started = self.mission_clock()
+
+    @property
+    def elapsed(self) -> float:
+        """Mission seconds since the phase started (simulated seconds on the embedded sim)."""
+        if self.phase_started is None:
+            return 0.0
+        return max(0.0, self.mission_clock() - self.phase_started)
+
+    @property
+    def wall_elapsed(self) -> float:
+        return time.monotonic() - self.started
+
+    def set_state(self, vid: str, state: str, task: str | None = None) -> None:
+        v = self.vehicles.get(vid)
+        if v is None:
+            return
+        v.state = state
+        if task is not None:
+            v.task = task
+
+    def rovers(self) -> list[VehicleState]:
+        return [v for v in self.vehicles.values() if v.role == "rover"]
+
+    # -- telemetry ---------------------------------------------------------------------------------
+    def refresh(self, fleet: Fleet) -> None:
+        """Copy the live telemetry of ``fleet`` (cheap; called a few times a second)."""
+        carrier = fleet.vehicles.get(fleet.carrier_id)
+        cpos = carrier.enu if carrier is not None else None
+        for vid, v in fleet.vehicles.items():
+            s = self.vehicles.get(vid)
+            if s is None:
+                continue
+            s.connected = v.connected
+            s.lost = v.lost
+            s.armed = v.armed
+            s.mode = v.mode
+            s.enu = v.enu
+            s.alt = v.relative_alt
+            s.speed = v.ground_speed
+            s.battery_pct = v.battery_pct
+            s.link_age = v.last_heard_age
+            s.on_ground = v.on_ground
+            if s.role == "rover":
+                try:
+                    s.range_m = range_from_percent(v.battery_pct, self.reserve, self.endurance_range)
+                except ValueError:
+                    s.range_m = None
+                if s.state == UNKNOWN and v.connected and on_deck(v.enu, cpos, v.on_ground, v.ground_speed):
+                    s.state = ON_DECK
+
+    def snapshot(self) -> dict[str, Any]:
+        """Plain dict of the whole state (for the journal / tests)."""
+        return {
+            "phase": self.phase, "stop": self.stop_index, "stops": self.stop_count, "planned": self.planned,
+            "elapsed": self.elapsed,
+            "vehicles": {vid: {"state": v.state, "task": v.task, "enu": v.enu, "battery_pct": v.battery_pct,
+                               "lost": v.lost} for vid, v in self.vehicles.items()},
+        }
+
+
+DECK_RADIUS = 1.5  # m: a landed rover this close (horizontally) to the carrier is on its deck
+DECK_HEIGHT = 0.15  # m: a rover this low above the carrier, at rest, is down on the deck
+LANDED_HEIGHT = 1.0  # m: height slack when the autopilot itself reports ON_GROUND (GPS altitude noise)
+
+
+def on_deck(pos: tuple[float, float, float] | None, carrier: tuple[float, float, float] | None,
+            on_ground: bool | None, speed: float | None = None) -> bool:
+    """A rover is on the carrier's deck when it is within :data:`DECK_RADIUS` (horizontal) of the
+    carrier and either reports ON_GROUND (within :data:`LANDED_HEIGHT`) or is at rest within
+    :data:`DECK_HEIGHT` of it (the landed state comes at ~1 Hz, positions much faster)."""
+    if pos is None or carrier is None:
+        return False
+    if math.hypot(pos[0] - carrier[0], pos[1] - carrier[1]) > DECK_RADIUS:
+        return False
+    dz = pos[2] - carrier[2]
+    if on_ground is True and dz <= LANDED_HEIGHT:
+        return True
+    return dz <= DECK_HEIGHT and (speed is None or speed < 0.2)
+
+
+__all__ = ["DECK_HEIGHT", "DECK_RADIUS", "LANDED_HEIGHT", "Event", "FleetState", "VehicleState", "on_deck"]
