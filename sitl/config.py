@@ -123,6 +123,9 @@ class FleetConfig:
         """
         if not isinstance(d, Mapping):
             raise ConfigError("mission: expected a mapping at the top level")
+        if d.get("origin") is None:
+            raise ConfigError("origin: the simulated fleet needs the mission's origin to place the vehicles "
+                              "on the globe; add  origin: {lat: ..., lon: ..., alt: ...}  to the mission")
         origin = _mapping(d.get("origin"), "origin")
         try:
             lat, lon = float(origin["lat"]), float(origin["lon"])
