@@ -26,7 +26,7 @@ from planners.geometry import minimize_1d
 from planners.plan import Plan, RoverLeg, Stop
 from planners.problem import CollectProblem, PlanningError, Vec3
 from planners.reach import Point2, Region, make_region
-from planners.routing import two_opt_route
+from planners.search import merge_neighbours, reorder, split_loop
 from planners.timing import RANGE_MARGIN, carrier_hop, leg_time, retime
 
 
@@ -205,6 +205,9 @@ class _Route:
             prev = pos
         return t
 
+    def accept(self, cand: tuple[float, list[list[int]], list[Point2]]) -> _Route:
+        return _Route(self.b, cand[1], [self.b.inst.region(x) for x in cand[1]], cand[2])
+
     def replace(self, i: int, pieces: list[list[int]],
                 count: int = 1) -> tuple[float, list[list[int]], list[Point2]]:
         """Makespan after clusters i..i+count-1 are replaced by ``pieces``: the stop before, the
@@ -233,52 +236,6 @@ class _Route:
         return t, clusters, positions
 
 
-def _split_loop(builder: _PathBuilder, route: _Route, rejected: set[tuple] | None = None) -> _Route:
-    """Algorithm 5.2: divide each cluster, try the swapped order, keep the faster or merge back.
-
-    ``rejected`` remembers divisions merged back, with the stop before and the cluster after them,
-    so that later rounds do not try them again in the same surroundings."""
-    inst = builder.inst
-    rejected = set() if rejected is None else rejected
-    idx = 0
-    while idx < len(route.clusters):
-        members = route.clusters[idx]
-        if len(members) == 1:  # a cluster of one rover cannot be divided
-            idx += 1
-            continue
-        prev = builder.start if idx == 0 else route.positions[idx - 1]
-        key = (tuple(members), prev, tuple(route.clusters[idx + 1]) if idx + 1 < len(route.clusters) else ())
-        if key in rejected:
-            idx += 1
-            continue
-        near, far = divide_cluster(members, inst.pts2, prev)  # DIVIDE_CLUSTER (Algorithm 3.1)
-        t_cand, c_cand, p_cand = route.replace(idx, [near, far])
-        t_swap, c_swap, p_swap = route.replace(idx, [far, near])  # SWAP_CLUSTERS
-        if t_swap < t_cand:
-            t_cand, c_cand, p_cand = t_swap, c_swap, p_swap
-        if t_cand < route.makespan - 1e-9:
-            route = _Route(builder, c_cand, [inst.region(c) for c in c_cand], p_cand)
-        else:  # MERGE_CLUSTERS
-            rejected.add(key)
-            idx += 1
-    return route
-
-
-def _merge_neighbours(builder: _PathBuilder, route: _Route) -> _Route:
-    """Merge consecutive clusters whose discs still intersect when that is faster (one load less)."""
-    inst = builder.inst
-    k = 0
-    while k + 1 < len(route.clusters):
-        union = route.clusters[k] + route.clusters[k + 1]
-        if inst.fits(union):
-            t, c, p = route.replace(k, [union], count=2)
-            if t < route.makespan - 1e-9:
-                route = _Route(builder, c, [inst.region(x) for x in c], p)
-                continue
-        k += 1
-    return route
-
-
 def _move_rovers(builder: _PathBuilder, route: _Route) -> _Route:
     """Beyond the dissertation: hand a rover over to the neighbouring cluster when it can reach that
     cluster's stop and the route gets faster (the divider's straight cut can misplace it)."""
@@ -298,9 +255,9 @@ def _move_rovers(builder: _PathBuilder, route: _Route) -> _Route:
                 pieces = [[x for x in a if x != r], [*b, r]]
                 if src > dst:
                     pieces.reverse()
-                t, c, p = route.replace(k, pieces, count=2)
-                if t < route.makespan - 1e-9:
-                    route = _Route(builder, c, [inst.region(x) for x in c], p)
+                cand = route.replace(k, pieces, count=2)
+                if cand[0] < route.makespan - 1e-9:
+                    route = route.accept(cand)
                     moved = True
                     break
             if moved:
@@ -308,24 +265,6 @@ def _move_rovers(builder: _PathBuilder, route: _Route) -> _Route:
         if not moved:
             k += 1
     return route
-
-
-def _reorder(builder: _PathBuilder, route: _Route) -> _Route:
-    """Beyond the dissertation: re-sequence the clusters as an open tour over their stops (2-opt from
-    the current order, and nearest neighbour + 2-opt) and keep the faster route."""
-    if len(route.clusters) < 3:
-        return route
-    stops = np.array(route.positions)
-    start = np.array(builder.start)
-    best = route
-    for initial in (list(range(len(stops))), None):
-        order = two_opt_route(stops, start, initial)
-        if order == list(range(len(stops))):
-            continue
-        cand = builder.route([route.clusters[i] for i in order])
-        if cand.makespan < best.makespan:
-            best = cand
-    return best
 
 
 def polish(builder: _PathBuilder, route: _Route,
@@ -376,11 +315,17 @@ def lee_route(problem: CollectProblem, improve: bool = True,
     builder = _PathBuilder(inst)
     if not problem.rovers:
         return builder, _Route(builder, [], [], [])
+
+    def divide(route: _Route, idx: int) -> tuple[list[int], list[int]]:
+        prev = builder.start if idx == 0 else route.positions[idx - 1]
+        return divide_cluster(route.clusters[idx], inst.pts2, prev)  # Algorithm 3.1
+
     rejected: set[tuple] = set()
-    route = _split_loop(builder, builder.route(_initial_clusters(builder)), rejected)
-    for _ in range(3 if improve else 0):
-        better = _move_rovers(builder, _merge_neighbours(builder, _reorder(builder, route)))
-        better = _split_loop(builder, better, rejected)
+    route = split_loop(builder.route(_initial_clusters(builder)), divide, rejected, accept_ties=False)
+    for _ in range(3 if improve else 0):  # improvement search beyond the dissertation
+        better = reorder(route, route.positions, builder.start, builder.route)
+        better = _move_rovers(builder, merge_neighbours(better, inst.fits))
+        better = split_loop(better, divide, rejected, accept_ties=False)
         if better.makespan >= route.makespan - 1e-9:
             break
         route = better

@@ -11,14 +11,13 @@ import time
 from collections.abc import Sequence
 from dataclasses import dataclass
 
-import numpy as np
 from scipy.optimize import brentq
 
 from planners.clustering import divide_cluster
 from planners.geometry import enclosing_ball, minimize_1d
 from planners.plan import Plan, RoverLeg, Stop
 from planners.problem import DeployProblem, PlanningError, Vec3
-from planners.routing import two_opt_route
+from planners.search import merge_neighbours, reorder, split_loop, swap_neighbours
 from planners.timing import RANGE_MARGIN, carrier_hop, leg_time, retime
 
 Point2 = tuple[float, float]
@@ -67,6 +66,10 @@ class _Instance:
             g = ClusterGeometry(key, c, ball.radius, slack)
             self._geo[key] = g
         return g
+
+    def fits_quick(self, members: Sequence[int]) -> bool:
+        """``fits`` behind a cheaper test: the first and last tasks must be within 2·d_deploy."""
+        return math.dist(self.pts[members[0]], self.pts[members[-1]]) <= 2 * self.range and self.fits(members)
 
     def fits(self, members: Sequence[int]) -> bool:
         """Can one stop serve every task of the cluster within d_deploy (Algorithm 4.1's test)?"""
@@ -262,6 +265,9 @@ class _Route:
             self.tail[j] = max(self.tail[j], self.tail[j + 1])
         self.makespan = self.tail[0] if self.tail else 0.0
 
+    def accept(self, cand: tuple[float, list[list[int]], list[ClusterGeometry], list[Point2]]) -> _Route:
+        return _Route(self.b, *cand[1:])
+
     def replace(self, i: int, pieces: list[list[int]],
                 count: int = 1) -> tuple[float, list[list[int]], list[ClusterGeometry], list[Point2]]:
         """Makespan after clusters i..i+count-1 are replaced by ``pieces``, recomputing the stops
@@ -301,86 +307,6 @@ class _Route:
         return worst, clusters, geos, positions
 
 
-def _split_loop(builder: _PathBuilder, route: _Route, tried: set | None = None) -> _Route:
-    """Algorithm 4.2: divide each cluster, try the swapped order, keep the faster or merge back.
-
-    ``tried`` remembers rejected divisions (cluster with its neighbours) so that later rounds of
-    the improvement search do not evaluate them again.
-    """
-    inst = builder.inst
-    tried = set() if tried is None else tried
-    idx = 0
-    while idx < len(route.clusters):
-        members = route.clusters[idx]
-        if len(members) == 1:
-            idx += 1
-            continue
-        key = (tuple(route.clusters[idx - 1]) if idx else (), tuple(members),
-               tuple(route.clusters[idx + 1]) if idx + 1 < len(route.clusters) else ())
-        if key in tried:
-            idx += 1
-            continue
-        prev = builder.start if idx == 0 else route.positions[idx - 1]
-        near, far = divide_cluster(members, inst.pts, (*prev, 0.0))
-        cand = route.replace(idx, [near, far])
-        swapped = route.replace(idx, [far, near])
-        if swapped[0] < cand[0]:
-            cand = swapped
-        if cand[0] <= route.makespan:
-            route = _Route(builder, *cand[1:])
-        else:
-            tried.add(key)
-            idx += 1
-    return route
-
-
-def _merge_neighbours(builder: _PathBuilder, route: _Route) -> _Route:
-    """Merge consecutive clusters that fit d_deploy together when that is faster (one unload less)."""
-    inst = builder.inst
-    k = 0
-    while k + 1 < len(route.clusters):
-        union = route.clusters[k] + route.clusters[k + 1]
-        near_enough = math.dist(inst.pts[union[0]], inst.pts[union[-1]]) <= 2 * inst.range  # cheap test
-        if near_enough and inst.fits(union):
-            cand = route.replace(k, [union], count=2)
-            if cand[0] < route.makespan:
-                route = _Route(builder, *cand[1:])
-                continue
-        k += 1
-    return route
-
-
-def _swap_neighbours(builder: _PathBuilder, route: _Route) -> _Route:
-    """Visit consecutive clusters the other way round when that is faster (the SWAP_CLUSTERS of
-    Algorithm 4.2 applied to every neighbouring pair, including the initial split's)."""
-    k = 0
-    while k + 1 < len(route.clusters):
-        cand = route.replace(k, [route.clusters[k + 1], route.clusters[k]], count=2)
-        if cand[0] < route.makespan - 1e-9:
-            route = _Route(builder, *cand[1:])
-        k += 1
-    return route
-
-
-def _reorder(builder: _PathBuilder, route: _Route) -> _Route:
-    """Improvement beyond the dissertation: the split order can make the carrier's path cross
-    itself; re-sequence the clusters as an open tour over their centres (2-opt from the current
-    order, and nearest neighbour + 2-opt) and keep the faster route."""
-    if len(route.clusters) < 3:
-        return route
-    centers = np.array([g.center for g in route.geos])
-    start = np.array(builder.start)
-    best = route
-    for initial in (list(range(len(centers))), None):
-        order = two_opt_route(centers, start, initial)
-        if order == list(range(len(centers))):
-            continue
-        cand = builder.route([route.clusters[i] for i in order])
-        if cand.makespan < best.makespan:
-            best = cand
-    return best
-
-
 def lee_clusters(problem: DeployProblem, improve: bool = True) -> tuple[list[list[int]], list[Point2], float]:
     """Algorithm 4.1–4.2: divide until every cluster fits d_deploy, then the split/swap/merge loop
     that keeps the fastest path; with ``improve``, then re-sequence and merge clusters and run
@@ -402,11 +328,16 @@ def lee_clusters(problem: DeployProblem, improve: bool = True) -> tuple[list[lis
             clusters[idx: idx + 1] = [near, far]
         else:
             idx += 1
+    def divide(route: _Route, idx: int) -> tuple[list[int], list[int]]:
+        prev = start if idx == 0 else route.positions[idx - 1]
+        return divide_cluster(route.clusters[idx], inst.pts, (*prev, 0.0))
+
     tried: set = set()
-    route = _split_loop(builder, builder.route(clusters), tried)
-    for _ in range(2 if improve else 0):
-        better = _reorder(builder, route)
-        better = _split_loop(builder, _merge_neighbours(builder, _swap_neighbours(builder, better)), tried)
+    route = split_loop(builder.route(clusters), divide, tried)  # Algorithm 4.2
+    for _ in range(2 if improve else 0):  # improvement search beyond the dissertation
+        better = reorder(route, [g.center for g in route.geos], start, builder.route)
+        better = merge_neighbours(swap_neighbours(better), inst.fits_quick)
+        better = split_loop(better, divide, tried)
         if better.makespan >= route.makespan - 1e-9:
             break
         route = better
