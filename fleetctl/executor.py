@@ -37,7 +37,7 @@ from typing import Any, TypeVar
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 from fleetctl import fleet as fs
-from fleetctl.compile import CompiledPlan, RoverMission, compile_for_fleet
+from fleetctl.compile import CompiledPlan, CompileError, RoverMission, compile_for_fleet
 from fleetctl.energy import range_from_percent
 from fleetctl.fleet import FleetState, on_deck
 from fleetctl.link import LinkError, MissionItem, MissionRejected
@@ -54,7 +54,9 @@ T = TypeVar("T")
 REACH_RADIUS = 1.0  # m: a rover within this 3D distance of its task, holding, has reached it
 HOLD_SPEED = 0.3  # m/s: slower than this counts as holding
 AIRBORNE_HEIGHT = 0.3  # m above home: a launched rover is off the deck
+COLLECT_MEET_HEIGHT = 3.0  # m above the carrier's stop where a returning rover waits for the carrier
 TELEMETRY_TIMEOUT = 10.0  # wall s to wait for first positions
+DECK_CHECK_TIMEOUT = 2.0  # wall s for fresh telemetry to show a rover on the (stopped) carrier's deck
 TIMEOUT_FACTOR = 2.0  # a wait may take this many times its planned (mission) duration ...
 TIMEOUT_MARGIN = 30.0  # ... plus this many mission seconds ...
 TIMEOUT_WALL = 15.0  # ... plus this many wall seconds (protocol retries, packet loss)
@@ -220,6 +222,12 @@ class Executor:
                          stops=len(plan.stops), makespan=plan.makespan)
         return plan
 
+    def _compile(self, plan: Plan) -> CompiledPlan:
+        try:
+            return compile_for_fleet(plan, self.fleet, meet_height=COLLECT_MEET_HEIGHT)
+        except CompileError as exc:
+            raise ExecutionError(str(exc)) from None
+
     async def _upload(self, v: Vehicle, items: list[MissionItem]) -> None:
         try:
             await self._do(v, "upload_mission", v.upload_mission(items), items=len(items))
@@ -284,7 +292,7 @@ class Executor:
                                       rovers=tuple(deck))
         plan = await self._plan("deploy", problem)
         res.plan, res.planned = plan, plan.makespan
-        compiled = compile_for_fleet(plan, self.fleet)
+        compiled = self._compile(plan)
         slots = compiled.rovers  # planned rover id -> its mission (the rover actually flying may differ)
         spares = [rid for rid in deck if rid not in slots]
         self.record("spares", rovers=spares)
@@ -315,7 +323,8 @@ class Executor:
 
         def take_spare() -> str | None:
             for rid in spares:
-                if rid not in used and rid not in self.refused and self.rover_on_deck(rovers[rid]):
+                r = rovers[rid]
+                if rid not in used and rid not in self.refused and r.connected and not r.lost:
                     used.add(rid)
                     return rid
             return None
@@ -324,6 +333,9 @@ class Executor:
             rid: str | None = slot.rover
             while rid is not None:
                 v = rovers[rid]
+                if not self.rover_on_deck(v):  # telemetry of rover and carrier may be of different moments
+                    with contextlib.suppress(TimeoutError):
+                        await v.wait_until(self.rover_on_deck, DECK_CHECK_TIMEOUT, "on the deck")
                 if not self.rover_on_deck(v):
                     st.event("rover_skipped", f"{rid}: not on the deck, a spare takes {slot.task}", rid)
                     rid = take_spare()
@@ -354,8 +366,11 @@ class Executor:
                     continue
                 try:
                     await self._do(v, "start_mission", v.start_mission())
-                    await v.wait_until(lambda v: (v.relative_alt or 0.0) > AIRBORNE_HEIGHT,
-                                       self.wall(5.0), "lift-off")
+                    tk = _takeoff_seq(slot)
+                    await v.wait_until(  # a task on the ground may be left again before a position shows it
+                        lambda v, tk=tk: ((v.relative_alt or 0.0) > AIRBORNE_HEIGHT or tk in v.items_reached
+                                          or (v.mission_current or -1) > tk),
+                        self.wall(5.0), "lift-off")
                 except (CommandRejected, LinkError, TimeoutError) as exc:
                     st.event("rover_failed", f"{rid}: did not take off ({exc})", rid, task=slot.task)
                     with contextlib.suppress(CommandRejected, LinkError, TimeoutError):
@@ -374,7 +389,7 @@ class Executor:
             v = rovers[rid]
             leg = next(leg for s in plan.stops for leg in s.rovers if leg.rover == slot.rover)
             target = leg.end
-            takeoff_seq = slot.target_seq - (len(leg.path) - 2) - 1 if leg.path else 0
+            takeoff_seq = _takeoff_seq(slot)
 
             def check(v: Vehicle) -> bool:
                 if st.vehicles[rid].state == fs.CLIMBING and (v.mission_current or 0) > takeoff_seq:
@@ -457,7 +472,7 @@ class Executor:
         problem = CollectProblem(self.mission.carrier.spec(), rp.motion(), start, heading, tuple(crs))
         plan = await self._plan("collect", problem)
         res.plan, res.planned = plan, plan.makespan
-        compiled = compile_for_fleet(plan, self.fleet)
+        compiled = self._compile(plan)
 
         # each rover holds above its meeting point until the carrier is there, then lands
         land_seq: dict[str, int] = {}
@@ -561,6 +576,11 @@ class Executor:
 __all__ = ["REACH_RADIUS", "ExecutionError", "Executor", "PhaseResult"]
 
 
+def _takeoff_seq(slot: RoverMission) -> int:
+    """Index of the NAV_TAKEOFF item of a compiled rover mission (-1 if it has none)."""
+    return next((i for i, it in enumerate(slot.items) if it.command == M.MAV_CMD_NAV_TAKEOFF), -1)
+
+
 # ================================================================================== a whole run
 
 
@@ -587,21 +607,25 @@ EXIT_FAILED = 1
 EXIT_INTERRUPTED = 130
 
 
-def sim_mission_dict(mission: Mission, command: str) -> dict[str, Any]:
-    """The mission dict the embedded simulator is started from. For ``collect`` the rovers named
-    in the mission's ``collection`` section start in the field at their positions (the others on
-    the deck); without that section a collection on the simulator is refused."""
+def sim_mission_dict(mission: Mission, command: str = "deploy") -> dict[str, Any]:
+    """The mission dict the embedded simulator is started from: the file as written, with the
+    rover units spelled out (the file may leave them to defaults). For ``collect`` the rovers
+    named in the mission's ``collection`` section start in the field at their positions (the
+    others on the deck); without that section a collection on the simulator is refused."""
     import copy
 
     d = copy.deepcopy(mission.raw)
-    if command != "collect":
-        return d
-    if not mission.collection:
-        raise ExecutionError(
-            f"{mission.path or mission.name}: 'collect' on the simulated fleet needs a 'collection:' section "
-            "(where the rovers are); the simulated rovers otherwise start on the carrier's deck. "
-            "Add one, or fly 'fleetctl run' (deploy, dwell, collect)")
-    placed = {r.id: r.position for r in mission.collection}
+    if mission.origin is None:
+        raise ExecutionError(f"{mission.path or mission.name}: the mission has no origin; flying needs "
+                             "WGS84 coordinates: add origin: {lat, lon, alt} to the mission file")
+    placed: dict[str, Any] = {}
+    if command == "collect":
+        if not mission.collection:
+            raise ExecutionError(
+                f"{mission.path or mission.name}: 'collect' on the simulated fleet needs a 'collection:' "
+                "section (where the rovers are); the simulated rovers otherwise start on the carrier's "
+                "deck. Add one, or fly 'fleetctl run' (deploy, dwell, collect)")
+        placed = {r.id: r.position for r in mission.collection}
     units = []
     for u in mission.rovers.units:
         unit: dict[str, Any] = {"id": u.id, "sysid": u.sysid}
@@ -614,6 +638,10 @@ def sim_mission_dict(mission: Mission, command: str) -> dict[str, Any]:
     rovers.pop("fleet", None)
     rovers["units"] = units
     d["rovers"] = rovers
+    c = dict(d["carrier"])
+    c.setdefault("id", mission.carrier.id)
+    c.setdefault("sysid", mission.carrier.sysid)
+    d["carrier"] = c
     return d
 
 
@@ -621,7 +649,7 @@ async def execute(
     mission: Mission, command: str, *, speedup: float | None = None, planner: str | None = None,
     dwell: float | None = None, summary_path: Any = None, runs_dir: Any = "runs", view: View | None = None,
     connect_timeout: float = 10.0, endpoints: dict[str, str] | None = None,
-    on_sim: Callable[[Any], None] | None = None, sim: Any = None,
+    on_sim: Callable[[Any], None] | None = None, sim: Any = None, clock_speedup: float | None = None,
 ) -> RunOutcome:
     """Fly ``command`` (``deploy`` | ``collect`` | ``run``) of ``mission`` end to end: start the
     embedded simulator for ``connection: sim``, connect, fly, and write the records. Cancelling
@@ -630,7 +658,8 @@ async def execute(
 
     ``sim``: an already running ``sitl.SimFleet`` to fly against (its endpoints, its simulated clock
     and speedup; tests and benchmarks use it to look at the simulated world). ``on_sim`` is called
-    with the embedded simulator once it runs."""
+    with the embedded simulator once it runs. ``clock_speedup``: vehicles that run that much faster
+    than the wall clock elsewhere (a simulator in another process): mission time = wall x it."""
     from fleetctl.journal import SUMMARY_SCHEMA, Journal, run_dir_for, write_summary
     from fleetctl.vehicle import FleetConnectError, connect_fleet
 
@@ -643,6 +672,9 @@ async def execute(
     sim_cm: Any = None
     clock: Callable[[], float] = time.monotonic
     scale = 1.0
+    if clock_speedup is not None and sim is None:
+        scale = float(clock_speedup)
+        clock = lambda: time.monotonic() * scale  # noqa: E731
     if sim is not None:
         ext = sim
         clock = lambda: ext.sim_time  # noqa: E731
