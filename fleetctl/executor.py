@@ -79,6 +79,7 @@ class PhaseResult:
     tasks_unserved: list[str] = field(default_factory=list)
     rovers_loaded: list[str] = field(default_factory=list)
     rovers_lost: list[str] = field(default_factory=list)
+    rovers_unreachable: list[str] = field(default_factory=list)  # collect: too little range to be picked up
     assignment: dict[str, str] = field(default_factory=dict)  # task -> rover (deploy)
     substitutions: list[dict[str, str]] = field(default_factory=list)  # refused rover -> spare
     error: str | None = None
@@ -464,8 +465,17 @@ class Executor:
             if rng is None:
                 rng = (1.0 - rp.reserve) * rp.endurance_range
                 log.warning("%s reports no battery; assuming a full one", rid)
-            crs.append(CollectRover(rid, (p[0], p[1], max(p[2], 0.0)), rng))
             self.record("rover_state", vehicle=rid, position=p, battery_pct=v.battery_pct, range=rng)
+            if rng < max(p[2], 0.0):  # cannot even land below itself: out of the carrier's reach
+                res.rovers_unreachable.append(rid)
+                st.event("rover_unreachable", f"{rid}: {rng:.1f} m of range left at {p[2]:.1f} m up: "
+                         "cannot reach the ground, not collected", rid, range=rng, height=p[2])
+                continue
+            crs.append(CollectRover(rid, (p[0], p[1], max(p[2], 0.0)), rng))
+        live = [rid for rid in live if rid not in res.rovers_unreachable]
+        if not live:
+            res.complete, res.planned, res.flown = True, 0.0, 0.0
+            return res
         start, heading = self.carrier_pose()
         from planners.problem import CollectProblem
 
@@ -849,6 +859,8 @@ def _summary(mission: Mission, command: str, results: dict[str, PhaseResult], st
         "replans": 0,
         "journal": str(journal.path),
     }
+    if col is not None:
+        out["rovers_unreachable"] = col.rovers_unreachable
     if dep is not None:
         out["assignment"] = dep.assignment
         out["substitutions"] = dep.substitutions

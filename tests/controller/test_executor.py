@@ -227,6 +227,19 @@ async def test_collect_on_sim_places_rovers_from_the_collection_section(tmp_path
     assert s["makespan_flown"] >= s["makespan_planned"] - 1.0
 
 
+async def test_collect_leaves_a_rover_without_range_to_land_and_says_so(tmp_path: Path) -> None:
+    d = mission_dict(rovers=3)
+    d["collection"] = {"rovers": [{"id": "r1", "position": [20, 10, 5], "range": 60.0},
+                                  {"id": "r2", "position": [35, -12, 12], "range": 6.0}]}
+    mission = mission_from(d, tmp_path)
+    out = await execute(mission, "collect", speedup=SPEEDUP, runs_dir=tmp_path / "runs")
+    s = out.summary
+    assert out.exit_code == 0, out.error  # every *reachable* rover loaded
+    assert s["rovers_loaded"] == ["r1"] and s["rovers_unreachable"] == ["r2"]
+    events = [r for r in journal(out.run_dir) if r["kind"] == "rover_unreachable"]
+    assert [r["vehicle"] for r in events] == ["r2"]
+
+
 async def test_collect_on_sim_without_collection_section_is_refused(tmp_path: Path) -> None:
     mission = mission_from(mission_dict(), tmp_path)
     proc = await asyncio.to_thread(
