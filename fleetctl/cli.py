@@ -167,7 +167,9 @@ def _add_fly_commands(sub: argparse._SubParsersAction) -> None:
         p.add_argument("--speedup", type=float, metavar="X",
                        help="simulated seconds per wall second of the embedded sim (default: sim.speedup)")
         p.add_argument("--summary", metavar="OUT.json", help="also write the run summary JSON here")
-        p.add_argument("--planner", "-p", help="planner name (default: the mission's planner section)")
+        p.add_argument("--planner", "-p",
+                       help="planner name (default: the mission's planner section); for run "
+                            "DEPLOY,COLLECT names both, e.g. greedy2opt,visit-all")
         if name == "run":
             p.add_argument("--dwell", type=float, metavar="S",
                            help="seconds on task before collection (default: the mission's dwell)")

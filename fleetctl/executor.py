@@ -206,7 +206,11 @@ class Executor:
 
         registry = planners.DEPLOY_PLANNERS if kind == "deploy" else planners.COLLECT_PLANNERS
         cfg = self.mission.planner
-        name = self.planner or (cfg.deploy if kind == "deploy" else cfg.collect)
+        given = None
+        if self.planner:  # "NAME" for both phases, or "DEPLOY,COLLECT" (fleetctl run)
+            parts = [p.strip() for p in self.planner.split(",")]
+            given = parts[0] if kind == "deploy" else parts[-1]
+        name = given or (cfg.deploy if kind == "deploy" else cfg.collect)
         if name not in registry:
             raise ExecutionError(f"unknown {kind} planner {name!r}; "
                                  f"choose one of {', '.join(sorted(registry))}")
