@@ -587,7 +587,7 @@ class Executor:
         return told
 
 
-__all__ = ["REACH_RADIUS", "ExecutionError", "Executor", "PhaseResult"]
+__all__ = ["COLLECT_MEET_HEIGHT", "REACH_RADIUS", "ExecutionError", "Executor", "PhaseResult"]
 
 
 def _takeoff_seq(slot: RoverMission) -> int:
