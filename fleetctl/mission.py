@@ -39,7 +39,15 @@ from shapely.geometry import Point, Polygon
 from shapely.validation import explain_validity
 
 from fleetctl.geo import Origin, compass_to_math, geodetic_to_local
-from planners.problem import CarrierSpec, CollectProblem, CollectRover, DeployProblem, Motion, Task
+from planners.problem import (
+    CarrierSpec,
+    CollectProblem,
+    CollectRover,
+    DeployProblem,
+    Motion,
+    RoadmapParams,
+    Task,
+)
 
 log = logging.getLogger(__name__)
 
@@ -196,6 +204,7 @@ class Mission:
             heading=compass_to_math(self.carrier.heading_deg),
             tasks=self.tasks,
             rovers=self.rovers.ids,
+            **self.environment(),
         )
 
     def collect_problem(self) -> CollectProblem:
@@ -210,7 +219,20 @@ class Mission:
             start=self._start(),
             heading=compass_to_math(self.carrier.heading_deg),
             rovers=self.collection,
+            **self.environment(),
         )
+
+    def environment(self) -> dict[str, Any]:
+        """Chapter 6 fields of a planning problem: obstacles, bounds, roadmap parameters, seed.
+
+        ``dataclasses.replace(problem, **mission.environment())`` gives any problem built from
+        live state the mission's obstacles. Roadmap parameters left out of the file take the
+        dissertation's values (planners.problem.RoadmapParams).
+        """
+        rc = self.planner.roadmap
+        given = {} if rc is None else {k: v for k, v in vars(rc).items() if v is not None}
+        return {"obstacles": self.obstacles, "bounds": self.bounds, "roadmap": RoadmapParams(**given),
+                "seed": self.planner.seed}
 
     def _where(self) -> str:
         return str(self.path) if self.path is not None else self.name

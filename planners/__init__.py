@@ -11,6 +11,7 @@ from planners.collection_baselines import plan_collect_gather, plan_collect_visi
 from planners.collection_bounds import collect_lower_bound
 from planners.collection_convex import plan_collect_lee_convex
 from planners.deploy import plan_lee
+from planners.deploy_graph import plan_lee_graph
 from planners.plan import Plan
 from planners.problem import CollectProblem, DeployProblem, PlanningError
 from planners.two_task import plan_two_tasks
@@ -20,6 +21,7 @@ DEPLOY_PLANNERS: dict[str, Callable[[DeployProblem], Plan]] = {
     "greedy2opt": plan_greedy2opt,
     "direct": plan_direct,
     "two-task": plan_two_tasks,
+    "lee-graph": plan_lee_graph,
 }
 
 COLLECT_PLANNERS: dict[str, Callable[[CollectProblem], Plan]] = {

@@ -10,7 +10,7 @@ import numpy as np
 
 from planners.deploy import build_plan
 from planners.plan import Plan
-from planners.problem import DeployProblem, PlanningError
+from planners.problem import DeployProblem, PlanningError, refuse_obstacles
 from planners.routing import two_opt_route  # noqa: F401  (re-exported for collection)
 
 
@@ -18,6 +18,7 @@ def plan_greedy2opt(problem: DeployProblem) -> Plan:
     """The carrier drives a nearest-neighbour + 2-opt route over every task's ground point and
     unloads one rover under each task (the comparison of ch. 4.6.2)."""
     t0 = time.perf_counter()
+    refuse_obstacles(problem, "greedy2opt")
     _check_fleet(problem)
     pts = np.array([[t.position[0], t.position[1]] for t in problem.tasks], dtype=float)
     order = two_opt_route(pts, np.array(problem.start[:2], dtype=float))
@@ -29,6 +30,7 @@ def plan_greedy2opt(problem: DeployProblem) -> Plan:
 def plan_direct(problem: DeployProblem) -> Plan:
     """Every rover leaves from the carrier's start, which does not move."""
     t0 = time.perf_counter()
+    refuse_obstacles(problem, "direct")
     _check_fleet(problem)
     x, y = problem.start[0], problem.start[1]
     far = [t.id for t in problem.tasks

@@ -24,7 +24,7 @@ import numpy as np
 from planners.clustering import divide_cluster
 from planners.geometry import minimize_1d
 from planners.plan import Plan, RoverLeg, Stop
-from planners.problem import CollectProblem, PlanningError, Vec3
+from planners.problem import CollectProblem, PlanningError, Vec3, refuse_obstacles
 from planners.reach import Point2, Region, make_region
 from planners.search import merge_neighbours, reorder, split_loop
 from planners.timing import RANGE_MARGIN, carrier_hop, leg_time, retime
@@ -375,6 +375,7 @@ def _snap(problem: CollectProblem, members: Sequence[int], prev: Vec3, here: Vec
 def plan_collect_lee(problem: CollectProblem) -> Plan:
     """The dissertation's collection path generator (ch. 5.4) with the fast meeting points; ``lee``."""
     t0 = time.perf_counter()
+    refuse_obstacles(problem, "lee")
     _, route = lee_route(problem)
     ms = (time.perf_counter() - t0) * 1e3
     return build_collect_plan(problem, "lee", route.clusters, route.positions, ms)

@@ -19,7 +19,7 @@ import numpy as np
 
 from planners.collection import CollectInstance, build_collect_plan
 from planners.plan import Plan
-from planners.problem import CollectProblem
+from planners.problem import CollectProblem, refuse_obstacles
 from planners.reach import Point2
 from planners.routing import two_opt_route
 
@@ -40,6 +40,7 @@ def _visit(problem: CollectProblem, planner: str, landing: list[Point2], t0: flo
 def plan_collect_visit_all(problem: CollectProblem) -> Plan:
     """``visit-all``: the carrier visits every rover where it lands."""
     t0 = time.perf_counter()
+    refuse_obstacles(problem, "visit-all")
     inst = CollectInstance(problem)  # validates the rovers
     return _visit(problem, "visit-all", list(inst.pts2), t0)
 
@@ -47,6 +48,7 @@ def plan_collect_visit_all(problem: CollectProblem) -> Plan:
 def plan_collect_gather(problem: CollectProblem) -> Plan:
     """``gather``: rovers fly toward the carrier's start as far as their range allows first."""
     t0 = time.perf_counter()
+    refuse_obstacles(problem, "gather")
     inst = CollectInstance(problem)
     sx, sy = problem.start[0], problem.start[1]
     landing: list[Point2] = []

@@ -29,7 +29,7 @@ from scipy.optimize import minimize
 
 from planners.collection import _PathBuilder, _Route, build_collect_plan, lee_route, polish
 from planners.plan import Plan
-from planners.problem import CollectProblem
+from planners.problem import CollectProblem, refuse_obstacles
 from planners.reach import Point2, Region
 from planners.timing import carrier_hop, leg_time
 
@@ -79,6 +79,7 @@ def lee_convex_route(problem: CollectProblem) -> tuple[_PathBuilder, _Route]:
 def plan_collect_lee_convex(problem: CollectProblem) -> Plan:
     """``lee-convex``: the collection path generator with meeting points solved by SLSQP."""
     t0 = time.perf_counter()
+    refuse_obstacles(problem, "lee-convex")
     _, route = lee_convex_route(problem)
     return build_collect_plan(problem, "lee-convex", route.clusters, route.positions,
                               (time.perf_counter() - t0) * 1e3)

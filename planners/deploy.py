@@ -16,7 +16,7 @@ from scipy.optimize import brentq
 from planners.clustering import divide_cluster
 from planners.geometry import enclosing_ball, minimize_1d
 from planners.plan import Plan, RoverLeg, Stop
-from planners.problem import DeployProblem, PlanningError, Vec3
+from planners.problem import DeployProblem, PlanningError, Vec3, refuse_obstacles
 from planners.search import merge_neighbours, reorder, split_loop, swap_neighbours
 from planners.timing import RANGE_MARGIN, carrier_hop, leg_time, retime
 
@@ -369,6 +369,7 @@ def build_plan(problem: DeployProblem, planner: str, clusters: Sequence[Sequence
 def plan_lee(problem: DeployProblem) -> Plan:
     """The dissertation's deployment path generator (ch. 4.4), planner name ``lee``."""
     t0 = time.perf_counter()
+    refuse_obstacles(problem, "lee")
     if len(problem.rover_ids()) < len(problem.tasks):
         raise PlanningError(f"{len(problem.tasks)} tasks need as many rovers, only "
                             f"{len(problem.rover_ids())} on the carrier")

@@ -48,6 +48,9 @@ class Plan:
     carrier_distance: float = 0.0
     compute_ms: float = 0.0
     notes: list[str] = field(default_factory=list)
+    # Roadmap planners (ch. 6) attach their graph for drawing: an object with ``xy`` ((N, 2)
+    # node coordinates) and ``edges()`` ((E, 2) node index pairs). Not part of the JSON.
+    roadmap: Any = field(default=None, repr=False, compare=False)
 
     def legs(self) -> list[RoverLeg]:
         return [leg for stop in self.stops for leg in stop.rovers]

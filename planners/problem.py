@@ -43,6 +43,35 @@ class Task:
     position: Vec3
 
 
+Point2 = tuple[float, float]
+Polygon2 = tuple[Point2, ...]
+
+
+@dataclass(frozen=True)
+class RoadmapParams:
+    """Probabilistic roadmap parameters (dissertation ch. 6.3).
+
+    ℵ₁ = √(w·h)·ξ₁ + ξ₂ nodes in the global PRM (eq. 6.5), ℵ_add = √(w_ROI·h_ROI)·ξ₃ + ξ₄ per
+    local PRM (eq. 6.7), edges up to δ = max(d_deploy, (w+h)/2·φ) (eq. 6.6). ξ₁, ξ₂ and φ are the
+    dissertation's values (Table 6.1, ch. 6.3.1); ξ₃, ξ₄ are not given in the text and are chosen
+    so that Table 6.2's mission grows from 300 to about 390 nodes as in Table 6.3.
+    """
+
+    xi1: float = 1.5
+    xi2: float = 150.0
+    xi3: float = 1.0
+    xi4: float = 10.0
+    phi: float = 0.15
+
+
+def refuse_obstacles(problem: DeployProblem | CollectProblem, planner: str) -> None:
+    """Open-space planners (ch. 4–5) fly straight lines: refuse a problem with obstacles."""
+    if problem.obstacles:
+        raise PlanningError(
+            f"the mission has {len(problem.obstacles)} obstacle(s) and the open-space planner {planner!r} "
+            "would fly through them; use the roadmap planner: --planner lee-graph")
+
+
 @dataclass(frozen=True)
 class DeployProblem:
     """Chapter 4: drop rovers so that the last one reaches its task as early as possible."""
@@ -54,6 +83,13 @@ class DeployProblem:
     heading: float
     tasks: tuple[Task, ...]
     rovers: tuple[str, ...] = field(default=())  # rover ids in deck order; default r1..rN
+
+    # Chapter 6: ground obstacles (polygons of unlimited height), the sampling workspace
+    # ((xmin, ymin), (xmax, ymax)), roadmap parameters and the sampling seed.
+    obstacles: tuple[Polygon2, ...] = ()
+    bounds: tuple[Point2, Point2] | None = None
+    roadmap: RoadmapParams = field(default_factory=RoadmapParams)
+    seed: int = 0
 
     def rover_ids(self) -> tuple[str, ...]:
         if self.rovers:
@@ -77,3 +113,10 @@ class CollectProblem:
     start: Vec3
     heading: float
     rovers: tuple[CollectRover, ...]
+
+    # Chapter 6: ground obstacles (polygons of unlimited height), the sampling workspace
+    # ((xmin, ymin), (xmax, ymax)), roadmap parameters and the sampling seed.
+    obstacles: tuple[Polygon2, ...] = ()
+    bounds: tuple[Point2, Point2] | None = None
+    roadmap: RoadmapParams = field(default_factory=RoadmapParams)
+    seed: int = 0

@@ -18,7 +18,7 @@ from scipy.optimize import brentq
 from planners.deploy import build_plan
 from planners.geometry import enclosing_ball, minimize_1d
 from planners.plan import Plan
-from planners.problem import DeployProblem, PlanningError
+from planners.problem import DeployProblem, PlanningError, refuse_obstacles
 from planners.timing import RANGE_MARGIN, carrier_hop, leg_time
 
 Point2 = tuple[float, float]
@@ -50,6 +50,7 @@ def apollonius_point(start: Point2, g1: Point2, g2: Point2, v_c: float, v_r: flo
 def plan_two_tasks(problem: DeployProblem) -> Plan:
     """The optimal deployment of exactly two tasks (ch. 4.3); planner name ``two-task``."""
     t0 = time.perf_counter()
+    refuse_obstacles(problem, "two-task")
     if len(problem.tasks) != 2:
         raise PlanningError("the two-task deployment needs exactly two tasks")
     d = problem.deploy_range - RANGE_MARGIN
