@@ -36,6 +36,13 @@ def cmd_plan(args: argparse.Namespace) -> int:
     mission = load_mission(args.mission)
     registry = _planners(args.collect)
     name = args.planner or (mission.planner.collect if args.collect else mission.planner.deploy)
+    phase = "collect" if args.collect else "deploy"
+    if (not args.planner and mission.obstacles and name == "lee"
+            and phase not in (mission.raw.get("planner") or {}) and "lee-graph" in registry):
+        # the default open-space planner would fly through the obstacles: use the roadmap planner
+        name = "lee-graph"
+        print(f"{args.mission}: the mission has obstacles and names no {phase} planner: using lee-graph",
+              file=sys.stderr)
     if name not in registry:
         raise CliError(f"unknown planner {name!r} for {'collection' if args.collect else 'deployment'}; "
                        f"choose one of: {', '.join(sorted(registry))}")
@@ -250,9 +257,11 @@ def _sim_config(mission: Mission, speedup: float | None) -> object:
 
     if speedup is not None and not speedup > 0:
         raise CliError(f"--speedup must be > 0, got {speedup}")
-    try:
-        return FleetConfig.from_mission_dict(mission.raw, speedup=speedup)
-    except ConfigError as e:
+    from fleetctl.executor import ExecutionError, sim_mission_dict
+
+    try:  # the file with its defaults spelled out (rover units), as the controller sees the fleet
+        return FleetConfig.from_mission_dict(sim_mission_dict(mission), speedup=speedup)
+    except (ConfigError, ExecutionError) as e:
         raise CliError(f"{mission.path or mission.name}: {e}") from None
 
 

@@ -12,7 +12,8 @@ from fleetctl.mission import load_mission
 from tests.plan_checker import check_plan
 
 ROOT = Path(__file__).resolve().parents[1]
-DEPLOY_MISSIONS = sorted([ROOT / "missions" / "recon.yaml", *(ROOT / "missions" / "paper").glob("deploy_*.yaml")])
+DEPLOY_MISSIONS = sorted([ROOT / "missions" / "recon.yaml",
+                          *(ROOT / "missions" / "paper").glob("deploy_*.yaml")])
 
 
 def run(*args: str) -> subprocess.CompletedProcess:
@@ -84,3 +85,15 @@ def test_missing_file():
 def test_help_explains():
     res = run("plan", "--help")
     assert res.returncode == 0 and "--planner" in res.stdout and "greedy2opt" in res.stdout
+
+
+@pytest.mark.parametrize("mission", sorted((ROOT / "missions").glob("**/*.yaml")), ids=lambda p: p.name)
+def test_every_mission_file_configures_the_simulated_fleet(mission):
+    # What `fleetctl sim` and the embedded fleet of deploy/run start from.
+    from fleetctl.executor import sim_mission_dict
+    from sitl import FleetConfig
+
+    m = load_mission(mission)
+    cfg = FleetConfig.from_mission_dict(sim_mission_dict(m))
+    assert cfg.carrier.sysid == m.carrier.sysid
+    assert [(r.id, r.sysid) for r in cfg.rovers] == [(u.id, u.sysid) for u in m.rovers.units]
