@@ -36,6 +36,14 @@ def plot_plan(mission: Mission, plan: Plan, out: str | Path, lower_bound: float 
 
     for poly in mission.obstacles:
         ax.add_patch(PolygonPatch(poly, closed=True, facecolor="0.6", edgecolor="0.3", alpha=0.6))
+    rm = getattr(plan, "roadmap", None)
+    if rm is not None:  # ch. 6 roadmap planners: the graph, drawn light under everything else
+        from matplotlib.collections import LineCollection
+
+        xy = rm.xy
+        ax.add_collection(LineCollection(xy[rm.edges()], colors="0.85", linewidths=0.3, zorder=0))
+        ax.plot(xy[:, 0], xy[:, 1], ".", color="0.7", ms=1.5, zorder=0,
+                label=f"roadmap ({rm.n_nodes} nodes, {rm.n_edges} edges)")
     if mission.bounds is not None:
         (x0, y0), (x1, y1) = mission.bounds
         ax.plot([x0, x1, x1, x0, x0], [y0, y0, y1, y1, y0], color="0.8", lw=0.8)

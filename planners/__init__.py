@@ -6,6 +6,7 @@ from collections.abc import Callable
 
 from planners.baselines import plan_direct, plan_greedy2opt
 from planners.bounds import deploy_lower_bound
+from planners.collect_graph import plan_collect_lee_graph
 from planners.collection import plan_collect_lee
 from planners.collection_baselines import plan_collect_gather, plan_collect_visit_all
 from planners.collection_bounds import collect_lower_bound
@@ -29,6 +30,7 @@ COLLECT_PLANNERS: dict[str, Callable[[CollectProblem], Plan]] = {
     "lee-convex": plan_collect_lee_convex,
     "visit-all": plan_collect_visit_all,
     "gather": plan_collect_gather,
+    "lee-graph": plan_collect_lee_graph,
 }
 
 __all__ = ["COLLECT_PLANNERS", "DEPLOY_PLANNERS", "Plan", "PlanningError", "collect_lower_bound",

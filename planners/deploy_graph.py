@@ -59,10 +59,8 @@ class GraphWorld:
                                     "move it out of the obstacle")
         self.rng = np.random.default_rng(seed)
         self.rm: Roadmap = global_prm(self.ws, xy, d_edge, params, self.rng)  # eq. 6.5–6.6
+        densify(self.rm, self.rng, params, range(1, len(xy)))
         d0, _ = self.rm.shortest(0)
-        if not np.all(np.isfinite(d0[1:len(xy)])):
-            densify(self.rm, self.rng, params)  # a sparse roadmap may miss a narrow door: sample more
-            d0, _ = self.rm.shortest(0)
         cut = [self.names[k - 1] for k in range(1, len(xy)) if not math.isfinite(d0[k])]
         if cut:
             raise PlanningError(
@@ -92,7 +90,8 @@ class GraphWorld:
         if self.local:
             local_prm(self.rm, self.rng, lo, hi, self.d_edge, self.params)  # eq. 6.7
         if self.ws.rect_free(lo, hi):  # no obstacle around the cluster: ch. 4's point as well
-            self.rm.add(np.array(self.open_space_points(mem, prev, nxt)), self.rm.delta)  # type: ignore[attr-defined]
+            pts = np.array(self.open_space_points(mem, prev, nxt)).reshape(-1, 2)
+            self.rm.add(pts[self.ws.inside_bounds(pts)], self.rm.delta)  # type: ignore[attr-defined]
         dist = self.rm.distances([self.node(i) for i in mem], limit=float(rho.max()) + 1e-9)
         eps = 1e-9
         xy = self.rm.xy

@@ -234,11 +234,15 @@ def global_prm(workspace: Workspace, fixed: np.ndarray, d_deploy: float, params:
     return rm
 
 
-def densify(rm: Roadmap, rng: np.random.Generator, params: RoadmapParams, rounds: int = 3) -> None:
-    """More global samples (ℵ₁ again per round) when fixed nodes are not yet connected."""
+def densify(rm: Roadmap, rng: np.random.Generator, params: RoadmapParams, nodes: Sequence[int],
+            rounds: int = 4) -> None:
+    """Half of ℵ₁ more global samples per round while some of ``nodes`` are cut off from node 0
+    (a sparse roadmap may miss a narrow door)."""
     w, h = rm.ws.width, rm.ws.height
-    count = int(round(math.sqrt(w * h) * params.xi1 + params.xi2))
+    count = int(round((math.sqrt(w * h) * params.xi1 + params.xi2) / 2))
     for _ in range(rounds):
+        if np.all(np.isfinite(rm.shortest(0)[0][list(nodes)])):
+            return
         rm.add(rm.ws.sample(rng, count), rm.delta)  # type: ignore[attr-defined]
 
 
@@ -263,7 +267,12 @@ def disc_region(centers: np.ndarray, radii: np.ndarray) -> tuple[Point2, Point2]
 def local_prm(rm: Roadmap, rng: np.random.Generator, lo: Point2, hi: Point2, d_deploy: float,
               params: RoadmapParams) -> np.ndarray:
     """Local PRM (eq. 6.7) in the rectangle lo..hi, edges up to d_deploy; the new node indices."""
+    (bx0, by0), (bx1, by1) = rm.ws.bounds  # the region of interest inside the workspace
+    lo = (max(lo[0], bx0), max(lo[1], by0))
+    hi = (min(hi[0], bx1), min(hi[1], by1))
     w, h = hi[0] - lo[0], hi[1] - lo[1]
+    if w < 0 or h < 0:
+        return np.zeros(0, dtype=np.int64)
     count = int(round(math.sqrt(max(w * h, 0.0)) * params.xi3 + params.xi4))
     pts = rm.ws.sample(rng, count, lo, hi)
     return rm.add(pts, d_deploy)
