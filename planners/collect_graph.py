@@ -37,9 +37,9 @@ class _Collect:
         rng = np.array([r.range for r in p.rovers], dtype=float)
         for r in p.rovers:
             if r.range < r.position[2]:
-                raise PlanningError(f"rover {r.id} at height {r.position[2]:g} m has only {r.range:g} m of "
+                raise PlanningError(f"rover {r.id} is {r.position[2]:g} m up with only {r.range:g} m of "
                                     "range: it cannot reach the ground")
-        rho = np.sqrt(np.maximum((rng - RANGE_MARGIN) ** 2 - pos[:, 2] ** 2, 0.0))
+        rho = np.sqrt(np.maximum(np.maximum(rng - RANGE_MARGIN, 0.0) ** 2 - pos[:, 2] ** 2, 0.0))
         if p.bounds is not None:
             (x0, y0), (x1, y1) = p.bounds
             spread = (x1 - x0 + y1 - y0) / 2 * p.roadmap.phi

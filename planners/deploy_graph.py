@@ -99,6 +99,8 @@ class GraphWorld:
                    & (xy[:, 1] >= lo[1] - eps) & (xy[:, 1] <= hi[1] + eps))
         ok = in_rect & np.all(dist <= rho[:, None], axis=0)
         nodes = np.flatnonzero(ok)
+        if not len(nodes) and len(mem) == 1:  # a target's own node always serves it
+            nodes = np.array([self.node(mem[0])])
         return nodes, dist
 
     def open_space_points(self, mem: Sequence[int], prev: Point2, nxt: Point2 | None) -> list[Point2]:

@@ -254,6 +254,12 @@ def disc_region(centers: np.ndarray, radii: np.ndarray) -> tuple[Point2, Point2]
     hi_y = float(np.min(centers[:, 1] + radii))
     if lo_x > hi_x or lo_y > hi_y:
         return None
+    point = radii <= 1e-9
+    if point.any():  # a disc of radius zero: the region is that point or nothing
+        p = centers[int(np.argmax(point))]
+        if np.all(np.hypot(*(centers - p).T) <= radii + 1e-9):
+            return (float(p[0]), float(p[1])), (float(p[0]), float(p[1]))
+        return None
     region = None
     for c, r in zip(centers, radii, strict=True):
         disc = shapely.Point(float(c[0]), float(c[1])).buffer(float(r), quad_segs=32)
