@@ -37,14 +37,22 @@ from typing import Any, TypeVar
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 from fleetctl import fleet as fs
-from fleetctl.compile import CompiledPlan, CompileError, RoverMission, compile_for_fleet
+from fleetctl.compile import (
+    CompiledPlan,
+    CompileError,
+    RoverMission,
+    StopItems,
+    compile_for_fleet,
+    item_position,
+)
 from fleetctl.energy import range_from_percent
 from fleetctl.fleet import FleetState, on_deck
 from fleetctl.link import LinkError, MissionItem, MissionRejected
 from fleetctl.mission import Mission
+from fleetctl.supervisor import Supervisor, SupervisorEvent, validate_task_change
 from fleetctl.vehicle import CommandRejected, Fleet, Vehicle, VehicleEvent
-from planners.plan import Plan
-from planners.problem import CollectRover, PlanningError
+from planners.plan import Plan, RoverLeg, Stop
+from planners.problem import CollectProblem, CollectRover, PlanningError, Task, Vec3
 
 log = logging.getLogger(__name__)
 
@@ -60,6 +68,7 @@ DECK_CHECK_TIMEOUT = 2.0  # wall s for fresh telemetry to show a rover on the (s
 TIMEOUT_FACTOR = 2.0  # a wait may take this many times its planned (mission) duration ...
 TIMEOUT_MARGIN = 30.0  # ... plus this many mission seconds ...
 TIMEOUT_WALL = 15.0  # ... plus this many wall seconds (protocol retries, packet loss)
+CARRIER_OUTAGE_MAX = 600.0  # mission s the controller waits for a lost carrier to come back
 
 
 class ExecutionError(Exception):
@@ -83,6 +92,12 @@ class PhaseResult:
     assignment: dict[str, str] = field(default_factory=dict)  # task -> rover (deploy)
     substitutions: list[dict[str, str]] = field(default_factory=list)  # refused rover -> spare
     error: str | None = None
+    unserved_reasons: dict[str, str] = field(default_factory=dict)  # deploy: task -> why not reached
+    tasks_all: list[str] = field(default_factory=list)  # deploy: the live task set at the end
+    tasks_added: list[str] = field(default_factory=list)
+    tasks_removed: list[str] = field(default_factory=list)
+    launched: list[str] = field(default_factory=list)  # deploy: rovers that left the deck
+    rejoined: list[str] = field(default_factory=list)  # deploy: rovers in the field without a task
 
 
 class Executor:
@@ -104,6 +119,18 @@ class Executor:
         self._tasks: set[asyncio.Task[Any]] = set()
         self._unlisten = fleet.add_listener(self._on_vehicle_event)
         state.mission_clock = self.clock
+        self.tasks: dict[str, Task] = {t.id: t for t in mission.tasks}  # the live task set
+        self.supervisor = Supervisor(mission, fleet, state, tasks=lambda: dict(self.tasks),
+                                     record=self.record)
+        try:
+            self._loop: asyncio.AbstractEventLoop | None = asyncio.get_running_loop()
+        except RuntimeError:
+            self._loop = None
+        self._replan: dict[str, Any] | None = None  # the replan whose first command is not sent yet
+        self._carrier_ok = asyncio.Event()
+        self._carrier_ok.set()
+        self._carrier_losses = 0
+        self._held: set[str] = set()  # rovers paused while the carrier is lost
 
     # -- plumbing ----------------------------------------------------------------------------------
     def _on_vehicle_event(self, ev: VehicleEvent) -> None:
@@ -129,6 +156,7 @@ class Executor:
     async def close(self) -> None:
         """Cancel every background task (call on shutdown)."""
         self._unlisten()
+        await self.supervisor.close()
         tasks = list(self._tasks)
         for t in tasks:
             t.cancel()
@@ -148,7 +176,9 @@ class Executor:
             await asyncio.sleep(min(max(left / self.speedup, 0.005), 0.1))
 
     async def _do(self, v: Vehicle, what: str, aw: Awaitable[T], **data: Any) -> T:
-        """Run one command, journaling it and its ack."""
+        """Run one command, journaling it and its ack (and a pending replan's latency)."""
+        if self._replan is not None and self._replan["ready"]:
+            self._finish_replan((time.monotonic() - self._replan["t"]) * 1000.0)
         self.record("command", vehicle=v.name, command=what, **data)
         try:
             result = await aw
@@ -276,125 +306,291 @@ class Executor:
                          c.name, stop=k + 1, position=pos)
         return t
 
+    # ============================================================================== supervision
+    def submit_task_change(self, add: list[Task], remove: list[str], source: str) -> None:
+        """Add and/or remove tasks of the running mission (see the module docstring). Safe to
+        call from the event loop or from another thread; applied by the supervisor loop."""
+        ev = SupervisorEvent("tasks", None, add=tuple(add), remove=tuple(remove), source=source)
+        try:
+            running: asyncio.AbstractEventLoop | None = asyncio.get_running_loop()
+        except RuntimeError:
+            running = None
+        if self._loop is None or running is self._loop:
+            self.supervisor.put(ev)
+        else:
+            self._loop.call_soon_threadsafe(self.supervisor.put, ev)
+
+    def _begin_replan(self, cause: str, ev: SupervisorEvent, old: Plan | None, **data: Any) -> None:
+        if self._replan is not None:  # a second cause before the first plan went out: one replan
+            self._replan["cause"] += f"; {cause}"
+            return
+        self._replan = {"cause": cause, "t": ev.t, "vehicle": ev.vehicle, "old": old, "new": None,
+                        "ready": False, **data}
+
+    def _replan_ready(self, new: Plan | None) -> None:
+        r = self._replan
+        if r is None:
+            return
+        r["new"], r["ready"] = new, True
+        if new is None:
+            self._finish_replan(None)
+
+    def _finish_replan(self, latency_ms: float | None) -> None:
+        r, self._replan = self._replan, None
+        if r is None:
+            return
+        st = self.state
+        st.replans += 1
+        old, new = r["old"], r["new"]
+        lat = "" if latency_ms is None else f", first new command {latency_ms:.0f} ms after the event"
+        what = (f"{len(new.stops)} stops, makespan {new.makespan:.1f} s" if new is not None
+                else "nothing left to plan")
+        text = f"replan #{st.replans}: {r['cause']} -> {what}{lat}"
+        st.last_replan = text
+        self.record("replan", n=st.replans, cause=r["cause"], latency_ms=latency_ms,
+                    old_plan=old.to_json() if old is not None else None,
+                    new_plan=new.to_json() if new is not None else None)
+        st.event("replan", text, r.get("vehicle"), n=st.replans, cause=r["cause"], latency_ms=latency_ms)
+
+    async def _race(self, aw: Awaitable[T], handle: Callable[[SupervisorEvent], bool]
+                    ) -> tuple[bool, T | None]:
+        """Await ``aw`` while handing supervisor events to ``handle``; when ``handle`` returns True
+        (replan), ``aw`` is cancelled and ``(False, None)`` returned, else ``(True, result)``."""
+        task = asyncio.ensure_future(aw)
+        q = self.supervisor.queue
+        getter: asyncio.Future[SupervisorEvent] | None = None
+        try:
+            while True:
+                getter = asyncio.ensure_future(q.get())
+                done, _ = await asyncio.wait({task, getter}, return_when=asyncio.FIRST_COMPLETED)
+                if getter in done:
+                    ev, getter = getter.result(), None
+                    if handle(ev):
+                        return False, None
+                    continue
+                return True, task.result()
+        finally:
+            for f in (task, getter):
+                if f is not None and not f.done():
+                    f.cancel()
+                    with contextlib.suppress(asyncio.CancelledError, Exception):
+                        await f
+
+    def _drain(self, handle: Callable[[SupervisorEvent], bool]) -> bool:
+        """Hand every queued event to ``handle``; True if one asks for a replan."""
+        again = False
+        q = self.supervisor.queue
+        while not q.empty():
+            again = handle(q.get_nowait()) or again
+        return again
+
+    def _carrier_event(self, ev: SupervisorEvent, airborne: Callable[[], list[str]]) -> None:
+        """Carrier lost: no more launches (see :meth:`_carrier_ready`), airborne rovers hold (or land
+        when their battery is at the reserve); back: they resume."""
+        st = self.state
+        rovers = self.rovers()
+        if ev.kind == "lost":
+            self._carrier_ok.clear()
+            self._carrier_losses += 1
+            reserve = self.mission.rovers.reserve * 100.0
+            for rid in airborne():
+                v = rovers[rid]
+                if v.lost:
+                    continue
+                low = v.battery_pct is not None and v.battery_pct <= reserve
+                if not low:
+                    self._held.add(rid)
+                self._spawn(self._hold_or_land(v, low), f"hold {rid}")
+            st.event("carrier_lost", f"{self.fleet.carrier_id}: carrier lost: no launches; airborne rovers "
+                     f"hold ({', '.join(sorted(self._held)) or 'none'})", self.fleet.carrier_id)
+        else:
+            self._carrier_ok.set()
+            held, self._held = sorted(self._held), set()
+            for rid in held:
+                self._spawn(self._resume(rovers[rid]), f"resume {rid}")
+            st.event("carrier_back", f"{self.fleet.carrier_id}: carrier back; resuming "
+                     f"{', '.join(held) or 'nothing'}", self.fleet.carrier_id)
+
+    async def _hold_or_land(self, v: Vehicle, low: bool) -> None:
+        try:
+            if low:
+                await self._do(v, "land", v.land())
+                self.state.event("rover_landing", f"{v.name}: battery at the reserve, landing where it is",
+                                 v.name)
+            else:
+                await self._do(v, "pause", v.pause())
+        except (CommandRejected, LinkError, TimeoutError) as exc:
+            log.warning("%s: could not hold/land: %s", v.name, exc)
+
+    async def _resume(self, v: Vehicle) -> None:
+        with contextlib.suppress(CommandRejected, LinkError, TimeoutError):
+            await self._do(v, "resume", v.resume())
+
+    async def _carrier_ready(self) -> None:
+        """Wait (bounded) until the carrier's link is up."""
+        if self._carrier_ok.is_set() and not self.fleet.carrier.lost:
+            return
+        try:
+            await self.fleet.carrier.wait_until(lambda v: not v.lost, self.wall(CARRIER_OUTAGE_MAX),
+                                                "carrier back")
+        except TimeoutError:
+            raise ExecutionError(f"the carrier {self.fleet.carrier_id} stayed lost for more than "
+                                 f"{CARRIER_OUTAGE_MAX:g} s; rovers in the field hold where they are"
+                                 ) from None
+
+    async def _reach_stop(self, k: int, arrive_seq: int, planned_leg: float) -> float:
+        """:meth:`_wait_stop`, waiting out carrier link outages on the way."""
+        while True:
+            losses = self._carrier_losses
+            try:
+                return await self._wait_stop(k, arrive_seq, planned_leg)
+            except ExecutionError:
+                if losses == self._carrier_losses and not self.fleet.carrier.lost:
+                    raise
+                await self._carrier_ready()
+
+    def _flight_path(self, rm: RoverMission, start: Vec3) -> list[Vec3]:
+        """Where a rover flying ``rm`` from ``start`` should be (its items' positions)."""
+        origin = self.fleet.carrier.origin
+        pts: list[Vec3] = [start]
+        if origin is None:
+            return pts
+        for it in rm.items:
+            if it.frame == M.MAV_FRAME_GLOBAL:  # ArduPilot home placeholder
+                continue
+            pts.append(item_position(it, origin))
+        return pts
+
     # ============================================================================== deployment
     async def deploy(self) -> PhaseResult:
-        """Plan from the live state and fly the deployment; returns what was reached."""
+        """Plan from the live state and fly the deployment, replanning on supervisor events;
+        returns what was reached (and why anything was not)."""
         res = PhaseResult("deploy")
         st = self.state
         st.set_phase("plan")
         await self._wait_telemetry()
+        self.supervisor.start()
         rovers = self.rovers()
+        carrier_id = self.fleet.carrier_id
         deck = [rid for rid, v in rovers.items() if self.rover_on_deck(v)]
         for rid, v in rovers.items():
             away = fs.LOST if not v.connected or v.lost else fs.LANDED
             st.set_state(rid, fs.ON_DECK if rid in deck else away)
-        tasks = self.mission.tasks
-        if len(deck) < len(tasks):
+        if len(deck) < len(self.tasks):
             raise ExecutionError(f"{len(deck)} rover(s) on the carrier's deck ({', '.join(deck) or 'none'}) "
-                                 f"for {len(tasks)} tasks: every task needs a rover on the deck")
-        start, heading = self.carrier_pose()
-        problem = dataclasses.replace(self.mission.deploy_problem(), start=start, heading=heading,
-                                      rovers=tuple(deck))
-        plan = await self._plan("deploy", problem)
-        res.plan, res.planned = plan, plan.makespan
-        compiled = self._compile(plan)
-        slots = compiled.rovers  # planned rover id -> its mission (the rover actually flying may differ)
-        spares = [rid for rid in deck if rid not in slots]
-        self.record("spares", rovers=spares)
-
-        # upload every planned rover's mission while nothing moves yet
-        uploaded: dict[str, str] = {}  # rover -> slot whose mission it holds
-
-        async def pre_upload(slot: RoverMission) -> None:
-            v = rovers[slot.rover]
-            try:
-                await self._upload(v, list(slot.items))
-                uploaded[slot.rover] = slot.rover
-            except (ExecutionError, LinkError, TimeoutError) as exc:
-                log.warning("%s: upload failed (%s); a spare will fly %s", v.name, exc, slot.task)
-
-        st.set_phase("deploy", plan.makespan, len(plan.stops))
-        await asyncio.gather(*(pre_upload(s) for s in slots.values()))
-        await self._start_carrier(compiled)
-        t0 = self.clock()
-        res.started = t0
-        st.phase_started = t0
-        self.state.event("carrier_started", f"{self.fleet.carrier.name}: route started "
-                         f"({len(plan.stops)} stops)", self.fleet.carrier.name)
-
+                                 f"for {len(self.tasks)} tasks: every task needs a rover on the deck")
+        pool: dict[str, Task] = dict(self.tasks)  # tasks no rover has been launched for (yet / again)
+        flying: dict[str, str] = {}  # task -> rover flying to it
+        watchers: dict[str, asyncio.Task[None]] = {}  # task -> its watcher
         reached: dict[str, float] = {}
-        watchers: list[asyncio.Task[None]] = []
-        used: set[str] = set(slots)
+        launched: list[str] = []  # rovers that left the deck
+        unusable: set[str] = set()  # lost while on the deck
+        reasons: dict[str, str] = {}  # task -> why it is not (yet) reached
+        plan: Plan | None = None
+        t0: float | None = None
+        deploy_range = self.mission.rovers.deploy_range
 
-        def take_spare() -> str | None:
-            for rid in spares:
-                r = rovers[rid]
-                if rid not in used and rid not in self.refused and r.connected and not r.lost:
-                    used.add(rid)
-                    return rid
-            return None
+        def airborne() -> list[str]:
+            return list(flying.values())
 
-        async def launch(slot: RoverMission) -> None:
-            rid: str | None = slot.rover
-            while rid is not None:
-                v = rovers[rid]
-                if not self.rover_on_deck(v):  # telemetry of rover and carrier may be of different moments
-                    with contextlib.suppress(TimeoutError):
-                        await v.wait_until(self.rover_on_deck, DECK_CHECK_TIMEOUT, "on the deck")
-                if not self.rover_on_deck(v):
-                    st.event("rover_skipped", f"{rid}: not on the deck, a spare takes {slot.task}", rid)
-                    rid = take_spare()
-                    continue
-                try:
-                    if uploaded.get(rid) != slot.rover:
-                        await self._upload(v, list(slot.items))
-                        uploaded[rid] = slot.rover
-                    await self._do(v, "arm", v.arm())
-                except CommandRejected as exc:
-                    self.refused.add(rid)
-                    st.set_state(rid, fs.REFUSED)
-                    spare = take_spare()
-                    reason = exc.reason or exc.ack.result_name
-                    then = f"spare {spare} takes {slot.task}" if spare else f"no spare left for {slot.task}"
-                    st.event("rover_refused", f"{rid}: refused to arm ({reason}); {then}",
-                             rid, reason=reason, spare=spare, task=slot.task)
-                    if spare is not None:
-                        res.substitutions.append({"refused": rid, "spare": spare, "task": slot.task or ""})
-                    rid = spare
-                    continue
-                except (ExecutionError, LinkError, TimeoutError) as exc:
-                    spare = take_spare()
-                    st.event("rover_failed", f"{rid}: {exc}; " + (f"spare {spare} takes {slot.task}" if spare
-                                                                    else f"no spare left for {slot.task}"),
-                             rid, spare=spare, task=slot.task)
-                    rid = spare
-                    continue
-                try:
-                    await self._do(v, "start_mission", v.start_mission())
-                    tk = _takeoff_seq(slot)
-                    await v.wait_until(  # a task on the ground may be left again before a position shows it
-                        lambda v, tk=tk: ((v.relative_alt or 0.0) > AIRBORNE_HEIGHT or tk in v.items_reached
-                                          or (v.mission_current or -1) > tk),
-                        self.wall(5.0), "lift-off")
-                except (CommandRejected, LinkError, TimeoutError) as exc:
-                    st.event("rover_failed", f"{rid}: did not take off ({exc})", rid, task=slot.task)
-                    with contextlib.suppress(CommandRejected, LinkError, TimeoutError):
-                        await v.disarm()
-                    rid = take_spare()
-                    continue
-                res.assignment[slot.task or ""] = rid
-                st.set_state(rid, fs.CLIMBING, task=slot.task)
-                st.event("rover_launched", f"{rid}: launched for {slot.task} at stop {slot.stop + 1}", rid,
-                         task=slot.task, stop=slot.stop + 1)
-                watchers.append(self._spawn(watch(rid, slot), f"watch {rid}"))
-                return
-            st.event("task_unserved", f"{slot.task}: no rover left to fly it", None, task=slot.task)
+        def drop_flying(task: str) -> str:
+            rid = flying.pop(task)
+            w = watchers.pop(task, None)
+            if w is not None:
+                w.cancel()
+            self.supervisor.expect(rid, None)
+            return rid
 
-        async def watch(rid: str, slot: RoverMission) -> None:
+        def handle(ev: SupervisorEvent) -> bool:
+            rid = ev.vehicle
+            if ev.kind in ("lost", "back") and rid == carrier_id:
+                self._carrier_event(ev, airborne)
+                return False
+            if ev.kind == "lost" and rid is not None:
+                st.set_state(rid, fs.LOST)
+                task = next((t for t, r in flying.items() if r == rid), None)
+                if task is not None:
+                    drop_flying(task)
+                    pool[task] = self.tasks[task]
+                    reasons[task] = f"its rover {rid} was lost in flight"
+                    st.event("task_returned", f"{task}: {rid} lost in flight; the task goes back to the pool",
+                             rid, task=task)
+                    self._begin_replan(f"{rid} lost in flight (task {task})", ev, plan)
+                    return True
+                if rid not in launched:
+                    unusable.add(rid)
+                    st.event("rover_unusable", f"{rid}: lost on the deck: unusable, a spare takes its place",
+                             rid)
+                return False
+            if ev.kind == "back" and rid is not None:
+                if rid in unusable:
+                    unusable.discard(rid)
+                    st.set_state(rid, fs.ON_DECK)
+                    st.event("rover_rejoined", f"{rid}: back on the deck: a spare again", rid)
+                    starved = [t for t in self.tasks
+                               if t not in pool and t not in flying and t not in reached]
+                    if starved:
+                        for t in starved:
+                            pool[t] = self.tasks[t]
+                        self._begin_replan(f"{rid} back on the deck (for {', '.join(starved)})", ev, plan)
+                        return True
+                elif rid in launched:
+                    task = next((t for t, r in res.assignment.items() if r == rid), None)
+                    on = task is not None and flying.get(task) == rid
+                    st.set_state(rid, st.vehicles[rid].state if on else fs.ON_TASK)
+                    if not on:
+                        res.rejoined.append(rid)
+                    st.event("rover_rejoined", f"{rid}: link back" + ("" if on else
+                             ": rejoins as a rover to collect"), rid)
+                return False
+            if ev.kind == "tasks":
+                why = validate_task_change(self.tasks, ev.add, ev.remove, deploy_range)
+                free = sum(1 for r in deck if r not in launched and r not in unusable
+                           and r not in self.refused and not rovers[r].lost)
+                need = len(pool) + len(ev.add) - sum(1 for r in ev.remove if r in pool)
+                if why is None and need > free:
+                    why = f"{need} tasks to fly but only {free} rover(s) left on the deck"
+                if why is not None:
+                    self.supervisor.reject(why, ev.source)
+                    return False
+                again = bool(ev.add)
+                for tid in ev.remove:
+                    self.tasks.pop(tid, None)
+                    res.tasks_removed.append(tid)
+                    reasons.pop(tid, None)
+                    reached.pop(tid, None)
+                    if tid in pool:
+                        del pool[tid]
+                        again = True
+                    if tid in flying:
+                        r = drop_flying(tid)
+                        res.rejoined.append(r)
+                        st.event("rover_released", f"{r}: its task {tid} was removed; it holds there to be "
+                                 "collected", r, task=tid)
+                    res.assignment.pop(tid, None)
+                for t in ev.add:
+                    self.tasks[t.id] = t
+                    pool[t.id] = t
+                    res.tasks_added.append(t.id)
+                st.event("tasks_changed", f"tasks changed ({ev.source}): added "
+                         f"{', '.join(t.id for t in ev.add) or 'none'}, "
+                         f"removed {', '.join(ev.remove) or 'none'}",
+                         None, add=[t.id for t in ev.add], remove=list(ev.remove), source=ev.source)
+                if again:
+                    self._begin_replan(f"tasks changed ({ev.source}): +{len(ev.add)} -{len(ev.remove)}",
+                                       ev, plan)
+                return again
+            if ev.kind == "battery_low" and rid is not None:
+                st.event("battery_low", f"{rid}: battery {ev.data.get('battery_pct')}% at or below the "
+                         f"reserve the plan assumed", rid, **ev.data)
+            elif ev.kind == "off_course" and rid is not None:
+                st.event("off_course", f"{rid}: off course ({ev.data.get('distance')} m from its path)",
+                         rid, **ev.data)
+            return False
+
+        async def watch(rid: str, task: str, leg: RoverLeg, takeoff_seq: int, assert_t0: float) -> None:
             v = rovers[rid]
-            leg = next(leg for s in plan.stops for leg in s.rovers if leg.rover == slot.rover)
             target = leg.end
-            takeoff_seq = _takeoff_seq(slot)
 
             def check(v: Vehicle) -> bool:
                 if st.vehicles[rid].state == fs.CLIMBING and (v.mission_current or 0) > takeoff_seq:
@@ -403,92 +599,347 @@ class Executor:
                 return (p is not None and math.dist(p, target) <= REACH_RADIUS
                         and (v.ground_speed or 0.0) < HOLD_SPEED)
 
-            remaining = max(leg.arrive - (self.clock() - t0), 0.0)
-            try:
-                await v.wait_until(check, self.wall(remaining), f"task {slot.task}")
-            except TimeoutError:
-                st.event("task_timeout", f"{rid}: did not reach {slot.task} in time", rid, task=slot.task)
-                return
-            reached[slot.task or ""] = self.clock() - t0
+            tries = 0
+            while True:
+                losses = self._carrier_losses
+                remaining = max(leg.arrive - (self.clock() - assert_t0), 0.0)
+                try:
+                    await v.wait_until(check, self.wall(remaining), f"task {task}")
+                    break
+                except TimeoutError:
+                    tries += 1
+                    if (losses == self._carrier_losses and not self.fleet.carrier.lost) or tries > 3:
+                        reasons[task] = f"{rid} did not reach it in time"
+                        st.event("task_timeout", f"{rid}: did not reach {task} in time", rid, task=task)
+                        flying.pop(task, None)
+                        return
+            flying.pop(task, None)
+            watchers.pop(task, None)
+            self.supervisor.expect(rid, None)
+            reached[task] = self.clock() - (t0 if t0 is not None else assert_t0)
+            reasons.pop(task, None)
             st.set_state(rid, fs.ON_TASK)
-            st.event("task_reached", f"{rid}: reached {slot.task} "
-                     f"(at {reached[slot.task or '']:.1f} s, planned {leg.arrive:.1f} s)", rid,
-                     task=slot.task, flown=reached[slot.task or ""], planned=leg.arrive)
+            st.event("task_reached", f"{rid}: reached {task} (at {reached[task]:.1f} s, planned "
+                     f"{leg.arrive:.1f} s of its plan)", rid, task=task, flown=reached[task],
+                     planned=leg.arrive)
 
-        prev = 0.0
-        for k, (stop, items) in enumerate(zip(plan.stops, compiled.stops, strict=True)):
-            arrived = await self._wait_stop(k, items.arrive_seq, stop.arrive - prev)
-            prev = stop.depart
-            launches = [launch(slots[leg.rover]) for leg in stop.rovers]
-            unload = self.sleep_mission(max(arrived + self.mission.carrier.unload_time - self.clock(), 0.0))
-            await asyncio.gather(unload, *launches)
-            await self._release_carrier(items.release_seq)
-            if items.release_seq is not None:
-                self.record("carrier_released", stop=k + 1)
-        self.state.set_state(self.fleet.carrier.name, fs.IDLE)
-        if watchers:
-            await asyncio.gather(*watchers, return_exceptions=True)
-        res.tasks_reached = sorted(reached, key=lambda t: [x.id for x in tasks].index(t))
-        res.tasks_unserved = [t.id for t in tasks if t.id not in reached]
+        async def fly(plan: Plan, compiled: CompiledPlan, deck_now: list[str], plan_t0: float) -> None:
+            slots = compiled.rovers  # planned rover id -> its mission (the rover flying it may differ)
+            spares = [rid for rid in deck_now if rid not in slots]
+            self.record("spares", rovers=spares)
+            used: set[str] = set(slots)
+
+            def take_spare() -> str | None:
+                for rid in spares:
+                    r = rovers[rid]
+                    if (rid not in used and rid not in self.refused and rid not in unusable
+                            and rid not in launched and r.connected and not r.lost):
+                        used.add(rid)
+                        return rid
+                return None
+
+            async def launch(slot: RoverMission, leg: RoverLeg, at: Vec3) -> None:
+                task = slot.task or ""
+                rid: str | None = slot.rover
+                while rid is not None:
+                    v = rovers[rid]
+                    await self._carrier_ready()  # no launches while the carrier is lost
+                    if rid in unusable or rid in launched:
+                        rid = take_spare()
+                        continue
+                    # telemetry of rover and carrier may be of different moments
+                    if not self.rover_on_deck(v):
+                        with contextlib.suppress(TimeoutError):
+                            await v.wait_until(self.rover_on_deck, DECK_CHECK_TIMEOUT, "on the deck")
+                    if not self.rover_on_deck(v):
+                        st.event("rover_skipped", f"{rid}: not on the deck, a spare takes {task}", rid)
+                        rid = take_spare()
+                        continue
+                    try:
+                        if uploaded.get(rid) != (id(compiled), slot.rover):
+                            await self._upload(v, list(slot.items))
+                            uploaded[rid] = (id(compiled), slot.rover)
+                        await self._do(v, "arm", v.arm())
+                    except CommandRejected as exc:
+                        self.refused.add(rid)
+                        st.set_state(rid, fs.REFUSED)
+                        spare = take_spare()
+                        reason = exc.reason or exc.ack.result_name
+                        then = f"spare {spare} takes {task}" if spare else f"no spare left for {task}"
+                        st.event("rover_refused", f"{rid}: refused to arm ({reason}); {then}",
+                                 rid, reason=reason, spare=spare, task=task)
+                        if spare is not None:
+                            res.substitutions.append({"refused": rid, "spare": spare, "task": task})
+                        rid = spare
+                        continue
+                    except (ExecutionError, LinkError, TimeoutError) as exc:
+                        spare = take_spare()
+                        st.event("rover_failed", f"{rid}: {exc}; " + (f"spare {spare} takes {task}" if spare
+                                                                      else f"no spare left for {task}"),
+                                 rid, spare=spare, task=task)
+                        rid = spare
+                        continue
+                    try:
+                        await self._do(v, "start_mission", v.start_mission())
+                        tk = _takeoff_seq(slot)
+                        # a task on the ground may be left again before a position shows it
+                        await v.wait_until(
+                            lambda v, tk=tk: ((v.relative_alt or 0.0) > AIRBORNE_HEIGHT
+                                              or tk in v.items_reached
+                                              or (v.mission_current or -1) > tk),
+                            self.wall(5.0), "lift-off")
+                    except (CommandRejected, LinkError, TimeoutError) as exc:
+                        st.event("rover_failed", f"{rid}: did not take off ({exc})", rid, task=task)
+                        with contextlib.suppress(CommandRejected, LinkError, TimeoutError):
+                            await v.disarm()
+                        rid = take_spare()
+                        continue
+                    launched.append(rid)
+                    pool.pop(task, None)
+                    if task not in self.tasks:  # removed while it was being launched
+                        res.rejoined.append(rid)
+                        st.set_state(rid, fs.ON_TASK)
+                        return
+                    res.assignment[task] = rid
+                    flying[task] = rid
+                    st.set_state(rid, fs.CLIMBING, task=task)
+                    st.event("rover_launched", f"{rid}: launched for {task} at stop {slot.stop + 1}", rid,
+                             task=task, stop=slot.stop + 1)
+                    self.supervisor.expect(rid, self._flight_path(slot, at))
+                    watchers[task] = self._spawn(watch(rid, task, leg, _takeoff_seq(slot), plan_t0),
+                                                 f"watch {rid}")
+                    return
+                pool.pop(task, None)
+                reasons[task] = "no rover left on the deck to fly it (every spare used, lost or refused)"
+                st.event("task_unserved", f"{task}: no rover left to fly it", None, task=task)
+
+            prev = 0.0
+            for k, (stop, items) in enumerate(zip(plan.stops, compiled.stops, strict=True)):
+                ok, arrived = await self._race(self._reach_stop(k, items.arrive_seq, stop.arrive - prev),
+                                               handle)
+                if not ok or arrived is None:
+                    return  # the rest of the route is thrown away
+                prev = stop.depart
+                at = (stop.position[0], stop.position[1], 0.0)
+                launches = [launch(slots[leg.rover], leg, at) for leg in stop.rovers if leg.task in pool]
+                unload = self.sleep_mission(
+                    max(arrived + self.mission.carrier.unload_time - self.clock(), 0.0))
+                await asyncio.gather(unload, *launches)
+                if self._drain(handle) and k + 1 < len(plan.stops) or pool and k + 1 == len(plan.stops):
+                    return  # replan from this stop (the carrier holds here)
+                await self._release_carrier(items.release_seq)
+                if items.release_seq is not None:
+                    self.record("carrier_released", stop=k + 1)
+
+        uploaded: dict[str, tuple[int, str]] = {}  # rover -> (compiled plan, slot) whose mission it holds
+        while True:
+            self._drain(handle)
+            if pool:
+                usable = [rid for rid in deck if rid not in launched and rid not in unusable
+                          and rid not in self.refused and not rovers[rid].lost]
+                tasks = list(pool.values())
+                for t in tasks[len(usable):]:
+                    del pool[t.id]
+                    reasons[t.id] = "no spare rover left on the deck"
+                    st.event("task_unserved", f"{t.id}: no spare rover left on the deck", None, task=t.id)
+                tasks = tasks[:len(usable)]
+            if not pool:
+                self._replan_ready(None)
+            else:
+                await self._carrier_ready()
+                start, heading = self.carrier_pose()
+                problem = dataclasses.replace(self.mission.deploy_problem(), start=start, heading=heading,
+                                              tasks=tuple(tasks), rovers=tuple(usable))
+                plan = await self._plan("deploy", problem)
+                compiled = self._compile(plan)
+                self._replan_ready(plan)
+                if t0 is None:
+                    res.plan, res.planned = plan, plan.makespan
+                    st.set_phase("deploy", plan.makespan, len(plan.stops))
+
+                    async def pre_upload(slot: RoverMission, compiled: CompiledPlan = compiled) -> None:
+                        try:
+                            await self._upload(rovers[slot.rover], list(slot.items))
+                            uploaded[slot.rover] = (id(compiled), slot.rover)
+                        except (ExecutionError, LinkError, TimeoutError) as exc:
+                            log.warning("%s: upload failed (%s); a spare will fly %s", slot.rover, exc,
+                                        slot.task)
+
+                    await asyncio.gather(*(pre_upload(s) for s in compiled.rovers.values()))
+                else:
+                    st.planned = (self.clock() - t0) + plan.makespan
+                    st.stop_count, st.stop_index = len(plan.stops), 0
+                await self._start_carrier(compiled)
+                plan_t0 = self.clock()
+                if t0 is None:
+                    t0 = res.started = st.phase_started = plan_t0
+                    st.event("carrier_started", f"{carrier_id}: route started ({len(plan.stops)} stops)",
+                             carrier_id)
+                await fly(plan, compiled, usable, plan_t0)
+                continue
+            pending = [w for w in watchers.values() if not w.done()]
+            if not pending:
+                break
+            getter = asyncio.ensure_future(self.supervisor.queue.get())
+            try:
+                done, _ = await asyncio.wait({getter, *pending}, timeout=self.wall(60.0),
+                                             return_when=asyncio.FIRST_COMPLETED)
+            finally:
+                if not getter.done():
+                    getter.cancel()
+                    with contextlib.suppress(asyncio.CancelledError):
+                        await getter
+            if getter.done() and not getter.cancelled():
+                handle(getter.result())
+        self.state.set_state(carrier_id, fs.IDLE)
+        order = list(self.tasks)
+        res.tasks_reached = [t for t in order if t in reached]
+        res.tasks_unserved = [t for t in order if t not in reached]
+        res.unserved_reasons = {t: reasons.get(t, "not reached") for t in res.tasks_unserved}
+        res.tasks_all = order
+        res.launched = launched
         res.rovers_lost = [rid for rid, v in rovers.items() if v.lost]
         res.complete = not res.tasks_unserved
-        if res.complete:
+        if res.complete and reached:
             res.flown = max(reached.values())
+        elif res.complete:
+            res.flown = 0.0
         return res
 
     # ============================================================================== collection
     async def collect(self, rover_ids: Iterable[str] | None = None) -> PhaseResult:
         """Plan the collection from live positions and batteries and fly it.
 
-        ``rover_ids``: the rovers to collect (default: every connected rover not on the deck)."""
+        ``rover_ids``: the rovers to collect (default: every connected rover not on the deck).
+        A rover lost on the way is removed: the carrier keeps the others' meeting points (they are
+        flying there on the energy they have left, ch. 5.5.3) and drops stops left empty; a lost
+        rover that comes back is collected in a further round planned from the live state."""
         res = PhaseResult("collect")
         st = self.state
         st.set_phase("plan")
         await self._wait_telemetry()
+        self.supervisor.start()
         rovers = self.rovers()
+        carrier_id = self.fleet.carrier_id
         ids = list(rover_ids) if rover_ids is not None else [
             rid for rid, v in rovers.items() if v.connected and not self.rover_on_deck(v)]
         lost = [rid for rid in ids
                 if not rovers[rid].connected or rovers[rid].lost or rovers[rid].enu is None]
-        res.rovers_lost = lost
+        res.rovers_lost = list(lost)
         for rid in lost:
             st.set_state(rid, fs.LOST)
-        live = [rid for rid in ids if rid not in lost]
-        if not live:
-            res.complete = not lost
-            res.planned = res.flown = 0.0
-            st.event("nothing_to_collect", "no rover to collect" + (f" ({len(lost)} lost)" if lost else ""))
-            return res
+        todo = [rid for rid in ids if rid not in lost]
+        loaded: dict[str, float] = {}
+        t0: float | None = None
+        last_load: float | None = None
+        plan: Plan | None = None
+        in_round: set[str] = set()  # rovers the current round's carrier route still serves
         rp = self.mission.rovers
-        crs = []
-        for rid in live:
-            v = rovers[rid]
-            p = v.enu
-            assert p is not None
-            rng = range_from_percent(v.battery_pct, rp.reserve, rp.endurance_range)
-            if rng is None:
-                rng = (1.0 - rp.reserve) * rp.endurance_range
-                log.warning("%s reports no battery; assuming a full one", rid)
-            self.record("rover_state", vehicle=rid, position=p, battery_pct=v.battery_pct, range=rng)
-            if rng < max(p[2], 0.0):  # cannot even land below itself: out of the carrier's reach
-                res.rovers_unreachable.append(rid)
-                st.event("rover_unreachable", f"{rid}: {rng:.1f} m of range left at {p[2]:.1f} m up: "
-                         "cannot reach the ground, not collected", rid, range=rng, height=p[2])
+
+        def airborne() -> list[str]:
+            return [rid for rid in in_round if rid not in loaded]
+
+        def handle(ev: SupervisorEvent) -> bool:
+            rid = ev.vehicle
+            if ev.kind in ("lost", "back") and rid == carrier_id:
+                self._carrier_event(ev, airborne)
+                return False
+            if ev.kind == "lost" and rid is not None and rid in ids and rid not in loaded:
+                st.set_state(rid, fs.LOST)
+                if rid not in res.rovers_lost:
+                    res.rovers_lost.append(rid)
+                self.supervisor.expect(rid, None)
+                if rid in in_round:
+                    in_round.discard(rid)
+                    self._begin_replan(f"{rid} lost during the collection", ev, plan)
+                    return True
+                return False
+            if ev.kind == "back" and rid is not None and rid in res.rovers_lost and rid not in loaded:
+                res.rovers_lost.remove(rid)
+                if rid not in todo:
+                    todo.append(rid)
+                st.set_state(rid, fs.RETURNING if rid in in_round else fs.ON_TASK)
+                st.event("rover_rejoined", f"{rid}: link back: rejoins the rovers to collect", rid)
+                return False
+            if ev.kind == "tasks":
+                self.supervisor.reject("the deployment is over; tasks can change only while deploying",
+                                       ev.source)
+            elif ev.kind == "battery_low" and rid is not None:
+                st.event("battery_low", f"{rid}: battery {ev.data.get('battery_pct')}% at or below the "
+                         f"reserve the plan assumed", rid, **ev.data)
+                if self.fleet.carrier.lost and rid in airborne():
+                    self._held.discard(rid)
+                    self._spawn(self._hold_or_land(rovers[rid], True), f"land {rid}")
+            elif ev.kind == "off_course" and rid is not None:
+                st.event("off_course", f"{rid}: off course ({ev.data.get('distance')} m from its path)",
+                         rid, **ev.data)
+            return False
+
+        while True:
+            self._drain(handle)
+            batch = [rid for rid in todo if rid not in loaded and rid not in res.rovers_lost
+                     and rid not in res.rovers_unreachable]
+            if not batch:
+                self._replan_ready(None)
+                break
+            await self._carrier_ready()
+            todo[:] = [rid for rid in todo if rid not in batch]  # a rover back later joins again
+            crs = []
+            for rid in batch:
+                v = rovers[rid]
+                p = v.enu
+                if p is None:
+                    res.rovers_lost.append(rid)
+                    continue
+                rng = range_from_percent(v.battery_pct, rp.reserve, rp.endurance_range)
+                if rng is None:
+                    rng = (1.0 - rp.reserve) * rp.endurance_range
+                    log.warning("%s reports no battery; assuming a full one", rid)
+                self.record("rover_state", vehicle=rid, position=p, battery_pct=v.battery_pct, range=rng)
+                if rng < max(p[2], 0.0):  # cannot even land below itself: out of the carrier's reach
+                    res.rovers_unreachable.append(rid)
+                    st.event("rover_unreachable", f"{rid}: {rng:.1f} m of range left at {p[2]:.1f} m up: "
+                             "cannot reach the ground, not collected", rid, range=rng, height=p[2])
+                    continue
+                crs.append(CollectRover(rid, (p[0], p[1], max(p[2], 0.0)), rng))
+            if not crs:
                 continue
-            crs.append(CollectRover(rid, (p[0], p[1], max(p[2], 0.0)), rng))
-        live = [rid for rid in live if rid not in res.rovers_unreachable]
-        if not live:
-            res.complete, res.planned, res.flown = True, 0.0, 0.0
-            return res
-        start, heading = self.carrier_pose()
-        from planners.problem import CollectProblem
+            start, heading = self.carrier_pose()
+            problem = CollectProblem(self.mission.carrier.spec(), rp.motion(), start, heading, tuple(crs))
+            plan = await self._plan("collect", problem)
+            compiled = self._compile(plan)
+            self._replan_ready(plan)
+            if t0 is None:
+                res.plan, res.planned = plan, plan.makespan
+                st.set_phase("collect", plan.makespan, len(plan.stops))
+            else:
+                st.planned = (self.clock() - t0) + plan.makespan
+                st.stop_count, st.stop_index = len(plan.stops), 0
+            in_round.update(leg.rover for leg in plan.legs())
+            await self._collect_round(plan, compiled, res, loaded, in_round, handle, t0)
+            if t0 is None:
+                t0 = res.started
+            last_load = res.flown if res.flown is not None else last_load
+            res.flown = None
+        self.state.set_state(carrier_id, fs.IDLE)
+        res.rovers_loaded = [rid for rid in ids if rid in loaded]
+        res.rovers_lost = [rid for rid in res.rovers_lost if rid not in loaded]
+        # complete: every rover loaded, except those out of reach and those lost before it began
+        res.complete = all(rid in loaded or rid in res.rovers_unreachable or rid in lost for rid in ids)
+        if t0 is None:  # nothing flown
+            res.planned = 0.0
+            res.complete = res.complete and not lost
+            st.event("nothing_to_collect", "no rover to collect" + (f" ({len(lost)} lost)" if lost else ""))
+        res.flown = (last_load if last_load is not None else 0.0) if res.complete else None
+        return res
 
-        problem = CollectProblem(self.mission.carrier.spec(), rp.motion(), start, heading, tuple(crs))
-        plan = await self._plan("collect", problem)
-        res.plan, res.planned = plan, plan.makespan
-        compiled = self._compile(plan)
-
-        # each rover holds above its meeting point until the carrier is there, then lands
+    async def _collect_round(self, plan: Plan, compiled: CompiledPlan, res: PhaseResult,
+                             loaded: dict[str, float],
+                             in_round: set[str], handle: Callable[[SupervisorEvent], bool],
+                             t0: float | None) -> None:
+        """Fly one collection plan; rovers lost on the way are dropped from it (see :meth:`collect`)."""
+        st = self.state
+        rovers = self.rovers()
         land_seq: dict[str, int] = {}
         hold_seq: dict[str, int] = {}
         items_of: dict[str, list[MissionItem]] = {}
@@ -498,17 +949,14 @@ class Executor:
             items.insert(rm.target_seq + 1, hold)
             hold_seq[rid], land_seq[rid] = rm.target_seq + 1, rm.final_seq + 1
             items_of[rid] = items
-
-        st.set_phase("collect", plan.makespan, len(plan.stops))
         results = await asyncio.gather(*(self._upload(rovers[rid], items) for rid, items in items_of.items()),
                                        return_exceptions=True)
         failed = {rid: r for rid, r in zip(items_of, results, strict=True) if isinstance(r, BaseException)}
         for rid, exc in failed.items():
             st.event("rover_failed", f"{rid}: mission upload failed ({exc})", rid)
         await self._start_carrier(compiled)
-        t0 = self.clock()
-        res.started = t0
-        st.phase_started = t0
+        if t0 is None:
+            t0 = res.started = st.phase_started = self.clock()
 
         async def go(rid: str) -> None:
             v = rovers[rid]
@@ -517,51 +965,109 @@ class Executor:
                     await self._do(v, "arm", v.arm())
                 await self._do(v, "start_mission", v.start_mission())
                 st.set_state(rid, fs.RETURNING)
+                self.supervisor.expect(rid, self._flight_path(compiled.rovers[rid], v.enu or (0.0, 0.0, 0.0)))
             except (CommandRejected, LinkError, TimeoutError) as exc:
                 st.event("rover_failed", f"{rid}: cannot start its way back ({exc})", rid)
                 failed[rid] = exc
 
         await asyncio.gather(*(go(rid) for rid in items_of if rid not in failed))
+        for rid in failed:
+            in_round.discard(rid)
         st.event("collection_started", f"collecting {len(items_of) - len(failed)} rovers", None)
-        loaded: dict[str, float] = {}
 
-        async def bring_in(rid: str, leg_arrive: float) -> None:
+        async def bring_in(rid: str, leg_arrive: float, start: float) -> None:
             v = rovers[rid]
-            if rid in failed:
+            if rid in failed or rid not in in_round:
                 return
             try:
-                await v.wait_until(
-                    lambda v: (v.mission_current or 0) >= hold_seq[rid] or self.rover_on_deck(v),
-                    self.wall(max(leg_arrive - (self.clock() - t0), 0.0)), "meeting point")
+                while True:
+                    losses = self._carrier_losses
+                    try:
+                        await v.wait_until(
+                            lambda v: ((v.mission_current or 0) >= hold_seq[rid] or self.rover_on_deck(v)
+                                       or v.lost),
+                            self.wall(max(leg_arrive - (self.clock() - start), 0.0)), "meeting point")
+                        break
+                    except TimeoutError:
+                        if losses == self._carrier_losses and not self.fleet.carrier.lost:
+                            raise
+                if v.lost:
+                    return
                 if not self.rover_on_deck(v):
                     await self._do(v, "set_current", v.set_current(land_seq[rid]), seq=land_seq[rid])
                     st.set_state(rid, fs.LANDED)
-                await v.wait_until(self.rover_on_deck, self.wall(10.0), "landing on the carrier")
+                await v.wait_until(lambda v: self.rover_on_deck(v) or v.lost, self.wall(10.0),
+                                   "landing on the carrier")
+                if v.lost:
+                    return
             except (CommandRejected, LinkError, TimeoutError) as exc:
                 st.event("rover_failed", f"{rid}: not loaded ({exc})", rid)
                 return
+            assert t0 is not None
             loaded[rid] = self.clock() - t0
+            in_round.discard(rid)
+            self.supervisor.expect(rid, None)
             st.set_state(rid, fs.LOADED)
             st.event("rover_loaded", f"{rid}: loaded on the carrier at {loaded[rid]:.1f} s", rid,
                      flown=loaded[rid])
 
-        prev = 0.0
-        last_load = t0
-        for k, (stop, items) in enumerate(zip(plan.stops, compiled.stops, strict=True)):
-            await self._wait_stop(k, items.arrive_seq, stop.arrive - prev)
+        start = self.clock()
+        stops = list(plan.stops)
+        cstops = list(compiled.stops)
+        k, prev = 0, 0.0
+        while k < len(stops):
+            stop, items = stops[k], cstops[k]
+            ok, _ = await self._race(self._reach_stop(k, items.arrive_seq, stop.arrive - prev), handle)
+            if not ok:
+                stops, cstops, start = await self._trim_collection(plan, stops[k:], cstops[k:], in_round)
+                k, prev = 0, 0.0
+                continue
             prev = stop.depart
-            await asyncio.gather(*(bring_in(leg.rover, leg.arrive) for leg in stop.rovers))
+            await asyncio.gather(*(bring_in(leg.rover, leg.arrive, start) for leg in stop.rovers))
             await self.sleep_mission(self.mission.carrier.load_time)
-            last_load = self.clock()
+            res.flown = self.clock() - t0
+            if self._drain(handle) and k + 1 < len(stops):
+                stops, cstops, start = await self._trim_collection(plan, stops[k + 1:], cstops[k + 1:],
+                                                                   in_round)
+                k, prev = 0, 0.0
+                continue
             await self._release_carrier(items.release_seq)
             if items.release_seq is not None:
                 self.record("carrier_released", stop=k + 1)
-        self.state.set_state(self.fleet.carrier.name, fs.IDLE)
-        res.rovers_loaded = [rid for rid in live if rid in loaded]
-        res.rovers_lost = lost + [rid for rid in live if rid not in loaded and rovers[rid].lost]
-        res.complete = len(res.rovers_loaded) == len(live)
-        res.flown = last_load - t0 if res.complete else None
-        return res
+            k += 1
+        for rid in list(in_round):  # not loaded in this round: lost, or a later round takes them
+            if rid not in loaded:
+                in_round.discard(rid)
+
+    async def _trim_collection(self, plan: Plan, rest: list[Stop], rest_items: list[StopItems],
+                               in_round: set[str]) -> tuple[list[Stop], list[StopItems], float]:
+        """The rest of a collection route without the rovers no longer in it: the others keep their
+        meeting points; stops left empty are dropped and the carrier re-routed from where it is."""
+        keep: list[Stop] = []
+        for s in rest:
+            legs = [leg for leg in s.rovers if leg.rover in in_round]
+            if legs:
+                keep.append(Stop(s.position, [], legs, s.arrive, s.depart))
+        start, heading = self.carrier_pose()
+        prev = start
+        for s in keep:
+            s.carrier_path = [prev, s.position]
+            prev = s.position
+        new = Plan("collect", plan.planner, start, heading, keep,
+                   makespan=max((s.depart for s in keep), default=0.0),
+                   notes=["trimmed: lost rovers removed"])
+        if [s.position for s in keep] == [s.position for s in rest] and keep:
+            self._replan_ready(new)  # the route itself is unchanged: no new command
+            self._finish_replan(None)
+            return keep, rest_items, self.clock()
+        if not keep:
+            self._replan_ready(None)
+            return [], [], self.clock()
+        self.record("plan", plan=new.to_json())
+        compiled = self._compile(new)
+        self._replan_ready(new)
+        await self._start_carrier(compiled)
+        return keep, list(compiled.stops), self.clock()
 
     # ============================================================================== abort
     async def hold_airborne(self, timeout: float = 5.0) -> list[str]:
@@ -664,6 +1170,7 @@ async def execute(
     dwell: float | None = None, summary_path: Any = None, runs_dir: Any = "runs", view: View | None = None,
     connect_timeout: float = 10.0, endpoints: dict[str, str] | None = None,
     on_sim: Callable[[Any], None] | None = None, sim: Any = None, clock_speedup: float | None = None,
+    mqtt: Any = None,
 ) -> RunOutcome:
     """Fly ``command`` (``deploy`` | ``collect`` | ``run``) of ``mission`` end to end: start the
     embedded simulator for ``connection: sim``, connect, fly, and write the records. Cancelling
@@ -673,7 +1180,8 @@ async def execute(
     ``sim``: an already running ``sitl.SimFleet`` to fly against (its endpoints, its simulated clock
     and speedup; tests and benchmarks use it to look at the simulated world). ``on_sim`` is called
     with the embedded simulator once it runs. ``clock_speedup``: vehicles that run that much faster
-    than the wall clock elsewhere (a simulator in another process): mission time = wall x it."""
+    than the wall clock elsewhere (a simulator in another process): mission time = wall x it.
+    ``mqtt``: a :class:`fleetctl.bus.BusConfig` (default: from the mission's ``mqtt:`` section)."""
     from fleetctl.journal import SUMMARY_SCHEMA, Journal, run_dir_for, write_summary
     from fleetctl.vehicle import FleetConnectError, connect_fleet
 
@@ -703,6 +1211,9 @@ async def execute(
     state.mission_clock = clock
     state.add_listener(journal.on_event)
     journal.start()
+    from fleetctl.bus import start_bus
+
+    bus = start_bus(mission, mqtt, journal, state, view)  # None when the mission has no MQTT bus
     journal.write("run", mission=mission.name, command=command, file=str(mission.path or ""),
                   sim=uses_sim, speedup=scale)
     results: dict[str, PhaseResult] = {}
@@ -756,13 +1267,21 @@ async def execute(
         refresher = asyncio.create_task(refresh(), name="state refresh")
         executor = Executor(mission, fleet, state, record=journal.write, planner=planner, speedup=scale,
                             clock=clock, write_plan=write_plan)
+        if bus is not None:
+            bus.attach_executor(executor)
         if command in ("deploy", "run"):
             results["deploy"] = r = await executor.deploy()
-            if not r.complete:
+            if not r.complete and (command == "deploy" or not r.launched):
                 raise ExecutionError("deployment incomplete: tasks not reached: "
-                                     + ", ".join(r.tasks_unserved))
-            state.event("deployed", f"deployment complete: {len(r.tasks_reached)} tasks reached in "
-                        f"{r.flown:.1f} s (planned {r.planned:.1f} s)")
+                                     + ", ".join(f"{t} ({r.unserved_reasons.get(t, '?')})"
+                                                 for t in r.tasks_unserved))
+            if r.complete:
+                state.event("deployed", f"deployment complete: {len(r.tasks_reached)} tasks reached in "
+                            f"{r.flown:.1f} s (planned {r.planned:.1f} s)")
+            else:  # run: bring back the rovers that did fly
+                state.event("deploy_incomplete", "deployment incomplete: not reached: "
+                            + ", ".join(f"{t} ({r.unserved_reasons.get(t, '?')})" for t in r.tasks_unserved)
+                            + "; collecting the rovers in the field")
         if command == "run":
             wait = mission.dwell if dwell is None else dwell
             state.set_phase("dwell", wait)
@@ -770,7 +1289,7 @@ async def execute(
             td = clock()
             await executor.sleep_mission(wait)
             dwell_flown = clock() - td
-            collect_ids = list(results["deploy"].assignment.values())
+            collect_ids = list(results["deploy"].launched)  # incl. rovers whose task went to a spare
             results["collect"] = r = await executor.collect(collect_ids)
         elif command == "collect":
             results["collect"] = r = await executor.collect()
@@ -815,6 +1334,9 @@ async def execute(
         if fleet is not None:
             with contextlib.suppress(Exception):
                 await fleet.close()
+        if bus is not None:
+            with contextlib.suppress(Exception):
+                await bus.aclose(state.phase)
         await journal.aclose()
         if sim_cm is not None:
             with contextlib.suppress(Exception):
@@ -826,7 +1348,7 @@ async def execute(
 def _summary(mission: Mission, command: str, results: dict[str, PhaseResult], state: FleetState,
              error: str | None, interrupted: bool, journal: Any, run_dwell: float | None) -> dict[str, Any]:
     dep, col = results.get("deploy"), results.get("collect")
-    task_ids = [t.id for t in mission.tasks]
+    task_ids = list(dep.tasks_all) if dep is not None and dep.tasks_all else [t.id for t in mission.tasks]
     if command == "collect":
         reached: list[str] = []
         unserved: list[str] = []
@@ -847,7 +1369,8 @@ def _summary(mission: Mission, command: str, results: dict[str, PhaseResult], st
                    if dep and col and dep.planned is not None and col.planned is not None else None)
         flown = (dep.flown + (run_dwell or 0.0) + col.flown
                  if complete and dep and col and dep.flown is not None and col.flown is not None else None)
-    lost = sorted({*(dep.rovers_lost if dep else []), *(col.rovers_lost if col else [])},
+    lost = sorted({*(dep.rovers_lost if dep else []), *(col.rovers_lost if col else [])}
+                  - set(col.rovers_loaded if col else []),
                   key=lambda r: list(state.vehicles).index(r) if r in state.vehicles else 0)
     out: dict[str, Any] = {
         "schema": "fleetctl.summary/1",
@@ -860,9 +1383,10 @@ def _summary(mission: Mission, command: str, results: dict[str, PhaseResult], st
         "rovers_lost": lost,
         "makespan_planned": None if planned is None else round(planned, 3),
         "makespan_flown": None if flown is None else round(flown, 3),
-        "replans": 0,
+        "replans": state.replans,
         "journal": str(journal.path),
     }
+    out.update(_accounting(command, dep, col, state, task_ids, reached, unserved, lost))
     if col is not None:
         out["rovers_unreachable"] = col.rovers_unreachable
     if dep is not None:
@@ -877,3 +1401,39 @@ def _summary(mission: Mission, command: str, results: dict[str, PhaseResult], st
 
 
 __all__ += ["EXIT_FAILED", "EXIT_INTERRUPTED", "EXIT_OK", "RunOutcome", "View", "execute", "sim_mission_dict"]
+
+
+def _accounting(command: str, dep: PhaseResult | None, col: PhaseResult | None, state: FleetState,
+                task_ids: list[str], reached: list[str], unserved: list[str],
+                lost: list[str]) -> dict[str, Any]:
+    """Summary fields that account for every task and every rover: why a task was not reached
+    (``tasks_unserved_reasons``), tasks added/removed while flying, and for each rover not loaded
+    nor lost: on the deck, or left in the field at its last known position."""
+    out: dict[str, Any] = {"last_replan": state.last_replan}
+    if command != "collect":
+        reasons = dep.unserved_reasons if dep else {}
+        out["tasks_unserved_reasons"] = {t: reasons.get(t, "the deployment did not get to it")
+                                         for t in unserved}
+        out["tasks_added"] = dep.tasks_added if dep else []
+        out["tasks_removed"] = dep.tasks_removed if dep else []
+    loaded = set(col.rovers_loaded) if col else set()
+    launched = set(dep.launched) if dep else set()
+    on_deck: list[str] = []
+    left: dict[str, Any] = {}
+    last: dict[str, Any] = {}
+    for v in state.rovers():
+        pos = [round(c, 2) for c in v.enu] if v.enu is not None else None
+        if v.id in loaded:
+            continue
+        if v.id in lost:
+            last[v.id] = pos
+            continue
+        if v.id not in launched and (command != "collect" or v.state in (fs.ON_DECK, fs.REFUSED, fs.UNKNOWN)
+                                     and (col is None or v.id not in col.rovers_unreachable)):
+            on_deck.append(v.id)
+        else:
+            left[v.id] = {"position": pos, "state": v.state, "task": v.task}
+    out["rovers_on_deck"] = on_deck
+    out["rovers_left"] = left
+    out["rovers_lost_last_position"] = last
+    return out

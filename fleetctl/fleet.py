@@ -101,6 +101,8 @@ class FleetState:
         self.started = time.monotonic()
         self.events: deque[Event] = deque(maxlen=max_events)
         self._listeners: list[EventListener] = []
+        self.replans = 0  # replans so far (fleetctl.executor)
+        self.last_replan: str | None = None  # text of the latest replan event
 
     # -- events ---------------------------------------------------------------------------------
     def add_listener(self, listener: EventListener) -> Callable[[], None]:
@@ -180,7 +182,7 @@ class FleetState:
         """Plain dict of the whole state (for the journal / tests)."""
         return {
             "phase": self.phase, "stop": self.stop_index, "stops": self.stop_count, "planned": self.planned,
-            "elapsed": self.elapsed,
+            "elapsed": self.elapsed, "replans": self.replans, "last_replan": self.last_replan,
             "vehicles": {vid: {"state": v.state, "task": v.task, "enu": v.enu, "battery_pct": v.battery_pct,
                                "lost": v.lost} for vid, v in self.vehicles.items()},
         }
