@@ -35,12 +35,9 @@ def cmd_plan(args: argparse.Namespace) -> int:
 
     mission = load_mission(args.mission)
     registry = _planners(args.collect)
-    name = args.planner or (mission.planner.collect if args.collect else mission.planner.deploy)
     phase = "collect" if args.collect else "deploy"
-    if (not args.planner and mission.obstacles and name == "lee"
-            and phase not in (mission.raw.get("planner") or {}) and "lee-graph" in registry):
-        # the default open-space planner would fly through the obstacles: use the roadmap planner
-        name = "lee-graph"
+    name = args.planner or mission.planner_for(phase)
+    if not args.planner and name == "lee-graph" and not (mission.raw.get("planner") or {}).get(phase):
         print(f"{args.mission}: the mission has obstacles and names no {phase} planner: using lee-graph",
               file=sys.stderr)
     if name not in registry:

@@ -235,12 +235,11 @@ class Executor:
         import planners
 
         registry = planners.DEPLOY_PLANNERS if kind == "deploy" else planners.COLLECT_PLANNERS
-        cfg = self.mission.planner
         given = None
         if self.planner:  # "NAME" for both phases, or "DEPLOY,COLLECT" (fleetctl run)
             parts = [p.strip() for p in self.planner.split(",")]
             given = parts[0] if kind == "deploy" else parts[-1]
-        name = given or (cfg.deploy if kind == "deploy" else cfg.collect)
+        name = given or self.mission.planner_for(kind)
         if name not in registry:
             raise ExecutionError(f"unknown {kind} planner {name!r}; "
                                  f"choose one of {', '.join(sorted(registry))}")
@@ -905,7 +904,8 @@ class Executor:
             if not crs:
                 continue
             start, heading = self.carrier_pose()
-            problem = CollectProblem(self.mission.carrier.spec(), rp.motion(), start, heading, tuple(crs))
+            problem = CollectProblem(self.mission.carrier.spec(), rp.motion(), start, heading, tuple(crs),
+                                     **self.mission.environment())
             plan = await self._plan("collect", problem)
             compiled = self._compile(plan)
             self._replan_ready(plan)

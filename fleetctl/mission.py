@@ -222,6 +222,17 @@ class Mission:
             **self.environment(),
         )
 
+    def planner_for(self, phase: str) -> str:
+        """The planner a phase ("deploy" or "collect") uses when the command line names none: the
+        mission's ``planner`` entry, or ``lee-graph`` for a mission with obstacles that names none
+        (the open-space planners refuse obstacles)."""
+        named = (self.raw.get("planner") or {}).get(phase)
+        if named:
+            return str(named)
+        if self.obstacles:
+            return "lee-graph"
+        return self.planner.deploy if phase == "deploy" else self.planner.collect
+
     def environment(self) -> dict[str, Any]:
         """Chapter 6 fields of a planning problem: obstacles, bounds, roadmap parameters, seed.
 
