@@ -883,6 +883,8 @@ class Executor:
                 break
             await self._carrier_ready()
             todo[:] = [rid for rid in todo if rid not in batch]  # a rover back later joins again
+            # plan from fresh batteries, not the last ~1 Hz stream sample
+            await asyncio.gather(*(rovers[rid].refresh_battery() for rid in batch))
             crs = []
             for rid in batch:
                 v = rovers[rid]

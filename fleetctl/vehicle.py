@@ -105,6 +105,7 @@ class Vehicle:
         self.home: tuple[float, float, float] | None = None  # lat, lon, alt AMSL (HOME_POSITION)
         self.landed_state: int | None = None  # MAV_LANDED_STATE
         self.battery_pct: float | None = None  # 0..100
+        self.battery_at = 0.0  # time.monotonic() of the last BATTERY_STATUS
         # mission
         self.mission_current: int | None = None
         self.mission_total: int | None = None
@@ -317,6 +318,7 @@ class Vehicle:
     def _on_battery(self, msg: Any) -> None:
         if msg.battery_remaining >= 0:
             self.battery_pct = float(msg.battery_remaining)
+            self.battery_at = time.monotonic()
 
     def _on_sys_status(self, msg: Any) -> None:
         if msg.battery_remaining >= 0 and self.battery_pct is None:
@@ -345,6 +347,18 @@ class Vehicle:
         if self.autopilot is None:
             raise LinkError(f"{self.name} (sysid {self.sysid}): no heartbeat heard yet on {self.link.url}")
         return self.autopilot
+
+    async def refresh_battery(self, timeout: float = 2.0) -> float | None:
+        """Ask for a BATTERY_STATUS now (REQUEST_MESSAGE) and wait for it: streamed battery
+        messages come at ~1 Hz, too stale to plan a collection from (and a simulated fleet running
+        faster than real time drains more between two). Returns the battery %, the last known one
+        when the vehicle does not answer in time."""
+        asked = time.monotonic()
+        with contextlib.suppress(LinkError, CommandRejected, TimeoutError):
+            await self.command(mavlink2.MAV_CMD_REQUEST_MESSAGE,
+                               [float(mavlink2.MAVLINK_MSG_ID_BATTERY_STATUS)], timeout=timeout / 2)
+            await self.wait_until(lambda v: v.battery_at > asked, timeout, "a fresh battery reading")
+        return self.battery_pct
 
     async def command(self, command: int, params: Iterable[float] = (), *, frame: int | None = None,
                       check: bool = True, timeout: float | None = None) -> CommandAck:
