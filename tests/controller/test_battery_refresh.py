@@ -1,0 +1,17 @@
+"""A collection is planned from fresh batteries: Vehicle.refresh_battery asks for BATTERY_STATUS."""
+
+from __future__ import annotations
+
+from fleetctl.vehicle import Fleet
+from sitl import SimFleet
+
+
+async def test_refresh_battery_reads_the_battery_now(fleet: Fleet, sim: SimFleet) -> None:
+    r1 = fleet.rovers["r1"]
+    await r1.wait_until(lambda v: v.battery_pct is not None, 3.0, "telemetry")
+    # stream the battery only every 50 s, then drain it in the simulated world
+    await r1.configure_streams(battery_hz=0.02)
+    sim.rover("r1").battery = 0.42
+    assert r1.battery_pct == 100.0
+    assert await r1.refresh_battery(timeout=3.0) == 42.0
+    assert r1.battery_pct == 42.0
