@@ -129,12 +129,13 @@ def cmd_fly(args: argparse.Namespace) -> int:
         raise CliError(f"--speedup must be > 0, got {args.speedup}")
     if getattr(args, "dwell", None) is not None and args.dwell < 0:
         raise CliError(f"--dwell must be >= 0 s, got {args.dwell}")
+    mqtt = _bus_config(mission, args)
     view = make_view(True if args.headless else None)
     try:
         outcome = asyncio.run(execute(
             mission, args.command, speedup=args.speedup, planner=args.planner,
             dwell=getattr(args, "dwell", None), summary_path=args.summary, runs_dir=args.runs,
-            view=view, connect_timeout=args.timeout))
+            view=view, connect_timeout=args.timeout, mqtt=mqtt))
     except ExecutionError as e:  # raised before anything flew (e.g. collect on a sim mission)
         raise CliError(str(e)) from None
     s = outcome.summary
@@ -180,6 +181,7 @@ def _add_fly_commands(sub: argparse._SubParsersAction) -> None:
         p.add_argument("--runs", default="runs", metavar="DIR", help="where run records go (default: runs)")
         p.add_argument("--timeout", type=float, default=10.0, metavar="S",
                        help="seconds to wait for every vehicle's first heartbeat (default: 10)")
+        _add_bus_options(p)
         p.set_defaults(func=cmd_fly)
 
 
@@ -211,6 +213,7 @@ def build_parser() -> argparse.ArgumentParser:
     plan.set_defaults(func=cmd_plan)
     _add_fly_commands(sub)
     _add_controller_commands(sub)
+    _add_watch_command(sub)
     return p
 
 
@@ -410,6 +413,83 @@ def _print_status(mission: Mission, rows: list[dict[str, str]]) -> None:
         style = None if row["ready"] == "ready" else "red"
         table.add_row(*(row[k] for k, _ in columns), style=style)
     console.print(table)
+
+
+# ---------------------------------------------------------------------------------------------------
+# the MQTT fleet bus: --mqtt/--topic-prefix on deploy/collect/run, and fleetctl watch
+# ---------------------------------------------------------------------------------------------------
+
+
+def _add_bus_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--mqtt", metavar="URL",
+                   help="publish status, plan, telemetry and events to this MQTT broker and take task "
+                        "changes from it (mqtt://HOST[:PORT] or mqtts://HOST[:PORT]; default: the "
+                        "mission's mqtt: section; off when neither)")
+    p.add_argument("--topic-prefix", metavar="P",
+                   help="MQTT topic prefix (default: the mission's mqtt.topic_prefix, "
+                        "else fleetctl/<mission name>)")
+
+
+def _bus_config(mission: Mission, args: argparse.Namespace) -> object:
+    from fleetctl.bus import BusConfigError, bus_config
+
+    if getattr(args, "topic_prefix", None) and not (args.mqtt or mission.mqtt):
+        raise CliError("--topic-prefix needs --mqtt URL (or an mqtt: section in the mission)")
+    try:
+        return bus_config(mission, getattr(args, "mqtt", None), getattr(args, "topic_prefix", None))
+    except BusConfigError as e:
+        raise CliError(str(e)) from None
+
+
+def _add_watch_command(sub: argparse._SubParsersAction) -> None:
+    w = sub.add_parser(
+        "watch", help="the live view of a mission flown elsewhere, from the MQTT bus",
+        description="Subscribe to a controller's MQTT fleet bus (status, plan, telemetry, events under "
+                    "the topic prefix) and show the live view, or with --headless print its events and, "
+                    "at the end, the fleet table. Ctrl-C stops it (exit status 0).",
+    )
+    w.add_argument("--mqtt", required=True, metavar="URL", help="broker: mqtt://HOST[:PORT] or mqtts://HOST[:PORT]")
+    w.add_argument("--topic-prefix", required=True, metavar="P", help="the controller's topic prefix")
+    w.add_argument("--headless", action="store_true", help="print events instead of the live view")
+    w.add_argument("--exit-on-done", action="store_true",
+                   help="exit when the controller's status goes done/failed/interrupted/offline")
+    w.add_argument("--username", help="broker user name")
+    w.add_argument("--password-env", metavar="VAR", help="environment variable holding the broker password")
+    w.add_argument("--tls-ca", metavar="FILE", help="CA certificate(s) to verify the broker (implies TLS)")
+    w.add_argument("--tls-cert", metavar="FILE", help="client certificate (implies TLS)")
+    w.add_argument("--tls-key", metavar="FILE", help="client private key")
+    w.set_defaults(func=cmd_watch)
+
+
+def cmd_watch(args: argparse.Namespace) -> int:
+    import asyncio
+    import os
+
+    from fleetctl.bus import BusConfig, BusConfigError, Secret, parse_url
+    from fleetctl.watch import watch
+
+    try:
+        host, port, tls = parse_url(args.mqtt)
+    except BusConfigError as e:
+        raise CliError(str(e)) from None
+    password = None
+    if args.password_env:
+        password = os.environ.get(args.password_env)
+        if password is None:
+            raise CliError(f"--password-env: the environment variable {args.password_env} is not set")
+    prefix = args.topic_prefix.strip("/")
+    if not prefix or any(c in prefix for c in "+#"):
+        raise CliError(f"--topic-prefix {args.topic_prefix!r}: give the controller's prefix, without + or #")
+    config = BusConfig(host, port, prefix, tls or bool(args.tls_ca or args.tls_cert), None, args.username,
+                       Secret(password) if password is not None else None, args.tls_ca, args.tls_cert,
+                       args.tls_key)
+    try:
+        return asyncio.run(watch(config, headless=args.headless or not sys.stdout.isatty(),
+                                 exit_on_done=args.exit_on_done))
+    except BusConfigError as e:
+        raise CliError(str(e)) from None
+    except KeyboardInterrupt:
+        return 0
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -11,6 +11,7 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import sys
+from collections.abc import Callable, Sequence
 from typing import IO, TYPE_CHECKING, Any
 
 from rich.console import Console, Group
@@ -38,9 +39,9 @@ def _num(v: float | None, fmt: str = "{:.1f}") -> str:
     return "–" if v is None else fmt.format(v)
 
 
-def render(state: FleetState, max_rows: int | None = None) -> Group:
+def render(state: FleetState, max_rows: int | None = None, status: Sequence[str] = ()) -> Group:
     """The dashboard for ``state``: header (phase, stop k of N, planned vs elapsed with a progress
-    bar), one row per vehicle, latest events."""
+    bar), one row per vehicle, latest events; ``status`` lines (e.g. the MQTT bus) under the header."""
     elapsed = state.elapsed
     planned = state.planned
     head = Table.grid(padding=(0, 2))
@@ -72,7 +73,9 @@ def render(state: FleetState, max_rows: int | None = None) -> Group:
             _num(v.speed), _num(v.battery_pct, "{:.0f}"), _num(v.range_m, "{:.0f}"),
             Text(link, style="red" if v.link_age is not None and v.link_age > 2 else ""),
         )
-    parts: list[Any] = [head, table]
+    parts: list[Any] = [head]
+    parts += [Text(line, style="dim" if line.startswith("bus: connected") else "yellow") for line in status]
+    parts.append(table)
     if hidden:
         parts.append(Text(f"… {hidden} more vehicles", style="dim"))
     events = Text()
@@ -93,6 +96,11 @@ class LiveView(View):
         self._live: Live | None = None
         self._task: asyncio.Task[None] | None = None
         self._state: FleetState | None = None
+        self._status: list[Callable[[], str]] = []
+
+    def add_status(self, line: Callable[[], str]) -> None:
+        """Show ``line()`` under the header on every redraw (the MQTT bus status)."""
+        self._status.append(line)
 
     def start(self, state: FleetState, fleet: Fleet | None) -> None:
         self._state = state
@@ -112,7 +120,7 @@ class LiveView(View):
         if self._live is None or self._state is None:
             return
         rows = max(self.console.size.height - 16, 5)
-        self._live.update(render(self._state, rows), refresh=True)
+        self._live.update(render(self._state, rows, [f() for f in self._status]), refresh=True)
 
     async def stop(self) -> None:
         task, self._task = self._task, None

@@ -79,6 +79,13 @@ class Journal:
         self._file = self.path.open("a", encoding="utf-8")
         self._task: asyncio.Task[None] | None = None
         self._closed = False
+        self._observers: list[Callable[[dict[str, Any]], None]] = []
+
+    def add_observer(self, observer: Callable[[dict[str, Any]], None]) -> Callable[[], None]:
+        """Call ``observer(record)`` with every record as it is written (e.g. the MQTT bus); it must
+        not block and must not change the record. Returns a function that removes it."""
+        self._observers.append(observer)
+        return lambda: self._observers.remove(observer) if observer in self._observers else None
 
     # -- writing -----------------------------------------------------------------------------
     def write(self, kind: str, **data: Any) -> None:
@@ -88,6 +95,11 @@ class Journal:
         rec.update(_clean(data))
         self._buf.append(json.dumps(rec, separators=(",", ":")))
         self.records += 1
+        for observer in list(self._observers):
+            try:
+                observer(rec)
+            except Exception:  # noqa: BLE001 - an observer must not stop the mission
+                log.exception("journal observer failed")
 
     def on_event(self, ev: Event) -> None:
         """A :class:`fleetctl.fleet.FleetState` listener: journal every event."""

@@ -1,0 +1,505 @@
+"""The MQTT fleet bus: telemetry, events and plans out; task changes in (on aiomqtt).
+
+Topics under the mission's prefix ``P`` (default ``fleetctl/<mission name>``):
+
+* ``P/status`` (retained, QoS 1) - ``{"status": "online" | "done" | "failed" | "interrupted" |
+  "offline", "mission", "phase", "stop", "stops", "planned", "elapsed", "bus", "t"}``; the broker
+  publishes the last will ``{"status": "offline", ...}`` when the controller vanishes;
+* ``P/plan`` (retained, QoS 1) - the current plan JSON (``fleetctl.plan/1``);
+* ``P/vehicles/<id>/telemetry`` (QoS 0) - one vehicle's state at ``telemetry_hz`` (2 Hz);
+* ``P/events`` (QoS 1) - every journal record as written to ``journal.jsonl``;
+* ``P/errors`` (QoS 1) - answers to rejected task messages;
+* in: ``P/tasks/add`` (``{"tasks": [{"id", "position" | "lat"/"lon"/"alt"}, ...]}``, a list of
+  tasks or one task) and ``P/tasks/remove`` (``{"tasks": ["t1", ...]}``, a list of ids or one id),
+  validated like the mission file and handed to ``Executor.submit_task_change``.
+
+The bus never holds up flying: publishing only appends to a bounded buffer (oldest dropped and
+counted when full; retained topics keep only their latest value and are never dropped), one
+background task owns the connection, reconnects with exponential backoff and drains the buffer.
+The password is read from the environment variable ``password_env`` names and is never logged,
+journaled or put in a summary.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import copy
+import json
+import logging
+import os
+import re
+import ssl
+import time
+from collections import deque
+from collections.abc import Callable, Iterable
+from dataclasses import asdict, dataclass
+from typing import TYPE_CHECKING, Any
+
+import aiomqtt
+
+from fleetctl.mission import MissionError, MqttConfig, parse_mission
+
+if TYPE_CHECKING:
+    from fleetctl.fleet import FleetState
+    from fleetctl.mission import Mission
+    from planners.problem import Task
+
+log = logging.getLogger(__name__)
+
+TELEMETRY_HZ = 2.0
+BUFFER_SIZE = 2000  # messages held while the broker is away
+CONNECT_TIMEOUT = 5.0  # s for TCP + CONNACK
+PUBLISH_TIMEOUT = 5.0  # s for a QoS 1 PUBACK
+BACKOFF_MIN = 0.2  # s before the first reconnect
+BACKOFF_MAX = 5.0
+STATUS_INTERVAL = 1.0  # s between retained status updates (and on every change)
+MAX_MESSAGE = 64 * 1024  # bytes of an incoming task message
+FINAL_STATES = ("done", "failed", "interrupted", "offline")
+
+_URL = re.compile(r"(?P<scheme>mqtts?)://(?P<host>[A-Za-z0-9_.-]+)(?::(?P<port>\d{1,5}))?/?")
+
+
+class BusConfigError(ValueError):
+    """A bus setting the user can fix (bad URL, missing password variable, unreadable TLS file)."""
+
+
+class Secret(str):
+    """A string whose repr/str in messages never shows the value."""
+
+    def __repr__(self) -> str:
+        return "'***'"
+
+
+@dataclass(frozen=True)
+class BusConfig:
+    host: str
+    port: int
+    topic_prefix: str
+    tls: bool = False
+    client_id: str | None = None
+    username: str | None = None
+    password: Secret | None = None
+    ca: str | None = None
+    cert: str | None = None
+    key: str | None = None
+    telemetry_hz: float = TELEMETRY_HZ
+    buffer_size: int = BUFFER_SIZE
+
+    @property
+    def url(self) -> str:
+        return f"{'mqtts' if self.tls else 'mqtt'}://{self.host}:{self.port}"
+
+    def __repr__(self) -> str:  # never the password
+        return (f"BusConfig(url={self.url!r}, topic_prefix={self.topic_prefix!r}, "
+                f"client_id={self.client_id!r}, username={self.username!r})")
+
+    def ssl_context(self) -> ssl.SSLContext | None:
+        """The TLS context from ``ca``/``cert``/``key`` (reads files: call off the event loop)."""
+        if not self.tls:
+            return None
+        try:
+            ctx = ssl.create_default_context(cafile=self.ca)
+            if self.cert is not None:
+                ctx.load_cert_chain(self.cert, self.key)
+        except (OSError, ssl.SSLError) as exc:
+            raise BusConfigError(f"mqtt.tls: cannot load the TLS files (ca {self.ca!r}, cert {self.cert!r}, "
+                                 f"key {self.key!r}): {exc}") from None
+        return ctx
+
+
+def parse_url(url: str) -> tuple[str, int, bool]:
+    """``mqtt://HOST[:PORT]`` (1883) or ``mqtts://HOST[:PORT]`` (8883, TLS) → (host, port, tls)."""
+    m = _URL.fullmatch(url.strip())
+    if m is None:
+        raise BusConfigError(f"{url.split('@')[-1]!r} is not an MQTT broker URL; use mqtt://HOST[:PORT] "
+                             "or mqtts://HOST[:PORT] (user name in mqtt.username, password via "
+                             "mqtt.password_env)")
+    tls = m["scheme"] == "mqtts"
+    port = int(m["port"]) if m["port"] else (8883 if tls else 1883)
+    if not 1 <= port <= 65535:
+        raise BusConfigError(f"MQTT port {port} is out of range 1..65535")
+    return m["host"], port, tls
+
+
+def bus_config(mission: Mission, url: str | None = None, topic_prefix: str | None = None,
+               telemetry_hz: float = TELEMETRY_HZ) -> BusConfig | None:
+    """The bus settings of a run: the mission's ``mqtt:`` section, ``url``/``topic_prefix`` (the
+    ``--mqtt``/``--topic-prefix`` options) overriding it; None (bus off) when neither gives a URL."""
+    m: MqttConfig | None = mission.mqtt
+    url = url or (m.url if m is not None else None)
+    if url is None:
+        return None
+    host, port, tls = parse_url(url)
+    prefix = topic_prefix or (m.topic_prefix if m is not None else None) or f"fleetctl/{mission.name}"
+    prefix = prefix.strip("/")
+    if not prefix or any(c in prefix for c in "+#\0"):
+        raise BusConfigError(f"topic prefix {prefix!r}: use a non-empty MQTT topic without '+', '#'")
+    password = None
+    if m is not None and m.password_env:
+        value = os.environ.get(m.password_env)
+        if value is None:
+            raise BusConfigError(f"mqtt.password_env: the environment variable {m.password_env} is not set; "
+                                 "export it with the broker password")
+        password = Secret(value)
+    t = m.tls if m is not None else None
+    if t is not None and (t.ca or t.cert):
+        tls = True
+    if not telemetry_hz > 0:
+        raise BusConfigError(f"telemetry rate must be > 0 Hz, got {telemetry_hz}")
+    return BusConfig(host, port, prefix, tls, m.client_id if m else None, m.username if m else None, password,
+                     t.ca if t else None, t.cert if t else None, t.key if t else None, telemetry_hz)
+
+
+def client_kwargs(config: BusConfig, ssl_context: ssl.SSLContext | None) -> dict[str, Any]:
+    """Keyword arguments for :class:`aiomqtt.Client` (shared with ``fleetctl watch``)."""
+    return {"hostname": config.host, "port": config.port, "username": config.username,
+            "password": str(config.password) if config.password is not None else None,
+            "tls_context": ssl_context, "timeout": CONNECT_TIMEOUT, "keepalive": 10}
+
+
+def _dumps(data: Any) -> bytes:
+    from fleetctl.journal import _clean
+
+    return json.dumps(_clean(data), separators=(",", ":")).encode()
+
+
+class TaskMessageError(ValueError):
+    """A task message that changes nothing; the text goes to ``<prefix>/errors``."""
+
+
+class FleetBus:
+    """One run's connection to the broker (see the module docstring)."""
+
+    def __init__(self, config: BusConfig, mission: Mission) -> None:
+        self.config = config
+        self.mission = mission
+        self.prefix = config.topic_prefix
+        self.status = "connecting"  # connecting | connected | reconnecting | closed
+        self.dropped = 0
+        self.published = 0
+        self.connects = 0
+        self.state: FleetState | None = None
+        self.executor: Any = None
+        self.record: Callable[..., None] = lambda kind, **data: None  # the journal's write
+        self.tasks: list[Task] = list(mission.tasks)  # the task set task messages are checked against
+        self._buf: deque[tuple[str, bytes, int]] = deque()
+        self._retained: dict[str, bytes] = {}
+        self._dirty: list[str] = []  # retained topics to (re)publish, in order
+        self._wake = asyncio.Event()
+        self._tasks: list[asyncio.Task[None]] = []
+        self._last_status: tuple[Any, ...] | None = None
+        self._last_status_t = 0.0
+        self._final: str | None = None
+        self._on_status: list[Callable[[str], None]] = []
+
+    # -- outgoing ---------------------------------------------------------------------------------
+    def topic(self, suffix: str) -> str:
+        return f"{self.prefix}/{suffix}"
+
+    def publish(self, suffix: str, payload: Any, *, retain: bool = False, qos: int = 0) -> None:
+        """Queue a message (never waits). Retained topics keep only their latest payload."""
+        topic = self.topic(suffix)
+        data = payload if isinstance(payload, bytes) else _dumps(payload)
+        if retain:
+            self._retained[topic] = data
+            if topic not in self._dirty:
+                self._dirty.append(topic)
+        else:
+            if len(self._buf) >= self.config.buffer_size:
+                self._buf.popleft()
+                self.dropped += 1
+            self._buf.append((topic, data, qos))
+        self._wake.set()
+
+    def on_record(self, rec: dict[str, Any]) -> None:
+        """A :class:`fleetctl.journal.Journal` observer: every record to ``events``, plans to ``plan``."""
+        self.publish("events", rec, qos=1)
+        kind = rec.get("kind")
+        plan = rec.get("plan") if kind == "plan" else rec.get("new_plan") if kind == "replan" else None
+        if isinstance(plan, dict):
+            self.publish("plan", plan, retain=True, qos=1)
+        source = rec.get("source")
+        if kind == "task_change_rejected" and isinstance(source, str) and source.startswith("mqtt:"):
+            # refused later by the replanner (e.g. no rover left on the deck): answer the sender too
+            topic = source[len("mqtt:"):]
+            error = f"refused by the controller: {rec.get('reason')}"
+            self.publish("errors", {"topic": topic, "error": error, "t": rec.get("t")}, qos=1)
+
+    def status_payload(self, status: str | None = None) -> dict[str, Any]:
+        st = self.state
+        out: dict[str, Any] = {"status": status or self._final or "online", "mission": self.mission.name,
+                               "t": round(time.time(), 3)}
+        if st is not None:
+            out.update(phase=st.phase, stop=st.stop_index, stops=st.stop_count, planned=st.planned,
+                       elapsed=round(st.elapsed, 2))
+        return out
+
+    def status_line(self) -> str:
+        """``bus: connected`` / ``bus: reconnecting (12 dropped)`` for the live view."""
+        extra = [f"{len(self._buf)} queued"] if self.status != "connected" and self._buf else []
+        if self.dropped:
+            extra.append(f"{self.dropped} dropped")
+        line = f"bus: {self.status} {self.config.url} {self.prefix}"
+        return line + (f" ({', '.join(extra)})" if extra else "")
+
+    def _set_status(self, status: str) -> None:
+        if status == self.status:
+            return
+        old, self.status = self.status, status
+        log.info("bus %s: %s", self.config.url, status)
+        if self.state is not None and (status == "connected" or old == "connected"):
+            text = f"bus: {status}" + (f" ({self.dropped} dropped)" if self.dropped else "")
+            self.state.event("bus_" + status, text, None, url=self.config.url, dropped=self.dropped)
+        for cb in list(self._on_status):
+            cb(status)
+
+    def add_status_listener(self, cb: Callable[[str], None]) -> None:
+        self._on_status.append(cb)
+
+    # -- life cycle -------------------------------------------------------------------------------
+    def start(self, state: FleetState | None = None, record: Callable[..., None] | None = None) -> None:
+        """Connect in the background (needs a running loop); publish telemetry from ``state``;
+        ``record`` (the journal's ``write``) journals accepted and rejected task messages."""
+        self.state = state
+        if record is not None:
+            self.record = record
+        self.publish("status", self.status_payload("online"), retain=True, qos=1)
+        loop = asyncio.get_running_loop()
+        self._tasks.append(loop.create_task(self._run(), name="mqtt bus"))
+        if state is not None:
+            self._tasks.append(loop.create_task(self._telemetry(), name="mqtt telemetry"))
+
+    def attach_executor(self, executor: Any) -> None:
+        """Task messages go to ``executor.submit_task_change`` from now on."""
+        self.executor = executor
+
+    def show_in(self, view: Any) -> None:
+        """Put :meth:`status_line` into a live view that shows status lines."""
+        add = getattr(view, "add_status", None)
+        if add is not None:
+            add(self.status_line)
+
+    async def aclose(self, final: str = "done", flush_timeout: float = 3.0) -> None:
+        """Publish the final status (and flush the buffer) if connected, then disconnect."""
+        for t in self._tasks[1:]:  # telemetry first
+            t.cancel()
+        self._publish_telemetry()  # the final state of every vehicle
+        deadline = time.monotonic() + flush_timeout
+        while self.status == "connected" and (self._dirty or self._buf) and time.monotonic() < deadline:
+            await asyncio.sleep(0.02)  # the last events go out before the final status
+        self._final = final if final in FINAL_STATES else "failed"
+        self.publish("status", self.status_payload(), retain=True, qos=1)
+        while self.status == "connected" and self._dirty and time.monotonic() < deadline + 1.0:
+            await asyncio.sleep(0.02)
+        for t in self._tasks:
+            t.cancel()
+        for t in self._tasks:
+            with contextlib.suppress(asyncio.CancelledError, Exception):
+                await t
+        self._tasks.clear()
+        self.status = "closed"
+
+    # -- the connection ---------------------------------------------------------------------------
+    async def _run(self) -> None:
+        ctx = await asyncio.to_thread(self.config.ssl_context)
+        delay = BACKOFF_MIN
+        will = aiomqtt.Will(self.topic("status"), _dumps({"status": "offline", "mission": self.mission.name}),
+                            qos=1, retain=True)
+        while True:
+            client = aiomqtt.Client(identifier=self.config.client_id, will=will,
+                                    max_queued_outgoing_messages=self.config.buffer_size,
+                                    **client_kwargs(self.config, ctx))
+            try:
+                async with asyncio.timeout(CONNECT_TIMEOUT * 2):
+                    await client.__aenter__()
+            except (aiomqtt.MqttError, TimeoutError, OSError) as exc:
+                log.debug("bus %s: cannot connect: %s", self.config.url, exc)
+                self._set_status("reconnecting")
+                await asyncio.sleep(delay)
+                delay = min(delay * 2, BACKOFF_MAX)
+                continue
+            self.connects += 1
+            delay = BACKOFF_MIN
+            try:
+                self._dirty = list(self._retained)  # the broker may have lost them
+                await client.subscribe([(self.topic("tasks/add"), 1), (self.topic("tasks/remove"), 1)],
+                                       timeout=PUBLISH_TIMEOUT)
+                self._set_status("connected")
+                async with asyncio.TaskGroup() as tg:
+                    tg.create_task(self._send(client))
+                    tg.create_task(self._receive(client))
+            except* (aiomqtt.MqttError, TimeoutError, OSError) as eg:
+                log.debug("bus %s: connection lost: %s", self.config.url, eg.exceptions[0])
+                self._set_status("reconnecting")
+            finally:
+                with contextlib.suppress(Exception):
+                    async with asyncio.timeout(1.0):
+                        await client.__aexit__(None, None, None)
+
+    async def _send(self, client: aiomqtt.Client) -> None:
+        while True:
+            while self._dirty:
+                topic = self._dirty[0]
+                data = self._retained[topic]
+                await client.publish(topic, data, qos=1, retain=True, timeout=PUBLISH_TIMEOUT)
+                if self._dirty and self._dirty[0] == topic and self._retained[topic] is data:
+                    self._dirty.pop(0)
+                self.published += 1
+            if self._buf:
+                item = self._buf[0]
+                await client.publish(item[0], item[1], qos=item[2], timeout=PUBLISH_TIMEOUT)
+                if self._buf and self._buf[0] is item:
+                    self._buf.popleft()
+                self.published += 1
+                continue
+            self._wake.clear()
+            with contextlib.suppress(TimeoutError):
+                await asyncio.wait_for(self._wake.wait(), 1.0)
+
+    async def _receive(self, client: aiomqtt.Client) -> None:
+        async for msg in client.messages:
+            topic = msg.topic.value
+            payload = msg.payload if isinstance(msg.payload, bytes | bytearray) else str(msg.payload).encode()
+            self.handle_task_message(topic, bytes(payload))
+
+    async def _telemetry(self) -> None:
+        assert self.state is not None
+        period = 1.0 / self.config.telemetry_hz
+        while True:
+            st = self.state
+            now = time.monotonic()
+            self._publish_telemetry()
+            key = (st.phase, st.stop_index, st.stop_count, st.planned, self.status)
+            if key != self._last_status or now - self._last_status_t >= STATUS_INTERVAL:
+                self._last_status, self._last_status_t = key, now
+                self.publish("status", self.status_payload() | {"bus": self.status}, retain=True, qos=1)
+            await asyncio.sleep(period)
+
+    def _publish_telemetry(self) -> None:
+        if self.state is None:
+            return
+        t = round(time.time(), 3)
+        for vid, v in list(self.state.vehicles.items()):
+            self.publish(f"vehicles/{vid}/telemetry", asdict(v) | {"t": t}, qos=0)
+
+    # -- incoming task changes ------------------------------------------------------------------------
+    def handle_task_message(self, topic: str, payload: bytes) -> bool:
+        """Validate and apply one ``tasks/add`` or ``tasks/remove`` message; a bad one is answered on
+        ``errors`` and changes nothing. Returns whether the change was handed on."""
+        op = topic.rsplit("/", 1)[-1]
+        try:
+            if len(payload) > MAX_MESSAGE:
+                raise TaskMessageError(f"message of {len(payload)} bytes is larger than {MAX_MESSAGE}")
+            try:
+                data = json.loads(payload)
+            except (ValueError, UnicodeDecodeError) as exc:
+                raise TaskMessageError(f"not JSON: {exc}") from None
+            if op == "add":
+                add, remove = self.parse_add(data, topic), []
+            elif op == "remove":
+                add, remove = [], self.parse_remove(data)
+            else:
+                raise TaskMessageError(f"unknown topic {topic!r}")
+            submit = getattr(self.executor, "submit_task_change", None)
+            if submit is None:
+                raise TaskMessageError("task changes are not supported by this controller "
+                                       "(no replanner) or no mission is flying yet; nothing changed")
+            try:
+                submit(add=add, remove=remove, source=f"mqtt:{topic}")
+            except Exception as exc:  # noqa: BLE001 - the replanner's refusal is the sender's answer
+                raise TaskMessageError(f"refused by the controller: {exc}") from None
+        except TaskMessageError as exc:
+            self._answer_error(topic, payload, str(exc))
+            return False
+        ids = {t.id for t in add}
+        self.tasks = [t for t in self.current_tasks() if t.id not in remove] + list(add)
+        self.record("bus_task_change", op=op, add=sorted(ids), remove=remove, topic=topic)
+        return True
+
+    def _answer_error(self, topic: str, payload: bytes, error: str) -> None:
+        log.warning("bus: rejected %s: %s", topic, error)
+        text = payload[:500].decode("utf-8", "replace")
+        self.publish("errors", {"topic": topic, "error": error, "payload": text, "t": round(time.time(), 3)},
+                     qos=1)
+        self.record("bus_rejected", topic=topic, error=error)
+
+    def current_tasks(self) -> list[Task]:
+        """The live task set: the executor's (it changes with replans), else the bus's own view."""
+        live = getattr(self.executor, "tasks", None)
+        if isinstance(live, dict):
+            return list(live.values())
+        return list(self.tasks)
+
+    def parse_add(self, data: Any, source: str) -> list[Task]:
+        """The tasks of an add message, checked like the mission file against the current task set
+        and the fleet (ids unique, heights within the deploy range, outside obstacles, a rover each)."""
+        if isinstance(data, dict) and "tasks" in data and set(data) == {"tasks"}:
+            data = data["tasks"]
+        entries = data if isinstance(data, list) else [data]
+        if not entries:
+            raise TaskMessageError('no tasks given; send {"tasks": [{"id": ..., "position": [x, y, z]}]}')
+        if not all(isinstance(e, dict) for e in entries):
+            raise TaskMessageError('expected a task {"id", "position": [x, y, z]} or a list of them')
+        current = self.current_tasks()
+        known = {t.id for t in current}
+        for i, e in enumerate(entries):
+            if e.get("id") in known:
+                raise TaskMessageError(f"tasks[{i}].id: task {e['id']!r} already exists; use a new id")
+        raw = copy.deepcopy(self.mission.raw)
+        raw["tasks"] = list(entries) + [{"id": t.id, "position": [float(c) for c in t.position]}
+                                        for t in current]
+        rovers = dict(raw.get("rovers") or {})
+        rovers.pop("fleet", None)  # the fleet is fixed: spell out its units
+        rovers["units"] = [{"id": u.id, "sysid": u.sysid} for u in self.mission.rovers.units]
+        raw["rovers"] = rovers
+        raw.pop("mqtt", None)
+        try:
+            m = parse_mission(raw, f"mqtt {source}")
+        except MissionError as exc:
+            raise TaskMessageError(str(exc)) from None
+        return list(m.tasks[: len(entries)])
+
+    def parse_remove(self, data: Any) -> list[str]:
+        if isinstance(data, dict) and set(data) in ({"tasks"}, {"id"}):
+            data = data.get("tasks", data.get("id"))
+        ids = data if isinstance(data, list) else [data]
+        if not ids or not all(isinstance(i, str) and i.strip() for i in ids):
+            raise TaskMessageError('expected {"tasks": ["t1", ...]} (task ids as non-empty strings)')
+        known = {t.id for t in self.current_tasks()}
+        unknown = [i for i in ids if i not in known]
+        if unknown:
+            raise TaskMessageError(f"unknown task id(s) {', '.join(map(repr, unknown))}; "
+                                   f"current tasks: {', '.join(sorted(known)) or 'none'}")
+        return list(dict.fromkeys(ids))
+
+
+def start_bus(mission: Mission, config: BusConfig | None, journal: Any, state: FleetState,
+              view: Any = None) -> FleetBus | None:
+    """Start the bus of a run (``config``, else the mission's ``mqtt:`` section; None when off):
+    every journal record goes out on ``events``, telemetry from ``state``, the status line into
+    ``view``. A bad setting is reported as an event and the mission flies without the bus."""
+    if config is None:
+        try:
+            config = bus_config(mission)
+        except BusConfigError as exc:
+            state.event("bus_error", f"bus: off ({exc})")
+            return None
+    if config is None:
+        return None
+    bus = FleetBus(config, mission)
+    journal.add_observer(bus.on_record)
+    bus.show_in(view)
+    bus.start(state, journal.write)
+    journal.write("bus", url=config.url, topic_prefix=config.topic_prefix, username=config.username,
+                  tls=config.tls)
+    return bus
+
+
+def iter_topics(prefix: str) -> Iterable[str]:
+    """The topics ``fleetctl watch`` subscribes to."""
+    return (f"{prefix}/status", f"{prefix}/plan", f"{prefix}/vehicles/+/telemetry", f"{prefix}/events")
+
+
+__all__ = ["BUFFER_SIZE", "TELEMETRY_HZ", "BusConfig", "BusConfigError", "FleetBus", "Secret",
+           "TaskMessageError", "bus_config", "client_kwargs", "iter_topics", "parse_url", "start_bus"]
