@@ -1,0 +1,13 @@
+#!/usr/bin/env bash
+# The test command (README quick start, step 2; .ci/run calls it): installs Debian's mosquitto when
+# it is missing (the MQTT bus tests run against a real broker), the package with its test extras,
+# then runs pytest. Extra arguments go to pytest, e.g. scripts/test.sh tests/test_bus.py
+set -euo pipefail
+cd "$(dirname "$0")/.."
+if ! command -v mosquitto >/dev/null && [ ! -x /usr/sbin/mosquitto ]; then
+    SUDO=""
+    if [ "$(id -u)" != 0 ] && command -v sudo >/dev/null; then SUDO="sudo"; fi
+    $SUDO apt-get update && $SUDO apt-get install -y mosquitto
+fi
+python3 -m pip install -q -e '.[test]'
+python3 -m pytest -q "$@"
