@@ -53,6 +53,9 @@ def render(state: FleetState, max_rows: int | None = None, status: Sequence[str]
     bar: Any = ProgressBar(total=max(planned or 1.0, 1e-6), completed=min(elapsed, planned or 0.0), width=30)
     head.add_row(Text(f"{state.mission_name}  ·  {state.phase}", style="bold"), Text(stop), Text(timing))
     head.add_row("", "", bar)
+    if state.replans:
+        head.add_row(Text(f"replans {state.replans}", style="bold magenta"),
+                     Text(state.last_replan or "", style="magenta", overflow="ellipsis"), "")
 
     table = Table(expand=False, pad_edge=False, box=None, header_style="bold")
     for col, justify in (("id", "left"), ("role", "left"), ("state", "left"), ("task", "left"),
@@ -82,7 +85,8 @@ def render(state: FleetState, max_rows: int | None = None, status: Sequence[str]
     for ev in list(state.events)[-8:]:
         events.append(f"{ev.elapsed:7.1f}s  ", style="dim")
         events.append(ev.text + "\n", style="red" if ev.kind in ("error", "rover_refused", "link_lost",
-                                                                  "task_unserved", "rover_failed") else "")
+                                                                  "task_unserved", "rover_failed",
+                                                                  "task_change_rejected") else "")
     parts.append(Text("events", style="bold"))
     parts.append(events)
     return Group(*parts)

@@ -472,6 +472,14 @@ class Executor:
         rovers = self.rovers()
         carrier_id = self.fleet.carrier_id
         deck = [rid for rid, v in rovers.items() if self.rover_on_deck(v)]
+        if len(deck) < len(self.tasks):  # a landed state may still be on its way (packet loss)
+            async def settle(v: Vehicle) -> None:
+                with contextlib.suppress(TimeoutError):
+                    await v.wait_until(self.rover_on_deck, DECK_CHECK_TIMEOUT, "on the deck")
+
+            await asyncio.gather(*(settle(v) for rid, v in rovers.items()
+                                   if rid not in deck and v.connected and not v.lost))
+            deck = [rid for rid, v in rovers.items() if self.rover_on_deck(v)]
         for rid, v in rovers.items():
             away = fs.LOST if not v.connected or v.lost else fs.LANDED
             st.set_state(rid, fs.ON_DECK if rid in deck else away)
