@@ -186,7 +186,7 @@ class Executor:
             self.record("ack", vehicle=v.name, command=what, result=exc.ack.result_name, reason=exc.reason)
             raise
         except MissionRejected as exc:
-            self.record("ack", vehicle=v.name, command=what, result=exc.result_name)
+            self.record("ack", vehicle=v.name, command=what, result=exc.result_name, reason=exc.reason)
             raise
         except (LinkError, TimeoutError) as exc:
             self.record("ack", vehicle=v.name, command=what, result="timeout", error=str(exc))
@@ -266,8 +266,9 @@ class Executor:
         try:
             await self._do(v, "upload_mission", v.upload_mission(items), items=len(items))
         except MissionRejected as exc:
+            why = f" ({exc.reason})" if exc.reason else ""
             raise ExecutionError(f"{v.name} ({self.fleet.urls.get(v.name, '')}) rejected its mission: "
-                                 f"{exc.result_name}") from None
+                                 f"{exc.result_name}{why}") from None
 
     async def _start_carrier(self, compiled: CompiledPlan) -> None:
         c = self.fleet.carrier

@@ -78,6 +78,7 @@ class MissionRejected(LinkError):
         self.operation = operation
         self.result = result
         self.result_name = enum_name("MAV_MISSION_RESULT", result)
+        self.reason: str | None = None  # the autopilot's STATUSTEXT, when the vehicle proxy saw one
         super().__init__(f"system {sysid} rejected the mission {operation}: {self.result_name}")
 
 

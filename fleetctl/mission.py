@@ -55,7 +55,7 @@ Vec2 = tuple[float, float]
 Vec3 = tuple[float, float, float]
 KeyPath = tuple[str | int, ...]
 
-FAULT_KINDS = ("dropout", "packet_loss", "latency", "battery_drain", "refuse_arm")
+FAULT_KINDS = ("dropout", "packet_loss", "latency", "battery_drain", "refuse_arm", "reject_mission")
 
 
 class MissionError(Exception):

@@ -31,7 +31,7 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 from fleetctl.autopilot import Autopilot
 from fleetctl.geo import Origin, geodetic_to_local, local_to_geodetic
-from fleetctl.link import CommandAck, Link, LinkError, MissionItem, command_name, enum_name
+from fleetctl.link import CommandAck, Link, LinkError, MissionItem, MissionRejected, command_name, enum_name
 
 if TYPE_CHECKING:
     from fleetctl.mission import Mission
@@ -416,8 +416,15 @@ class Vehicle:
 
     async def upload_mission(self, items: list[MissionItem]) -> None:
         """Upload ``items`` as given (on ArduPilot item 0 must be home: see :mod:`fleetctl.compile`).
-        Raises :class:`fleetctl.link.MissionRejected` with the autopilot's MAV_MISSION_RESULT."""
-        await self.link.upload_mission(self.sysid, items, compid=self.compid)
+        Raises :class:`fleetctl.link.MissionRejected` with the autopilot's MAV_MISSION_RESULT (and its
+        ``reason``: a STATUSTEXT the vehicle sent while refusing, if any)."""
+        sent = time.monotonic()
+        try:
+            await self.link.upload_mission(self.sysid, items, compid=self.compid)
+        except MissionRejected as exc:
+            exc.reason = next((t for ts, _sev, t in reversed(self.statustexts)
+                               if ts >= sent - _STATUS_REASON_S), None)
+            raise
         self.items_reached.clear()
 
     async def download_mission(self) -> list[MissionItem]:

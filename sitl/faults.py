@@ -13,13 +13,14 @@ from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
-KINDS = ("dropout", "packet_loss", "latency", "battery_drain", "refuse_arm")
+KINDS = ("dropout", "packet_loss", "latency", "battery_drain", "refuse_arm", "reject_mission")
 _KIND_KEYS: dict[str, set[str]] = {
     "dropout": set(),
     "packet_loss": {"rate"},
     "latency": {"seconds"},
     "battery_drain": {"factor"},
     "refuse_arm": set(),
+    "reject_mission": set(),
 }
 _COMMON_KEYS = {"kind", "vehicle", "at", "until"}
 
@@ -31,7 +32,9 @@ class FaultError(ValueError):
 @dataclass(frozen=True)
 class Fault:
     """One fault. ``rate`` is for packet_loss (0..1), ``seconds`` for latency, ``factor`` for
-    battery_drain (2.0 = battery empties after half the endurance range)."""
+    battery_drain (2.0 = battery empties after half the endurance range). ``reject_mission``: the
+    vehicle answers every mission upload (MISSION_COUNT) with a STATUSTEXT giving its reason and a
+    MAV_MISSION_DENIED MISSION_ACK, like an autopilot whose feasibility check fails."""
 
     kind: str
     vehicle: str | None = None
@@ -147,3 +150,7 @@ class FaultBook:
 
     def refuses_arm(self, vehicle: str, t: float) -> bool:
         return bool(self._faults) and bool(self._active("refuse_arm", vehicle, t))
+
+    def rejects_mission(self, vehicle: str, t: float) -> bool:
+        """The autopilot refuses every mission upload (MAV_MISSION_DENIED, with a STATUSTEXT reason)."""
+        return bool(self._faults) and bool(self._active("reject_mission", vehicle, t))

@@ -30,6 +30,7 @@ log = logging.getLogger(__name__)
 M = mavlink2
 MAX_RATE_HZ = 50.0
 FORCE_MAGIC = 21196.0
+MISSION_REJECTED_TEXT = "Mission rejected: failed feasibility check"  # reject_mission fault
 
 STREAM_DEFAULTS_HZ: dict[int, float] = {
     M.MAVLINK_MSG_ID_HEARTBEAT: 1.0,
@@ -662,6 +663,11 @@ class SimVehicle:
             return
         up = self._upload
         if up is not None and up.partner != partner:
+            self._mission_ack(partner, addr, M.MAV_MISSION_DENIED, mtype)
+            return
+        if self.faults.rejects_mission(self.id, self.clock.sim_time):  # reason first, then the ACK
+            self._upload = None
+            self.statustext(MISSION_REJECTED_TEXT, M.MAV_SEVERITY_CRITICAL)
             self._mission_ack(partner, addr, M.MAV_MISSION_DENIED, mtype)
             return
         if msg.count == 0:
