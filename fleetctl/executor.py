@@ -384,11 +384,12 @@ class Executor:
             again = handle(q.get_nowait()) or again
         return again
 
-    def _carrier_event(self, ev: SupervisorEvent, airborne: Callable[[], list[str]]) -> None:
+    def _carrier_event(self, ev: SupervisorEvent, airborne: Callable[[], list[str]]) -> list[str]:
         """Carrier lost: no more launches (see :meth:`_carrier_ready`), airborne rovers hold (or land
-        when their battery is at the reserve); back: they resume."""
+        when their battery is at the reserve); back: they resume. Returns the rovers sent to land."""
         st = self.state
         rovers = self.rovers()
+        landing: list[str] = []
         if ev.kind == "lost":
             self._carrier_ok.clear()
             self._carrier_losses += 1
@@ -398,7 +399,9 @@ class Executor:
                 if v.lost:
                     continue
                 low = v.battery_pct is not None and v.battery_pct <= reserve
-                if not low:
+                if low:
+                    landing.append(rid)
+                else:
                     self._held.add(rid)
                 self._spawn(self._hold_or_land(v, low), f"hold {rid}")
             st.event("carrier_lost", f"{self.fleet.carrier_id}: carrier lost: no launches; airborne rovers "
@@ -410,6 +413,7 @@ class Executor:
                 self._spawn(self._resume(rovers[rid]), f"resume {rid}")
             st.event("carrier_back", f"{self.fleet.carrier_id}: carrier back; resuming "
                      f"{', '.join(held) or 'nothing'}", self.fleet.carrier_id)
+        return landing
 
     async def _hold_or_land(self, v: Vehicle, low: bool) -> None:
         try:
@@ -512,8 +516,19 @@ class Executor:
         def handle(ev: SupervisorEvent) -> bool:
             rid = ev.vehicle
             if ev.kind in ("lost", "back") and rid == carrier_id:
-                self._carrier_event(ev, airborne)
-                return False
+                landing = self._carrier_event(ev, airborne)
+                landed = [(t, r) for t, r in flying.items() if r in landing]
+                for task, r in landed:  # it will not reach its task: the task goes back to the pool
+                    drop_flying(task)
+                    pool[task] = self.tasks[task]
+                    reasons[task] = f"its rover {r} landed at the battery reserve while the carrier was lost"
+                    res.rejoined.append(r)  # a rover to collect where it landed
+                    st.event("task_returned", f"{task}: {r} landed at the battery reserve; the task goes "
+                             "back to the pool", r, task=task)
+                if landed:
+                    self._begin_replan(f"{', '.join(r for _, r in landed)} landed at the battery reserve "
+                                       "(carrier lost)", ev, plan)
+                return bool(landed)
             if ev.kind == "lost" and rid is not None:
                 st.set_state(rid, fs.LOST)
                 task = next((t for t, r in flying.items() if r == rid), None)

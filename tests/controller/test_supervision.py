@@ -165,7 +165,12 @@ async def test_carrier_lost_with_a_rover_at_the_reserve_lands_it(tmp_path: Path)
     assert "land" in cmds and "pause" not in cmds, cmds  # landed, not held
     others = {r.get("vehicle") for r in records(s, "command") if r.get("command") == "pause"}
     assert rid not in others
-    # the landed rover's task is accounted for: reached by a spare, or unserved with a reason
+    # the landed rover's task went back to the pool and a spare flew it once the carrier was back
+    returned = [e for e in trig.events if e.kind == "task_returned" and e.vehicle == rid]
+    assert returned, kinds
+    task = returned[0].data["task"]
+    assert task in s["tasks_reached"] and s["assignment"][task] != rid, s
+    assert s["replans"] >= 1
     assert_accounted(s, TASK_IDS, ROVERS3)
 
 
