@@ -14,18 +14,16 @@ waits on the disk; :meth:`Journal.aclose` writes the rest.
 
 from __future__ import annotations
 
-import asyncio
-import contextlib
 import json
 import logging
 import math
-import threading
 import time
 from collections.abc import Callable
 from datetime import datetime
 from pathlib import Path
 from typing import Any
 
+from fleetctl.background_file import BackgroundFile
 from fleetctl.fleet import Event
 from fleetctl.tlog import TlogWriter
 
@@ -61,24 +59,17 @@ def _clean(value: Any) -> Any:
     return str(value)
 
 
-class Journal:
+class Journal(BackgroundFile[str]):
     """The records of one run. ``write(kind, **data)`` is cheap (no I/O in the caller)."""
 
     def __init__(self, run_dir: str | Path, flush_interval: float = 0.5) -> None:
         self.dir = Path(run_dir)
         self.dir.mkdir(parents=True, exist_ok=True)
-        self.path = self.dir / "journal.jsonl"
+        super().__init__(self.dir / "journal.jsonl", binary=False, flush_interval=flush_interval)
         self.tlog_path = self.dir / "traffic.tlog"
         self.summary_path = self.dir / "summary.json"
-        self.flush_interval = flush_interval
         self.tlog = TlogWriter(self.tlog_path, flush_interval=flush_interval)
         self.started = time.monotonic()
-        self.records = 0
-        self._buf: list[str] = []
-        self._lock = threading.Lock()
-        self._file = self.path.open("a", encoding="utf-8")
-        self._task: asyncio.Task[None] | None = None
-        self._closed = False
         self._observers: list[Callable[[dict[str, Any]], None]] = []
 
     def add_observer(self, observer: Callable[[dict[str, Any]], None]) -> Callable[[], None]:
@@ -93,8 +84,7 @@ class Journal:
             return
         rec = {"t": round(time.time(), 3), "elapsed": round(time.monotonic() - self.started, 3), "kind": kind}
         rec.update(_clean(data))
-        self._buf.append(json.dumps(rec, separators=(",", ":")))
-        self.records += 1
+        self.queue(json.dumps(rec, separators=(",", ":")))
         for observer in list(self._observers):
             try:
                 observer(rec)
@@ -115,43 +105,15 @@ class Journal:
         path.write_text(json.dumps(_clean(data), indent=1) + "\n", encoding="utf-8")
         return path
 
-    def flush(self) -> None:
-        buf, self._buf = self._buf, []
-        if not buf:
-            return
-        with self._lock:
-            if not self._file.closed:
-                self._file.write("\n".join(buf) + "\n")
-                self._file.flush()
-
     # -- background ----------------------------------------------------------------------------
     def start(self) -> None:
         """Flush journal and tlog in the background (needs a running loop)."""
         self.tlog.start()
-        if self._task is None:
-            self._task = asyncio.get_running_loop().create_task(self._flusher(), name="journal flush")
-
-    async def _flusher(self) -> None:
-        while True:
-            await asyncio.sleep(self.flush_interval)
-            await asyncio.to_thread(self.flush)
+        super().start()
 
     async def aclose(self) -> None:
-        task, self._task = self._task, None
-        if task is not None:
-            task.cancel()
-            with contextlib.suppress(asyncio.CancelledError):
-                await task
         await self.tlog.aclose()
-        await asyncio.to_thread(self.close)
-
-    def close(self) -> None:
-        if self._closed:
-            return
-        self.flush()
-        self._closed = True
-        with self._lock:
-            self._file.close()
+        await super().aclose()
 
 
 def write_summary(summary: dict[str, Any], *paths: str | Path | None) -> None:
