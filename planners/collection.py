@@ -350,7 +350,8 @@ def build_collect_plan(problem: CollectProblem, planner: str, clusters: Sequence
     stops: list[Stop] = []
     prev: Vec3 = problem.start
     for members, pos in zip(clusters, positions, strict=True):
-        here: Vec3 = _snap(problem, members, prev, (float(pos[0]), float(pos[1]), 0.0))
+        inside = _within_reach(problem, members, (float(pos[0]), float(pos[1])))
+        here: Vec3 = _snap(problem, members, prev, inside)
         legs = [RoverLeg(rover=problem.rovers[i].id, path=[problem.rovers[i].position, here])
                 for i in members]
         stops.append(Stop(position=here, carrier_path=[prev, here], rovers=legs))
@@ -358,6 +359,27 @@ def build_collect_plan(problem: CollectProblem, planner: str, clusters: Sequence
     plan = Plan(kind="collect", planner=planner, start=problem.start, heading=problem.heading, stops=stops,
                 compute_ms=compute_ms)
     return retime(plan, problem.carrier, problem.rover)
+
+
+def _within_reach(problem: CollectProblem, members: Sequence[int], p: Point2) -> Vec3:
+    """``p`` pulled inside every member's reach disc where rounding left it a hair outside
+    (alternating projections; the discs intersect, so this converges to a point of I_β)."""
+    x, y = p
+    for _ in range(50):
+        worst = 0.0
+        for i in members:
+            (gx, gy, z), r = problem.rovers[i].position, problem.rovers[i].range
+            rho = math.sqrt(max(r * r - z * z, 0.0))
+            d = math.hypot(x - gx, y - gy)
+            if d > rho:
+                worst = max(worst, d - rho)
+                if d == 0.0 or rho == 0.0:
+                    x, y = gx, gy
+                else:
+                    x, y = gx + (x - gx) * rho / d, gy + (y - gy) * rho / d
+        if worst == 0.0:
+            break
+    return (x, y, 0.0)
 
 
 def _snap(problem: CollectProblem, members: Sequence[int], prev: Vec3, here: Vec3) -> Vec3:
