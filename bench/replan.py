@@ -27,9 +27,9 @@ import yaml
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from fleetctl.executor import View, execute, sim_mission_dict  # noqa: E402
-from fleetctl.fleet import Event, FleetState  # noqa: E402
 from fleetctl.mission import load_mission  # noqa: E402
+from fleetctl.run.executor import View, execute, sim_mission_dict  # noqa: E402
+from fleetctl.run.state import Event, FleetState  # noqa: E402
 from sitl import FleetConfig, SimFleet  # noqa: E402
 
 HB = 1.5

@@ -55,7 +55,7 @@ def cmd_plan(args: argparse.Namespace) -> int:
     else:
         _print_summary(mission, plan, bound)
     if args.plot:
-        from fleetctl.plot import plot_plan
+        from fleetctl.views.plot import plot_plan
 
         out = plot_plan(mission, plan, args.plot, bound)
         print(f"plot written to {out}", file=sys.stderr if args.json else sys.stdout)
@@ -121,8 +121,8 @@ rejected), 2 bad mission file or option, 130 interrupted (airborne rovers were t
 def cmd_fly(args: argparse.Namespace) -> int:
     import asyncio
 
-    from fleetctl.dashboard import make_view
-    from fleetctl.executor import ExecutionError, execute
+    from fleetctl.run.executor import ExecutionError, execute
+    from fleetctl.views.dashboard import make_view
 
     mission = load_mission(args.mission)
     if args.speedup is not None and args.speedup <= 0:
@@ -257,7 +257,7 @@ def _sim_config(mission: Mission, speedup: float | None) -> object:
 
     if speedup is not None and not speedup > 0:
         raise CliError(f"--speedup must be > 0, got {speedup}")
-    from fleetctl.executor import ExecutionError, sim_mission_dict
+    from fleetctl.run.executor import ExecutionError, sim_mission_dict
 
     try:  # the file with its defaults spelled out (rover units), as the controller sees the fleet
         return FleetConfig.from_mission_dict(sim_mission_dict(mission), speedup=speedup)
@@ -301,8 +301,8 @@ async def _status(mission: Mission, timeout: float, speedup: float | None) -> in
     import asyncio
     import contextlib
 
-    from fleetctl.link import LinkError
-    from fleetctl.vehicle import connect_fleet
+    from fleetctl.mavlink.fleet import connect_fleet
+    from fleetctl.mavlink.link import LinkError
 
     sim = None
     endpoints = None
@@ -431,7 +431,7 @@ def _add_bus_options(p: argparse.ArgumentParser) -> None:
 
 
 def _bus_config(mission: Mission, args: argparse.Namespace) -> object:
-    from fleetctl.bus import BusConfigError, bus_config
+    from fleetctl.bus.config import BusConfigError, bus_config
 
     if getattr(args, "topic_prefix", None) and not (args.mqtt or mission.mqtt):
         raise CliError("--topic-prefix needs --mqtt URL (or an mqtt: section in the mission)")
@@ -465,8 +465,8 @@ def cmd_watch(args: argparse.Namespace) -> int:
     import asyncio
     import os
 
-    from fleetctl.bus import BusConfig, BusConfigError, Secret, parse_url
-    from fleetctl.watch import watch
+    from fleetctl.bus.config import BusConfig, BusConfigError, Secret, parse_url
+    from fleetctl.views.watch import watch
 
     try:
         host, port, tls = parse_url(args.mqtt)

@@ -24,8 +24,8 @@ from pathlib import Path
 from typing import Any
 
 from fleetctl.background_file import BackgroundFile
-from fleetctl.fleet import Event
-from fleetctl.tlog import TlogWriter
+from fleetctl.mavlink.tlog import TlogWriter
+from fleetctl.run.state import Event
 
 log = logging.getLogger(__name__)
 
@@ -46,14 +46,14 @@ def run_dir_for(mission_name: str, base: str | Path = "runs") -> Path:
     raise FileExistsError(f"cannot create a run directory under {base}")
 
 
-def _clean(value: Any) -> Any:
+def json_safe(value: Any) -> Any:
     """JSON-safe: NaN/inf -> None, tuples -> lists, unknown objects -> str."""
     if isinstance(value, float):
         return value if math.isfinite(value) else None
     if isinstance(value, dict):
-        return {str(k): _clean(v) for k, v in value.items()}
+        return {str(k): json_safe(v) for k, v in value.items()}
     if isinstance(value, list | tuple | set | frozenset):
-        return [_clean(v) for v in value]
+        return [json_safe(v) for v in value]
     if value is None or isinstance(value, bool | int | str):
         return value
     return str(value)
@@ -83,7 +83,7 @@ class Journal(BackgroundFile[str]):
         if self._closed:
             return
         rec = {"t": round(time.time(), 3), "elapsed": round(time.monotonic() - self.started, 3), "kind": kind}
-        rec.update(_clean(data))
+        rec.update(json_safe(data))
         self.queue(json.dumps(rec, separators=(",", ":")))
         for observer in list(self._observers):
             try:
@@ -102,7 +102,7 @@ class Journal(BackgroundFile[str]):
     def write_json(self, name: str, data: Any) -> Path:
         """Write a whole JSON file into the run directory (small; plan and summary)."""
         path = self.dir / name
-        path.write_text(json.dumps(_clean(data), indent=1) + "\n", encoding="utf-8")
+        path.write_text(json.dumps(json_safe(data), indent=1) + "\n", encoding="utf-8")
         return path
 
     # -- background ----------------------------------------------------------------------------
@@ -118,7 +118,7 @@ class Journal(BackgroundFile[str]):
 
 def write_summary(summary: dict[str, Any], *paths: str | Path | None) -> None:
     """Write the run summary JSON to every given path (parents created)."""
-    text = json.dumps(_clean(summary), indent=1) + "\n"
+    text = json.dumps(json_safe(summary), indent=1) + "\n"
     for p in paths:
         if p is None:
             continue

@@ -1,4 +1,4 @@
-"""The MQTT fleet bus (fleetctl.bus, fleetctl watch) against a real broker (Debian's mosquitto).
+"""The MQTT fleet bus (fleetctl.bus.client, fleetctl watch) against a real broker (Debian's mosquitto).
 
 A session fixture starts ``mosquitto`` on a free loopback port with a temporary config; the
 missions fly on the simulated fleet (real MAVLink over UDP) at 20x. ``scripts/test.sh`` installs
@@ -26,10 +26,10 @@ import pytest
 sys.path.insert(0, str(Path(__file__).resolve().parent / "controller"))
 from ctl_helpers import mission_dict, mission_from  # noqa: E402
 
-from fleetctl.bus import FleetBus, bus_config  # noqa: E402
-from fleetctl.executor import RunOutcome, View, execute  # noqa: E402
-from fleetctl.fleet import FleetState  # noqa: E402
+from fleetctl.bus.client import FleetBus, bus_config  # noqa: E402
 from fleetctl.mission import Mission  # noqa: E402
+from fleetctl.run.executor import RunOutcome, View, execute  # noqa: E402
+from fleetctl.run.state import FleetState  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 MOSQUITTO = shutil.which("mosquitto") or next(
@@ -360,7 +360,7 @@ async def test_watch_renders_the_fleet_from_the_bus(broker: Broker, tmp_path: Pa
 
 async def test_watch_python_api(broker: Broker, tmp_path: Path) -> None:
     """The Watcher's state and render_text, from the retained topics of a finished mission."""
-    from fleetctl.watch import Watcher, render_text
+    from fleetctl.views.watch import Watcher, render_text
 
     prefix = "test/watchapi"
     mission = bus_mission(tmp_path, broker.port, prefix)

@@ -16,8 +16,8 @@ import pytest
 from shapely.geometry import LineString, Point, Polygon
 
 import planners
-from fleetctl.executor import execute, sim_mission_dict
 from fleetctl.mission import load_mission
+from fleetctl.run.executor import execute, sim_mission_dict
 from sitl import FleetConfig, SimFleet
 
 ROOT = Path(__file__).resolve().parents[1]

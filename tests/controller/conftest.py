@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 from ctl_helpers import mission_dict, mission_from, sim_fleet
 
-from fleetctl.vehicle import Fleet, connect_fleet
+from fleetctl.mavlink.fleet import Fleet, connect_fleet
 from sitl import SimFleet
 
 

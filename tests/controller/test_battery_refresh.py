@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from fleetctl.vehicle import Fleet
+from fleetctl.mavlink.fleet import Fleet
 from sitl import SimFleet
 
 

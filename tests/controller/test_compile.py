@@ -1,4 +1,4 @@
-"""fleetctl.compile: plan → mission items (coordinates through fleetctl.geo, item sequences)."""
+"""fleetctl.mavlink.compile: plan → mission items (coordinates through fleetctl.geo, item sequences)."""
 
 from __future__ import annotations
 
@@ -9,8 +9,8 @@ import pytest
 from pymavlink.dialects.v20 import ardupilotmega as M
 
 import planners
-from fleetctl.autopilot import ArduPilot, Px4
-from fleetctl.compile import CompileError, compile_plan, item_position
+from fleetctl.mavlink.autopilots import ArduPilot, Px4
+from fleetctl.mavlink.compile import CompileError, compile_plan, item_position
 from fleetctl.mission import load_mission
 
 RECON = Path(__file__).resolve().parents[2] / "missions" / "recon.yaml"

@@ -1,4 +1,4 @@
-"""fleetctl.energy: range = (remaining - reserve) · endurance_range, clamped at 0."""
+"""fleetctl.run.energy: range = (remaining - reserve) · endurance_range, clamped at 0."""
 
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ import math
 
 import pytest
 
-from fleetctl.energy import battery_range, range_from_percent
+from fleetctl.run.energy import battery_range, range_from_percent
 
 
 @pytest.mark.parametrize(("remaining", "reserve", "endurance", "expected"), [

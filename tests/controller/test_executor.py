@@ -1,4 +1,4 @@
-"""The controller flying missions against the simulated fleet over real UDP (fleetctl.executor):
+"""The controller flying missions against the simulated fleet over real UDP (fleetctl.run.executor):
 recon.yaml deployment then collection (``run``), packet loss, a rover that refuses to arm,
 collection of field-placed rovers, errors users meet, the records of a run and the CLI.
 
@@ -40,17 +40,17 @@ import pytest
 from ctl_helpers import mission_dict, mission_from, write_mission
 from pymavlink import mavutil
 
-from fleetctl.dashboard import render
-from fleetctl.executor import COLLECT_MEET_HEIGHT, View, execute, sim_mission_dict
-from fleetctl.fleet import FleetState
+from fleetctl.mavlink.fleet import Fleet
 from fleetctl.mission import Mission, load_mission
-from fleetctl.vehicle import Fleet
+from fleetctl.run.executor import COLLECT_MEET_HEIGHT, View, execute, sim_mission_dict
+from fleetctl.run.state import FleetState
+from fleetctl.views.dashboard import render
 from sitl import FleetConfig, SimFleet
 
 ROOT = Path(__file__).resolve().parents[2]
 RECON = ROOT / "missions" / "recon.yaml"
 SPEEDUP = 20.0
-POSITION_HZ = 10.0  # fleetctl.vehicle.DEFAULT_POSITION_HZ (wall)
+POSITION_HZ = 10.0  # fleetctl.mavlink.vehicle.DEFAULT_POSITION_HZ (wall)
 
 
 class Probe(View):

@@ -1,4 +1,4 @@
-"""fleetctl.link against the simulated fleet over real UDP: URL modes, request/response,
+"""fleetctl.mavlink.link against the simulated fleet over real UDP: URL modes, request/response,
 command ACKs and retries, the mission protocol (round trip, loss, error ACK)."""
 
 from __future__ import annotations
@@ -10,8 +10,8 @@ import pytest
 from ctl_helpers import free_udp_port, mission_dict, mission_from, sim_fleet
 from pymavlink.dialects.v20 import ardupilotmega as M
 
-from fleetctl.link import Link, LinkError, LinkTimeout, MissionItem, MissionRejected, parse_url
-from fleetctl.vehicle import connect_fleet
+from fleetctl.mavlink.fleet import connect_fleet
+from fleetctl.mavlink.link import Link, LinkError, LinkTimeout, MissionItem, MissionRejected, parse_url
 from sitl import Fault, SimFleet
 
 LAT0, LON0 = 47.397742, 8.545594
@@ -171,7 +171,7 @@ async def test_rovers_with_their_own_links(tmp_path: Path) -> None:
 
 
 async def test_connect_fleet_names_missing_vehicles(tmp_path: Path, sim: SimFleet) -> None:
-    from fleetctl.vehicle import FleetConnectError
+    from fleetctl.mavlink.fleet import FleetConnectError
 
     d = mission_dict(rovers=3)  # the sim has only r1, r2
     mission = mission_from(d, tmp_path)
@@ -182,7 +182,7 @@ async def test_connect_fleet_names_missing_vehicles(tmp_path: Path, sim: SimFlee
 
 
 def test_sim_connection_needs_endpoints(tmp_path: Path) -> None:
-    from fleetctl.vehicle import fleet_urls
+    from fleetctl.mavlink.fleet import fleet_urls
 
     mission = mission_from(mission_dict(), tmp_path)
     with pytest.raises(LinkError, match="start the simulated fleet"):

@@ -18,10 +18,10 @@ import pytest
 import yaml
 from ctl_helpers import ORIGIN
 
-from fleetctl.executor import View, execute, sim_mission_dict
-from fleetctl.fleet import Event, FleetState
+from fleetctl.mavlink.fleet import Fleet
 from fleetctl.mission import load_mission
-from fleetctl.vehicle import Fleet
+from fleetctl.run.executor import View, execute, sim_mission_dict
+from fleetctl.run.state import Event, FleetState
 from sitl import FleetConfig, SimFleet
 
 SPEEDUP = 8.0

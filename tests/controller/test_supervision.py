@@ -27,11 +27,11 @@ import yaml
 from ctl_helpers import ORIGIN
 from test_replan import Trigger, assert_accounted, journal
 
-from fleetctl.executor import Executor, execute, sim_mission_dict
-from fleetctl.fleet import Event, FleetState
 from fleetctl.journal import Journal
+from fleetctl.mavlink.fleet import connect_fleet
 from fleetctl.mission import load_mission
-from fleetctl.vehicle import connect_fleet
+from fleetctl.run.executor import Executor, execute, sim_mission_dict
+from fleetctl.run.state import Event, FleetState
 from planners.problem import Task
 from sitl import Fault, FleetConfig, SimFleet
 

@@ -1,4 +1,4 @@
-"""fleetctl.tlog: the traffic of a link, written as a .tlog and read back with pymavlink."""
+"""fleetctl.mavlink.tlog: the traffic of a link, written as a .tlog and read back with pymavlink."""
 
 from __future__ import annotations
 
@@ -6,8 +6,8 @@ import os
 import time
 from pathlib import Path
 
-from fleetctl.link import Link
-from fleetctl.tlog import TlogWriter
+from fleetctl.mavlink.link import Link
+from fleetctl.mavlink.tlog import TlogWriter
 from sitl import SimFleet
 
 

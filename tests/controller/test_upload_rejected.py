@@ -17,9 +17,9 @@ from ctl_helpers import mission_dict, mission_from, sim_fleet, write_mission
 from pymavlink.dialects.v20 import ardupilotmega as M
 from test_link import waypoints
 
-from fleetctl.link import Link, MissionRejected
+from fleetctl.mavlink.fleet import connect_fleet
+from fleetctl.mavlink.link import Link, MissionRejected
 from fleetctl.mission import load_mission
-from fleetctl.vehicle import connect_fleet
 from sitl import Fault
 from sitl.vehicle import MISSION_REJECTED_TEXT
 

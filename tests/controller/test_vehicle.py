@@ -1,4 +1,4 @@
-"""fleetctl.vehicle against the simulated fleet: state, commands, lost/back, compiled missions
+"""fleetctl.mavlink.vehicle against the simulated fleet: state, commands, lost/back, compiled missions
 with the carrier's hold at each stop and its release."""
 
 from __future__ import annotations
@@ -9,8 +9,9 @@ from pathlib import Path
 import pytest
 from ctl_helpers import mission_dict, mission_from, sim_fleet
 
-from fleetctl.compile import compile_for_fleet
-from fleetctl.vehicle import CommandRejected, Fleet, VehicleEvent, connect_fleet
+from fleetctl.mavlink.compile import compile_for_fleet
+from fleetctl.mavlink.fleet import Fleet, connect_fleet
+from fleetctl.mavlink.vehicle import CommandRejected, VehicleEvent
 from planners.plan import Plan, RoverLeg, Stop
 from sitl import Fault, SimFleet
 

@@ -39,13 +39,13 @@ from typing import TYPE_CHECKING
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
-from fleetctl.autopilot import Autopilot
 from fleetctl.geo import Origin, geodetic_to_local, local_to_geodetic
-from fleetctl.link import MissionItem
+from fleetctl.mavlink.autopilots import Autopilot
+from fleetctl.mavlink.link import MissionItem
 from planners.plan import Plan
 
 if TYPE_CHECKING:
-    from fleetctl.vehicle import Fleet
+    from fleetctl.mavlink.fleet import Fleet
 
 M = mavlink2
 FRAME = M.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT

@@ -20,11 +20,11 @@ from rich.progress_bar import ProgressBar
 from rich.table import Table
 from rich.text import Text
 
-from fleetctl.executor import View
-from fleetctl.fleet import Event, FleetState
+from fleetctl.run.executor import View
+from fleetctl.run.state import Event, FleetState
 
 if TYPE_CHECKING:
-    from fleetctl.vehicle import Fleet
+    from fleetctl.mavlink.fleet import Fleet
 
 REFRESH_HZ = 4.0
 

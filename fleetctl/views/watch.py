@@ -1,7 +1,7 @@
 """``fleetctl watch``: the live view of a mission flown by another process, from the MQTT bus alone.
 
 :class:`Watcher` subscribes to ``<prefix>/status``, ``/plan``, ``/vehicles/+/telemetry`` and
-``/events`` (see :mod:`fleetctl.bus`), keeps a :class:`RemoteFleetState` up to date and the
+``/events`` (see :mod:`fleetctl.bus.client`), keeps a :class:`RemoteFleetState` up to date and the
 dashboard (:func:`fleetctl.dashboard.render`) draws it; ``--headless`` prints the operator events
 instead and the fleet table when it ends. The connection is retried with backoff like the bus's.
 """
@@ -20,9 +20,16 @@ from typing import IO, Any
 import aiomqtt
 from rich.console import Console
 
-from fleetctl.bus import BACKOFF_MAX, BACKOFF_MIN, CONNECT_TIMEOUT, FINAL_STATES, BusConfig, client_kwargs
-from fleetctl.dashboard import HeadlessView, LiveView, render
-from fleetctl.fleet import Event, FleetState, VehicleState
+from fleetctl.bus.config import (
+    BACKOFF_MAX,
+    BACKOFF_MIN,
+    CONNECT_TIMEOUT,
+    FINAL_STATES,
+    BusConfig,
+    client_kwargs,
+)
+from fleetctl.run.state import Event, FleetState, VehicleState
+from fleetctl.views.dashboard import HeadlessView, LiveView, render
 
 log = logging.getLogger(__name__)
 

@@ -1,6 +1,6 @@
 """Supervision: telemetry and operator input turned into events the executor replans on.
 
-:class:`Supervisor` watches a connected :class:`fleetctl.vehicle.Fleet` and puts
+:class:`Supervisor` watches a connected :class:`fleetctl.mavlink.vehicle.Fleet` and puts
 :class:`SupervisorEvent` s on an :class:`asyncio.Queue` that the executor consumes:
 
 * ``lost`` / ``back``: no heartbeat for ``links.heartbeat_timeout`` (the vehicle proxy's timer),
@@ -31,9 +31,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from fleetctl.fleet import FleetState
+from fleetctl.mavlink.fleet import Fleet
+from fleetctl.mavlink.vehicle import VehicleEvent
 from fleetctl.mission import Mission, MissionError, load_mission
-from fleetctl.vehicle import Fleet, VehicleEvent
+from fleetctl.run.state import FleetState
 from planners.problem import Task, Vec3
 
 log = logging.getLogger(__name__)

@@ -4,7 +4,7 @@
 position, altitude, speed, battery, range, link age), the mission phase, the stop being served
 (k of N), planned vs elapsed time and the latest :class:`Event` s. The executor writes the
 controller-side fields (``state``, ``task``, phase, stop) and raises events; :meth:`FleetState.refresh`
-copies the telemetry of the live :class:`fleetctl.vehicle.Fleet` into it. Listeners (journal,
+copies the telemetry of the live :class:`fleetctl.mavlink.vehicle.Fleet` into it. Listeners (journal,
 headless log) get every event as it happens.
 """
 
@@ -18,11 +18,11 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
-from fleetctl.energy import range_from_percent
+from fleetctl.run.energy import range_from_percent
 
 if TYPE_CHECKING:
+    from fleetctl.mavlink.fleet import Fleet
     from fleetctl.mission import Mission
-    from fleetctl.vehicle import Fleet
 
 log = logging.getLogger(__name__)
 
@@ -56,7 +56,7 @@ class VehicleState:
     alt: float | None = None  # height above home (m)
     speed: float | None = None  # ground speed (m/s)
     battery_pct: float | None = None
-    range_m: float | None = None  # from fleetctl.energy (rovers)
+    range_m: float | None = None  # from fleetctl.run.energy (rovers)
     link_age: float | None = None  # s since last message
     connected: bool = False
     lost: bool = False
@@ -101,7 +101,7 @@ class FleetState:
         self.started = time.monotonic()
         self.events: deque[Event] = deque(maxlen=max_events)
         self._listeners: list[EventListener] = []
-        self.replans = 0  # replans so far (fleetctl.executor)
+        self.replans = 0  # replans so far (fleetctl.run.executor)
         self.last_replan: str | None = None  # text of the latest replan event
 
     # -- events ---------------------------------------------------------------------------------

@@ -1,17 +1,17 @@
 """Execution state machines: fly a deployment and a collection over MAVLink.
 
-:class:`Executor` works on a connected :class:`fleetctl.vehicle.Fleet` and writes what happens
+:class:`Executor` works on a connected :class:`fleetctl.mavlink.vehicle.Fleet` and writes what happens
 into a :class:`fleetctl.fleet.FleetState` (read by the dashboard) and the journal.
 
 Deployment: plan with the mission's planner from the carrier's live position and heading, upload
-the carrier's route (:mod:`fleetctl.compile`: a waypoint and an unlimited loiter per stop) and the
+the carrier's route (:mod:`fleetctl.mavlink.compile`: a waypoint and an unlimited loiter per stop) and the
 rovers' missions (take-off to task height, waypoint(s) to the task, loiter), start the carrier,
 then stop by stop: wait for the carrier to arrive, launch that stop's rovers (any rover on the
 deck may take any task; one that refuses to arm is skipped and a spare takes its task), wait
 until they are off the deck and ``unload_time`` has passed, release the carrier. A task is
 *reached* when its rover holds within :data:`REACH_RADIUS` of it.
 
-Collection: read every rover's position and battery, derive ranges (:mod:`fleetctl.energy`),
+Collection: read every rover's position and battery, derive ranges (:mod:`fleetctl.run.energy`),
 plan (``planners.COLLECT_PLANNERS``), send each rover above its meeting point (where it holds in
 an unlimited loiter) and the carrier along its route; when the carrier is at a stop, the stop's
 rovers are released to land on it; the carrier waits until every one of them is *loaded* (landed
@@ -36,8 +36,7 @@ from typing import Any, TypeVar
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
-from fleetctl import fleet as fs
-from fleetctl.compile import (
+from fleetctl.mavlink.compile import (
     CompiledPlan,
     CompileError,
     RoverMission,
@@ -45,12 +44,14 @@ from fleetctl.compile import (
     compile_for_fleet,
     item_position,
 )
-from fleetctl.energy import range_from_percent
-from fleetctl.fleet import FleetState, on_deck
-from fleetctl.link import LinkError, MissionItem, MissionRejected
+from fleetctl.mavlink.fleet import Fleet
+from fleetctl.mavlink.link import LinkError, MissionItem, MissionRejected
+from fleetctl.mavlink.vehicle import CommandRejected, Vehicle, VehicleEvent
 from fleetctl.mission import Mission
-from fleetctl.supervisor import Supervisor, SupervisorEvent, validate_task_change
-from fleetctl.vehicle import CommandRejected, Fleet, Vehicle, VehicleEvent
+from fleetctl.run import state as fs
+from fleetctl.run.energy import range_from_percent
+from fleetctl.run.state import FleetState, on_deck
+from fleetctl.run.supervisor import Supervisor, SupervisorEvent, validate_task_change
 from planners.plan import Plan, RoverLeg, Stop
 from planners.problem import CollectProblem, CollectRover, PlanningError, Task, Vec3
 
@@ -1131,7 +1132,7 @@ def _takeoff_seq(slot: RoverMission) -> int:
 
 
 class View:
-    """What the runner shows while flying (:mod:`fleetctl.dashboard` implements it)."""
+    """What the runner shows while flying (:mod:`fleetctl.views.dashboard` implements it)."""
 
     def start(self, state: FleetState, fleet: Fleet | None) -> None:  # pragma: no cover - interface
         pass
@@ -1209,7 +1210,7 @@ async def execute(
     than the wall clock elsewhere (a simulator in another process): mission time = wall x it.
     ``mqtt``: a :class:`fleetctl.bus.BusConfig` (default: from the mission's ``mqtt:`` section)."""
     from fleetctl.journal import SUMMARY_SCHEMA, Journal, run_dir_for, write_summary
-    from fleetctl.vehicle import FleetConnectError, connect_fleet
+    from fleetctl.mavlink.fleet import FleetConnectError, connect_fleet
 
     if command not in ("deploy", "collect", "run"):
         raise ValueError(f"unknown command {command!r}")
@@ -1237,7 +1238,7 @@ async def execute(
     state.mission_clock = clock
     state.add_listener(journal.on_event)
     journal.start()
-    from fleetctl.bus import start_bus
+    from fleetctl.bus.client import start_bus
 
     bus = start_bus(mission, mqtt, journal, state, view)  # None when the mission has no MQTT bus
     journal.write("run", mission=mission.name, command=command, file=str(mission.path or ""),

@@ -1,0 +1,1 @@
+"""The MQTT fleet bus (:mod:`.client`) and its settings (:mod:`.config`)."""

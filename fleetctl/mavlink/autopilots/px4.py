@@ -1,0 +1,66 @@
+"""PX4: custom modes main << 16 | sub << 24, take-off at an AMSL altitude, mission start by mode."""
+
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING
+
+from pymavlink.dialects.v20 import ardupilotmega as mavlink2
+
+from fleetctl.mavlink.autopilots.base import CUSTOM, Autopilot, ModeError, base_mode_name
+
+if TYPE_CHECKING:
+    from fleetctl.mavlink.vehicle import Vehicle
+
+M = mavlink2
+
+
+class Px4(Autopilot):
+    name = "px4"
+    _MAIN = {1: "MANUAL", 2: "ALTCTL", 3: "POSCTL", 4: "AUTO", 5: "ACRO", 6: "OFFBOARD", 7: "STABILIZED",
+             8: "RATTITUDE"}
+    _AUTO = {1: "READY", 2: "TAKEOFF", 3: "LOITER", 4: "MISSION", 5: "RTL", 6: "LAND", 7: "RTGS",
+             8: "FOLLOW_TARGET", 9: "PRECLAND"}
+    _GENERIC = {(4, 2): "TAKEOFF", (4, 3): "HOLD", (4, 4): "MISSION", (4, 5): "RTL", (4, 6): "LAND",
+                (3, 0): "MANUAL"}
+    _SET = {"HOLD": (4, 3), "GUIDED": (4, 3), "MISSION": (4, 4), "TAKEOFF": (4, 2), "LAND": (4, 6),
+            "RTL": (4, 5), "MANUAL": (3, 0), "POSCTL": (3, 0), "OFFBOARD": (6, 0)}
+
+    @staticmethod
+    def _split(custom_mode: int) -> tuple[int, int]:
+        main = (custom_mode >> 16) & 0xFF
+        sub = (custom_mode >> 24) & 0xFF
+        return main, (sub if main == 4 else 0)
+
+    def firmware_mode(self, base_mode: int, custom_mode: int) -> str:
+        if not base_mode & CUSTOM:
+            return base_mode_name(base_mode)
+        main, sub = self._split(custom_mode)
+        name = self._MAIN.get(main, f"MAIN{main}")
+        return f"{name}.{self._AUTO.get(sub, f'SUB{sub}')}" if main == 4 else name
+
+    def mode_name(self, base_mode: int, custom_mode: int) -> str:
+        if base_mode & CUSTOM:
+            generic = self._GENERIC.get(self._split(custom_mode))
+            if generic is not None:
+                return generic
+        return self.firmware_mode(base_mode, custom_mode)
+
+    def set_mode_params(self, mode: str) -> tuple[float, float, float]:
+        key = mode.upper()
+        if key not in self._SET:
+            raise ModeError(f"PX4 has no mode {mode!r}; use one of {', '.join(sorted(self._SET))}")
+        main, sub = self._SET[key]
+        return float(CUSTOM), float(main), float(sub)
+
+    async def takeoff(self, vehicle: Vehicle, height: float) -> None:
+        home = vehicle.home_amsl
+        if home is None:
+            raise RuntimeError(f"{vehicle.name}: home altitude unknown (no GLOBAL_POSITION_INT yet)")
+        nan = math.nan
+        await vehicle.command(M.MAV_CMD_NAV_TAKEOFF, (nan, 0, 0, nan, nan, nan, home + height))
+
+    async def start_mission(self, vehicle: Vehicle, first: int = 0) -> None:
+        if first > 0:
+            await vehicle.set_current(first)
+        await vehicle.set_mode("MISSION")

@@ -1,0 +1,158 @@
+"""The mission's fleet: every vehicle of a mission on its links (:func:`connect_fleet`)."""
+
+from __future__ import annotations
+
+import asyncio
+from collections.abc import Callable, Mapping
+from typing import TYPE_CHECKING
+
+from fleetctl.mavlink.link import Link, LinkError
+from fleetctl.mavlink.vehicle import DEFAULT_POSITION_HZ, Listener, Vehicle, VehicleEvent, put_event
+
+if TYPE_CHECKING:
+    from fleetctl.mission import Mission
+
+Tap = Callable[[str, float, bytes], None]
+
+
+class FleetConnectError(Exception):
+    """Some vehicles of the mission did not answer; ``missing`` maps vehicle id -> its URL."""
+
+    def __init__(self, missing: Mapping[str, str], reasons: Mapping[str, str]) -> None:
+        self.missing = dict(missing)
+        self.reasons = dict(reasons)
+        lines = [f"{vid} at {url}: {reasons.get(vid, 'no answer')}" for vid, url in self.missing.items()]
+        super().__init__(f"{len(lines)} vehicle(s) did not answer: " + "; ".join(lines))
+
+
+class Fleet:
+    """The mission's vehicles on their links. Close it (or use ``async with``) to close the links."""
+
+    def __init__(self, carrier_id: str, vehicles: dict[str, Vehicle], links: dict[str, Link],
+                 urls: dict[str, str], errors: dict[str, str]) -> None:
+        self.carrier_id = carrier_id
+        self.vehicles = vehicles  # id -> Vehicle (carrier first, then rovers in mission order)
+        self.links = links  # url -> open Link
+        self.urls = urls  # id -> url
+        self.errors = errors  # id -> why it is not connected (link errors, no heartbeat)
+
+    @property
+    def carrier(self) -> Vehicle:
+        return self.vehicles[self.carrier_id]
+
+    @property
+    def rovers(self) -> dict[str, Vehicle]:
+        return {k: v for k, v in self.vehicles.items() if k != self.carrier_id}
+
+    def missing(self) -> dict[str, str]:
+        """id -> URL of every vehicle never heard from."""
+        return {vid: self.urls[vid] for vid, v in self.vehicles.items() if not v.connected}
+
+    def add_listener(self, listener: Listener) -> Callable[[], None]:
+        """``listener(event)`` for every vehicle's events; returns the remover."""
+        return _all_of([v.add_listener(listener) for v in self.vehicles.values()])
+
+    def event_queue(self, maxsize: int = 0) -> asyncio.Queue[VehicleEvent]:
+        q: asyncio.Queue[VehicleEvent] = asyncio.Queue(maxsize)
+        self.add_listener(lambda ev: put_event(q, ev))
+        return q
+
+    def add_tap(self, tap: Callable[[str, float, bytes], None]) -> Callable[[], None]:
+        """Tap every link (e.g. a :class:`fleetctl.mavlink.tlog.TlogWriter`); returns the remover."""
+        return _all_of([link.add_tap(tap) for link in self.links.values()])
+
+    async def close(self) -> None:
+        for v in self.vehicles.values():
+            v.close()
+        await asyncio.gather(*(link.close() for link in self.links.values()))
+
+    async def __aenter__(self) -> Fleet:
+        return self
+
+    async def __aexit__(self, *exc: object) -> None:
+        await self.close()
+
+
+def _all_of(removers: list[Callable[[], None]]) -> Callable[[], None]:
+    def remove() -> None:
+        for r in removers:
+            r()
+
+    return remove
+
+
+def fleet_urls(mission: Mission, endpoints: Mapping[str, str] | None = None) -> dict[str, str]:
+    """vehicle id -> connection URL: ``endpoints`` first (e.g. ``SimFleet.endpoints``), else the
+    mission's connection; a rover without one shares the carrier's. ``sim`` without endpoints is
+    an error (start the simulated fleet and pass its endpoints)."""
+    eps = dict(endpoints or {})
+    c = mission.carrier
+    carrier_url = eps.get(c.id, c.connection)
+    urls = {c.id: carrier_url}
+    for u in mission.rovers.units:
+        urls[u.id] = eps.get(u.id) or u.connection or carrier_url
+    sim = [vid for vid, url in urls.items() if url == "sim"]
+    if sim:
+        raise LinkError(f"connection 'sim' of {', '.join(sim)}: start the simulated fleet "
+                        "(sitl.SimFleet) and pass its endpoints, or give a real connection URL")
+    return urls
+
+
+async def connect_fleet(
+    mission: Mission, endpoints: Mapping[str, str] | None = None, *, timeout: float = 10.0,
+    require_all: bool = True, gcs_sysid: int = 255, configure_streams: bool = True,
+    position_hz: float = DEFAULT_POSITION_HZ, tap: Tap | None = None,
+) -> Fleet:
+    """Open the links the mission names and wait up to ``timeout`` s for every vehicle's first
+    heartbeat (then set its message rates).
+
+    ``endpoints``: vehicle id -> URL overriding the mission (needed for ``connection: sim``:
+    pass ``SimFleet.endpoints``). With ``require_all`` a missing vehicle raises
+    :class:`FleetConnectError` naming each one and its URL (and closes everything); otherwise the
+    fleet is returned with ``fleet.missing()``/``fleet.errors`` filled in. ``tap`` sees every
+    datagram from before the first heartbeat on (the ``.tlog`` records the connect phase).
+    """
+    urls = fleet_urls(mission, endpoints)
+    origin = mission.origin
+    hb_timeout = mission.links.heartbeat_timeout
+    sysids = {mission.carrier.id: mission.carrier.sysid} | {u.id: u.sysid for u in mission.rovers.units}
+    links: dict[str, Link] = {}
+    errors: dict[str, str] = {}
+    all_links = {url: Link(url, sysid=gcs_sysid) for url in dict.fromkeys(urls.values())}  # URL errors raise
+    for url, link in all_links.items():
+        if tap is not None:
+            link.add_tap(tap)
+        try:
+            await link.open(timeout=min(timeout, 5.0))
+            links[url] = link
+        except LinkError as exc:
+            for vid, u in urls.items():
+                if u == url:
+                    errors[vid] = str(exc)
+    # a vehicle whose link failed to open keeps a proxy on the unopened link: it is reported, never heard
+    vehicles = {vid: Vehicle(all_links[url], sysids[vid], name=vid, origin=origin,
+                             heartbeat_timeout=hb_timeout) for vid, url in urls.items()}
+    fleet = Fleet(mission.carrier.id, vehicles, links, urls, errors)
+
+    async def first_heartbeat(vid: str, v: Vehicle) -> None:
+        if vid in errors:
+            return
+        try:
+            await v.wait_heartbeat(timeout)
+        except TimeoutError:
+            errors[vid] = (f"no heartbeat from system {v.sysid} within {timeout:g} s "
+                           "(check the URL, the system id and that the vehicle is powered)")
+
+    await asyncio.gather(*(first_heartbeat(vid, v) for vid, v in vehicles.items()))
+    missing = fleet.missing()
+    if missing and require_all:
+        await fleet.close()
+        raise FleetConnectError(missing, errors)
+    if configure_streams:
+        await asyncio.gather(*(v.configure_streams(position_hz) for v in vehicles.values() if v.connected))
+    return fleet
+
+
+
+
+__all__ = ["Fleet", "FleetConnectError", "Tap", "connect_fleet", "fleet_urls"]

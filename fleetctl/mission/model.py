@@ -1,0 +1,217 @@
+"""The typed mission: what a validated mission file becomes (:mod:`fleetctl.mission.loader` builds
+it), and the planning problems it gives the planners."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from fleetctl.geo import Origin, compass_to_math
+from planners.problem import (
+    CarrierSpec,
+    CollectProblem,
+    CollectRover,
+    DeployProblem,
+    Motion,
+    RoadmapParams,
+    Task,
+)
+
+Vec2 = tuple[float, float]
+Vec3 = tuple[float, float, float]
+
+FAULT_KINDS = ("dropout", "packet_loss", "latency", "battery_drain", "refuse_arm", "reject_mission")
+
+
+class MissionError(Exception):
+    """A mission file the controller cannot use; the message says where and what to change."""
+
+
+# --------------------------------------------------------------------------- typed configuration
+
+
+@dataclass(frozen=True)
+class CarrierConfig:
+    id: str
+    connection: str
+    sysid: int
+    position: Vec2
+    heading_deg: float
+    max_speed: float
+    accel: float | None
+    turn_rate: float | None
+    unload_time: float
+    load_time: float
+
+    def spec(self) -> CarrierSpec:
+        return CarrierSpec(self.max_speed, self.accel, self.turn_rate, self.unload_time, self.load_time)
+
+
+@dataclass(frozen=True)
+class RoverUnit:
+    id: str
+    sysid: int
+    connection: str | None  # None = shares the carrier's link
+
+
+@dataclass(frozen=True)
+class EnergyConfig:
+    initial: float
+    task: float
+    rho: float  # metres of flight per unit of energy
+
+
+@dataclass(frozen=True)
+class RoversConfig:
+    max_speed: float
+    accel: float | None
+    deploy_range: float  # given, or derived from ``energy``
+    endurance_range: float
+    reserve: float
+    units: tuple[RoverUnit, ...]  # deck order
+    energy: EnergyConfig | None = None
+
+    @property
+    def ids(self) -> tuple[str, ...]:
+        return tuple(u.id for u in self.units)
+
+    def motion(self) -> Motion:
+        return Motion(self.max_speed, self.accel)
+
+
+@dataclass(frozen=True)
+class Fault:
+    kind: str
+    vehicle: str | None  # None = every vehicle
+    at: float
+    until: float | None  # None = never back
+    rate: float | None = None  # packet_loss
+    seconds: float | None = None  # latency
+    factor: float | None = None  # battery_drain
+
+
+@dataclass(frozen=True)
+class SimConfig:
+    speedup: float = 1.0
+    faults: tuple[Fault, ...] = ()
+
+
+@dataclass(frozen=True)
+class LinksConfig:
+    heartbeat_timeout: float = 3.0
+
+
+@dataclass(frozen=True)
+class RoadmapConfig:
+    """Chapter 6 PRM parameters (eq. 6.5, 6.6); None = the roadmap planner's default."""
+
+    xi1: float | None = None
+    xi2: float | None = None
+    xi3: float | None = None
+    xi4: float | None = None
+    phi: float | None = None
+
+
+@dataclass(frozen=True)
+class PlannerConfig:
+    deploy: str = "lee"
+    collect: str = "lee"
+    seed: int = 0
+    roadmap: RoadmapConfig | None = None
+
+
+@dataclass(frozen=True)
+class TlsConfig:
+    ca: str | None = None
+    cert: str | None = None
+    key: str | None = None
+
+
+@dataclass(frozen=True)
+class MqttConfig:
+    url: str
+    topic_prefix: str
+    client_id: str | None = None
+    username: str | None = None
+    password_env: str | None = None  # name of the environment variable holding the password
+    tls: TlsConfig | None = None
+
+
+@dataclass(frozen=True)
+class Mission:
+    name: str
+    origin: Origin | None
+    carrier: CarrierConfig
+    rovers: RoversConfig
+    tasks: tuple[Task, ...]  # ENU metres, z = height above ground
+    obstacles: tuple[tuple[Vec2, ...], ...]
+    bounds: tuple[Vec2, Vec2] | None  # ((xmin, ymin), (xmax, ymax))
+    collection: tuple[CollectRover, ...] | None
+    sim: SimConfig
+    links: LinksConfig
+    planner: PlannerConfig
+    dwell: float
+    mqtt: MqttConfig | None
+    raw: dict[str, Any]  # the parsed YAML as written (no defaults filled in)
+    path: Path | None = None
+
+    def _start(self) -> Vec3:
+        return (self.carrier.position[0], self.carrier.position[1], 0.0)
+
+    def deploy_problem(self) -> DeployProblem:
+        if not self.tasks:
+            raise MissionError(f"{self._where()}: tasks: the mission has no tasks to deploy rovers to")
+        return DeployProblem(
+            carrier=self.carrier.spec(),
+            rover=self.rovers.motion(),
+            deploy_range=self.rovers.deploy_range,
+            start=self._start(),
+            heading=compass_to_math(self.carrier.heading_deg),
+            tasks=self.tasks,
+            rovers=self.rovers.ids,
+            **self.environment(),
+        )
+
+    def collect_problem(self) -> CollectProblem:
+        if self.collection is None:
+            raise MissionError(
+                f"{self._where()}: collection: the mission has no 'collection' section; add "
+                "collection: {rovers: [{id, position, range}, ...]} to plan a collection offline"
+            )
+        return CollectProblem(
+            carrier=self.carrier.spec(),
+            rover=self.rovers.motion(),
+            start=self._start(),
+            heading=compass_to_math(self.carrier.heading_deg),
+            rovers=self.collection,
+            **self.environment(),
+        )
+
+    def planner_for(self, phase: str) -> str:
+        """The planner a phase ("deploy" or "collect") uses when the command line names none: the
+        mission's ``planner`` entry, or ``lee-graph`` for a mission with obstacles that names none
+        (the open-space planners refuse obstacles)."""
+        named = (self.raw.get("planner") or {}).get(phase)
+        if named:
+            return str(named)
+        if self.obstacles:
+            return "lee-graph"
+        return self.planner.deploy if phase == "deploy" else self.planner.collect
+
+    def environment(self) -> dict[str, Any]:
+        """Chapter 6 fields of a planning problem: obstacles, bounds, roadmap parameters, seed.
+
+        ``dataclasses.replace(problem, **mission.environment())`` gives any problem built from
+        live state the mission's obstacles. Roadmap parameters left out of the file take the
+        dissertation's values (planners.problem.RoadmapParams).
+        """
+        rc = self.planner.roadmap
+        given = {} if rc is None else {k: v for k, v in vars(rc).items() if v is not None}
+        return {"obstacles": self.obstacles, "bounds": self.bounds, "roadmap": RoadmapParams(**given),
+                "seed": self.planner.seed}
+
+    def _where(self) -> str:
+        return str(self.path) if self.path is not None else self.name
+
+
