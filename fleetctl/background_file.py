@@ -3,12 +3,18 @@
 Callers queue records with :meth:`BackgroundFile.queue` (no I/O); ``start()`` flushes every
 ``flush_interval`` seconds from a background task; ``await aclose()`` writes the rest. Without a
 loop, ``flush()`` / ``close()`` write synchronously. Used by the journal and the ``.tlog``.
+
+``await sync()`` is the write-ahead step: it returns once every record queued before the call is
+written *and* fsynced (from a worker thread; concurrent callers share one fsync). Each flush is
+one ``os.write`` of whole records on an unbuffered file, so a process killed at any moment
+leaves only whole lines behind.
 """
 
 from __future__ import annotations
 
 import asyncio
 import contextlib
+import os
 import threading
 from pathlib import Path
 from typing import Generic, TypeVar
@@ -23,11 +29,13 @@ class BackgroundFile(Generic[T]):
         self.flush_interval = flush_interval
         self.records = 0
         self._buf: list[T] = []
-        self._sep: str | bytes = b"" if binary else "\n"
+        self._binary = binary
         self._lock = threading.Lock()  # the file is written from worker threads, one at a time
-        self._file = self.path.open("ab") if binary else self.path.open("a", encoding="utf-8")
+        self._file = self.path.open("ab", buffering=0)
         self._task: asyncio.Task[None] | None = None
         self._closed = False
+        self._synced = 0  # records known to be on disk (fsynced)
+        self._sync_lock: asyncio.Lock | None = None
 
     def queue(self, record: T) -> None:
         """Queue one record (cheap; no I/O). Text records are written one per line."""
@@ -41,11 +49,35 @@ class BackgroundFile(Generic[T]):
         buf, self._buf = self._buf, []
         if not buf:
             return
-        data = self._sep.join(buf) + ("\n" if self._sep == "\n" else b"")  # type: ignore[operator]
+        if self._binary:
+            data = b"".join(buf)  # type: ignore[arg-type]
+        else:
+            data = ("\n".join(buf) + "\n").encode("utf-8")  # type: ignore[arg-type]
         with self._lock:
             if not self._file.closed:
-                self._file.write(data)
-                self._file.flush()
+                view = memoryview(data)
+                while view:  # one write(2) for a regular file; loop only on a short write
+                    view = view[os.write(self._file.fileno(), view):]
+
+    def _flush_and_fsync(self) -> None:
+        self.flush()
+        with self._lock:
+            if not self._file.closed:
+                os.fsync(self._file.fileno())
+
+    async def sync(self) -> None:
+        """Return once every record queued so far is on disk (written and fsynced)."""
+        if self._closed:
+            return
+        target = self.records
+        if self._sync_lock is None:
+            self._sync_lock = asyncio.Lock()
+        async with self._sync_lock:
+            if self._synced >= target or self._closed:
+                return
+            upto = self.records
+            await asyncio.to_thread(self._flush_and_fsync)
+            self._synced = max(self._synced, upto)
 
     def start(self) -> None:
         """Flush every ``flush_interval`` s in the background (needs a running loop)."""
@@ -72,4 +104,6 @@ class BackgroundFile(Generic[T]):
         self.flush()
         self._closed = True
         with self._lock:
+            with contextlib.suppress(OSError):
+                os.fsync(self._file.fileno())
             self._file.close()

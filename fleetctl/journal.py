@@ -8,8 +8,14 @@
 * ``plan.json`` (``plan-collect.json`` for the collection of ``run``) - the plan JSON contract;
 * ``summary.json`` - the run summary (``schema fleetctl.summary/1``).
 
+* ``mission.yaml`` - a copy of the mission file the run was started with (``fleetctl resume``
+  reads it).
+
 Lines are buffered and written by a worker thread in the background, so the event loop never
-waits on the disk; :meth:`Journal.aclose` writes the rest.
+waits on the disk; :meth:`Journal.aclose` writes the rest. The journal is *write-ahead*:
+:meth:`Journal.commit` returns once the record (and everything before it) is written and
+fsynced, and the run awaits it before it sends the command the record describes, so a journal
+left by ``kill -9`` says what was commanded. :func:`read_journal` reads one back.
 """
 
 from __future__ import annotations
@@ -17,8 +23,9 @@ from __future__ import annotations
 import json
 import logging
 import math
+import shutil
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from datetime import datetime
 from pathlib import Path
 from typing import Any
@@ -30,6 +37,8 @@ from fleetctl.run.state import Event
 log = logging.getLogger(__name__)
 
 SUMMARY_SCHEMA = "fleetctl.summary/1"
+JOURNAL_NAME = "journal.jsonl"
+MISSION_COPY = "mission.yaml"
 
 
 def run_dir_for(mission_name: str, base: str | Path = "runs") -> Path:
@@ -65,7 +74,7 @@ class Journal(BackgroundFile[str]):
     def __init__(self, run_dir: str | Path, flush_interval: float = 0.5) -> None:
         self.dir = Path(run_dir)
         self.dir.mkdir(parents=True, exist_ok=True)
-        super().__init__(self.dir / "journal.jsonl", binary=False, flush_interval=flush_interval)
+        super().__init__(self.dir / JOURNAL_NAME, binary=False, flush_interval=flush_interval)
         self.tlog_path = self.dir / "traffic.tlog"
         self.summary_path = self.dir / "summary.json"
         self.tlog = TlogWriter(self.tlog_path, flush_interval=flush_interval)
@@ -90,6 +99,18 @@ class Journal(BackgroundFile[str]):
                 observer(rec)
             except Exception:  # noqa: BLE001 - an observer must not stop the mission
                 log.exception("journal observer failed")
+
+    async def commit(self, kind: str, **data: Any) -> None:
+        """Write a record and return once it (and every record before it) is on disk: await this
+        before sending the command it describes."""
+        self.write(kind, **data)
+        await self.sync()
+
+    def save_mission(self, source: str | Path) -> Path:
+        """Copy the mission file into the run directory (small; before anything flies)."""
+        dest = self.dir / MISSION_COPY
+        shutil.copyfile(source, dest)
+        return dest
 
     def on_event(self, ev: Event) -> None:
         """A :class:`fleetctl.fleet.FleetState` listener: journal every event."""
@@ -128,4 +149,36 @@ def write_summary(summary: dict[str, Any], *paths: str | Path | None) -> None:
         p.write_text(text, encoding="utf-8")
 
 
-__all__ = ["SUMMARY_SCHEMA", "Journal", "run_dir_for", "write_summary"]
+class JournalError(Exception):
+    """A journal that cannot be read back (missing, or a line in the middle that does not parse)."""
+
+
+def read_journal(path: str | Path) -> list[dict[str, Any]]:
+    """The records of a journal file. A last line cut short (a crash while the disk was being
+    written) is dropped; a bad line anywhere else raises :class:`JournalError`."""
+    path = Path(path)
+    try:
+        lines = path.read_text(encoding="utf-8").splitlines()
+    except OSError as exc:
+        raise JournalError(f"{path}: cannot read the journal: {exc.strerror or exc}") from None
+    return list(_parse_lines(path, lines))
+
+
+def _parse_lines(path: Path, lines: list[str]) -> Iterator[dict[str, Any]]:
+    for n, line in enumerate(lines, 1):
+        if not line.strip():
+            continue
+        try:
+            rec = json.loads(line)
+        except ValueError:
+            if n == len(lines):
+                log.warning("%s:%d: last line cut short (crash while writing); ignored", path, n)
+                return
+            raise JournalError(f"{path}:{n}: not a journal record (invalid JSON)") from None
+        if not isinstance(rec, dict) or not isinstance(rec.get("kind"), str):
+            raise JournalError(f"{path}:{n}: not a journal record (no 'kind')")
+        yield rec
+
+
+__all__ = ["JOURNAL_NAME", "MISSION_COPY", "SUMMARY_SCHEMA", "Journal", "JournalError", "read_journal",
+           "run_dir_for", "write_summary"]

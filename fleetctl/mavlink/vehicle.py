@@ -357,12 +357,13 @@ class Vehicle:
         """Ask for a BATTERY_STATUS now (REQUEST_MESSAGE) and wait for it: streamed battery
         messages come at ~1 Hz, too stale to plan a collection from (and a simulated fleet running
         faster than real time drains more between two). Returns the battery %, the last known one
-        when the vehicle does not answer in time."""
+        when the vehicle does not answer within ``timeout`` s (the whole budget, retries included)."""
         asked = time.monotonic()
         with contextlib.suppress(LinkError, CommandRejected, TimeoutError):
-            await self.command(mavlink2.MAV_CMD_REQUEST_MESSAGE,
-                               [float(mavlink2.MAVLINK_MSG_ID_BATTERY_STATUS)], timeout=timeout / 2)
-            await self.wait_until(lambda v: v.battery_at > asked, timeout, "a fresh battery reading")
+            async with asyncio.timeout(timeout):
+                await self.command(mavlink2.MAV_CMD_REQUEST_MESSAGE,
+                                   [float(mavlink2.MAVLINK_MSG_ID_BATTERY_STATUS)], timeout=timeout / 4)
+                await self.wait_until(lambda v: v.battery_at > asked, timeout, "a fresh battery reading")
         return self.battery_pct
 
     async def command(self, command: int, params: Iterable[float] = (), *, frame: int | None = None,

@@ -19,6 +19,7 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 from fleetctl.run.energy import range_from_percent
+from fleetctl.run.kinds import Phase, VehicleStatus
 
 if TYPE_CHECKING:
     from fleetctl.mavlink.fleet import Fleet
@@ -26,31 +27,13 @@ if TYPE_CHECKING:
 
 log = logging.getLogger(__name__)
 
-# controller states of a vehicle
-ON_DECK = "on_deck"
-CLIMBING = "climbing"
-EN_ROUTE = "en_route"
-ON_TASK = "on_task"
-RETURNING = "returning"
-LANDED = "landed"
-LOADED = "loaded"
-LOST = "lost"
-REFUSED = "refused"
-IDLE = "idle"  # carrier before/after its route
-DRIVING = "driving"
-HOLDING = "holding"  # carrier waiting at a stop
-UNKNOWN = "unknown"
-
-PHASES = ("connect", "plan", "deploy", "dwell", "collect", "done", "failed", "interrupted")
-
-
 @dataclass
 class VehicleState:
     id: str
     role: str  # "carrier" | "rover"
     sysid: int
     url: str = ""
-    state: str = UNKNOWN
+    state: str = VehicleStatus.UNKNOWN
     task: str | None = None
     enu: tuple[float, float, float] | None = None
     alt: float | None = None  # height above home (m)
@@ -92,7 +75,7 @@ class FleetState:
         for u in mission.rovers.units:
             self.vehicles[u.id] = VehicleState(u.id, "rover", u.sysid, urls.get(u.id, ""))
         self.carrier_id = mission.carrier.id
-        self.phase = "connect"
+        self.phase: str = Phase.CONNECT
         self.stop_index = 0  # 1-based stop being driven to / served; 0 before the first
         self.stop_count = 0
         self.planned: float | None = None  # planned makespan of the current phase (mission seconds)
@@ -175,8 +158,9 @@ class FleetState:
                     s.range_m = range_from_percent(v.battery_pct, self.reserve, self.endurance_range)
                 except ValueError:
                     s.range_m = None
-                if s.state == UNKNOWN and v.connected and on_deck(v.enu, cpos, v.on_ground, v.ground_speed):
-                    s.state = ON_DECK
+                if (s.state == VehicleStatus.UNKNOWN and v.connected
+                        and on_deck(v.enu, cpos, v.on_ground, v.ground_speed)):
+                    s.state = VehicleStatus.ON_DECK
 
     def snapshot(self) -> dict[str, Any]:
         """Plain dict of the whole state (for the journal / tests)."""

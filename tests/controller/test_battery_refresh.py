@@ -15,3 +15,19 @@ async def test_refresh_battery_reads_the_battery_now(fleet: Fleet, sim: SimFleet
     assert r1.battery_pct == 100.0
     assert await r1.refresh_battery(timeout=3.0) == 42.0
     assert r1.battery_pct == 42.0
+
+
+async def test_refresh_battery_is_bounded_by_its_timeout(fleet: Fleet, sim: SimFleet) -> None:
+    """A vehicle that does not answer REQUEST_MESSAGE costs the caller its timeout, not one
+    timeout per command attempt (8 attempts used to stall the collection plan for 8 s)."""
+    import time
+
+    from sitl.faults import Fault
+
+    r1 = fleet.rovers["r1"]
+    await r1.wait_until(lambda v: v.battery_pct is not None, 3.0, "telemetry")
+    before = r1.battery_pct
+    sim.faults.add(Fault(kind="dropout", vehicle="r1", at=0.0))
+    t = time.monotonic()
+    assert await r1.refresh_battery(timeout=1.0) == before  # the last known reading
+    assert time.monotonic() - t < 1.5

@@ -1,0 +1,114 @@
+"""The names of a run: vehicle states, phases, journal/event kinds and supervisor event kinds.
+
+Each is a :class:`~enum.StrEnum` whose values are the strings the journal, the summary, the MQTT
+bus and the views have always used, so ``json.dumps`` writes them unchanged.
+"""
+
+from __future__ import annotations
+
+from enum import StrEnum
+
+
+class VehicleStatus(StrEnum):
+    """What the controller thinks a vehicle is doing (``FleetState.vehicles[id].state``)."""
+
+    ON_DECK = "on_deck"
+    CLIMBING = "climbing"
+    EN_ROUTE = "en_route"
+    ON_TASK = "on_task"
+    RETURNING = "returning"
+    LANDED = "landed"
+    LOADED = "loaded"
+    LOST = "lost"
+    REFUSED = "refused"
+    IDLE = "idle"  # carrier before/after its route
+    DRIVING = "driving"
+    HOLDING = "holding"  # carrier waiting at a stop
+    UNKNOWN = "unknown"
+
+
+class Phase(StrEnum):
+    """The run's phase (``FleetState.phase``, the bus status, the live view)."""
+
+    CONNECT = "connect"
+    PLAN = "plan"
+    DEPLOY = "deploy"
+    DWELL = "dwell"
+    COLLECT = "collect"
+    DONE = "done"
+    FAILED = "failed"
+    INTERRUPTED = "interrupted"
+
+
+class Ev(StrEnum):
+    """Kinds of journal records and operator events (``journal.jsonl`` ``kind``)."""
+
+    # records of the run itself
+    RUN = "run"
+    RESUMED = "resumed"
+    SIM_STARTED = "sim_started"
+    CONNECTED = "connected"
+    MISSING = "missing"
+    PHASE = "phase"
+    SUMMARY = "summary"
+    BUS = "bus"
+    # planning and commands
+    PLAN = "plan"
+    REPLAN = "replan"
+    COMMAND = "command"
+    ACK = "ack"
+    SPARES = "spares"
+    LAUNCH = "launch"  # write-ahead: a rover is about to be armed for a task
+    ROVER_STATE = "rover_state"
+    # carrier
+    CARRIER_STARTED = "carrier_started"
+    STOP_REACHED = "stop_reached"
+    CARRIER_RELEASED = "carrier_released"
+    CARRIER_LOST = "carrier_lost"
+    CARRIER_BACK = "carrier_back"
+    HOLD = "hold"
+    # rovers and tasks
+    ROVER_LAUNCHED = "rover_launched"
+    ROVER_REFUSED = "rover_refused"
+    ROVER_FAILED = "rover_failed"
+    ROVER_SKIPPED = "rover_skipped"
+    ROVER_UNUSABLE = "rover_unusable"
+    ROVER_REJOINED = "rover_rejoined"
+    ROVER_RELEASED = "rover_released"
+    ROVER_LANDING = "rover_landing"
+    ROVER_LOADED = "rover_loaded"
+    ROVER_UNREACHABLE = "rover_unreachable"
+    TASK_REACHED = "task_reached"
+    TASK_RETURNED = "task_returned"
+    TASK_TIMEOUT = "task_timeout"
+    TASK_UNSERVED = "task_unserved"
+    TASKS_CHANGED = "tasks_changed"
+    TASK_CHANGE_REJECTED = "task_change_rejected"
+    COLLECTION_STARTED = "collection_started"
+    NOTHING_TO_COLLECT = "nothing_to_collect"
+    # supervision
+    LINK_LOST = "link_lost"
+    LINK_BACK = "link_back"
+    BATTERY_LOW = "battery_low"
+    OFF_COURSE = "off_course"
+    STATUSTEXT = "statustext"
+    # the end of a phase or run
+    DEPLOYED = "deployed"
+    DEPLOY_INCOMPLETE = "deploy_incomplete"
+    DWELL = "dwell"
+    COLLECTED = "collected"
+    ERROR = "error"
+    INTERRUPTED = "interrupted"
+
+
+class Watch(StrEnum):
+    """Kinds of :class:`fleetctl.run.supervisor.SupervisorEvent`."""
+
+    LOST = "lost"
+    BACK = "back"
+    BATTERY_LOW = "battery_low"
+    OFF_COURSE = "off_course"
+    TASKS = "tasks"
+
+
+__all__ = ["Ev", "Phase", "VehicleStatus", "Watch"]
