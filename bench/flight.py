@@ -35,7 +35,8 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from fleetctl.mission import load_mission  # noqa: E402
-from fleetctl.run.executor import execute, sim_mission_dict  # noqa: E402
+from fleetctl.run.runner import execute  # noqa: E402
+from fleetctl.run.sim import sim_mission_dict  # noqa: E402
 from sitl import FleetConfig, SimFleet  # noqa: E402
 
 ORIGIN = {"lat": 47.397742, "lon": 8.545594, "alt": 488.0}

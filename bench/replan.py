@@ -28,8 +28,10 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from fleetctl.mission import load_mission  # noqa: E402
-from fleetctl.run.executor import View, execute, sim_mission_dict  # noqa: E402
+from fleetctl.run.runner import execute  # noqa: E402
+from fleetctl.run.sim import sim_mission_dict  # noqa: E402
 from fleetctl.run.state import Event, FleetState  # noqa: E402
+from fleetctl.views.view import View  # noqa: E402
 from sitl import FleetConfig, SimFleet  # noqa: E402
 
 HB = 1.5

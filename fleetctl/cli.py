@@ -111,43 +111,109 @@ the rovers named in the mission's 'collection:' section at their positions there
 their 'range' implies; the others stay on the deck) and refuses a mission without that section -
 fly 'run' to deploy, dwell and collect in one go.
 
-Records: runs/<mission>-<timestamp>/ holds journal.jsonl, traffic.tlog (all MAVLink traffic),
-plan.json and summary.json (schema fleetctl.summary/1; also written to --summary).
+Records: runs/<mission>-<timestamp>/ (or --run-dir DIR, named on the first output line) holds
+journal.jsonl (written ahead of every command), traffic.tlog (all MAVLink traffic), mission.yaml
+(a copy of the mission), plan.json and summary.json (schema fleetctl.summary/1; also --summary).
 Exit status: 0 mission complete, 1 not complete (or a vehicle did not answer, an upload was
-rejected), 2 bad mission file or option, 130 interrupted (airborne rovers were told to hold).
+rejected), 2 bad mission file or option, 130 interrupted by Ctrl-C, 143 by SIGTERM (airborne
+rovers were told to hold; 'fleetctl resume --run DIR' finishes the run).
 """
 
 
+EXIT_TERMINATED = 143  # SIGTERM: like Ctrl-C (airborne rovers hold, records written)
+
+
 def cmd_fly(args: argparse.Namespace) -> int:
+    mission = load_mission(args.mission)
+    if args.command in ("deploy", "run") and not mission.tasks:
+        raise CliError(f"{mission.path}: tasks: the mission has no tasks to deploy rovers to (a collection-"
+                       f"only mission); fly it with 'fleetctl collect --mission {args.mission}'")
+    return _fly(args, mission, args.command, {"run_dir": args.run_dir, "runs_dir": args.runs})
+
+
+def cmd_resume(args: argparse.Namespace) -> int:
+    from fleetctl.run.resume import ResumeError, load_resumption
+
+    try:
+        resumption = load_resumption(args.run, args.mission)
+    except ResumeError as e:
+        raise CliError(str(e)) from None
+    for key in ("planner", "dwell"):  # the interrupted run's choices, unless given again
+        if getattr(args, key, None) is None:
+            setattr(args, key, resumption.options.get(key))
+    return _fly(args, resumption.mission, resumption.command, {"resume": resumption})
+
+
+def _fly(args: argparse.Namespace, mission: Mission, command: str, extra: dict[str, object]) -> int:
     import asyncio
 
-    from fleetctl.run.executor import ExecutionError, execute
+    from fleetctl.run.context import ExecutionError
+    from fleetctl.run.runner import EXIT_INTERRUPTED
     from fleetctl.views.dashboard import make_view
 
-    mission = load_mission(args.mission)
     if args.speedup is not None and args.speedup <= 0:
         raise CliError(f"--speedup must be > 0, got {args.speedup}")
     if getattr(args, "dwell", None) is not None and args.dwell < 0:
         raise CliError(f"--dwell must be >= 0 s, got {args.dwell}")
     mqtt = _bus_config(mission, args)
     view = make_view(True if args.headless else None)
+
+    def announce(run_dir: object) -> None:
+        print(f"run folder: {run_dir}", flush=True)
+
+    options = dict(speedup=args.speedup, planner=args.planner, dwell=getattr(args, "dwell", None),
+                   summary_path=args.summary, view=view, connect_timeout=args.timeout, mqtt=mqtt,
+                   on_run_dir=announce, **extra)
     try:
-        outcome = asyncio.run(execute(
-            mission, args.command, speedup=args.speedup, planner=args.planner,
-            dwell=getattr(args, "dwell", None), summary_path=args.summary, runs_dir=args.runs,
-            view=view, connect_timeout=args.timeout, mqtt=mqtt))
+        outcome, terminated = asyncio.run(_with_sigterm(mission, command, options))
     except ExecutionError as e:  # raised before anything flew (e.g. collect on a sim mission)
         raise CliError(str(e)) from None
-    s = outcome.summary
-    if outcome.error:
-        print(f"fleetctl: error: {outcome.error}", file=sys.stderr)
-    print(f"{args.command} {s['result']}: "
-          + (f"{len(s['tasks_reached'])}/{len(mission.tasks)} tasks reached" if args.command != "collect"
+    _print_outcome(command, mission, outcome)
+    if terminated and outcome.exit_code == EXIT_INTERRUPTED:
+        return EXIT_TERMINATED
+    return outcome.exit_code
+
+
+async def _with_sigterm(mission: Mission, command: str, options: dict[str, object]) -> tuple[object, bool]:
+    """Run the command; SIGTERM cancels it like Ctrl-C does (and is reported as such)."""
+    import asyncio
+    import contextlib
+    import signal
+
+    from fleetctl.run.runner import execute
+
+    loop = asyncio.get_running_loop()
+    task = asyncio.current_task()
+    got: list[int] = []
+
+    def on_term() -> None:
+        got.append(signal.SIGTERM)
+        if task is not None:
+            task.cancel()
+
+    with contextlib.suppress(NotImplementedError):  # platforms without signal handlers
+        loop.add_signal_handler(signal.SIGTERM, on_term)
+    try:
+        outcome = await execute(mission, command, **options)
+    finally:
+        with contextlib.suppress(NotImplementedError):
+            loop.remove_signal_handler(signal.SIGTERM)
+    return outcome, bool(got)
+
+
+def _print_outcome(command: str, mission: Mission, outcome: object) -> None:
+    s = outcome.summary  # type: ignore[attr-defined]
+    if outcome.error:  # type: ignore[attr-defined]
+        print(f"fleetctl: error: {outcome.error}", file=sys.stderr)  # type: ignore[attr-defined]
+    n_tasks = len(s.get("tasks_reached", [])) + len(s.get("tasks_unserved", []))
+    print(f"{command} {s['result']}: "
+          + (f"{len(s['tasks_reached'])}/{n_tasks or len(mission.tasks)} tasks reached" if command != "collect"
              else f"{len(s['rovers_loaded'])} rovers loaded")
+          + (f", {len(s['rovers_airborne'])} rovers airborne" if s.get("rovers_airborne") else "")
           + (f", makespan {s['makespan_flown']:.1f} s (planned {s['makespan_planned']:.1f} s)"
              if s.get("makespan_flown") is not None and s.get("makespan_planned") is not None else "")
-          + f"; records in {outcome.run_dir}", file=sys.stderr if outcome.exit_code else sys.stdout)
-    return outcome.exit_code
+          + f"; records in {outcome.run_dir}",  # type: ignore[attr-defined]
+          file=sys.stderr if outcome.exit_code else sys.stdout)  # type: ignore[attr-defined]
 
 
 def _add_fly_commands(sub: argparse._SubParsersAction) -> None:
@@ -178,11 +244,52 @@ def _add_fly_commands(sub: argparse._SubParsersAction) -> None:
         if name == "run":
             p.add_argument("--dwell", type=float, metavar="S",
                            help="seconds on task before collection (default: the mission's dwell)")
-        p.add_argument("--runs", default="runs", metavar="DIR", help="where run records go (default: runs)")
-        p.add_argument("--timeout", type=float, default=10.0, metavar="S",
-                       help="seconds to wait for every vehicle's first heartbeat (default: 10)")
-        _add_bus_options(p)
+        p.add_argument("--runs", default="runs", metavar="DIR",
+                       help="where run folders go (default: runs; each run gets runs/<mission>-<timestamp>)")
+        p.add_argument("--run-dir", metavar="DIR",
+                       help="the records folder of this run (default: a new folder under --runs); "
+                            "printed as the first line of output; 'fleetctl resume --run DIR' finishes it")
+        _add_shared_fly_options(p)
         p.set_defaults(func=cmd_fly)
+    _add_resume_command(sub)
+
+
+def _add_shared_fly_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--timeout", type=float, default=10.0, metavar="S",
+                   help="seconds to wait for every vehicle's first heartbeat (default: 10)")
+    _add_bus_options(p)
+
+
+_RESUME_EPILOG = """\
+What it does: reads DIR/journal.jsonl (written ahead of every command, so it says what was
+commanded up to the crash) and DIR/mission.yaml, reconnects to the live fleet, checks the journal
+against telemetry (rovers on the deck, flying to their task, holding on it, landed elsewhere,
+lost; where the carrier is), then finishes the interrupted phase - and for a 'run' the dwell and
+the collection - with the same planners and replanning. It never launches a rover that is flying
+and never serves a reached task again; it appends to the same journal (a 'resumed' record) and
+writes DIR/summary.json for the whole run.
+
+It refuses (exit 2) a folder without a journal, a run that completed, a --mission that is not
+the saved one, and a run on the embedded simulated fleet (connection: sim), which died with the
+controller. Exit status otherwise as for deploy/collect/run.
+"""
+
+
+def _add_resume_command(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("resume", help="finish a run whose controller was killed or crashed",
+                       description="Finish an interrupted deploy, collect or run from its records folder, "
+                                   "on the live fleet.", epilog=_RESUME_EPILOG,
+                       formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--run", required=True, metavar="DIR", help="the run folder (printed when the run started)")
+    p.add_argument("--mission", "-m", help="the mission file (default: the copy saved in the run folder; "
+                                           "given, it must be the same)")
+    p.add_argument("--headless", action="store_true", help="one log line per event instead of the live view")
+    p.add_argument("--speedup", type=float, metavar="X", help=argparse.SUPPRESS)
+    p.add_argument("--summary", metavar="OUT.json", help="also write the run summary JSON here")
+    p.add_argument("--planner", "-p", help="planner name (default: the interrupted run's)")
+    p.add_argument("--dwell", type=float, metavar="S", help="run: seconds on task (default: the interrupted run's)")
+    _add_shared_fly_options(p)
+    p.set_defaults(func=cmd_resume)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -257,7 +364,8 @@ def _sim_config(mission: Mission, speedup: float | None) -> object:
 
     if speedup is not None and not speedup > 0:
         raise CliError(f"--speedup must be > 0, got {speedup}")
-    from fleetctl.run.executor import ExecutionError, sim_mission_dict
+    from fleetctl.run.context import ExecutionError
+    from fleetctl.run.sim import sim_mission_dict
 
     try:  # the file with its defaults spelled out (rover units), as the controller sees the fleet
         return FleetConfig.from_mission_dict(sim_mission_dict(mission), speedup=speedup)

@@ -28,8 +28,9 @@ from ctl_helpers import mission_dict, mission_from  # noqa: E402
 
 from fleetctl.bus.client import FleetBus, bus_config  # noqa: E402
 from fleetctl.mission import Mission  # noqa: E402
-from fleetctl.run.executor import RunOutcome, View, execute  # noqa: E402
+from fleetctl.run.runner import RunOutcome, execute  # noqa: E402
 from fleetctl.run.state import FleetState  # noqa: E402
+from fleetctl.views.view import View  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 MOSQUITTO = shutil.which("mosquitto") or next(

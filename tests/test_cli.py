@@ -90,7 +90,7 @@ def test_help_explains():
 @pytest.mark.parametrize("mission", sorted((ROOT / "missions").glob("**/*.yaml")), ids=lambda p: p.name)
 def test_every_mission_file_configures_the_simulated_fleet(mission):
     # What `fleetctl sim` and the embedded fleet of deploy/run start from.
-    from fleetctl.run.executor import sim_mission_dict
+    from fleetctl.run.sim import sim_mission_dict
     from sitl import FleetConfig
 
     m = load_mission(mission)

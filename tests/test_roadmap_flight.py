@@ -17,7 +17,8 @@ from shapely.geometry import LineString, Point, Polygon
 
 import planners
 from fleetctl.mission import load_mission
-from fleetctl.run.executor import execute, sim_mission_dict
+from fleetctl.run.runner import execute
+from fleetctl.run.sim import sim_mission_dict
 from sitl import FleetConfig, SimFleet
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -20,8 +20,8 @@ from rich.progress_bar import ProgressBar
 from rich.table import Table
 from rich.text import Text
 
-from fleetctl.run.executor import View
 from fleetctl.run.state import Event, FleetState
+from fleetctl.views.view import View
 
 if TYPE_CHECKING:
     from fleetctl.mavlink.fleet import Fleet

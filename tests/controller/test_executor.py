@@ -42,9 +42,12 @@ from pymavlink import mavutil
 
 from fleetctl.mavlink.fleet import Fleet
 from fleetctl.mission import Mission, load_mission
-from fleetctl.run.executor import COLLECT_MEET_HEIGHT, View, execute, sim_mission_dict
+from fleetctl.run.planning import COLLECT_MEET_HEIGHT
+from fleetctl.run.runner import execute
+from fleetctl.run.sim import sim_mission_dict
 from fleetctl.run.state import FleetState
 from fleetctl.views.dashboard import render
+from fleetctl.views.view import View
 from sitl import FleetConfig, SimFleet
 
 ROOT = Path(__file__).resolve().parents[2]

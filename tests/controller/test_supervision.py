@@ -30,7 +30,9 @@ from test_replan import Trigger, assert_accounted, journal
 from fleetctl.journal import Journal
 from fleetctl.mavlink.fleet import connect_fleet
 from fleetctl.mission import load_mission
-from fleetctl.run.executor import Executor, execute, sim_mission_dict
+from fleetctl.run.executor import Executor
+from fleetctl.run.runner import execute
+from fleetctl.run.sim import sim_mission_dict
 from fleetctl.run.state import Event, FleetState
 from planners.problem import Task
 from sitl import Fault, FleetConfig, SimFleet

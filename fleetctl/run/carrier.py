@@ -1,0 +1,193 @@
+"""Carrier control: its live pose, its route (upload, arm, start), holding at a stop and release,
+and what the fleet does while the carrier's link is down.
+
+The carrier's route is a mission of a waypoint and an unlimited loiter per stop
+(:mod:`fleetctl.mavlink.compile`); it holds at a stop until :meth:`CarrierControl.release` moves
+its current item on. While the carrier is lost nothing is launched (:meth:`CarrierControl.ready`
+waits), airborne rovers hold (or land when their battery is at the reserve) and resume when it
+is back.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import logging
+import math
+from collections.abc import Callable
+
+from fleetctl.mavlink.compile import CompiledPlan
+from fleetctl.mavlink.link import LinkError, MissionItem, MissionRejected
+from fleetctl.mavlink.vehicle import CommandRejected, Vehicle
+from fleetctl.run.context import ExecutionError, RunContext
+from fleetctl.run.kinds import Ev, VehicleStatus, Watch
+from fleetctl.run.supervisor import SupervisorEvent
+
+log = logging.getLogger(__name__)
+
+CARRIER_OUTAGE_MAX = 600.0  # mission s the controller waits for a lost carrier to come back
+
+Vec3 = tuple[float, float, float]
+
+
+async def upload(ctx: RunContext, v: Vehicle, items: list[MissionItem]) -> None:
+    """Upload a mission to any vehicle; a rejection becomes an :class:`ExecutionError` naming it."""
+    try:
+        await ctx.command(v, "upload_mission", v.upload_mission(items), items=len(items))
+    except MissionRejected as exc:
+        why = f" ({exc.reason})" if exc.reason else ""
+        raise ExecutionError(f"{v.name} ({ctx.fleet.urls.get(v.name, '')}) rejected its mission: "
+                             f"{exc.result_name}{why}") from None
+
+
+class CarrierControl:
+    """The carrier of one run (see the module docstring)."""
+
+    def __init__(self, ctx: RunContext) -> None:
+        self.ctx = ctx
+        self.ok = asyncio.Event()  # cleared while the carrier's link is down
+        self.ok.set()
+        self.losses = 0  # carrier link losses so far (a wait that timed out during one is retried)
+        self.held: set[str] = set()  # rovers paused while the carrier is lost
+
+    @property
+    def vehicle(self) -> Vehicle:
+        return self.ctx.fleet.carrier
+
+    @property
+    def lost(self) -> bool:
+        return self.vehicle.lost
+
+    def pose(self) -> tuple[Vec3, float]:
+        """The carrier's live ENU position (on the ground) and math heading; the mission's when
+        telemetry lacks them."""
+        c, m = self.vehicle, self.ctx.mission
+        pos = c.enu
+        start = (pos[0], pos[1], 0.0) if pos is not None else (m.carrier.position[0],
+                                                               m.carrier.position[1], 0.0)
+        if c.heading_deg is not None:
+            heading = math.radians(90.0 - c.heading_deg)
+            heading = math.atan2(math.sin(heading), math.cos(heading))
+        else:
+            heading = math.radians(90.0 - m.carrier.heading_deg)
+        return start, heading
+
+    # -- the route ---------------------------------------------------------------------------------
+    async def start_route(self, compiled: CompiledPlan) -> None:
+        c = self.vehicle
+        await upload(self.ctx, c, list(compiled.carrier))
+        try:
+            if not c.armed:
+                await self.ctx.command(c, "arm", c.arm())
+            await self.ctx.command(c, "start_mission", c.start_mission())
+        except CommandRejected as exc:
+            raise ExecutionError(f"the carrier {c.name} refused to start its route: {exc}") from None
+        except (LinkError, TimeoutError) as exc:
+            raise ExecutionError(f"the carrier {c.name} did not answer: {exc}") from None
+
+    async def release(self, stop: int, seq: int | None) -> None:
+        """Let the carrier leave stop ``stop`` (0-based) by moving its mission on to ``seq``."""
+        if seq is None:
+            return
+        c = self.vehicle
+        try:
+            await self.ctx.command(c, "set_current", c.set_current(seq), seq=seq, stop=stop + 1)
+        except (CommandRejected, LinkError, TimeoutError) as exc:
+            raise ExecutionError(f"the carrier {c.name} could not be released from its stop: {exc}") from None
+        self.ctx.record(Ev.CARRIER_RELEASED, stop=stop + 1)
+
+    async def reach_stop(self, k: int, arrive_seq: int, planned_leg: float) -> float:
+        """Wait for the carrier to reach stop ``k`` (its mission clock time), waiting out carrier
+        link outages on the way."""
+        while True:
+            losses = self.losses
+            try:
+                return await self._wait_stop(k, arrive_seq, planned_leg)
+            except ExecutionError:
+                if losses == self.losses and not self.lost:
+                    raise
+                await self.ready()
+
+    async def _wait_stop(self, k: int, arrive_seq: int, planned_leg: float) -> float:
+        c, st = self.vehicle, self.ctx.state
+        st.stop_index = k + 1
+        st.set_state(c.name, VehicleStatus.DRIVING)
+        try:
+            await c.wait_item_reached(arrive_seq, self.ctx.wall(planned_leg))
+        except TimeoutError as exc:
+            raise ExecutionError(f"the carrier did not reach stop {k + 1}: {exc}") from None
+        t = self.ctx.clock()
+        st.set_state(c.name, VehicleStatus.HOLDING)
+        st.event(Ev.STOP_REACHED, f"{c.name}: stop {k + 1}/{st.stop_count} reached", c.name,
+                 stop=k + 1, position=c.enu)
+        return t
+
+    async def ready(self) -> None:
+        """Wait (bounded) until the carrier's link is up."""
+        if self.ok.is_set() and not self.lost:
+            return
+        try:
+            await self.vehicle.wait_until(lambda v: not v.lost, self.ctx.wall(CARRIER_OUTAGE_MAX),
+                                          "carrier back")
+        except TimeoutError:
+            raise ExecutionError(f"the carrier {self.ctx.fleet.carrier_id} stayed lost for more than "
+                                 f"{CARRIER_OUTAGE_MAX:g} s; rovers in the field hold where they are"
+                                 ) from None
+
+    # -- carrier outages ---------------------------------------------------------------------------
+    def on_link(self, ev: SupervisorEvent, airborne: Callable[[], list[str]]) -> list[str]:
+        """Carrier lost: no more launches, airborne rovers hold (or land when their battery is at
+        the reserve); back: they resume. Returns the rovers sent to land."""
+        if ev.kind == Watch.LOST:
+            return self._lost(airborne())
+        self._back()
+        return []
+
+    def _lost(self, airborne: list[str]) -> list[str]:
+        ctx = self.ctx
+        self.ok.clear()
+        self.losses += 1
+        reserve = ctx.mission.rovers.reserve * 100.0
+        rovers = ctx.fleet.rovers
+        landing: list[str] = []
+        for rid in airborne:
+            v = rovers[rid]
+            if v.lost:
+                continue
+            low = v.battery_pct is not None and v.battery_pct <= reserve
+            if low:
+                landing.append(rid)
+            else:
+                self.held.add(rid)
+            ctx.spawn(self.hold_or_land(v, low), f"hold {rid}")
+        cid = ctx.fleet.carrier_id
+        ctx.state.event(Ev.CARRIER_LOST, f"{cid}: carrier lost: no launches; airborne rovers hold "
+                        f"({', '.join(sorted(self.held)) or 'none'})", cid)
+        return landing
+
+    def _back(self) -> None:
+        ctx = self.ctx
+        self.ok.set()
+        held, self.held = sorted(self.held), set()
+        for rid in held:
+            ctx.spawn(self._resume(ctx.fleet.rovers[rid]), f"resume {rid}")
+        cid = ctx.fleet.carrier_id
+        ctx.state.event(Ev.CARRIER_BACK, f"{cid}: carrier back; resuming {', '.join(held) or 'nothing'}", cid)
+
+    async def hold_or_land(self, v: Vehicle, low: bool) -> None:
+        try:
+            if low:
+                await self.ctx.command(v, "land", v.land())
+                self.ctx.state.event(Ev.ROVER_LANDING, f"{v.name}: battery at the reserve, landing where "
+                                     "it is", v.name)
+            else:
+                await self.ctx.command(v, "pause", v.pause())
+        except (CommandRejected, LinkError, TimeoutError) as exc:
+            log.warning("%s: could not hold/land: %s", v.name, exc)
+
+    async def _resume(self, v: Vehicle) -> None:
+        with contextlib.suppress(CommandRejected, LinkError, TimeoutError):
+            await self.ctx.command(v, "resume", v.resume())
+
+
+__all__ = ["CARRIER_OUTAGE_MAX", "CarrierControl", "upload"]

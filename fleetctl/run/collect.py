@@ -1,0 +1,419 @@
+"""The collection phase: plan the pick-up from live positions and batteries and fly it.
+
+State lives on a :class:`RoverBoard`: each rover to collect is *pending* (waiting for a round),
+*in a round* (flying to its meeting point), *loaded*, *lost*, *unreachable* (too little range
+to reach the ground) or *failed* (a round could not bring it in). Each round plans the pending rovers from their live positions and fresh
+battery readings (:mod:`fleetctl.run.energy`), sends each above its meeting point (where it holds
+in an unlimited loiter) and the carrier along its route; at a stop the stop's rovers are sent to
+land on the carrier, which waits until every one is *loaded* (landed within
+:data:`fleetctl.run.state.DECK_RADIUS`), then ``load_time``, then goes on.
+
+A rover lost on the way is removed: the others keep the meeting points they are flying to (on
+the energy they have left, ch. 5.5.3) and stops left empty are dropped (:meth:`_trim`); a lost
+rover that comes back is collected in a further round planned from the live state.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import dataclasses
+import logging
+from collections.abc import Iterable
+from dataclasses import dataclass, field
+from enum import StrEnum
+
+from pymavlink.dialects.v20 import ardupilotmega as mavlink2
+
+from fleetctl.mavlink.compile import CompiledPlan, StopItems
+from fleetctl.mavlink.link import LinkError, MissionItem
+from fleetctl.mavlink.vehicle import CommandRejected, Vehicle
+from fleetctl.run.carrier import CarrierControl, upload
+from fleetctl.run.context import RunContext
+from fleetctl.run.energy import range_from_percent
+from fleetctl.run.events import announce_warning, drain, race
+from fleetctl.run.kinds import Ev, Phase, VehicleStatus, Watch
+from fleetctl.run.launch import flight_path, rover_on_deck
+from fleetctl.run.planning import Planning
+from fleetctl.run.results import PhaseResult
+from fleetctl.run.supervisor import Supervisor, SupervisorEvent
+from planners.plan import Plan, Stop
+from planners.problem import CollectProblem, CollectRover
+
+log = logging.getLogger(__name__)
+
+LANDING_TIMEOUT = 10.0  # mission s from the land command to the rover on the deck
+
+
+class RoverStatus(StrEnum):
+    PENDING = "pending"
+    IN_ROUND = "in_round"
+    LOADED = "loaded"
+    LOST = "lost"
+    UNREACHABLE = "unreachable"
+    FAILED = "failed"  # a round could not bring it in (upload, arm or landing failed)
+
+
+@dataclass
+class RoverBoard:
+    """Where every rover to collect stands (see the module docstring)."""
+
+    status: dict[str, RoverStatus] = field(default_factory=dict)  # in the order given
+    loaded_at: dict[str, float] = field(default_factory=dict)  # mission s since the phase started
+    lost_at_start: list[str] = field(default_factory=list)  # never heard or without a position
+
+    def with_status(self, s: RoverStatus) -> list[str]:
+        return [r for r, x in self.status.items() if x == s]
+
+    def set(self, rid: str, s: RoverStatus) -> None:
+        self.status[rid] = s
+
+    def load(self, rid: str, flown: float) -> None:
+        self.status[rid] = RoverStatus.LOADED
+        self.loaded_at[rid] = flown
+
+    def in_round(self, rid: str) -> bool:
+        return self.status.get(rid) == RoverStatus.IN_ROUND
+
+
+@dataclass
+class _Round:
+    """One round's mission bookkeeping: per rover, the hold and land items, and who failed."""
+
+    plan: Plan
+    compiled: CompiledPlan
+    hold_seq: dict[str, int] = field(default_factory=dict)
+    land_seq: dict[str, int] = field(default_factory=dict)
+    items: dict[str, list[MissionItem]] = field(default_factory=dict)
+    failed: set[str] = field(default_factory=set)
+    start: float = 0.0  # mission clock when the route (or its trimmed rest) started
+
+
+@dataclass(frozen=True)
+class ResumedCollect:
+    """What ``fleetctl resume`` knows of an interrupted collection."""
+
+    elapsed: float  # mission seconds since the carrier first started collecting
+    planned: float | None
+    loaded: dict[str, float]  # rover -> loaded at (mission s of the phase)
+
+
+class CollectPhase:
+    """One collection (see the module docstring)."""
+
+    def __init__(self, ctx: RunContext, carrier: CarrierControl, supervisor: Supervisor,
+                 planning: Planning, resumed: ResumedCollect | None = None) -> None:
+        self.ctx = ctx
+        self.carrier = carrier
+        self.supervisor = supervisor
+        self.planning = planning
+        self.board = RoverBoard()
+        self.plan: Plan | None = None
+        self.t0: float | None = None  # mission clock when the carrier first started
+        self.result = PhaseResult("collect")
+        self.resumed = resumed
+
+    # ============================================================================== the loop
+    async def run(self, rover_ids: Iterable[str] | None = None) -> PhaseResult:
+        """Collect ``rover_ids`` (default: every connected rover not on the deck)."""
+        ctx = self.ctx
+        ctx.state.set_phase(Phase.PLAN)
+        await ctx.wait_telemetry()
+        self.supervisor.start()
+        self._start_board(rover_ids)
+        if self.resumed is not None:
+            self._adopt(self.resumed)
+        last_load: float | None = None
+        while True:
+            drain(self.supervisor.queue, self.handle)
+            batch = self.board.with_status(RoverStatus.PENDING)
+            if not batch:
+                ctx.replans.ready(None)
+                break
+            await self.carrier.ready()
+            crs = await self._rover_states(batch)
+            if not crs:
+                continue
+            await self._round(crs)
+            last_load = self.result.flown if self.result.flown is not None else last_load
+            self.result.flown = None
+        return self._finish(last_load)
+
+    def _start_board(self, rover_ids: Iterable[str] | None) -> None:
+        ctx, rovers = self.ctx, self.ctx.fleet.rovers
+        ids = list(rover_ids) if rover_ids is not None else [
+            rid for rid, v in rovers.items() if v.connected and not rover_on_deck(ctx, v)]
+        for rid in ids:
+            v = rovers[rid]
+            if rover_on_deck(ctx, v) and rover_ids is not None:  # already back on the carrier
+                self.board.load(rid, 0.0)
+                ctx.state.set_state(rid, VehicleStatus.LOADED)
+            elif not v.connected or v.lost or v.enu is None:
+                self.board.set(rid, RoverStatus.LOST)
+                self.board.lost_at_start.append(rid)
+                ctx.state.set_state(rid, VehicleStatus.LOST)
+            else:
+                self.board.set(rid, RoverStatus.PENDING)
+
+    def _adopt(self, resumed: ResumedCollect) -> None:
+        now = self.ctx.clock()
+        self.t0 = self.result.started = now - resumed.elapsed
+        self.result.planned = resumed.planned
+        self.ctx.state.set_phase(Phase.COLLECT, resumed.planned, 0)
+        self.ctx.state.phase_started = self.t0
+        for rid, flown in resumed.loaded.items():
+            self.board.load(rid, flown)
+            self.ctx.state.set_state(rid, VehicleStatus.LOADED)
+
+    async def _rover_states(self, batch: list[str]) -> list[CollectRover]:
+        """Positions and ranges of ``batch`` from fresh battery readings (not the ~1 Hz stream)."""
+        ctx, rp, rovers = self.ctx, self.ctx.mission.rovers, self.ctx.fleet.rovers
+        await asyncio.gather(*(rovers[rid].refresh_battery() for rid in batch))
+        crs = []
+        for rid in batch:
+            v = rovers[rid]
+            p = v.enu
+            if p is None:
+                self.board.set(rid, RoverStatus.LOST)
+                continue
+            rng = range_from_percent(v.battery_pct, rp.reserve, rp.endurance_range)
+            if rng is None:
+                rng = (1.0 - rp.reserve) * rp.endurance_range
+                log.warning("%s reports no battery; assuming a full one", rid)
+            ctx.record(Ev.ROVER_STATE, vehicle=rid, position=p, battery_pct=v.battery_pct, range=rng)
+            if rng < max(p[2], 0.0):  # cannot even land below itself: out of the carrier's reach
+                self.board.set(rid, RoverStatus.UNREACHABLE)
+                ctx.state.event(Ev.ROVER_UNREACHABLE, f"{rid}: {rng:.1f} m of range left at {p[2]:.1f} m up: "
+                                "cannot reach the ground, not collected", rid, range=rng, height=p[2])
+                continue
+            self.board.set(rid, RoverStatus.IN_ROUND)
+            crs.append(CollectRover(rid, (p[0], p[1], max(p[2], 0.0)), rng))
+        return crs
+
+    async def _round(self, crs: list[CollectRover]) -> None:
+        ctx, st = self.ctx, self.ctx.state
+        start, heading = self.carrier.pose()
+        m = ctx.mission
+        problem = CollectProblem(m.carrier.spec(), m.rovers.motion(), start, heading, tuple(crs),
+                                 **m.environment())
+        plan = await self.planning.plan("collect", problem)
+        compiled = self.planning.compile(plan)
+        ctx.replans.ready(plan)
+        if self.t0 is None:
+            self.result.plan, self.result.planned = plan, plan.makespan
+            st.set_phase(Phase.COLLECT, plan.makespan, len(plan.stops))
+        else:
+            st.planned = (ctx.clock() - self.t0) + plan.makespan
+            st.stop_count, st.stop_index = len(plan.stops), 0
+        self.plan = plan
+        planned = {leg.rover for leg in plan.legs()}
+        for c in crs:  # a rover the plan leaves out waits for the next round
+            if c.id not in planned:
+                self.board.set(c.id, RoverStatus.PENDING)
+        await self._fly(_Round(plan, compiled))
+        for rid in self.board.with_status(RoverStatus.IN_ROUND):  # not loaded in its round
+            self.board.set(rid, RoverStatus.FAILED)
+
+    # ============================================================================== one round
+    async def _fly(self, rnd: _Round) -> None:
+        await self._send_rovers(rnd)
+        ctx = self.ctx
+        q = self.supervisor.queue
+        stops, cstops = list(rnd.plan.stops), list(rnd.compiled.stops)
+        rnd.start = ctx.clock()
+        k, prev = 0, 0.0
+        while k < len(stops):
+            stop, items = stops[k], cstops[k]
+            ok, _ = await race(q, self.carrier.reach_stop(k, items.arrive_seq, stop.arrive - prev), self.handle)
+            if not ok:
+                stops, cstops = await self._trim(rnd, stops[k:], cstops[k:])
+                k, prev = 0, 0.0
+                continue
+            prev = stop.depart
+            await asyncio.gather(*(self._bring_in(rnd, leg.rover, leg.arrive) for leg in stop.rovers))
+            await ctx.sleep_mission(ctx.mission.carrier.load_time)
+            assert self.t0 is not None
+            self.result.flown = ctx.clock() - self.t0
+            if drain(q, self.handle) and k + 1 < len(stops):
+                stops, cstops = await self._trim(rnd, stops[k + 1:], cstops[k + 1:])
+                k, prev = 0, 0.0
+                continue
+            await self.carrier.release(k, items.release_seq)
+            k += 1
+
+    async def _send_rovers(self, rnd: _Round) -> None:
+        """Upload every rover's way back (with a hold above its meeting point), start the
+        carrier, then the rovers."""
+        ctx, st, rovers = self.ctx, self.ctx.state, self.ctx.fleet.rovers
+        for rid, rm in rnd.compiled.rovers.items():
+            items = list(rm.items)
+            hold = dataclasses.replace(items[rm.target_seq], command=mavlink2.MAV_CMD_NAV_LOITER_UNLIM)
+            items.insert(rm.target_seq + 1, hold)
+            rnd.hold_seq[rid], rnd.land_seq[rid] = rm.target_seq + 1, rm.final_seq + 1
+            rnd.items[rid] = items
+        results = await asyncio.gather(*(upload(ctx, rovers[rid], items) for rid, items in rnd.items.items()),
+                                       return_exceptions=True)
+        for rid, r in zip(rnd.items, results, strict=True):
+            if isinstance(r, BaseException):
+                rnd.failed.add(rid)
+                st.event(Ev.ROVER_FAILED, f"{rid}: mission upload failed ({r})", rid)
+        await self.carrier.start_route(rnd.compiled)
+        if self.t0 is None:
+            self.t0 = self.result.started = st.phase_started = ctx.clock()
+        await asyncio.gather(*(self._go(rnd, rid) for rid in rnd.items if rid not in rnd.failed))
+        for rid in rnd.failed:
+            if self.board.in_round(rid):
+                self.board.set(rid, RoverStatus.LOST if rovers[rid].lost else RoverStatus.FAILED)
+        st.event(Ev.COLLECTION_STARTED, f"collecting {len(rnd.items) - len(rnd.failed)} rovers", None)
+
+    async def _go(self, rnd: _Round, rid: str) -> None:
+        v = self.ctx.fleet.rovers[rid]
+        try:
+            if not v.armed:
+                await self.ctx.command(v, "arm", v.arm())
+            await self.ctx.command(v, "start_mission", v.start_mission())
+            self.ctx.state.set_state(rid, VehicleStatus.RETURNING)
+            self.supervisor.expect(rid, flight_path(self.ctx, rnd.compiled.rovers[rid], v.enu or (0.0, 0.0, 0.0)))
+        except (CommandRejected, LinkError, TimeoutError) as exc:
+            self.ctx.state.event(Ev.ROVER_FAILED, f"{rid}: cannot start its way back ({exc})", rid)
+            rnd.failed.add(rid)
+
+    async def _bring_in(self, rnd: _Round, rid: str, leg_arrive: float) -> None:
+        """Wait for ``rid`` above the stop, send it down onto the carrier, wait until loaded."""
+        ctx, st = self.ctx, self.ctx.state
+        v = ctx.fleet.rovers[rid]
+        if rid in rnd.failed or not self.board.in_round(rid):
+            return
+        try:
+            await self._wait_meeting_point(rnd, v, leg_arrive)
+            if v.lost:
+                return
+            if not rover_on_deck(ctx, v):
+                await ctx.command(v, "set_current", v.set_current(rnd.land_seq[rid]), seq=rnd.land_seq[rid])
+                st.set_state(rid, VehicleStatus.LANDED)
+            await v.wait_until(lambda v: rover_on_deck(ctx, v) or v.lost, ctx.wall(LANDING_TIMEOUT),
+                               "landing on the carrier")
+            if v.lost:
+                return
+        except (CommandRejected, LinkError, TimeoutError) as exc:
+            st.event(Ev.ROVER_FAILED, f"{rid}: not loaded ({exc})", rid)
+            return
+        assert self.t0 is not None
+        flown = ctx.clock() - self.t0
+        self.board.load(rid, flown)
+        self.supervisor.expect(rid, None)
+        st.set_state(rid, VehicleStatus.LOADED)
+        st.event(Ev.ROVER_LOADED, f"{rid}: loaded on the carrier at {flown:.1f} s", rid, flown=flown)
+
+    async def _wait_meeting_point(self, rnd: _Round, v: Vehicle, leg_arrive: float) -> None:
+        ctx, rid = self.ctx, v.name
+        while True:
+            losses = self.carrier.losses
+            try:
+                await v.wait_until(
+                    lambda v: ((v.mission_current or 0) >= rnd.hold_seq[rid] or rover_on_deck(ctx, v)
+                               or v.lost),
+                    ctx.wall(max(leg_arrive - (ctx.clock() - rnd.start), 0.0)), "meeting point")
+                return
+            except TimeoutError:
+                if losses == self.carrier.losses and not self.carrier.lost:
+                    raise
+
+    async def _trim(self, rnd: _Round, rest: list[Stop], rest_items: list[StopItems]
+                    ) -> tuple[list[Stop], list[StopItems]]:
+        """The rest of a route without the rovers no longer in it: the others keep their meeting
+        points; stops left empty are dropped and the carrier re-routed from where it is."""
+        ctx = self.ctx
+        keep: list[Stop] = []
+        for s in rest:
+            legs = [leg for leg in s.rovers if self.board.in_round(leg.rover)]
+            if legs:
+                keep.append(Stop(s.position, [], legs, s.arrive, s.depart))
+        start, heading = self.carrier.pose()
+        prev = start
+        for s in keep:
+            s.carrier_path = [prev, s.position]
+            prev = s.position
+        new = Plan("collect", rnd.plan.planner, start, heading, keep,
+                   makespan=max((s.depart for s in keep), default=0.0), notes=["trimmed: lost rovers removed"])
+        rnd.start = ctx.clock()
+        if [s.position for s in keep] == [s.position for s in rest] and keep:
+            ctx.replans.ready(new)  # the route itself is unchanged: no new command
+            ctx.replans.finish(None)
+            return keep, rest_items
+        if not keep:
+            ctx.replans.ready(None)
+            return [], []
+        await ctx.commit(Ev.PLAN, plan=new.to_json())
+        compiled = self.planning.compile(new)
+        ctx.replans.ready(new)
+        await self.carrier.start_route(compiled)
+        rnd.start = ctx.clock()
+        return keep, list(compiled.stops)
+
+    # ============================================================================== events
+    def handle(self, ev: SupervisorEvent) -> bool:
+        """Apply one supervision event; True when the rest of the route must be trimmed."""
+        rid, board = ev.vehicle, self.board
+        if ev.kind in (Watch.LOST, Watch.BACK) and rid == self.ctx.fleet.carrier_id:
+            self.carrier.on_link(ev, lambda: board.with_status(RoverStatus.IN_ROUND))
+            return False
+        status = board.status.get(rid) if rid is not None else None
+        if ev.kind == Watch.LOST and rid is not None and status not in (None, RoverStatus.LOADED):
+            return self._on_rover_lost(ev, rid)
+        if ev.kind == Watch.BACK and rid is not None and status == RoverStatus.LOST:
+            board.set(rid, RoverStatus.PENDING)
+            if rid in board.lost_at_start:
+                board.lost_at_start.remove(rid)
+            self.ctx.state.set_state(rid, VehicleStatus.ON_TASK)
+            self.ctx.state.event(Ev.ROVER_REJOINED, f"{rid}: link back: rejoins the rovers to collect", rid)
+            return False
+        if ev.kind == Watch.TASKS:
+            self.supervisor.reject("the deployment is over; tasks can change only while deploying", ev.source)
+            return False
+        announce_warning(self.ctx, ev)
+        if ev.kind == Watch.BATTERY_LOW and rid is not None and self.carrier.lost and board.in_round(rid):
+            self.carrier.held.discard(rid)
+            self.ctx.spawn(self.carrier.hold_or_land(self.ctx.fleet.rovers[rid], True), f"land {rid}")
+        return False
+
+    def _on_rover_lost(self, ev: SupervisorEvent, rid: str) -> bool:
+        was_in_round = self.board.in_round(rid)
+        self.board.set(rid, RoverStatus.LOST)
+        self.ctx.state.set_state(rid, VehicleStatus.LOST)
+        self.supervisor.expect(rid, None)
+        if was_in_round:
+            self.ctx.replans.begin(f"{rid} lost during the collection", ev, self.plan)
+            return True
+        return False
+
+    # ============================================================================== the result
+    def _finish(self, last_load: float | None) -> PhaseResult:
+        self.ctx.state.set_state(self.ctx.fleet.carrier_id, VehicleStatus.IDLE)
+        res = self.snapshot(last_load)
+        if self.t0 is None:
+            lost = self.board.lost_at_start
+            self.ctx.state.event(Ev.NOTHING_TO_COLLECT, "no rover to collect"
+                                 + (f" ({len(lost)} lost)" if lost else ""))
+        return res
+
+    def snapshot(self, last_load: float | None = None) -> PhaseResult:
+        """The result as the board has it now (also after an interruption)."""
+        board, res = self.board, self.result
+        if last_load is None and board.loaded_at:
+            last_load = max(board.loaded_at.values())
+        ids = list(board.status)
+        res.rovers_loaded = board.with_status(RoverStatus.LOADED)
+        res.rovers_lost = board.with_status(RoverStatus.LOST)
+        res.rovers_unreachable = board.with_status(RoverStatus.UNREACHABLE)
+        lost_at_start = set(board.lost_at_start)
+        # complete: every rover loaded, except those out of reach and those lost before it began
+        res.complete = all(board.status[r] in (RoverStatus.LOADED, RoverStatus.UNREACHABLE) or r in lost_at_start
+                           for r in ids)
+        if self.t0 is None:  # nothing flown
+            res.planned = 0.0
+            res.complete = res.complete and not lost_at_start
+        res.flown = (last_load if last_load is not None else 0.0) if res.complete else None
+        return res
+
+
+__all__ = ["CollectPhase", "ResumedCollect", "RoverBoard", "RoverStatus"]

@@ -1,0 +1,145 @@
+"""What every part of a flight shares: the mission, the live fleet, the state the views read, the
+mission clock, the journal and the background tasks the run owns.
+
+* **Clock.** ``clock()`` is the mission clock (simulated seconds on the embedded simulated fleet,
+  else ``time.monotonic`` scaled by the vehicles' speed-up); :meth:`RunContext.wall` turns a
+  planned mission duration into the wall-clock timeout of a wait on it.
+* **Journalled commands.** :meth:`RunContext.command` writes the command record to disk
+  (write-ahead, :meth:`fleetctl.journal.Journal.commit`) *before* sending it, then records the
+  acknowledgement; a pending replan's latency is measured at its first command.
+* **Owned tasks.** :meth:`RunContext.spawn` starts a background task the context cancels in
+  :meth:`RunContext.close`.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import logging
+import time
+from collections.abc import Awaitable, Callable, Coroutine
+from typing import Any, Protocol, TypeVar
+
+from fleetctl.mavlink.fleet import Fleet
+from fleetctl.mavlink.link import LinkError, MissionRejected
+from fleetctl.mavlink.vehicle import CommandRejected, Vehicle
+from fleetctl.mission import Mission
+from fleetctl.run.kinds import Ev
+from fleetctl.run.replan import ReplanTracker
+from fleetctl.run.state import FleetState
+
+log = logging.getLogger(__name__)
+
+T = TypeVar("T")
+
+TIMEOUT_FACTOR = 2.0  # a wait may take this many times its planned (mission) duration ...
+TIMEOUT_MARGIN = 30.0  # ... plus this many mission seconds ...
+TIMEOUT_WALL = 15.0  # ... plus this many wall seconds (protocol retries, packet loss)
+TELEMETRY_TIMEOUT = 10.0  # wall s to wait for first positions
+
+
+class ExecutionError(Exception):
+    """The mission cannot be flown (a rejected upload, no rovers on the deck, ...): the message
+    says what happened and what to change."""
+
+
+class Recorder(Protocol):
+    def __call__(self, kind: str, **data: Any) -> None: ...
+
+
+class Committer(Protocol):
+    def __call__(self, kind: str, **data: Any) -> Awaitable[None]: ...
+
+
+class RunContext:
+    """The shared parts of one flight (see the module docstring)."""
+
+    def __init__(self, mission: Mission, fleet: Fleet, state: FleetState, *,
+                 record: Recorder | None = None, commit: Committer | None = None,
+                 speedup: float = 1.0, clock: Callable[[], float] | None = None) -> None:
+        self.mission = mission
+        self.fleet = fleet
+        self.state = state
+        self.record: Recorder = record or (lambda kind, **data: None)
+        self._commit = commit
+        self.speedup = speedup
+        self.clock = clock or time.monotonic
+        self.replans = ReplanTracker(state, self.record)
+        self._tasks: set[asyncio.Task[Any]] = set()
+        state.mission_clock = self.clock
+
+    # -- records -----------------------------------------------------------------------------------
+    async def commit(self, kind: str, **data: Any) -> None:
+        """Write a record and wait until it is on disk (when the journal can; else just write)."""
+        if self._commit is not None:
+            await self._commit(kind, **data)
+        else:
+            self.record(kind, **data)
+
+    async def command(self, v: Vehicle, what: str, aw: Coroutine[Any, Any, T], **data: Any) -> T:
+        """Send one command (``aw`` not yet started): journal it write-ahead, then its ack."""
+        self.replans.on_command()
+        try:
+            await self.commit(Ev.COMMAND, vehicle=v.name, command=what, **data)
+        except BaseException:
+            aw.close()
+            raise
+        try:
+            result = await aw
+        except CommandRejected as exc:
+            self.record(Ev.ACK, vehicle=v.name, command=what, result=exc.ack.result_name, reason=exc.reason)
+            raise
+        except MissionRejected as exc:
+            self.record(Ev.ACK, vehicle=v.name, command=what, result=exc.result_name, reason=exc.reason)
+            raise
+        except (LinkError, TimeoutError) as exc:
+            self.record(Ev.ACK, vehicle=v.name, command=what, result="timeout", error=str(exc))
+            raise
+        self.record(Ev.ACK, vehicle=v.name, command=what, result="MAV_RESULT_ACCEPTED")
+        return result
+
+    # -- time --------------------------------------------------------------------------------------
+    def wall(self, mission_seconds: float) -> float:
+        """Wall seconds a wait of ``mission_seconds`` may take (generous: see TIMEOUT_*)."""
+        return (mission_seconds * TIMEOUT_FACTOR + TIMEOUT_MARGIN) / self.speedup + TIMEOUT_WALL
+
+    async def sleep_mission(self, seconds: float) -> None:
+        """Sleep ``seconds`` of mission time (checked against the mission clock)."""
+        end = self.clock() + seconds
+        deadline = time.monotonic() + self.wall(seconds)
+        while (left := end - self.clock()) > 0 and time.monotonic() < deadline:
+            await asyncio.sleep(min(max(left / self.speedup, 0.005), 0.1))
+
+    async def wait_telemetry(self) -> None:
+        """Wait for positions (and landed states of rovers) of every connected vehicle."""
+        carrier = self.fleet.carrier
+
+        async def one(v: Vehicle) -> None:
+            with contextlib.suppress(TimeoutError):
+                await v.wait_until(lambda v: v.enu is not None and (v is carrier or v.landed_state is not None),
+                                   TELEMETRY_TIMEOUT, "first position")
+
+        await asyncio.gather(*(one(v) for v in self.fleet.vehicles.values() if v.connected and not v.lost))
+        if carrier.enu is None:
+            raise ExecutionError(f"{carrier.name}: no position from the carrier within "
+                                 f"{TELEMETRY_TIMEOUT:g} s (is GPS available?)")
+
+    # -- owned background tasks --------------------------------------------------------------------
+    def spawn(self, coro: Coroutine[Any, Any, T], name: str) -> asyncio.Task[T]:
+        task = asyncio.ensure_future(coro)
+        task.set_name(name)
+        self._tasks.add(task)
+        task.add_done_callback(self._tasks.discard)
+        return task
+
+    async def close(self) -> None:
+        """Cancel every background task (call on shutdown)."""
+        tasks = list(self._tasks)
+        for t in tasks:
+            t.cancel()
+        for t in tasks:
+            with contextlib.suppress(asyncio.CancelledError, Exception):
+                await t
+
+
+__all__ = ["Committer", "ExecutionError", "Recorder", "RunContext"]

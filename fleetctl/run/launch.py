@@ -1,0 +1,170 @@
+"""Launching a rover from the carrier's deck: deck check, mission upload, arm, start, lift-off, and
+a spare from the deck when the planned rover cannot go.
+
+Any rover on the deck may fly any task of a stop. :meth:`Launcher.launch` tries the planned rover
+first; a rover that is not on the deck, refuses to arm, fails its upload or does not lift off is
+replaced by the next spare (:class:`Spares`). Before arming, a ``launch`` record (rover, task,
+stop) is on disk, so a journal cut short by a crash says which rover was being sent where.
+"""
+
+from __future__ import annotations
+
+import contextlib
+from dataclasses import dataclass, field
+
+from pymavlink.dialects.v20 import ardupilotmega as mavlink2
+
+from fleetctl.mavlink.compile import RoverMission, item_position
+from fleetctl.mavlink.link import LinkError
+from fleetctl.mavlink.vehicle import CommandRejected, Vehicle
+from fleetctl.run.carrier import CarrierControl, upload
+from fleetctl.run.context import ExecutionError, RunContext
+from fleetctl.run.kinds import Ev, VehicleStatus
+from fleetctl.run.state import on_deck
+from fleetctl.run.task_board import TaskBoard
+
+AIRBORNE_HEIGHT = 0.3  # m above home: a launched rover is off the deck
+DECK_CHECK_TIMEOUT = 2.0  # wall s for fresh telemetry to show a rover on the (stopped) carrier's deck
+LIFTOFF_TIMEOUT = 5.0  # mission s from start_mission to lift-off
+
+Vec3 = tuple[float, float, float]
+
+
+def rover_on_deck(ctx: RunContext, v: Vehicle) -> bool:
+    c = ctx.fleet.carrier
+    return v.connected and not v.lost and on_deck(v.enu, c.enu, v.on_ground, v.ground_speed)
+
+
+def takeoff_seq(slot: RoverMission) -> int:
+    """Index of the NAV_TAKEOFF item of a compiled rover mission (-1 if it has none)."""
+    return next((i for i, it in enumerate(slot.items) if it.command == mavlink2.MAV_CMD_NAV_TAKEOFF), -1)
+
+
+def flight_path(ctx: RunContext, rm: RoverMission, start: Vec3) -> list[Vec3]:
+    """Where a rover flying ``rm`` from ``start`` should be (its items' positions)."""
+    origin = ctx.fleet.carrier.origin
+    pts: list[Vec3] = [start]
+    if origin is None:
+        return pts
+    for it in rm.items:
+        if it.frame == mavlink2.MAV_FRAME_GLOBAL:  # ArduPilot home placeholder
+            continue
+        pts.append(item_position(it, origin))
+    return pts
+
+
+@dataclass
+class Spares:
+    """The rovers on the deck that no stop of the current plan uses."""
+
+    rovers: list[str]
+    used: set[str] = field(default_factory=set)
+
+    def take(self, ctx: RunContext, board: TaskBoard) -> str | None:
+        for rid in self.rovers:
+            r = ctx.fleet.rovers[rid]
+            if rid not in self.used and board.available(rid) and r.connected and not r.lost:
+                self.used.add(rid)
+                return rid
+        return None
+
+
+class Launcher:
+    """Launches rovers for one deployment (see the module docstring)."""
+
+    def __init__(self, ctx: RunContext, carrier: CarrierControl, board: TaskBoard) -> None:
+        self.ctx = ctx
+        self.carrier = carrier
+        self.board = board
+        self.uploaded: dict[str, tuple[int, str]] = {}  # rover -> (compiled plan, slot) it holds
+
+    async def pre_upload(self, slot: RoverMission, plan_id: int) -> None:
+        """Upload a slot's mission to its planned rover ahead of the stop (a spare may fly it)."""
+        try:
+            await upload(self.ctx, self.ctx.fleet.rovers[slot.rover], list(slot.items))
+            self.uploaded[slot.rover] = (plan_id, slot.rover)
+        except (ExecutionError, LinkError, TimeoutError) as exc:
+            self.ctx.record(Ev.ROVER_FAILED, vehicle=slot.rover, text=f"upload failed ({exc}); a spare "
+                            f"will fly {slot.task}")
+
+    async def launch(self, slot: RoverMission, plan_id: int, spares: Spares) -> str | None:
+        """Launch a rover for ``slot``'s task; returns the rover that lifted off (None: no rover
+        left to fly it)."""
+        task = slot.task or ""
+        rid: str | None = slot.rover
+        while rid is not None:
+            await self.carrier.ready()  # no launches while the carrier is lost
+            if not self.board.available(rid):
+                rid = spares.take(self.ctx, self.board)
+                continue
+            v = self.ctx.fleet.rovers[rid]
+            if not await self._on_deck(v):
+                self.ctx.state.event(Ev.ROVER_SKIPPED, f"{rid}: not on the deck, a spare takes {task}", rid)
+                rid = spares.take(self.ctx, self.board)
+                continue
+            armed, spare = await self._arm(v, slot, plan_id, spares)
+            if not armed:
+                rid = spare
+                continue
+            if not await self._lift_off(v, slot):
+                rid = spares.take(self.ctx, self.board)
+                continue
+            return rid
+        return None
+
+    async def _on_deck(self, v: Vehicle) -> bool:
+        # telemetry of rover and carrier may be of different moments
+        if not rover_on_deck(self.ctx, v):
+            with contextlib.suppress(TimeoutError):
+                await v.wait_until(lambda v: rover_on_deck(self.ctx, v), DECK_CHECK_TIMEOUT, "on the deck")
+        return rover_on_deck(self.ctx, v)
+
+    async def _arm(self, v: Vehicle, slot: RoverMission, plan_id: int, spares: Spares
+                   ) -> tuple[bool, str | None]:
+        """Upload (when the rover does not hold this slot's mission) and arm. Returns (True, the
+        rover) or (False, the spare that takes over, None when none is left)."""
+        rid, task, st = v.name, slot.task or "", self.ctx.state
+        try:
+            if self.uploaded.get(rid) != (plan_id, slot.rover):
+                await upload(self.ctx, v, list(slot.items))
+                self.uploaded[rid] = (plan_id, slot.rover)
+            await self.ctx.commit(Ev.LAUNCH, vehicle=rid, task=task, stop=slot.stop + 1)
+            await self.ctx.command(v, "arm", v.arm())
+            return True, rid
+        except CommandRejected as exc:
+            self.board.refused.add(rid)
+            st.set_state(rid, VehicleStatus.REFUSED)
+            spare = spares.take(self.ctx, self.board)
+            reason = exc.reason or exc.ack.result_name
+            then = f"spare {spare} takes {task}" if spare else f"no spare left for {task}"
+            st.event(Ev.ROVER_REFUSED, f"{rid}: refused to arm ({reason}); {then}", rid, reason=reason,
+                     spare=spare, task=task)
+            if spare is not None:
+                self.board.substitutions.append({"refused": rid, "spare": spare, "task": task})
+            return False, spare
+        except (ExecutionError, LinkError, TimeoutError) as exc:
+            spare = spares.take(self.ctx, self.board)
+            st.event(Ev.ROVER_FAILED, f"{rid}: {exc}; " + (f"spare {spare} takes {task}" if spare
+                                                           else f"no spare left for {task}"),
+                     rid, spare=spare, task=task)
+            return False, spare
+
+    async def _lift_off(self, v: Vehicle, slot: RoverMission) -> bool:
+        tk = takeoff_seq(slot)
+        try:
+            await self.ctx.command(v, "start_mission", v.start_mission())
+            # a task on the ground may be left again before a position shows it
+            await v.wait_until(
+                lambda v: ((v.relative_alt or 0.0) > AIRBORNE_HEIGHT or tk in v.items_reached
+                           or (v.mission_current or -1) > tk),
+                self.ctx.wall(LIFTOFF_TIMEOUT), "lift-off")
+            return True
+        except (CommandRejected, LinkError, TimeoutError) as exc:
+            self.ctx.state.event(Ev.ROVER_FAILED, f"{v.name}: did not take off ({exc})", v.name,
+                                 task=slot.task)
+            with contextlib.suppress(CommandRejected, LinkError, TimeoutError):
+                await v.disarm()
+            return False
+
+
+__all__ = ["AIRBORNE_HEIGHT", "DECK_CHECK_TIMEOUT", "Launcher", "Spares", "flight_path", "rover_on_deck", "takeoff_seq"]

@@ -1,0 +1,352 @@
+"""A whole run of ``deploy``, ``collect`` or ``run``: records, embedded simulated fleet, connect,
+the phases, and the way out.
+
+:func:`execute` is what the command line calls. The run folder (``--run-dir``, default
+``runs/<mission>-<timestamp>/``) holds the write-ahead journal, the ``.tlog``, the plans, the
+summary and a copy of the mission file. Cancelling the run (Ctrl-C, SIGTERM) commands airborne
+rovers to hold, writes the journal and a summary built from what the phases saw, and returns
+:data:`EXIT_INTERRUPTED`. ``fleetctl resume`` (:mod:`fleetctl.run.resume`) runs the same
+:class:`Run` with a :class:`~fleetctl.run.resume.Resumption` of an interrupted one.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from fleetctl.journal import Journal, run_dir_for, write_summary
+from fleetctl.mavlink.fleet import Fleet, FleetConnectError, connect_fleet
+from fleetctl.mavlink.link import LinkError
+from fleetctl.mission import Mission
+from fleetctl.run.context import ExecutionError
+from fleetctl.run.executor import Executor
+from fleetctl.run.kinds import Ev, Phase
+from fleetctl.run.results import PhaseResult
+from fleetctl.run.sim import sim_mission_dict
+from fleetctl.run.state import FleetState
+from fleetctl.run.summary import RunFacts, build_summary
+from fleetctl.views.view import View
+from planners.plan import Plan
+
+if TYPE_CHECKING:
+    from fleetctl.run.resume import Resumption
+
+EXIT_OK = 0
+EXIT_FAILED = 1
+EXIT_INTERRUPTED = 130
+COMMANDS = ("deploy", "collect", "run")
+
+
+@dataclass
+class RunOutcome:
+    exit_code: int  # 0 complete, 1 not complete / failed, 130 interrupted
+    summary: dict[str, Any]
+    run_dir: Path | None = None
+    error: str | None = None
+
+
+@dataclass
+class RunOptions:
+    """How to fly (the command line's shared options; see :func:`execute`)."""
+
+    speedup: float | None = None
+    planner: str | None = None
+    dwell: float | None = None
+    summary_path: str | Path | None = None
+    runs_dir: str | Path = "runs"
+    run_dir: str | Path | None = None
+    view: View | None = None
+    connect_timeout: float = 10.0
+    endpoints: dict[str, str] | None = None
+    on_sim: Callable[[Any], None] | None = None
+    on_run_dir: Callable[[Path], None] | None = None
+    sim: Any = None
+    clock_speedup: float | None = None
+    mqtt: Any = None
+    resume: Resumption | None = None
+    extra: dict[str, Any] = field(default_factory=dict)
+
+
+async def execute(mission: Mission, command: str, **options: Any) -> RunOutcome:
+    """Fly ``command`` (``deploy`` | ``collect`` | ``run``) of ``mission`` end to end: start the
+    embedded simulator for ``connection: sim``, connect, fly, and write the records.
+
+    Options (:class:`RunOptions`): ``sim`` - an already running ``sitl.SimFleet`` to fly against
+    (tests, benchmarks); ``on_sim`` - called with the embedded simulator once it runs;
+    ``clock_speedup`` - vehicles that run that much faster than the wall clock elsewhere (mission
+    time = wall x it); ``mqtt`` - a :class:`fleetctl.bus.config.BusConfig` (default: the mission's
+    ``mqtt:`` section); ``run_dir`` - the records folder; ``on_run_dir`` - told it first."""
+    if command not in COMMANDS:
+        raise ValueError(f"unknown command {command!r}")
+    return await Run(mission, command, RunOptions(**options)).fly()
+
+
+class Run:
+    """One run of a command (see the module docstring)."""
+
+    def __init__(self, mission: Mission, command: str, opts: RunOptions) -> None:
+        self.mission = mission
+        self.command = command
+        self.opts = opts
+        self.sim: Any = opts.sim
+        self.endpoints = dict(opts.sim.endpoints) if opts.sim is not None else opts.endpoints
+        self.uses_sim = opts.sim is None and self.endpoints is None and mission_uses_sim(mission)
+        self.clock, self.scale = self._clock()
+        self.sim_cm: Any = None
+        self.sim_config: Any = None
+        if self.uses_sim:
+            from sitl import FleetConfig
+
+            self.sim_config = FleetConfig.from_mission_dict(sim_mission_dict(mission, command),
+                                                            speedup=opts.speedup)
+            self.scale = self.sim_config.speedup
+        run_dir = (Path(opts.resume.run_dir) if opts.resume is not None
+                   else Path(opts.run_dir) if opts.run_dir is not None else run_dir_for(mission.name, opts.runs_dir))
+        run_dir.mkdir(parents=True, exist_ok=True)
+        self.journal = Journal(run_dir)
+        self.state = FleetState(mission)
+        self.state.mission_clock = self.clock
+        self.results: dict[str, PhaseResult] = {}
+        self.error: str | None = None
+        self.interrupted = False
+        self.fleet: Fleet | None = None
+        self.executor: Executor | None = None
+        self.bus: Any = None
+        self.dwell_planned: float | None = None
+        self.dwell_flown: float | None = None
+        self._refresher: asyncio.Task[None] | None = None
+
+    def _clock(self) -> tuple[Callable[[], float], float]:
+        if self.opts.sim is not None:
+            ext = self.opts.sim
+            return (lambda: float(ext.sim_time)), float(ext.speedup)
+        if self.opts.clock_speedup is not None:
+            scale = float(self.opts.clock_speedup)
+            return (lambda: time.monotonic() * scale), scale
+        return time.monotonic, 1.0
+
+    # ============================================================================== the run
+    async def fly(self) -> RunOutcome:
+        from fleetctl.bus.client import start_bus
+
+        if self.opts.on_run_dir is not None:
+            self.opts.on_run_dir(self.journal.dir)
+        self.state.add_listener(self.journal.on_event)
+        self.journal.start()
+        self.bus = start_bus(self.mission, self.opts.mqtt, self.journal, self.state, self.opts.view)
+        await self._begin_records()
+        try:
+            await self._start_sim()
+            await self._connect()
+            await self._phases()
+            self.state.phase = Phase.DONE
+        except ExecutionError as exc:
+            self.error = str(exc)
+            self.state.phase = Phase.FAILED
+            self.state.event(Ev.ERROR, self.error)
+        except asyncio.CancelledError:
+            await self._interrupted()
+        finally:
+            summary = await self._finish()
+        result = summary["result"]
+        code = EXIT_INTERRUPTED if self.interrupted else (EXIT_OK if result == "complete" else EXIT_FAILED)
+        return RunOutcome(code, summary, self.journal.dir, self.error)
+
+    async def _begin_records(self) -> None:
+        m, j = self.mission, self.journal
+        if self.opts.resume is not None:  # the journal goes on; 'resumed' follows the reconciliation
+            return
+        if m.path is not None:
+            with contextlib.suppress(OSError):
+                await asyncio.to_thread(j.save_mission, m.path)
+        await j.commit(Ev.RUN, mission=m.name, command=self.command, file=str(m.path or ""),
+                       sim=self.uses_sim, speedup=self.scale, planner=self.opts.planner, dwell=self.opts.dwell,
+                       unix_t0=time.time())
+
+    async def _start_sim(self) -> None:
+        if not self.uses_sim:
+            return
+        from sitl import SimFleet
+
+        self.sim_cm = SimFleet(self.sim_config)
+        self.sim = await self.sim_cm.__aenter__()
+        sim = self.sim
+        self.clock = lambda: float(sim.sim_time)
+        self.state.mission_clock = self.clock
+        self.endpoints = dict(sim.endpoints)
+        self.journal.write(Ev.SIM_STARTED, endpoints=self.endpoints, speedup=self.scale)
+        if self.command == "collect" and self.mission.collection:
+            rp = self.mission.rovers
+            for cr in self.mission.collection:  # battery: range = (rem - reserve) x endurance
+                sim.rover(cr.id).battery = min(1.0, rp.reserve + cr.range / rp.endurance_range)
+        if self.opts.on_sim is not None:
+            self.opts.on_sim(sim)
+
+    async def _connect(self) -> None:
+        st, view = self.state, self.opts.view
+        st.phase = Phase.CONNECT
+        if view is not None:
+            view.start(st, None)
+        try:
+            fleet = await connect_fleet(self.mission, self.endpoints, timeout=self.opts.connect_timeout,
+                                        tap=self.journal.tlog)
+        except FleetConnectError as exc:
+            raise ExecutionError(str(exc)) from None
+        except LinkError as exc:
+            raise ExecutionError(f"cannot open the link: {exc}") from None
+        self.fleet = fleet
+        if self.opts.resume is not None:
+            await self.opts.resume.reconcile(fleet)
+            await self.journal.commit(Ev.RESUMED, **self.opts.resume.record())
+        for vid, v in fleet.vehicles.items():
+            st.vehicles[vid].url = fleet.urls.get(vid, "")
+            self.journal.write(Ev.CONNECTED, vehicle=vid, url=fleet.urls.get(vid), sysid=v.sysid,
+                               autopilot=v.autopilot.name if v.autopilot else None)
+        if view is not None:
+            view.start(st, fleet)
+        self._refresher = asyncio.create_task(self._refresh(fleet), name="state refresh")
+        resume = self.opts.resume
+        self.executor = Executor(self.mission, fleet, st, record=self.journal.write, commit=self.journal.commit,
+                                 planner=self.opts.planner, speedup=self.scale, clock=self.clock,
+                                 write_plan=self._write_plan, board=resume.board if resume else None)
+        if self.bus is not None:
+            self.bus.attach_executor(self.executor)
+
+    async def _refresh(self, fleet: Fleet) -> None:
+        while True:
+            self.state.refresh(fleet)
+            await asyncio.sleep(0.1)
+
+    def _write_plan(self, kind: str, plan: Plan) -> None:
+        name = "plan.json" if kind == "deploy" or self.command == "collect" else "plan-collect.json"
+        self.journal.write_json(name, plan.to_json())
+
+    # ============================================================================== the phases
+    async def _phases(self) -> None:
+        resume = self.opts.resume
+        todo = resume.phases_left(self.command) if resume is not None else _phases_of(self.command)
+        if resume is not None:
+            self.results.update(resume.results)
+        for phase in todo:
+            await self.journal.commit(Ev.PHASE, phase=phase)
+            if phase == "deploy":
+                await self._deploy()
+            elif phase == "dwell":
+                await self._dwell()
+            else:
+                await self._collect()
+
+    async def _deploy(self) -> None:
+        assert self.executor is not None
+        resume = self.opts.resume
+        r = await self.executor.deploy(resume.deploy if resume is not None else None)
+        self.results["deploy"] = r
+        reasons = ", ".join(f"{t} ({r.unserved_reasons.get(t, '?')})" for t in r.tasks_unserved)
+        if not r.complete and (self.command == "deploy" or not r.launched):
+            raise ExecutionError("deployment incomplete: tasks not reached: " + reasons)
+        if r.complete:
+            self.state.event(Ev.DEPLOYED, f"deployment complete: {len(r.tasks_reached)} tasks reached in "
+                             f"{r.flown:.1f} s (planned {r.planned:.1f} s)")
+        else:  # run: bring back the rovers that did fly
+            self.state.event(Ev.DEPLOY_INCOMPLETE, f"deployment incomplete: not reached: {reasons}; "
+                             "collecting the rovers in the field")
+
+    async def _dwell(self) -> None:
+        assert self.executor is not None
+        resume = self.opts.resume
+        wait = self.mission.dwell if self.opts.dwell is None else self.opts.dwell
+        self.dwell_planned = wait
+        left = resume.dwell_left(wait) if resume is not None else wait
+        self.state.set_phase(Phase.DWELL, wait)
+        self.state.event(Ev.DWELL, f"dwelling {left:g} s on task")
+        td = self.clock()
+        await self.executor.sleep_mission(left)
+        self.dwell_flown = (wait - left) + (self.clock() - td)
+
+    async def _collect(self) -> None:
+        assert self.executor is not None
+        resume = self.opts.resume
+        ids: list[str] | None = None
+        if resume is not None:
+            ids = resume.collect_ids()
+        elif self.command == "run":
+            ids = list(self.results["deploy"].launched)  # incl. rovers whose task went to a spare
+        r = await self.executor.collect(ids, resume.collect if resume is not None else None)
+        self.results["collect"] = r
+        if not r.complete:
+            missing = [x for x in (r.plan.legs() if r.plan else []) if x.rover not in r.rovers_loaded]
+            raise ExecutionError("collection incomplete: not loaded: " + (", ".join(x.rover for x in missing) or "?"))
+        self.state.event(Ev.COLLECTED, f"collection complete: {len(r.rovers_loaded)} rovers loaded in "
+                         f"{r.flown:.1f} s (planned {r.planned:.1f} s)")
+
+    # ============================================================================== the way out
+    async def _interrupted(self) -> None:
+        task = asyncio.current_task()
+        if task is not None:
+            task.uncancel()
+        self.interrupted = True
+        self.state.phase = Phase.INTERRUPTED
+        self.state.event(Ev.INTERRUPTED, "interrupted: holding airborne rovers")
+        if self.executor is not None:
+            with contextlib.suppress(Exception):
+                await self.executor.hold_airborne()
+
+    def _snapshot_results(self) -> None:
+        """After an interruption or failure: what each running phase saw so far."""
+        ex = self.executor
+        if ex is None:
+            return
+        if ex.deploy_phase is not None and "deploy" not in self.results:
+            self.results["deploy"] = ex.deploy_phase.snapshot()
+        if ex.collect_phase is not None and "collect" not in self.results:
+            self.results["collect"] = ex.collect_phase.snapshot()
+
+    async def _finish(self) -> dict[str, Any]:
+        if self._refresher is not None:
+            self._refresher.cancel()
+            with contextlib.suppress(asyncio.CancelledError):
+                await self._refresher
+        if self.fleet is not None:
+            self.state.refresh(self.fleet)
+        self._snapshot_results()
+        if self.executor is not None:
+            await self.executor.close()
+        summary = build_summary(RunFacts(self.mission, self.command, self.results, self.state, self.error,
+                                         self.interrupted, str(self.journal.path), self.dwell_planned,
+                                         self.dwell_flown))
+        self.journal.write(Ev.SUMMARY, **summary)
+        write_summary(summary, self.journal.summary_path, self.opts.summary_path)
+        await self._close_all()
+        return summary
+
+    async def _close_all(self) -> None:
+        if self.opts.view is not None:
+            with contextlib.suppress(Exception):
+                await self.opts.view.stop()
+        if self.fleet is not None:
+            with contextlib.suppress(Exception):
+                await self.fleet.close()
+        if self.bus is not None:
+            with contextlib.suppress(Exception):
+                await self.bus.aclose(self.state.phase)
+        await self.journal.aclose()
+        if self.sim_cm is not None:
+            with contextlib.suppress(Exception):
+                await self.sim_cm.__aexit__(None, None, None)
+
+
+def mission_uses_sim(mission: Mission) -> bool:
+    return mission.carrier.connection == "sim" or any(u.connection == "sim" for u in mission.rovers.units)
+
+
+def _phases_of(command: str) -> list[str]:
+    return {"deploy": ["deploy"], "collect": ["collect"], "run": ["deploy", "dwell", "collect"]}[command]
+
+
+__all__ = ["COMMANDS", "EXIT_FAILED", "EXIT_INTERRUPTED", "EXIT_OK", "Run", "RunOptions", "RunOutcome",
+           "execute", "mission_uses_sim"]

@@ -1,0 +1,139 @@
+"""The run summary (``summary.json``, schema ``fleetctl.summary/1``): what the run achieved,
+accounting for every task and every rover - also after an interruption, when it is built from
+what the phases' boards saw, never from what the plan intended."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+from fleetctl.mission import Mission
+from fleetctl.run.kinds import VehicleStatus
+from fleetctl.run.results import PhaseResult
+from fleetctl.run.state import FleetState, VehicleState
+
+SUMMARY_SCHEMA = "fleetctl.summary/1"
+AIRBORNE_HEIGHT = 0.3  # m above home: a rover this high (or reporting in air) is airborne
+
+
+@dataclass
+class RunFacts:
+    """What the summary is built from."""
+
+    mission: Mission
+    command: str  # deploy | collect | run
+    results: dict[str, PhaseResult]
+    state: FleetState
+    error: str | None
+    interrupted: bool
+    journal_path: str
+    dwell_planned: float | None = None  # run: the dwell asked for (the option, else the mission's)
+    dwell_flown: float | None = None
+
+
+def build_summary(f: RunFacts) -> dict[str, Any]:
+    dep, col = f.results.get("deploy"), f.results.get("collect")
+    task_ids = list(dep.tasks_all) if dep is not None and dep.tasks_all else [t.id for t in f.mission.tasks]
+    reached = [] if f.command == "collect" else (dep.tasks_reached if dep else [])
+    unserved = [] if f.command == "collect" else [t for t in task_ids if t not in reached]
+    complete = (not f.interrupted and f.error is None
+                and (f.command == "collect" or (dep is not None and dep.complete))
+                and (f.command == "deploy" or (col is not None and col.complete)))
+    planned, flown = _makespans(f, dep, col, complete)
+    order = list(f.state.vehicles)
+    lost = sorted({*(dep.rovers_lost if dep else []), *(col.rovers_lost if col else [])}
+                  - set(col.rovers_loaded if col else []),
+                  key=lambda r: order.index(r) if r in order else 0)
+    out: dict[str, Any] = {
+        "schema": SUMMARY_SCHEMA,
+        "mission": f.mission.name,
+        "phase": f.command,
+        "result": "complete" if complete else ("interrupted" if f.interrupted else "incomplete"),
+        "tasks_reached": reached,
+        "tasks_unserved": unserved,
+        "rovers_loaded": col.rovers_loaded if col else [],
+        "rovers_lost": lost,
+        "makespan_planned": None if planned is None else round(planned, 3),
+        "makespan_flown": None if flown is None else round(flown, 3),
+        "replans": f.state.replans,
+        "journal": f.journal_path,
+    }
+    out.update(_accounting(f, dep, col, unserved, lost))
+    if col is not None:
+        out["rovers_unreachable"] = col.rovers_unreachable
+    if dep is not None:
+        out["assignment"] = dep.assignment
+        out["substitutions"] = dep.substitutions
+    if f.command == "run":
+        out["phases"] = {k: {"planned": r.planned, "flown": r.flown, "complete": r.complete}
+                         for k, r in f.results.items()}
+    if f.error is not None:
+        out["error"] = f.error
+    return out
+
+
+def _makespans(f: RunFacts, dep: PhaseResult | None, col: PhaseResult | None,
+               complete: bool) -> tuple[float | None, float | None]:
+    if f.command == "deploy":
+        return (dep.planned, dep.flown) if dep else (None, None)
+    if f.command == "collect":
+        return (col.planned, col.flown) if col else (None, None)
+    # run: deploy + dwell + collect (planning and uploads between the phases not counted)
+    dwell = f.dwell_planned if f.dwell_planned is not None else f.mission.dwell
+    planned = (dep.planned + dwell + col.planned
+               if dep and col and dep.planned is not None and col.planned is not None else None)
+    flown = (dep.flown + (f.dwell_flown or 0.0) + col.flown
+             if complete and dep and col and dep.flown is not None and col.flown is not None else None)
+    return planned, flown
+
+
+def _accounting(f: RunFacts, dep: PhaseResult | None, col: PhaseResult | None, unserved: list[str],
+                lost: list[str]) -> dict[str, Any]:
+    """Summary fields that account for every task and every rover: why a task was not reached,
+    tasks added/removed while flying, and for each rover not loaded nor lost: on the deck (only
+    when it is) or left in the field (``rovers_left``: position, state, task, airborne), with
+    ``rovers_airborne`` naming those in the air."""
+    out: dict[str, Any] = {"last_replan": f.state.last_replan}
+    if f.command != "collect":
+        reasons = dep.unserved_reasons if dep else {}
+        out["tasks_unserved_reasons"] = {t: reasons.get(t, "the deployment did not get to it") for t in unserved}
+        out["tasks_added"] = dep.tasks_added if dep else []
+        out["tasks_removed"] = dep.tasks_removed if dep else []
+    loaded = set(col.rovers_loaded) if col else set()
+    unreachable = set(col.rovers_unreachable) if col else set()
+    launched = set(dep.launched) if dep else set()
+    on_deck: list[str] = []
+    airborne: list[str] = []
+    left: dict[str, Any] = {}
+    last: dict[str, Any] = {}
+    for v in f.state.rovers():
+        pos = [round(c, 2) for c in v.enu] if v.enu is not None else None
+        if v.id in loaded:
+            continue
+        up = _is_airborne(v)
+        if v.id in lost:
+            last[v.id] = pos
+        elif not up and v.id not in launched and v.id not in unreachable and _on_the_deck(f, v):
+            on_deck.append(v.id)
+        else:
+            left[v.id] = {"position": pos, "state": v.state, "task": v.task, "airborne": up}
+            if up:
+                airborne.append(v.id)
+    out["rovers_on_deck"] = on_deck
+    out["rovers_airborne"] = airborne
+    out["rovers_left"] = left
+    out["rovers_lost_last_position"] = last
+    return out
+
+
+def _is_airborne(v: VehicleState) -> bool:
+    return v.connected and (v.on_ground is False or (v.alt or 0.0) > AIRBORNE_HEIGHT)
+
+
+def _on_the_deck(f: RunFacts, v: VehicleState) -> bool:
+    if f.command == "collect":
+        return v.state in (VehicleStatus.ON_DECK, VehicleStatus.REFUSED, VehicleStatus.UNKNOWN)
+    return v.state in (VehicleStatus.ON_DECK, VehicleStatus.REFUSED)
+
+
+__all__ = ["SUMMARY_SCHEMA", "RunFacts", "build_summary"]
