@@ -31,7 +31,8 @@ def divide_cluster(
     b = min(ties, key=lambda i: dist(points[i], prev_point)) if len(ties) > 1 else ties[0]
     if dist(points[a], prev_point) > dist(points[b], prev_point):
         a, b = b, a
-    near, far_part = [], []
+    near: list[int] = []
+    far_part: list[int] = []
     for i in members:
         (near if dist(points[i], points[a]) <= dist(points[i], points[b]) else far_part).append(i)
     if not far_part:  # all tasks coincide with A: split off one so the divider always divides

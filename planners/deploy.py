@@ -173,7 +173,7 @@ class _PathBuilder:
         last = k == len(clusters) - 1
         nxt = None if last else geos[k + 1].center
 
-        def last_stop(pos: Point2, h: float, t1: float, u: float) -> float:
+        def last_stop(pos: Point2, h: float, t1: float, u: float, nxt: Point2) -> float:
             q = _lerp(pos, nxt, u)
             dt2, _ = carrier_hop(pos, q, h, self.carrier)
             return t1 + dt2 + self.unload + self.finish(q, clusters[k + 1])
@@ -183,7 +183,8 @@ class _PathBuilder:
             pos = _lerp(prev, center, s)
             dt, h = carrier_hop(prev, pos, heading, self.carrier)
             t1 = t + dt + self.unload
-            return t1 + self.finish(pos, clusters[k]), (last_stop(pos, h, t1, u) if nxt is not None else 0.0)
+            later = last_stop(pos, h, t1, u, nxt) if nxt is not None else 0.0
+            return t1 + self.finish(pos, clusters[k]), later
 
         def makespan(s: float, u: float = 1.0) -> float:
             return max(worst, *both(s, u))
@@ -216,7 +217,10 @@ class _PathBuilder:
             for _ in range(2):
                 pos = _lerp(prev, center, s)
                 u_lo = self.inst.feasible_from(pos, nxt, clusters[k + 1])
-                u, _ = minimize_1d(lambda x, s=s: makespan(s, x), u_lo, 1.0, samples=8, tol=1e-7)
+                def along_u(x: float, s: float = s) -> float:
+                    return makespan(s, x)
+
+                u, _ = minimize_1d(along_u, u_lo, 1.0, samples=8, tol=1e-7)
                 s2, best2 = best_s(u)
                 if best2 >= best - 1e-9:
                     break
@@ -452,7 +456,13 @@ def plan_lee(problem: DeployProblem) -> Plan:
         two = plan_two_tasks(problem)
         if two.makespan < plan.makespan:
             index = {t.id: i for i, t in enumerate(problem.tasks)}
-            plan = build_plan(problem, "lee", [[index[leg.task] for leg in s.rovers] for s in two.stops],
+            two_clusters: list[list[int]] = []
+            for s in two.stops:
+                tasks = [leg.task for leg in s.rovers]
+                if None in tasks:
+                    raise PlanningError("the two-task plan has a rover leg without a task")
+                two_clusters.append([index[t] for t in tasks if t is not None])
+            plan = build_plan(problem, "lee", two_clusters,
                               [(s.position[0], s.position[1]) for s in two.stops])
     plan.compute_ms = (time.perf_counter() - t0) * 1e3
     return plan

@@ -91,7 +91,7 @@ class GraphWorld:
             local_prm(self.rm, self.rng, lo, hi, self.d_edge, self.params)  # eq. 6.7
         if self.ws.rect_free(lo, hi):  # no obstacle around the cluster: ch. 4's point as well
             pts = np.array(self.open_space_points(mem, prev, nxt)).reshape(-1, 2)
-            self.rm.add(pts[self.ws.inside_bounds(pts)], self.rm.delta)  # type: ignore[attr-defined]
+            self.rm.add(pts[self.ws.inside_bounds(pts)], self.rm.delta)
         dist = self.rm.distances([self.node(i) for i in mem], limit=float(rho.max()) + 1e-9)
         eps = 1e-9
         xy = self.rm.xy
@@ -242,7 +242,7 @@ class _Deploy:
             rest = [i for i in remaining if i not in mem]
             if rest:
                 # eq. 6.10: the candidate on the shortest way from the previous stop to the next task
-                nxt = self.next_nearest(mem, rest)
+                nxt = self._nearest_to_centre(mem, rest)
                 d_prev = self.w.rm.shortest(self.prev)[0]
                 d_next = self.w.rm.shortest(self.w.node(nxt))[0]
                 dist_full = self._member_dist(mem)
@@ -257,8 +257,9 @@ class _Deploy:
 
     def next_nearest(self, mem: Sequence[int], rest: Sequence[int]) -> int | None:
         """The remaining task nearest the centre of the cluster's enclosing circle (eq. 6.9)."""
-        if not rest:
-            return None
+        return self._nearest_to_centre(mem, rest) if rest else None
+
+    def _nearest_to_centre(self, mem: Sequence[int], rest: Sequence[int]) -> int:
         tx = self.w.targets
         lam = enclosing_ball([tuple(tx[i, :2]) for i in mem]).center
         return min(rest, key=lambda i: (math.dist(tx[i, :2], lam), i))

@@ -119,6 +119,7 @@ class Roadmap:
 
     def __init__(self, workspace: Workspace, points: np.ndarray, radius: float) -> None:
         self.ws = workspace
+        self.delta = radius  # the connection radius of the global roadmap (eq. 6.6)
         self.xy = np.zeros((0, 2))
         self._i = np.zeros(0, dtype=np.int64)
         self._j = np.zeros(0, dtype=np.int64)
@@ -229,7 +230,6 @@ def global_prm(workspace: Workspace, fixed: np.ndarray, d_deploy: float, params:
     delta = max(d_deploy, (w + h) / 2.0 * params.phi)  # eq. 6.6
     samples = workspace.sample(rng, max(count - len(fixed), 0))
     rm = Roadmap(workspace, np.concatenate([np.asarray(fixed, dtype=float).reshape(-1, 2), samples]), delta)
-    rm.delta = delta  # type: ignore[attr-defined]
     rm.global_nodes, rm.global_edges = rm.n_nodes, rm.n_edges
     return rm
 
@@ -243,7 +243,7 @@ def densify(rm: Roadmap, rng: np.random.Generator, params: RoadmapParams, nodes:
     for _ in range(rounds):
         if np.all(np.isfinite(rm.shortest(0)[0][list(nodes)])):
             return
-        rm.add(rm.ws.sample(rng, count), rm.delta)  # type: ignore[attr-defined]
+        rm.add(rm.ws.sample(rng, count), rm.delta)
 
 
 def disc_region(centers: np.ndarray, radii: np.ndarray) -> tuple[Point2, Point2] | None:
@@ -260,10 +260,11 @@ def disc_region(centers: np.ndarray, radii: np.ndarray) -> tuple[Point2, Point2]
         if np.all(np.hypot(*(centers - p).T) <= radii + 1e-9):
             return (float(p[0]), float(p[1])), (float(p[0]), float(p[1]))
         return None
-    region = None
-    for c, r in zip(centers, radii, strict=True):
-        disc = shapely.Point(float(c[0]), float(c[1])).buffer(float(r), quad_segs=32)
-        region = disc if region is None else region.intersection(disc)
+    discs = (shapely.Point(float(c[0]), float(c[1])).buffer(float(r), quad_segs=32)
+             for c, r in zip(centers, radii, strict=True))
+    region = next(discs)  # there is one at least: np.max above raised on none
+    for disc in discs:
+        region = region.intersection(disc)
         if region.is_empty:
             return None
     x0, y0, x1, y1 = region.bounds

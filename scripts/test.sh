@@ -1,7 +1,9 @@
 #!/usr/bin/env bash
 # The test command (README quick start, step 2; .ci/run calls it): installs Debian's mosquitto when
 # it is missing (the MQTT bus tests run against a real broker), the package with its test extras,
-# then runs pytest. Extra arguments go to pytest, e.g. scripts/test.sh tests/test_bus.py
+# then the static checks (ruff, then mypy with its pyproject config; its cache .mypy_cache keeps a
+# rerun fast), then pytest. Either check failing fails the script before any test runs. Extra
+# arguments go to pytest, e.g. scripts/test.sh tests/test_bus.py
 set -euo pipefail
 cd "$(dirname "$0")/.."
 if ! command -v mosquitto >/dev/null && [ ! -x /usr/sbin/mosquitto ]; then
@@ -10,4 +12,6 @@ if ! command -v mosquitto >/dev/null && [ ! -x /usr/sbin/mosquitto ]; then
     $SUDO apt-get update && $SUDO apt-get install -y mosquitto
 fi
 python3 -m pip install -q -e '.[test]'
+python3 -m ruff check .
+python3 -m mypy
 python3 -m pytest -q "$@"

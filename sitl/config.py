@@ -150,14 +150,20 @@ class FleetConfig:
         )
 
         r = _mapping(d.get("rovers"), "rovers")
-        common = dict(
-            role="rover",
-            max_speed=_pos_num(r.get("max_speed"), "rovers.max_speed"),
-            accel=_opt_pos(r.get("accel"), "rovers.accel"),
-            climb_rate=_opt_pos(r.get("climb_rate"), "rovers.climb_rate"),
-            land_speed=_opt_pos(r.get("land_speed"), "rovers.land_speed"),
-            endurance_range=_opt_pos(r.get("endurance_range"), "rovers.endurance_range"),
-        )
+        max_speed = _pos_num(r.get("max_speed"), "rovers.max_speed")
+        accel = _opt_pos(r.get("accel"), "rovers.accel")
+        climb_rate = _opt_pos(r.get("climb_rate"), "rovers.climb_rate")
+        land_speed = _opt_pos(r.get("land_speed"), "rovers.land_speed")
+        endurance_range = _opt_pos(r.get("endurance_range"), "rovers.endurance_range")
+
+        def rover_spec(vid: str, sysid: int, connection: str | None = None,
+                       position: tuple[float, float, float] | None = None) -> VehicleSpec:
+            return VehicleSpec(
+                id=vid, sysid=sysid, role="rover", connection=connection, position=position,
+                max_speed=max_speed, accel=accel, climb_rate=climb_rate, land_speed=land_speed,
+                endurance_range=endurance_range,
+            )
+
         rovers: list[VehicleSpec] = []
         if "units" in r and r["units"] is not None:
             units = r["units"]
@@ -168,12 +174,11 @@ class FleetConfig:
                 if "id" not in u or "sysid" not in u:
                     raise ConfigError(f"rovers.units[{i}]: needs id and sysid")
                 pos = u.get("position")
-                rovers.append(VehicleSpec(
-                    id=str(u["id"]),
-                    sysid=_int(u["sysid"], f"rovers.units[{i}].sysid"),
+                rovers.append(rover_spec(
+                    str(u["id"]),
+                    _int(u["sysid"], f"rovers.units[{i}].sysid"),
                     connection=None if u.get("connection") is None else str(u["connection"]),
                     position=None if pos is None else _position(pos, f"rovers.units[{i}].position"),
-                    **common,
                 ))
         else:
             fl = _mapping(r.get("fleet"), "rovers.fleet")
@@ -181,7 +186,7 @@ class FleetConfig:
             start = _int(fl.get("sysid_start", carrier.sysid + 1), "rovers.fleet.sysid_start")
             if count < 0 or start + count - 1 > 255:
                 raise ConfigError(f"rovers.fleet: sysids {start}..{start + count - 1} do not fit in 1..255")
-            rovers = [VehicleSpec(id=f"r{k + 1}", sysid=start + k, **common) for k in range(count)]
+            rovers = [rover_spec(f"r{k + 1}", start + k) for k in range(count)]
 
         sim = d.get("sim") or {}
         sim = _mapping(sim, "sim")
@@ -194,7 +199,8 @@ class FleetConfig:
                 faults.append(Fault.from_dict(fd, f"sim.faults[{i}]"))
             except FaultError as exc:
                 raise ConfigError(str(exc)) from None
-        planner = d.get("planner") if isinstance(d.get("planner"), Mapping) else {}
+        raw_planner = d.get("planner")
+        planner: Mapping[str, Any] = raw_planner if isinstance(raw_planner, Mapping) else {}
         seed_val = seed if seed is not None else sim.get("seed", planner.get("seed", 0))
         kw: dict[str, Any] = {}
         if sim.get("position_hz") is not None:

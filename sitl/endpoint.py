@@ -19,7 +19,7 @@ import logging
 import random
 from collections.abc import Callable
 from dataclasses import dataclass, fields
-from typing import Any
+from typing import Any, cast
 from urllib.parse import urlsplit
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
@@ -156,7 +156,8 @@ class UdpEndpoint(asyncio.DatagramProtocol):
         return self.spec.controller_url(self.bound_port)
 
     def connection_made(self, transport: asyncio.BaseTransport) -> None:
-        self.transport = transport  # type: ignore[assignment]
+        # asyncio hands a datagram protocol its DatagramTransport; typeshed declares the base class
+        self.transport = cast(asyncio.DatagramTransport, transport)
 
     def connection_lost(self, exc: Exception | None) -> None:
         self.transport = None

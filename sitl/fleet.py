@@ -22,7 +22,7 @@ from .faults import Fault, FaultBook
 from .flavour import Flavour
 from .geo import LocalFrame
 from .vehicle import SimVehicle
-from .world import Body, Rover, World
+from .world import AnyBody, Rover, World
 
 log = logging.getLogger(__name__)
 
@@ -158,7 +158,7 @@ class SimFleet:
     def vehicle(self, vehicle_id: str) -> SimVehicle:
         return self.vehicles[vehicle_id]
 
-    def body(self, vehicle_id: str) -> Body:
+    def body(self, vehicle_id: str) -> AnyBody:
         return self.world.body(vehicle_id)
 
     def rover(self, vehicle_id: str) -> Rover:

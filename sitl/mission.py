@@ -53,16 +53,16 @@ class MissionItem:
     mission_type: int = 0
 
     @classmethod
-    def from_msg(cls, msg: object) -> MissionItem:
+    def from_msg(cls, msg: mavlink2.MAVLink_message) -> MissionItem:
         """From MISSION_ITEM_INT, or the legacy float MISSION_ITEM (x, y in degrees)."""
-        x, y = msg.x, msg.y  # type: ignore[attr-defined]
-        if msg.get_type() == "MISSION_ITEM":  # type: ignore[attr-defined]
+        x, y = msg.x, msg.y
+        if msg.get_type() == "MISSION_ITEM":
             x = int(round(x * 1e7)) if math.isfinite(x) else 0
             y = int(round(y * 1e7)) if math.isfinite(y) else 0
         return cls(
-            seq=msg.seq, frame=msg.frame, command=msg.command, current=msg.current,  # type: ignore[attr-defined]
-            autocontinue=msg.autocontinue, param1=msg.param1, param2=msg.param2,  # type: ignore[attr-defined]
-            param3=msg.param3, param4=msg.param4, x=int(x), y=int(y), z=msg.z,  # type: ignore[attr-defined]
+            seq=msg.seq, frame=msg.frame, command=msg.command, current=msg.current,
+            autocontinue=msg.autocontinue, param1=msg.param1, param2=msg.param2,
+            param3=msg.param3, param4=msg.param4, x=int(x), y=int(y), z=msg.z,
             mission_type=getattr(msg, "mission_type", 0),
         )
 

@@ -23,7 +23,7 @@ from .faults import FaultBook
 from .flavour import Flavour, Mode
 from .geo import LocalFrame
 from .mission import MissionItem, Upload
-from .world import Body, Phase, Rover
+from .world import AnyBody, Phase, Rover
 
 log = logging.getLogger(__name__)
 
@@ -91,7 +91,7 @@ class SimVehicle:
     def __init__(
         self,
         spec: VehicleSpec,
-        body: Body,
+        body: AnyBody,
         flavour: Flavour,
         frame: LocalFrame,
         clock: Clock,
@@ -103,7 +103,8 @@ class SimVehicle:
         self.sysid = spec.sysid
         self.compid = spec.compid
         self.body = body
-        self.is_rover = isinstance(body, Rover)
+        self.rover = body if isinstance(body, Rover) else None  # the body again, when it is a rover
+        self.is_rover = self.rover is not None
         self.flavour = flavour
         self.frame = frame
         self.clock = clock
@@ -111,7 +112,7 @@ class SimVehicle:
         self.link: Link | None = None
         self.mav = M.MAVLink(None, srcSystem=spec.sysid, srcComponent=spec.compid)
 
-        self.armed = self.is_rover and body.phase is Phase.AIR  # a rover placed in the air flies
+        self.armed = isinstance(body, Rover) and body.phase is Phase.AIR  # a rover placed in the air flies
         self.mode = Mode.HOLD
         self.paused = False
         self.home = (body.position[0], body.position[1], 0.0)
@@ -242,7 +243,7 @@ class SimVehicle:
         if self.faults.refuses_arm(self.id, self.clock.sim_time):
             self.statustext("Arming denied: preflight check failed", M.MAV_SEVERITY_CRITICAL)
             return M.MAV_RESULT_DENIED
-        if self.is_rover and self.body.battery <= 0.0:
+        if self.rover is not None and self.rover.battery <= 0.0:
             self.statustext("Arming denied: battery empty", M.MAV_SEVERITY_CRITICAL)
             return M.MAV_RESULT_DENIED
         self.armed = True
@@ -256,7 +257,7 @@ class SimVehicle:
     def disarm(self, force: bool = False) -> int:
         if not self.armed:
             return M.MAV_RESULT_ACCEPTED
-        if self.is_rover and self.body.phase is Phase.AIR:
+        if self.rover is not None and self.rover.phase is Phase.AIR:
             self.statustext("Disarming denied: in air", M.MAV_SEVERITY_WARNING)
             return M.MAV_RESULT_DENIED
         self.armed = False
@@ -267,12 +268,12 @@ class SimVehicle:
         return M.MAV_RESULT_ACCEPTED
 
     def _cmd_takeoff(self, cmd: Command) -> int:
-        if not self.is_rover:
+        if self.rover is None:
             return M.MAV_RESULT_UNSUPPORTED
         if not self.armed:
             self.statustext("Takeoff denied: disarmed", M.MAV_SEVERITY_WARNING)
             return M.MAV_RESULT_DENIED
-        if self.body.battery <= 0.0:
+        if self.rover.battery <= 0.0:
             return M.MAV_RESULT_DENIED
         if self.flavour.px4:  # PX4: param7 is AMSL, NaN = MIS_TAKEOFF_ALT above home
             alt = self.flavour.takeoff_alt() if not math.isfinite(cmd.alt) else cmd.alt - self.frame.alt0
@@ -293,16 +294,17 @@ class SimVehicle:
             body.takeoff(alt)
 
     def _cmd_land(self, cmd: Command) -> int:
-        if not self.is_rover:
+        rover = self.rover
+        if rover is None:
             self.body.hold()
             self._set_mode_raw(Mode.HOLD)
             return M.MAV_RESULT_ACCEPTED
         self._set_mode_raw(Mode.LAND)
         if math.isfinite(cmd.lat) and math.isfinite(cmd.lon) and not (cmd.lat == 0 and cmd.lon == 0):
             x, y, _ = self.frame.to_enu(cmd.lat, cmd.lon, self.frame.alt0)
-            self.body.land(x, y)
+            rover.land(x, y)
         else:
-            self.body.land()
+            rover.land()
         return M.MAV_RESULT_ACCEPTED
 
     def _cmd_rtl(self, cmd: Command) -> int:
@@ -450,8 +452,8 @@ class SimVehicle:
         elif mode is Mode.RTL:
             self._rtl_phase = 0
         elif mode is Mode.LAND:
-            if self.is_rover:
-                self.body.land()
+            if self.rover is not None:
+                self.rover.land()
             else:
                 self.body.hold()
         self._set_mode_raw(mode)
@@ -468,13 +470,12 @@ class SimVehicle:
         """Advance a return to launch; True once done (rover landed / carrier home)."""
         body = self.body
         hx, hy, hz = self.home
-        if not self.is_rover:
+        if not isinstance(body, Rover):
             if self._rtl_phase == 0:
                 body.goto(hx, hy, 0.0)
                 self._rtl_phase = 1
                 return False
             return body.arrived
-        assert isinstance(body, Rover)
         if body.phase is not Phase.AIR:
             return self._rtl_phase > 0
         if self._rtl_phase == 0:
@@ -490,12 +491,12 @@ class SimVehicle:
     # simulation step (simulated time)
     # ======================================================================================
     def update(self, t: float) -> None:
-        body = self.body
-        if self.is_rover and body.events:
+        rover = self.rover
+        if rover is not None and rover.events:
             self._on_body_events(t)
         if self._disarm_at is not None and t >= self._disarm_at:
             self._disarm_at = None
-            if self.armed and self.is_rover and body.on_ground:
+            if self.armed and rover is not None and rover.on_ground:
                 self.armed = False
                 self.statustext("Disarmed (landed)")
                 self._emit_heartbeat_now()
@@ -508,7 +509,7 @@ class SimVehicle:
         elif mode is Mode.TAKEOFF:
             if self._takeoff_pending:
                 self._start_takeoff(self.flavour.takeoff_alt())
-            elif body.arrived and body.phase is Phase.AIR:
+            elif rover is not None and rover.arrived and rover.phase is Phase.AIR:
                 self.statustext("Takeoff complete")
                 self._set_mode_raw(Mode.HOLD if self.flavour.px4 else Mode.GUIDED)
         elif mode is Mode.RTL:
@@ -579,7 +580,7 @@ class SimVehicle:
             self._start_takeoff(max(z, 0.5))
             return False
         if cmd == ms.NAV_LAND:
-            if not self.is_rover:
+            if not isinstance(body, Rover):
                 body.hold()
                 return False
             if body.phase is not Phase.AIR:
@@ -600,9 +601,9 @@ class SimVehicle:
         cmd = item.command
         body = self.body
         if cmd == ms.NAV_TAKEOFF:
-            return body.arrived and body.phase is Phase.AIR
+            return isinstance(body, Rover) and body.arrived and body.phase is Phase.AIR
         if cmd == ms.NAV_LAND:
-            return body.on_ground if self.is_rover else body.arrived
+            return body.on_ground if isinstance(body, Rover) else body.arrived
         if cmd == ms.NAV_RTL:
             return self._rtl_step()
         if cmd == ms.NAV_LOITER_UNLIM:
@@ -620,8 +621,8 @@ class SimVehicle:
             self.current = seq + 1
         else:
             self.finished = True
-            if self.is_rover and self.body.phase is Phase.AIR:
-                self.body.hold()
+            if self.rover is not None and self.rover.phase is Phase.AIR:
+                self.rover.hold()
             self.statustext("Mission finished")
         self._emit(M.MAVLINK_MSG_ID_MISSION_CURRENT)
 
@@ -901,9 +902,8 @@ class SimVehicle:
     # -- message builders --------------------------------------------------------------------
     def landed_state(self) -> int:
         body = self.body
-        if not self.is_rover or body.phase is not Phase.AIR:
+        if not isinstance(body, Rover) or body.phase is not Phase.AIR:
             return M.MAV_LANDED_STATE_ON_GROUND
-        assert isinstance(body, Rover)
         if body.landing or self.mode is Mode.LAND:
             return M.MAV_LANDED_STATE_LANDING
         if self.mode is Mode.TAKEOFF and body.position[2] < 0.5:
@@ -911,7 +911,7 @@ class SimVehicle:
         return M.MAV_LANDED_STATE_IN_AIR
 
     def battery_fraction(self) -> float:
-        return self.body.battery if self.is_rover else 1.0
+        return self.rover.battery if self.rover is not None else 1.0
 
     def _time_boot_ms(self) -> int:
         return int(self.clock.sim_time * 1000) & 0xFFFFFFFF

@@ -337,6 +337,9 @@ class Rover(Body):
         self.events.append("touchdown")
 
 
+AnyBody = Carrier | Rover  # a Body is always one of the two
+
+
 class World:
     """The carrier and its rovers, advanced together in fixed steps."""
 
@@ -344,9 +347,9 @@ class World:
         self.time = 0.0
         self.carrier = Carrier(carrier)
         self.rovers: dict[str, Rover] = {r.id: Rover(r, self.carrier) for r in rovers}
-        self.bodies: dict[str, Body] = {carrier.id: self.carrier, **self.rovers}
+        self.bodies: dict[str, AnyBody] = {carrier.id: self.carrier, **self.rovers}
 
-    def body(self, vehicle_id: str) -> Body:
+    def body(self, vehicle_id: str) -> AnyBody:
         return self.bodies[vehicle_id]
 
     def loaded_rovers(self) -> list[str]:

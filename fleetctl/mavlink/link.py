@@ -36,7 +36,7 @@ import math
 import time
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, cast
 from urllib.parse import parse_qs, urlsplit
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
@@ -273,7 +273,8 @@ class _Udp(asyncio.DatagramProtocol):
         self.transport: asyncio.DatagramTransport | None = None
 
     def connection_made(self, transport: asyncio.BaseTransport) -> None:
-        self.transport = transport  # type: ignore[assignment]
+        # asyncio hands a datagram protocol its DatagramTransport; typeshed declares the base class
+        self.transport = cast(asyncio.DatagramTransport, transport)
 
     def datagram_received(self, data: bytes, addr: Any) -> None:
         self.link._received(data, addr)
@@ -364,7 +365,7 @@ class Link:
 
     async def _open_serial(self, timeout: float) -> tuple[asyncio.StreamReader, asyncio.StreamWriter]:
         try:
-            import serial_asyncio  # type: ignore[import-untyped]
+            import serial_asyncio
         except ImportError:
             raise LinkError(f"connection {self.url!r}: serial links need the pyserial-asyncio package "
                             "(pip install pyserial-asyncio)") from None
@@ -750,10 +751,12 @@ class Link:
                 base = max(item_timeout, 3.0 * self._last_rtt)
                 items: list[MissionItem] = []
                 for seq in range(n):
+                    def is_item(m: Any, seq: int = seq) -> bool:
+                        return m.get_type() in ("MISSION_ITEM_INT", "MISSION_ITEM") and m.seq == seq
+
                     m = await self._exchange(
                         inbox, self.mav.mission_request_int_encode(sysid, compid, seq, mission_type), sysid,
-                        lambda m, s=seq: m.get_type() in ("MISSION_ITEM_INT", "MISSION_ITEM") and m.seq == s,
-                        base, timeout, retries, "download")
+                        is_item, base, timeout, retries, "download")
                     items.append(MissionItem.from_msg(m))
                 if n:
                     ok = M.MAV_MISSION_ACCEPTED

@@ -205,7 +205,7 @@ def _vector(*dims: int) -> Parser:
                 + (f" of {len(v)} numbers" if isinstance(v, list) else ""),
             )
         num = _number(unit="metres")
-        return tuple(num(ctx, c, path + (i,)) for i, c in enumerate(v))  # type: ignore[misc]
+        return tuple(num(ctx, c, path + (i,)) for i, c in enumerate(v))
 
     return parse
 

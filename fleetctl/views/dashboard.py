@@ -14,7 +14,7 @@ import sys
 from collections.abc import Callable, Sequence
 from typing import IO, TYPE_CHECKING, Any
 
-from rich.console import Console, Group
+from rich.console import Console, Group, JustifyMethod
 from rich.live import Live
 from rich.progress_bar import ProgressBar
 from rich.table import Table
@@ -58,10 +58,12 @@ def render(state: FleetState, max_rows: int | None = None, status: Sequence[str]
                      Text(state.last_replan or "", style="magenta", overflow="ellipsis"), "")
 
     table = Table(expand=False, pad_edge=False, box=None, header_style="bold")
-    for col, justify in (("id", "left"), ("role", "left"), ("state", "left"), ("task", "left"),
-                         ("E m", "right"), ("N m", "right"), ("alt m", "right"), ("m/s", "right"),
-                         ("batt%", "right"), ("range", "right"), ("link s", "right")):
-        table.add_column(col, justify=justify, no_wrap=True)  # type: ignore[arg-type]
+    columns: tuple[tuple[str, JustifyMethod], ...] = (
+        ("id", "left"), ("role", "left"), ("state", "left"), ("task", "left"), ("E m", "right"),
+        ("N m", "right"), ("alt m", "right"), ("m/s", "right"), ("batt%", "right"), ("range", "right"),
+        ("link s", "right"))
+    for col, justify in columns:
+        table.add_column(col, justify=justify, no_wrap=True)
     rows = list(state.vehicles.values())
     hidden = 0
     if max_rows is not None and len(rows) > max_rows:

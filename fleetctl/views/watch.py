@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import io
 import json
 import logging
 import sys
@@ -189,17 +190,9 @@ class Watcher:
 
 def render_text(watcher: Watcher, width: int = 160) -> str:
     """The dashboard of ``watcher`` as plain text (for ``--headless`` and tests)."""
-    console = Console(width=width, record=True, file=_Null(), color_system=None)
+    console = Console(width=width, record=True, file=io.StringIO(), color_system=None)
     console.print(render(watcher.state, None, watcher.status_lines()))
     return console.export_text()
-
-
-class _Null:
-    def write(self, s: str) -> int:
-        return len(s)
-
-    def flush(self) -> None:
-        pass
 
 
 async def watch(config: BusConfig, *, headless: bool = False, exit_on_done: bool = False,
