@@ -7,8 +7,16 @@ import json
 import logging
 import sys
 from collections.abc import Sequence
+from typing import TYPE_CHECKING, Any
 
 from fleetctl.mission import Mission, MissionError, load_mission
+from planners.problem import CollectProblem
+
+if TYPE_CHECKING:
+    from fleetctl.mavlink.fleet import Fleet
+    from fleetctl.mavlink.vehicle import Vehicle
+    from fleetctl.run.runner import RunOutcome
+    from planners.problem import DeployProblem
 
 log = logging.getLogger("fleetctl")
 
@@ -62,11 +70,12 @@ def cmd_plan(args: argparse.Namespace) -> int:
     return 0
 
 
-def _lower_bound(problem: object, collect: bool) -> float | None:
+def _lower_bound(problem: DeployProblem | CollectProblem, collect: bool) -> float | None:
     import planners
 
-    fn = getattr(planners, "collect_lower_bound", None) if collect else planners.deploy_lower_bound
-    return fn(problem) if fn is not None else None
+    if isinstance(problem, CollectProblem):
+        return float(planners.collect_lower_bound(problem))
+    return float(planners.deploy_lower_bound(problem))
 
 
 def _print_summary(mission: Mission, plan: object, bound: float | None) -> None:
@@ -144,7 +153,7 @@ def cmd_resume(args: argparse.Namespace) -> int:
     return _fly(args, resumption.mission, resumption.command, {"resume": resumption})
 
 
-def _fly(args: argparse.Namespace, mission: Mission, command: str, extra: dict[str, object]) -> int:
+def _fly(args: argparse.Namespace, mission: Mission, command: str, extra: dict[str, Any]) -> int:
     import asyncio
 
     from fleetctl.run.context import ExecutionError
@@ -174,7 +183,7 @@ def _fly(args: argparse.Namespace, mission: Mission, command: str, extra: dict[s
     return outcome.exit_code
 
 
-async def _with_sigterm(mission: Mission, command: str, options: dict[str, object]) -> tuple[object, bool]:
+async def _with_sigterm(mission: Mission, command: str, options: dict[str, Any]) -> tuple[RunOutcome, bool]:
     """Run the command; SIGTERM cancels it like Ctrl-C does (and is reported as such)."""
     import asyncio
     import contextlib
@@ -201,19 +210,19 @@ async def _with_sigterm(mission: Mission, command: str, options: dict[str, objec
     return outcome, bool(got)
 
 
-def _print_outcome(command: str, mission: Mission, outcome: object) -> None:
-    s = outcome.summary  # type: ignore[attr-defined]
-    if outcome.error:  # type: ignore[attr-defined]
-        print(f"fleetctl: error: {outcome.error}", file=sys.stderr)  # type: ignore[attr-defined]
+def _print_outcome(command: str, mission: Mission, outcome: RunOutcome) -> None:
+    s = outcome.summary
+    if outcome.error:
+        print(f"fleetctl: error: {outcome.error}", file=sys.stderr)
     n_tasks = len(s.get("tasks_reached", [])) + len(s.get("tasks_unserved", []))
     print(f"{command} {s['result']}: "
-          + (f"{len(s['tasks_reached'])}/{n_tasks or len(mission.tasks)} tasks reached" if command != "collect"
-             else f"{len(s['rovers_loaded'])} rovers loaded")
+          + (f"{len(s['tasks_reached'])}/{n_tasks or len(mission.tasks)} tasks reached"
+             if command != "collect" else f"{len(s['rovers_loaded'])} rovers loaded")
           + (f", {len(s['rovers_airborne'])} rovers airborne" if s.get("rovers_airborne") else "")
           + (f", makespan {s['makespan_flown']:.1f} s (planned {s['makespan_planned']:.1f} s)"
              if s.get("makespan_flown") is not None and s.get("makespan_planned") is not None else "")
-          + f"; records in {outcome.run_dir}",  # type: ignore[attr-defined]
-          file=sys.stderr if outcome.exit_code else sys.stdout)  # type: ignore[attr-defined]
+          + f"; records in {outcome.run_dir}",
+          file=sys.stderr if outcome.exit_code else sys.stdout)
 
 
 def _add_fly_commands(sub: argparse._SubParsersAction) -> None:
@@ -280,14 +289,16 @@ def _add_resume_command(sub: argparse._SubParsersAction) -> None:
                        description="Finish an interrupted deploy, collect or run from its records folder, "
                                    "on the live fleet.", epilog=_RESUME_EPILOG,
                        formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--run", required=True, metavar="DIR", help="the run folder (printed when the run started)")
+    p.add_argument("--run", required=True, metavar="DIR",
+                   help="the run folder (printed when the run started)")
     p.add_argument("--mission", "-m", help="the mission file (default: the copy saved in the run folder; "
                                            "given, it must be the same)")
     p.add_argument("--headless", action="store_true", help="one log line per event instead of the live view")
     p.add_argument("--speedup", type=float, metavar="X", help=argparse.SUPPRESS)
     p.add_argument("--summary", metavar="OUT.json", help="also write the run summary JSON here")
     p.add_argument("--planner", "-p", help="planner name (default: the interrupted run's)")
-    p.add_argument("--dwell", type=float, metavar="S", help="run: seconds on task (default: the interrupted run's)")
+    p.add_argument("--dwell", type=float, metavar="S",
+                   help="run: seconds on task (default: the interrupted run's)")
     _add_shared_fly_options(p)
     p.set_defaults(func=cmd_resume)
 
@@ -430,9 +441,9 @@ async def _status(mission: Mission, timeout: float, speedup: float | None) -> in
         except LinkError as e:
             raise CliError(str(e)) from None
         try:
-            async def telemetry(v: object) -> None:
+            async def telemetry(v: Vehicle) -> None:
                 with contextlib.suppress(TimeoutError):
-                    await v.wait_until(  # type: ignore[attr-defined]
+                    await v.wait_until(
                         lambda v: v.position is not None and v.battery_pct is not None
                         and v.landed_state is not None, min(timeout, 3.0), "telemetry")
 
@@ -453,15 +464,15 @@ async def _status(mission: Mission, timeout: float, speedup: float | None) -> in
     return 0
 
 
-def _status_rows(mission: Mission, fleet: object) -> tuple[list[dict[str, str]], list[str]]:
+def _status_rows(mission: Mission, fleet: Fleet) -> tuple[list[dict[str, str]], list[str]]:
     from fleetctl.geo import Origin, geodetic_to_enu
 
-    carrier = fleet.carrier  # type: ignore[attr-defined]
+    carrier = fleet.carrier
     reserve = mission.rovers.reserve
     rows: list[dict[str, str]] = []
     problems: list[str] = []
-    for vid, v in fleet.vehicles.items():  # type: ignore[attr-defined]
-        url = fleet.urls[vid]  # type: ignore[attr-defined]
+    for vid, v in fleet.vehicles.items():
+        url = fleet.urls[vid]
         is_carrier = v is carrier
         row = {"id": vid, "role": "carrier" if is_carrier else "rover", "sysid": str(v.sysid), "url": url,
                "link": "-", "autopilot": "-", "armed": "-", "mode": "-", "battery": "-", "position": "-",
@@ -469,7 +480,7 @@ def _status_rows(mission: Mission, fleet: object) -> tuple[list[dict[str, str]],
         reasons: list[str] = []
         if not v.connected:
             row["link"] = "no answer"
-            reasons.append(fleet.errors.get(vid, "no heartbeat"))  # type: ignore[attr-defined]
+            reasons.append(fleet.errors.get(vid, "no heartbeat"))
         else:
             row["link"] = "lost" if v.lost else f"ok ({v.last_heard_age or 0.0:.1f} s)"
             row["autopilot"] = v.autopilot.name if v.autopilot else "?"
@@ -492,7 +503,8 @@ def _status_rows(mission: Mission, fleet: object) -> tuple[list[dict[str, str]],
                                    f"{lat:.7f}, {lon:.7f}, {alt:.1f}")
             if not is_carrier:
                 if v.position is not None and carrier.position is not None and v.on_ground is not None:
-                    e, n, _u = geodetic_to_enu(*v.position, Origin(*carrier.position))
+                    lat, lon, alt = v.position
+                    e, n, _u = geodetic_to_enu(lat, lon, alt, Origin(*carrier.position))
                     on_deck = v.on_ground and (e * e + n * n) ** 0.5 <= DECK_RADIUS
                     row["deck"] = "on deck" if on_deck else "off deck"
                 else:

@@ -36,8 +36,9 @@ async def upload(ctx: RunContext, v: Vehicle, items: list[MissionItem]) -> None:
         await ctx.command(v, "upload_mission", v.upload_mission(items), items=len(items))
     except MissionRejected as exc:
         why = f" ({exc.reason})" if exc.reason else ""
-        raise ExecutionError(f"{v.name} ({ctx.fleet.urls.get(v.name, '')}) rejected its mission: "
-                             f"{exc.result_name}{why}") from None
+        raise ExecutionError(
+            f"{v.name} ({ctx.fleet.urls.get(v.name, '')}) rejected its mission: {exc.result_name}{why}"
+        ) from None
 
 
 class CarrierControl:
@@ -63,8 +64,9 @@ class CarrierControl:
         telemetry lacks them."""
         c, m = self.vehicle, self.ctx.mission
         pos = c.enu
-        start = (pos[0], pos[1], 0.0) if pos is not None else (m.carrier.position[0],
-                                                               m.carrier.position[1], 0.0)
+        start = (
+            (pos[0], pos[1], 0.0) if pos is not None else (m.carrier.position[0], m.carrier.position[1], 0.0)
+        )
         if c.heading_deg is not None:
             heading = math.radians(90.0 - c.heading_deg)
             heading = math.atan2(math.sin(heading), math.cos(heading))
@@ -118,8 +120,13 @@ class CarrierControl:
             raise ExecutionError(f"the carrier did not reach stop {k + 1}: {exc}") from None
         t = self.ctx.clock()
         st.set_state(c.name, VehicleStatus.HOLDING)
-        st.event(Ev.STOP_REACHED, f"{c.name}: stop {k + 1}/{st.stop_count} reached", c.name,
-                 stop=k + 1, position=c.enu)
+        st.event(
+            Ev.STOP_REACHED,
+            f"{c.name}: stop {k + 1}/{st.stop_count} reached",
+            c.name,
+            stop=k + 1,
+            position=c.enu,
+        )
         return t
 
     async def ready(self) -> None:
@@ -127,12 +134,14 @@ class CarrierControl:
         if self.ok.is_set() and not self.lost:
             return
         try:
-            await self.vehicle.wait_until(lambda v: not v.lost, self.ctx.wall(CARRIER_OUTAGE_MAX),
-                                          "carrier back")
+            await self.vehicle.wait_until(
+                lambda v: not v.lost, self.ctx.wall(CARRIER_OUTAGE_MAX), "carrier back"
+            )
         except TimeoutError:
-            raise ExecutionError(f"the carrier {self.ctx.fleet.carrier_id} stayed lost for more than "
-                                 f"{CARRIER_OUTAGE_MAX:g} s; rovers in the field hold where they are"
-                                 ) from None
+            raise ExecutionError(
+                f"the carrier {self.ctx.fleet.carrier_id} stayed lost for more than "
+                f"{CARRIER_OUTAGE_MAX:g} s; rovers in the field hold where they are"
+            ) from None
 
     # -- carrier outages ---------------------------------------------------------------------------
     def on_link(self, ev: SupervisorEvent, airborne: Callable[[], list[str]]) -> list[str]:
@@ -161,8 +170,12 @@ class CarrierControl:
                 self.held.add(rid)
             ctx.spawn(self.hold_or_land(v, low), f"hold {rid}")
         cid = ctx.fleet.carrier_id
-        ctx.state.event(Ev.CARRIER_LOST, f"{cid}: carrier lost: no launches; airborne rovers hold "
-                        f"({', '.join(sorted(self.held)) or 'none'})", cid)
+        ctx.state.event(
+            Ev.CARRIER_LOST,
+            f"{cid}: carrier lost: no launches; airborne rovers hold "
+            f"({', '.join(sorted(self.held)) or 'none'})",
+            cid,
+        )
         return landing
 
     def _back(self) -> None:
@@ -178,8 +191,9 @@ class CarrierControl:
         try:
             if low:
                 await self.ctx.command(v, "land", v.land())
-                self.ctx.state.event(Ev.ROVER_LANDING, f"{v.name}: battery at the reserve, landing where "
-                                     "it is", v.name)
+                self.ctx.state.event(
+                    Ev.ROVER_LANDING, f"{v.name}: battery at the reserve, landing where it is", v.name
+                )
             else:
                 await self.ctx.command(v, "pause", v.pause())
         except (CommandRejected, LinkError, TimeoutError) as exc:

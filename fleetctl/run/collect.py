@@ -2,7 +2,8 @@
 
 State lives on a :class:`RoverBoard`: each rover to collect is *pending* (waiting for a round),
 *in a round* (flying to its meeting point), *loaded*, *lost*, *unreachable* (too little range
-to reach the ground) or *failed* (a round could not bring it in). Each round plans the pending rovers from their live positions and fresh
+to reach the ground) or *failed* (a round could not bring it in). Each round plans the pending
+rovers from their live positions and fresh
 battery readings (:mod:`fleetctl.run.energy`), sends each above its meeting point (where it holds
 in an unlimited loiter) and the carrier along its route; at a stop the stop's rovers are sent to
 land on the carrier, which waits until every one is *loaded* (landed within
@@ -100,8 +101,14 @@ class ResumedCollect:
 class CollectPhase:
     """One collection (see the module docstring)."""
 
-    def __init__(self, ctx: RunContext, carrier: CarrierControl, supervisor: Supervisor,
-                 planning: Planning, resumed: ResumedCollect | None = None) -> None:
+    def __init__(
+        self,
+        ctx: RunContext,
+        carrier: CarrierControl,
+        supervisor: Supervisor,
+        planning: Planning,
+        resumed: ResumedCollect | None = None,
+    ) -> None:
         self.ctx = ctx
         self.carrier = carrier
         self.supervisor = supervisor
@@ -140,8 +147,11 @@ class CollectPhase:
 
     def _start_board(self, rover_ids: Iterable[str] | None) -> None:
         ctx, rovers = self.ctx, self.ctx.fleet.rovers
-        ids = list(rover_ids) if rover_ids is not None else [
-            rid for rid, v in rovers.items() if v.connected and not rover_on_deck(ctx, v)]
+        ids = (
+            list(rover_ids)
+            if rover_ids is not None
+            else [rid for rid, v in rovers.items() if v.connected and not rover_on_deck(ctx, v)]
+        )
         for rid in ids:
             v = rovers[rid]
             if rover_on_deck(ctx, v) and rover_ids is not None:  # already back on the carrier
@@ -182,8 +192,14 @@ class CollectPhase:
             ctx.record(Ev.ROVER_STATE, vehicle=rid, position=p, battery_pct=v.battery_pct, range=rng)
             if rng < max(p[2], 0.0):  # cannot even land below itself: out of the carrier's reach
                 self.board.set(rid, RoverStatus.UNREACHABLE)
-                ctx.state.event(Ev.ROVER_UNREACHABLE, f"{rid}: {rng:.1f} m of range left at {p[2]:.1f} m up: "
-                                "cannot reach the ground, not collected", rid, range=rng, height=p[2])
+                ctx.state.event(
+                    Ev.ROVER_UNREACHABLE,
+                    f"{rid}: {rng:.1f} m of range left at {p[2]:.1f} m up: "
+                    "cannot reach the ground, not collected",
+                    rid,
+                    range=rng,
+                    height=p[2],
+                )
                 continue
             self.board.set(rid, RoverStatus.IN_ROUND)
             crs.append(CollectRover(rid, (p[0], p[1], max(p[2], 0.0)), rng))
@@ -193,8 +209,9 @@ class CollectPhase:
         ctx, st = self.ctx, self.ctx.state
         start, heading = self.carrier.pose()
         m = ctx.mission
-        problem = CollectProblem(m.carrier.spec(), m.rovers.motion(), start, heading, tuple(crs),
-                                 **m.environment())
+        problem = CollectProblem(
+            m.carrier.spec(), m.rovers.motion(), start, heading, tuple(crs), **m.environment()
+        )
         plan = await self.planning.plan("collect", problem)
         compiled = self.planning.compile(plan)
         ctx.replans.ready(plan)
@@ -223,7 +240,9 @@ class CollectPhase:
         k, prev = 0, 0.0
         while k < len(stops):
             stop, items = stops[k], cstops[k]
-            ok, _ = await race(q, self.carrier.reach_stop(k, items.arrive_seq, stop.arrive - prev), self.handle)
+            ok, _ = await race(
+                q, self.carrier.reach_stop(k, items.arrive_seq, stop.arrive - prev), self.handle
+            )
             if not ok:
                 stops, cstops = await self._trim(rnd, stops[k:], cstops[k:])
                 k, prev = 0, 0.0
@@ -234,7 +253,7 @@ class CollectPhase:
             assert self.t0 is not None
             self.result.flown = ctx.clock() - self.t0
             if drain(q, self.handle) and k + 1 < len(stops):
-                stops, cstops = await self._trim(rnd, stops[k + 1:], cstops[k + 1:])
+                stops, cstops = await self._trim(rnd, stops[k + 1 :], cstops[k + 1 :])
                 k, prev = 0, 0.0
                 continue
             await self.carrier.release(k, items.release_seq)
@@ -250,8 +269,9 @@ class CollectPhase:
             items.insert(rm.target_seq + 1, hold)
             rnd.hold_seq[rid], rnd.land_seq[rid] = rm.target_seq + 1, rm.final_seq + 1
             rnd.items[rid] = items
-        results = await asyncio.gather(*(upload(ctx, rovers[rid], items) for rid, items in rnd.items.items()),
-                                       return_exceptions=True)
+        results = await asyncio.gather(
+            *(upload(ctx, rovers[rid], items) for rid, items in rnd.items.items()), return_exceptions=True
+        )
         for rid, r in zip(rnd.items, results, strict=True):
             if isinstance(r, BaseException):
                 rnd.failed.add(rid)
@@ -272,7 +292,9 @@ class CollectPhase:
                 await self.ctx.command(v, "arm", v.arm())
             await self.ctx.command(v, "start_mission", v.start_mission())
             self.ctx.state.set_state(rid, VehicleStatus.RETURNING)
-            self.supervisor.expect(rid, flight_path(self.ctx, rnd.compiled.rovers[rid], v.enu or (0.0, 0.0, 0.0)))
+            self.supervisor.expect(
+                rid, flight_path(self.ctx, rnd.compiled.rovers[rid], v.enu or (0.0, 0.0, 0.0))
+            )
         except (CommandRejected, LinkError, TimeoutError) as exc:
             self.ctx.state.event(Ev.ROVER_FAILED, f"{rid}: cannot start its way back ({exc})", rid)
             rnd.failed.add(rid)
@@ -290,8 +312,9 @@ class CollectPhase:
             if not rover_on_deck(ctx, v):
                 await ctx.command(v, "set_current", v.set_current(rnd.land_seq[rid]), seq=rnd.land_seq[rid])
                 st.set_state(rid, VehicleStatus.LANDED)
-            await v.wait_until(lambda v: rover_on_deck(ctx, v) or v.lost, ctx.wall(LANDING_TIMEOUT),
-                               "landing on the carrier")
+            await v.wait_until(
+                lambda v: rover_on_deck(ctx, v) or v.lost, ctx.wall(LANDING_TIMEOUT), "landing on the carrier"
+            )
             if v.lost:
                 return
         except (CommandRejected, LinkError, TimeoutError) as exc:
@@ -310,16 +333,20 @@ class CollectPhase:
             losses = self.carrier.losses
             try:
                 await v.wait_until(
-                    lambda v: ((v.mission_current or 0) >= rnd.hold_seq[rid] or rover_on_deck(ctx, v)
-                               or v.lost),
-                    ctx.wall(max(leg_arrive - (ctx.clock() - rnd.start), 0.0)), "meeting point")
+                    lambda v: (
+                        (v.mission_current or 0) >= rnd.hold_seq[rid] or rover_on_deck(ctx, v) or v.lost
+                    ),
+                    ctx.wall(max(leg_arrive - (ctx.clock() - rnd.start), 0.0)),
+                    "meeting point",
+                )
                 return
             except TimeoutError:
                 if losses == self.carrier.losses and not self.carrier.lost:
                     raise
 
-    async def _trim(self, rnd: _Round, rest: list[Stop], rest_items: list[StopItems]
-                    ) -> tuple[list[Stop], list[StopItems]]:
+    async def _trim(
+        self, rnd: _Round, rest: list[Stop], rest_items: list[StopItems]
+    ) -> tuple[list[Stop], list[StopItems]]:
         """The rest of a route without the rovers no longer in it: the others keep their meeting
         points; stops left empty are dropped and the carrier re-routed from where it is."""
         ctx = self.ctx
@@ -333,8 +360,15 @@ class CollectPhase:
         for s in keep:
             s.carrier_path = [prev, s.position]
             prev = s.position
-        new = Plan("collect", rnd.plan.planner, start, heading, keep,
-                   makespan=max((s.depart for s in keep), default=0.0), notes=["trimmed: lost rovers removed"])
+        new = Plan(
+            "collect",
+            rnd.plan.planner,
+            start,
+            heading,
+            keep,
+            makespan=max((s.depart for s in keep), default=0.0),
+            notes=["trimmed: lost rovers removed"],
+        )
         rnd.start = ctx.clock()
         if [s.position for s in keep] == [s.position for s in rest] and keep:
             ctx.replans.ready(new)  # the route itself is unchanged: no new command
@@ -392,8 +426,9 @@ class CollectPhase:
         res = self.snapshot(last_load)
         if self.t0 is None:
             lost = self.board.lost_at_start
-            self.ctx.state.event(Ev.NOTHING_TO_COLLECT, "no rover to collect"
-                                 + (f" ({len(lost)} lost)" if lost else ""))
+            self.ctx.state.event(
+                Ev.NOTHING_TO_COLLECT, "no rover to collect" + (f" ({len(lost)} lost)" if lost else "")
+            )
         return res
 
     def snapshot(self, last_load: float | None = None) -> PhaseResult:
@@ -407,8 +442,10 @@ class CollectPhase:
         res.rovers_unreachable = board.with_status(RoverStatus.UNREACHABLE)
         lost_at_start = set(board.lost_at_start)
         # complete: every rover loaded, except those out of reach and those lost before it began
-        res.complete = all(board.status[r] in (RoverStatus.LOADED, RoverStatus.UNREACHABLE) or r in lost_at_start
-                           for r in ids)
+        res.complete = all(
+            board.status[r] in (RoverStatus.LOADED, RoverStatus.UNREACHABLE) or r in lost_at_start
+            for r in ids
+        )
         if self.t0 is None:  # nothing flown
             res.planned = 0.0
             res.complete = res.complete and not lost_at_start

@@ -54,9 +54,17 @@ class Committer(Protocol):
 class RunContext:
     """The shared parts of one flight (see the module docstring)."""
 
-    def __init__(self, mission: Mission, fleet: Fleet, state: FleetState, *,
-                 record: Recorder | None = None, commit: Committer | None = None,
-                 speedup: float = 1.0, clock: Callable[[], float] | None = None) -> None:
+    def __init__(
+        self,
+        mission: Mission,
+        fleet: Fleet,
+        state: FleetState,
+        *,
+        record: Recorder | None = None,
+        commit: Committer | None = None,
+        speedup: float = 1.0,
+        clock: Callable[[], float] | None = None,
+    ) -> None:
         self.mission = mission
         self.fleet = fleet
         self.state = state
@@ -116,13 +124,18 @@ class RunContext:
 
         async def one(v: Vehicle) -> None:
             with contextlib.suppress(TimeoutError):
-                await v.wait_until(lambda v: v.enu is not None and (v is carrier or v.landed_state is not None),
-                                   TELEMETRY_TIMEOUT, "first position")
+                await v.wait_until(
+                    lambda v: v.enu is not None and (v is carrier or v.landed_state is not None),
+                    TELEMETRY_TIMEOUT,
+                    "first position",
+                )
 
         await asyncio.gather(*(one(v) for v in self.fleet.vehicles.values() if v.connected and not v.lost))
         if carrier.enu is None:
-            raise ExecutionError(f"{carrier.name}: no position from the carrier within "
-                                 f"{TELEMETRY_TIMEOUT:g} s (is GPS available?)")
+            raise ExecutionError(
+                f"{carrier.name}: no position from the carrier within "
+                f"{TELEMETRY_TIMEOUT:g} s (is GPS available?)"
+            )
 
     # -- owned background tasks --------------------------------------------------------------------
     def spawn(self, coro: Coroutine[Any, Any, T], name: str) -> asyncio.Task[T]:

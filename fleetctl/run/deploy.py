@@ -49,8 +49,15 @@ WATCH_RETRIES = 3  # timeouts of a task watch forgiven while the carrier's link 
 class DeployPhase:
     """One deployment (see the module docstring)."""
 
-    def __init__(self, ctx: RunContext, carrier: CarrierControl, supervisor: Supervisor,
-                 planning: Planning, board: TaskBoard, resumed: ResumedDeploy | None = None) -> None:
+    def __init__(
+        self,
+        ctx: RunContext,
+        carrier: CarrierControl,
+        supervisor: Supervisor,
+        planning: Planning,
+        board: TaskBoard,
+        resumed: ResumedDeploy | None = None,
+    ) -> None:
         self.ctx = ctx
         self.carrier = carrier
         self.supervisor = supervisor
@@ -96,8 +103,13 @@ class DeployPhase:
         rovers = ctx.fleet.rovers
         deck = [rid for rid, v in rovers.items() if rover_on_deck(ctx, v)]
         if len(deck) < len(board.pooled()):
-            await asyncio.gather(*(_settle(ctx, v) for rid, v in rovers.items()
-                                   if rid not in deck and v.connected and not v.lost))
+            await asyncio.gather(
+                *(
+                    _settle(ctx, v)
+                    for rid, v in rovers.items()
+                    if rid not in deck and v.connected and not v.lost
+                )
+            )
             deck = [rid for rid, v in rovers.items() if rover_on_deck(ctx, v)]
         flying = set(board.airborne())
         for rid, v in rovers.items():
@@ -108,8 +120,10 @@ class DeployPhase:
         self.deck = deck
         usable = [rid for rid in deck if board.available(rid)]
         if len(usable) < len(board.pooled()) and self.resumed is None:
-            raise ExecutionError(f"{len(usable)} rover(s) on the carrier's deck ({', '.join(usable) or 'none'}) "
-                                 f"for {len(board.pooled())} tasks: every task needs a rover on the deck")
+            raise ExecutionError(
+                f"{len(usable)} rover(s) on the carrier's deck ({', '.join(usable) or 'none'}) "
+                f"for {len(board.pooled())} tasks: every task needs a rover on the deck"
+            )
 
     def _adopt(self, resumed: ResumedDeploy) -> None:
         """Take over an interrupted deployment: its clock, its planned makespan and a watch on
@@ -135,25 +149,34 @@ class DeployPhase:
         board, rovers = self.board, self.ctx.fleet.rovers
         usable = [rid for rid in self.deck if board.available(rid) and not rovers[rid].lost]
         tasks = board.pooled()
-        for t in tasks[len(usable):]:
+        for t in tasks[len(usable) :]:
             board.unserve(t.id, "no spare rover left on the deck")
-            self.ctx.state.event(Ev.TASK_UNSERVED, f"{t.id}: no spare rover left on the deck", None, task=t.id)
-        return tasks[:len(usable)], usable
+            self.ctx.state.event(
+                Ev.TASK_UNSERVED, f"{t.id}: no spare rover left on the deck", None, task=t.id
+            )
+        return tasks[: len(usable)], usable
 
     async def _round(self, tasks: list[Task], usable: list[str]) -> None:
         """Plan ``tasks`` from where the carrier is, start its route and fly it."""
         ctx, st = self.ctx, self.ctx.state
         await self.carrier.ready()
         start, heading = self.carrier.pose()
-        problem = dataclasses.replace(ctx.mission.deploy_problem(), start=start, heading=heading,
-                                      tasks=tuple(tasks), rovers=tuple(usable))
+        problem = dataclasses.replace(
+            ctx.mission.deploy_problem(),
+            start=start,
+            heading=heading,
+            tasks=tuple(tasks),
+            rovers=tuple(usable),
+        )
         plan = await self.planning.plan("deploy", problem)
         compiled = self.planning.compile(plan)
         ctx.replans.ready(plan)
         if self.t0 is None:
             self.result.plan, self.result.planned = plan, plan.makespan
             st.set_phase(Phase.DEPLOY, plan.makespan, len(plan.stops))
-            await asyncio.gather(*(self.launcher.pre_upload(s, id(compiled)) for s in compiled.rovers.values()))
+            await asyncio.gather(
+                *(self.launcher.pre_upload(s, id(compiled)) for s in compiled.rovers.values())
+            )
         else:
             st.planned = (ctx.clock() - self.t0) + plan.makespan
             st.stop_count, st.stop_index = len(plan.stops), 0
@@ -178,22 +201,27 @@ class DeployPhase:
         last = len(plan.stops) - 1
         prev = 0.0
         for k, (stop, items) in enumerate(zip(plan.stops, compiled.stops, strict=True)):
-            ok, arrived = await race(q, self.carrier.reach_stop(k, items.arrive_seq, stop.arrive - prev),
-                                     self.handle)
+            ok, arrived = await race(
+                q, self.carrier.reach_stop(k, items.arrive_seq, stop.arrive - prev), self.handle
+            )
             if not ok or arrived is None:
                 return  # the rest of the route is thrown away
             prev = stop.depart
             at = (stop.position[0], stop.position[1], 0.0)
-            launches = [self._launch(slots[leg.rover], leg, at, id(compiled), spares, plan_t0)
-                        for leg in stop.rovers if board.is_pooled(leg.task)]
+            launches = [
+                self._launch(slots[leg.rover], leg, at, id(compiled), spares, plan_t0)
+                for leg in stop.rovers
+                if leg.task is not None and board.is_pooled(leg.task)
+            ]
             unload = ctx.sleep_mission(max(arrived + ctx.mission.carrier.unload_time - ctx.clock(), 0.0))
             await asyncio.gather(unload, *launches)
             if drain(q, self.handle) and k < last or board.pooled() and k == last:
                 return  # replan from this stop (the carrier holds here)
             await self.carrier.release(k, items.release_seq)
 
-    async def _launch(self, slot: RoverMission, leg: RoverLeg, at: Vec3, plan_id: int, spares: Spares,
-                      plan_t0: float) -> None:
+    async def _launch(
+        self, slot: RoverMission, leg: RoverLeg, at: Vec3, plan_id: int, spares: Spares, plan_t0: float
+    ) -> None:
         ctx, board, st = self.ctx, self.board, self.ctx.state
         task = slot.task or ""
         rid = await self.launcher.launch(slot, plan_id, spares)
@@ -209,21 +237,29 @@ class DeployPhase:
             return
         board.fly(task, rid)
         st.set_state(rid, VehicleStatus.CLIMBING, task=task)
-        st.event(Ev.ROVER_LAUNCHED, f"{rid}: launched for {task} at stop {slot.stop + 1}", rid,
-                 task=task, stop=slot.stop + 1)
+        st.event(
+            Ev.ROVER_LAUNCHED,
+            f"{rid}: launched for {task} at stop {slot.stop + 1}",
+            rid,
+            task=task,
+            stop=slot.stop + 1,
+        )
         self.supervisor.expect(rid, flight_path(ctx, slot, at))
         self.watch(rid, task, leg.end, leg.arrive, plan_t0, takeoff_seq(slot))
 
     # ============================================================================== task watch
-    def watch(self, rid: str, task: str, target: Vec3, arrive: float, plan_t0: float,
-              takeoff: int = -1) -> None:
+    def watch(
+        self, rid: str, task: str, target: Vec3, arrive: float, plan_t0: float, takeoff: int = -1
+    ) -> None:
         """Watch ``rid`` until it holds at ``task`` (planned to arrive ``arrive`` s after
         ``plan_t0``)."""
-        self.watchers[task] = self.ctx.spawn(self._watch(rid, task, target, arrive, plan_t0, takeoff),
-                                             f"watch {rid}")
+        self.watchers[task] = self.ctx.spawn(
+            self._watch(rid, task, target, arrive, plan_t0, takeoff), f"watch {rid}"
+        )
 
-    async def _watch(self, rid: str, task: str, target: Vec3, arrive: float, plan_t0: float,
-                     takeoff: int) -> None:
+    async def _watch(
+        self, rid: str, task: str, target: Vec3, arrive: float, plan_t0: float, takeoff: int
+    ) -> None:
         ctx, st = self.ctx, self.ctx.state
         v = ctx.fleet.rovers[rid]
 
@@ -231,7 +267,11 @@ class DeployPhase:
             if st.vehicles[rid].state == VehicleStatus.CLIMBING and (v.mission_current or 0) > takeoff:
                 st.set_state(rid, VehicleStatus.EN_ROUTE)
             p = v.enu
-            return p is not None and math.dist(p, target) <= REACH_RADIUS and (v.ground_speed or 0.0) < HOLD_SPEED
+            return (
+                p is not None
+                and math.dist(p, target) <= REACH_RADIUS
+                and (v.ground_speed or 0.0) < HOLD_SPEED
+            )
 
         tries = 0
         while True:
@@ -251,8 +291,14 @@ class DeployPhase:
         flown = ctx.clock() - (self.t0 if self.t0 is not None else plan_t0)
         self.board.reach(task, flown)
         st.set_state(rid, VehicleStatus.ON_TASK)
-        st.event(Ev.TASK_REACHED, f"{rid}: reached {task} (at {flown:.1f} s, planned {arrive:.1f} s of its "
-                 "plan)", rid, task=task, flown=flown, planned=arrive)
+        st.event(
+            Ev.TASK_REACHED,
+            f"{rid}: reached {task} (at {flown:.1f} s, planned {arrive:.1f} s of its plan)",
+            rid,
+            task=task,
+            flown=flown,
+            planned=arrive,
+        )
 
     def _stop_watching(self, task: str, rid: str) -> None:
         w = self.watchers.pop(task, None)
@@ -281,13 +327,22 @@ class DeployPhase:
         landed = [(t, r) for t, r in self.board.flying().items() if r in landing]
         for task, r in landed:  # it will not reach its task: the task goes back to the pool
             self._stop_watching(task, r)
-            self.board.give_back(task, f"its rover {r} landed at the battery reserve while the carrier was lost")
+            self.board.give_back(
+                task, f"its rover {r} landed at the battery reserve while the carrier was lost"
+            )
             self.board.rejoined.append(r)  # a rover to collect where it landed
-            self.ctx.state.event(Ev.TASK_RETURNED, f"{task}: {r} landed at the battery reserve; the task goes "
-                                 "back to the pool", r, task=task)
+            self.ctx.state.event(
+                Ev.TASK_RETURNED,
+                f"{task}: {r} landed at the battery reserve; the task goes back to the pool",
+                r,
+                task=task,
+            )
         if landed:
-            self.ctx.replans.begin(f"{', '.join(r for _, r in landed)} landed at the battery reserve "
-                                   "(carrier lost)", ev, self.plan)
+            self.ctx.replans.begin(
+                f"{', '.join(r for _, r in landed)} landed at the battery reserve (carrier lost)",
+                ev,
+                self.plan,
+            )
         return bool(landed)
 
     def _on_rover_lost(self, ev: SupervisorEvent, rid: str) -> bool:
@@ -297,8 +352,12 @@ class DeployPhase:
         if task is not None:
             self._stop_watching(task, rid)
             self.board.give_back(task, f"its rover {rid} was lost in flight")
-            st.event(Ev.TASK_RETURNED, f"{task}: {rid} lost in flight; the task goes back to the pool",
-                     rid, task=task)
+            st.event(
+                Ev.TASK_RETURNED,
+                f"{task}: {rid} lost in flight; the task goes back to the pool",
+                rid,
+                task=task,
+            )
             self.ctx.replans.begin(f"{rid} lost in flight (task {task})", ev, self.plan)
             return True
         if rid not in self.board.launched:
@@ -321,8 +380,11 @@ class DeployPhase:
             st.set_state(rid, st.vehicles[rid].state if on else VehicleStatus.ON_TASK)
             if not on:
                 board.rejoined.append(rid)
-            st.event(Ev.ROVER_REJOINED, f"{rid}: link back" + ("" if on else ": rejoins as a rover to collect"),
-                     rid)
+            st.event(
+                Ev.ROVER_REJOINED,
+                f"{rid}: link back" + ("" if on else ": rejoins as a rover to collect"),
+                rid,
+            )
         return False
 
     def _on_tasks(self, ev: SupervisorEvent) -> bool:
@@ -344,14 +406,24 @@ class DeployPhase:
             if r is not None:
                 self._stop_watching(tid, r)
                 board.rejoined.append(r)
-                ctx.state.event(Ev.ROVER_RELEASED, f"{r}: its task {tid} was removed; it holds there to be "
-                                "collected", r, task=tid)
+                ctx.state.event(
+                    Ev.ROVER_RELEASED,
+                    f"{r}: its task {tid} was removed; it holds there to be collected",
+                    r,
+                    task=tid,
+                )
         for t in ev.add:
             board.add(t)
-        ctx.state.event(Ev.TASKS_CHANGED, f"tasks changed ({ev.source}): added "
-                        f"{', '.join(t.id for t in ev.add) or 'none'}, removed {', '.join(ev.remove) or 'none'}",
-                        None, add=[t.id for t in ev.add], remove=list(ev.remove), source=ev.source,
-                        added=[{"id": t.id, "position": list(t.position)} for t in ev.add])
+        ctx.state.event(
+            Ev.TASKS_CHANGED,
+            f"tasks changed ({ev.source}): added "
+            f"{', '.join(t.id for t in ev.add) or 'none'}, removed {', '.join(ev.remove) or 'none'}",
+            None,
+            add=[t.id for t in ev.add],
+            remove=list(ev.remove),
+            source=ev.source,
+            added=[{"id": t.id, "position": list(t.position)} for t in ev.add],
+        )
         if again:
             ctx.replans.begin(f"tasks changed ({ev.source}): +{len(ev.add)} -{len(ev.remove)}", ev, self.plan)
         return again

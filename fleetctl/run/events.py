@@ -22,8 +22,9 @@ T = TypeVar("T")
 Handler = Callable[[SupervisorEvent], bool]  # True: replan
 
 
-async def race(queue: asyncio.Queue[SupervisorEvent], aw: Awaitable[T], handle: Handler
-               ) -> tuple[bool, T | None]:
+async def race(
+    queue: asyncio.Queue[SupervisorEvent], aw: Awaitable[T], handle: Handler
+) -> tuple[bool, T | None]:
     """Await ``aw`` while handing events to ``handle``; when ``handle`` returns True (replan),
     ``aw`` is cancelled and ``(False, None)`` returned, else ``(True, result)``."""
     task = asyncio.ensure_future(aw)
@@ -54,8 +55,9 @@ def drain(queue: asyncio.Queue[SupervisorEvent], handle: Handler) -> bool:
     return again
 
 
-async def next_event(queue: asyncio.Queue[SupervisorEvent], others: set[asyncio.Task[None]],
-                     timeout: float) -> SupervisorEvent | None:
+async def next_event(
+    queue: asyncio.Queue[SupervisorEvent], others: set[asyncio.Task[None]], timeout: float
+) -> SupervisorEvent | None:
     """The next event, or None when one of ``others`` finished first (or ``timeout`` passed)."""
     getter = asyncio.ensure_future(queue.get())
     try:
@@ -76,11 +78,16 @@ def announce_warning(ctx: RunContext, ev: SupervisorEvent) -> None:
     if rid is None:
         return
     if ev.kind == Watch.BATTERY_LOW:
-        ctx.state.event(Ev.BATTERY_LOW, f"{rid}: battery {ev.data.get('battery_pct')}% at or below the "
-                        "reserve the plan assumed", rid, **ev.data)
+        ctx.state.event(
+            Ev.BATTERY_LOW,
+            f"{rid}: battery {ev.data.get('battery_pct')}% at or below the reserve the plan assumed",
+            rid,
+            **ev.data,
+        )
     elif ev.kind == Watch.OFF_COURSE:
-        ctx.state.event(Ev.OFF_COURSE, f"{rid}: off course ({ev.data.get('distance')} m from its path)",
-                        rid, **ev.data)
+        ctx.state.event(
+            Ev.OFF_COURSE, f"{rid}: off course ({ev.data.get('distance')} m from its path)", rid, **ev.data
+        )
 
 
 __all__ = ["Handler", "announce_warning", "drain", "next_event", "race"]

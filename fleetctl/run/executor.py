@@ -40,15 +40,28 @@ HOLD_TIMEOUT = 5.0  # wall s for each vehicle's hold command on the way out
 class Executor:
     """Flies a mission's deployment and collection on a connected fleet."""
 
-    def __init__(self, mission: Mission, fleet: Fleet, state: FleetState, *,
-                 record: Recorder | None = None, commit: Committer | None = None, planner: str | None = None,
-                 speedup: float = 1.0, clock: Callable[[], float] | None = None,
-                 write_plan: Callable[[str, Plan], None] | None = None, board: TaskBoard | None = None) -> None:
-        self.ctx = RunContext(mission, fleet, state, record=record, commit=commit, speedup=speedup, clock=clock)
+    def __init__(
+        self,
+        mission: Mission,
+        fleet: Fleet,
+        state: FleetState,
+        *,
+        record: Recorder | None = None,
+        commit: Committer | None = None,
+        planner: str | None = None,
+        speedup: float = 1.0,
+        clock: Callable[[], float] | None = None,
+        write_plan: Callable[[str, Plan], None] | None = None,
+        board: TaskBoard | None = None,
+    ) -> None:
+        self.ctx = RunContext(
+            mission, fleet, state, record=record, commit=commit, speedup=speedup, clock=clock
+        )
         self.carrier = CarrierControl(self.ctx)
         self.board = board if board is not None else TaskBoard.of(mission.tasks)
-        self.supervisor = Supervisor(mission, fleet, state, tasks=lambda: dict(self.board.tasks),
-                                     record=self.ctx.record)
+        self.supervisor = Supervisor(
+            mission, fleet, state, tasks=lambda: dict(self.board.tasks), record=self.ctx.record
+        )
         self.planning = Planning(self.ctx, planner, write_plan)
         self.deploy_phase: DeployPhase | None = None
         self.collect_phase: CollectPhase | None = None
@@ -62,12 +75,14 @@ class Executor:
     async def deploy(self, resumed: ResumedDeploy | None = None) -> PhaseResult:
         """Plan from the live state and fly the deployment (the board's pooled tasks), replanning
         on supervision events; ``resumed`` takes over an interrupted one."""
-        self.deploy_phase = DeployPhase(self.ctx, self.carrier, self.supervisor, self.planning, self.board,
-                                        resumed)
+        self.deploy_phase = DeployPhase(
+            self.ctx, self.carrier, self.supervisor, self.planning, self.board, resumed
+        )
         return await self.deploy_phase.run()
 
-    async def collect(self, rover_ids: Iterable[str] | None = None,
-                      resumed: ResumedCollect | None = None) -> PhaseResult:
+    async def collect(
+        self, rover_ids: Iterable[str] | None = None, resumed: ResumedCollect | None = None
+    ) -> PhaseResult:
         """Plan the collection of ``rover_ids`` (default: every connected rover not on the deck)
         from live positions and batteries and fly it; ``resumed`` takes over an interrupted one."""
         self.collect_phase = CollectPhase(self.ctx, self.carrier, self.supervisor, self.planning, resumed)
@@ -94,12 +109,17 @@ class Executor:
         st, record = self.ctx.state, self.ctx.record
         if ev.kind == "lost":
             st.set_state(ev.vehicle, VehicleStatus.LOST)
-            st.event(Ev.LINK_LOST, f"{ev.vehicle}: link lost (no heartbeat for "
-                     f"{ev.data.get('timeout', 0):g} s)", ev.vehicle)
+            st.event(
+                Ev.LINK_LOST,
+                f"{ev.vehicle}: link lost (no heartbeat for {ev.data.get('timeout', 0):g} s)",
+                ev.vehicle,
+            )
         elif ev.kind == "back":
             st.event(Ev.LINK_BACK, f"{ev.vehicle}: link back", ev.vehicle)
         elif ev.kind == "statustext":
-            record(Ev.STATUSTEXT, vehicle=ev.vehicle, text=ev.data.get("text"), severity=ev.data.get("severity"))
+            record(
+                Ev.STATUSTEXT, vehicle=ev.vehicle, text=ev.data.get("text"), severity=ev.data.get("severity")
+            )
         elif ev.kind in ("armed", "disarmed", "mode", "landed_state"):
             record(ev.kind, vehicle=ev.vehicle, **ev.data)
 

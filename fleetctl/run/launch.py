@@ -84,8 +84,11 @@ class Launcher:
             await upload(self.ctx, self.ctx.fleet.rovers[slot.rover], list(slot.items))
             self.uploaded[slot.rover] = (plan_id, slot.rover)
         except (ExecutionError, LinkError, TimeoutError) as exc:
-            self.ctx.record(Ev.ROVER_FAILED, vehicle=slot.rover, text=f"upload failed ({exc}); a spare "
-                            f"will fly {slot.task}")
+            self.ctx.record(
+                Ev.ROVER_FAILED,
+                vehicle=slot.rover,
+                text=f"upload failed ({exc}); a spare will fly {slot.task}",
+            )
 
     async def launch(self, slot: RoverMission, plan_id: int, spares: Spares) -> str | None:
         """Launch a rover for ``slot``'s task; returns the rover that lifted off (None: no rover
@@ -119,8 +122,9 @@ class Launcher:
                 await v.wait_until(lambda v: rover_on_deck(self.ctx, v), DECK_CHECK_TIMEOUT, "on the deck")
         return rover_on_deck(self.ctx, v)
 
-    async def _arm(self, v: Vehicle, slot: RoverMission, plan_id: int, spares: Spares
-                   ) -> tuple[bool, str | None]:
+    async def _arm(
+        self, v: Vehicle, slot: RoverMission, plan_id: int, spares: Spares
+    ) -> tuple[bool, str | None]:
         """Upload (when the rover does not hold this slot's mission) and arm. Returns (True, the
         rover) or (False, the spare that takes over, None when none is left)."""
         rid, task, st = v.name, slot.task or "", self.ctx.state
@@ -137,16 +141,26 @@ class Launcher:
             spare = spares.take(self.ctx, self.board)
             reason = exc.reason or exc.ack.result_name
             then = f"spare {spare} takes {task}" if spare else f"no spare left for {task}"
-            st.event(Ev.ROVER_REFUSED, f"{rid}: refused to arm ({reason}); {then}", rid, reason=reason,
-                     spare=spare, task=task)
+            st.event(
+                Ev.ROVER_REFUSED,
+                f"{rid}: refused to arm ({reason}); {then}",
+                rid,
+                reason=reason,
+                spare=spare,
+                task=task,
+            )
             if spare is not None:
                 self.board.substitutions.append({"refused": rid, "spare": spare, "task": task})
             return False, spare
         except (ExecutionError, LinkError, TimeoutError) as exc:
             spare = spares.take(self.ctx, self.board)
-            st.event(Ev.ROVER_FAILED, f"{rid}: {exc}; " + (f"spare {spare} takes {task}" if spare
-                                                           else f"no spare left for {task}"),
-                     rid, spare=spare, task=task)
+            st.event(
+                Ev.ROVER_FAILED,
+                f"{rid}: {exc}; " + (f"spare {spare} takes {task}" if spare else f"no spare left for {task}"),
+                rid,
+                spare=spare,
+                task=task,
+            )
             return False, spare
 
     async def _lift_off(self, v: Vehicle, slot: RoverMission) -> bool:
@@ -155,16 +169,30 @@ class Launcher:
             await self.ctx.command(v, "start_mission", v.start_mission())
             # a task on the ground may be left again before a position shows it
             await v.wait_until(
-                lambda v: ((v.relative_alt or 0.0) > AIRBORNE_HEIGHT or tk in v.items_reached
-                           or (v.mission_current or -1) > tk),
-                self.ctx.wall(LIFTOFF_TIMEOUT), "lift-off")
+                lambda v: (
+                    (v.relative_alt or 0.0) > AIRBORNE_HEIGHT
+                    or tk in v.items_reached
+                    or (v.mission_current or -1) > tk
+                ),
+                self.ctx.wall(LIFTOFF_TIMEOUT),
+                "lift-off",
+            )
             return True
         except (CommandRejected, LinkError, TimeoutError) as exc:
-            self.ctx.state.event(Ev.ROVER_FAILED, f"{v.name}: did not take off ({exc})", v.name,
-                                 task=slot.task)
+            self.ctx.state.event(
+                Ev.ROVER_FAILED, f"{v.name}: did not take off ({exc})", v.name, task=slot.task
+            )
             with contextlib.suppress(CommandRejected, LinkError, TimeoutError):
                 await v.disarm()
             return False
 
 
-__all__ = ["AIRBORNE_HEIGHT", "DECK_CHECK_TIMEOUT", "Launcher", "Spares", "flight_path", "rover_on_deck", "takeoff_seq"]
+__all__ = [
+    "AIRBORNE_HEIGHT",
+    "DECK_CHECK_TIMEOUT",
+    "Launcher",
+    "Spares",
+    "flight_path",
+    "rover_on_deck",
+    "takeoff_seq",
+]

@@ -21,8 +21,12 @@ class Planning:
     """Plans a phase with the mission's planner (or the command line's ``planner``: ``NAME`` for
     both phases or ``DEPLOY,COLLECT``); every plan is journalled before it flies."""
 
-    def __init__(self, ctx: RunContext, planner: str | None = None,
-                 write_plan: Callable[[str, Plan], None] | None = None) -> None:
+    def __init__(
+        self,
+        ctx: RunContext,
+        planner: str | None = None,
+        write_plan: Callable[[str, Plan], None] | None = None,
+    ) -> None:
         self.ctx = ctx
         self.planner = planner
         self.write_plan = write_plan
@@ -38,18 +42,25 @@ class Planning:
         registry = planners.DEPLOY_PLANNERS if kind == "deploy" else planners.COLLECT_PLANNERS
         name = self.name(kind)
         if name not in registry:
-            raise ExecutionError(f"unknown {kind} planner {name!r}; choose one of {', '.join(sorted(registry))}")
+            raise ExecutionError(
+                f"unknown {kind} planner {name!r}; choose one of {', '.join(sorted(registry))}"
+            )
         try:
             plan = await asyncio.to_thread(registry[name], problem)
         except PlanningError as exc:
-            raise ExecutionError(f"cannot plan the {'deployment' if kind == 'deploy' else 'collection'} "
-                                 f"with {name!r}: {exc}") from None
+            raise ExecutionError(
+                f"cannot plan the {'deployment' if kind == 'deploy' else 'collection'} with {name!r}: {exc}"
+            ) from None
         await self.ctx.commit(Ev.PLAN, plan=plan.to_json())
         if self.write_plan is not None:
             self.write_plan(kind, plan)
-        self.ctx.state.event(Ev.PLAN, f"{kind} plan ({name}): {len(plan.stops)} stops, makespan "
-                             f"{plan.makespan:.1f} s, computed in {plan.compute_ms:.0f} ms",
-                             stops=len(plan.stops), makespan=plan.makespan)
+        self.ctx.state.event(
+            Ev.PLAN,
+            f"{kind} plan ({name}): {len(plan.stops)} stops, makespan "
+            f"{plan.makespan:.1f} s, computed in {plan.compute_ms:.0f} ms",
+            stops=len(plan.stops),
+            makespan=plan.makespan,
+        )
         return plan
 
     def compile(self, plan: Plan) -> CompiledPlan:

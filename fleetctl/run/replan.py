@@ -68,13 +68,21 @@ class ReplanTracker:
         st = self.state
         st.replans += 1
         lat = "" if latency_ms is None else f", first new command {latency_ms:.0f} ms after the event"
-        what = (f"{len(r.new.stops)} stops, makespan {r.new.makespan:.1f} s" if r.new is not None
-                else "nothing left to plan")
+        what = (
+            f"{len(r.new.stops)} stops, makespan {r.new.makespan:.1f} s"
+            if r.new is not None
+            else "nothing left to plan"
+        )
         text = f"replan #{st.replans}: {r.cause} -> {what}{lat}"
         st.last_replan = text
-        self.record(Ev.REPLAN, n=st.replans, cause=r.cause, latency_ms=latency_ms,
-                    old_plan=r.old.to_json() if r.old is not None else None,
-                    new_plan=r.new.to_json() if r.new is not None else None)
+        self.record(
+            Ev.REPLAN,
+            n=st.replans,
+            cause=r.cause,
+            latency_ms=latency_ms,
+            old_plan=r.old.to_json() if r.old is not None else None,
+            new_plan=r.new.to_json() if r.new is not None else None,
+        )
         st.event(Ev.REPLAN, text, r.vehicle, n=st.replans, cause=r.cause, latency_ms=latency_ms)
 
 

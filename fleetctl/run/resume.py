@@ -63,7 +63,7 @@ class Resumption:
     # -- for the runner ----------------------------------------------------------------------------
     def phases_left(self, command: str) -> list[str]:
         order = {"deploy": ["deploy"], "collect": ["collect"], "run": list(PHASES)}[command]
-        return order[order.index(self.phase):] if self.phase in order else order
+        return order[order.index(self.phase) :] if self.phase in order else order
 
     def _elapsed(self, phase: str) -> float:
         t = self.started.get(phase)
@@ -102,8 +102,9 @@ class Resumption:
 
         async def settle(v: Vehicle) -> None:
             with contextlib.suppress(TimeoutError):
-                await v.wait_until(lambda v: v.enu is not None and v.landed_state is not None,
-                                   SETTLE_TIMEOUT, "telemetry")
+                await v.wait_until(
+                    lambda v: v.enu is not None and v.landed_state is not None, SETTLE_TIMEOUT, "telemetry"
+                )
 
         await asyncio.gather(*(settle(v) for v in fleet.vehicles.values() if v.connected))
         rovers = fleet.rovers
@@ -111,14 +112,23 @@ class Resumption:
             v = rovers.get(rid)
             if v is not None and v.connected and (v.armed or _airborne(v)) and self.board.is_pooled(task):
                 self.board.fly(task, rid)
-        found: dict[str, Any] = {"reached": self.board.with_status(TaskStatus.REACHED), "flying": {},
-                                 "holding_on_task": [], "landed_elsewhere": [], "lost": [],
-                                 "loaded": sorted(self.loaded)}
+        found: dict[str, Any] = {
+            "reached": self.board.with_status(TaskStatus.REACHED),
+            "flying": {},
+            "holding_on_task": [],
+            "landed_elsewhere": [],
+            "lost": [],
+            "loaded": sorted(self.loaded),
+        }
         if self.phase == "deploy":
             self._reconcile_flying(rovers, found)
         c = fleet.carrier
-        found["carrier"] = {"position": [round(x, 2) for x in c.enu] if c.enu else None, "armed": c.armed,
-                            "mode": c.mode, "mission_item": c.mission_current}
+        found["carrier"] = {
+            "position": [round(x, 2) for x in c.enu] if c.enu else None,
+            "armed": c.armed,
+            "mode": c.mode,
+            "mission_item": c.mission_current,
+        }
         self.found = found
 
     def _reconcile_flying(self, rovers: dict[str, Vehicle], found: dict[str, Any]) -> None:
@@ -129,8 +139,11 @@ class Resumption:
             if v is None or not v.connected or v.lost:
                 board.give_back(task, f"its rover {rid} did not answer after the controller restarted")
                 found["lost"].append(rid)
-            elif v.enu is not None and math.dist(v.enu, target) <= REACH_RADIUS and \
-                    (v.ground_speed or 0.0) < HOLD_SPEED:
+            elif (
+                v.enu is not None
+                and math.dist(v.enu, target) <= REACH_RADIUS
+                and (v.ground_speed or 0.0) < HOLD_SPEED
+            ):
                 board.reach(task, self._elapsed("deploy"))
                 found["holding_on_task"].append(rid)
             elif not _airborne(v):
@@ -150,8 +163,10 @@ def load_resumption(run_dir: str | Path, mission_file: str | Path | None = None)
     """Read a run folder (see the module docstring); :class:`ResumeError` when it cannot be resumed."""
     d = Path(run_dir)
     if not (d / JOURNAL_NAME).is_file():
-        raise ResumeError(f"{d}: no {JOURNAL_NAME} here; give the run folder printed when the run "
-                          "started (runs/<mission>-<timestamp>)")
+        raise ResumeError(
+            f"{d}: no {JOURNAL_NAME} here; give the run folder printed when the run "
+            "started (runs/<mission>-<timestamp>)"
+        )
     try:
         records = read_journal(d / JOURNAL_NAME)
     except JournalError as exc:
@@ -161,16 +176,24 @@ def load_resumption(run_dir: str | Path, mission_file: str | Path | None = None)
         raise ResumeError(f"{d / JOURNAL_NAME}: no 'run' record: not the journal of a deploy, collect or run")
     mission = _mission(d, run, mission_file)
     if mission_uses_sim(mission):
-        raise ResumeError(f"{d}: the run flew the embedded simulated fleet (connection: sim), which died "
-                          "with the controller; there is no fleet left to resume. Fly it again, or serve "
-                          "the fleet with 'fleetctl sim' and fly it over real URLs to be able to resume")
+        raise ResumeError(
+            f"{d}: the run flew the embedded simulated fleet (connection: sim), which died "
+            "with the controller; there is no fleet left to resume. Fly it again, or serve "
+            "the fleet with 'fleetctl sim' and fly it over real URLs to be able to resume"
+        )
     last = next((r for r in reversed(records) if r["kind"] == Ev.SUMMARY), None)
     if last is not None and last.get("result") == "complete":
         raise ResumeError(f"{d}: this run completed ({last.get('phase')}); there is nothing to resume")
     _check_vehicles(d, records, mission)
-    res = Resumption(d, str(run["command"]), mission, TaskBoard.of(mission.tasks), "deploy",
-                     float(run.get("speedup") or 1.0),
-                     options={"planner": run.get("planner"), "dwell": run.get("dwell")})
+    res = Resumption(
+        d,
+        str(run["command"]),
+        mission,
+        TaskBoard.of(mission.tasks),
+        "deploy",
+        float(run.get("speedup") or 1.0),
+        options={"planner": run.get("planner"), "dwell": run.get("dwell")},
+    )
     if res.command == "collect":
         res.phase = "collect"
     _replay(res, records)
@@ -184,8 +207,10 @@ def _mission(d: Path, run: dict[str, Any], mission_file: str | Path | None) -> M
     saved = copy.read_bytes()
     if mission_file is not None:
         if Path(mission_file).read_bytes() != saved:
-            raise ResumeError(f"{mission_file} is not the mission this run flew ({copy} differs); resume "
-                              "without --mission to use the saved copy")
+            raise ResumeError(
+                f"{mission_file} is not the mission this run flew ({copy} differs); resume "
+                "without --mission to use the saved copy"
+            )
         path = Path(mission_file)
     else:  # the original file when unchanged (live edits keep working), else the copy
         orig = Path(str(run.get("file") or ""))
@@ -203,8 +228,10 @@ def _check_vehicles(d: Path, records: list[dict[str, Any]], mission: Mission) ->
             continue
         vid = r.get("vehicle")
         if vid not in sysids or r.get("sysid") != sysids[vid]:
-            raise ResumeError(f"{d / JOURNAL_NAME}: the journal's vehicle {vid!r} (sysid {r.get('sysid')}) is "
-                              f"not in the mission {mission.name!r}; the journal and the mission do not match")
+            raise ResumeError(
+                f"{d / JOURNAL_NAME}: the journal's vehicle {vid!r} (sysid {r.get('sysid')}) is "
+                f"not in the mission {mission.name!r}; the journal and the mission do not match"
+            )
 
 
 def _replay(res: Resumption, records: list[dict[str, Any]]) -> None:

@@ -102,11 +102,17 @@ class Run:
         if self.uses_sim:
             from sitl import FleetConfig
 
-            self.sim_config = FleetConfig.from_mission_dict(sim_mission_dict(mission, command),
-                                                            speedup=opts.speedup)
+            self.sim_config = FleetConfig.from_mission_dict(
+                sim_mission_dict(mission, command), speedup=opts.speedup
+            )
             self.scale = self.sim_config.speedup
-        run_dir = (Path(opts.resume.run_dir) if opts.resume is not None
-                   else Path(opts.run_dir) if opts.run_dir is not None else run_dir_for(mission.name, opts.runs_dir))
+        run_dir = (
+            Path(opts.resume.run_dir)
+            if opts.resume is not None
+            else Path(opts.run_dir)
+            if opts.run_dir is not None
+            else run_dir_for(mission.name, opts.runs_dir)
+        )
         run_dir.mkdir(parents=True, exist_ok=True)
         self.journal = Journal(run_dir)
         self.state = FleetState(mission)
@@ -164,9 +170,17 @@ class Run:
         if m.path is not None:
             with contextlib.suppress(OSError):
                 await asyncio.to_thread(j.save_mission, m.path)
-        await j.commit(Ev.RUN, mission=m.name, command=self.command, file=str(m.path or ""),
-                       sim=self.uses_sim, speedup=self.scale, planner=self.opts.planner, dwell=self.opts.dwell,
-                       unix_t0=time.time())
+        await j.commit(
+            Ev.RUN,
+            mission=m.name,
+            command=self.command,
+            file=str(m.path or ""),
+            sim=self.uses_sim,
+            speedup=self.scale,
+            planner=self.opts.planner,
+            dwell=self.opts.dwell,
+            unix_t0=time.time(),
+        )
 
     async def _start_sim(self) -> None:
         if not self.uses_sim:
@@ -193,8 +207,9 @@ class Run:
         if view is not None:
             view.start(st, None)
         try:
-            fleet = await connect_fleet(self.mission, self.endpoints, timeout=self.opts.connect_timeout,
-                                        tap=self.journal.tlog)
+            fleet = await connect_fleet(
+                self.mission, self.endpoints, timeout=self.opts.connect_timeout, tap=self.journal.tlog
+            )
         except FleetConnectError as exc:
             raise ExecutionError(str(exc)) from None
         except LinkError as exc:
@@ -205,15 +220,29 @@ class Run:
             await self.journal.commit(Ev.RESUMED, **self.opts.resume.record())
         for vid, v in fleet.vehicles.items():
             st.vehicles[vid].url = fleet.urls.get(vid, "")
-            self.journal.write(Ev.CONNECTED, vehicle=vid, url=fleet.urls.get(vid), sysid=v.sysid,
-                               autopilot=v.autopilot.name if v.autopilot else None)
+            self.journal.write(
+                Ev.CONNECTED,
+                vehicle=vid,
+                url=fleet.urls.get(vid),
+                sysid=v.sysid,
+                autopilot=v.autopilot.name if v.autopilot else None,
+            )
         if view is not None:
             view.start(st, fleet)
         self._refresher = asyncio.create_task(self._refresh(fleet), name="state refresh")
         resume = self.opts.resume
-        self.executor = Executor(self.mission, fleet, st, record=self.journal.write, commit=self.journal.commit,
-                                 planner=self.opts.planner, speedup=self.scale, clock=self.clock,
-                                 write_plan=self._write_plan, board=resume.board if resume else None)
+        self.executor = Executor(
+            self.mission,
+            fleet,
+            st,
+            record=self.journal.write,
+            commit=self.journal.commit,
+            planner=self.opts.planner,
+            speedup=self.scale,
+            clock=self.clock,
+            write_plan=self._write_plan,
+            board=resume.board if resume else None,
+        )
         if self.bus is not None:
             self.bus.attach_executor(self.executor)
 
@@ -250,11 +279,16 @@ class Run:
         if not r.complete and (self.command == "deploy" or not r.launched):
             raise ExecutionError("deployment incomplete: tasks not reached: " + reasons)
         if r.complete:
-            self.state.event(Ev.DEPLOYED, f"deployment complete: {len(r.tasks_reached)} tasks reached in "
-                             f"{r.flown:.1f} s (planned {r.planned:.1f} s)")
+            self.state.event(
+                Ev.DEPLOYED,
+                f"deployment complete: {len(r.tasks_reached)} tasks reached in "
+                f"{r.flown:.1f} s (planned {r.planned:.1f} s)",
+            )
         else:  # run: bring back the rovers that did fly
-            self.state.event(Ev.DEPLOY_INCOMPLETE, f"deployment incomplete: not reached: {reasons}; "
-                             "collecting the rovers in the field")
+            self.state.event(
+                Ev.DEPLOY_INCOMPLETE,
+                f"deployment incomplete: not reached: {reasons}; collecting the rovers in the field",
+            )
 
     async def _dwell(self) -> None:
         assert self.executor is not None
@@ -280,9 +314,14 @@ class Run:
         self.results["collect"] = r
         if not r.complete:
             missing = [x for x in (r.plan.legs() if r.plan else []) if x.rover not in r.rovers_loaded]
-            raise ExecutionError("collection incomplete: not loaded: " + (", ".join(x.rover for x in missing) or "?"))
-        self.state.event(Ev.COLLECTED, f"collection complete: {len(r.rovers_loaded)} rovers loaded in "
-                         f"{r.flown:.1f} s (planned {r.planned:.1f} s)")
+            raise ExecutionError(
+                "collection incomplete: not loaded: " + (", ".join(x.rover for x in missing) or "?")
+            )
+        self.state.event(
+            Ev.COLLECTED,
+            f"collection complete: {len(r.rovers_loaded)} rovers loaded in "
+            f"{r.flown:.1f} s (planned {r.planned:.1f} s)",
+        )
 
     # ============================================================================== the way out
     async def _interrupted(self) -> None:
@@ -316,9 +355,19 @@ class Run:
         self._snapshot_results()
         if self.executor is not None:
             await self.executor.close()
-        summary = build_summary(RunFacts(self.mission, self.command, self.results, self.state, self.error,
-                                         self.interrupted, str(self.journal.path), self.dwell_planned,
-                                         self.dwell_flown))
+        summary = build_summary(
+            RunFacts(
+                self.mission,
+                self.command,
+                self.results,
+                self.state,
+                self.error,
+                self.interrupted,
+                str(self.journal.path),
+                self.dwell_planned,
+                self.dwell_flown,
+            )
+        )
         self.journal.write(Ev.SUMMARY, **summary)
         write_summary(summary, self.journal.summary_path, self.opts.summary_path)
         await self._close_all()
@@ -348,5 +397,14 @@ def _phases_of(command: str) -> list[str]:
     return {"deploy": ["deploy"], "collect": ["collect"], "run": ["deploy", "dwell", "collect"]}[command]
 
 
-__all__ = ["COMMANDS", "EXIT_FAILED", "EXIT_INTERRUPTED", "EXIT_OK", "Run", "RunOptions", "RunOutcome",
-           "execute", "mission_uses_sim"]
+__all__ = [
+    "COMMANDS",
+    "EXIT_FAILED",
+    "EXIT_INTERRUPTED",
+    "EXIT_OK",
+    "Run",
+    "RunOptions",
+    "RunOutcome",
+    "execute",
+    "mission_uses_sim",
+]

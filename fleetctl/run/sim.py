@@ -16,15 +16,18 @@ def sim_mission_dict(mission: Mission, command: str = "deploy") -> dict[str, Any
     others on the deck); without that section a collection on the simulator is refused."""
     d = copy.deepcopy(mission.raw)
     if mission.origin is None:
-        raise ExecutionError(f"{mission.path or mission.name}: the mission has no origin; flying needs "
-                             "WGS84 coordinates: add origin: {lat, lon, alt} to the mission file")
+        raise ExecutionError(
+            f"{mission.path or mission.name}: the mission has no origin; flying needs "
+            "WGS84 coordinates: add origin: {lat, lon, alt} to the mission file"
+        )
     placed: dict[str, Any] = {}
     if command == "collect":
         if not mission.collection:
             raise ExecutionError(
                 f"{mission.path or mission.name}: 'collect' on the simulated fleet needs a 'collection:' "
                 "section (where the rovers are); the simulated rovers otherwise start on the carrier's "
-                "deck. Add one, or fly 'fleetctl run' (deploy, dwell, collect)")
+                "deck. Add one, or fly 'fleetctl run' (deploy, dwell, collect)"
+            )
         placed = {r.id: r.position for r in mission.collection}
     units = []
     for u in mission.rovers.units:

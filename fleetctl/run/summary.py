@@ -36,14 +36,19 @@ def build_summary(f: RunFacts) -> dict[str, Any]:
     task_ids = list(dep.tasks_all) if dep is not None and dep.tasks_all else [t.id for t in f.mission.tasks]
     reached = [] if f.command == "collect" else (dep.tasks_reached if dep else [])
     unserved = [] if f.command == "collect" else [t for t in task_ids if t not in reached]
-    complete = (not f.interrupted and f.error is None
-                and (f.command == "collect" or (dep is not None and dep.complete))
-                and (f.command == "deploy" or (col is not None and col.complete)))
+    complete = (
+        not f.interrupted
+        and f.error is None
+        and (f.command == "collect" or (dep is not None and dep.complete))
+        and (f.command == "deploy" or (col is not None and col.complete))
+    )
     planned, flown = _makespans(f, dep, col, complete)
     order = list(f.state.vehicles)
-    lost = sorted({*(dep.rovers_lost if dep else []), *(col.rovers_lost if col else [])}
-                  - set(col.rovers_loaded if col else []),
-                  key=lambda r: order.index(r) if r in order else 0)
+    lost = sorted(
+        {*(dep.rovers_lost if dep else []), *(col.rovers_lost if col else [])}
+        - set(col.rovers_loaded if col else []),
+        key=lambda r: order.index(r) if r in order else 0,
+    )
     out: dict[str, Any] = {
         "schema": SUMMARY_SCHEMA,
         "mission": f.mission.name,
@@ -65,30 +70,39 @@ def build_summary(f: RunFacts) -> dict[str, Any]:
         out["assignment"] = dep.assignment
         out["substitutions"] = dep.substitutions
     if f.command == "run":
-        out["phases"] = {k: {"planned": r.planned, "flown": r.flown, "complete": r.complete}
-                         for k, r in f.results.items()}
+        out["phases"] = {
+            k: {"planned": r.planned, "flown": r.flown, "complete": r.complete} for k, r in f.results.items()
+        }
     if f.error is not None:
         out["error"] = f.error
     return out
 
 
-def _makespans(f: RunFacts, dep: PhaseResult | None, col: PhaseResult | None,
-               complete: bool) -> tuple[float | None, float | None]:
+def _makespans(
+    f: RunFacts, dep: PhaseResult | None, col: PhaseResult | None, complete: bool
+) -> tuple[float | None, float | None]:
     if f.command == "deploy":
         return (dep.planned, dep.flown) if dep else (None, None)
     if f.command == "collect":
         return (col.planned, col.flown) if col else (None, None)
     # run: deploy + dwell + collect (planning and uploads between the phases not counted)
     dwell = f.dwell_planned if f.dwell_planned is not None else f.mission.dwell
-    planned = (dep.planned + dwell + col.planned
-               if dep and col and dep.planned is not None and col.planned is not None else None)
-    flown = (dep.flown + (f.dwell_flown or 0.0) + col.flown
-             if complete and dep and col and dep.flown is not None and col.flown is not None else None)
+    planned = (
+        dep.planned + dwell + col.planned
+        if dep and col and dep.planned is not None and col.planned is not None
+        else None
+    )
+    flown = (
+        dep.flown + (f.dwell_flown or 0.0) + col.flown
+        if complete and dep and col and dep.flown is not None and col.flown is not None
+        else None
+    )
     return planned, flown
 
 
-def _accounting(f: RunFacts, dep: PhaseResult | None, col: PhaseResult | None, unserved: list[str],
-                lost: list[str]) -> dict[str, Any]:
+def _accounting(
+    f: RunFacts, dep: PhaseResult | None, col: PhaseResult | None, unserved: list[str], lost: list[str]
+) -> dict[str, Any]:
     """Summary fields that account for every task and every rover: why a task was not reached,
     tasks added/removed while flying, and for each rover not loaded nor lost: on the deck (only
     when it is) or left in the field (``rovers_left``: position, state, task, airborne), with
@@ -96,7 +110,9 @@ def _accounting(f: RunFacts, dep: PhaseResult | None, col: PhaseResult | None, u
     out: dict[str, Any] = {"last_replan": f.state.last_replan}
     if f.command != "collect":
         reasons = dep.unserved_reasons if dep else {}
-        out["tasks_unserved_reasons"] = {t: reasons.get(t, "the deployment did not get to it") for t in unserved}
+        out["tasks_unserved_reasons"] = {
+            t: reasons.get(t, "the deployment did not get to it") for t in unserved
+        }
         out["tasks_added"] = dep.tasks_added if dep else []
         out["tasks_removed"] = dep.tasks_removed if dep else []
     loaded = set(col.rovers_loaded) if col else set()

@@ -63,8 +63,11 @@ class TaskBoard:
 
     def flying(self) -> dict[str, str]:
         """task -> rover flying to it."""
-        return {tid: e.rover for tid, e in self.entries.items()
-                if e.status == TaskStatus.FLYING and e.rover is not None}
+        return {
+            tid: e.rover
+            for tid, e in self.entries.items()
+            if e.status == TaskStatus.FLYING and e.rover is not None
+        }
 
     def airborne(self) -> list[str]:
         return list(self.flying().values())
@@ -130,8 +133,11 @@ class TaskBoard:
         return {tid: e.flown or 0.0 for tid, e in self.entries.items() if e.status == TaskStatus.REACHED}
 
     def unserved_reasons(self) -> dict[str, str]:
-        return {tid: e.reason or "not reached" for tid, e in self.entries.items()
-                if e.status != TaskStatus.REACHED}
+        return {
+            tid: e.reason or "not reached"
+            for tid, e in self.entries.items()
+            if e.status != TaskStatus.REACHED
+        }
 
 
 __all__ = ["TaskBoard", "TaskEntry", "TaskStatus"]
