@@ -29,7 +29,7 @@ from fleetctl.run.collect import ResumedCollect
 from fleetctl.run.deploy import HOLD_SPEED, REACH_RADIUS, ResumedDeploy
 from fleetctl.run.kinds import Ev
 from fleetctl.run.results import PhaseResult
-from fleetctl.run.runner import mission_uses_sim
+from fleetctl.run.sim import mission_uses_sim
 from fleetctl.run.task_board import TaskBoard, TaskStatus
 from planners.problem import Task
 

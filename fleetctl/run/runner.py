@@ -17,7 +17,7 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 from fleetctl.journal import Journal, run_dir_for, write_summary
 from fleetctl.mavlink.fleet import Fleet, FleetConnectError, connect_fleet
@@ -27,14 +27,12 @@ from fleetctl.run.context import ExecutionError
 from fleetctl.run.executor import Executor
 from fleetctl.run.kinds import Ev, Phase
 from fleetctl.run.results import PhaseResult
-from fleetctl.run.sim import sim_mission_dict
+from fleetctl.run.resume import Resumption
+from fleetctl.run.sim import mission_uses_sim, sim_mission_dict
 from fleetctl.run.state import FleetState
 from fleetctl.run.summary import RunFacts, build_summary
 from fleetctl.views.view import View
 from planners.plan import Plan
-
-if TYPE_CHECKING:
-    from fleetctl.run.resume import Resumption
 
 EXIT_OK = 0
 EXIT_FAILED = 1
@@ -387,10 +385,6 @@ class Run:
         if self.sim_cm is not None:
             with contextlib.suppress(Exception):
                 await self.sim_cm.__aexit__(None, None, None)
-
-
-def mission_uses_sim(mission: Mission) -> bool:
-    return mission.carrier.connection == "sim" or any(u.connection == "sim" for u in mission.rovers.units)
 
 
 def _phases_of(command: str) -> list[str]:

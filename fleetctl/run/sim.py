@@ -48,4 +48,8 @@ def sim_mission_dict(mission: Mission, command: str = "deploy") -> dict[str, Any
     return d
 
 
-__all__ = ["sim_mission_dict"]
+def mission_uses_sim(mission: Mission) -> bool:
+    return mission.carrier.connection == "sim" or any(u.connection == "sim" for u in mission.rovers.units)
+
+
+__all__ = ["mission_uses_sim", "sim_mission_dict"]

@@ -23,12 +23,27 @@ NAV_TAKEOFF, NAV_LAND, NAV_RETURN_TO_LAUNCH); setting a custom mode raises :clas
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING
+from collections.abc import Iterable
+from typing import Any, Protocol
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
-if TYPE_CHECKING:
-    from fleetctl.mavlink.vehicle import Vehicle
+
+class Vehicle(Protocol):
+    """What an autopilot needs of a vehicle (:class:`fleetctl.mavlink.vehicle.Vehicle` is one)."""
+
+    name: str
+    mode: str | None
+
+    @property
+    def home_amsl(self) -> float | None: ...
+
+    async def command(self, command: int, params: Iterable[float] = (), *, frame: int | None = None,
+                      check: bool = True, timeout: float | None = None) -> Any: ...
+
+    async def set_mode(self, mode: str) -> None: ...
+
+    async def set_current(self, seq: int) -> None: ...
 
 M = mavlink2
 MODES = ("HOLD", "GUIDED", "MISSION", "TAKEOFF", "LAND", "RTL", "MANUAL")
@@ -86,4 +101,4 @@ def base_mode_name(base_mode: int) -> str:
 
 
 
-__all__ = ["CUSTOM", "MODES", "Autopilot", "ModeError", "base_mode_name"]
+__all__ = ["CUSTOM", "MODES", "Autopilot", "ModeError", "Vehicle", "base_mode_name"]

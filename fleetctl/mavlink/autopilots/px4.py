@@ -3,14 +3,10 @@
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
-from fleetctl.mavlink.autopilots.base import CUSTOM, Autopilot, ModeError, base_mode_name
-
-if TYPE_CHECKING:
-    from fleetctl.mavlink.vehicle import Vehicle
+from fleetctl.mavlink.autopilots.base import CUSTOM, Autopilot, ModeError, Vehicle, base_mode_name
 
 M = mavlink2
 
