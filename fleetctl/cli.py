@@ -6,7 +6,7 @@ import argparse
 import json
 import logging
 import sys
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING, Any
 
 from fleetctl.mission import Mission, MissionError, load_mission
@@ -172,7 +172,8 @@ def _fly(args: argparse.Namespace, mission: Mission, command: str, extra: dict[s
 
     options = dict(speedup=args.speedup, planner=args.planner, dwell=getattr(args, "dwell", None),
                    summary_path=args.summary, view=view, connect_timeout=args.timeout, mqtt=mqtt,
-                   on_run_dir=announce, **extra)
+                   on_run_dir=announce, require_all=args.require_all, force=args.force,
+                   confirm=_arming_confirmation(args, mission, command), **extra)
     try:
         outcome, terminated = asyncio.run(_with_sigterm(mission, command, options))
     except ExecutionError as e:  # raised before anything flew (e.g. collect on a sim mission)
@@ -181,6 +182,30 @@ def _fly(args: argparse.Namespace, mission: Mission, command: str, extra: dict[s
     if terminated and outcome.exit_code == EXIT_INTERRUPTED:
         return EXIT_TERMINATED
     return outcome.exit_code
+
+
+def _arming_confirmation(args: argparse.Namespace, mission: Mission,
+                         command: str) -> Callable[[list[str]], bool] | None:
+    """Real vehicles are armed only on a decision: asked on a terminal, or --yes."""
+    from fleetctl.run.sim import mission_uses_sim
+
+    if args.yes or mission_uses_sim(mission):
+        return None
+    if not sys.stdin.isatty():
+        raise CliError(f"{command} would arm real vehicles ({mission.carrier.connection}) and there is no "
+                       "terminal to confirm it on; pass --yes to arm without asking")
+
+    def ask(lines: list[str]) -> bool:
+        print(f"fleetctl {command} {mission.name}: these vehicles will be armed and flown:")
+        for line in lines:
+            print(f"  {line}")
+        try:
+            answer = input("arm and fly? [y/N] ")
+        except EOFError:
+            return False
+        return answer.strip().lower() in ("y", "yes")
+
+    return ask
 
 
 async def _with_sigterm(mission: Mission, command: str, options: dict[str, Any]) -> tuple[RunOutcome, bool]:
@@ -266,6 +291,15 @@ def _add_fly_commands(sub: argparse._SubParsersAction) -> None:
 def _add_shared_fly_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--timeout", type=float, default=10.0, metavar="S",
                    help="seconds to wait for every vehicle's first heartbeat (default: 10)")
+    p.add_argument("--yes", "-y", action="store_true",
+                   help="arm real vehicles without asking (needed without a terminal; the simulated "
+                        "fleet never asks)")
+    p.add_argument("--require-all", action="store_true",
+                   help="refuse to fly when any rover does not answer (default: fly with the rovers "
+                        "that answer when they are enough for the tasks)")
+    p.add_argument("--force", action="store_true",
+                   help="fly although another ground station is on the link or vehicles are already "
+                        "armed or in a mission")
     _add_bus_options(p)
 
 

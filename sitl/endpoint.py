@@ -31,6 +31,7 @@ log = logging.getLogger(__name__)
 
 MAX_DATAGRAM = 1200  # bytes of MAVLink messages packed into one datagram
 MAX_PEERS = 16
+GCS_TYPE = 6  # MAV_TYPE_GCS
 
 
 class LinkError(ValueError):
@@ -203,6 +204,8 @@ class UdpEndpoint(asyncio.DatagramProtocol):
             if src in self.vehicles:
                 continue  # our own traffic reflected back
             self.routes[src] = addr
+            if msg.get_type() == "HEARTBEAT" and msg.type == GCS_TYPE:
+                self._forward(msg, addr)
             target = getattr(msg, "target_system", 0)
             if target:
                 v = self.vehicles.get(target)
@@ -214,6 +217,16 @@ class UdpEndpoint(asyncio.DatagramProtocol):
             else:
                 for v in list(self.vehicles.values()):
                     self._deliver(v, msg, addr)
+
+    def _forward(self, msg: Any, addr: Any) -> None:
+        """Route a ground station's HEARTBEAT to the other ground stations heard on this link, as
+        an autopilot's MAVLink routing does (so one controller sees that another is there)."""
+        for peer in self.peers:
+            if peer != addr:
+                self._pending.setdefault(peer, []).append(bytes(msg.get_msgbuf()))
+        if not self._flush_scheduled and self._loop is not None and len(self.peers) > 1:
+            self._flush_scheduled = True
+            self._loop.call_soon(self.flush)
 
     def _deliver(self, v: SimVehicle, msg: Any, addr: Any) -> None:
         t = self.clock.sim_time

@@ -33,6 +33,7 @@ import asyncio
 import contextlib
 import logging
 import math
+import secrets
 import time
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass
@@ -312,6 +313,8 @@ class Link:
         self.mav = M.MAVLink(None, srcSystem=sysid, srcComponent=compid)
         self.routes: dict[int, Any] = {}  # remote sysid -> address it was last heard from
         self.last_heard: dict[int, float] = {}  # remote sysid -> time.monotonic()
+        self.nonce = secrets.randbits(32)  # in our GCS heartbeat's custom_mode: tells ours from others'
+        self.other_gcs: dict[tuple[int, int, int], float] = {}  # other ground stations heard -> when
         self.rx_messages = 0
         self.rx_bad = 0
         self.tx_messages = 0
@@ -504,6 +507,11 @@ class Link:
             self.rx_bad += 1
             return
         src = msg.get_srcSystem()
+        if mtype == "HEARTBEAT" and msg.type == M.MAV_TYPE_GCS:  # a ground station, not a vehicle
+            if self._taps:
+                self._tap("in", msg.get_msgbuf())
+            self._gcs_heartbeat(msg)
+            return
         if src == self.sysid and msg.get_srcComponent() == self.compid:
             return  # our own traffic reflected back
         self.rx_messages += 1
@@ -524,6 +532,18 @@ class Link:
                     handler(msg)
                 except Exception:  # noqa: BLE001 - one faulty subscriber must not starve others
                     log.exception("%s: handler failed on %s from %d", self.url, mtype, src)
+
+    def _gcs_heartbeat(self, msg: Any) -> None:
+        """Another ground station's heartbeat (not ours reflected back: its nonce differs)."""
+        src, comp = msg.get_srcSystem(), msg.get_srcComponent()
+        if src == self.sysid and comp == self.compid and msg.custom_mode == self.nonce:
+            return
+        self.other_gcs[(src, comp, msg.custom_mode)] = time.monotonic()
+
+    def other_ground_stations(self, within: float = 5.0) -> list[tuple[int, int]]:
+        """(sysid, compid) of every other ground station heard on this link in the last ``within`` s."""
+        now = time.monotonic()
+        return sorted({(s, c) for (s, c, _n), t in self.other_gcs.items() if now - t <= within})
 
     def _tap(self, direction: str, data: bytes) -> None:
         ts = time.time()
@@ -561,7 +581,7 @@ class Link:
     async def _heartbeat_loop(self) -> None:
         period = 1.0 / self.heartbeat_hz
         while True:
-            self.send(self.mav.heartbeat_encode(M.MAV_TYPE_GCS, M.MAV_AUTOPILOT_INVALID, 0, 0,
+            self.send(self.mav.heartbeat_encode(M.MAV_TYPE_GCS, M.MAV_AUTOPILOT_INVALID, 0, self.nonce,
                                                 M.MAV_STATE_ACTIVE))
             await asyncio.sleep(period)
 

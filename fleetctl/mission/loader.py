@@ -353,7 +353,8 @@ _SIM = {
     "speedup": (_number(gt=0, unit="simulated seconds per wall second"), 1.0),
     "faults": (_list(lambda c, v, p: c.section(v, p, _FAULT), "faults {vehicle, kind, ...}"), []),
 }
-_LINKS = {"heartbeat_timeout": (_number(gt=0, unit="seconds"), 3.0)}
+_LINKS = {"heartbeat_timeout": (_number(gt=0, unit="seconds"), 3.0),
+          "reassign_after": (_number(ge=0, unit="seconds"), 10.0)}
 _XI = _number(ge=0)
 _ROADMAP = {
     "xi1": (_XI, None),

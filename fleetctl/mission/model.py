@@ -100,6 +100,7 @@ class SimConfig:
 @dataclass(frozen=True)
 class LinksConfig:
     heartbeat_timeout: float = 3.0
+    reassign_after: float = 10.0  # s a flying rover may stay lost before a spare takes its task
 
 
 @dataclass(frozen=True)

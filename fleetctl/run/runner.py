@@ -15,17 +15,18 @@ import asyncio
 import contextlib
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from fleetctl.journal import Journal, run_dir_for, write_summary
-from fleetctl.mavlink.fleet import Fleet, FleetConnectError, connect_fleet
+from fleetctl.mavlink.fleet import Fleet, connect_fleet
 from fleetctl.mavlink.link import LinkError
 from fleetctl.mission import Mission
+from fleetctl.run.admission import Admission, admit
 from fleetctl.run.context import ExecutionError
 from fleetctl.run.executor import Executor
-from fleetctl.run.kinds import Ev, Phase
+from fleetctl.run.kinds import Ev, Phase, VehicleStatus
 from fleetctl.run.results import PhaseResult
 from fleetctl.run.resume import Resumption
 from fleetctl.run.sim import mission_uses_sim, sim_mission_dict
@@ -67,7 +68,9 @@ class RunOptions:
     clock_speedup: float | None = None
     mqtt: Any = None
     resume: Resumption | None = None
-    extra: dict[str, Any] = field(default_factory=dict)
+    require_all: bool = False  # refuse a fleet with a rover that does not answer
+    force: bool = False  # fly although another controller seems to be in charge
+    confirm: Callable[[list[str]], bool] | None = None  # asked before arming (real vehicles)
 
 
 async def execute(mission: Mission, command: str, **options: Any) -> RunOutcome:
@@ -123,6 +126,8 @@ class Run:
         self.bus: Any = None
         self.dwell_planned: float | None = None
         self.dwell_flown: float | None = None
+        self.missing: dict[str, str] = {}  # rovers that did not answer at connect -> why
+        self._opened = 0.0
         self._refresher: asyncio.Task[None] | None = None
 
     def _clock(self) -> tuple[Callable[[], float], float]:
@@ -204,20 +209,28 @@ class Run:
         st.phase = Phase.CONNECT
         if view is not None:
             view.start(st, None)
+        self._opened = time.monotonic()
         try:
             fleet = await connect_fleet(
-                self.mission, self.endpoints, timeout=self.opts.connect_timeout, tap=self.journal.tlog
+                self.mission, self.endpoints, timeout=self.opts.connect_timeout, tap=self.journal.tlog,
+                require_all=False,
             )
-        except FleetConnectError as exc:
-            raise ExecutionError(str(exc)) from None
         except LinkError as exc:
             raise ExecutionError(f"cannot open the link: {exc}") from None
         self.fleet = fleet
+        self._refresher = asyncio.create_task(self._refresh(fleet), name="state refresh")
+        self.missing = await admit(fleet, self.mission, self.command, self._admission())
+        for vid, why in self.missing.items():
+            st.set_state(vid, VehicleStatus.LOST)
+            st.event(Ev.MISSING, f"{vid}: did not answer at connect ({why}); flying without it", vid,
+                     url=fleet.urls.get(vid), reason=why)
         if self.opts.resume is not None:
             await self.opts.resume.reconcile(fleet)
             await self.journal.commit(Ev.RESUMED, **self.opts.resume.record())
         for vid, v in fleet.vehicles.items():
             st.vehicles[vid].url = fleet.urls.get(vid, "")
+            if not v.connected:
+                continue
             self.journal.write(
                 Ev.CONNECTED,
                 vehicle=vid,
@@ -227,7 +240,6 @@ class Run:
             )
         if view is not None:
             view.start(st, fleet)
-        self._refresher = asyncio.create_task(self._refresh(fleet), name="state refresh")
         resume = self.opts.resume
         self.executor = Executor(
             self.mission,
@@ -248,6 +260,11 @@ class Run:
         while True:
             self.state.refresh(fleet)
             await asyncio.sleep(0.1)
+
+    def _admission(self) -> Admission:
+        o = self.opts
+        return Admission(require_all=o.require_all, force=o.force, resuming=o.resume is not None,
+                         confirm=o.confirm, opened=self._opened)
 
     def _write_plan(self, kind: str, plan: Plan) -> None:
         name = "plan.json" if kind == "deploy" or self.command == "collect" else "plan-collect.json"
@@ -364,6 +381,7 @@ class Run:
                 str(self.journal.path),
                 self.dwell_planned,
                 self.dwell_flown,
+                self.missing,
             )
         )
         self.journal.write(Ev.SUMMARY, **summary)

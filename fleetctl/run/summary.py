@@ -29,6 +29,7 @@ class RunFacts:
     journal_path: str
     dwell_planned: float | None = None  # run: the dwell asked for (the option, else the mission's)
     dwell_flown: float | None = None
+    missing: dict[str, str] | None = None  # rovers that did not answer at connect -> why
 
 
 def build_summary(f: RunFacts) -> dict[str, Any]:
@@ -44,8 +45,9 @@ def build_summary(f: RunFacts) -> dict[str, Any]:
     )
     planned, flown = _makespans(f, dep, col, complete)
     order = list(f.state.vehicles)
+    missing = f.missing or {}
     lost = sorted(
-        {*(dep.rovers_lost if dep else []), *(col.rovers_lost if col else [])}
+        {*(dep.rovers_lost if dep else []), *(col.rovers_lost if col else []), *missing}
         - set(col.rovers_loaded if col else []),
         key=lambda r: order.index(r) if r in order else 0,
     )
@@ -60,6 +62,7 @@ def build_summary(f: RunFacts) -> dict[str, Any]:
         "rovers_lost": lost,
         "makespan_planned": None if planned is None else round(planned, 3),
         "makespan_flown": None if flown is None else round(flown, 3),
+        "rovers_lost_reasons": {r: _lost_reason(r, missing, f.state) for r in lost},
         "replans": f.state.replans,
         "journal": f.journal_path,
     }
@@ -140,6 +143,12 @@ def _accounting(
     out["rovers_left"] = left
     out["rovers_lost_last_position"] = last
     return out
+
+
+def _lost_reason(rid: str, missing: dict[str, str], state: FleetState) -> str:
+    if rid in missing:
+        return f"did not answer at connect: {missing[rid]}"
+    return "link lost while flying the mission" if state.vehicles[rid].connected else "link lost"
 
 
 def _is_airborne(v: VehicleState) -> bool:

@@ -1,0 +1,102 @@
+"""Before anything is armed: which vehicles fly, and whether this controller may fly them.
+
+* **Fly with what answers.** The runner connects without requiring every vehicle; the carrier
+  must answer, and so must at least as many rovers as there are tasks (deployment). A rover that
+  does not answer is journalled (``missing``), shown, and summarised as lost with the reason.
+  ``require_all`` (``--require-all``) restores the strict check.
+* **One controller per fleet.** Another ground station's heartbeat on a link, or a vehicle that is
+  already armed or flying a mission, means someone else is (or was) in control: refuse, naming
+  what was seen, and point to ``fleetctl resume`` or ``--force``. ``fleetctl resume`` expects
+  armed vehicles (it takes over its own interrupted run) and skips that part.
+* **Arming real aircraft is a decision.** ``confirm`` (from the command line, on a terminal) is
+  shown what will be armed and must say yes.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+
+from fleetctl.mavlink.fleet import Fleet
+from fleetctl.mavlink.vehicle import Vehicle
+from fleetctl.mission import Mission
+from fleetctl.run.context import ExecutionError
+
+GCS_LISTEN = 1.5  # s after the links opened to listen for another ground station's 1 Hz heartbeat
+IN_MISSION_MODES = ("MISSION", "TAKEOFF", "GUIDED", "LAND", "RTL")
+
+
+@dataclass
+class Admission:
+    require_all: bool = False
+    force: bool = False  # fly even if another controller seems to be in charge
+    resuming: bool = False
+    confirm: Callable[[list[str]], bool] | None = None  # shown what will be armed; True = go
+    opened: float = 0.0  # time.monotonic() when the links were opened
+
+
+async def admit(fleet: Fleet, mission: Mission, command: str, adm: Admission) -> dict[str, str]:
+    """Check the connected fleet (see the module docstring); returns the missing rovers -> why.
+    Raises :class:`ExecutionError` when the run must not go ahead."""
+    missing = {vid: fleet.errors.get(vid, "no heartbeat") for vid in fleet.missing()}
+    carrier = fleet.carrier_id
+    if carrier in missing:
+        raise ExecutionError(f"the carrier {carrier} at {fleet.urls[carrier]} did not answer: "
+                             f"{missing[carrier]}")
+    if missing and adm.require_all:
+        lines = "; ".join(f"{vid} at {fleet.urls[vid]}: {why}" for vid, why in missing.items())
+        raise ExecutionError(f"{len(missing)} vehicle(s) did not answer (--require-all): {lines}")
+    answered = len(fleet.rovers) - len(missing)
+    if command in ("deploy", "run") and answered < len(mission.tasks):
+        raise ExecutionError(f"only {answered} rover(s) answered for {len(mission.tasks)} tasks; not "
+                             "answering: " + ", ".join(f"{vid} ({why})" for vid, why in missing.items()))
+    if not adm.force:
+        await _one_controller(fleet, adm.resuming, adm.opened)
+    if adm.confirm is not None:
+        ok = await asyncio.to_thread(adm.confirm, arming_lines(fleet))
+        if not ok:
+            raise ExecutionError("not confirmed: nothing was armed")
+    return missing
+
+
+async def _one_controller(fleet: Fleet, resuming: bool, opened: float) -> None:
+    listen = max(0.0, opened + GCS_LISTEN - time.monotonic())  # connecting took most of it already
+    with contextlib.suppress(TimeoutError):  # heartbeats of another ground station, if any
+        async with asyncio.timeout(listen):
+            while not any(link.other_ground_stations() for link in fleet.links.values()):
+                await asyncio.sleep(0.1)
+    seen = [f"ground station {s}/{c} on {url}" for url, link in fleet.links.items()
+            for s, c in link.other_ground_stations()]
+    if not resuming:
+        seen += [f"{v.name} is {what}" for v in fleet.vehicles.values() if v.connected
+                 for what in [_busy(v)] if what]
+    if seen:
+        raise ExecutionError("another controller is (or was) in charge of this fleet: " + "; ".join(seen)
+                             + ". If it was this mission's controller and it died, finish the run with "
+                             "'fleetctl resume --run DIR'; to fly anyway, pass --force")
+
+
+def _busy(v: Vehicle) -> str | None:
+    if v.armed:
+        return f"armed (mode {v.mode_firmware or v.mode or '?'})"
+    if v.mode in IN_MISSION_MODES and v.on_ground is False:
+        return f"flying in {v.mode}"
+    return None
+
+
+def arming_lines(fleet: Fleet) -> list[str]:
+    """One line per vehicle that may be armed: id, role, system id, link, battery."""
+    out = []
+    for vid, v in fleet.vehicles.items():
+        if not v.connected:
+            continue
+        role = "carrier" if vid == fleet.carrier_id else "rover"
+        batt = f"{v.battery_pct:.0f} %" if v.battery_pct is not None else "battery ?"
+        out.append(f"{vid:<10} {role:<8} sysid {v.sysid:<4} {fleet.urls.get(vid, ''):<28} {batt}")
+    return out
+
+
+__all__ = ["Admission", "admit", "arming_lines"]
