@@ -43,6 +43,8 @@ class ResumedDeploy:
 
 REACH_RADIUS = 1.0  # m: a rover within this 3D distance of its task, holding, has reached it
 HOLD_SPEED = 0.3  # m/s: slower than this counts as holding
+EMPTY_BATTERY_PCT = 1.0  # %: a rover reporting this little has no flight left
+DOWN_AWAY_M = 3.0  # m (horizontal) from its task: a rover landed farther away has not reached it
 WATCH_RETRIES = 3  # timeouts of a task watch forgiven while the carrier's link was down
 
 
@@ -65,6 +67,7 @@ class DeployPhase:
         self.board = board
         self.launcher = Launcher(ctx, carrier, board)
         self.watchers: dict[str, asyncio.Task[None]] = {}  # task -> the watch of its rover
+        self.grace: dict[str, asyncio.Task[None]] = {}  # lost flying rover -> its reassign timer
         self.deck: list[str] = []  # rovers on the deck when the phase began
         self.plan: Plan | None = None
         self.t0: float | None = None  # mission clock when the carrier first started
@@ -263,10 +266,14 @@ class DeployPhase:
         ctx, st = self.ctx, self.ctx.state
         v = ctx.fleet.rovers[rid]
 
+        trouble = _Trouble(target)
+
         def check(v: Vehicle) -> bool:
             if st.vehicles[rid].state == VehicleStatus.CLIMBING and (v.mission_current or 0) > takeoff:
                 st.set_state(rid, VehicleStatus.EN_ROUTE)
             p = v.enu
+            if trouble.seen(v):
+                return True
             return (
                 p is not None
                 and math.dist(p, target) <= REACH_RADIUS
@@ -288,6 +295,9 @@ class DeployPhase:
                     return
         self.watchers.pop(task, None)
         self.supervisor.expect(rid, None)
+        if trouble.why is not None:  # it will not get there: hand the task back at once
+            self.supervisor.put(SupervisorEvent(Watch.STRANDED, rid, data={"task": task, "why": trouble.why}))
+            return
         flown = ctx.clock() - (self.t0 if self.t0 is not None else plan_t0)
         self.board.reach(task, flown)
         st.set_state(rid, VehicleStatus.ON_TASK)
@@ -319,6 +329,10 @@ class DeployPhase:
             return self._on_rover_back(ev, rid)
         if ev.kind == Watch.TASKS:
             return self._on_tasks(ev)
+        if ev.kind == Watch.REASSIGN and rid is not None:
+            return self._on_reassign(ev, rid)
+        if ev.kind == Watch.STRANDED and rid is not None:
+            return self._on_stranded(ev, rid)
         announce_warning(self.ctx, ev)
         return False
 
@@ -350,23 +364,58 @@ class DeployPhase:
         st.set_state(rid, VehicleStatus.LOST)
         task = self.board.task_of(rid)
         if task is not None:
-            self._stop_watching(task, rid)
-            self.board.give_back(task, f"its rover {rid} was lost in flight")
-            st.event(
-                Ev.TASK_RETURNED,
-                f"{task}: {rid} lost in flight; the task goes back to the pool",
-                rid,
-                task=task,
-            )
-            self.ctx.replans.begin(f"{rid} lost in flight (task {task})", ev, self.plan)
-            return True
+            after = self.ctx.mission.links.reassign_after
+            if after <= 0:
+                return self._give_back(ev, rid, task, f"its rover {rid} was lost in flight", "lost in flight")
+            # its autopilot flies on: the task stays with it for a while (a flapping link comes back)
+            self.ctx.record(Ev.REASSIGN_PENDING, vehicle=rid, task=task, after=after)
+            self.grace[rid] = self.ctx.spawn(self._reassign_later(rid, task, after), f"grace {rid}")
+            return False
         if rid not in self.board.launched:
             self.board.unusable.add(rid)
             st.event(Ev.ROVER_UNUSABLE, f"{rid}: lost on the deck: unusable, a spare takes its place", rid)
         return False
 
+    async def _reassign_later(self, rid: str, task: str, after: float) -> None:
+        await asyncio.sleep(after)  # wall seconds, like the heartbeat timeout
+        self.grace.pop(rid, None)
+        self.supervisor.put(SupervisorEvent(Watch.REASSIGN, rid, data={"task": task, "after": after}))
+
+    def _on_reassign(self, ev: SupervisorEvent, rid: str) -> bool:
+        task = ev.data.get("task")
+        v = self.ctx.fleet.rovers[rid]
+        if not v.lost or not isinstance(task, str) or self.board.task_of(rid) != task:
+            return False  # back in time, or the task moved on
+        after = ev.data.get("after")
+        return self._give_back(ev, rid, task, f"its rover {rid} was lost in flight for more than {after:g} s",
+                               f"lost in flight for {after:g} s")
+
+    def _on_stranded(self, ev: SupervisorEvent, rid: str) -> bool:
+        task = ev.data.get("task")
+        if not isinstance(task, str) or self.board.task_of(rid) != task:
+            return False
+        why = str(ev.data.get("why"))
+        self.board.rejoined.append(rid)  # a rover to collect where it is
+        return self._give_back(ev, rid, task, f"its rover {rid} {why}", why)
+
+    def _give_back(self, ev: SupervisorEvent, rid: str, task: str, reason: str, short: str) -> bool:
+        """``rid`` will not reach ``task``: the task goes back to the pool and the route is replanned."""
+        self._stop_watching(task, rid)
+        self.board.give_back(task, reason)
+        self.ctx.state.event(Ev.TASK_RETURNED, f"{task}: {rid} {short}; the task goes back to the pool", rid,
+                             task=task)
+        self.ctx.replans.begin(f"{rid} {short} (task {task})", ev, self.plan)
+        return True
+
     def _on_rover_back(self, ev: SupervisorEvent, rid: str) -> bool:
         st, board = self.ctx.state, self.board
+        grace = self.grace.pop(rid, None)
+        if grace is not None:  # back within links.reassign_after: nothing changes
+            grace.cancel()
+            task = board.task_of(rid)
+            st.set_state(rid, VehicleStatus.EN_ROUTE, task=task)
+            st.event(Ev.ROVER_REJOINED, f"{rid}: link back in time: keeps {task}", rid, task=task)
+            return False
         if rid in board.unusable:
             board.unusable.discard(rid)
             st.set_state(rid, VehicleStatus.ON_DECK)
@@ -454,6 +503,28 @@ class DeployPhase:
         if res.complete:
             res.flown = max(reached.values()) if reached else 0.0
         return res
+
+
+class _Trouble:
+    """A flying rover that will not reach its task: its battery is empty, or it is down on the
+    ground (after having flown) away from the task."""
+
+    def __init__(self, target: Vec3) -> None:
+        self.target = target
+        self.been_up = False
+        self.why: str | None = None
+
+    def seen(self, v: Vehicle) -> bool:
+        if v.on_ground is False:
+            self.been_up = True
+        if v.battery_pct is not None and v.battery_pct <= EMPTY_BATTERY_PCT:
+            self.why = f"battery empty ({v.battery_pct:.0f} %)"
+        p = v.enu
+        if self.been_up and v.on_ground and p is not None and (v.ground_speed or 0.0) < HOLD_SPEED:
+            away = math.dist(p[:2], self.target[:2])
+            if away > DOWN_AWAY_M:
+                self.why = f"is down on the ground {away:.0f} m from it"
+        return self.why is not None
 
 
 async def _settle(ctx: RunContext, v: Vehicle) -> None:

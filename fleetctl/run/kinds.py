@@ -82,6 +82,7 @@ class Ev(StrEnum):
     TASK_RETURNED = "task_returned"
     TASK_TIMEOUT = "task_timeout"
     TASK_UNSERVED = "task_unserved"
+    REASSIGN_PENDING = "reassign_pending"  # a flying rover is lost: its task waits links.reassign_after
     TASKS_CHANGED = "tasks_changed"
     TASK_CHANGE_REJECTED = "task_change_rejected"
     COLLECTION_STARTED = "collection_started"
@@ -109,6 +110,8 @@ class Watch(StrEnum):
     BATTERY_LOW = "battery_low"
     OFF_COURSE = "off_course"
     TASKS = "tasks"
+    STRANDED = "stranded"  # a flying rover that will not reach its task (battery empty, down elsewhere)
+    REASSIGN = "reassign"  # a lost rover's grace (links.reassign_after) is over
 
 
 __all__ = ["Ev", "Phase", "VehicleStatus", "Watch"]

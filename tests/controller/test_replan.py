@@ -32,7 +32,8 @@ TASKS = [{"id": "t1", "position": [15, 30, 3]}, {"id": "t2", "position": [-15, 3
          {"id": "t5", "position": [25, 110, 4]}]
 
 
-def mission_dict(rovers: int = 7, faults: list[dict[str, Any]] | None = None) -> dict[str, Any]:
+def mission_dict(rovers: int = 7, faults: list[dict[str, Any]] | None = None,
+                 reassign_after: float = 2.0) -> dict[str, Any]:
     return {
         "name": "replantest", "origin": ORIGIN,
         "carrier": {"id": "carrier", "connection": "sim", "sysid": 1, "position": [0, 0], "heading_deg": 0,
@@ -41,7 +42,7 @@ def mission_dict(rovers: int = 7, faults: list[dict[str, Any]] | None = None) ->
                    "reserve": 0.1, "fleet": {"count": rovers, "sysid_start": 11}},
         "tasks": copy.deepcopy(TASKS),
         "sim": {"speedup": SPEEDUP, "faults": faults or []},
-        "links": {"heartbeat_timeout": 1.5},
+        "links": {"heartbeat_timeout": 1.5, "reassign_after": reassign_after},
     }
 
 
@@ -230,3 +231,44 @@ async def test_run_with_packet_loss_and_latency(tmp_path: Path) -> None:
     assert s["_exit"] == 0, s
     assert s["tasks_reached"] == TASK_IDS and sorted(s["rovers_loaded"]) == ROVERS7[:5]
     assert_accounted(s, TASK_IDS, ROVERS7[:5])
+
+
+async def test_a_rover_back_within_reassign_after_keeps_its_task(tmp_path: Path) -> None:
+    """A flapping link: the autopilot flies on; the task is not handed to a spare."""
+    victim: list[str] = []
+
+    def action(ev: Event, sim: SimFleet, state: FleetState) -> None:
+        if not victim and ev.kind == "rover_launched" and ev.data.get("stop", 0) >= 2:
+            victim.append(ev.vehicle or "")
+            sim.dropout(ev.vehicle or "", duration=3.0 * SPEEDUP)  # 3 wall s: lost after 1.5, back at 3
+
+    s, trig, sim, _ = await fly(tmp_path, mission_dict(reassign_after=8.0), "deploy", action)
+    assert victim and s["_exit"] == 0, s
+    kinds = [(e.kind, e.vehicle) for e in trig.events]
+    assert ("link_lost", victim[0]) in kinds
+    assert not [e for e in trig.events if e.kind == "task_returned"], "the task went to a spare"
+    task = next(t for t, r in s["assignment"].items() if r == victim[0])
+    reached = [e for e in trig.events if e.kind == "task_reached" and e.data.get("task") == task]
+    assert reached and reached[0].vehicle == victim[0]  # reached by the rover that was lost a while
+    rec = [r for r in journal(s) if r.get("kind") == "reassign_pending"]
+    assert rec and rec[0]["vehicle"] == victim[0] and rec[0]["after"] == 8.0
+    assert_accounted(s, TASK_IDS, ROVERS7)
+
+
+async def test_a_rover_whose_battery_empties_gives_its_task_back_at_once(tmp_path: Path) -> None:
+    victim: list[str] = []
+
+    def action(ev: Event, sim: SimFleet, state: FleetState) -> None:
+        if not victim and ev.kind == "rover_launched" and ev.data.get("stop", 0) >= 1:
+            victim.append(ev.vehicle or "")
+            loop = asyncio.get_running_loop()
+            loop.call_later(0.3, setattr, sim.rover(ev.vehicle or ""), "battery", 0.0)  # lands where it is
+
+    s, trig, sim, _ = await fly(tmp_path, mission_dict(), "deploy", action)
+    assert victim and s["_exit"] == 0, s
+    returned = [e for e in trig.events if e.kind == "task_returned"]
+    assert returned and returned[0].vehicle == victim[0] and "battery empty" in returned[0].text
+    task = returned[0].data["task"]
+    assert task in s["tasks_reached"] and s["assignment"][task] != victim[0]
+    assert not [e for e in trig.events if e.kind == "task_timeout"]
+    assert_accounted(s, TASK_IDS, ROVERS7)
