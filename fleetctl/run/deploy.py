@@ -19,7 +19,8 @@ import math
 from dataclasses import dataclass
 
 from fleetctl.mavlink.compile import CompiledPlan, RoverMission
-from fleetctl.mavlink.vehicle import Vehicle
+from fleetctl.mavlink.link import LinkError
+from fleetctl.mavlink.vehicle import CommandRejected, Vehicle
 from fleetctl.run.carrier import CarrierControl
 from fleetctl.run.context import ExecutionError, RunContext
 from fleetctl.run.events import announce_warning, drain, next_event, race
@@ -145,6 +146,15 @@ class DeployPhase:
             st.set_state(rid, VehicleStatus.EN_ROUTE, task=task)
             self.supervisor.expect(rid, [pos, target] if pos is not None else None)
             self.watch(rid, task, target, eta, now)
+            v = ctx.fleet.rovers[rid]
+            if v.mode != "MISSION":  # held when the controller went down: fly on to its task
+                ctx.spawn(self._continue(v), f"continue {rid}")
+
+    async def _continue(self, v: Vehicle) -> None:
+        try:
+            await self.ctx.command(v, "continue_mission", v.set_mode("MISSION"))
+        except (CommandRejected, LinkError, TimeoutError) as exc:
+            self.ctx.state.event(Ev.ROVER_FAILED, f"{v.name}: could not continue its mission ({exc})", v.name)
 
     def _next_round(self) -> tuple[list[Task], list[str]]:
         """The pooled tasks the next round plans, and the usable rovers on the deck; tasks beyond

@@ -125,7 +125,8 @@ class Executor:
 
     # -- the way out -------------------------------------------------------------------------------
     async def hold_airborne(self, timeout: float = HOLD_TIMEOUT) -> list[str]:
-        """Command every airborne rover (and the carrier) to hold where it is; returns who was told."""
+        """Command every airborne or armed rover (and the carrier) to hold where it is; returns who
+        was told."""
         told: list[str] = []
 
         async def hold(v: Vehicle) -> None:
@@ -137,7 +138,9 @@ class Executor:
                 log.warning("%s: could not command hold: %s", v.name, exc)
 
         fleet = self.ctx.fleet
-        targets = [v for v in fleet.rovers.values() if v.connected and not v.lost and is_airborne(v)]
+        # armed counts too: a rover caught between start_mission and lift-off would fly on
+        targets = [v for v in fleet.rovers.values()
+                   if v.connected and not v.lost and (v.armed or is_airborne(v))]
         c = fleet.carrier
         if c.connected and not c.lost and c.armed:
             targets.append(c)

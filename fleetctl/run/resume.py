@@ -15,8 +15,11 @@
 
 from __future__ import annotations
 
+import asyncio
+import contextlib
 import math
 import time
+from collections.abc import Awaitable, Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -30,10 +33,12 @@ from fleetctl.run.deploy import HOLD_SPEED, REACH_RADIUS, ResumedDeploy
 from fleetctl.run.kinds import Ev
 from fleetctl.run.results import PhaseResult
 from fleetctl.run.sim import mission_uses_sim
+from fleetctl.run.state import FleetState, on_deck
 from fleetctl.run.task_board import TaskBoard, TaskStatus
 from planners.problem import Task
 
 PHASES = ("deploy", "dwell", "collect")
+Disarm = Callable[[Vehicle], Awaitable[None]]
 SETTLE_TIMEOUT = 5.0  # wall s to wait for every vehicle's position before reconciling
 
 
@@ -58,9 +63,14 @@ class Resumption:
     dwell_started: float | None = None  # unix time
     options: dict[str, Any] = field(default_factory=dict)  # planner, dwell of the interrupted run
     found: dict[str, Any] = field(default_factory=dict)
-    results: dict[str, PhaseResult] = field(default_factory=dict)
 
     # -- for the runner ----------------------------------------------------------------------------
+    def finished_results(self) -> dict[str, PhaseResult]:
+        """Results of the phases over before the crash (a ``run`` past its deployment)."""
+        if self.command == "run" and self.phase in ("dwell", "collect"):
+            return {"deploy": self.deploy_result()}
+        return {}
+
     def phases_left(self, command: str) -> list[str]:
         order = {"deploy": ["deploy"], "collect": ["collect"], "run": list(PHASES)}[command]
         return order[order.index(self.phase) :] if self.phase in order else order
@@ -95,63 +105,82 @@ class Resumption:
         return {"command": self.command, "phase": self.phase, "found": self.found}
 
     # -- against the live fleet --------------------------------------------------------------------
-    async def reconcile(self, fleet: Fleet) -> None:
-        """Check the journal against live telemetry (see the module docstring)."""
-        import asyncio
-        import contextlib
-
-        async def settle(v: Vehicle) -> None:
-            with contextlib.suppress(TimeoutError):
-                await v.wait_until(
-                    lambda v: v.enu is not None and v.landed_state is not None, SETTLE_TIMEOUT, "telemetry"
-                )
-
-        await asyncio.gather(*(settle(v) for v in fleet.vehicles.values() if v.connected))
-        rovers = fleet.rovers
-        for rid, task in list(self.intents.items()):
-            v = rovers.get(rid)
-            if v is not None and v.connected and (v.armed or _airborne(v)) and self.board.is_pooled(task):
+    async def reconcile(self, fleet: Fleet, state: FleetState, disarm: Disarm) -> None:
+        """Check the journal against live telemetry (see the module docstring). Tasks found
+        reached are journalled as such; a rover armed on the deck by a launch the crash cut
+        short is disarmed (``disarm``) and may fly again."""
+        await asyncio.gather(*(_settle(v) for v in fleet.vehicles.values() if v.connected))
+        found: dict[str, Any] = {"reached": self.board.with_status(TaskStatus.REACHED), "flying": {},
+                                 "holding_on_task": [], "landed_elsewhere": [], "back_on_deck": [],
+                                 "lost": [], "loaded": sorted(self.loaded)}
+        for rid, task in list(self.intents.items()):  # a launch record without its lift-off
+            v = fleet.rovers.get(rid)
+            if v is not None and v.connected and _airborne(v) and self.board.is_pooled(task):
                 self.board.fly(task, rid)
-        found: dict[str, Any] = {
-            "reached": self.board.with_status(TaskStatus.REACHED),
-            "flying": {},
-            "holding_on_task": [],
-            "landed_elsewhere": [],
-            "lost": [],
-            "loaded": sorted(self.loaded),
-        }
         if self.phase == "deploy":
-            self._reconcile_flying(rovers, found)
+            self._reconcile_flying(fleet, state, found)
+        for rid in self.intents:
+            v = fleet.rovers.get(rid)
+            if v is not None and v.connected and v.armed and _on_deck(fleet, v):
+                await disarm(v)
+                found["back_on_deck"].append(rid)
         c = fleet.carrier
-        found["carrier"] = {
-            "position": [round(x, 2) for x in c.enu] if c.enu else None,
-            "armed": c.armed,
-            "mode": c.mode,
-            "mission_item": c.mission_current,
-        }
+        found["carrier"] = {"position": [round(x, 2) for x in c.enu] if c.enu else None, "armed": c.armed,
+                            "mode": c.mode, "mission_item": c.mission_current}
         self.found = found
 
-    def _reconcile_flying(self, rovers: dict[str, Vehicle], found: dict[str, Any]) -> None:
+    def _reconcile_flying(self, fleet: Fleet, state: FleetState, found: dict[str, Any]) -> None:
         board = self.board
         for task, rid in board.flying().items():
-            v = rovers.get(rid)
+            v = fleet.rovers.get(rid)
             target = board.entries[task].task.position
             if v is None or not v.connected or v.lost:
                 board.give_back(task, f"its rover {rid} did not answer after the controller restarted")
                 found["lost"].append(rid)
-            elif (
-                v.enu is not None
-                and math.dist(v.enu, target) <= REACH_RADIUS
-                and (v.ground_speed or 0.0) < HOLD_SPEED
-            ):
-                board.reach(task, self._elapsed("deploy"))
+            elif v.enu is not None and math.dist(v.enu, target) <= REACH_RADIUS and \
+                    (v.ground_speed or 0.0) < HOLD_SPEED:
+                flown = self._elapsed("deploy")
+                board.reach(task, flown)
                 found["holding_on_task"].append(rid)
+                state.event(Ev.TASK_REACHED, f"{rid}: reached {task} (found holding on it on resume)", rid,
+                            task=task, flown=flown)
+            elif _on_deck(fleet, v):  # the crash caught it before it took off
+                board.give_back(task, f"its rover {rid} was still on the deck")
+                board.unlaunch(rid)
+                self.intents[rid] = task
+                found["back_on_deck"].append(rid)
             elif not _airborne(v):
                 board.give_back(task, f"its rover {rid} was found on the ground away from it")
                 board.rejoined.append(rid)
                 found["landed_elsewhere"].append(rid)
             else:
                 found["flying"][rid] = task
+
+    def deploy_result(self) -> PhaseResult:
+        """The deployment as the journal tells it (a ``run`` interrupted after it)."""
+        b = self.board
+        reached = b.reached()
+        order = list(b.entries)
+        res = PhaseResult("deploy", planned=self.planned.get("deploy"))
+        res.tasks_reached = [t for t in order if t in reached]
+        res.tasks_unserved = [t for t in order if t not in reached]
+        res.unserved_reasons = {t: r for t, r in b.unserved_reasons().items() if t in res.tasks_unserved}
+        res.tasks_all, res.launched = order, list(b.launched)
+        res.assignment, res.substitutions = dict(b.assignment), list(b.substitutions)
+        res.tasks_added, res.tasks_removed, res.rejoined = list(b.added), list(b.removed), list(b.rejoined)
+        res.complete = not res.tasks_unserved
+        res.flown = (max(reached.values()) if reached else 0.0) if res.complete else None
+        return res
+
+
+async def _settle(v: Vehicle) -> None:
+    with contextlib.suppress(TimeoutError):
+        await v.wait_until(lambda v: v.enu is not None and v.landed_state is not None, SETTLE_TIMEOUT,
+                           "telemetry")
+
+
+def _on_deck(fleet: Fleet, v: Vehicle) -> bool:
+    return on_deck(v.enu, fleet.carrier.enu, v.on_ground, v.ground_speed)
 
 
 def _airborne(v: Vehicle) -> bool:

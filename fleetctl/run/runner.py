@@ -22,6 +22,7 @@ from typing import Any
 from fleetctl.journal import Journal, run_dir_for, write_summary
 from fleetctl.mavlink.fleet import Fleet, connect_fleet
 from fleetctl.mavlink.link import LinkError
+from fleetctl.mavlink.vehicle import CommandRejected, Vehicle
 from fleetctl.mission import Mission
 from fleetctl.run.admission import Admission, admit
 from fleetctl.run.context import ExecutionError
@@ -225,7 +226,7 @@ class Run:
             st.event(Ev.MISSING, f"{vid}: did not answer at connect ({why}); flying without it", vid,
                      url=fleet.urls.get(vid), reason=why)
         if self.opts.resume is not None:
-            await self.opts.resume.reconcile(fleet)
+            await self.opts.resume.reconcile(fleet, st, self._disarm)
             await self.journal.commit(Ev.RESUMED, **self.opts.resume.record())
         for vid, v in fleet.vehicles.items():
             st.vehicles[vid].url = fleet.urls.get(vid, "")
@@ -261,6 +262,13 @@ class Run:
             self.state.refresh(fleet)
             await asyncio.sleep(0.1)
 
+    async def _disarm(self, v: Vehicle) -> None:
+        await self.journal.commit(Ev.COMMAND, vehicle=v.name, command="disarm")
+        try:
+            await v.disarm()
+        except (CommandRejected, LinkError, TimeoutError) as exc:
+            self.state.event(Ev.ROVER_FAILED, f"{v.name}: could not disarm on the deck ({exc})", v.name)
+
     def _admission(self) -> Admission:
         o = self.opts
         return Admission(require_all=o.require_all, force=o.force, resuming=o.resume is not None,
@@ -275,7 +283,7 @@ class Run:
         resume = self.opts.resume
         todo = resume.phases_left(self.command) if resume is not None else _phases_of(self.command)
         if resume is not None:
-            self.results.update(resume.results)
+            self.results.update(resume.finished_results())
         for phase in todo:
             await self.journal.commit(Ev.PHASE, phase=phase)
             if phase == "deploy":

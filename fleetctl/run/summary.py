@@ -108,8 +108,8 @@ def _accounting(
 ) -> dict[str, Any]:
     """Summary fields that account for every task and every rover: why a task was not reached,
     tasks added/removed while flying, and for each rover not loaded nor lost: on the deck (only
-    when it is) or left in the field (``rovers_left``: position, state, task, airborne), with
-    ``rovers_airborne`` naming those in the air."""
+    when it is) or left in the field (``rovers_left``: position, state, task, airborne), and
+    ``rovers_airborne``: those of them in the air."""
     out: dict[str, Any] = {"last_replan": f.state.last_replan}
     if f.command != "collect":
         reasons = dep.unserved_reasons if dep else {}
@@ -122,7 +122,7 @@ def _accounting(
     unreachable = set(col.rovers_unreachable) if col else set()
     launched = set(dep.launched) if dep else set()
     on_deck: list[str] = []
-    airborne: list[str] = []
+    airborne: dict[str, Any] = {}
     left: dict[str, Any] = {}
     last: dict[str, Any] = {}
     for v in f.state.rovers():
@@ -137,7 +137,7 @@ def _accounting(
         else:
             left[v.id] = {"position": pos, "state": v.state, "task": v.task, "airborne": up}
             if up:
-                airborne.append(v.id)
+                airborne[v.id] = {"position": pos, "state": v.state, "task": v.task}
     out["rovers_on_deck"] = on_deck
     out["rovers_airborne"] = airborne
     out["rovers_left"] = left

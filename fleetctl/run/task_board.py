@@ -95,6 +95,15 @@ class TaskBoard:
         if rover not in self.launched:
             self.launched.append(rover)
 
+    def unlaunch(self, rover: str) -> None:
+        """``rover`` never left the deck after all (a launch cut short): it may fly again."""
+        if rover in self.launched:
+            self.launched.remove(rover)
+        for tid, r in list(self.assignment.items()):
+            e = self.entries.get(tid)
+            if r == rover and e is not None and e.status != TaskStatus.REACHED:
+                del self.assignment[tid]
+
     def reach(self, tid: str, flown: float) -> None:
         e = self.entries[tid]
         e.status, e.flown, e.reason = TaskStatus.REACHED, flown, None
