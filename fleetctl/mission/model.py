@@ -98,8 +98,17 @@ class SimConfig:
 
 
 @dataclass(frozen=True)
+class SigningConfig:
+    """MAVLink 2 signing: the 32-byte key is read from environment variable ``key_env`` (64 hex
+    characters or base64), never from the mission file (docs/signing.md)."""
+
+    key_env: str
+
+
+@dataclass(frozen=True)
 class LinksConfig:
     heartbeat_timeout: float = 3.0
+    signing: SigningConfig | None = None
 
 
 @dataclass(frozen=True)
