@@ -65,7 +65,8 @@ def traffic(n: int, seconds: float, signed: bool) -> tuple[list[bytes], int]:
                 msgs += [
                     mav.heartbeat_encode(M.MAV_TYPE_QUADROTOR, M.MAV_AUTOPILOT_PX4, 209, 0x04030000, 4),
                     mav.sys_status_encode(1, 1, 1, 100, 16000, -1, 90, 0, 0, 0, 0, 0, 0),
-                    mav.battery_status_encode(0, 0, 1, 0x7FFF, [4000] * 4 + [0xFFFF] * 6, -1, -1, -1, 90, 0, 1),
+                    mav.battery_status_encode(0, 0, 1, 0x7FFF, [4000] * 4 + [0xFFFF] * 6, -1, -1, -1, 90, 0,
+                                              1),
                     mav.extended_sys_state_encode(0, M.MAV_LANDED_STATE_IN_AIR),
                     mav.mission_current_encode(3, 7, 3, 1),
                     mav.gps_raw_int_encode(int(t * 1e6), 3, 473977420 + k, 85455940 + k, 488000, 80, 120,
