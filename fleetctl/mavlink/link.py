@@ -374,8 +374,9 @@ class Link:
 
     # -- signing ---------------------------------------------------------------------------------
     def enable_signing(self, key: SigningKey, *, link_id: int = 0,
-                       state: str | Path | None | bool = None) -> None:
-        """Sign everything sent from now on and drop unsigned/badly signed/replayed messages."""
+                       state: str | Path | None | bool = None, verify: bool = True) -> None:
+        """Sign everything sent from now on and drop unsigned/badly signed/replayed messages
+        (``verify=False``: sign only, accept anything - for provisioning vehicles without a key)."""
         if self.signer is not None:
             self.signer.close()
         store = None
@@ -383,7 +384,7 @@ class Link:
             store = TimestampStore(state_path(key, None if state is True else state), key.fingerprint)
         self.signer = Signer(self.mav, key, link_id, store)
         signer = self.signer
-        self._verifier = Verifier(key, seen=signer.seen)
+        self._verifier = Verifier(key, seen=signer.seen) if verify else None
         log.info("%s: signing on (key %s, link id %d)", self.url, key.fingerprint, link_id)
 
     def disable_signing(self) -> None:

@@ -311,3 +311,52 @@ async def test_route_takeover_is_refused_and_reported(fleet: Fleet, sim: SimFlee
     assert seen[0] == ("r1", 11) and len(seen) == 6
     await r1.arm()  # commands still go to the real vehicle
     assert sim.vehicle("r1").armed
+
+
+async def test_provision_sets_keys_and_refuses_an_armed_vehicle(key_env: str, tmp_path: Path) -> None:
+    from fleetctl.mavlink.fleet import fleet_urls
+    from fleetctl.mavlink.provision import provision
+
+    d = mission_dict(rovers=2)
+    mission = mission_from(signed_dict(rovers=2), tmp_path)
+    async with sim_fleet(d) as sim:  # the simulated vehicles start without a key
+        async with Link(sim.endpoints["carrier"], signing_state=False) as link:
+            await link.expect("HEARTBEAT", sysid=12)
+            assert (await link.command(12, M.MAV_CMD_COMPONENT_ARM_DISARM, (1,))).accepted
+        await sim.wait_for(lambda: sim.vehicle("r2").armed, 2.0)
+        results = await provision(mission, KEY, fleet_urls(mission, sim.endpoints), timeout=3.0,
+                                  signing_state=tmp_path)
+        by_id = {r.vehicle: r for r in results}
+        assert by_id["carrier"].ok and by_id["r1"].ok, results
+        assert not by_id["r2"].ok and "armed" in by_id["r2"].detail and "r2" in by_id["r2"].line()
+        assert sim.vehicle("r1").signing.key == KEY.secret and not sim.vehicle("r2").signing.active
+        # provisioning again (the vehicles already have the key) works signed
+        sim.vehicle("r2").disarm()
+        again = await provision(mission, KEY, fleet_urls(mission, sim.endpoints), timeout=3.0,
+                                signing_state=tmp_path)
+        assert all(r.ok for r in again), again
+        assert sim.vehicle("r2").signing.key == KEY.secret
+        # and the mission now connects signed
+        async with await connect_fleet(mission, sim.endpoints, timeout=5.0, signing_state=tmp_path) as fleet:
+            await fleet.rovers["r2"].arm()
+            assert fleet.link_rejections()["rejected_unsigned"] == 0
+
+
+def test_cli_keys_provision(key_env: str, tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                            capsys: pytest.CaptureFixture[str]) -> None:
+    from ctl_helpers import write_mission
+
+    from fleetctl.cli import main
+
+    monkeypatch.setenv("XDG_STATE_HOME", str(tmp_path / "state"))
+    path = write_mission(signed_dict(rovers=2), tmp_path / "signed.yaml")
+    assert main(["keys", "provision", "--mission", str(path), "--timeout", "3"]) == 0
+    out = capsys.readouterr().out
+    assert out.count("ok ") == 3 and "r2" in out and KEY_HEX not in out
+    assert list((tmp_path / "state" / "fleetctl").glob("signing-*.json"))
+    monkeypatch.delenv(ENV)
+    assert main(["keys", "provision", "--mission", str(path)]) == 2
+    assert f"{ENV}" in capsys.readouterr().err
+    plain = write_mission(mission_dict(), tmp_path / "plain.yaml")
+    assert main(["keys", "provision", "--mission", str(plain)]) == 2
+    assert "links.signing" in capsys.readouterr().err
