@@ -178,8 +178,12 @@ async def connect_fleet(
                 if u == url:
                     errors[vid] = str(exc)
     # a vehicle whose link failed to open keeps a proxy on the unopened link: it is reported, never heard
+    # plausibility bound: a rover rides the carrier, so it may move at the faster of the two speeds
+    speeds = {mission.carrier.id: mission.carrier.max_speed}
+    rover_speed = max(mission.rovers.max_speed, mission.carrier.max_speed)
     vehicles = {vid: Vehicle(all_links[url], sysids[vid], name=vid, origin=origin,
-                             heartbeat_timeout=hb_timeout) for vid, url in urls.items()}
+                             heartbeat_timeout=hb_timeout, max_speed=speeds.get(vid, rover_speed))
+                for vid, url in urls.items()}
     fleet = Fleet(mission.carrier.id, vehicles, links, urls, errors)
 
     async def first_heartbeat(vid: str, v: Vehicle) -> None:

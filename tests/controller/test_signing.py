@@ -360,3 +360,66 @@ def test_cli_keys_provision(key_env: str, tmp_path: Path, monkeypatch: pytest.Mo
     plain = write_mission(mission_dict(), tmp_path / "plain.yaml")
     assert main(["keys", "provision", "--mission", str(plain)]) == 2
     assert "links.signing" in capsys.readouterr().err
+
+
+# ------------------------------------------------------------------------------------ plausibility
+
+
+def _gpi(mav: Any, boot_ms: int, lat: float, lon: float) -> bytes:
+    return bytes(mav.global_position_int_encode(boot_ms, int(round(lat * 1e7)), int(round(lon * 1e7)),
+                                                500000, 12000, 0, 0, 0, 0).pack(mav))
+
+
+async def test_a_position_jump_is_not_applied_from_one_message() -> None:
+    from fleetctl.mavlink.vehicle import Vehicle
+
+    link = Link("udp://127.0.0.1:9")  # never opened: datagrams are fed in as if from the vehicle
+    v = Vehicle(link, 11, name="r1", max_speed=5.0)
+    mav, addr = codec(11), ("127.0.0.1", 5555)
+    lat0, lon0 = 47.397742, 8.545594
+    dlat = 1 / 111_319.49  # one metre north
+    boot = 10_000
+    for k in range(12):  # a track at 2 m/s north, 10 Hz
+        link._received(_gpi(mav, boot + 100 * k, lat0 + 0.2 * k * dlat, lon0), addr)
+        await asyncio.sleep(0.1)
+    assert v.lat == pytest.approx(lat0 + 2.2 * dlat, abs=2e-7)
+    # one forged fix 15 m away, even with a stretched clock, is held back
+    link._received(_gpi(mav, boot + 100_000, lat0 + 17 * dlat, lon0), addr)
+    assert v.lat == pytest.approx(lat0 + 2.2 * dlat, abs=2e-7) and v.positions_held == 1
+    # the next fix on the track is applied and discards the held one
+    link._received(_gpi(mav, boot + 1200, lat0 + 2.4 * dlat, lon0), addr)
+    assert v.lat == pytest.approx(lat0 + 2.4 * dlat, abs=2e-7)
+    # forged fixes interleaved with the real stream never get through
+    for k in range(6):
+        link._received(_gpi(mav, boot + 1300 + 100 * k, lat0 + 40 * dlat, lon0), addr)
+        link._received(_gpi(mav, boot + 1300 + 100 * k, lat0 + (2.6 + 0.2 * k) * dlat, lon0), addr)
+        await asyncio.sleep(0.05)
+    assert abs(v.lat - lat0) < 5 * dlat and v.positions_held == 7
+    # a real jump (e.g. a GPS reset) is adopted once consecutive fixes confirm it over 0.2 s
+    b = boot + 2000
+    for k in range(4):
+        link._received(_gpi(mav, b + 150 * k, lat0 + (60 + 0.3 * k) * dlat, lon0), addr)
+        if k == 1:
+            assert abs(v.lat - lat0) < 5 * dlat  # two agreeing fixes are not enough
+        await asyncio.sleep(0.15)
+    assert v.lat == pytest.approx(lat0 + 60.9 * dlat, abs=2e-7) and v.positions_held == 9
+    v.close()
+
+
+async def test_item_reached_far_from_the_item_is_ignored(fleet: Fleet, sim: SimFleet) -> None:
+    from fleetctl.mavlink.link import MissionItem
+
+    carrier = fleet.carrier
+    await carrier.wait_until(lambda v: v.position is not None, 3.0, "position")
+    lat, lon, _ = carrier.position
+    far = MissionItem(M.MAV_CMD_NAV_WAYPOINT, x=int(round((lat + 60 / 111_319.49) * 1e7)),
+                      y=int(round(lon * 1e7)), z=0.0)
+    near = MissionItem(M.MAV_CMD_NAV_WAYPOINT, x=int(round(lat * 1e7)), y=int(round(lon * 1e7)), z=0.0)
+    await carrier.upload_mission([near, far, far])
+    assert len(carrier.mission_items) == 3
+    link = carrier.link
+    mav = codec(1)
+    for seq in (1, 2, 0):  # from the vehicle's own address (as if the vehicle itself said so)
+        link._received(bytes(mav.mission_item_reached_encode(seq).pack(mav)), link.routes[1])
+    assert carrier.items_reached == {0} and carrier.item_reached_rejected == 2
+    assert fleet.link_rejections()["item_reached_rejected"] == 2
