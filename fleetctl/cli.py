@@ -366,6 +366,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_fly_commands(sub)
     _add_controller_commands(sub)
     _add_watch_command(sub)
+    _add_keys_command(sub)
     return p
 
 
@@ -644,6 +645,87 @@ def cmd_watch(args: argparse.Namespace) -> int:
         raise CliError(str(e)) from None
     except KeyboardInterrupt:
         return 0
+
+
+# ---------------------------------------------------------------------------------------------------
+# keys: MAVLink 2 signing set-up (docs/signing.md)
+# ---------------------------------------------------------------------------------------------------
+
+
+def _add_keys_command(sub: argparse._SubParsersAction) -> None:
+    keys = sub.add_parser("keys", help="MAVLink 2 signing keys (see docs/signing.md)",
+                          description="Manage the fleet's MAVLink 2 signing key (links.signing).")
+    ksub = keys.add_subparsers(dest="keys_command", metavar="ACTION")
+    ksub.required = True
+    prov = ksub.add_parser(
+        "provision", help="send the mission's signing key to every vehicle (SETUP_SIGNING)",
+        description="Connect to every vehicle of the mission, send it the key from the environment "
+                    "variable named by links.signing.key_env (SETUP_SIGNING; an armed vehicle is refused) "
+                    "and check that it then answers signed traffic. One line per vehicle; exit status 1 "
+                    "when any failed. SETUP_SIGNING carries the key in clear: provision over a trusted link.",
+    )
+    prov.add_argument("--mission", "-m", required=True, help="mission YAML file with links.signing")
+    prov.add_argument("--timeout", type=float, default=5.0,
+                      help="seconds to wait for each vehicle's heartbeat (default 5)")
+    prov.set_defaults(func=cmd_keys_provision)
+
+
+def cmd_keys_provision(args: argparse.Namespace) -> int:
+    import asyncio
+
+    from fleetctl.mavlink.signing import SigningKey, SigningKeyError
+
+    mission = load_mission(args.mission)
+    if not args.timeout > 0:
+        raise CliError(f"--timeout must be > 0, got {args.timeout}")
+    if mission.links.signing is None:
+        raise CliError(f"{mission.path or mission.name}: no links.signing section; add "
+                       "links: {signing: {key_env: VAR}} and export the key in VAR (docs/signing.md)")
+    try:
+        key = SigningKey.from_env(mission.links.signing.key_env)
+    except SigningKeyError as e:
+        raise CliError(str(e)) from None
+    return asyncio.run(_keys_provision(mission, key, args.timeout))
+
+
+async def _keys_provision(mission: Mission, key: object, timeout: float) -> int:
+    from fleetctl.mavlink.fleet import fleet_urls
+    from fleetctl.mavlink.link import LinkError
+    from fleetctl.mavlink.provision import provision
+    from fleetctl.mavlink.signing import SigningKey
+
+    assert isinstance(key, SigningKey)
+    sim = None
+    endpoints = None
+    if mission.carrier.connection == "sim":  # the embedded simulated fleet starts without a key
+        from fleetctl.run.sim import sim_mission_dict
+        from sitl import ConfigError, FleetConfig, SimFleet
+        from sitl import LinkError as SimLinkError
+
+        try:
+            config = FleetConfig.from_mission_dict(sim_mission_dict(mission), signing_from_env=False)
+            sim = SimFleet(config)
+            await sim.start()
+        except (ConfigError, SimLinkError) as e:
+            raise CliError(str(e)) from None
+        endpoints = sim.endpoints
+    try:
+        try:
+            urls = fleet_urls(mission, endpoints)
+        except LinkError as e:
+            raise CliError(str(e)) from None
+        results = await provision(mission, key, urls, timeout=timeout)
+    finally:
+        if sim is not None:
+            await sim.stop()
+    for r in results:
+        print(r.line())
+    failed = [r for r in results if not r.ok]
+    if failed:
+        print(f"fleetctl: {len(failed)} of {len(results)} vehicle(s) not provisioned", file=sys.stderr)
+        return 1
+    print(f"all {len(results)} vehicles sign with key {key.fingerprint}")
+    return 0
 
 
 def main(argv: Sequence[str] | None = None) -> int:

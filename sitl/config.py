@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from .faults import Fault, FaultError
+from .signing import key_from_env
 
 AUTOPILOTS = ("px4", "ardupilot")
 CARRIER_FRAMES = ("ground", "multirotor")
@@ -76,12 +77,15 @@ class FleetConfig:
     tick_hz: float = 50.0  # wall-clock rate of the simulation loop (streams are scheduled on it)
     position_hz: float = 10.0  # default GLOBAL_POSITION_INT rate (wall Hz), SET_MESSAGE_INTERVAL overrides
     name: str = "sim"
+    signing_key: bytes | None = field(default=None, repr=False)  # 32 bytes: every vehicle signs/verifies
 
     def __post_init__(self) -> None:
         _positive(self.speedup, "sim.speedup")
         _positive(self.step, "step")
         _positive(self.tick_hz, "tick_hz")
         _positive(self.position_hz, "position_hz")
+        if self.signing_key is not None and len(self.signing_key) != 32:
+            raise ConfigError("signing_key: a MAVLink signing key is 32 bytes")
         if self.autopilot not in AUTOPILOTS:
             raise ConfigError(f"sim.autopilot: use one of {AUTOPILOTS}, got {self.autopilot!r}")
         if self.carrier.role != "carrier":
@@ -111,6 +115,8 @@ class FleetConfig:
         speedup: float | None = None,
         seed: int | None = None,
         autopilot: str | None = None,
+        signing_key: bytes | None = None,
+        signing_from_env: bool = True,
     ) -> FleetConfig:
         """Build the fleet of a parsed mission file. Keyword arguments override the file
         (e.g. ``--speedup`` on the command line).
@@ -120,6 +126,10 @@ class FleetConfig:
         climb_rate/land_speed, ``fleet: {count, sysid_start}`` or ``units: [{id, sysid, connection,
         position?}]``), ``sim`` (speedup, faults; optional seed, autopilot, position_hz) and
         ``planner.seed`` as the seed fallback.
+
+        Signing: ``signing_key`` (32 bytes) provisions every vehicle; without it, and with
+        ``signing_from_env``, a mission with ``links.signing.key_env`` provisions them with the key in
+        that environment variable (as the controller reads it) - the mission loader validates the key.
         """
         if not isinstance(d, Mapping):
             raise ConfigError("mission: expected a mapping at the top level")
@@ -203,6 +213,16 @@ class FleetConfig:
         planner: Mapping[str, Any] = raw_planner if isinstance(raw_planner, Mapping) else {}
         seed_val = seed if seed is not None else sim.get("seed", planner.get("seed", 0))
         kw: dict[str, Any] = {}
+        links = d.get("links")
+        signing = links.get("signing") if isinstance(links, Mapping) else None
+        key_env = signing.get("key_env") if isinstance(signing, Mapping) else None
+        if signing_key is not None:
+            kw["signing_key"] = bytes(signing_key)
+        elif signing_from_env and isinstance(key_env, str):
+            try:
+                kw["signing_key"] = key_from_env(key_env)
+            except ValueError as exc:
+                raise ConfigError(f"links.signing: {exc}") from None
         if sim.get("position_hz") is not None:
             kw["position_hz"] = _num(sim["position_hz"], "sim.position_hz")
         return cls(

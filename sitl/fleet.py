@@ -49,6 +49,8 @@ class SimFleet:
                            config.position_hz)
             if isinstance(body, Rover):
                 body.drain_factor = self._drain_getter(spec.id)
+            if config.signing_key is not None:
+                v.set_signing_key(config.signing_key)
             self.vehicles[spec.id] = v
         self._links: list[tuple[LinkSpec, list[str]]] = self._group_links()
         self._endpoints: list[UdpEndpoint] = []
@@ -171,6 +173,16 @@ class SimFleet:
         for ep in eps:
             for k, v in ep.stats.as_dict().items():
                 total[k] = total.get(k, 0) + v
+        return total
+
+    def signing_rejections(self, vehicle_id: str | None = None) -> dict[str, int]:
+        """Messages one vehicle (or every vehicle, summed) dropped for signing: unsigned,
+        bad_signature, replay."""
+        vs = [self.vehicles[vehicle_id]] if vehicle_id else list(self.vehicles.values())
+        total = {"unsigned": 0, "bad_signature": 0, "replay": 0}
+        for v in vs:
+            for k, n in v.signing.rejected.items():
+                total[k] += n
         return total
 
     def snapshot(self) -> dict[str, dict[str, Any]]:

@@ -23,6 +23,7 @@ from .faults import FaultBook
 from .flavour import Flavour, Mode
 from .geo import LocalFrame
 from .mission import MissionItem, Upload
+from .signing import OK, SigningState
 from .world import AnyBody, Phase, Rover
 
 log = logging.getLogger(__name__)
@@ -111,6 +112,7 @@ class SimVehicle:
         self.faults = faults
         self.link: Link | None = None
         self.mav = M.MAVLink(None, srcSystem=spec.sysid, srcComponent=spec.compid)
+        self.signing = SigningState(self.mav)  # no key: unsigned (set_signing_key / SETUP_SIGNING)
 
         self.armed = isinstance(body, Rover) and body.phase is Phase.AIR  # a rover placed in the air flies
         self.mode = Mode.HOLD
@@ -162,6 +164,7 @@ class SimVehicle:
             "PARAM_SET": self._on_param_set,
             "PING": self._on_ping,
             "TIMESYNC": self._on_timesync,
+            "SETUP_SIGNING": self._on_setup_signing,
         }
         self._apply_speed_params()
 
@@ -171,6 +174,8 @@ class SimVehicle:
     def _send(self, msg: Any, addr: Any | None = None) -> None:
         if self.link is None:
             return
+        if self.signing.key is not None:
+            self.signing.stamp()
         data = msg.pack(self.mav)
         self.mav.seq = (self.mav.seq + 1) & 0xFF
         self.link.send(self, data, addr)
@@ -185,7 +190,11 @@ class SimVehicle:
     # input
     # ======================================================================================
     def handle(self, msg: Any, addr: Any = None) -> None:
-        """One decoded message from a ground station (any target; others' messages are ignored)."""
+        """One decoded message from a ground station (any target; others' messages are ignored).
+        With a signing key, unsigned (but RADIO_STATUS), wrongly signed and replayed messages are
+        dropped here (counted in ``signing.rejected``)."""
+        if self.signing.key is not None and self.signing.check(msg.get_msgbuf()) != OK:
+            return
         handler = self._handlers.get(msg.get_type())
         if handler is not None:
             handler(msg, addr)
@@ -197,6 +206,23 @@ class SimVehicle:
         if not ok:
             self.ignored_other_target += 1
         return ok
+
+    # ======================================================================================
+    # signing
+    # ======================================================================================
+    def set_signing_key(self, key: bytes | None) -> None:
+        """Sign and verify with ``key`` (32 bytes) from now on; None or all zeros: unsigned."""
+        self.signing.set_key(key)
+
+    def _on_setup_signing(self, msg: Any, addr: Any) -> None:
+        if not self._for_me(msg, broadcast_ok=False):
+            return
+        if self.armed:
+            self.statustext("Signing setup refused: vehicle is armed", M.MAV_SEVERITY_WARNING)
+            return
+        key = bytes(msg.secret_key)
+        self.signing.set_key(key, msg.initial_timestamp)
+        self.statustext("Signing enabled" if self.signing.key is not None else "Signing disabled")
 
     # ======================================================================================
     # commands

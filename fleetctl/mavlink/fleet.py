@@ -4,9 +4,11 @@ from __future__ import annotations
 
 import asyncio
 from collections.abc import Callable, Mapping
-from typing import TYPE_CHECKING
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 from fleetctl.mavlink.link import Link, LinkError
+from fleetctl.mavlink.signing import REJECTION_KEYS, SigningKey, SigningKeyError
 from fleetctl.mavlink.vehicle import DEFAULT_POSITION_HZ, Listener, Vehicle, VehicleEvent, put_event
 
 if TYPE_CHECKING:
@@ -57,6 +59,37 @@ class Fleet:
         self.add_listener(lambda ev: put_event(q, ev))
         return q
 
+    def link_rejections(self) -> dict[str, int]:
+        """What the links and vehicle proxies refused, summed over the fleet (for the run summary's
+        ``"link"`` section): ``rejected_unsigned``, ``rejected_bad_signature``, ``rejected_replay``
+        (signing), ``route_conflicts`` (a known system id from another address), and from the
+        proxies ``positions_held`` (implausible position jumps not applied) and
+        ``item_reached_rejected`` (MISSION_ITEM_REACHED far from the item)."""
+        out = dict.fromkeys(REJECTION_KEYS.values(), 0)
+        out["route_conflicts"] = 0
+        for link in self.links.values():
+            for k, n in link.rejected.items():
+                out[k] = out.get(k, 0) + n
+            out["route_conflicts"] += link.route_conflicts
+        for k in ("positions_held", "item_reached_rejected"):
+            out[k] = sum(getattr(v, k, 0) for v in self.vehicles.values())
+        return out
+
+    @property
+    def signing(self) -> bool:
+        """True when every link signs (the mission's ``links.signing``)."""
+        return bool(self.links) and all(link.signing for link in self.links.values())
+
+    def on_route_conflict(self, callback: Callable[[str | None, int, Any, Any], None]) -> None:
+        """``callback(vehicle_id or None, sysid, old_addr, new_addr)`` on every link's route conflict
+        (e.g. to journal it)."""
+        ids = {(self.urls[vid], v.sysid): vid for vid, v in self.vehicles.items()}
+        for url, link in self.links.items():
+            def cb(sysid: int, old: Any, new: Any, url: str = url) -> None:
+                callback(ids.get((url, sysid)), sysid, old, new)
+
+            link.on_route_conflict = cb
+
     def add_tap(self, tap: Callable[[str, float, bytes], None]) -> Callable[[], None]:
         """Tap every link (e.g. a :class:`fleetctl.mavlink.tlog.TlogWriter`); returns the remover."""
         return _all_of([link.add_tap(tap) for link in self.links.values()])
@@ -102,6 +135,7 @@ async def connect_fleet(
     mission: Mission, endpoints: Mapping[str, str] | None = None, *, timeout: float = 10.0,
     require_all: bool = True, gcs_sysid: int = 255, configure_streams: bool = True,
     position_hz: float = DEFAULT_POSITION_HZ, tap: Tap | None = None,
+    signing_key: SigningKey | None = None, signing_state: str | Path | None | bool = None,
 ) -> Fleet:
     """Open the links the mission names and wait up to ``timeout`` s for every vehicle's first
     heartbeat (then set its message rates).
@@ -111,6 +145,12 @@ async def connect_fleet(
     :class:`FleetConnectError` naming each one and its URL (and closes everything); otherwise the
     fleet is returned with ``fleet.missing()``/``fleet.errors`` filled in. ``tap`` sees every
     datagram from before the first heartbeat on (the ``.tlog`` records the connect phase).
+
+    Signing: with the mission's ``links.signing`` (or ``signing_key``) every link signs with the
+    key read from the environment variable ``links.signing.key_env`` (:class:`LinkError` naming it
+    when unset or malformed), each link with its own ``link_id``; the outgoing timestamp is kept in
+    ``signing_state`` (a file or a directory such as the run folder; None = the user's
+    ``~/.local/state/fleetctl``). Links refuse route takeovers for ``links.heartbeat_timeout``.
     """
     urls = fleet_urls(mission, endpoints)
     origin = mission.origin
@@ -118,7 +158,15 @@ async def connect_fleet(
     sysids = {mission.carrier.id: mission.carrier.sysid} | {u.id: u.sysid for u in mission.rovers.units}
     links: dict[str, Link] = {}
     errors: dict[str, str] = {}
-    all_links = {url: Link(url, sysid=gcs_sysid) for url in dict.fromkeys(urls.values())}  # URL errors raise
+    key = signing_key
+    if key is None and mission.links.signing is not None:
+        try:
+            key = SigningKey.from_env(mission.links.signing.key_env)
+        except SigningKeyError as exc:
+            raise LinkError(str(exc)) from None
+    all_links = {url: Link(url, sysid=gcs_sysid, signing_key=key, link_id=k, signing_state=signing_state,
+                           route_timeout=hb_timeout)
+                 for k, url in enumerate(dict.fromkeys(urls.values()))}  # URL errors raise
     for url, link in all_links.items():
         if tap is not None:
             link.add_tap(tap)
@@ -130,8 +178,12 @@ async def connect_fleet(
                 if u == url:
                     errors[vid] = str(exc)
     # a vehicle whose link failed to open keeps a proxy on the unopened link: it is reported, never heard
+    # plausibility bound: a rover rides the carrier, so it may move at the faster of the two speeds
+    speeds = {mission.carrier.id: mission.carrier.max_speed}
+    rover_speed = max(mission.rovers.max_speed, mission.carrier.max_speed)
     vehicles = {vid: Vehicle(all_links[url], sysids[vid], name=vid, origin=origin,
-                             heartbeat_timeout=hb_timeout) for vid, url in urls.items()}
+                             heartbeat_timeout=hb_timeout, max_speed=speeds.get(vid, rover_speed))
+                for vid, url in urls.items()}
     fleet = Fleet(mission.carrier.id, vehicles, links, urls, errors)
 
     async def first_heartbeat(vid: str, v: Vehicle) -> None:

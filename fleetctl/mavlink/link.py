@@ -25,6 +25,19 @@ Layers, bottom up:
 
 Every message in and out can be observed with :meth:`Link.add_tap` (``callback(direction,
 unix_time, raw_bytes)``, direction ``"in"`` or ``"out"``), e.g. by :class:`fleetctl.tlog.TlogWriter`.
+
+Safety (issue 12):
+
+* MAVLink 2 signing (``signing_key=``, :mod:`fleetctl.mavlink.signing`): everything sent is signed
+  (``link_id``, a strictly increasing timestamp persisted in ``signing_state``); incoming messages
+  that are unsigned (RADIO_STATUS excepted), wrongly signed or replayed are dropped before anything
+  sees them and counted in :attr:`Link.rejected`.
+* Routes: once a system id was heard from an address, a message with that system id from another
+  address is dropped (it neither moves the route nor reaches a subscriber) unless the old address
+  has been silent for ``route_timeout`` seconds; each such conflict is counted
+  (:attr:`Link.route_conflicts`), logged and passed to :attr:`Link.on_route_conflict`.
+* Dispatch is by source system id and message type (dict lookups); subscriptions are
+  copy-on-write, so a message costs the same with 1 or 200 vehicles on the link.
 """
 
 from __future__ import annotations
@@ -37,10 +50,21 @@ import secrets
 import time
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any, cast
 from urllib.parse import parse_qs, urlsplit
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
+
+from fleetctl.mavlink.signing import (
+    OK,
+    REJECTION_KEYS,
+    Signer,
+    SigningKey,
+    TimestampStore,
+    Verifier,
+    state_path,
+)
 
 log = logging.getLogger(__name__)
 
@@ -56,9 +80,12 @@ COMMAND_RETRIES = 7  # resends after the first attempt: with 20 % loss each way 
 # 36 % of the time; 8 attempts leave 0.03 % (5 left 0.6 %, about one failed launch in four lossy runs)
 COMMAND_PROGRESS_TIMEOUT = 10.0  # s to wait for the final ACK after MAV_RESULT_IN_PROGRESS
 MAX_PEERS = 64
+ROUTE_TIMEOUT = 3.0  # s: a system id's route moves to a new address only after this much silence
+_CONFLICT_LOG_S = 10.0  # s between two warnings about the same route conflict
 
 Tap = Callable[[str, float, bytes], None]
 Handler = Callable[[Any], None]
+RouteConflict = Callable[[int, Any, Any], None]
 
 
 # ------------------------------------------------------------------------------------ errors
@@ -304,7 +331,13 @@ class Link:
     """
 
     def __init__(self, url: str, *, sysid: int = GCS_SYSID, compid: int = GCS_COMPID,
-                 heartbeat_hz: float = 1.0) -> None:
+                 heartbeat_hz: float = 1.0, signing_key: SigningKey | None = None, link_id: int = 0,
+                 signing_state: str | Path | None | bool = None, route_timeout: float = ROUTE_TIMEOUT,
+                 on_route_conflict: RouteConflict | None = None) -> None:
+        """``signing_key`` turns signing on (see the module docstring); ``link_id`` tells this
+        link's signed stream from the controller's others; ``signing_state`` is where the outgoing
+        timestamp is persisted: a file, a directory (e.g. the run folder: ``signing-<key id>.json``
+        in it), None = ``~/.local/state/fleetctl/signing-<key id>.json``, False = not persisted."""
         self.address = parse_url(url)
         self.url = url
         self.sysid = sysid
@@ -325,10 +358,51 @@ class Link:
         self._tasks: set[asyncio.Task[Any]] = set()
         self._taps: list[Tap] = []
         self._subs: list[tuple[int | None, frozenset[str] | None, Handler]] = []
+        # copy-on-write index of _subs: source sysid (None = any) -> type (None = any) -> handlers
+        self._sub_index: dict[int | None, dict[str | None, tuple[Handler, ...]]] = {}
+        self._any_src: dict[str | None, tuple[Handler, ...]] | None = None
         self._waiters: dict[str, list[_Waiter]] = {}
         self._locks: dict[Any, asyncio.Lock] = {}
         self._open = False
         self._last_rtt = 0.0  # of the last mission exchange; sets the item timeout of a download
+        self.route_timeout = route_timeout
+        self.on_route_conflict = on_route_conflict
+        self.route_conflicts = 0
+        self._conflict_logged: dict[tuple[int, Any], float] = {}
+        self.rejected: dict[str, int] = dict.fromkeys(REJECTION_KEYS.values(), 0)
+        self.signer: Signer | None = None
+        self._verifier: Verifier | None = None
+        if signing_key is not None:
+            self.enable_signing(signing_key, link_id=link_id, state=signing_state)
+
+    # -- signing ---------------------------------------------------------------------------------
+    def enable_signing(self, key: SigningKey, *, link_id: int = 0,
+                       state: str | Path | None | bool = None, verify: bool = True) -> None:
+        """Sign everything sent from now on and drop unsigned/badly signed/replayed messages
+        (``verify=False``: sign only, accept anything - for provisioning vehicles without a key)."""
+        if self.signer is not None:
+            self.signer.close()
+        store = None
+        if state is not False:
+            store = TimestampStore(state_path(key, None if state is True else state), key.fingerprint)
+        self.signer = Signer(self.mav, key, link_id, store)
+        signer = self.signer
+        self._verifier = Verifier(key, seen=signer.seen) if verify else None
+        log.info("%s: signing on (key %s, link id %d)", self.url, key.fingerprint, link_id)
+
+    def disable_signing(self) -> None:
+        """Back to unsigned traffic (e.g. after provisioning an all-zero key)."""
+        if self.signer is not None:
+            self.signer.close()
+        self.signer = None
+        self._verifier = None
+        s = self.mav.signing
+        s.sign_outgoing = False
+        s.secret_key = None
+
+    @property
+    def signing(self) -> bool:
+        return self.signer is not None
 
     # -- lifecycle -----------------------------------------------------------------------------
     async def open(self, timeout: float = 5.0) -> Link:
@@ -427,6 +501,8 @@ class Link:
     async def close(self) -> None:
         """Stop the heartbeat and readers, fail pending expectations, close the transport."""
         self._open = False
+        if self.signer is not None:
+            self.signer.close()
         tasks = list(self._tasks)
         for t in tasks:
             t.cancel()
@@ -477,8 +553,25 @@ class Link:
         """Call ``handler(msg)`` for messages from ``sysid`` (None = any) of ``types`` (None = all).
         Returns a function that unsubscribes."""
         entry = (sysid, None if types is None else frozenset(types), handler)
-        self._subs.append(entry)
-        return lambda: self._subs.remove(entry) if entry in self._subs else None
+        self._subs = [*self._subs, entry]
+        self._reindex()
+
+        def unsubscribe() -> None:
+            if entry in self._subs:
+                self._subs = [e for e in self._subs if e is not entry]
+                self._reindex()
+
+        return unsubscribe
+
+    def _reindex(self) -> None:
+        """Rebuild the dispatch index (copy-on-write: a message in flight keeps the old one)."""
+        index: dict[int | None, dict[str | None, list[Handler]]] = {}
+        for sysid, types, handler in self._subs:
+            per = index.setdefault(sysid, {})
+            for t in (None,) if types is None else sorted(types):
+                per.setdefault(t, []).append(handler)
+        self._sub_index = {s: {t: tuple(hs) for t, hs in per.items()} for s, per in index.items()}
+        self._any_src = self._sub_index.get(None)
 
     # -- receive -----------------------------------------------------------------------------------
     def _received(self, data: bytes, addr: Any) -> None:
@@ -514,24 +607,72 @@ class Link:
             return
         if src == self.sysid and msg.get_srcComponent() == self.compid:
             return  # our own traffic reflected back
-        self.rx_messages += 1
+        verifier = self._verifier
+        if verifier is not None:
+            verdict = verifier.check(msg.get_msgbuf())
+            if verdict != OK:
+                self.rejected[REJECTION_KEYS[verdict]] += 1
+                return
         now = time.monotonic()
-        self.routes[src] = addr
+        route = self.routes.get(src)
+        if route != addr:
+            if route is not None and now - self.last_heard.get(src, 0.0) <= self.route_timeout:
+                self._route_conflict(src, route, addr, now)
+                return
+            if route is not None:
+                log.warning("%s: system %d now heard from %s (silent at %s for %.1f s)", self.url, src,
+                            addr, route, now - self.last_heard.get(src, 0.0))
+            self.routes[src] = addr
+        self.rx_messages += 1
         self.last_heard[src] = now
         if self._taps:
             self._tap("in", msg.get_msgbuf())
-        target = getattr(msg, "target_system", 0)
         waiters = self._waiters.get(mtype)
-        if waiters and target in (0, self.sysid):
+        if waiters and getattr(msg, "target_system", 0) in (0, self.sysid):
             for w in list(waiters):
                 if w.offer(msg):
                     self._remove_waiter(w)
-        for sysid, types, handler in list(self._subs):
-            if (sysid is None or sysid == src) and (types is None or mtype in types):
-                try:
-                    handler(msg)
-                except Exception:  # noqa: BLE001 - one faulty subscriber must not starve others
-                    log.exception("%s: handler failed on %s from %d", self.url, mtype, src)
+        per = self._sub_index.get(src)
+        if per is not None:
+            hs = per.get(mtype)
+            if hs is not None:
+                self._call(hs, msg, src)
+            hs = per.get(None)
+            if hs is not None:
+                self._call(hs, msg, src)
+        per = self._any_src
+        if per is not None:
+            hs = per.get(mtype)
+            if hs is not None:
+                self._call(hs, msg, src)
+            hs = per.get(None)
+            if hs is not None:
+                self._call(hs, msg, src)
+
+    def _call(self, handlers: tuple[Handler, ...], msg: Any, src: int) -> None:
+        for handler in handlers:
+            try:
+                handler(msg)
+            except Exception:  # noqa: BLE001 - one faulty subscriber must not starve others
+                log.exception("%s: handler failed on %s from %d", self.url, msg.get_type(), src)
+
+    def _route_conflict(self, sysid: int, old: Any, new: Any, now: float) -> None:
+        """A message with a known system id from an address other than its route: dropped."""
+        self.route_conflicts += 1
+        key = (sysid, new)
+        if now - self._conflict_logged.get(key, -math.inf) >= _CONFLICT_LOG_S:
+            if len(self._conflict_logged) > 1024:
+                self._conflict_logged.clear()
+            self._conflict_logged[key] = now
+            log.warning("%s: system %d heard from %s while its route is %s (heard %.1f s ago): ignored "
+                        "(spoofing, or a second path; the route moves after %.1f s of silence)",
+                        self.url, sysid, new, old, now - self.last_heard.get(sysid, 0.0), self.route_timeout)
+        cb = self.on_route_conflict
+        if cb is not None:
+            try:
+                cb(sysid, old, new)
+            except Exception:  # noqa: BLE001
+                log.exception("%s: route conflict callback failed", self.url)
 
     def _gcs_heartbeat(self, msg: Any) -> None:
         """Another ground station's heartbeat (not ours reflected back: its nonce differs)."""
@@ -557,6 +698,8 @@ class Link:
     def send(self, msg: Any, sysid: int | None = None) -> None:
         """Encode and send ``msg`` (built with ``link.mav.<name>_encode``) to the address ``sysid``
         was last heard from; ``sysid=None`` broadcasts (every peer of a udpin link)."""
+        if self.signer is not None:
+            self.signer.stamp()
         data = msg.pack(self.mav)
         self.mav.seq = (self.mav.seq + 1) & 0xFF
         self.tx_messages += 1

@@ -48,6 +48,23 @@ FORCE_MAGIC = 21196.0  # MAV_CMD_COMPONENT_ARM_DISARM param2: force (ignore chec
 DEFAULT_POSITION_HZ = 10.0
 DEFAULT_BATTERY_HZ = 1.0
 _STATUS_REASON_S = 2.0  # a STATUSTEXT this recent explains a rejected command
+# position plausibility (issue 12): a fix farther from the last applied one than
+# JUMP_FACTOR x max_speed x dt + JUMP_SLACK_M is held back until CONFIRM_FIXES consecutive fixes
+# spanning CONFIRM_S wall seconds agree with it (with no fix consistent with the old track between)
+GENERIC_MAX_SPEED = 30.0  # m/s when the mission gives none
+JUMP_FACTOR = 3.0
+JUMP_SLACK_M = 3.0  # GPS noise between two fixes
+CONFIRM_FIXES = 3
+CONFIRM_S = 0.2
+RATE_WINDOW_S = 1.0  # wall seconds over which the vehicle clock's rate (sim speed-up) is measured
+# MISSION_ITEM_REACHED is believed only this near the item (plus its acceptance radius and the
+# distance the vehicle may have moved since the last fix)
+REACHED_RADIUS_M = 10.0
+_POSITIONED_ITEMS = frozenset({M.MAV_CMD_NAV_WAYPOINT, M.MAV_CMD_NAV_LOITER_UNLIM, M.MAV_CMD_NAV_LOITER_TURNS,
+                               M.MAV_CMD_NAV_LOITER_TIME, M.MAV_CMD_NAV_LAND, M.MAV_CMD_NAV_SPLINE_WAYPOINT})
+_GLOBAL_FRAMES = frozenset({M.MAV_FRAME_GLOBAL, M.MAV_FRAME_GLOBAL_RELATIVE_ALT, M.MAV_FRAME_GLOBAL_INT,
+                            M.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT, M.MAV_FRAME_GLOBAL_TERRAIN_ALT,
+                            M.MAV_FRAME_GLOBAL_TERRAIN_ALT_INT})
 
 Listener = Callable[["VehicleEvent"], None]
 
@@ -78,10 +95,21 @@ class Vehicle:
     ``origin`` (the mission's ENU origin) enables :attr:`enu`; ``heartbeat_timeout`` is the
     silence after which the vehicle is *lost*. Call :meth:`close` when done (it cancels the timer
     and unsubscribes from the link; the link itself is not closed).
+
+    Plausibility (issue 12): ``max_speed`` (m/s, default 30) bounds how far two position fixes
+    may be apart: a GLOBAL_POSITION_INT farther than 3 x max_speed x dt + 3 m from the last applied
+    fix (dt from the vehicle's ``time_boot_ms``, capped by the wall time elapsed times the
+    vehicle clock's measured rate, so a simulated fleet's speed-up is taken into account and a
+    forged time cannot stretch it) is *held*: not applied, counted in :attr:`positions_held`. It
+    is adopted only when 3 consecutive fixes over at least 0.2 s agree with it; any fix consistent
+    with the old track in between discards the held ones. A MISSION_ITEM_REACHED for an uploaded
+    item with a position is ignored (counted in :attr:`item_reached_rejected`) when the vehicle's
+    last position is farther from it than 10 m + the item's acceptance radius + what it may have
+    flown since that fix.
     """
 
     def __init__(self, link: Link, sysid: int, *, name: str | None = None, origin: Origin | None = None,
-                 heartbeat_timeout: float = 3.0) -> None:
+                 heartbeat_timeout: float = 3.0, max_speed: float | None = None) -> None:
         self.link = link
         self.sysid = sysid
         self.name = name or f"sys{sysid}"
@@ -116,6 +144,16 @@ class Vehicle:
         self.mission_total: int | None = None
         self.mission_state: int | None = None
         self.items_reached: set[int] = set()
+        self.mission_items: list[MissionItem] = []  # the last mission uploaded through this proxy
+        # plausibility
+        self.max_speed = max_speed if max_speed and max_speed > 0 else GENERIC_MAX_SPEED
+        self.positions_held = 0
+        self.item_reached_rejected = 0
+        self._fix: tuple[float, float, float, int, float] | None = None  # lat, lon, alt, boot ms, wall
+        self._held: list[tuple[Any, float]] = []  # fixes held back (msg, wall time)
+        self._rate_anchor: tuple[int, float] | None = None  # (boot ms, wall) to measure the clock rate
+        self._rate: float | None = None  # vehicle seconds per wall second
+        self._held_logged = -math.inf
         self.statustexts: deque[tuple[float, int, str]] = deque(maxlen=50)
         self._enu_key: tuple[float, float, float] | None = None
         self._enu: tuple[float, float, float] | None = None
@@ -306,6 +344,52 @@ class Vehicle:
             self._wake()
 
     def _on_position(self, msg: Any) -> None:
+        now = time.monotonic()
+        fix = self._fix
+        if fix is not None and not self._plausible(fix, msg, now):
+            held = self._held
+            if held and self._plausible(self._as_fix(held[-1][0], held[-1][1]), msg, now):
+                held.append((msg, now))
+            else:
+                held[:] = [(msg, now)]
+            if len(held) < CONFIRM_FIXES or now - held[0][1] < CONFIRM_S:
+                self.positions_held += 1
+                if now - self._held_logged > 10.0:
+                    self._held_logged = now
+                    log.warning("%s (sysid %d): position %.7f, %.7f is implausibly far from the track "
+                                "(%.0f m); held back until confirmed", self.name, self.sysid, msg.lat / 1e7,
+                                msg.lon / 1e7, _distance(fix[0], fix[1], fix[2], msg.lat / 1e7,
+                                                         msg.lon / 1e7, msg.alt / 1000.0))
+                return
+            log.warning("%s (sysid %d): position jump confirmed by %d consecutive fixes", self.name,
+                        self.sysid, len(held))
+            self._rate_anchor = None
+        self._held.clear()
+        self._apply_position(msg, now)
+
+    @staticmethod
+    def _as_fix(msg: Any, wall: float) -> tuple[float, float, float, int, float]:
+        return msg.lat / 1e7, msg.lon / 1e7, msg.alt / 1000.0, int(msg.time_boot_ms), wall
+
+    def _plausible(self, fix: tuple[float, float, float, int, float], msg: Any, now: float) -> bool:
+        lat, lon, alt, boot, wall = fix
+        rate = self._rate
+        cap = 30.0 if rate is None else max(now - wall, 0.1) * rate * 2.0 + 0.1
+        dt = (int(msg.time_boot_ms) - boot) / 1000.0
+        if not 0.0 < dt <= cap:
+            dt = cap  # the vehicle clock went back (reboot) or too far forward (forged)
+        dist = _distance(lat, lon, alt, msg.lat / 1e7, msg.lon / 1e7, msg.alt / 1000.0)
+        return dist <= JUMP_FACTOR * self.max_speed * dt + JUMP_SLACK_M
+
+    def _apply_position(self, msg: Any, now: float) -> None:
+        boot = int(msg.time_boot_ms)
+        anchor = self._rate_anchor
+        if anchor is None or boot < anchor[0]:
+            self._rate_anchor = (boot, now)
+        elif now - anchor[1] >= RATE_WINDOW_S:
+            self._rate = max((boot - anchor[0]) / 1000.0 / (now - anchor[1]), 1e-3)
+            self._rate_anchor = (boot, now)
+        self._fix = self._as_fix(msg, now)
         self.lat, self.lon = msg.lat / 1e7, msg.lon / 1e7
         self.alt = msg.alt / 1000.0
         self.relative_alt = msg.relative_alt / 1000.0
@@ -337,9 +421,30 @@ class Vehicle:
             self._emit("mission_current", seq=msg.seq)
 
     def _on_item_reached(self, msg: Any) -> None:
+        far = self._far_from_item(msg.seq)
+        if far is not None:
+            self.item_reached_rejected += 1
+            log.warning("%s (sysid %d): MISSION_ITEM_REACHED %d ignored: the vehicle is %.0f m from that "
+                        "item", self.name, self.sysid, msg.seq, far)
+            return
         if msg.seq not in self.items_reached:
             self.items_reached.add(msg.seq)
             self._emit("item_reached", seq=msg.seq)
+
+    def _far_from_item(self, seq: int) -> float | None:
+        """The distance to item ``seq`` when the last fix contradicts reaching it, else None."""
+        items = self.mission_items
+        fix = self._fix
+        if fix is None or not 0 <= seq < len(items):
+            return None
+        it = items[seq]
+        if it.command not in _POSITIONED_ITEMS or it.frame not in _GLOBAL_FRAMES or (it.x == 0 and it.y == 0):
+            return None
+        d = _distance(fix[0], fix[1], 0.0, it.lat, it.lon, 0.0)
+        accept = it.param2 if it.command == M.MAV_CMD_NAV_WAYPOINT and math.isfinite(it.param2) else 0.0
+        speed = self.ground_speed or 0.0
+        stale = max(time.monotonic() - fix[4], 0.1) * (self._rate or 1.0)
+        return d if d > REACHED_RADIUS_M + max(accept, 0.0) + speed * max(stale, 1.0) else None
 
     def _on_statustext(self, msg: Any) -> None:
         text = msg.text if isinstance(msg.text, str) else msg.text.decode("utf-8", "replace")
@@ -432,6 +537,7 @@ class Vehicle:
                                if ts >= sent - _STATUS_REASON_S), None)
             raise
         self.items_reached.clear()
+        self.mission_items = list(items)
 
     async def download_mission(self) -> list[MissionItem]:
         return await self.link.download_mission(self.sysid, compid=self.compid)
@@ -439,6 +545,7 @@ class Vehicle:
     async def clear_mission(self) -> None:
         await self.link.clear_mission(self.sysid, compid=self.compid)
         self.items_reached.clear()
+        self.mission_items = []
 
     async def start_mission(self, first: int = 0) -> None:
         """Fly the uploaded mission (from item ``first`` when > 0). Arm first."""
@@ -494,6 +601,14 @@ class Vehicle:
         if bad:
             log.warning("%s: message intervals not set: %s", self.name, bad)
         return out
+
+
+def _distance(lat1: float, lon1: float, alt1: float, lat2: float, lon2: float, alt2: float) -> float:
+    """Metres between two nearby geodetic points (equirectangular; plenty for plausibility)."""
+    k = 111_319.49
+    dn = (lat2 - lat1) * k
+    de = (lon2 - lon1) * k * math.cos(math.radians((lat1 + lat2) / 2))
+    return math.sqrt(dn * dn + de * de + (alt2 - alt1) ** 2)
 
 
 def put_event(q: asyncio.Queue[VehicleEvent], ev: VehicleEvent) -> None:

@@ -15,6 +15,7 @@ from fleetctl.mission.model import (
     RoadmapConfig,
     RoversConfig,
     RoverUnit,
+    SigningConfig,
     SimConfig,
     TlsConfig,
 )
@@ -32,6 +33,7 @@ __all__ = [
     "RoadmapConfig",
     "RoverUnit",
     "RoversConfig",
+    "SigningConfig",
     "SimConfig",
     "TlsConfig",
     "load_mission",

@@ -51,6 +51,7 @@ from fleetctl.mission.model import (
     RoadmapConfig,
     RoversConfig,
     RoverUnit,
+    SigningConfig,
     SimConfig,
     TlsConfig,
 )
@@ -353,8 +354,22 @@ _SIM = {
     "speedup": (_number(gt=0, unit="simulated seconds per wall second"), 1.0),
     "faults": (_list(lambda c, v, p: c.section(v, p, _FAULT), "faults {vehicle, kind, ...}"), []),
 }
-_LINKS = {"heartbeat_timeout": (_number(gt=0, unit="seconds"), 3.0),
-          "reassign_after": (_number(ge=0, unit="seconds"), 10.0)}
+_ENV_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
+
+
+def _env_name(ctx: _Ctx, v: Any, path: KeyPath) -> str:
+    if not isinstance(v, str) or not _ENV_NAME.fullmatch(v):
+        ctx.fail(path, f"{_type_name(v)} is not an environment variable name; use letters, digits and _ "
+                       "(e.g. FLEET_SIGNING_KEY): the variable holds the key, the mission file only its name")
+    return v
+
+
+_SIGNING = {"key_env": (_env_name, _REQUIRED)}
+_LINKS = {
+    "heartbeat_timeout": (_number(gt=0, unit="seconds"), 3.0),
+    "reassign_after": (_number(ge=0, unit="seconds"), 10.0),
+    "signing": (lambda c, v, p: SigningConfig(**c.section(v, p, _SIGNING)), None),
+}
 _XI = _number(ge=0)
 _ROADMAP = {
     "xi1": (_XI, None),

@@ -98,9 +98,18 @@ class SimConfig:
 
 
 @dataclass(frozen=True)
+class SigningConfig:
+    """MAVLink 2 signing: the 32-byte key is read from environment variable ``key_env`` (64 hex
+    characters or base64), never from the mission file (docs/signing.md)."""
+
+    key_env: str
+
+
+@dataclass(frozen=True)
 class LinksConfig:
     heartbeat_timeout: float = 3.0
     reassign_after: float = 10.0  # s a flying rover may stay lost before a spare takes its task
+    signing: SigningConfig | None = None
 
 
 @dataclass(frozen=True)

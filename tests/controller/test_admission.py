@@ -94,7 +94,8 @@ async def test_a_second_controller_is_refused_while_the_first_completes(tmp_path
 def test_real_vehicles_are_not_armed_without_a_terminal_or_yes(tmp_path: Path) -> None:
     d = mission_dict(rovers=2, carrier_connection="udp://127.0.0.1:9")
     path = write_mission(d, tmp_path / "real.yaml")
-    proc = subprocess.run([sys.executable, "-m", "fleetctl.cli", "deploy", "--headless", "--mission", str(path)],
+    proc = subprocess.run([sys.executable, "-m", "fleetctl.cli", "deploy", "--headless",
+                           "--mission", str(path)],
                           cwd=tmp_path, capture_output=True, text=True, timeout=60, stdin=subprocess.DEVNULL,
                           env=os.environ | {"PYTHONPATH": str(ROOT)})
     assert proc.returncode == 2, (proc.stdout, proc.stderr)
