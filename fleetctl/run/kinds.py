@@ -93,6 +93,7 @@ class Ev(StrEnum):
     BATTERY_LOW = "battery_low"
     OFF_COURSE = "off_course"
     STATUSTEXT = "statustext"
+    ROUTE_CONFLICT = "route_conflict"
     # the end of a phase or run
     DEPLOYED = "deployed"
     DEPLOY_INCOMPLETE = "deploy_incomplete"

@@ -40,6 +40,7 @@ EXIT_OK = 0
 EXIT_FAILED = 1
 EXIT_INTERRUPTED = 130
 COMMANDS = ("deploy", "collect", "run")
+ROUTE_CONFLICT_EVERY = 10.0  # s between route conflict events from one source
 
 
 @dataclass
@@ -129,6 +130,7 @@ class Run:
         self.dwell_flown: float | None = None
         self.missing: dict[str, str] = {}  # rovers that did not answer at connect -> why
         self._opened = 0.0
+        self._conflicts: dict[tuple[int, str], float] = {}  # route conflicts journalled -> when
         self._refresher: asyncio.Task[None] | None = None
 
     def _clock(self) -> tuple[Callable[[], float], float]:
@@ -219,6 +221,7 @@ class Run:
         except LinkError as exc:
             raise ExecutionError(f"cannot open the link: {exc}") from None
         self.fleet = fleet
+        fleet.on_route_conflict(self._route_conflict)
         self._refresher = asyncio.create_task(self._refresh(fleet), name="state refresh")
         self.missing = await admit(fleet, self.mission, self.command, self._admission())
         for vid, why in self.missing.items():
@@ -261,6 +264,16 @@ class Run:
         while True:
             self.state.refresh(fleet)
             await asyncio.sleep(0.1)
+
+    def _route_conflict(self, vid: str | None, sysid: int, old: Any, new: Any) -> None:
+        """Journal a known system id heard from a new address (once per source and 10 s)."""
+        key, now = (sysid, str(new)), time.monotonic()
+        if now - self._conflicts.get(key, -1e9) < ROUTE_CONFLICT_EVERY:
+            return
+        self._conflicts[key] = now
+        self.state.event(Ev.ROUTE_CONFLICT, f"{vid or sysid}: a message with its system id came from {new} "
+                         f"while it is heard at {old}: ignored (spoofing, or a second radio path)", vid,
+                         sysid=sysid, old=str(old), new=str(new))
 
     async def _disarm(self, v: Vehicle) -> None:
         await self.journal.commit(Ev.COMMAND, vehicle=v.name, command="disarm")

@@ -86,6 +86,21 @@ class FleetState:
         self._listeners: list[EventListener] = []
         self.replans = 0  # replans so far (fleetctl.run.executor)
         self.last_replan: str | None = None  # text of the latest replan event
+        self.link: dict[str, int] = {}  # what the links refused (Fleet.link_rejections)
+        self.signing = False
+
+    @property
+    def link_line(self) -> str:
+        """The link's security state for the view ('' when unsigned and nothing was refused)."""
+        refused = {k: n for k, n in self.link.items() if n}
+        if not self.signing and not refused:
+            return ""
+        head = "signed" if self.signing else "unsigned"
+        return head + "".join(f" · {k.replace('_', ' ')} {n}" for k, n in refused.items())
+
+    @property
+    def link_style(self) -> str:
+        return "yellow" if any(self.link.values()) else "green"
 
     # -- events ---------------------------------------------------------------------------------
     def add_listener(self, listener: EventListener) -> Callable[[], None]:
@@ -137,6 +152,8 @@ class FleetState:
     # -- telemetry ---------------------------------------------------------------------------------
     def refresh(self, fleet: Fleet) -> None:
         """Copy the live telemetry of ``fleet`` (cheap; called a few times a second)."""
+        self.link = fleet.link_rejections()
+        self.signing = fleet.signing
         carrier = fleet.vehicles.get(fleet.carrier_id)
         cpos = carrier.enu if carrier is not None else None
         for vid, v in fleet.vehicles.items():

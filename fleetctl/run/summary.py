@@ -63,6 +63,7 @@ def build_summary(f: RunFacts) -> dict[str, Any]:
         "makespan_planned": None if planned is None else round(planned, 3),
         "makespan_flown": None if flown is None else round(flown, 3),
         "rovers_lost_reasons": {r: _lost_reason(r, missing, f.state) for r in lost},
+        "link": dict(f.state.link),
         "replans": f.state.replans,
         "journal": f.journal_path,
     }

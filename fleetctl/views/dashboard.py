@@ -53,6 +53,8 @@ def render(state: FleetState, max_rows: int | None = None, status: Sequence[str]
     bar: Any = ProgressBar(total=max(planned or 1.0, 1e-6), completed=min(elapsed, planned or 0.0), width=30)
     head.add_row(Text(f"{state.mission_name}  ·  {state.phase}", style="bold"), Text(stop), Text(timing))
     head.add_row("", "", bar)
+    if state.link_line:
+        head.add_row(Text("link", style="bold"), Text(state.link_line, style=state.link_style), "")
     if state.replans:
         head.add_row(Text(f"replans {state.replans}", style="bold magenta"),
                      Text(state.last_replan or "", style="magenta", overflow="ellipsis"), "")
