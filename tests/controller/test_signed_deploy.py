@@ -58,8 +58,9 @@ class Attacker(View):
                 spoof.send(armed_heartbeat(carrier))
                 for seq in range(8):  # "arrived" at every stop
                     spoof.send(bytes(carrier.mission_item_reached_encode(seq).pack(carrier)))
-                spoof.send(bytes(carrier.command_ack_encode(M.MAV_CMD_DO_SET_MISSION_CURRENT,
-                                                            M.MAV_RESULT_ACCEPTED, 0, 0, 255, 190).pack(carrier)))
+                ack = carrier.command_ack_encode(M.MAV_CMD_DO_SET_MISSION_CURRENT, M.MAV_RESULT_ACCEPTED,
+                                                 0, 0, 255, 190)
+                spoof.send(bytes(ack.pack(carrier)))
                 await asyncio.sleep(0.05)
         finally:
             spoof.close()
@@ -69,7 +70,8 @@ class Attacker(View):
             self.task.cancel()
 
 
-async def test_spoofing_a_signed_deployment_changes_nothing(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+async def test_spoofing_a_signed_deployment_changes_nothing(tmp_path: Path,
+                                                             monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setenv(ENV, KEY_HEX)
     d = signed_dict(rovers=2)
     mission = mission_from(d, tmp_path)
