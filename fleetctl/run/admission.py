@@ -6,8 +6,9 @@
   ``require_all`` (``--require-all``) restores the strict check.
 * **One controller per fleet.** Another ground station's heartbeat on a link, or a vehicle that is
   already armed or flying a mission, means someone else is (or was) in control: refuse, naming
-  what was seen, and point to ``fleetctl resume`` or ``--force``. ``fleetctl resume`` expects
-  armed vehicles (it takes over its own interrupted run) and skips that part.
+  what was seen, and point to ``fleetctl resume`` or ``--force``. ``fleetctl resume`` (it takes
+  over its own interrupted run) and ``collect`` (its rovers wait in the air where a deployment
+  left them) expect armed vehicles and check only for other ground stations.
 * **Arming real aircraft is a decision.** ``confirm`` (from the command line, on a terminal) is
   shown what will be armed and must say yes.
 """
@@ -54,7 +55,8 @@ async def admit(fleet: Fleet, mission: Mission, command: str, adm: Admission) ->
         raise ExecutionError(f"only {answered} rover(s) answered for {len(mission.tasks)} tasks; not "
                              "answering: " + ", ".join(f"{vid} ({why})" for vid, why in missing.items()))
     if not adm.force:
-        await _one_controller(fleet, adm.resuming, adm.opened)
+        # a collection finds its rovers in the air and the carrier where the deployment left it
+        await _one_controller(fleet, adm.resuming or command == "collect", adm.opened)
     if adm.confirm is not None:
         ok = await asyncio.to_thread(adm.confirm, arming_lines(fleet))
         if not ok:
@@ -62,7 +64,7 @@ async def admit(fleet: Fleet, mission: Mission, command: str, adm: Admission) ->
     return missing
 
 
-async def _one_controller(fleet: Fleet, resuming: bool, opened: float) -> None:
+async def _one_controller(fleet: Fleet, armed_expected: bool, opened: float) -> None:
     listen = max(0.0, opened + GCS_LISTEN - time.monotonic())  # connecting took most of it already
     with contextlib.suppress(TimeoutError):  # heartbeats of another ground station, if any
         async with asyncio.timeout(listen):
@@ -70,7 +72,7 @@ async def _one_controller(fleet: Fleet, resuming: bool, opened: float) -> None:
                 await asyncio.sleep(0.1)
     seen = [f"ground station {s}/{c} on {url}" for url, link in fleet.links.items()
             for s, c in link.other_ground_stations()]
-    if not resuming:
+    if not armed_expected:
         seen += [f"{v.name} is {what}" for v in fleet.vehicles.values() if v.connected
                  for what in [_busy(v)] if what]
     if seen:
