@@ -560,8 +560,8 @@ class SimVehicle:
         self.fence_breach_count += 1
         self._fence_breach_time = int(t * 1000)
         what = "altitude" if breach == M.FENCE_BREACH_MAXALT else "boundary"
+        self._emit(M.MAVLINK_MSG_ID_FENCE_STATUS)  # first: a ground station learns the breach type
         self.statustext(f"{GEOFENCE_BREACH_TEXT}: {what}, {action}", M.MAV_SEVERITY_CRITICAL)
-        self._emit(M.MAVLINK_MSG_ID_FENCE_STATUS)
         self._failsafe_action(action)
 
     def _failsafe_action(self, action: str) -> None:
