@@ -106,7 +106,7 @@ class ArduPilot(Autopilot):
         if act is None:
             return "link loss: unknown (FS_GCS_ENABLE not read)"
         if act == "none":
-            return "link loss: no action (FS_GCS_ENABLE 0: GCS failsafe disabled)"
+            return "link loss: none (FS_GCS_ENABLE 0)"
         timeout = params.get("FS_TIMEOUT" if self.ground else "FS_GCS_TIMEOUT")
         return f"link loss: {act.replace('rtl', 'RTL')} after {seconds(timeout)}"
 

@@ -94,7 +94,7 @@ class Px4(Autopilot):
         if act is None:
             return "link loss: unknown (NAV_DLL_ACT not read)"
         if act == "none":
-            return "link loss: no action (NAV_DLL_ACT 0: data link loss failsafe disabled)"
+            return "link loss: none (NAV_DLL_ACT 0)"
         return f"link loss: {_WORDS.get(act, act)} after {seconds(params.get('COM_DL_LOSS_T'))}"
 
     def failsafe_params(self, action: str, current: Params | None = None) -> dict[str, float]:
