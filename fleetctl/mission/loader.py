@@ -550,9 +550,9 @@ def _geofence(ctx: _Ctx, d: dict[str, Any], tasks: tuple[Task, ...], obstacles: 
                 pts.append((float(x), float(y)))
             else:
                 pts.append((float(v[0]), float(v[1])))
-        poly = Polygon(pts)
-        if len(pts) < 3 or not poly.is_valid or poly.area <= 0.0:
-            why = f"{len(pts)} vertices" if len(pts) < 3 else explain_validity(poly)
+        poly = Polygon(pts) if len(pts) >= 3 else None
+        if poly is None or not poly.is_valid or poly.area <= 0.0:
+            why = f"{len(pts)} vertices" if poly is None else explain_validity(poly)
             ctx.fail(("geofence", "polygon"), f"not a usable polygon ({why}); list at least 3 vertices in "
                      "order around the outline without self-crossings")
     poly = Polygon(pts)
