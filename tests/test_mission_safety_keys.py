@@ -45,8 +45,16 @@ def test_fault_kinds_are_the_simulators() -> None:
 
 
 def test_preflight_faults_load(tmp_path: Path) -> None:
-    m = load(tmp_path, sim={"faults": [{"vehicle": "r1", "kind": "no_gps"}, {"kind": "unhealthy", "at": 5},
-                                       {"vehicle": "r2", "kind": "low_battery", "level": 0.05}]})
+    m = load(
+        tmp_path,
+        sim={
+            "faults": [
+                {"vehicle": "r1", "kind": "no_gps"},
+                {"kind": "unhealthy", "at": 5},
+                {"vehicle": "r2", "kind": "low_battery", "level": 0.05},
+            ]
+        },
+    )
     kinds = [(f.kind, f.vehicle, f.level) for f in m.sim.faults]
     assert kinds == [("no_gps", "r1", None), ("unhealthy", None, None), ("low_battery", "r2", 0.05)]
 
@@ -68,12 +76,16 @@ def test_links_failsafe(tmp_path: Path) -> None:
 
 
 def test_geofence_polygon_enu(tmp_path: Path) -> None:
-    m = load(tmp_path, obstacles=[[[20, 0], [25, 0], [25, 5]]], bounds=[[-20, -20], [80, 80]],
-             geofence={"polygon": SQUARE, "alt_max": 30, "action": "rtl"})
+    m = load(
+        tmp_path,
+        obstacles=[[[20, 0], [25, 0], [25, 5]]],
+        bounds=[[-20, -20], [80, 80]],
+        geofence={"polygon": SQUARE, "alt_max": 30, "action": "rtl"},
+    )
     g = m.geofence
     assert g is not None and g.polygon == tuple(tuple(map(float, p)) for p in SQUARE)
     assert g.alt_max == 30.0 and g.action == "rtl"
-    assert g.exclusions == ((( 20.0, 0.0), (25.0, 0.0), (25.0, 5.0)),)
+    assert g.exclusions == (((20.0, 0.0), (25.0, 0.0), (25.0, 5.0)),)
     assert load(tmp_path).geofence is None
 
 
@@ -98,8 +110,9 @@ def test_geofence_rejections(tmp_path: Path) -> None:
     msg = error(tmp_path, geofence={"polygon": SQUARE, "colour": "red"})
     assert "geofence.colour: unknown key" in msg and "m.yaml:" in msg
     assert "exactly one of" in error(tmp_path, geofence={"alt_max": 10})
-    assert "exactly one of" in error(tmp_path, bounds=[[-5, -5], [50, 30]],
-                                     geofence={"polygon": SQUARE, "from": "bounds"})
+    assert "exactly one of" in error(
+        tmp_path, bounds=[[-5, -5], [50, 30]], geofence={"polygon": SQUARE, "from": "bounds"}
+    )
     msg = error(tmp_path, geofence={"polygon": [[0, 0], [10, 0]]})
     assert "geofence.polygon" in msg and "at least 3 vertices" in msg
     msg = error(tmp_path, geofence={"polygon": [[0, 0], [10, 10], [10, 0], [0, 10]]})
@@ -110,7 +123,9 @@ def test_geofence_rejections(tmp_path: Path) -> None:
     assert "the carrier's start at (0, 0) lies outside the geofence" in msg
     msg = error(tmp_path, geofence={"polygon": SQUARE, "alt_max": 3})
     assert "geofence.alt_max" in msg and "task 'a' is 4 m high" in msg
-    assert "use one of: report, hold, rtl, land" in error(tmp_path, geofence={"polygon": SQUARE, "action": "x"})
+    assert "use one of: report, hold, rtl, land" in error(
+        tmp_path, geofence={"polygon": SQUARE, "action": "x"}
+    )
     msg = error(tmp_path, geofence={"polygon": [[0, 0], "x", [1, 1]]})
     assert "geofence.polygon[1]" in msg and "{lat, lon}" in msg
     no_origin = {k: v for k, v in BASE.items() if k != "origin"}

@@ -519,7 +519,7 @@ def _fence_vertex(ctx: _Ctx, v: Any, path: KeyPath) -> Any:
     ctx.fail(path, f"expected a vertex [x, y] (ENU metres) or {{lat, lon}}, got {_type_name(v)}")
 
 
-_GEOFENCE = {
+_GEOFENCE: dict[str, tuple[Parser, Any]] = {
     "polygon": (_list(_fence_vertex, "vertices [x, y] or {lat, lon}"), None),
     "from": (_one_of("bounds"), None),
     "alt_max": (_number(gt=0, null=True, unit="metres above home"), None),

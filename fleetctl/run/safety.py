@@ -46,17 +46,30 @@ async def gather(fleet: Fleet, timeout: float = GATHER_TIMEOUT, vehicles: list[V
     GPS_RAW_INT and SYS_STATUS once - and read every vehicle's link-loss parameters."""
     todo = [v for v in (vehicles or list(fleet.vehicles.values())) if v.connected]
 
+    await gather_telemetry(todo, timeout)
+    return await read_failsafes(todo)
+
+
+async def gather_telemetry(vehicles: list[Vehicle], timeout: float = GATHER_TIMEOUT) -> None:
+    """Wait for what the checks read, asking once (REQUEST_MESSAGE) for what has not come yet."""
     async def one(v: Vehicle) -> None:
+        if _complete(v):
+            return
         with contextlib.suppress(LinkError, CommandRejected, TimeoutError):
             async with asyncio.timeout(timeout):
-                for msgid in (M.MAVLINK_MSG_ID_HOME_POSITION, M.MAVLINK_MSG_ID_GPS_RAW_INT,
-                              M.MAVLINK_MSG_ID_SYS_STATUS):
-                    await v.command(M.MAV_CMD_REQUEST_MESSAGE, [float(msgid)], check=False, timeout=0.5)
+                for msgid, have in ((M.MAVLINK_MSG_ID_HOME_POSITION, v.home),
+                                    (M.MAVLINK_MSG_ID_GPS_RAW_INT, v.gps_fix_type),
+                                    (M.MAVLINK_MSG_ID_SYS_STATUS, v.sensors_present)):
+                    if have is None:
+                        await v.command(M.MAV_CMD_REQUEST_MESSAGE, [float(msgid)], check=False, timeout=0.5)
                 await v.wait_until(_complete, timeout, "preflight telemetry")
 
-    await asyncio.gather(*(one(v) for v in todo))
-    got = await asyncio.gather(*(read_failsafe(v) for v in todo))
-    return {v.name: fs for v, fs in zip(todo, got, strict=True)}
+    await asyncio.gather(*(one(v) for v in vehicles if v.connected and not v.lost))
+
+
+async def read_failsafes(vehicles: list[Vehicle]) -> dict[str, PreflightFailsafe]:
+    got = await asyncio.gather(*(read_failsafe(v) for v in vehicles))
+    return {v.name: fs for v, fs in zip(vehicles, got, strict=True)}
 
 
 @dataclass
@@ -72,7 +85,7 @@ async def read_failsafe(v: Vehicle) -> PreflightFailsafe:
     ap = v.autopilot
     if ap is None or not ap.failsafe_param_names:
         return PreflightFailsafe({}, None, "link loss: unknown (no failsafe parameters for this autopilot)")
-    params = await read_params(v, list(ap.failsafe_param_names))
+    params = await read_params(v, list(ap.failsafe_param_names), timeout=0.5, retries=2)
     return PreflightFailsafe(params, ap.failsafe_action(params), ap.describe_failsafe(params))
 
 
@@ -186,8 +199,9 @@ async def admit_safety(fleet: Fleet, mission: Mission, command: str, *, resuming
     a failing carrier raises :class:`ExecutionError`."""
     rep = SafetyReport()
     vehicles = {vid: v for vid, v in fleet.vehicles.items() if v.connected}
-    failsafe = await gather(fleet, timeout, list(vehicles.values()))
+    await gather_telemetry(list(vehicles.values()), timeout)
     rep.rows = check_fleet(vehicles, fleet.carrier_id, mission, command=command, resuming=resuming)
+    failsafe = await read_failsafes([v for v in vehicles.values() if not v.lost])
     for vid, row in rep.rows.items():
         row.link_loss = failsafe[vid].text if vid in failsafe else None
         if not row.ok:
@@ -242,4 +256,5 @@ def _fail(fleet: Fleet, rep: SafetyReport, vid: str, why: str, resuming: bool) -
 
 
 __all__ = ["RTL_WARNING", "PreflightFailsafe", "SafetyReport", "admit_safety", "check_plan", "download_fence",
-           "fence_items", "gather", "plan_violations", "read_failsafe", "set_failsafe", "upload_fence"]
+           "fence_items", "gather", "gather_telemetry", "plan_violations", "read_failsafe", "read_failsafes",
+           "set_failsafe", "upload_fence"]

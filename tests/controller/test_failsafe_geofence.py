@@ -48,20 +48,35 @@ def test_px4_integer_parameters_travel_bytewise() -> None:
     assert decode(2.5, m.MAV_PARAM_TYPE_REAL32, True) == 2.5
 
 
-@pytest.mark.parametrize(("autopilot", "rover", "carrier"), [
-    ("px4", ("link loss: none (NAV_DLL_ACT 0)", "link loss: RTL after 10 s", {"NAV_DLL_ACT": 2.0}),
-     ("link loss: none (NAV_DLL_ACT 0)", "link loss: hold after 10 s", {"NAV_DLL_ACT": 1.0})),
-    ("ardupilot", ("link loss: none (FS_GCS_ENABLE 0)", "link loss: RTL after 5 s", {"FS_GCS_ENABLE": 1.0}),
-     ("link loss: none (FS_GCS_ENABLE 0)", "link loss: hold after 1.5 s",
-      {"FS_GCS_ENABLE": 1.0, "FS_ACTION": 2.0})),
-])
-async def test_failsafe_read_described_and_set(autopilot: str, rover: tuple[Any, ...], carrier: tuple[Any, ...],
-                                               tmp_path: Path) -> None:
+@pytest.mark.parametrize(
+    ("autopilot", "rover", "carrier"),
+    [
+        (
+            "px4",
+            ("link loss: none (NAV_DLL_ACT 0)", "link loss: RTL after 10 s", {"NAV_DLL_ACT": 2.0}),
+            ("link loss: none (NAV_DLL_ACT 0)", "link loss: hold after 10 s", {"NAV_DLL_ACT": 1.0}),
+        ),
+        (
+            "ardupilot",
+            ("link loss: none (FS_GCS_ENABLE 0)", "link loss: RTL after 5 s", {"FS_GCS_ENABLE": 1.0}),
+            (
+                "link loss: none (FS_GCS_ENABLE 0)",
+                "link loss: hold after 1.5 s",
+                {"FS_GCS_ENABLE": 1.0, "FS_ACTION": 2.0},
+            ),
+        ),
+    ],
+)
+async def test_failsafe_read_described_and_set(
+    autopilot: str, rover: tuple[Any, ...], carrier: tuple[Any, ...], tmp_path: Path
+) -> None:
     d = mission_dict(rovers=1)
     async with sim_fleet(d, autopilot=autopilot) as sim:
         async with await connect_fleet(mission_from(d, tmp_path), sim.endpoints, timeout=5.0) as fleet:
-            for v, (before, after, params), action in ((fleet.rovers["r1"], rover, "rtl"),
-                                                        (fleet.carrier, carrier, "hold")):
+            for v, (before, after, params), action in (
+                (fleet.rovers["r1"], rover, "rtl"),
+                (fleet.carrier, carrier, "hold"),
+            ):
                 fs = await read_failsafe(v)
                 assert fs.text == before and fs.action == "none"
                 fs = await set_failsafe(v, action, fs)
@@ -79,21 +94,29 @@ def test_ardupilot_failsafe_meanings() -> None:
     copter = ArduPilot(m.MAV_TYPE_QUADROTOR)
     assert copter.describe_failsafe({"FS_GCS_ENABLE": 5, "FS_GCS_TIMEOUT": 3}) == "link loss: land after 3 s"
     assert copter.describe_failsafe({"FS_GCS_ENABLE": 1, "FS_GCS_TIMEOUT": 5, "FS_OPTIONS": 2}) == (
-        "link loss: continue mission in AUTO, else RTL after 5 s")
+        "link loss: continue mission in AUTO, else RTL after 5 s"
+    )
     assert copter.failsafe_params("hold", {"FS_OPTIONS": 18}) == {"FS_GCS_ENABLE": 7.0, "FS_OPTIONS": 16.0}
     assert copter.failsafe_params("land", {"FS_OPTIONS": 0}) == {"FS_GCS_ENABLE": 5.0}
-    assert copter.fence_params(30, "hold") == {"FENCE_ENABLE": 1.0, "FENCE_ACTION": 4.0, "FENCE_TYPE": 5.0,
-                                               "FENCE_ALT_MAX": 30.0}
+    assert copter.fence_params(30, "hold") == {
+        "FENCE_ENABLE": 1.0,
+        "FENCE_ACTION": 4.0,
+        "FENCE_TYPE": 5.0,
+        "FENCE_ALT_MAX": 30.0,
+    }
     px4 = Px4(m.MAV_TYPE_QUADROTOR)
     assert px4.describe_failsafe({"NAV_DLL_ACT": 3, "COM_DL_LOSS_T": 10}) == "link loss: land after 10 s"
     assert px4.describe_failsafe({"NAV_DLL_ACT": 6}) == "link loss: lockdown (motors off) after ?"
     assert px4.fence_params(None, "land") == {"GF_ACTION": 5.0, "GF_MAX_VER_DIST": 0.0}
 
 
-@pytest.mark.parametrize(("autopilot", "action", "param", "value"), [
-    ("px4", "land", "NAV_DLL_ACT", 3.0), ("ardupilot", "rtl", "FS_GCS_ENABLE", 1.0)])
-async def test_links_failsafe_is_set_before_arming(autopilot: str, action: str, param: str, value: float,
-                                                   tmp_path: Path) -> None:
+@pytest.mark.parametrize(
+    ("autopilot", "action", "param", "value"),
+    [("px4", "land", "NAV_DLL_ACT", 3.0), ("ardupilot", "rtl", "FS_GCS_ENABLE", 1.0)],
+)
+async def test_links_failsafe_is_set_before_arming(
+    autopilot: str, action: str, param: str, value: float, tmp_path: Path
+) -> None:
     d = mission_dict(rovers=2)
     d["links"]["failsafe"] = action
     mission = mission_from(d, tmp_path)
@@ -121,14 +144,18 @@ async def _airborne(v: Vehicle, x: float = 15.0, y: float = -8.0, z: float = 6.0
     await v.wait_until(lambda v: v.enu is not None and math.dist(v.enu, (x, y, z)) < 0.3, 10.0, "there")
 
 
-@pytest.mark.parametrize(("autopilot", "params", "mode"), [
-    ("px4", {"NAV_DLL_ACT": 2, "COM_DL_LOSS_T": 1.0}, Mode.RTL),
-    ("ardupilot", {"FS_GCS_ENABLE": 5, "FS_GCS_TIMEOUT": 1.0}, Mode.LAND),
-    ("ardupilot", {"FS_GCS_ENABLE": 7, "FS_GCS_TIMEOUT": 1.0}, Mode.HOLD),
-    ("px4", {"COM_DL_LOSS_T": 1.0}, None),  # NAV_DLL_ACT 0: disabled, the rover flies on
-])
-async def test_a_link_loss_triggers_the_configured_action(autopilot: str, params: dict[str, float],
-                                                          mode: Mode | None, tmp_path: Path) -> None:
+@pytest.mark.parametrize(
+    ("autopilot", "params", "mode"),
+    [
+        ("px4", {"NAV_DLL_ACT": 2, "COM_DL_LOSS_T": 1.0}, Mode.RTL),
+        ("ardupilot", {"FS_GCS_ENABLE": 5, "FS_GCS_TIMEOUT": 1.0}, Mode.LAND),
+        ("ardupilot", {"FS_GCS_ENABLE": 7, "FS_GCS_TIMEOUT": 1.0}, Mode.HOLD),
+        ("px4", {"COM_DL_LOSS_T": 1.0}, None),  # NAV_DLL_ACT 0: disabled, the rover flies on
+    ],
+)
+async def test_a_link_loss_triggers_the_configured_action(
+    autopilot: str, params: dict[str, float], mode: Mode | None, tmp_path: Path
+) -> None:
     d = mission_dict(rovers=1, speedup=5.0)
     async with sim_fleet(d, autopilot=autopilot) as sim:
         async with await connect_fleet(mission_from(d, tmp_path), sim.endpoints, timeout=5.0) as fleet:
@@ -163,24 +190,44 @@ async def test_fence_upload_download_round_trip(autopilot: str, tmp_path: Path) 
             got = await download_fence(r1)
             sent = fence_items(fence, mission.origin)
             assert len(got) == 7 and all(a.same_as(b) for a, b in zip(sent, got, strict=True))
-            assert got[0].command == 5001 and got[0].param1 == 4 and got[4].command == 5002 and got[4].param1 == 3
-            assert all(it.command < 5000 for it in await r1.download_mission())  # the flight mission: untouched
+            assert (
+                got[0].command == 5001
+                and got[0].param1 == 4
+                and got[4].command == 5002
+                and got[4].param1 == 3
+            )
+            assert all(
+                it.command < 5000 for it in await r1.download_mission()
+            )  # the flight mission: untouched
             sv = sim.vehicle("r1")
             assert len(sv.fence.inclusions) == 1 and len(sv.fence.exclusions) == 1
-            expect = ({"GF_ACTION": 3.0, "GF_MAX_VER_DIST": 20.0} if autopilot == "px4" else
-                      {"FENCE_ENABLE": 1.0, "FENCE_ACTION": 1.0, "FENCE_TYPE": 5.0, "FENCE_ALT_MAX": 20.0})
+            expect = (
+                {"GF_ACTION": 3.0, "GF_MAX_VER_DIST": 20.0}
+                if autopilot == "px4"
+                else {"FENCE_ENABLE": 1.0, "FENCE_ACTION": 1.0, "FENCE_TYPE": 5.0, "FENCE_ALT_MAX": 20.0}
+            )
             assert {k: sv.flavour.params[k] for k in expect} == expect
             await r1.link.clear_mission(r1.sysid, compid=r1.compid, mission_type=FENCE)
             assert await download_fence(r1) == [] and not sv.fence.has_zones
 
 
-@pytest.mark.parametrize(("autopilot", "action", "goto", "mode", "breach"), [
-    ("px4", "rtl", (5.0, -45.0, 6.0), Mode.RTL, "FENCE_BREACH_BOUNDARY"),
-    ("ardupilot", "land", (22.0, 1.0, 6.0), Mode.LAND, "FENCE_BREACH_BOUNDARY"),  # into the exclusion zone
-    ("ardupilot", "hold", (10.0, 0.0, 25.0), Mode.HOLD, "FENCE_BREACH_MAXALT"),
-])
-async def test_a_breach_does_the_action_and_is_an_event(autopilot: str, action: str, goto: tuple[float, ...],
-                                                        mode: Mode, breach: str, tmp_path: Path) -> None:
+@pytest.mark.parametrize(
+    ("autopilot", "action", "goto", "mode", "breach"),
+    [
+        ("px4", "rtl", (5.0, -45.0, 6.0), Mode.RTL, "FENCE_BREACH_BOUNDARY"),
+        (
+            "ardupilot",
+            "land",
+            (22.0, 1.0, 6.0),
+            Mode.LAND,
+            "FENCE_BREACH_BOUNDARY",
+        ),  # into the exclusion zone
+        ("ardupilot", "hold", (10.0, 0.0, 25.0), Mode.HOLD, "FENCE_BREACH_MAXALT"),
+    ],
+)
+async def test_a_breach_does_the_action_and_is_an_event(
+    autopilot: str, action: str, goto: tuple[float, ...], mode: Mode, breach: str, tmp_path: Path
+) -> None:
     d = mission_dict(rovers=1, speedup=5.0)
     mission = mission_from(d, tmp_path)
     fence = GeofenceConfig(SQUARE, (((20.0, -2.0), (25.0, -2.0), (25.0, 5.0), (20.0, 5.0)),), 20.0, action)
@@ -201,7 +248,9 @@ async def test_a_breach_does_the_action_and_is_an_event(autopilot: str, action: 
     assert any(t.startswith("Geofence breach") for _t, _s, t in sim.vehicle("r1").statustexts)
 
 
-def _plan(carrier_path: list[tuple[float, float, float]], rover_path: list[tuple[float, float, float]]) -> Plan:
+def _plan(
+    carrier_path: list[tuple[float, float, float]], rover_path: list[tuple[float, float, float]]
+) -> Plan:
     stop = Stop(carrier_path[-1], carrier_path, [RoverLeg("r1", rover_path, task="t1")])
     return Plan("deploy", "test", carrier_path[0], 0.0, [stop])
 
@@ -213,21 +262,29 @@ def test_plans_are_checked_against_the_fence() -> None:
     check_plan(ok, fence)
     check_plan(ok, None)
     out = _plan([(0, 10, 0), (80, 10, 0)], [(80, 10, 0), (15, 20, 5)])
-    assert plan_violations(out, fence) == ["carrier stop 1 at (80.0, 10.0) is outside the geofence",
-                                           "the carrier's path to stop 1 leaves the geofence",
-                                           "rover r1's path to task t1 (stop 1) leaves the geofence"]
+    assert plan_violations(out, fence) == [
+        "carrier stop 1 at (80.0, 10.0) is outside the geofence",
+        "the carrier's path to stop 1 leaves the geofence",
+        "rover r1's path to task t1 (stop 1) leaves the geofence",
+    ]
     through = _plan([(0, 0, 0), (10, 0, 0)], [(10, 0, 0), (35, 0, 12)])
     assert plan_violations(through, fence) == [
         "rover r1's path to task t1 (stop 1) crosses exclusion zone obstacles[0]",
-        "rover r1's path to task t1 (stop 1) climbs to 12.0 m, above the geofence alt_max 10 m"]
-    with pytest.raises(ExecutionError, match="the deploy plan \\(test\\) leaves the geofence: carrier stop 1"):
+        "rover r1's path to task t1 (stop 1) climbs to 12.0 m, above the geofence alt_max 10 m",
+    ]
+    with pytest.raises(
+        ExecutionError, match="the deploy plan \\(test\\) leaves the geofence: carrier stop 1"
+    ):
         check_plan(out, fence)
 
 
 async def test_a_plan_leaving_the_fence_is_not_flown(tmp_path: Path) -> None:
     # a comb-shaped fence: the start and both tasks inside, joined by a detour the planners do not fly
-    corridor = LineString([(0, 0), (0, 30), (20, 30), (20, 10)]).union(
-        LineString([(20, 30), (45, 30), (45, -10), (40, -10)])).buffer(1.5, cap_style="square")
+    corridor = (
+        LineString([(0, 0), (0, 30), (20, 30), (20, 10)])
+        .union(LineString([(20, 30), (45, 30), (45, -10), (40, -10)]))
+        .buffer(1.5, cap_style="square")
+    )
     zone = unary_union([corridor, box(-3, -3, 3, 3), box(17, 7, 23, 13), box(37, -13, 43, -7)])
     d = mission_dict(rovers=2)
     d["geofence"] = {"polygon": [[round(x, 3), round(y, 3)] for x, y in zone.exterior.coords[:-1]]}

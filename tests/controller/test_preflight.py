@@ -27,9 +27,12 @@ def _by_check(row: object) -> dict[str, bool]:
 
 
 async def test_every_check_fails_on_its_fault_and_passes_without(tmp_path: Path) -> None:
-    faults = [{"vehicle": "r1", "kind": "no_gps"}, {"vehicle": "r2", "kind": "unhealthy"},
-              {"vehicle": "r3", "kind": "low_battery", "level": 0.05},
-              {"vehicle": "r4", "kind": "low_battery", "level": 0.2}]
+    faults = [
+        {"vehicle": "r1", "kind": "no_gps"},
+        {"vehicle": "r2", "kind": "unhealthy"},
+        {"vehicle": "r3", "kind": "low_battery", "level": 0.05},
+        {"vehicle": "r4", "kind": "low_battery", "level": 0.2},
+    ]
     d = mission_dict(rovers=6, faults=faults)
     mission = mission_from(d, tmp_path)
     async with sim_fleet(d) as sim, await connect_fleet(mission, sim.endpoints, timeout=5.0) as fleet:
@@ -47,20 +50,28 @@ async def test_every_check_fails_on_its_fault_and_passes_without(tmp_path: Path)
     assert rows["r2"].failures == ["sensors not healthy: magnetometer"]
     assert rows["r3"].failures == ["battery 5 % is not above the reserve 10%"]
     # 20 %: above the 10 % reserve, but (0.2 - 0.1) x 200 m = 20 m < the deploy range 40 m
-    assert rows["r4"].failures == ["battery 20 % gives 20 m above the reserve, less than the deploy range 40 m "
-                                   "(needs 30 %)"]
+    assert rows["r4"].failures == [
+        "battery 20 % gives 20 m above the reserve, less than the deploy range 40 m (needs 30 %)"
+    ]
     assert rows["r5"].failures == ["already armed"]
     assert no_home.failures == ["home position unknown (no HOME_POSITION received)"]
     # fleetctl resume takes over armed vehicles: that check is skipped
-    assert "disarmed" not in _by_check(check_vehicle(fleet.rovers["r5"], mission, carrier=False, resuming=True))
+    assert "disarmed" not in _by_check(
+        check_vehicle(fleet.rovers["r5"], mission, carrier=False, resuming=True)
+    )
 
 
 def test_status_fails_a_rover_without_gps_in_red(tmp_path: Path) -> None:
     d = mission_dict(rovers=2, speedup=10.0, faults=[{"vehicle": "r2", "kind": "no_gps"}])
     path = write_mission(d, tmp_path / "m.yaml")
-    proc = subprocess.run([sys.executable, "-m", "fleetctl.cli", "status", "--mission", str(path), "--timeout", "5"],
-                          cwd=tmp_path, capture_output=True, text=True, timeout=60,
-                          env=os.environ | {"PYTHONPATH": str(ROOT), "COLUMNS": "250"})
+    proc = subprocess.run(
+        [sys.executable, "-m", "fleetctl.cli", "status", "--mission", str(path), "--timeout", "5"],
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+        timeout=60,
+        env=os.environ | {"PYTHONPATH": str(ROOT), "COLUMNS": "250"},
+    )
     assert proc.returncode == 1, (proc.stdout, proc.stderr)
     assert "r2 (sysid 12) at " in proc.stderr and "GPS no fix, 0 satellites: needs a 3D fix" in proc.stderr
     assert "r1 (sysid" not in proc.stderr and "carrier (sysid" not in proc.stderr
@@ -68,9 +79,16 @@ def test_status_fails_a_rover_without_gps_in_red(tmp_path: Path) -> None:
 
 
 async def test_the_runner_leaves_a_failing_rover_out_and_flies_the_spares(tmp_path: Path) -> None:
-    d = mission_dict(rovers=4, faults=[{"vehicle": "r1", "kind": "unhealthy"},
-                                       {"vehicle": "r3", "kind": "low_battery", "level": 0.05}])
-    out = await asyncio.wait_for(execute(mission_from(d, tmp_path), "deploy", runs_dir=tmp_path / "runs"), 120)
+    d = mission_dict(
+        rovers=4,
+        faults=[
+            {"vehicle": "r1", "kind": "unhealthy"},
+            {"vehicle": "r3", "kind": "low_battery", "level": 0.05},
+        ],
+    )
+    out = await asyncio.wait_for(
+        execute(mission_from(d, tmp_path), "deploy", runs_dir=tmp_path / "runs"), 120
+    )
     s = out.summary
     assert out.exit_code == 0, (out.error, s)
     assert sorted(s["tasks_reached"]) == ["t1", "t2"]
@@ -101,6 +119,7 @@ async def test_too_few_rovers_pass_preflight(tmp_path: Path) -> None:
 @pytest.mark.parametrize("require_all", [True])
 async def test_require_all_refuses_a_rover_failing_preflight(tmp_path: Path, require_all: bool) -> None:
     d = mission_dict(rovers=3, faults=[{"vehicle": "r3", "kind": "no_gps"}])
-    out = await asyncio.wait_for(execute(mission_from(d, tmp_path), "deploy", runs_dir=tmp_path / "runs",
-                                         require_all=require_all), 60)
+    out = await asyncio.wait_for(
+        execute(mission_from(d, tmp_path), "deploy", runs_dir=tmp_path / "runs", require_all=require_all), 60
+    )
     assert out.exit_code == 1 and out.error is not None and "--require-all" in out.error and "r3" in out.error
