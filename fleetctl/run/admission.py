@@ -29,7 +29,7 @@ from fleetctl.mavlink.fleet import Fleet
 from fleetctl.mavlink.vehicle import Vehicle
 from fleetctl.mission import Mission
 from fleetctl.run.context import ExecutionError
-from fleetctl.run.safety import admit_safety
+from fleetctl.run.safety import admit_safety, prefetch_failsafes
 
 GCS_LISTEN = 1.5  # s after the links opened to listen for another ground station's 1 Hz heartbeat
 IN_MISSION_MODES = ("MISSION", "TAKEOFF", "GUIDED", "LAND", "RTL")
@@ -61,9 +61,13 @@ async def admit(fleet: Fleet, mission: Mission, command: str, adm: Admission) ->
     if command in ("deploy", "run") and answered < len(mission.tasks):
         raise ExecutionError(f"only {answered} rover(s) answered for {len(mission.tasks)} tasks; not "
                              "answering: " + ", ".join(f"{vid} ({why})" for vid, why in missing.items()))
-    if not adm.force:
-        await _one_controller(fleet, adm.resuming, adm.opened)
-    adm.safety = await admit_safety(fleet, mission, command, resuming=adm.resuming)
+    params = prefetch_failsafes(fleet)  # read while listening for another controller
+    try:
+        if not adm.force:
+            await _one_controller(fleet, adm.resuming, adm.opened)
+        adm.safety = await admit_safety(fleet, mission, command, resuming=adm.resuming, prefetched=params)
+    finally:
+        params.cancel()
     adm.left_out = dict(adm.safety.left_out)
     failed = "; ".join(f"{vid} ({why})" for vid, why in adm.left_out.items())
     if adm.left_out and adm.require_all:

@@ -192,8 +192,16 @@ class SafetyReport:
     notes: list[tuple[str, str, str | None]] = field(default_factory=list)  # (kind, text, vehicle)
 
 
+def prefetch_failsafes(fleet: Fleet) -> asyncio.Task[dict[str, PreflightFailsafe]]:
+    """Start reading every answering vehicle's link-loss parameters now (they take a moment from a
+    vehicle that has gone quiet): pass the task to :func:`admit_safety`."""
+    vehicles = [v for v in fleet.vehicles.values() if v.connected and not v.lost]
+    return asyncio.ensure_future(read_failsafes(vehicles))
+
+
 async def admit_safety(fleet: Fleet, mission: Mission, command: str, *, resuming: bool = False,
-                       timeout: float = GATHER_TIMEOUT) -> SafetyReport:
+                       timeout: float = GATHER_TIMEOUT,
+                       prefetched: asyncio.Task[dict[str, PreflightFailsafe]] | None = None) -> SafetyReport:
     """Preflight every answering vehicle, set ``links.failsafe`` and upload the geofence. Failing
     rovers are left out (``fleet.leave_out``) - unless resuming and airborne: then only a warning;
     a failing carrier raises :class:`ExecutionError`."""
@@ -201,7 +209,10 @@ async def admit_safety(fleet: Fleet, mission: Mission, command: str, *, resuming
     vehicles = {vid: v for vid, v in fleet.vehicles.items() if v.connected}
     await gather_telemetry(list(vehicles.values()), timeout)
     rep.rows = check_fleet(vehicles, fleet.carrier_id, mission, command=command, resuming=resuming)
-    failsafe = await read_failsafes([v for v in vehicles.values() if not v.lost])
+    if prefetched is not None:
+        failsafe = await prefetched
+    else:
+        failsafe = await read_failsafes([v for v in vehicles.values() if not v.lost])
     for vid, row in rep.rows.items():
         row.link_loss = failsafe[vid].text if vid in failsafe else None
         if not row.ok:
@@ -256,5 +267,5 @@ def _fail(fleet: Fleet, rep: SafetyReport, vid: str, why: str, resuming: bool) -
 
 
 __all__ = ["RTL_WARNING", "PreflightFailsafe", "SafetyReport", "admit_safety", "check_plan", "download_fence",
-           "fence_items", "gather", "gather_telemetry", "plan_violations", "read_failsafe", "read_failsafes",
-           "set_failsafe", "upload_fence"]
+           "fence_items", "gather", "gather_telemetry", "plan_violations", "prefetch_failsafes",
+           "read_failsafe", "read_failsafes", "set_failsafe", "upload_fence"]
