@@ -14,7 +14,6 @@ from planners.problem import CollectProblem
 
 if TYPE_CHECKING:
     from fleetctl.mavlink.fleet import Fleet
-    from fleetctl.mavlink.vehicle import Vehicle
     from fleetctl.run.runner import RunOutcome
     from planners.problem import DeployProblem
 
@@ -452,8 +451,6 @@ def cmd_status(args: argparse.Namespace) -> int:
 
 
 async def _status(mission: Mission, timeout: float, speedup: float | None) -> int:
-    import asyncio
-    import contextlib
 
     from fleetctl.mavlink.fleet import connect_fleet
     from fleetctl.mavlink.link import LinkError
@@ -476,20 +473,20 @@ async def _status(mission: Mission, timeout: float, speedup: float | None) -> in
         except LinkError as e:
             raise CliError(str(e)) from None
         try:
-            async def telemetry(v: Vehicle) -> None:
-                with contextlib.suppress(TimeoutError):
-                    await v.wait_until(
-                        lambda v: v.position is not None and v.battery_pct is not None
-                        and v.landed_state is not None, min(timeout, 3.0), "telemetry")
+            from fleetctl.run.safety import gather
 
-            await asyncio.gather(*(telemetry(v) for v in fleet.vehicles.values() if v.connected))
-            rows, problems = _status_rows(mission, fleet)
+            failsafe = await gather(fleet, min(timeout, 3.0))  # preflight telemetry, link-loss parameters
+            rows, problems = _status_rows(mission, fleet, {vid: fs.text for vid, fs in failsafe.items()})
         finally:
             await fleet.close()
     finally:
         if sim is not None:
             await sim.stop()
     _print_status(mission, rows)
+    for row in rows:
+        for w in row.get("warnings", "").split("\n"):
+            if w:
+                print(f"warning: {row['id']}: {w}")
     if problems:
         print(f"fleetctl: {len(problems)} vehicle(s) missing or not ready:", file=sys.stderr)
         for line in problems:
@@ -499,11 +496,13 @@ async def _status(mission: Mission, timeout: float, speedup: float | None) -> in
     return 0
 
 
-def _status_rows(mission: Mission, fleet: Fleet) -> tuple[list[dict[str, str]], list[str]]:
+def _status_rows(mission: Mission, fleet: Fleet, link_loss: dict[str, str] | None = None
+                 ) -> tuple[list[dict[str, str]], list[str]]:
     from fleetctl.geo import Origin, geodetic_to_enu
+    from fleetctl.run.preflight import check_vehicle
+    from fleetctl.run.safety import RTL_WARNING
 
     carrier = fleet.carrier
-    reserve = mission.rovers.reserve
     rows: list[dict[str, str]] = []
     problems: list[str] = []
     for vid, v in fleet.vehicles.items():
@@ -511,7 +510,7 @@ def _status_rows(mission: Mission, fleet: Fleet) -> tuple[list[dict[str, str]], 
         is_carrier = v is carrier
         row = {"id": vid, "role": "carrier" if is_carrier else "rover", "sysid": str(v.sysid), "url": url,
                "link": "-", "autopilot": "-", "armed": "-", "mode": "-", "battery": "-", "position": "-",
-               "deck": "-", "ready": "no"}
+               "deck": "-", "gps": "-", "link_loss": "-", "ready": "no", "reasons": "", "warnings": ""}
         reasons: list[str] = []
         if not v.connected:
             row["link"] = "no answer"
@@ -521,14 +520,20 @@ def _status_rows(mission: Mission, fleet: Fleet) -> tuple[list[dict[str, str]], 
             row["autopilot"] = v.autopilot.name if v.autopilot else "?"
             row["armed"] = "armed" if v.armed else "disarmed"
             row["mode"] = v.mode_firmware or "?"
-            if v.lost:
-                reasons.append("link lost")
+            pre = check_vehicle(v, mission, carrier=is_carrier)  # fleetctl.run.preflight
+            reasons += pre.failures
+            if v.gps_fix_type is not None:
+                fix = "3D" if v.gps_fix_type >= 3 else ("no fix" if v.gps_fix_type <= 1 else "2D")
+                row["gps"] = f"{fix}, {v.gps_satellites} sat" if v.gps_satellites is not None else fix
+            text = (link_loss or {}).get(vid)
+            if text:
+                row["link_loss"] = text.removeprefix("link loss: ")
+                if not is_carrier and "RTL" in row["link_loss"]:
+                    row["warnings"] = f"link loss {row['link_loss']}: {RTL_WARNING}"
             if v.system_status in (6, 7, 8):  # MAV_STATE_CRITICAL, EMERGENCY, POWEROFF
                 reasons.append(f"system status {v.system_status} (critical)")
             if v.battery_pct is not None:
                 row["battery"] = f"{v.battery_pct:.0f} %"
-                if not is_carrier and v.battery_pct / 100.0 <= reserve:
-                    reasons.append(f"battery {v.battery_pct:.0f} % is not above the reserve {reserve:.0%}")
             if v.position is None:
                 reasons.append("no position (GLOBAL_POSITION_INT) received")
             else:
@@ -546,6 +551,7 @@ def _status_rows(mission: Mission, fleet: Fleet) -> tuple[list[dict[str, str]], 
                     row["deck"] = "?"
         if reasons:
             problems.append(f"{vid} (sysid {v.sysid}) at {url}: " + "; ".join(reasons))
+            row["reasons"] = "; ".join(reasons)
         else:
             row["ready"] = "ready"
         rows.append(row)
@@ -560,10 +566,11 @@ def _print_status(mission: Mission, rows: list[dict[str, str]]) -> None:
     table = Table(title=f"Preflight of {mission.name}", title_justify="left")
     columns = [("id", "vehicle"), ("role", "role"), ("sysid", "sysid"), ("url", "connection"),
                ("link", "link"), ("autopilot", "autopilot"), ("armed", "armed"), ("mode", "mode"),
-               ("battery", "battery"),
-               ("position", "position E, N, U m"), ("deck", "deck"), ("ready", "ready")]
-    for _key, title in columns:
-        table.add_column(title, no_wrap=True)
+               ("battery", "battery"), ("gps", "GPS"),
+               ("position", "position E, N, U m"), ("deck", "deck"), ("link_loss", "link loss"),
+               ("ready", "ready"), ("reasons", "why not ready")]
+    for key, title in columns:
+        table.add_column(title, no_wrap=key != "reasons")
     for row in rows:
         style = None if row["ready"] == "ready" else "red"
         table.add_row(*(row[k] for k, _ in columns), style=style)

@@ -13,7 +13,8 @@ from collections.abc import Iterable, Iterator, Mapping
 from dataclasses import dataclass
 from typing import Any
 
-KINDS = ("dropout", "packet_loss", "latency", "battery_drain", "refuse_arm", "reject_mission")
+KINDS = ("dropout", "packet_loss", "latency", "battery_drain", "refuse_arm", "reject_mission",
+         "no_gps", "unhealthy", "low_battery")
 _KIND_KEYS: dict[str, set[str]] = {
     "dropout": set(),
     "packet_loss": {"rate"},
@@ -21,6 +22,9 @@ _KIND_KEYS: dict[str, set[str]] = {
     "battery_drain": {"factor"},
     "refuse_arm": set(),
     "reject_mission": set(),
+    "no_gps": set(),
+    "unhealthy": set(),
+    "low_battery": {"level"},
 }
 _COMMON_KEYS = {"kind", "vehicle", "at", "until"}
 
@@ -34,7 +38,13 @@ class Fault:
     """One fault. ``rate`` is for packet_loss (0..1), ``seconds`` for latency, ``factor`` for
     battery_drain (2.0 = battery empties after half the endurance range). ``reject_mission``: the
     vehicle answers every mission upload (MISSION_COUNT) with a STATUSTEXT giving its reason and a
-    MAV_MISSION_DENIED MISSION_ACK, like an autopilot whose feasibility check fails."""
+    MAV_MISSION_DENIED MISSION_ACK, like an autopilot whose feasibility check fails.
+
+    Preflight faults: ``no_gps`` - GPS_RAW_INT reports fix_type 1 (no fix) and 0 satellites;
+    GLOBAL_POSITION_INT keeps streaming (the simulated estimator still knows where it is, so only
+    the GPS check fails) and arming is denied. ``unhealthy`` - the magnetometer is present but not
+    healthy in SYS_STATUS (arming denied). ``low_battery`` - the battery reads at most ``level``
+    (0..1) while the fault is active (a rover's battery is drained down to it)."""
 
     kind: str
     vehicle: str | None = None
@@ -43,6 +53,7 @@ class Fault:
     rate: float = 0.0
     seconds: float = 0.0
     factor: float = 1.0
+    level: float = 1.0  # low_battery
 
     def __post_init__(self) -> None:
         if self.kind not in KINDS:
@@ -57,6 +68,8 @@ class Fault:
             raise FaultError(f"fault latency: 'seconds' must be >= 0, got {self.seconds}")
         if not (math.isfinite(self.factor) and self.factor >= 0):
             raise FaultError(f"fault battery_drain: 'factor' must be >= 0, got {self.factor}")
+        if not 0.0 <= self.level <= 1.0:
+            raise FaultError(f"fault low_battery: 'level' must be within 0..1, got {self.level}")
 
     def applies(self, vehicle: str, t: float) -> bool:
         return (self.vehicle is None or self.vehicle == vehicle) and self.at <= t and (
@@ -76,7 +89,7 @@ class Fault:
         kw: dict[str, Any] = {"kind": kind}
         if d.get("vehicle") is not None:
             kw["vehicle"] = str(d["vehicle"])
-        for key in ("at", "until", "rate", "seconds", "factor"):
+        for key in ("at", "until", "rate", "seconds", "factor", "level"):
             if key in d and d[key] is not None:
                 val = d[key]
                 if isinstance(val, bool) or not isinstance(val, int | float):
@@ -88,6 +101,8 @@ class Fault:
             raise FaultError(f"{where}: a latency fault needs 'seconds'")
         if kind == "battery_drain" and "factor" not in kw:
             raise FaultError(f"{where}: a battery_drain fault needs 'factor'")
+        if kind == "low_battery" and "level" not in kw:
+            raise FaultError(f"{where}: a low_battery fault needs 'level' (0..1)")
         try:
             return cls(**kw)
         except FaultError as exc:
@@ -154,3 +169,18 @@ class FaultBook:
     def rejects_mission(self, vehicle: str, t: float) -> bool:
         """The autopilot refuses every mission upload (MAV_MISSION_DENIED, with a STATUSTEXT reason)."""
         return bool(self._faults) and bool(self._active("reject_mission", vehicle, t))
+
+    def no_gps(self, vehicle: str, t: float) -> bool:
+        """GPS_RAW_INT reports no fix (fix_type 1)."""
+        return bool(self._faults) and bool(self._active("no_gps", vehicle, t))
+
+    def unhealthy(self, vehicle: str, t: float) -> bool:
+        """The magnetometer is present but unhealthy in SYS_STATUS."""
+        return bool(self._faults) and bool(self._active("unhealthy", vehicle, t))
+
+    def battery_level(self, vehicle: str, t: float) -> float | None:
+        """The cap on the battery (0..1) of an active low_battery fault, None without one."""
+        if not self._faults:
+            return None
+        levels = [f.level for f in self._active("low_battery", vehicle, t)]
+        return min(levels) if levels else None

@@ -58,6 +58,11 @@ PX4_PARAMS = {
     "NAV_ACC_RAD": 0.5,  # m, waypoint acceptance radius (the sim reaches waypoints exactly)
     "COM_DISARM_LAND": 2.0,  # s after touchdown until auto-disarm, < 0 = never
     "MIS_DIST_1WP": 0.0,
+    # link loss (data link = GCS heartbeat) and geofence, with PX4's defaults
+    "NAV_DLL_ACT": 0.0,  # 0 disabled, 1 hold, 2 return, 3 land, 5 terminate, 6 lockdown
+    "COM_DL_LOSS_T": 10.0,  # s without a GCS heartbeat until the data link counts as lost
+    "GF_ACTION": 1.0,  # 0 none, 1 warning, 2 hold, 3 return, 4 terminate, 5 land
+    "GF_MAX_VER_DIST": 0.0,  # m above home, 0 = no altitude limit
 }
 ARDUPILOT_PARAMS = {
     "PILOT_TKOFF_ALT": 250.0,  # cm
@@ -65,7 +70,25 @@ ARDUPILOT_PARAMS = {
     "WPNAV_SPEED": 0.0,  # cm/s, 0 = the vehicle's max speed
     "WP_RADIUS": 0.5,
     "DISARM_DELAY": 2.0,  # s after touchdown until auto-disarm
+    "FENCE_ENABLE": 0.0,
+    "FENCE_ACTION": 1.0,
+    "FENCE_ALT_MAX": 100.0,  # m
 }
+# ArduCopter: FS_GCS_ENABLE 0 disabled, 1 RTL, 2 continue mission in AUTO (else RTL), 3 SmartRTL or
+# RTL, 4 SmartRTL or land, 5 land, 6 auto DO_LAND_START or RTL, 7 brake or land; FS_OPTIONS bit 1
+# (2) continues a mission in AUTO; FENCE_ACTION 0 report, 1 RTL or land, 2 land, 3 SmartRTL or RTL
+# or land, 4 brake or land, 5 SmartRTL or land; FENCE_TYPE bit 0 max altitude, bit 2 polygon.
+COPTER_SAFETY_PARAMS = {"FS_GCS_ENABLE": 0.0, "FS_GCS_TIMEOUT": 5.0, "FS_OPTIONS": 0.0, "FENCE_TYPE": 7.0}
+# ArduRover: FS_GCS_ENABLE 0 disabled, 1 enabled, 2 enabled but continue a mission in AUTO; the
+# action is FS_ACTION (0 nothing, 1 RTL, 2 hold, 3 SmartRTL or RTL, 4 SmartRTL or hold) after
+# FS_TIMEOUT; FENCE_ACTION 0 report, 1 RTL or hold, 2 hold, 3 SmartRTL or RTL or hold, 4 SmartRTL or hold.
+ROVER_SAFETY_PARAMS = {"FS_GCS_ENABLE": 0.0, "FS_ACTION": 2.0, "FS_TIMEOUT": 1.5, "FENCE_TYPE": 6.0}
+_PX4_DLL = {1: "hold", 2: "rtl", 3: "land", 5: "land", 6: "land"}  # terminate/lockdown: the sim lands
+_PX4_GF = {1: "report", 2: "hold", 3: "rtl", 4: "land", 5: "land"}
+_COPTER_GCS = {1: "rtl", 2: "rtl", 3: "rtl", 4: "rtl", 5: "land", 6: "rtl", 7: "hold"}
+_ROVER_FS = {1: "rtl", 2: "hold", 3: "rtl", 4: "rtl", 5: "hold", 6: "hold"}
+_COPTER_FENCE = {0: "report", 1: "rtl", 2: "land", 3: "rtl", 4: "hold", 5: "rtl"}
+_ROVER_FENCE = {0: "report", 1: "rtl", 2: "hold", 3: "rtl", 4: "rtl"}
 
 
 class Flavour:
@@ -79,6 +102,8 @@ class Flavour:
         self.mav_type = mavlink2.MAV_TYPE_GROUND_ROVER if ground_vehicle else mavlink2.MAV_TYPE_QUADROTOR
         self.home_is_item0 = not self.px4
         self.params: dict[str, float] = dict(PX4_PARAMS if self.px4 else ARDUPILOT_PARAMS)
+        if not self.px4:
+            self.params.update(ROVER_SAFETY_PARAMS if ground_vehicle else COPTER_SAFETY_PARAMS)
         # flight_sw_version: major << 24 | minor << 16 | patch << 8 | FIRMWARE_VERSION_TYPE_OFFICIAL
         major, minor = (1, 14) if self.px4 else (4, 5)
         self.sw_version = major << 24 | minor << 16 | 0 << 8 | 255
@@ -121,3 +146,34 @@ class Flavour:
 
     def disarm_delay(self) -> float:
         return self.params["COM_DISARM_LAND"] if self.px4 else self.params["DISARM_DELAY"]
+
+    # -- link loss and geofence (what the firmware does, from its parameters) ---------------------
+    def link_loss(self, in_mission: bool) -> tuple[str | None, float]:
+        """(action, timeout s) on losing the GCS heartbeat: "hold" | "land" | "rtl", or None
+        (disabled, or the firmware continues its mission)."""
+        p = self.params
+        if self.px4:
+            return _PX4_DLL.get(int(p["NAV_DLL_ACT"])), p["COM_DL_LOSS_T"]
+        enable = int(p["FS_GCS_ENABLE"])
+        if self.ground:
+            if enable == 0 or (enable == 2 and in_mission):
+                return None, p["FS_TIMEOUT"]
+            return _ROVER_FS.get(int(p["FS_ACTION"])), p["FS_TIMEOUT"]
+        continue_auto = enable == 2 or int(p["FS_OPTIONS"]) & 2
+        if enable == 0 or (continue_auto and in_mission):
+            return None, p["FS_GCS_TIMEOUT"]
+        return _COPTER_GCS.get(enable, "rtl"), p["FS_GCS_TIMEOUT"]
+
+    def fence(self, has_polygon: bool) -> tuple[bool, str | None, float | None]:
+        """(polygon enforced, breach action "report" | "hold" | "rtl" | "land" | None, max height
+        above home or None)."""
+        p = self.params
+        if self.px4:
+            alt = p["GF_MAX_VER_DIST"] if p["GF_MAX_VER_DIST"] > 0 else None
+            return has_polygon, _PX4_GF.get(int(p["GF_ACTION"])), alt
+        if p["FENCE_ENABLE"] < 0.5:
+            return False, None, None
+        ftype = int(p["FENCE_TYPE"])
+        actions = _ROVER_FENCE if self.ground else _COPTER_FENCE
+        alt = p["FENCE_ALT_MAX"] if ftype & 1 and not self.ground else None
+        return has_polygon and bool(ftype & 4), actions.get(int(p["FENCE_ACTION"]), "rtl"), alt

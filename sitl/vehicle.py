@@ -20,6 +20,7 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 from . import mission as ms
 from .config import VehicleSpec
 from .faults import FaultBook
+from .fence import Fence, build_fence, validate_fence
 from .flavour import Flavour, Mode
 from .geo import LocalFrame
 from .mission import MissionItem, Upload
@@ -32,6 +33,8 @@ M = mavlink2
 MAX_RATE_HZ = 50.0
 FORCE_MAGIC = 21196.0
 MISSION_REJECTED_TEXT = "Mission rejected: failed feasibility check"  # reject_mission fault
+GEOFENCE_BREACH_TEXT = "Geofence breach"
+FENCE = M.MAV_MISSION_TYPE_FENCE
 
 STREAM_DEFAULTS_HZ: dict[int, float] = {
     M.MAVLINK_MSG_ID_HEARTBEAT: 1.0,
@@ -45,7 +48,7 @@ STREAM_DEFAULTS_HZ: dict[int, float] = {
 }
 STREAMABLE = set(STREAM_DEFAULTS_HZ) | {
     M.MAVLINK_MSG_ID_ATTITUDE, M.MAVLINK_MSG_ID_VFR_HUD, M.MAVLINK_MSG_ID_LOCAL_POSITION_NED,
-    M.MAVLINK_MSG_ID_SYSTEM_TIME,
+    M.MAVLINK_MSG_ID_SYSTEM_TIME, M.MAVLINK_MSG_ID_FENCE_STATUS,
 }
 REQUESTABLE = STREAMABLE | {M.MAVLINK_MSG_ID_AUTOPILOT_VERSION}
 
@@ -130,6 +133,14 @@ class SimVehicle:
         self._upload: Upload | None = None
         self._last_upload: tuple[tuple[int, int], int, int] | None = None  # partner, count, mission_type
         self.statustexts: list[tuple[float, int, str]] = []
+        # geofence (mission_type FENCE) and link loss (no GCS heartbeat while armed)
+        self.fence_items: list[MissionItem] = []
+        self.fence = Fence()
+        self.fence_breach = 0  # FENCE_BREACH of the current breach, 0 = inside
+        self.fence_breach_count = 0
+        self._fence_breach_time = 0
+        self.gcs_heard: float | None = None  # wall time of the last GCS heartbeat
+        self.link_lost = False
         self.commands_seen = 0
         self.ignored_other_target = 0
 
@@ -163,6 +174,7 @@ class SimVehicle:
             "PARAM_REQUEST_READ": self._on_param_request_read,
             "PARAM_SET": self._on_param_set,
             "PING": self._on_ping,
+            "HEARTBEAT": self._on_gcs_heartbeat,
             "TIMESYNC": self._on_timesync,
             "SETUP_SIGNING": self._on_setup_signing,
         }
@@ -271,6 +283,12 @@ class SimVehicle:
             return M.MAV_RESULT_DENIED
         if self.rover is not None and self.rover.battery <= 0.0:
             self.statustext("Arming denied: battery empty", M.MAV_SEVERITY_CRITICAL)
+            return M.MAV_RESULT_DENIED
+        if self.faults.no_gps(self.id, self.clock.sim_time):
+            self.statustext("Arming denied: no GPS fix", M.MAV_SEVERITY_CRITICAL)
+            return M.MAV_RESULT_DENIED
+        if self.faults.unhealthy(self.id, self.clock.sim_time):
+            self.statustext("Arming denied: compass unhealthy", M.MAV_SEVERITY_CRITICAL)
             return M.MAV_RESULT_DENIED
         self.armed = True
         self._disarm_at = None
@@ -518,6 +536,12 @@ class SimVehicle:
     # ======================================================================================
     def update(self, t: float) -> None:
         rover = self.rover
+        if rover is not None and len(self.faults):
+            level = self.faults.battery_level(self.id, t)
+            if level is not None and rover.battery > level:
+                rover.battery = level
+        if self.armed and (self.fence.has_zones or self.flavour.fence(False)[2] is not None):
+            self._check_fence(t)
         if rover is not None and rover.events:
             self._on_body_events(t)
         if self._disarm_at is not None and t >= self._disarm_at:
@@ -541,6 +565,61 @@ class SimVehicle:
         elif mode is Mode.RTL:
             if self._rtl_step() and not self.is_rover:
                 self._set_mode_raw(Mode.HOLD)
+
+    # -- geofence and link loss ----------------------------------------------------------------
+    def _check_fence(self, t: float) -> None:
+        polygon, action, alt_max = self.flavour.fence(self.fence.has_zones)
+        if action is None:
+            return
+        x, y, z = self.body.position
+        breach = 0
+        if polygon and self.fence.outside(x, y):
+            breach = M.FENCE_BREACH_BOUNDARY
+        elif alt_max is not None and z - self.home[2] > alt_max:
+            breach = M.FENCE_BREACH_MAXALT
+        if breach == self.fence_breach:
+            return
+        self.fence_breach = breach
+        if not breach:
+            self._emit(M.MAVLINK_MSG_ID_FENCE_STATUS)
+            return
+        self.fence_breach_count += 1
+        self._fence_breach_time = int(t * 1000)
+        what = "altitude" if breach == M.FENCE_BREACH_MAXALT else "boundary"
+        self._emit(M.MAVLINK_MSG_ID_FENCE_STATUS)  # first: a ground station learns the breach type
+        self.statustext(f"{GEOFENCE_BREACH_TEXT}: {what}, {action}", M.MAV_SEVERITY_CRITICAL)
+        self._failsafe_action(action)
+
+    def _failsafe_action(self, action: str) -> None:
+        if action == "hold":
+            self.set_mode(Mode.HOLD)
+        elif action == "rtl":
+            self.set_mode(Mode.RTL)
+        elif action == "land":
+            self.set_mode(Mode.LAND)
+
+    def _on_gcs_heartbeat(self, msg: Any, addr: Any) -> None:
+        if msg.type != M.MAV_TYPE_GCS:
+            return
+        self.gcs_heard = self.clock.wall()
+        if self.link_lost:
+            self.link_lost = False
+            self.statustext("GCS link regained", M.MAV_SEVERITY_INFO)
+
+    def _check_link(self, now: float) -> None:
+        """The link-loss failsafe (wall time, like the GCS's 1 Hz heartbeat it watches)."""
+        if self.link_lost or self.gcs_heard is None or not self.armed:
+            return
+        action, timeout = self.flavour.link_loss(self.mode is Mode.MISSION)
+        if now - self.gcs_heard < max(timeout, 0.1):
+            return
+        self.link_lost = True
+        if action is None:
+            return
+        self.statustext(f"Failsafe: GCS link lost, {action}", M.MAV_SEVERITY_CRITICAL)
+        if action == "land" and self.rover is None:
+            action = "hold"  # a ground carrier stops
+        self._failsafe_action(action)
 
     def _on_body_events(self, t: float) -> None:
         body = self.body
@@ -685,7 +764,7 @@ class SimVehicle:
             return
         partner = (msg.get_srcSystem(), msg.get_srcComponent())
         mtype = getattr(msg, "mission_type", 0)
-        if mtype != M.MAV_MISSION_TYPE_MISSION:
+        if mtype not in (M.MAV_MISSION_TYPE_MISSION, FENCE):
             self._mission_ack(partner, addr, M.MAV_MISSION_UNSUPPORTED, mtype)
             return
         up = self._upload
@@ -699,7 +778,10 @@ class SimVehicle:
             return
         if msg.count == 0:
             self._upload = None
-            self._replace_mission([])
+            if mtype == FENCE:
+                self._replace_fence([])
+            else:
+                self._replace_mission([])
             self._mission_ack(partner, addr, M.MAV_MISSION_ACCEPTED, mtype)
             return
         if msg.count > ms.MAX_ITEMS:
@@ -738,7 +820,10 @@ class SimVehicle:
         if msg.get_type() == "MISSION_ITEM":
             up.int_mode = False
         item = MissionItem.from_msg(msg)
-        result = ms.validate(item, home_item=self.flavour.home_is_item0 and item.seq == 0)
+        if up.mission_type == FENCE:
+            result = M.MAV_MISSION_ACCEPTED  # checked whole, at the end
+        else:
+            result = ms.validate(item, home_item=self.flavour.home_is_item0 and item.seq == 0)
         if result != M.MAV_MISSION_ACCEPTED:
             self._upload = None
             self._mission_ack(partner, addr, result, up.mission_type)
@@ -749,7 +834,14 @@ class SimVehicle:
             self._request_item(up)
             return
         self._upload = None
-        self._replace_mission(up.items)
+        if up.mission_type == FENCE:
+            result = validate_fence(up.items)
+            if result != M.MAV_MISSION_ACCEPTED:
+                self._mission_ack(partner, addr, result, up.mission_type)
+                return
+            self._replace_fence(up.items)
+        else:
+            self._replace_mission(up.items)
         self._last_upload = (partner, up.count, up.mission_type)
         self._mission_ack(partner, addr, M.MAV_MISSION_ACCEPTED, up.mission_type)
 
@@ -767,6 +859,15 @@ class SimVehicle:
         self.statustext(f"Mission: {len(items)} items" if items else "Mission cleared")
         self._emit(M.MAVLINK_MSG_ID_MISSION_CURRENT)
 
+    def _replace_fence(self, items: list[MissionItem]) -> None:
+        self.fence_items = list(items)
+        self.fence = build_fence(self.fence_items, self.frame)
+        self.fence_breach = 0
+        if items and M.MAVLINK_MSG_ID_FENCE_STATUS not in self.streams:
+            self.streams[M.MAVLINK_MSG_ID_FENCE_STATUS] = [1.0, self.clock.wall()]
+            self.next_due = min(self.next_due, self.clock.wall())
+        self.statustext(f"Geofence: {len(items)} items" if items else "Geofence cleared")
+
     def _on_mission_ack(self, msg: Any, addr: Any) -> None:
         if not self._for_me(msg, broadcast_ok=False):
             return
@@ -782,6 +883,8 @@ class SimVehicle:
         if mtype in (M.MAV_MISSION_TYPE_MISSION, M.MAV_MISSION_TYPE_ALL):
             self._upload = None
             self._replace_mission([])
+        if mtype in (FENCE, M.MAV_MISSION_TYPE_ALL) and self.fence_items:
+            self._replace_fence([])
         self._mission_ack((msg.get_srcSystem(), msg.get_srcComponent()), addr, M.MAV_MISSION_ACCEPTED, mtype)
 
     def _download_items(self) -> list[MissionItem]:
@@ -796,7 +899,8 @@ class SimVehicle:
         if not self._for_me(msg, broadcast_ok=False):
             return
         mtype = getattr(msg, "mission_type", 0)
-        n = len(self._download_items()) if mtype == M.MAV_MISSION_TYPE_MISSION else 0
+        n = len(self._download_items()) if mtype == M.MAV_MISSION_TYPE_MISSION else (
+            len(self.fence_items) if mtype == FENCE else 0)
         self._send(self.mav.mission_count_encode(msg.get_srcSystem(), msg.get_srcComponent(), n, mtype), addr)
 
     def _on_mission_request(self, msg: Any, addr: Any) -> None:
@@ -807,12 +911,13 @@ class SimVehicle:
         up = self._upload
         if up is not None and up.partner == partner:  # a GCS that uploads does not request
             return
-        items = self._download_items() if mtype == M.MAV_MISSION_TYPE_MISSION else []
+        items = self._download_items() if mtype == M.MAV_MISSION_TYPE_MISSION else (
+            self.fence_items if mtype == FENCE else [])
         if not 0 <= msg.seq < len(items):
             self._mission_ack(partner, addr, M.MAV_MISSION_INVALID_SEQUENCE, mtype)
             return
         it = items[msg.seq]
-        current = 1 if it.seq == self.current else 0
+        current = 1 if it.seq == self.current and mtype == M.MAV_MISSION_TYPE_MISSION else 0
         if msg.get_type() == "MISSION_REQUEST_INT":
             out = self.mav.mission_item_int_encode(
                 partner[0], partner[1], it.seq, it.frame, it.command, current, it.autocontinue,
@@ -904,6 +1009,8 @@ class SimVehicle:
                 self._mission_ack(up.partner, up.addr, M.MAV_MISSION_OPERATION_CANCELLED, up.mission_type)
             else:
                 self._request_item(up)
+        if self.gcs_heard is not None:
+            self._check_link(now)
         if now < self.next_due:
             return
         nxt = math.inf
@@ -937,7 +1044,12 @@ class SimVehicle:
         return M.MAV_LANDED_STATE_IN_AIR
 
     def battery_fraction(self) -> float:
-        return self.rover.battery if self.rover is not None else 1.0
+        frac = self.rover.battery if self.rover is not None else 1.0
+        if len(self.faults):
+            level = self.faults.battery_level(self.id, self.clock.sim_time)
+            if level is not None:
+                frac = min(frac, level)
+        return frac
 
     def _time_boot_ms(self) -> int:
         return int(self.clock.sim_time * 1000) & 0xFFFFFFFF
@@ -982,6 +1094,8 @@ class SimVehicle:
     def _sys_status(self) -> Any:
         frac = self.battery_fraction()
         health = _SENSORS if frac > 0 else _SENSORS & ~M.MAV_SYS_STATUS_SENSOR_BATTERY
+        if len(self.faults) and self.faults.unhealthy(self.id, self.clock.sim_time):
+            health &= ~M.MAV_SYS_STATUS_SENSOR_3D_MAG
         return self.mav.sys_status_encode(_SENSORS, _SENSORS, health, 100, 4 * self._cell_mv(), -1,
                                           int(round(frac * 100)), 0, 0, 0, 0, 0, 0)
 
@@ -1034,10 +1148,17 @@ class SimVehicle:
         cog = 0xFFFF
         if vx or vy:
             cog = int(round((90.0 - math.degrees(math.atan2(vy, vx))) % 360.0 * 100)) % 36000
-        return self.mav.gps_raw_int_encode(int(self.clock.sim_time * 1e6), M.GPS_FIX_TYPE_3D_FIX,
+        fix, sats = M.GPS_FIX_TYPE_3D_FIX, 14
+        if len(self.faults) and self.faults.no_gps(self.id, self.clock.sim_time):
+            fix, sats = M.GPS_FIX_TYPE_NO_FIX, 0
+        return self.mav.gps_raw_int_encode(int(self.clock.sim_time * 1e6), fix,
                                            int(round(lat * 1e7)), int(round(lon * 1e7)),
                                            int(round(alt * 1000)), 80, 120,
-                                           int(round(math.hypot(vx, vy) * 100)), cog, 14)
+                                           int(round(math.hypot(vx, vy) * 100)), cog, sats)
+
+    def _fence_status(self) -> Any:
+        return self.mav.fence_status_encode(1 if self.fence_breach else 0, self.fence_breach_count & 0xFFFF,
+                                            self.fence_breach, self._fence_breach_time)
 
     def _attitude(self) -> Any:
         yaw = math.radians(self._hdg_cdeg() / 100.0)
@@ -1103,6 +1224,7 @@ _BUILDERS: dict[int, Callable[[SimVehicle], Any]] = {
     M.MAVLINK_MSG_ID_LOCAL_POSITION_NED: SimVehicle._local_position,
     M.MAVLINK_MSG_ID_SYSTEM_TIME: SimVehicle._system_time,
     M.MAVLINK_MSG_ID_AUTOPILOT_VERSION: SimVehicle._autopilot_version,
+    M.MAVLINK_MSG_ID_FENCE_STATUS: SimVehicle._fence_status,
 }
 
 __all__ = ["SimVehicle", "Command", "Clock", "Link"]

@@ -37,6 +37,7 @@ class Fleet:
         self.links = links  # url -> open Link
         self.urls = urls  # id -> url
         self.errors = errors  # id -> why it is not connected (link errors, no heartbeat)
+        self.left_out: dict[str, str] = {}  # rover id -> why it does not fly (failed preflight)
 
     @property
     def carrier(self) -> Vehicle:
@@ -44,7 +45,14 @@ class Fleet:
 
     @property
     def rovers(self) -> dict[str, Vehicle]:
-        return {k: v for k, v in self.vehicles.items() if k != self.carrier_id}
+        """The rovers that fly: every rover of the mission but those :meth:`leave_out` removed."""
+        return {k: v for k, v in self.vehicles.items() if k != self.carrier_id and k not in self.left_out}
+
+    def leave_out(self, rover_id: str, why: str) -> None:
+        """Keep a (connected) rover out of the run: it stays in ``vehicles`` but not in ``rovers``."""
+        if rover_id == self.carrier_id:
+            raise ValueError("the carrier cannot be left out")
+        self.left_out[rover_id] = why
 
     def missing(self) -> dict[str, str]:
         """id -> URL of every vehicle never heard from."""

@@ -11,7 +11,9 @@ commands that raise :class:`CommandRejected` when the autopilot refuses and
 Events (``VehicleEvent.kind``): ``connected`` (first heartbeat), ``lost`` (no heartbeat for
 ``heartbeat_timeout`` s), ``back`` (a heartbeat after ``lost``), ``armed``, ``disarmed``, ``mode``
 (data: mode, previous), ``landed_state`` (data: state), ``item_reached`` (data: seq),
-``mission_current`` (data: seq), ``statustext`` (data: text, severity). Receive them with
+``mission_current`` (data: seq), ``statustext`` (data: text, severity), ``geofence_breach``
+(data: breach - FENCE_BREACH name, count; from FENCE_STATUS, or a "fence breach" STATUSTEXT of
+an autopilot that sends none). Receive them with
 ``vehicle.add_listener(callback)`` or ``queue = vehicle.event_queue()``.
 """
 
@@ -139,6 +141,15 @@ class Vehicle:
         self.landed_state: int | None = None  # MAV_LANDED_STATE
         self.battery_pct: float | None = None  # 0..100
         self.battery_at = 0.0  # time.monotonic() of the last BATTERY_STATUS
+        # preflight (fleetctl.run.preflight): GPS_RAW_INT, SYS_STATUS sensors, FENCE_STATUS
+        self.gps_fix_type: int | None = None  # GPS_FIX_TYPE (3 = 3D fix)
+        self.gps_satellites: int | None = None
+        self.sensors_present: int | None = None  # MAV_SYS_STATUS_SENSOR bits
+        self.sensors_enabled: int | None = None
+        self.sensors_health: int | None = None
+        self.fence_breached = False
+        self.fence_breach_count = 0
+        self._breach_text_at = 0.0
         # mission
         self.mission_current: int | None = None
         self.mission_total: int | None = None
@@ -171,6 +182,8 @@ class Vehicle:
             "MISSION_CURRENT": self._on_mission_current,
             "MISSION_ITEM_REACHED": self._on_item_reached,
             "STATUSTEXT": self._on_statustext,
+            "GPS_RAW_INT": self._on_gps_raw,
+            "FENCE_STATUS": self._on_fence_status,
         }
 
     def __repr__(self) -> str:
@@ -412,6 +425,21 @@ class Vehicle:
     def _on_sys_status(self, msg: Any) -> None:
         if msg.battery_remaining >= 0 and self.battery_pct is None:
             self.battery_pct = float(msg.battery_remaining)
+        self.sensors_present = msg.onboard_control_sensors_present
+        self.sensors_enabled = msg.onboard_control_sensors_enabled
+        self.sensors_health = msg.onboard_control_sensors_health
+
+    def _on_gps_raw(self, msg: Any) -> None:
+        self.gps_fix_type = msg.fix_type
+        self.gps_satellites = None if msg.satellites_visible == 255 else msg.satellites_visible
+
+    def _on_fence_status(self, msg: Any) -> None:
+        breached = bool(msg.breach_status)
+        new = breached and (not self.fence_breached or msg.breach_count > self.fence_breach_count)
+        self.fence_breached, self.fence_breach_count = breached, msg.breach_count
+        if new and time.monotonic() - self._breach_text_at > 5.0:  # not told by a STATUSTEXT just now
+            self._emit("geofence_breach", breach=enum_name("FENCE_BREACH", msg.breach_type),
+                       count=msg.breach_count)
 
     def _on_mission_current(self, msg: Any) -> None:
         self.mission_total = getattr(msg, "total", None)
@@ -451,6 +479,12 @@ class Vehicle:
         text = text.split("\x00", 1)[0]
         self.statustexts.append((time.monotonic(), msg.severity, text))
         self._emit("statustext", text=text, severity=msg.severity)
+        low = text.lower()
+        if "fence" in low and "breach" in low and not self.fence_breached:  # no FENCE_STATUS (yet)
+            now = time.monotonic()
+            if now - self._breach_text_at > 5.0:
+                self._breach_text_at = now
+                self._emit("geofence_breach", breach="STATUSTEXT", text=text)
 
     # -- commands --------------------------------------------------------------------------------------------
     def _require_autopilot(self) -> Autopilot:

@@ -39,10 +39,13 @@ from shapely.validation import explain_validity
 
 from fleetctl.geo import Origin, geodetic_to_local
 from fleetctl.mission.model import (
+    FAILSAFE_ACTIONS,
     FAULT_KINDS,
+    FENCE_ACTIONS,
     CarrierConfig,
     EnergyConfig,
     Fault,
+    GeofenceConfig,
     LinksConfig,
     Mission,
     MissionError,
@@ -348,8 +351,10 @@ _FAULT = {
     "rate": (_number(ge=0, le=1, unit="fraction of packets lost"), None),
     "seconds": (_number(ge=0, unit="added latency in seconds"), None),
     "factor": (_number(gt=0, unit="battery drain multiplier"), None),
+    "level": (_number(ge=0, le=1, unit="fraction of a full battery"), None),
 }
-_FAULT_PARAM = {"packet_loss": "rate", "latency": "seconds", "battery_drain": "factor"}
+_FAULT_PARAM = {"packet_loss": "rate", "latency": "seconds", "battery_drain": "factor",
+                "low_battery": "level"}
 _SIM = {
     "speedup": (_number(gt=0, unit="simulated seconds per wall second"), 1.0),
     "faults": (_list(lambda c, v, p: c.section(v, p, _FAULT), "faults {vehicle, kind, ...}"), []),
@@ -369,6 +374,7 @@ _LINKS = {
     "heartbeat_timeout": (_number(gt=0, unit="seconds"), 3.0),
     "reassign_after": (_number(ge=0, unit="seconds"), 10.0),
     "signing": (lambda c, v, p: SigningConfig(**c.section(v, p, _SIGNING)), None),
+    "failsafe": (_one_of(*FAILSAFE_ACTIONS), "keep"),
 }
 _XI = _number(ge=0)
 _ROADMAP = {
@@ -418,6 +424,7 @@ _TOP = {
     "planner": (lambda c, v, p: PlannerConfig(**c.section(v, p, _PLANNER)), PlannerConfig()),
     "dwell": (_number(ge=0, unit="seconds on task"), 60.0),
     "mqtt": (lambda c, v, p: c.section(v, p, _MQTT), None),
+    "geofence": (lambda c, v, p: c.section(v, p, _GEOFENCE), None),
 }
 
 
@@ -516,6 +523,66 @@ def _check_geometry(
                 )
     obstacles = tuple(tuple((float(p[0]), float(p[1])) for p in pts) for pts in d["obstacles"])
     return obstacles, bounds
+
+
+# --- geofence (docs/field-safety.md): one inclusion polygon, obstacles as exclusion zones -----------
+def _fence_vertex(ctx: _Ctx, v: Any, path: KeyPath) -> Any:
+    if isinstance(v, dict):
+        return ctx.section(v, path, {"lat": _ORIGIN["lat"], "lon": _ORIGIN["lon"]})
+    if isinstance(v, list):
+        return _vector(2)(ctx, v, path)
+    ctx.fail(path, f"expected a vertex [x, y] (ENU metres) or {{lat, lon}}, got {_type_name(v)}")
+
+
+_GEOFENCE: dict[str, tuple[Parser, Any]] = {
+    "polygon": (_list(_fence_vertex, "vertices [x, y] or {lat, lon}"), None),
+    "from": (_one_of("bounds"), None),
+    "alt_max": (_number(gt=0, null=True, unit="metres above home"), None),
+    "action": (_one_of(*FENCE_ACTIONS), "report"),
+}
+
+
+def _geofence(ctx: _Ctx, d: dict[str, Any], tasks: tuple[Task, ...], obstacles: tuple[tuple[Vec2, ...], ...],
+              bounds: tuple[Vec2, Vec2] | None, origin: Origin | None) -> GeofenceConfig | None:
+    g = d["geofence"]
+    if g is None:
+        return None
+    if (g["polygon"] is None) == (g["from"] is None):
+        ctx.fail(("geofence", "polygon"), "give exactly one of 'polygon: [[x, y], ...]' or 'from: bounds'")
+    if g["from"] is not None:
+        if bounds is None:
+            ctx.fail(("geofence", "from"),
+                     "'from: bounds' needs the mission's 'bounds: [[xmin, ymin], [xmax, ymax]]'")
+        (x0, y0), (x1, y1) = bounds
+        pts: list[Vec2] = [(x0, y0), (x1, y0), (x1, y1), (x0, y1)]
+    else:
+        pts = []
+        for i, v in enumerate(g["polygon"]):
+            if isinstance(v, dict):
+                if origin is None:
+                    ctx.fail(("geofence", "polygon", i), "a {lat, lon} vertex needs the mission's 'origin'")
+                x, y, _z = geodetic_to_local(v["lat"], v["lon"], origin.alt, origin)
+                pts.append((float(x), float(y)))
+            else:
+                pts.append((float(v[0]), float(v[1])))
+        poly = Polygon(pts) if len(pts) >= 3 else None
+        if poly is None or not poly.is_valid or poly.area <= 0.0:
+            why = f"{len(pts)} vertices" if poly is None else explain_validity(poly)
+            ctx.fail(("geofence", "polygon"), f"not a usable polygon ({why}); list at least 3 vertices in "
+                     "order around the outline without self-crossings")
+    poly = Polygon(pts)
+    where = ("geofence", "polygon") if g["polygon"] is not None else ("geofence", "from")
+    inside = [("the carrier's start", tuple(d["carrier"]["position"][:2]))]
+    inside += [(f"task {t.id!r}", t.position[:2]) for t in tasks]
+    for what, (x, y) in inside:
+        if not poly.covers(Point(x, y)):
+            ctx.fail(where, f"{what} at ({x:g}, {y:g}) lies outside the geofence; "
+                     "widen the polygon or move it")
+    for t in tasks:
+        if g["alt_max"] is not None and t.position[2] > g["alt_max"]:
+            ctx.fail(("geofence", "alt_max"), f"task {t.id!r} is {t.position[2]:g} m high, above alt_max "
+                     f"{g['alt_max']:g} m; raise alt_max or lower the task")
+    return GeofenceConfig(tuple(pts), obstacles, g["alt_max"], g["action"])
 
 
 def _build(ctx: _Ctx, data: Any, path: Path | None) -> Mission:
@@ -631,6 +698,7 @@ def _build(ctx: _Ctx, data: Any, path: Path | None) -> Mission:
                 )
 
     obstacles, bounds = _check_geometry(ctx, d, tasks)
+    geofence = _geofence(ctx, d, tasks, obstacles, bounds, origin)
 
     faults = []
     vehicles = rover_ids | {carrier["id"]}
@@ -681,6 +749,7 @@ def _build(ctx: _Ctx, data: Any, path: Path | None) -> Mission:
         mqtt=mqtt,
         raw=copy.deepcopy(data),
         path=path,
+        geofence=geofence,
     )
     log.debug(
         "mission %s: %d tasks, %d rovers, d_deploy %.2f m", mission.name, len(tasks), len(units), deploy_range

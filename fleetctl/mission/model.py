@@ -21,7 +21,10 @@ from planners.problem import (
 Vec2 = tuple[float, float]
 Vec3 = tuple[float, float, float]
 
-FAULT_KINDS = ("dropout", "packet_loss", "latency", "battery_drain", "refuse_arm", "reject_mission")
+FAULT_KINDS = ("dropout", "packet_loss", "latency", "battery_drain", "refuse_arm", "reject_mission",
+               "no_gps", "unhealthy", "low_battery")
+FAILSAFE_ACTIONS = ("keep", "hold", "land", "rtl")  # links.failsafe
+FENCE_ACTIONS = ("report", "hold", "rtl", "land")  # geofence.action
 
 
 class MissionError(Exception):
@@ -89,6 +92,7 @@ class Fault:
     rate: float | None = None  # packet_loss
     seconds: float | None = None  # latency
     factor: float | None = None  # battery_drain
+    level: float | None = None  # low_battery: the battery reads at most this fraction
 
 
 @dataclass(frozen=True)
@@ -110,6 +114,18 @@ class LinksConfig:
     heartbeat_timeout: float = 3.0
     reassign_after: float = 10.0  # s a flying rover may stay lost before a spare takes its task
     signing: SigningConfig | None = None
+    failsafe: str = "keep"  # link-loss action set on every vehicle before arming (FAILSAFE_ACTIONS)
+
+
+@dataclass(frozen=True)
+class GeofenceConfig:
+    """``geofence:``: an inclusion polygon (ENU metres), the obstacles as exclusion zones, an
+    optional height limit above home and what the autopilot does on a breach."""
+
+    polygon: tuple[Vec2, ...]
+    exclusions: tuple[tuple[Vec2, ...], ...] = ()
+    alt_max: float | None = None
+    action: str = "report"
 
 
 @dataclass(frozen=True)
@@ -165,6 +181,7 @@ class Mission:
     mqtt: MqttConfig | None
     raw: dict[str, Any]  # the parsed YAML as written (no defaults filled in)
     path: Path | None = None
+    geofence: GeofenceConfig | None = None
 
     def _start(self) -> Vec3:
         return (self.carrier.position[0], self.carrier.position[1], 0.0)

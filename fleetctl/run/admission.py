@@ -9,6 +9,10 @@
   what was seen, and point to ``fleetctl resume`` or ``--force``. ``fleetctl resume`` (it takes
   over its own interrupted run) and ``collect`` (its rovers wait in the air where a deployment
   left them) expect armed vehicles and check only for other ground stations.
+* **Preflight** (:mod:`fleetctl.run.safety`, :mod:`fleetctl.run.preflight`): a rover that fails
+  (GPS, home, sensors, battery, already armed) is left out like one that did not answer
+  (``adm.left_out``); a failing carrier stops the run. ``links.failsafe`` and the geofence are set
+  on every vehicle that flies.
 * **Arming real aircraft is a decision.** ``confirm`` (from the command line, on a terminal) is
   shown what will be armed and must say yes.
 """
@@ -19,12 +23,14 @@ import asyncio
 import contextlib
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from typing import Any
 
 from fleetctl.mavlink.fleet import Fleet
 from fleetctl.mavlink.vehicle import Vehicle
 from fleetctl.mission import Mission
 from fleetctl.run.context import ExecutionError
+from fleetctl.run.safety import admit_safety, prefetch_failsafes
 
 GCS_LISTEN = 1.5  # s after the links opened to listen for another ground station's 1 Hz heartbeat
 IN_MISSION_MODES = ("MISSION", "TAKEOFF", "GUIDED", "LAND", "RTL")
@@ -37,6 +43,8 @@ class Admission:
     resuming: bool = False
     confirm: Callable[[list[str]], bool] | None = None  # shown what will be armed; True = go
     opened: float = 0.0  # time.monotonic() when the links were opened
+    left_out: dict[str, str] = field(default_factory=dict)  # set by admit: rovers failing preflight -> why
+    safety: Any = None  # set by admit: the fleetctl.run.safety.SafetyReport
 
 
 async def admit(fleet: Fleet, mission: Mission, command: str, adm: Admission) -> dict[str, str]:
@@ -54,9 +62,22 @@ async def admit(fleet: Fleet, mission: Mission, command: str, adm: Admission) ->
     if command in ("deploy", "run") and answered < len(mission.tasks):
         raise ExecutionError(f"only {answered} rover(s) answered for {len(mission.tasks)} tasks; not "
                              "answering: " + ", ".join(f"{vid} ({why})" for vid, why in missing.items()))
-    if not adm.force:
-        # a collection finds its rovers in the air and the carrier where the deployment left it
-        await _one_controller(fleet, adm.resuming or command == "collect", adm.opened)
+    params = prefetch_failsafes(fleet)  # read while listening for another controller
+    try:
+        if not adm.force:
+            # a collection finds its rovers in the air and the carrier where the deployment left it
+            await _one_controller(fleet, adm.resuming or command == "collect", adm.opened)
+        adm.safety = await admit_safety(fleet, mission, command, resuming=adm.resuming, prefetched=params)
+    finally:
+        params.cancel()
+    adm.left_out = dict(adm.safety.left_out)
+    failed = "; ".join(f"{vid} ({why})" for vid, why in adm.left_out.items())
+    if adm.left_out and adm.require_all:
+        raise ExecutionError(f"{len(adm.left_out)} rover(s) failed preflight (--require-all): {failed}")
+    passed = answered - len(adm.left_out)
+    if command in ("deploy", "run") and not adm.resuming and passed < len(mission.tasks):
+        raise ExecutionError(f"only {passed} rover(s) passed preflight for "
+                             f"{len(mission.tasks)} tasks; failed: {failed}")
     if adm.confirm is not None:
         ok = await asyncio.to_thread(adm.confirm, arming_lines(fleet))
         if not ok:

@@ -120,6 +120,9 @@ class Executor:
             record(
                 Ev.STATUSTEXT, vehicle=ev.vehicle, text=ev.data.get("text"), severity=ev.data.get("severity")
             )
+        elif ev.kind == "geofence_breach":
+            st.event(Ev.GEOFENCE_BREACH, f"{ev.vehicle}: geofence breach ({ev.data.get('breach', '?')}); "
+                     f"its autopilot does the geofence action", ev.vehicle, **ev.data)
         elif ev.kind in ("armed", "disarmed", "mode", "landed_state"):
             record(ev.kind, vehicle=ev.vehicle, **ev.data)
 

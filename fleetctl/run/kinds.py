@@ -94,6 +94,15 @@ class Ev(StrEnum):
     OFF_COURSE = "off_course"
     STATUSTEXT = "statustext"
     ROUTE_CONFLICT = "route_conflict"
+    # field safety (docs/field-safety.md)
+    PREFLIGHT_FAILED = "preflight_failed"  # a rover left out of the run
+    PREFLIGHT_WARNING = "preflight_warning"
+    FAILSAFE = "failsafe"  # what a vehicle does on link loss
+    FAILSAFE_SET = "failsafe_set"  # links.failsafe set it
+    FAILSAFE_WARNING = "failsafe_warning"  # rovers with RTL on link loss
+    GEOFENCE = "geofence"  # uploaded
+    GEOFENCE_WARNING = "geofence_warning"
+    GEOFENCE_BREACH = "geofence_breach"
     # the end of a phase or run
     DEPLOYED = "deployed"
     DEPLOY_INCOMPLETE = "deploy_incomplete"

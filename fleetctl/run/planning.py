@@ -11,6 +11,7 @@ import planners
 from fleetctl.mavlink.compile import CompiledPlan, CompileError, compile_for_fleet
 from fleetctl.run.context import ExecutionError, RunContext
 from fleetctl.run.kinds import Ev
+from fleetctl.run.safety import check_plan
 from planners.plan import Plan
 from planners.problem import PlanningError
 
@@ -51,6 +52,7 @@ class Planning:
             raise ExecutionError(
                 f"cannot plan the {'deployment' if kind == 'deploy' else 'collection'} with {name!r}: {exc}"
             ) from None
+        check_plan(plan, self.ctx.mission.geofence)  # ExecutionError naming the stop/rover outside it
         await self.ctx.commit(Ev.PLAN, plan=plan.to_json())
         if self.write_plan is not None:
             self.write_plan(kind, plan)

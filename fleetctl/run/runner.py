@@ -129,6 +129,7 @@ class Run:
         self.dwell_planned: float | None = None
         self.dwell_flown: float | None = None
         self.missing: dict[str, str] = {}  # rovers that did not answer at connect -> why
+        self.left_out: dict[str, str] = {}  # rovers that failed preflight -> why
         self._opened = 0.0
         self._conflicts: dict[tuple[int, str], float] = {}  # route conflicts journalled -> when
         self._refresher: asyncio.Task[None] | None = None
@@ -223,11 +224,18 @@ class Run:
         self.fleet = fleet
         fleet.on_route_conflict(self._route_conflict)
         self._refresher = asyncio.create_task(self._refresh(fleet), name="state refresh")
-        self.missing = await admit(fleet, self.mission, self.command, self._admission())
+        adm = self._admission()
+        self.missing = await admit(fleet, self.mission, self.command, adm)
         for vid, why in self.missing.items():
             st.set_state(vid, VehicleStatus.LOST)
             st.event(Ev.MISSING, f"{vid}: did not answer at connect ({why}); flying without it", vid,
                      url=fleet.urls.get(vid), reason=why)
+        self.left_out = adm.left_out
+        for vid, why in self.left_out.items():  # failed preflight: like a missing rover
+            st.set_state(vid, VehicleStatus.LOST)
+            st.event(Ev.PREFLIGHT_FAILED, f"{vid}: {why}; flying without it", vid, reason=why)
+        for kind, text, vid in adm.safety.notes if adm.safety is not None else ():
+            st.event(kind, text, vid)
         if self.opts.resume is not None:
             await self.opts.resume.reconcile(fleet, st, self._disarm)
             await self.journal.commit(Ev.RESUMED, **self.opts.resume.record())
@@ -403,6 +411,7 @@ class Run:
                 self.dwell_planned,
                 self.dwell_flown,
                 self.missing,
+                self.left_out,
             )
         )
         self.journal.write(Ev.SUMMARY, **summary)

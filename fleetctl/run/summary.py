@@ -30,6 +30,7 @@ class RunFacts:
     dwell_planned: float | None = None  # run: the dwell asked for (the option, else the mission's)
     dwell_flown: float | None = None
     missing: dict[str, str] | None = None  # rovers that did not answer at connect -> why
+    left_out: dict[str, str] | None = None  # rovers that failed preflight -> why
 
 
 def build_summary(f: RunFacts) -> dict[str, Any]:
@@ -46,8 +47,9 @@ def build_summary(f: RunFacts) -> dict[str, Any]:
     planned, flown = _makespans(f, dep, col, complete)
     order = list(f.state.vehicles)
     missing = f.missing or {}
+    left_out = f.left_out or {}
     lost = sorted(
-        {*(dep.rovers_lost if dep else []), *(col.rovers_lost if col else []), *missing}
+        {*(dep.rovers_lost if dep else []), *(col.rovers_lost if col else []), *missing, *left_out}
         - set(col.rovers_loaded if col else []),
         key=lambda r: order.index(r) if r in order else 0,
     )
@@ -62,7 +64,8 @@ def build_summary(f: RunFacts) -> dict[str, Any]:
         "rovers_lost": lost,
         "makespan_planned": None if planned is None else round(planned, 3),
         "makespan_flown": None if flown is None else round(flown, 3),
-        "rovers_lost_reasons": {r: _lost_reason(r, missing, f.state) for r in lost},
+        "rovers_lost_reasons": {r: left_out[r] if r in left_out else _lost_reason(r, missing, f.state)
+                                for r in lost},
         "link": dict(f.state.link),
         "replans": f.state.replans,
         "journal": f.journal_path,

@@ -4,9 +4,31 @@ from __future__ import annotations
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
-from fleetctl.mavlink.autopilots.base import CUSTOM, Autopilot, ModeError, Vehicle, base_mode_name
+from fleetctl.mavlink.autopilots.base import (
+    CUSTOM,
+    Autopilot,
+    ModeError,
+    Params,
+    Vehicle,
+    base_mode_name,
+    code,
+    seconds,
+)
 
 M = mavlink2
+# ArduCopter FS_GCS_ENABLE (after FS_GCS_TIMEOUT s; FS_OPTIONS bit 1 = 2: continue a mission in AUTO)
+COPTER_GCS = {0: "none", 1: "rtl", 2: "continue mission in AUTO, else rtl", 3: "SmartRTL or rtl",
+              4: "SmartRTL or land", 5: "land", 6: "DO_LAND_START in AUTO, else rtl",
+              7: "brake (hold) or land"}
+# ArduRover: FS_GCS_ENABLE 0 off, 1 on, 2 on but continue a mission in AUTO; the action is FS_ACTION
+ROVER_FS_ACTION = {0: "none", 1: "rtl", 2: "hold", 3: "SmartRTL or rtl", 4: "SmartRTL or hold",
+                   5: "terminate", 6: "loiter or hold"}
+GCS_CONTINUE_IF_AUTO = 2  # FS_OPTIONS bit
+_COPTER_SET = {"rtl": 1, "land": 5, "hold": 7}
+_ROVER_SET = {"rtl": 1, "hold": 2, "land": 2}  # a ground vehicle stops
+_COPTER_FENCE = {"report": 0, "rtl": 1, "land": 2, "hold": 4}  # FENCE_ACTION (4 = brake or land)
+_ROVER_FENCE = {"report": 0, "rtl": 1, "hold": 2, "land": 2}
+FENCE_TYPE_ALT_MAX, FENCE_TYPE_POLYGON = 1, 4
 
 
 class ArduPilot(Autopilot):
@@ -55,3 +77,54 @@ class ArduPilot(Autopilot):
     async def start_mission(self, vehicle: Vehicle, first: int = 0) -> None:
         await vehicle.set_mode("MISSION")
         await vehicle.command(M.MAV_CMD_MISSION_START, (max(first, 0), 0))
+
+    # -- link loss and geofence -------------------------------------------------------------------
+    @property
+    def failsafe_param_names(self) -> tuple[str, ...]:
+        if self.ground:
+            return ("FS_GCS_ENABLE", "FS_ACTION", "FS_TIMEOUT")
+        return ("FS_GCS_ENABLE", "FS_GCS_TIMEOUT", "FS_OPTIONS")
+
+    def failsafe_action(self, params: Params) -> str | None:
+        enable = code(params, "FS_GCS_ENABLE")
+        if enable is None:
+            return None
+        if enable == 0:
+            return "none"
+        if self.ground:
+            act = code(params, "FS_ACTION")
+            what = "?" if act is None else ROVER_FS_ACTION.get(act, f"FS_ACTION {act}")
+            return f"continue mission in AUTO, else {what}" if enable == 2 else what
+        what = COPTER_GCS.get(enable, f"FS_GCS_ENABLE {enable}")
+        opts = code(params, "FS_OPTIONS") or 0
+        if opts & GCS_CONTINUE_IF_AUTO and not what.startswith("continue"):
+            what = f"continue mission in AUTO, else {what}"
+        return what
+
+    def describe_failsafe(self, params: Params) -> str:
+        act = self.failsafe_action(params)
+        if act is None:
+            return "link loss: unknown (FS_GCS_ENABLE not read)"
+        if act == "none":
+            return "link loss: none (FS_GCS_ENABLE 0)"
+        timeout = params.get("FS_TIMEOUT" if self.ground else "FS_GCS_TIMEOUT")
+        return f"link loss: {act.replace('rtl', 'RTL')} after {seconds(timeout)}"
+
+    def failsafe_params(self, action: str, current: Params | None = None) -> dict[str, float]:
+        if action == "keep":
+            return {}
+        if self.ground:
+            return {"FS_GCS_ENABLE": 1.0, "FS_ACTION": float(_ROVER_SET[action])}
+        out = {"FS_GCS_ENABLE": float(_COPTER_SET[action])}
+        opts = code(current or {}, "FS_OPTIONS")
+        if opts is None or opts & GCS_CONTINUE_IF_AUTO:  # the action applies in AUTO too
+            out["FS_OPTIONS"] = float((opts or 0) & ~GCS_CONTINUE_IF_AUTO)
+        return out
+
+    def fence_params(self, alt_max: float | None, action: str) -> dict[str, float]:
+        actions = _ROVER_FENCE if self.ground else _COPTER_FENCE
+        ftype = FENCE_TYPE_POLYGON | (FENCE_TYPE_ALT_MAX if alt_max is not None and not self.ground else 0)
+        out = {"FENCE_ENABLE": 1.0, "FENCE_ACTION": float(actions[action]), "FENCE_TYPE": float(ftype)}
+        if alt_max is not None and not self.ground:
+            out["FENCE_ALT_MAX"] = float(alt_max)
+        return out

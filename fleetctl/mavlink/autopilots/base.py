@@ -18,12 +18,17 @@ mission item 0 the first item                              home (written by the 
 
 Other autopilots get :class:`GenericAutopilot`: standard commands only (MISSION_START,
 NAV_TAKEOFF, NAV_LAND, NAV_RETURN_TO_LAUNCH); setting a custom mode raises :class:`ModeError`.
+
+Field safety (docs/field-safety.md): :attr:`Autopilot.failsafe_param_names` are read to tell what
+the vehicle does when the link drops (:meth:`describe_failsafe`, :meth:`failsafe_action`);
+:meth:`failsafe_params` gives the values for ``links.failsafe`` and :meth:`fence_params` those that
+enable an uploaded geofence with its height limit and breach action.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping
 from typing import Any, Protocol
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
@@ -46,6 +51,7 @@ class Vehicle(Protocol):
     async def set_current(self, seq: int) -> None: ...
 
 M = mavlink2
+Params = Mapping[str, float | None]  # parameter name -> value read (None = not answered)
 MODES = ("HOLD", "GUIDED", "MISSION", "TAKEOFF", "LAND", "RTL", "MANUAL")
 CUSTOM = M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED
 
@@ -59,6 +65,7 @@ class Autopilot:
 
     name = "generic"
     home_is_item0 = False  # True: mission item 0 is home (ArduPilot)
+    param_bytewise = False  # integer parameters' bytes in PARAM_VALUE's float (PX4), else cast
 
     def __init__(self, mav_type: int = M.MAV_TYPE_GENERIC) -> None:
         self.mav_type = mav_type
@@ -89,6 +96,34 @@ class Autopilot:
         """Fly the uploaded mission from its current item (or ``first`` if > 0)."""
         await vehicle.command(M.MAV_CMD_MISSION_START, (first, 0))
 
+    # -- link loss and geofence parameters ----------------------------------------------------------
+    @property
+    def failsafe_param_names(self) -> tuple[str, ...]:
+        """The parameters that decide what the vehicle does when the GCS link drops."""
+        return ()
+
+    def failsafe_action(self, params: Params) -> str | None:
+        """The generic link-loss action - ``none``, ``hold``, ``land``, ``rtl``, ``continue``,
+        ``terminate`` (or a firmware phrase) - from :attr:`failsafe_param_names`; None = unknown."""
+        return None
+
+    def describe_failsafe(self, params: Params) -> str:
+        """One line: what the vehicle does if the link drops (e.g. ``link loss: RTL after 10 s``)."""
+        return "link loss: unknown (no failsafe parameters known for this autopilot)"
+
+    def failsafe_params(self, action: str, current: Params | None = None) -> dict[str, float]:
+        """Parameter values making the link-loss action ``action`` (hold | land | rtl); ``keep``
+        gives none. ``current`` (the values read) keeps unrelated bits of bitmask parameters."""
+        if action == "keep":
+            return {}
+        raise ModeError(f"{self.name} autopilot: link-loss failsafe parameters unknown; "
+                        "use links.failsafe: keep")
+
+    def fence_params(self, alt_max: float | None, action: str) -> dict[str, float]:
+        """Parameter values enabling the uploaded fence with ``alt_max`` (m above home, None = no
+        limit) and the breach ``action`` (report | hold | rtl | land)."""
+        raise ModeError(f"{self.name} autopilot: geofence parameters unknown")
+
 
 def base_mode_name(base_mode: int) -> str:
     if base_mode & M.MAV_MODE_FLAG_AUTO_ENABLED:
@@ -101,4 +136,14 @@ def base_mode_name(base_mode: int) -> str:
 
 
 
-__all__ = ["CUSTOM", "MODES", "Autopilot", "ModeError", "Vehicle", "base_mode_name"]
+def seconds(v: float | None) -> str:
+    return "?" if v is None else f"{v:g} s"
+
+
+def code(params: Params, name: str) -> int | None:
+    v = params.get(name)
+    return None if v is None else int(round(v))
+
+
+__all__ = ["CUSTOM", "MODES", "Autopilot", "ModeError", "Params", "Vehicle", "base_mode_name", "code",
+           "seconds"]

@@ -6,13 +6,32 @@ import math
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
-from fleetctl.mavlink.autopilots.base import CUSTOM, Autopilot, ModeError, Vehicle, base_mode_name
+from fleetctl.mavlink.autopilots.base import (
+    CUSTOM,
+    Autopilot,
+    ModeError,
+    Params,
+    Vehicle,
+    base_mode_name,
+    code,
+    seconds,
+)
 
 M = mavlink2
 
 
+# NAV_DLL_ACT (data link loss, after COM_DL_LOSS_T s) and GF_ACTION (geofence breach) values
+DLL_ACTIONS = {0: "none", 1: "hold", 2: "rtl", 3: "land", 5: "terminate", 6: "lockdown"}
+GF_ACTIONS = {0: "none", 1: "warning", 2: "hold", 3: "rtl", 4: "terminate", 5: "land"}
+_DLL_SET = {"hold": 1, "rtl": 2, "land": 3}
+_GF_SET = {"report": 1, "hold": 2, "rtl": 3, "land": 5}
+_WORDS = {"none": "no action", "hold": "hold", "rtl": "RTL", "land": "land",
+          "terminate": "flight termination", "lockdown": "lockdown (motors off)"}
+
+
 class Px4(Autopilot):
     name = "px4"
+    param_bytewise = True
     _MAIN = {1: "MANUAL", 2: "ALTCTL", 3: "POSCTL", 4: "AUTO", 5: "ACRO", 6: "OFFBOARD", 7: "STABILIZED",
              8: "RATTITUDE"}
     _AUTO = {1: "READY", 2: "TAKEOFF", 3: "LOITER", 4: "MISSION", 5: "RTL", 6: "LAND", 7: "RTGS",
@@ -60,3 +79,28 @@ class Px4(Autopilot):
         if first > 0:
             await vehicle.set_current(first)
         await vehicle.set_mode("MISSION")
+
+    # -- link loss and geofence -------------------------------------------------------------------
+    @property
+    def failsafe_param_names(self) -> tuple[str, ...]:
+        return ("NAV_DLL_ACT", "COM_DL_LOSS_T")
+
+    def failsafe_action(self, params: Params) -> str | None:
+        act = code(params, "NAV_DLL_ACT")
+        return None if act is None else DLL_ACTIONS.get(act, f"NAV_DLL_ACT {act}")
+
+    def describe_failsafe(self, params: Params) -> str:
+        act = self.failsafe_action(params)
+        if act is None:
+            return "link loss: unknown (NAV_DLL_ACT not read)"
+        if act == "none":
+            return "link loss: none (NAV_DLL_ACT 0)"
+        return f"link loss: {_WORDS.get(act, act)} after {seconds(params.get('COM_DL_LOSS_T'))}"
+
+    def failsafe_params(self, action: str, current: Params | None = None) -> dict[str, float]:
+        if action == "keep":
+            return {}
+        return {"NAV_DLL_ACT": float(_DLL_SET[action])}
+
+    def fence_params(self, alt_max: float | None, action: str) -> dict[str, float]:
+        return {"GF_ACTION": float(_GF_SET[action]), "GF_MAX_VER_DIST": float(alt_max or 0.0)}

@@ -1,0 +1,271 @@
+"""Field safety before arming (docs/field-safety.md): the telemetry preflight needs, the link-loss
+failsafe (read, described, set by ``links.failsafe``), the geofence (uploaded as a FENCE mission
+with its parameters) and the check that plans stay inside it.
+
+:func:`admit_safety` is what :func:`fleetctl.run.admission.admit` calls: a rover that fails
+preflight (or refuses its failsafe/fence setup) is left out of the run - like a rover that did not
+answer - and a carrier that fails stops the run with an :class:`ExecutionError`.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+from dataclasses import dataclass, field
+from typing import Any
+
+from pymavlink.dialects.v20 import ardupilotmega as mavlink2
+from shapely.geometry import LineString, Point, Polygon
+
+from fleetctl.geo import Origin, local_to_geodetic
+from fleetctl.mavlink.autopilots import ModeError
+from fleetctl.mavlink.fleet import Fleet
+from fleetctl.mavlink.link import LinkError, MissionItem
+from fleetctl.mavlink.params import ParamError, read_params, set_param
+from fleetctl.mavlink.vehicle import CommandRejected, Vehicle
+from fleetctl.mission import Mission
+from fleetctl.mission.model import GeofenceConfig
+from fleetctl.run.context import ExecutionError
+from fleetctl.run.preflight import PreflightRow, check_fleet
+
+M = mavlink2
+FENCE = M.MAV_MISSION_TYPE_FENCE
+GATHER_TIMEOUT = 3.0  # s to wait for the telemetry preflight checks read
+RTL_WARNING = ("RTL returns a rover to where it armed: a carrier stop the carrier will have left "
+               "(set links.failsafe: hold or land to keep rovers near their task)")
+
+
+def _complete(v: Vehicle) -> bool:
+    return (v.position is not None and v.battery_pct is not None and v.landed_state is not None
+            and v.gps_fix_type is not None and v.sensors_present is not None and v.home is not None)
+
+
+async def gather(fleet: Fleet, timeout: float = GATHER_TIMEOUT, vehicles: list[Vehicle] | None = None
+                 ) -> dict[str, PreflightFailsafe]:
+    """Wait (up to ``timeout`` s) for the telemetry the checks read - asking for HOME_POSITION,
+    GPS_RAW_INT and SYS_STATUS once - and read every vehicle's link-loss parameters."""
+    todo = [v for v in (vehicles or list(fleet.vehicles.values())) if v.connected]
+
+    await gather_telemetry(todo, timeout)
+    return await read_failsafes(todo)
+
+
+async def gather_telemetry(vehicles: list[Vehicle], timeout: float = GATHER_TIMEOUT) -> None:
+    """Wait for what the checks read, asking once (REQUEST_MESSAGE) for what has not come yet."""
+    async def one(v: Vehicle) -> None:
+        if _complete(v):
+            return
+        with contextlib.suppress(LinkError, CommandRejected, TimeoutError):
+            async with asyncio.timeout(timeout):
+                for msgid, have in ((M.MAVLINK_MSG_ID_HOME_POSITION, v.home),
+                                    (M.MAVLINK_MSG_ID_GPS_RAW_INT, v.gps_fix_type),
+                                    (M.MAVLINK_MSG_ID_SYS_STATUS, v.sensors_present)):
+                    if have is None:
+                        await v.command(M.MAV_CMD_REQUEST_MESSAGE, [float(msgid)], check=False, timeout=0.5)
+                await v.wait_until(_complete, timeout, "preflight telemetry")
+
+    await asyncio.gather(*(one(v) for v in vehicles if v.connected and not v.lost))
+
+
+async def read_failsafes(vehicles: list[Vehicle]) -> dict[str, PreflightFailsafe]:
+    got = await asyncio.gather(*(read_failsafe(v) for v in vehicles))
+    return {v.name: fs for v, fs in zip(vehicles, got, strict=True)}
+
+
+@dataclass
+class PreflightFailsafe:
+    """What one vehicle does on link loss, from its parameters."""
+
+    params: dict[str, float | None]
+    action: str | None  # generic (none, hold, land, rtl, continue ..., terminate), None = unknown
+    text: str  # "link loss: RTL after 10 s"
+
+
+async def read_failsafe(v: Vehicle) -> PreflightFailsafe:
+    ap = v.autopilot
+    if ap is None or not ap.failsafe_param_names:
+        return PreflightFailsafe({}, None, "link loss: unknown (no failsafe parameters for this autopilot)")
+    params = await read_params(v, list(ap.failsafe_param_names), timeout=0.5, retries=2)
+    return PreflightFailsafe(params, ap.failsafe_action(params), ap.describe_failsafe(params))
+
+
+async def set_failsafe(v: Vehicle, action: str,
+                       current: PreflightFailsafe | None = None) -> PreflightFailsafe:
+    """Set the link-loss action (``links.failsafe``: hold | land | rtl) and read it back."""
+    ap = v.autopilot
+    if ap is None:
+        raise ParamError(f"{v.name}: no heartbeat, cannot set its failsafe")
+    values = ap.failsafe_params(action, current.params if current else None)
+    for name, value in values.items():
+        await set_param(v, name, value)
+    return await read_failsafe(v)
+
+
+# ------------------------------------------------------------------------------------- geofence
+def fence_items(fence: GeofenceConfig, origin: Origin) -> list[MissionItem]:
+    """The FENCE mission: the inclusion polygon, then one exclusion polygon per obstacle
+    (MAV_CMD_NAV_FENCE_POLYGON_VERTEX_INCLUSION/_EXCLUSION, param1 = the polygon's vertex count)."""
+    items: list[MissionItem] = []
+    zones = [(M.MAV_CMD_NAV_FENCE_POLYGON_VERTEX_INCLUSION, fence.polygon)]
+    zones += [(M.MAV_CMD_NAV_FENCE_POLYGON_VERTEX_EXCLUSION, pts) for pts in fence.exclusions]
+    for command, pts in zones:
+        for x, y in pts:
+            lat, lon, _alt = local_to_geodetic(x, y, 0.0, origin)
+            items.append(MissionItem(command, M.MAV_FRAME_GLOBAL, param1=float(len(pts)),
+                                     x=int(round(lat * 1e7)), y=int(round(lon * 1e7))))
+    return items
+
+
+async def upload_fence(v: Vehicle, fence: GeofenceConfig, origin: Origin) -> None:
+    """Upload the fence (MAVLink mission protocol, mission_type FENCE), then enable it with its
+    height limit and breach action (the autopilot's parameters)."""
+    await v.link.upload_mission(v.sysid, fence_items(fence, origin), compid=v.compid, mission_type=FENCE)
+    if v.autopilot is None:
+        raise ParamError(f"{v.name}: no heartbeat")
+    for name, value in v.autopilot.fence_params(fence.alt_max, fence.action).items():
+        await set_param(v, name, value)
+
+
+async def download_fence(v: Vehicle) -> list[MissionItem]:
+    return await v.link.download_mission(v.sysid, compid=v.compid, mission_type=FENCE)
+
+
+def plan_violations(plan: Any, fence: GeofenceConfig) -> list[str]:
+    """Where a plan (:class:`planners.plan.Plan`) leaves the geofence: carrier stops and paths,
+    rover paths (also through an exclusion zone, or above ``alt_max``)."""
+    inc = Polygon(fence.polygon).buffer(1e-6)
+    exc = [(j, Polygon(p)) for j, p in enumerate(fence.exclusions)]
+    out: list[str] = []
+
+    def shape(path: list[Any]) -> Any:
+        pts = [(float(p[0]), float(p[1])) for p in path]
+        return Point(pts[0]) if len(set(pts)) < 2 else LineString(pts)
+
+    def crossing(g: Any) -> int | None:
+        for j, e in exc:
+            inter = g.intersection(e)
+            if (inter.length > 1e-3) if isinstance(g, LineString) else e.contains(g):
+                return j
+        return None
+
+    for i, stop in enumerate(plan.stops):
+        x, y = stop.position[0], stop.position[1]
+        if not inc.covers(Point(x, y)):
+            out.append(f"carrier stop {i + 1} at ({x:.1f}, {y:.1f}) is outside the geofence")
+        if len(stop.carrier_path) >= 1:
+            g = shape(stop.carrier_path)
+            if not inc.covers(g):
+                out.append(f"the carrier's path to stop {i + 1} leaves the geofence")
+            j = crossing(g)
+            if j is not None:
+                out.append(f"the carrier's path to stop {i + 1} crosses exclusion zone obstacles[{j}]")
+        for leg in stop.rovers:
+            to = f" to task {leg.task}" if leg.task else ""
+            what = f"rover {leg.rover}'s path{to} (stop {i + 1})"
+            g = shape(leg.path)
+            if not inc.covers(g):
+                out.append(f"{what} leaves the geofence")
+            j = crossing(g)
+            if j is not None:
+                out.append(f"{what} crosses exclusion zone obstacles[{j}]")
+            top = max(float(p[2]) for p in leg.path) if leg.path else 0.0
+            if fence.alt_max is not None and top > fence.alt_max + 1e-6:
+                out.append(f"{what} climbs to {top:.1f} m, above the geofence alt_max {fence.alt_max:g} m")
+    return out
+
+
+def check_plan(plan: Any, fence: GeofenceConfig | None) -> None:
+    """Raise :class:`ExecutionError` naming every stop/rover of ``plan`` outside ``fence``."""
+    if fence is None:
+        return
+    bad = plan_violations(plan, fence)
+    if bad:
+        raise ExecutionError(f"the {plan.kind} plan ({plan.planner}) leaves the geofence: " + "; ".join(bad)
+                             + "; widen the geofence or move the tasks")
+
+
+# ------------------------------------------------------------------------------------- admission
+@dataclass
+class SafetyReport:
+    rows: dict[str, PreflightRow] = field(default_factory=dict)
+    left_out: dict[str, str] = field(default_factory=dict)  # rover -> why it does not fly
+    notes: list[tuple[str, str, str | None]] = field(default_factory=list)  # (kind, text, vehicle)
+
+
+def prefetch_failsafes(fleet: Fleet) -> asyncio.Task[dict[str, PreflightFailsafe]]:
+    """Start reading every answering vehicle's link-loss parameters now (they take a moment from a
+    vehicle that has gone quiet): pass the task to :func:`admit_safety`."""
+    vehicles = [v for v in fleet.vehicles.values() if v.connected and not v.lost]
+    return asyncio.ensure_future(read_failsafes(vehicles))
+
+
+async def admit_safety(fleet: Fleet, mission: Mission, command: str, *, resuming: bool = False,
+                       timeout: float = GATHER_TIMEOUT,
+                       prefetched: asyncio.Task[dict[str, PreflightFailsafe]] | None = None) -> SafetyReport:
+    """Preflight every answering vehicle, set ``links.failsafe`` and upload the geofence. Failing
+    rovers are left out (``fleet.leave_out``) - unless resuming and airborne: then only a warning;
+    a failing carrier raises :class:`ExecutionError`."""
+    rep = SafetyReport()
+    vehicles = {vid: v for vid, v in fleet.vehicles.items() if v.connected}
+    await gather_telemetry(list(vehicles.values()), timeout)
+    rep.rows = check_fleet(vehicles, fleet.carrier_id, mission, command=command, resuming=resuming)
+    if prefetched is not None:
+        failsafe = await prefetched
+    else:
+        failsafe = await read_failsafes([v for v in vehicles.values() if not v.lost])
+    for vid, row in rep.rows.items():
+        row.link_loss = failsafe[vid].text if vid in failsafe else None
+        if not row.ok:
+            _fail(fleet, rep, vid, "failed preflight: " + "; ".join(row.failures), resuming)
+    action = mission.links.failsafe
+    for vid, v in vehicles.items():
+        if vid in rep.left_out:
+            continue
+        fs = failsafe.get(vid)
+        if action != "keep":
+            try:
+                fs = await set_failsafe(v, action, fs)
+            except (ParamError, ModeError, LinkError) as exc:
+                _fail(fleet, rep, vid, f"links.failsafe {action} not set: {exc}", resuming)
+                continue
+            rep.notes.append(("failsafe_set", f"{vid}: {fs.text} (links.failsafe: {action})", vid))
+        elif fs is not None:
+            rep.notes.append(("failsafe", f"{vid}: {fs.text}", vid))
+        if fs is not None:
+            rep.rows[vid].link_loss = fs.text
+            if vid != fleet.carrier_id and fs.action is not None and "rtl" in fs.action.lower():
+                rep.rows[vid].warnings.append(RTL_WARNING)
+                rep.notes.append(("failsafe_warning", f"{vid}: link loss {fs.action}: {RTL_WARNING}", vid))
+    fence = mission.geofence
+    if fence is not None and mission.origin is not None:
+        for vid, v in vehicles.items():
+            if vid in rep.left_out:
+                continue
+            try:
+                await upload_fence(v, fence, mission.origin)
+            except (ParamError, ModeError, LinkError) as exc:
+                _fail(fleet, rep, vid, f"geofence not uploaded: {exc}", resuming)
+                continue
+            rep.notes.append(("geofence", f"{vid}: geofence uploaded ({len(fence.polygon)} vertices, "
+                              f"{len(fence.exclusions)} exclusion zones, alt_max "
+                              f"{'-' if fence.alt_max is None else f'{fence.alt_max:g} m'}, "
+                              f"action {fence.action})", vid))
+            if fence.action == "rtl" and vid != fleet.carrier_id:
+                rep.notes.append(("geofence_warning", f"{vid}: geofence action rtl: {RTL_WARNING}", vid))
+    return rep
+
+
+def _fail(fleet: Fleet, rep: SafetyReport, vid: str, why: str, resuming: bool) -> None:
+    if vid == fleet.carrier_id:
+        raise ExecutionError(f"the carrier {vid} at {fleet.urls.get(vid, '?')} {why}; fix it before flying")
+    v = fleet.vehicles[vid]
+    if resuming and (v.armed or v.on_ground is False):  # flying its mission: keep it, say so
+        rep.notes.append(("preflight_warning", f"{vid}: {why} (flying: kept)", vid))
+        return
+    rep.left_out[vid] = why
+    fleet.leave_out(vid, why)
+
+
+__all__ = ["RTL_WARNING", "PreflightFailsafe", "SafetyReport", "admit_safety", "check_plan", "download_fence",
+           "fence_items", "gather", "gather_telemetry", "plan_violations", "prefetch_failsafes",
+           "read_failsafe", "read_failsafes", "set_failsafe", "upload_fence"]
