@@ -8,9 +8,9 @@ outside a limit is refused with a message naming its key, the limit and what to 
 from __future__ import annotations
 
 # --------------------------------------------------------------------------- the file and its YAML
-MAX_FILE_BYTES = 1024 * 1024  # a mission file (the largest shipped one is ~4 KB)
+MAX_FILE_BYTES = 512 * 1024  # a mission file (the largest shipped one is ~4 KB)
 MAX_YAML_DEPTH = 32  # nesting of mappings/lists (a mission needs 5)
-MAX_YAML_NODES = 200_000  # scalars + lists + mappings after alias expansion
+MAX_YAML_NODES = 100_000  # scalars + lists + mappings after alias expansion
 MAX_ALIASES = 100  # uses of '*anchor' in one file
 MAX_STRING = 256  # characters of an id, name or other string value
 MAX_NUMBER_DIGITS = 40  # characters of a number as written (more cannot be a physical value)

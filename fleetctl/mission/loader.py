@@ -138,6 +138,9 @@ class _Ctx:
         return out
 
 
+_FLOATISH = re.compile(r"[-+]?(\d+\.?\d*|\.\d+)[eE][-+]?\d+")
+
+
 def _number(
     *,
     gt: float | None = None,
@@ -155,8 +158,13 @@ def _number(
     def parse(ctx: _Ctx, v: Any, path: KeyPath) -> float | None:
         if v is None and null:
             return None
-        if isinstance(v, bool) or not isinstance(v, int | float) or not -1e300 < v < 1e300:  # inf, nan
-            ctx.fail(path, f"expected {want}, got {_type_name(v)}")
+        if isinstance(v, int) and not isinstance(v, bool) and not -1e300 < v < 1e300:  # any length
+            ctx.fail(path, f"{_type_name(v)} is out of range; set it to {want}")
+        if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
+            hint = ""
+            if isinstance(v, str) and _FLOATISH.fullmatch(v.strip()):
+                hint = " (YAML reads 1e20 as text: write 1.0e+20)"
+            ctx.fail(path, f"expected {want}, got {_type_name(v)}{hint}")
         x = float(v)  # an int of any size was compared above: now safe
         bad = (
             (gt is not None and not x > gt)
