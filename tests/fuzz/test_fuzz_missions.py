@@ -82,3 +82,25 @@ def test_fuzz_in_process(tmp_path: Path) -> None:
             slow.append((case.kind, case.index, round(took, 1)))
     assert not bad, bad
     assert not slow, slow
+
+
+def test_forced_roadmap_planner_on_a_huge_open_mission_is_a_message(tmp_path: Path) -> None:
+    """The loader checks the roadmap only when the mission uses it; ``--planner lee-graph`` on a
+    wide open-space mission is refused by the planner's own node cap (planners.roadmap.MAX_NODES)."""
+    import contextlib
+    import io
+
+    import yaml
+
+    from fleetctl.cli import main
+
+    d = {"name": "wide", "carrier": {"position": [0, 0], "max_speed": 15.0},
+         "rovers": {"max_speed": 5.0, "deploy_range": 50.0},
+         "tasks": [{"id": "a", "position": [90_000, 0, 2]}, {"id": "b", "position": [0, 90_000, 2]}]}
+    f = tmp_path / "wide.yaml"
+    f.write_text(yaml.safe_dump(d), encoding="utf-8")
+    out, err = io.StringIO(), io.StringIO()
+    t0 = time.monotonic()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        rc = main(["plan", "--json", "-m", str(f), "--planner", "lee-graph"])
+    assert rc == 2 and "roadmap would have" in err.getvalue() and time.monotonic() - t0 < CASE_TIMEOUT
