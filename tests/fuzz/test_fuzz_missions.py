@@ -27,7 +27,7 @@ EXPECTED = {
     "max_speed_1.79e+308.yaml": ":12: carrier.max_speed: 1.79e+308 is out of range",
     "nesting_20000.yaml": ":30: lists/mappings nested more than 32 levels",
     "nesting_600.yaml": ":30: lists/mappings nested more than 32 levels",
-    "obstacles_10000.yaml": "larger than 100000 values",
+    "obstacles_600.yaml": "obstacles: 600 entries are too many; give at most 500",
     "obstacles_480_small.yaml": None,  # within the limits: plans
     "roadmap_xi1_1e+308.yaml": "planner.roadmap.xi1: 1e+308 is out of range",
     "roadmap_xi1_256.yaml": "planner.roadmap: the global roadmap would have 25750 nodes",
@@ -104,3 +104,18 @@ def test_forced_roadmap_planner_on_a_huge_open_mission_is_a_message(tmp_path: Pa
     with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
         rc = main(["plan", "--json", "-m", str(f), "--planner", "lee-graph"])
     assert rc == 2 and "roadmap would have" in err.getvalue() and time.monotonic() - t0 < CASE_TIMEOUT
+
+
+def test_ten_thousand_small_obstacles(tmp_path: Path) -> None:
+    """The finding: 10,000 small obstacles ran for more than 45 s (generated: too big to store)."""
+    import random
+
+    text = (CASES / "obstacles_600.yaml").read_text(encoding="utf-8")
+    rng = random.Random(3)
+    obs = ",".join(f"[[{x:.2f},{y:.2f}],[{x + 0.05:.2f},{y:.2f}],[{x + 0.05:.2f},{y + 0.05:.2f}]]"
+                   for x, y in ((rng.uniform(0, 100), rng.uniform(95, 100)) for _ in range(10_000)))
+    start, end = text.index("obstacles:"), text.index("bounds:")
+    t0 = time.monotonic()
+    res = run_case(text[:start] + f"obstacles: [{obs}]\n" + text[end:], tmp_path / "m.yaml")
+    assert res.outcome == "error" and time.monotonic() - t0 < CASE_TIMEOUT
+    assert "larger than 100000 values" in res.detail or "entries are too many" in res.detail
