@@ -26,6 +26,7 @@ from yaml.scanner import Scanner
 
 from fleetctl.mission import limits
 
+_CParser: Any
 try:
     from yaml._yaml import CParser as _CParser
 except ImportError:  # PyYAML without libyaml
@@ -49,10 +50,17 @@ def _line(mark: Any) -> int | None:
     return mark.line + 1 if mark is not None else None
 
 
-class _BoundedComposer(Composer):
-    """Composer whose node composition enforces depth, node and alias budgets (see the module doc)."""
+class BoundedLoader(Composer, SafeConstructor, Resolver):
+    """Safe YAML, bounded: libyaml's scanner and parser (C, ~5x faster) when PyYAML has them,
+    else PyYAML's; always the bounded Python composer below (depth, node and alias budgets, see
+    the module doc) and the safe constructor."""
 
-    def _init_budget(self, max_depth: int, max_nodes: int, max_aliases: int) -> None:
+    def __init__(self, stream: str, *, max_depth: int = limits.MAX_YAML_DEPTH,
+                 max_nodes: int = limits.MAX_YAML_NODES, max_aliases: int = limits.MAX_ALIASES) -> None:
+        self._parser: Any = _CParser(stream) if _CParser is not None else _PyParser(stream)
+        Composer.__init__(self)
+        SafeConstructor.__init__(self)
+        Resolver.__init__(self)
         self.max_depth, self.max_nodes, self.max_aliases = max_depth, max_nodes, max_aliases
         self._depth = 0
         self._nodes = 0  # expanded node count so far
@@ -116,22 +124,6 @@ class _BoundedComposer(Composer):
         except Exception as exc:  # noqa: BLE001 - e.g. !!timestamp 2020-13-45, !!bool maybe
             raise YamlError(_line(node.start_mark), f"cannot read the value ({exc}); "
                                                     "write a plain number, string, list or mapping") from None
-
-
-class BoundedLoader(_BoundedComposer, SafeConstructor, Resolver):
-    """Safe YAML, bounded: libyaml's scanner and parser (C, ~5x faster) when PyYAML has them,
-    else PyYAML's; always the bounded Python composer above and the safe constructor."""
-
-    def __init__(self, stream: str, *, max_depth: int = limits.MAX_YAML_DEPTH,
-                 max_nodes: int = limits.MAX_YAML_NODES, max_aliases: int = limits.MAX_ALIASES) -> None:
-        if _CParser is not None:
-            self._parser: Any = _CParser(stream)
-        else:
-            self._parser = _PyParser(stream)
-        Composer.__init__(self)
-        SafeConstructor.__init__(self)
-        Resolver.__init__(self)
-        self._init_budget(max_depth, max_nodes, max_aliases)
 
     def check_event(self, *choices: Any) -> bool:
         return bool(self._parser.check_event(*choices))
