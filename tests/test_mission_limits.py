@@ -268,3 +268,14 @@ def test_accept_task_changes(tmp_path: Path) -> None:
     assert on.mqtt is not None and on.mqtt.accept_task_changes is True
     msg = error(tmp_path, mqtt={"url": "mqtt://localhost", "accept_task_changes": "yes please"})
     assert "mqtt.accept_task_changes: expected true or false" in msg
+
+
+def test_pure_python_parser_fallback_has_the_same_limits(monkeypatch: pytest.MonkeyPatch) -> None:
+    import fleetctl.mission.yaml_safe as ys
+
+    monkeypatch.setattr(ys, "_CParser", None)
+    assert read_yaml("a: &x [1, 2]\nb: *x\n")[0] == {"a": [1, 2], "b": [1, 2]}
+    with pytest.raises(YamlError, match="recursive alias"):
+        read_yaml("zz: &r [1, *r]\n")
+    with pytest.raises(YamlError, match="nested more than"):
+        read_yaml("[" * 5000 + "]" * 5000)
