@@ -33,6 +33,7 @@ from planners.problem import PlanningError, Point2, Polygon2, RoadmapParams
 Bounds = tuple[Point2, Point2]
 
 MAX_NODES = 6000  # a roadmap larger than this is refused (PlanningError) rather than planned for minutes
+MAX_EDGES = 120_000  # the same for edges (a long edge radius makes the roadmap a complete graph)
 
 
 def _node_count(value: float, what: str) -> int:
@@ -158,6 +159,14 @@ class Roadmap:
         if not len(pts):
             return new
         tree = cKDTree(self.xy)
+        if len(self.xy) > MAX_NODES:
+            raise PlanningError(f"the roadmap would have {len(self.xy)} nodes, more than {MAX_NODES}; "
+                                "lower the roadmap parameters (xi1..xi4) or the workspace bounds")
+        near = int(np.sum(tree.query_ball_point(pts, radius, return_length=True)))
+        if self.n_edges + near // 2 > MAX_EDGES:  # about the candidate edges: refuse before building them
+            raise PlanningError(f"the roadmap would have about {self.n_edges + near // 2} edges (up to "
+                                f"{radius:.3g} m long), more than {MAX_EDGES}; lower rovers.deploy_range, "
+                                "the roadmap parameters (xi1..xi4, phi) or the workspace bounds")
         pairs = []
         for k, nbrs in zip(new, tree.query_ball_point(pts, radius), strict=True):
             nb = np.asarray(nbrs, dtype=np.int64)

@@ -279,3 +279,17 @@ def test_pure_python_parser_fallback_has_the_same_limits(monkeypatch: pytest.Mon
         read_yaml("zz: &r [1, *r]\n")
     with pytest.raises(YamlError, match="nested more than"):
         read_yaml("[" * 5000 + "]" * 5000)
+
+
+def test_planner_refuses_a_dense_roadmap_it_was_not_protected_from() -> None:
+    """planners.roadmap's own guard: edges counted before they are built (pure maths, no loader)."""
+    import numpy as np
+
+    from planners.problem import PlanningError
+    from planners.roadmap import MAX_EDGES, Roadmap, Workspace
+
+    ws = Workspace([], ((0.0, 0.0), (10.0, 10.0)))
+    pts = np.random.default_rng(0).uniform(0, 10, size=(600, 2))
+    with pytest.raises(PlanningError, match=f"more than {MAX_EDGES}"):
+        Roadmap(ws, pts, 100.0)  # complete graph: ~180,000 edges
+    assert Roadmap(ws, pts[:100], 100.0).n_edges == 100 * 99 // 2

@@ -54,7 +54,7 @@ MAX_SEED = 2**32 - 1
 MAX_XI = 1000.0  # ξ₁, ξ₃ (nodes per metre of √area); ξ₂, ξ₄ (nodes)
 MAX_ROADMAP_NODES = 1500  # ℵ₁ = √(w·h)·ξ₁ + ξ₂ and ℵ_add = √(w·h)·ξ₃ + ξ₄ (eq. 6.5, 6.7)
 # expected edges of the global PRM: ℵ₁²/2 · min(1, π·δ²/(w·h)), δ = max(d_deploy, (w+h)/2·φ)
-MAX_ROADMAP_EDGES = 150_000
+MAX_ROADMAP_EDGES = 100_000  # (the planner itself refuses more than 120,000 actual edges)
 
 # --------------------------------------------------------------------------- task changes (MQTT, live edits)
 # A task added over MQTT is refused (unless the message says "force": true) when it lies

@@ -33,6 +33,12 @@ EXPECTED = {
     "roadmap_xi1_256.yaml": "planner.roadmap: the global roadmap would have 25750 nodes",
     "timestamp_bad.yaml": ":11: cannot read the value (month must be in 1..12)",
     "unload_time_1e+308.yaml": ":15: carrier.unload_time: 1e+308 is out of range",
+    # found by `bench/fuzz_missions.py --cases 10000` (hang, over 500 MB, segfault under RLIMIT_AS):
+    # local PRMs (xi3/xi4) or phi on top of a long edge radius made the roadmap a dense graph
+    "fuzz10k_roadmap_1439-hang.yaml": "roadmap would have about",
+    "fuzz10k_roadmap_2603-memory.yaml": "roadmap would have about",
+    "fuzz10k_roadmap_4571-crash.yaml": "roadmap would have about",
+    "fuzz10k_roadmap_7643-hang.yaml": "roadmap would have about",
 }
 
 
@@ -51,7 +57,10 @@ def test_reproducers(tmp_path: Path, name: str, collect: bool) -> None:
         assert res.outcome == "ok", res.detail
     else:
         assert res.outcome == "error", res.detail
-        assert want in res.detail and res.detail.startswith(f"fleetctl: error: {tmp_path / name}")
+        assert res.detail.startswith(f"fleetctl: error: {tmp_path / name}")
+        if collect and "has no 'collection' section" in res.detail:
+            return  # a deployment-only mission: --collect is refused first
+        assert want in res.detail
 
 
 def test_check_output_refuses_non_finite_json() -> None:
