@@ -156,12 +156,14 @@ def test_bus_task_end_is_reported(tmp_path: Path) -> None:
     async def boom() -> None:
         raise RuntimeError("bug")
 
-    async def run() -> None:
-        t = asyncio.create_task(boom())
+    async def run(name: str) -> None:
+        t = asyncio.create_task(boom(), name=name)
         t.add_done_callback(bus._on_run_done)
         await asyncio.sleep(0.01)
 
-    asyncio.run(run())
+    asyncio.run(run("mqtt telemetry"))
+    assert bus.status != "failed" and ("bus_telemetry_failed", {"error": "RuntimeError: bug"}) in records
+    asyncio.run(run("mqtt bus"))
     assert bus.status == "failed" and "RuntimeError: bug" in (bus.failed or "")
     assert any(e.kind == "bus_failed" for e in state.events)
     assert ("bus_failed", {"error": "RuntimeError: bug"}) in records

@@ -197,7 +197,9 @@ class FleetBus:
         run.add_done_callback(self._on_run_done)
         self._tasks.append(run)
         if state is not None:
-            self._tasks.append(loop.create_task(self._telemetry(), name="mqtt telemetry"))
+            tel = loop.create_task(self._telemetry(), name="mqtt telemetry")
+            tel.add_done_callback(self._on_run_done)
+            self._tasks.append(tel)
 
     def attach_executor(self, executor: Any) -> None:
         """Task messages go to ``executor.submit_task_change`` from now on; changes queued before
@@ -218,21 +220,28 @@ class FleetBus:
                         topic=topic)
 
     def _on_run_done(self, task: asyncio.Task[None]) -> None:
-        """The connection task never ends by itself: if it does, say so (journal, view, status)."""
+        """The bus's tasks never end by themselves: if one does, say so (journal, view, status)."""
         if task.cancelled() or task.exception() is None:
             return
         exc = task.exception()
-        self.failed = f"{type(exc).__name__}: {exc}"
-        log.error("bus %s: stopped: %s", self.config.url, self.failed, exc_info=exc)
-        self.status = "failed"
+        why = f"{type(exc).__name__}: {exc}"
+        log.error("bus %s: %s stopped: %s", self.config.url, task.get_name(), why, exc_info=exc)
+        if task.get_name() != "mqtt bus":  # telemetry: the connection itself goes on
+            text = f"bus: telemetry stopped ({why}); events and task changes still go over MQTT"
+            kind = "bus_telemetry_failed"
+        else:
+            self.failed = why
+            self.status = "failed"
+            text = f"bus: stopped ({why}); no telemetry or task changes over MQTT for the rest of the run"
+            kind = "bus_failed"
         if self.state is not None:
-            self.state.event("bus_failed", f"bus: stopped ({self.failed}); no telemetry or task changes "
-                             "over MQTT for the rest of the run", None, url=self.config.url)
+            self.state.event(kind, text, None, url=self.config.url)
         with contextlib.suppress(Exception):
-            self.record("bus_failed", error=self.failed)
-        for cb in list(self._on_status):
-            with contextlib.suppress(Exception):
-                cb("failed")
+            self.record(kind, error=why)
+        if kind == "bus_failed":
+            for cb in list(self._on_status):
+                with contextlib.suppress(Exception):
+                    cb("failed")
 
     def show_in(self, view: Any) -> None:
         """Put :meth:`status_line` into a live view that shows status lines."""
