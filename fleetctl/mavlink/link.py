@@ -591,6 +591,11 @@ class Link:
             self.rx_bad += 1
             self._parsers[addr] = _new_parser()
             return
+        if self._udp is not None and parser.buf_len() > 0:
+            # a UDP datagram is self-contained: a partial (truncated) message left in the parser
+            # would swallow the start of the next good datagram from this peer
+            self.rx_bad += 1
+            self._parsers[addr] = _new_parser()
         for msg in msgs:
             self._dispatch(msg, addr)
 
