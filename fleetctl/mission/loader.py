@@ -694,12 +694,46 @@ def _check_roadmap(
 
 def _build(ctx: _Ctx, data: Any, path: Path | None) -> Mission:
     if data is None:
-        ctx.fail((), "the mission file is empty; see DESIGN.md 'Mission file (YAML)' for the keys")
+        ctx.fail((), "the mission file is empty; see the annotated examples in missions/ for the keys")
     ctx.raw = data
     d = ctx.section(data, (), _TOP)
     origin: Origin | None = d["origin"]
     carrier, r = d["carrier"], d["rovers"]
+    tasks, collection = _tasks_and_collection(ctx, d, origin)
+    deploy_range, endurance, energy = _ranges(ctx, r)
+    _check_task_heights(ctx, tasks, deploy_range)
+    units = _fleet_units(ctx, r, carrier, tasks, collection)
+    obstacles, bounds = _check_geometry(ctx, d, tasks)
+    geofence = _geofence(ctx, d, tasks, obstacles, bounds, origin)
+    _check_roadmap(ctx, d, tasks, collection, bounds, deploy_range)
+    faults = _faults(ctx, d, {u.id for u in units} | {carrier["id"]})
+    mission = Mission(
+        name=d["name"] or (path.stem if path is not None else "mission"),
+        origin=origin,
+        carrier=CarrierConfig(**{**carrier, "position": tuple(carrier["position"])}),
+        rovers=RoversConfig(r["max_speed"], r["accel"], deploy_range, endurance, r["reserve"], units, energy),
+        tasks=tasks,
+        obstacles=obstacles,
+        bounds=bounds,
+        collection=collection,
+        sim=SimConfig(d["sim"]["speedup"], tuple(faults)),
+        links=d["links"],
+        planner=d["planner"],
+        dwell=d["dwell"],
+        mqtt=_mqtt(ctx, d, path),
+        raw=copy.deepcopy(data),
+        path=path,
+        geofence=geofence,
+    )
+    log.debug(
+        "mission %s: %d tasks, %d rovers, d_deploy %.2f m", mission.name, len(tasks), len(units), deploy_range
+    )
+    return mission
 
+
+def _tasks_and_collection(
+    ctx: _Ctx, d: dict[str, Any], origin: Origin | None
+) -> tuple[tuple[Task, ...], tuple[CollectRover, ...] | None]:
     tasks = tuple(Task(t["id"], _point(ctx, t, ("tasks", i), origin)) for i, t in enumerate(d["tasks"]))
     collection = None
     if d["collection"] is not None:
@@ -720,8 +754,11 @@ def _build(ctx: _Ctx, data: Any, path: Path | None) -> Mission:
             "(an empty list is allowed only in a collection-only mission with a 'collection' section)",
         )
     _unique(ctx, [(t.id, ("tasks", i, "id")) for i, t in enumerate(tasks)], "task id")
+    return tasks, collection
 
-    # deploy range: given, or from energy terms (dissertation ch. 3.2)
+
+def _ranges(ctx: _Ctx, r: dict[str, Any]) -> tuple[float, float, EnergyConfig | None]:
+    """d_deploy (given, or from energy terms: dissertation ch. 3.2), endurance_range, energy."""
     if (r["deploy_range"] is None) == (r["energy"] is None):
         ctx.fail(
             ("rovers", "deploy_range"),
@@ -756,7 +793,10 @@ def _build(ctx: _Ctx, data: Any, path: Path | None) -> Mission:
             f"{endurance:g} m on a full battery is less than the deploy range "
             f"{deploy_range:g} m; raise endurance_range or lower deploy_range",
         )
+    return deploy_range, endurance, energy
 
+
+def _check_task_heights(ctx: _Ctx, tasks: tuple[Task, ...], deploy_range: float) -> None:
     for i, t in enumerate(tasks):
         z = t.position[2]
         if z < 0:
@@ -771,6 +811,12 @@ def _build(ctx: _Ctx, data: Any, path: Path | None) -> Mission:
                 f"{deploy_range:g} m, so no rover can reach it; lower the task or raise the deploy range",
             )
 
+
+def _fleet_units(
+    ctx: _Ctx, r: dict[str, Any], carrier: dict[str, Any], tasks: tuple[Task, ...],
+    collection: tuple[CollectRover, ...] | None,
+) -> tuple[RoverUnit, ...]:
+    """The rover units, enough for the tasks, ids and sysids unique, collection rovers among them."""
     n_default = len(tasks) if tasks else len(collection or ())
     units = _build_fleet(ctx, r, carrier, n_default)
     fleet_key = ("rovers", "units") if r["units"] is not None else ("rovers", "fleet", "count")
@@ -811,13 +857,11 @@ def _build(ctx: _Ctx, data: Any, path: Path | None) -> Mission:
                     f"{c.id!r} is not a rover of the fleet "
                     f"({', '.join(sorted(rover_ids))}); use a fleet rover id",
                 )
+    return tuple(units)
 
-    obstacles, bounds = _check_geometry(ctx, d, tasks)
-    geofence = _geofence(ctx, d, tasks, obstacles, bounds, origin)
-    _check_roadmap(ctx, d, tasks, collection, bounds, deploy_range)
 
+def _faults(ctx: _Ctx, d: dict[str, Any], vehicles: set[str]) -> list[Fault]:
     faults = []
-    vehicles = rover_ids | {carrier["id"]}
     for i, f in enumerate(d["sim"]["faults"]):
         fp: KeyPath = ("sim", "faults", i)
         if f["vehicle"] is not None and f["vehicle"] not in vehicles:
@@ -835,42 +879,22 @@ def _build(ctx: _Ctx, data: Any, path: Path | None) -> Mission:
         if f["until"] is not None and f["until"] <= f["at"]:
             ctx.fail(fp + ("until",), f"until ({f['until']:g} s) must be later than at ({f['at']:g} s)")
         faults.append(Fault(**f))
+    return faults
 
-    mqtt = None
-    if d["mqtt"] is not None:
-        m = dict(d["mqtt"])
-        tls: TlsConfig | None = m["tls"]
-        if tls is not None and (tls.cert is None) != (tls.key is None):
-            ctx.fail(
-                ("mqtt", "tls", "cert" if tls.cert is None else "key"),
-                "a client certificate needs both 'cert' and 'key'; add the missing one",
-            )
-        name_for_topic = d["name"] or (path.stem if path else "mission")
-        m["topic_prefix"] = m["topic_prefix"] or f"fleetctl/{name_for_topic}"
-        mqtt = MqttConfig(**m)
 
-    mission = Mission(
-        name=d["name"] or (path.stem if path is not None else "mission"),
-        origin=origin,
-        carrier=CarrierConfig(**{**carrier, "position": tuple(carrier["position"])}),
-        rovers=RoversConfig(r["max_speed"], r["accel"], deploy_range, endurance, r["reserve"], units, energy),
-        tasks=tasks,
-        obstacles=obstacles,
-        bounds=bounds,
-        collection=collection,
-        sim=SimConfig(d["sim"]["speedup"], tuple(faults)),
-        links=d["links"],
-        planner=d["planner"],
-        dwell=d["dwell"],
-        mqtt=mqtt,
-        raw=copy.deepcopy(data),
-        path=path,
-        geofence=geofence,
-    )
-    log.debug(
-        "mission %s: %d tasks, %d rovers, d_deploy %.2f m", mission.name, len(tasks), len(units), deploy_range
-    )
-    return mission
+def _mqtt(ctx: _Ctx, d: dict[str, Any], path: Path | None) -> MqttConfig | None:
+    if d["mqtt"] is None:
+        return None
+    m = dict(d["mqtt"])
+    tls: TlsConfig | None = m["tls"]
+    if tls is not None and (tls.cert is None) != (tls.key is None):
+        ctx.fail(
+            ("mqtt", "tls", "cert" if tls.cert is None else "key"),
+            "a client certificate needs both 'cert' and 'key'; add the missing one",
+        )
+    name_for_topic = d["name"] or (path.stem if path else "mission")
+    m["topic_prefix"] = m["topic_prefix"] or f"fleetctl/{name_for_topic}"
+    return MqttConfig(**m)
 
 
 # --------------------------------------------------------------------------- YAML with line numbers
