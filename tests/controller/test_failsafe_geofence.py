@@ -139,9 +139,9 @@ async def _airborne(v: Vehicle, x: float = 15.0, y: float = -8.0, z: float = 6.0
     await v.arm()
     await v.wait_until(lambda v: v.armed, 3.0, "armed")
     await v.takeoff(z)
-    await v.wait_until(lambda v: v.relative_alt is not None and v.relative_alt > z - 0.2, 10.0, "up")
+    await v.wait_until(lambda v: v.relative_alt is not None and v.relative_alt > z - 0.2, 30.0, "up")
     await v.goto_enu(x, y, z)
-    await v.wait_until(lambda v: v.enu is not None and math.dist(v.enu, (x, y, z)) < 0.3, 10.0, "there")
+    await v.wait_until(lambda v: v.enu is not None and math.dist(v.enu, (x, y, z)) < 0.3, 30.0, "there")
 
 
 @pytest.mark.parametrize(
