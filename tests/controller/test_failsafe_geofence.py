@@ -151,10 +151,10 @@ async def _airborne(v: Vehicle, x: float = 15.0, y: float = -8.0, z: float = 6.0
 @pytest.mark.parametrize(
     ("autopilot", "params", "mode"),
     [
-        ("px4", {"NAV_DLL_ACT": 2, "COM_DL_LOSS_T": 1.0}, Mode.RTL),
-        ("ardupilot", {"FS_GCS_ENABLE": 5, "FS_GCS_TIMEOUT": 1.0}, Mode.LAND),
-        ("ardupilot", {"FS_GCS_ENABLE": 7, "FS_GCS_TIMEOUT": 1.0}, Mode.HOLD),
-        ("px4", {"COM_DL_LOSS_T": 1.0}, None),  # NAV_DLL_ACT 0: disabled, the rover flies on
+        ("px4", {"NAV_DLL_ACT": 2, "COM_DL_LOSS_T": 2.5}, Mode.RTL),
+        ("ardupilot", {"FS_GCS_ENABLE": 5, "FS_GCS_TIMEOUT": 2.5}, Mode.LAND),
+        ("ardupilot", {"FS_GCS_ENABLE": 7, "FS_GCS_TIMEOUT": 2.5}, Mode.HOLD),
+        ("px4", {"COM_DL_LOSS_T": 2.5}, None),  # NAV_DLL_ACT 0: disabled, the rover flies on
     ],
 )
 async def test_a_link_loss_triggers_the_configured_action(
@@ -170,7 +170,7 @@ async def test_a_link_loss_triggers_the_configured_action(
             before = sim.vehicle("r1").mode
             sim.dropout("r1")  # deaf and silent: the controller's heartbeats no longer arrive
             if mode is None:
-                await asyncio.sleep(2.0)
+                await asyncio.sleep(4.0)  # longer than COM_DL_LOSS_T
                 assert sim.vehicle("r1").mode is before and not sim.rover("r1").on_ground
                 return
             await sim.wait_for(lambda: sim.vehicle("r1").mode is mode, 10.0)
