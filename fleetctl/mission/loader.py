@@ -37,8 +37,8 @@ import yaml
 from shapely.geometry import Point, Polygon
 from shapely.validation import explain_validity
 
+import fleetctl.mission.limits as L
 from fleetctl.geo import Origin, geodetic_to_local
-from fleetctl.mission import limits as L
 from fleetctl.mission.model import (
     FAILSAFE_ACTIONS,
     FAULT_KINDS,

@@ -24,7 +24,7 @@ from yaml.reader import Reader
 from yaml.resolver import Resolver
 from yaml.scanner import Scanner
 
-from fleetctl.mission import limits
+import fleetctl.mission.limits as limits
 
 _CParser: Any
 try:
