@@ -10,6 +10,7 @@ from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING, Any
 
 from fleetctl.mission import Mission, MissionError, load_mission
+from fleetctl.mission.teams import several_teams
 from planners.problem import CollectProblem
 
 if TYPE_CHECKING:
@@ -50,6 +51,10 @@ def cmd_plan(args: argparse.Namespace) -> int:
     if name not in registry:
         raise CliError(f"unknown planner {name!r} for {'collection' if args.collect else 'deployment'}; "
                        f"choose one of: {', '.join(sorted(registry))}")
+    if several_teams(mission):  # carriers: [...] with more than one carrier (docs/teams.md)
+        from fleetctl.teams_plan import plan_teams_command
+
+        return plan_teams_command(args, mission, registry[name], name)
     problem = mission.collect_problem() if args.collect else mission.deploy_problem()
     try:
         plan = registry[name](problem)
@@ -152,6 +157,13 @@ def cmd_resume(args: argparse.Namespace) -> int:
     return _fly(args, resumption.mission, resumption.command, {"resume": resumption})
 
 
+def _one_team(mission: Mission, command: str) -> None:
+    if several_teams(mission):
+        raise CliError(f"{mission.path or mission.name}: '{command}' flies one carrier and this mission has "
+                       f"{len(mission.teams)} (carriers:); several teams can only be planned for now: "
+                       "fleetctl plan --mission FILE")
+
+
 def _fly(args: argparse.Namespace, mission: Mission, command: str, extra: dict[str, Any]) -> int:
     import asyncio
 
@@ -159,6 +171,7 @@ def _fly(args: argparse.Namespace, mission: Mission, command: str, extra: dict[s
     from fleetctl.run.runner import EXIT_INTERRUPTED
     from fleetctl.views.dashboard import make_view
 
+    _one_team(mission, command)
     if args.speedup is not None and args.speedup <= 0:
         raise CliError(f"--speedup must be > 0, got {args.speedup}")
     if getattr(args, "dwell", None) is not None and args.dwell < 0:
@@ -423,6 +436,7 @@ def cmd_sim(args: argparse.Namespace) -> int:
     from sitl import SimFleet, serve
 
     mission = load_mission(args.mission)
+    _one_team(mission, "sim")
     config = _sim_config(mission, args.speedup)
 
     def ready(fleet: SimFleet) -> None:
@@ -445,6 +459,7 @@ def cmd_status(args: argparse.Namespace) -> int:
     import asyncio
 
     mission = load_mission(args.mission)
+    _one_team(mission, "status")
     if not args.timeout > 0:
         raise CliError(f"--timeout must be > 0, got {args.timeout}")
     return asyncio.run(_status(mission, args.timeout, args.speedup))
@@ -683,6 +698,7 @@ def cmd_keys_provision(args: argparse.Namespace) -> int:
     from fleetctl.mavlink.signing import SigningKey, SigningKeyError
 
     mission = load_mission(args.mission)
+    _one_team(mission, "keys provision")
     if not args.timeout > 0:
         raise CliError(f"--timeout must be > 0, got {args.timeout}")
     if mission.links.signing is None:

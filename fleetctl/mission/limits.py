@@ -18,6 +18,7 @@ MAX_NUMBER_DIGITS = 40  # characters of a number as written (more cannot be a ph
 # --------------------------------------------------------------------------- list lengths
 MAX_TASKS = 254  # MAVLink system ids 1..255: one carrier + 254 rovers, one rover per task
 MAX_ROVERS = 254
+MAX_CARRIERS = 16  # teams of one mission (carriers:)
 MAX_OBSTACLES = 500
 MAX_OBSTACLE_VERTICES = 200  # per polygon
 MAX_TOTAL_VERTICES = 5000  # all polygons together

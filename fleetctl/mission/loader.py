@@ -57,6 +57,7 @@ from fleetctl.mission.model import (
     RoverUnit,
     SigningConfig,
     SimConfig,
+    TeamConfig,
     TlsConfig,
 )
 from fleetctl.mission.yaml_safe import YamlError, read_yaml
@@ -373,6 +374,8 @@ _ROVERS = {
     "units": (_list(lambda c, v, p: c.section(v, p, _UNIT), "units {id, sysid, connection}", L.MAX_ROVERS),
               None),
 }
+_TEAM = {**_CARRIER, "id": (_ID, _REQUIRED), "sysid": (_CARRIER["sysid"][0], _REQUIRED),
+         "fleet": _ROVERS["fleet"], "units": _ROVERS["units"]}  # carriers[i]: a carrier and its rovers
 _TASK = {"id": (_ID, _REQUIRED), **_POINT_SPEC}
 _COLLECT_ROVER = {
     "id": (_ID, _REQUIRED),
@@ -466,7 +469,9 @@ _MQTT = {
 _TOP = {
     "name": (_ID, None),
     "origin": (lambda c, v, p: Origin(**c.section(v, p, _ORIGIN)), None),
-    "carrier": (lambda c, v, p: c.section(v, p, _CARRIER), _REQUIRED),
+    "carrier": (lambda c, v, p: c.section(v, p, _CARRIER), None),
+    "carriers": (_list(lambda c, v, p: c.section(v, p, _TEAM), "carriers {id, sysid, position, ..., fleet}",
+                       L.MAX_CARRIERS), None),
     "rovers": (lambda c, v, p: c.section(v, p, _ROVERS), _REQUIRED),
     "tasks": (_list(lambda c, v, p: c.section(v, p, _TASK), "tasks {id, position}", L.MAX_TASKS), _REQUIRED),
     "obstacles": (_list(_list(_vector(2), "[x, y] vertices", L.MAX_OBSTACLE_VERTICES), "polygons",
@@ -561,9 +566,7 @@ def _check_geometry(
             ("bounds",),
             "obstacles need a workspace for roadmap sampling; add 'bounds: [[xmin, ymin], [xmax, ymax]]'",
         )
-    points: list[tuple[str, Vec2, KeyPath]] = [
-        ("the carrier's start", d["carrier"]["position"], ("carrier", "position"))
-    ]
+    points: list[tuple[str, Vec2, KeyPath]] = _carrier_starts(d)
     points += [(f"task {t.id!r}", t.position[:2], ("tasks", i)) for i, t in enumerate(tasks)]
     for what, (x, y), path in points:
         if bounds is not None and not (
@@ -630,7 +633,7 @@ def _geofence(ctx: _Ctx, d: dict[str, Any], tasks: tuple[Task, ...], obstacles: 
                      "order around the outline without self-crossings")
     poly = Polygon(pts)
     where = ("geofence", "polygon") if g["polygon"] is not None else ("geofence", "from")
-    inside = [("the carrier's start", tuple(d["carrier"]["position"][:2]))]
+    inside = [(what, tuple(p[:2])) for what, p, _ in _carrier_starts(d)]
     inside += [(f"task {t.id!r}", t.position[:2]) for t in tasks]
     for what, (x, y) in inside:
         if not poly.covers(Point(x, y)):
@@ -662,7 +665,7 @@ def _check_roadmap(
                           {k: v for k, v in vars(d["planner"].roadmap).items() if v is not None}))
     radii = [deploy_range] + [c.range for c in collection or ()]
     if bounds is None:  # the graph planners' workspace: the points' box grown by the edge length
-        pts = [d["carrier"]["position"], *(t.position[:2] for t in tasks)]
+        pts = [*(p for _, p, _ in _carrier_starts(d)), *(t.position[:2] for t in tasks)]
         pts += [c.position[:2] for c in collection or ()]
         pad = max(max(radii), 1.0)
         w = max(p[0] for p in pts) - min(p[0] for p in pts) + 2 * pad
@@ -698,19 +701,25 @@ def _build(ctx: _Ctx, data: Any, path: Path | None) -> Mission:
     ctx.raw = data
     d = ctx.section(data, (), _TOP)
     origin: Origin | None = d["origin"]
+    _carriers(ctx, d)
     carrier, r = d["carrier"], d["rovers"]
     tasks, collection = _tasks_and_collection(ctx, d, origin)
     deploy_range, endurance, energy = _ranges(ctx, r)
     _check_task_heights(ctx, tasks, deploy_range)
-    units = _fleet_units(ctx, r, carrier, tasks, collection)
+    teams: tuple[tuple[dict[str, Any], tuple[str, ...]], ...]
+    if d["carriers"] is None:
+        units = _fleet_units(ctx, r, carrier, tasks, collection)
+        teams = ((carrier, tuple(u.id for u in units)),)
+    else:
+        units, teams = _team_units(ctx, d, tasks, collection)
     obstacles, bounds = _check_geometry(ctx, d, tasks)
     geofence = _geofence(ctx, d, tasks, obstacles, bounds, origin)
     _check_roadmap(ctx, d, tasks, collection, bounds, deploy_range)
-    faults = _faults(ctx, d, {u.id for u in units} | {carrier["id"]})
+    faults = _faults(ctx, d, {u.id for u in units} | {c["id"] for c, _ in teams})
     mission = Mission(
         name=d["name"] or (path.stem if path is not None else "mission"),
         origin=origin,
-        carrier=CarrierConfig(**{**carrier, "position": tuple(carrier["position"])}),
+        carrier=_carrier_config(carrier),
         rovers=RoversConfig(r["max_speed"], r["accel"], deploy_range, endurance, r["reserve"], units, energy),
         tasks=tasks,
         obstacles=obstacles,
@@ -724,6 +733,7 @@ def _build(ctx: _Ctx, data: Any, path: Path | None) -> Mission:
         raw=copy.deepcopy(data),
         path=path,
         geofence=geofence,
+        teams=tuple(TeamConfig(_carrier_config(c), ids) for c, ids in teams),
     )
     log.debug(
         "mission %s: %d tasks, %d rovers, d_deploy %.2f m", mission.name, len(tasks), len(units), deploy_range
@@ -843,7 +853,12 @@ def _fleet_units(
         + [(u.sysid, unit_path(i, "sysid")) for i, u in enumerate(units)],
         "vehicle sysid",
     )
-    rover_ids = {u.id for u in units}
+    _check_collection(ctx, collection, {u.id for u in units})
+    return tuple(units)
+
+
+def _check_collection(ctx: _Ctx, collection: tuple[CollectRover, ...] | None, rover_ids: set[str]) -> None:
+    """Collection rover ids: unique, and rovers of the fleet."""
     if collection is not None:
         _unique(
             ctx,
@@ -857,7 +872,102 @@ def _fleet_units(
                     f"{c.id!r} is not a rover of the fleet "
                     f"({', '.join(sorted(rover_ids))}); use a fleet rover id",
                 )
-    return tuple(units)
+
+
+# --- several carriers (docs/teams.md): carriers: [{carrier keys..., fleet | units}] ------------------
+def _carrier_config(c: dict[str, Any]) -> CarrierConfig:
+    keys = {k: v for k, v in c.items() if k not in ("fleet", "units")}
+    return CarrierConfig(**{**keys, "position": tuple(c["position"])})
+
+
+def _carrier_starts(d: dict[str, Any]) -> list[tuple[str, Vec2, KeyPath]]:
+    """Every carrier's start: what to call it in a message, where it is, its key path."""
+    if d.get("carriers") is None:
+        return [("the carrier's start", d["carrier"]["position"], ("carrier", "position"))]
+    return [(f"carrier {c['id']!r}'s start", c["position"], ("carriers", i, "position"))
+            for i, c in enumerate(d["carriers"])]
+
+
+def _carriers(ctx: _Ctx, d: dict[str, Any]) -> None:
+    """Exactly one of ``carrier:`` and ``carriers:``; with ``carriers:`` the rovers are the carriers'
+    own and ``d["carrier"]`` becomes the first carrier (the one that flies a one-team mission)."""
+    teams = d["carriers"]
+    if d["carrier"] is not None and teams is not None:
+        ctx.fail(("carriers",), "give either 'carrier: {...}' (one team) or 'carriers: [...]', not both")
+    if teams is None:
+        if d["carrier"] is None:
+            ctx.fail(("carrier",), "required key is missing; add 'carrier: {id, position, max_speed, ...}' "
+                                   "(one team) or 'carriers: [...]' (several)")
+        return
+    if not teams:
+        ctx.fail(("carriers",), "the list is empty; list one carrier {id, sysid, position, ..., fleet} "
+                                "per team")
+    for key in ("fleet", "units"):
+        if d["rovers"][key] is not None:
+            ctx.fail(("rovers", key), f"with 'carriers:' every carrier lists its own rovers; move "
+                                      f"rovers.{key} into each carriers[i].{key}")
+    for i, c in enumerate(teams[1:], 1):
+        if (c["connection"] == "sim") != (teams[0]["connection"] == "sim"):
+            ctx.fail(("carriers", i, "connection"), f"{c['connection']!r} mixes a simulated and a real "
+                     f"fleet (carriers[0].connection is {teams[0]['connection']!r}); use one kind for every "
+                     "carrier")
+    d["carrier"] = teams[0]
+
+
+def _team_units(
+    ctx: _Ctx, d: dict[str, Any], tasks: tuple[Task, ...], collection: tuple[CollectRover, ...] | None,
+) -> tuple[tuple[RoverUnit, ...], tuple[tuple[dict[str, Any], tuple[str, ...]], ...]]:
+    """Every carrier's rovers (``fleet:`` ids run on across carriers in list order), enough for the
+    tasks, ids and sysids unique over every vehicle, collection rovers among them."""
+    rows: list[tuple[RoverUnit, KeyPath, KeyPath]] = []
+    teams = []
+    for i, c in enumerate(d["carriers"]):
+        next_sysid = rows[-1][0].sysid + 1 if rows else c["sysid"] + 10
+        own = _team_fleet(ctx, c, ("carriers", i), len(rows), next_sysid)
+        rows += own
+        teams.append((c, tuple(u.id for u, _, _ in own)))
+    if len(rows) < len(tasks):
+        ctx.fail(("carriers",), f"only {len(rows)} rover(s) on the carriers for {len(tasks)} tasks; every "
+                                f"task needs its own rover, give at least {len(tasks)} rovers in all")
+    cars = d["carriers"]
+    _unique(ctx, [(c["id"], ("carriers", i, "id")) for i, c in enumerate(cars)]
+            + [(u.id, p) for u, p, _ in rows], "vehicle id")
+    _unique(ctx, [(c["sysid"], ("carriers", i, "sysid")) for i, c in enumerate(cars)]
+            + [(u.sysid, p) for u, _, p in rows], "vehicle sysid")
+    _check_collection(ctx, collection, {u.id for u, _, _ in rows})
+    return tuple(u for u, _, _ in rows), tuple(teams)
+
+
+def _team_fleet(ctx: _Ctx, c: dict[str, Any], path: KeyPath, first: int,
+                next_sysid: int) -> list[tuple[RoverUnit, KeyPath, KeyPath]]:
+    """One carrier's rovers with the key paths of their id and sysid: ``units: [...]`` as given, or
+    ``fleet: {count, sysid_start}`` as r<first+1>.. with sysids from sysid_start (default: after
+    the previous carrier's last rover; for the first carrier, its sysid + 10)."""
+    if c["fleet"] is not None and c["units"] is not None:
+        ctx.fail(path + ("units",), "give either 'fleet: {count, sysid_start}' or 'units: [...]', not both")
+    if c["units"] is not None:
+        if not c["units"]:
+            ctx.fail(path + ("units",), "the list of rover units is empty; list one unit per rover")
+        out = []
+        for j, u in enumerate(c["units"]):
+            up = path + ("units", j)
+            if u["connection"] is not None and (u["connection"] == "sim") != (c["connection"] == "sim"):
+                ctx.fail(up + ("connection",), f"{u['connection']!r} mixes a simulated and a real link "
+                         f"(carrier connection is {c['connection']!r}); remove it to share the carrier's "
+                         "link")
+            out.append((RoverUnit(u["id"], u["sysid"], u["connection"]), up + ("id",), up + ("sysid",)))
+        return out
+    if c["fleet"] is None or c["fleet"]["count"] is None:
+        ctx.fail(path + ("fleet",) + (() if c["fleet"] is None else ("count",)),
+                 "required key is missing; every carrier of 'carriers:' needs its own rovers: "
+                 "'fleet: {count, sysid_start}' or 'units: [{id, sysid}, ...]'")
+    count, start = c["fleet"]["count"], c["fleet"]["sysid_start"] or next_sysid
+    fp = path + ("fleet",)
+    if start + count - 1 > 255:
+        ctx.fail(fp + ("sysid_start",), f"rover sysids {start}..{start + count - 1} exceed 255; lower "
+                                        "sysid_start (or the carriers' sysids)")
+    return [(RoverUnit(f"r{first + j + 1}", start + j, None), fp, fp + ("sysid_start",))
+            for j in range(count)]
 
 
 def _faults(ctx: _Ctx, d: dict[str, Any], vehicles: set[str]) -> list[Fault]:

@@ -52,6 +52,14 @@ class CarrierConfig:
 
 
 @dataclass(frozen=True)
+class TeamConfig:
+    """One carrier and the ids of the rovers on its deck (``carriers:``; docs/teams.md)."""
+
+    carrier: CarrierConfig
+    rovers: tuple[str, ...]
+
+
+@dataclass(frozen=True)
 class RoverUnit:
     id: str
     sysid: int
@@ -183,6 +191,7 @@ class Mission:
     raw: dict[str, Any]  # the parsed YAML as written (no defaults filled in)
     path: Path | None = None
     geofence: GeofenceConfig | None = None
+    teams: tuple[TeamConfig, ...] = ()  # every carrier with its deck; () = one team (carrier, every rover)
 
     def _start(self) -> Vec3:
         return (self.carrier.position[0], self.carrier.position[1], 0.0)

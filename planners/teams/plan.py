@@ -27,6 +27,7 @@ class TeamsPlan:
     allocation: str  # how the pool was shared: "search" or "nearest" (the baseline)
     teams: list[TeamPlan]
     compute_ms: float = 0.0
+    baseline_makespan: float | None = None  # the nearest-carrier allocation's, when it was computed
     notes: list[str] = field(default_factory=list)
 
     @property
