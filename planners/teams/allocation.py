@@ -36,10 +36,11 @@ def plan_teams(problem: TeamsProblem[P], planner: Callable[[P], Plan], name: str
     groups = item_clusters(problem)
     nearest = Allocation(scorer, nearest_assignment(problem))
     built = Allocation(scorer, construct(problem, groups))
+    baseline = nearest.makespan()
     alloc = built if better(built.key(), nearest.key()) else nearest
-    alloc = improve(alloc, groups, max_calls)
+    alloc = improve(alloc, groups, max_calls)  # in place
     out = teams_plan(scorer, alloc, name, "search", t0)
-    out.baseline_makespan = nearest.makespan()
+    out.baseline_makespan = baseline
     out.notes.append(f"{scorer.calls} team plans computed")
     return out
 
