@@ -20,6 +20,10 @@ Decisions beyond the contract:
 * Collection rover ids must be rovers of the fleet; fault ``vehicle`` must be a vehicle id.
 * The carrier's start and every task must lie outside every obstacle and inside ``bounds``.
 * Duplicate keys in a YAML mapping are rejected (YAML silently keeps the last one).
+* ``carriers: [...]`` (docs/teams.md) replaces ``carrier:``: each entry takes the carrier keys (``id``
+  and ``sysid`` required) and its own ``fleet`` or ``units``; ``fleet`` ids run on across carriers
+  and its ``sysid_start`` defaults to one after the previous carrier's last rover. ``Mission.carrier``
+  is the first carrier, ``rovers.units`` every team's rovers, ``Mission.teams`` the decks.
 """
 
 from __future__ import annotations
