@@ -189,6 +189,23 @@ def test_far_carrier_gets_nothing_and_search_beats_nearest() -> None:
     assert out.baseline_makespan is not None and out.makespan < out.baseline_makespan - 1.0
 
 
+def test_roadmap_teams_avoid_obstacles(tmp_path: Path) -> None:
+    """lee-graph plans every team among obstacles; the allocation properties hold there too."""
+    import yaml
+
+    d = yaml.safe_load((ROOT / "missions/paper/roadmap_outdoor_obstacles.yaml").read_text())
+    one = d.pop("carrier")
+    del d["rovers"]["fleet"], d["collection"]
+    d["carriers"] = [{**one, "id": "c1", "fleet": {"count": 4}},
+                     {**one, "id": "c2", "sysid": 2, "position": [80, 85], "fleet": {"count": 4}}]
+    problem = teams_problem(load(tmp_path, d), "deploy")
+    out = plan_teams(problem, DEPLOY_PLANNERS["lee-graph"], "lee-graph", max_calls=12)
+    check_teams(problem, out)
+    assert out.baseline_makespan is not None and out.makespan <= out.baseline_makespan + EPS
+    assert any(len(leg.path) > 2 or len(s.carrier_path) > 2 for t in out.teams for s in t.plan.stops
+               for leg in s.rovers)  # polylines around the obstacles
+
+
 def test_too_few_rovers_on_the_decks_is_refused() -> None:
     from planners.problem import PlanningError
 

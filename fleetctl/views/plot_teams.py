@@ -36,7 +36,7 @@ def plot_teams(mission: Mission, plan: TeamsPlan, out: str | Path, lower_bound: 
     if plan.baseline_makespan is not None:
         title += f", nearest carrier {plan.baseline_makespan:.2f} s"
     if lower_bound is not None:
-        title += f" (lower bound {lower_bound:.2f} s)"
+        title += f"\nlower bound {lower_bound:.2f} s"
     ax.set_title(title, fontsize=10)
     ax.set_xlabel("east (m)")
     ax.set_ylabel("north (m)")
