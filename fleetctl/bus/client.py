@@ -490,10 +490,11 @@ class FleetBus:
         raw = copy.deepcopy(self.mission.raw)
         raw["tasks"] = list(entries) + [{"id": t.id, "position": [float(c) for c in t.position]}
                                         for t in current]
-        rovers = dict(raw.get("rovers") or {})
-        rovers.pop("fleet", None)  # the fleet is fixed: spell out its units
-        rovers["units"] = [{"id": u.id, "sysid": u.sysid} for u in self.mission.rovers.units]
-        raw["rovers"] = rovers
+        if "carriers" not in raw:  # (a carriers: list gives every fleet's count itself)
+            rovers = dict(raw.get("rovers") or {})
+            rovers.pop("fleet", None)  # the fleet is fixed: spell out its units
+            rovers["units"] = [{"id": u.id, "sysid": u.sysid} for u in self.mission.rovers.units]
+            raw["rovers"] = rovers
         raw.pop("mqtt", None)
         try:
             m = parse_mission(raw, f"mqtt {source}")
