@@ -41,11 +41,14 @@ def travel_time(length: float, motion: Motion) -> float:
 
 
 def dissertation_model(problem: P) -> P:
-    """The same problem under the dissertation's time model: no fixed per-flight time (the paper
-    tables in bench/ are computed this way so that they stay comparable with the text)."""
-    if problem.rover.fixed_time == 0.0:
+    """The same problem under the dissertation's time model: no take-off clearance, no
+    touch-down time, no fixed per-flight time (the paper tables in bench/ are computed this way so
+    that they stay comparable with the text)."""
+    c, r = problem.carrier, problem.rover
+    if c.takeoff_time == 0.0 and c.land_time == 0.0 and r.fixed_time == 0.0:
         return problem
-    return dataclasses.replace(problem, rover=dataclasses.replace(problem.rover, fixed_time=0.0))
+    return dataclasses.replace(problem, carrier=dataclasses.replace(c, takeoff_time=0.0, land_time=0.0),
+                               rover=dataclasses.replace(r, fixed_time=0.0))
 
 
 def dist(p: Sequence[float], q: Sequence[float]) -> float:
@@ -127,8 +130,9 @@ def deploy_schedule(
 ) -> tuple[list[float], list[float], list[list[float]], float]:
     """Deployment times: each stop's arrival and departure, each rover's arrival, the makespan.
 
-    At stop k the carrier arrives, unloads once for ``unload_time`` and leaves; its rovers
-    depart when unloading ends (eq. 4.3). Makespan = the last rover's arrival.
+    At stop k the carrier arrives, unloads once for ``unload_time``, waits ``takeoff_time`` while
+    its rovers climb clear of the deck and leaves; the rovers' flights start then (eq. 4.3 with
+    the clearance). Makespan = the last rover's arrival.
     """
     t = 0.0
     arrive, depart, rover_arrive = [], [], []
@@ -137,7 +141,7 @@ def deploy_schedule(
         dt, heading = carrier_leg(path, heading, carrier)
         t += dt
         arrive.append(t)
-        t += carrier.unload_time
+        t += carrier.deploy_stop_time
         depart.append(t)
         arr = [t + leg_time(length, rover) for length in lengths]
         rover_arrive.append(arr)
@@ -156,7 +160,8 @@ def collect_schedule(
 ) -> tuple[list[float], list[float], list[list[float]], float]:
     """Collection times (eq. 5.2): rovers all start at t = 0; the carrier waits for late rovers.
 
-    eta_k = max(eta_{k-1} + rotation + leg_k, latest rover arrival at k) + load_time.
+    eta_k = max(eta_{k-1} + rotation + leg_k, latest rover arrival at k) + land_time + load_time:
+    a rover comes down onto the deck once both are there (``land_time``), then it is loaded.
     Returns each stop's carrier arrival, departure (= eta_k), rover arrivals, and the makespan.
     """
     eta = 0.0
@@ -165,7 +170,7 @@ def collect_schedule(
         dt, heading = carrier_leg(path, heading, carrier)
         here = eta + dt
         arr = [leg_time(length, rover) for length in lengths]
-        eta = max([here, *arr]) + carrier.load_time
+        eta = max([here, *arr]) + carrier.collect_stop_time
         arrive.append(here)
         depart.append(eta)
         rover_arrive.append(arr)
@@ -185,4 +190,11 @@ def retime(plan: Plan, carrier: CarrierSpec, rover: Motion) -> Plan:
             leg.arrive = t
     plan.makespan = makespan
     plan.carrier_distance = sum(path_length(p) for p in paths)
+    plan.time_model = time_model_terms(carrier, rover)
     return plan
+
+
+def time_model_terms(carrier: CarrierSpec, rover: Motion) -> dict[str, float]:
+    """The terms beyond the dissertation's model, as the plan JSON reports them."""
+    return {"takeoff_time": carrier.takeoff_time, "land_time": carrier.land_time,
+            "rover_fixed_time": rover.fixed_time}
