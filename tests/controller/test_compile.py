@@ -60,7 +60,7 @@ def test_deploy_items_round_trip_to_the_plan(recon) -> None:
         assert rm.task == leg.task and rm.target_seq == len(cmds) - 2 and rm.final_seq == len(cmds) - 1
         start, target = leg.path[0], leg.end
         # take off to the clearance only, then the straight line to the task
-            assert close_to(rm.items[0], (start[0], start[1], TAKEOFF_HEIGHT), origin)
+        assert close_to(rm.items[0], (start[0], start[1], TAKEOFF_HEIGHT), origin)
         for item, v in zip(rm.items[1:-1], leg.path[1:], strict=True):
             assert close_to(item, v, origin)  # 3D, within 1 cm
         assert close_to(rm.items[-1], target, origin)
