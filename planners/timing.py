@@ -40,6 +40,27 @@ def travel_time(length: float, motion: Motion) -> float:
     return 2.0 * math.sqrt(length / a)
 
 
+def remaining_leg_time(length: float, speed: float, motion: Motion) -> float:
+    """Time to cover the last ``length`` metres of a leg, moving at ``speed`` now and at rest at
+    its end (eq. 4.2's profile entered part-way: accelerate to the top speed, cruise, brake).
+
+    ``speed = 0`` gives :func:`travel_time`. For live estimates (the carrier's ETA at its stop).
+    """
+    if length <= 0.0:
+        return 0.0
+    v, a = motion.max_speed, motion.accel
+    v0 = min(max(speed, 0.0), v)
+    if a is None:
+        return length / v
+    if length <= v0 * v0 / (2.0 * a):  # inside its braking distance: brakes at ``a`` from sqrt(2·a·length)
+        return math.sqrt(2.0 * length / a)
+    ramp = (v * v - v0 * v0) / (2.0 * a) + v * v / (2.0 * a)
+    if length >= ramp:
+        return (v - v0) / a + v / a + (length - ramp) / v
+    peak = math.sqrt((2.0 * a * length + v0 * v0) / 2.0)
+    return (peak - v0) / a + peak / a
+
+
 def dissertation_model(problem: P) -> P:
     """The same problem under the dissertation's time model: no take-off clearance, no
     touch-down time, no fixed per-flight time (the paper tables in bench/ are computed this way so

@@ -136,3 +136,23 @@ def test_dissertation_model_drops_the_fixed_time_and_shifts_a_deployment_by_it()
     a, b = DEPLOY_PLANNERS["lee"](p), DEPLOY_PLANNERS["lee"](base)
     # in a deployment the fixed time is a constant on every rover arrival: same plan, makespan + 3 s
     assert a.makespan == pytest.approx(b.makespan + 3.0)
+
+
+@pytest.mark.parametrize("accel", [None, 0.5, 3.0])
+def test_remaining_leg_time_matches_the_leg_from_rest_and_a_simulated_profile(accel):
+    from planners.problem import Motion
+    from planners.timing import remaining_leg_time, travel_time
+
+    m = Motion(4.0, accel)
+    for d in (0.5, 3.0, 40.0):
+        assert remaining_leg_time(d, 0.0, m) == pytest.approx(travel_time(d, m))
+    if accel is None:
+        return
+    # integrate the profile from a speed v0 part-way: accelerate, cruise, brake to rest at the end
+    for d, v0 in ((40.0, 2.0), (5.0, 3.0), (30.0, 4.0)):
+        x, v, t, dt = 0.0, v0, 0.0, 1e-4
+        while d - x > 1e-6 and t < 100:
+            v = max(min(4.0, v + accel * dt, math.sqrt(2 * accel * (d - x))), 1e-3)
+            x += v * dt
+            t += dt
+        assert remaining_leg_time(d, v0, m) == pytest.approx(t, rel=0.02)

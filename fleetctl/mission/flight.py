@@ -15,6 +15,7 @@ from __future__ import annotations
 GROUND_HEIGHT = 0.2  # m: a rover this low is on the ground (a collection flight from there takes off first)
 TAKEOFF_HEIGHT = 1.0  # m above the deck: a launched rover climbs this high before it turns onto its line
 MEET_HEIGHT = 3.0  # m above a collection stop: a returning rover waits here for the carrier, then lands
+DEFAULT_ENDURANCE = 600.0  # s in the air on a full battery when the mission gives no endurance_range
 TAKEOFF_SETTLE = 0.5  # s beyond the climb: take-off detection and the turn onto the line (measured)
 LAND_SETTLE = 0.5  # s beyond the descent: touch-down detection, disarm, the controller seeing it (measured)
 
@@ -29,5 +30,5 @@ def default_land_time(land_speed: float) -> float:
     return MEET_HEIGHT / land_speed + LAND_SETTLE
 
 
-__all__ = ["GROUND_HEIGHT", "LAND_SETTLE", "MEET_HEIGHT", "TAKEOFF_HEIGHT", "TAKEOFF_SETTLE",
-           "default_land_time", "default_takeoff_time"]
+__all__ = ["DEFAULT_ENDURANCE", "GROUND_HEIGHT", "LAND_SETTLE", "MEET_HEIGHT", "TAKEOFF_HEIGHT",
+           "TAKEOFF_SETTLE", "default_land_time", "default_takeoff_time"]

@@ -39,7 +39,7 @@ from shapely.validation import explain_validity
 
 import fleetctl.mission.limits as L
 from fleetctl.geo import Origin, geodetic_to_local
-from fleetctl.mission.flight import default_land_time, default_takeoff_time
+from fleetctl.mission.flight import DEFAULT_ENDURANCE, default_land_time, default_takeoff_time
 from fleetctl.mission.model import (
     FAILSAFE_ACTIONS,
     FAULT_KINDS,
@@ -801,7 +801,10 @@ def _ranges(ctx: _Ctx, r: dict[str, Any]) -> tuple[float, float, EnergyConfig | 
         deploy_range = r["deploy_range"]
     endurance = r["endurance_range"]
     if endurance is None:
-        endurance = energy.rho * energy.initial if energy is not None else 2.0 * deploy_range
+        # a multirotor burns its battery per second in the air, hovering included: without energy
+        # terms, a DEFAULT_ENDURANCE battery at cruise speed (at least there and back)
+        endurance = (energy.rho * energy.initial if energy is not None
+                     else max(2.0 * deploy_range, DEFAULT_ENDURANCE * r["max_speed"]))
         endurance = min(endurance, max(L.MAX_RANGE, deploy_range))  # physical cap of a derived value
     elif endurance < deploy_range:
         ctx.fail(

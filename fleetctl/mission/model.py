@@ -3,6 +3,7 @@ it), and the planning problems it gives the planners."""
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -228,7 +229,7 @@ class Mission:
             )
         return CollectProblem(
             carrier=self.carrier_spec(),
-            rover=self.rovers.motion(from_ground=_any_on_ground(self.collection)),
+            rover=self.rovers.motion(from_ground=any_on_ground(self.collection)),
             start=self._start(),
             heading=compass_to_math(self.carrier.heading_deg),
             rovers=self.collection,
@@ -262,6 +263,6 @@ class Mission:
         return str(self.path) if self.path is not None else self.name
 
 
-def _any_on_ground(rovers: tuple[CollectRover, ...]) -> bool:
+def any_on_ground(rovers: Iterable[CollectRover]) -> bool:
     """A collection whose rovers (any of them) start on the ground: their flights take off first."""
     return any(r.position[2] <= GROUND_HEIGHT for r in rovers)
