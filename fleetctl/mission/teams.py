@@ -5,9 +5,7 @@ from __future__ import annotations
 
 from dataclasses import replace
 
-from fleetctl.geo import compass_to_math
 from fleetctl.mission.model import Mission, TeamConfig
-from planners.problem import DeployProblem
 from planners.teams import TeamsProblem
 
 
@@ -23,11 +21,9 @@ def several_teams(mission: Mission) -> bool:
 def teams_problem(mission: Mission, phase: str) -> TeamsProblem:
     """The deployment (``phase`` "deploy") or collection problem of every team: its own carrier,
     start, heading and deck, the mission's whole pool of tasks or rovers to collect."""
-    base = mission.deploy_problem() if phase == "deploy" else mission.collect_problem()
     problems = []
     for team in mission_teams(mission):
-        c = team.carrier
-        p = replace(base, carrier=c.spec(), start=(c.position[0], c.position[1], 0.0),
-                    heading=compass_to_math(c.heading_deg))
-        problems.append(replace(p, rovers=team.rovers) if isinstance(p, DeployProblem) else p)
+        own = replace(mission, carrier=team.carrier)  # the mission as if this carrier were its only one
+        problems.append(replace(own.deploy_problem(), rovers=team.rovers) if phase == "deploy"
+                        else own.collect_problem())
     return TeamsProblem(tuple(t.carrier.id for t in mission_teams(mission)), tuple(problems))

@@ -47,17 +47,17 @@ def _one_team_bound(p: DeployProblem | CollectProblem) -> float:
 
 
 def _stops_bound(problem: TeamsProblem) -> float:
-    """Argument. Items whose reach discs (centre the ground point, radius ρ = sqrt(range² − z²))
-    are pairwise disjoint — chosen greedily — need one stop each: K stops in all, K_k by team k,
-    each costing at least h = the smallest unload (or load) time. Some team makes ≥ ceil(K / m)
-    of them, so the makespan is ≥ ceil(K / m) · h. Also, team k's route from its start through
-    its stops is ≥ L_k long and takes ≥ g(L_k) with g(L) = min over the teams' carriers of
-    leg_time(L) (see ``planners.bounds``: leg time is increasing, concave and zero at zero, so a
-    split into legs never beats one leg; g, a minimum of such functions, is concave too, hence
-    subadditive). The routes together contain a spanning forest of the chosen stops rooted at
-    the starts, whose length is ≥ W, the minimum spanning tree with every start merged into one
-    root and the gap distances |p_a − p_b| ≥ |t_a − t_b| − ρ_a − ρ_b, |s_k − p_a| ≥ |s_k − t_a| − ρ_a.
-    The makespan is ≥ the teams' mean time ≥ (Σ g(L_k) + K·h) / m ≥ (g(W) + K·h) / m.
+    """Argument. Items whose reach discs (centre the ground point, radius ρ = sqrt(range² − z²)) are
+    pairwise disjoint — chosen greedily — need one stop each: K stops in all, K_k by team k, each
+    costing at least h, the shortest stop time of the teams (``TeamsProblem.stop_time``). Some team
+    makes ≥ ceil(K / m) of them, so the makespan is ≥ ceil(K / m) · h. Also, team k's route from its
+    start through its stops is ≥ L_k long and takes ≥ g(L_k), g(L) = the least over the teams'
+    carriers of leg_time(L) (``planners.bounds``: leg time is increasing, concave and zero at zero,
+    so a split into legs never beats one leg; g, a minimum of such functions, is concave too, hence
+    subadditive). The routes together contain a spanning forest of the chosen stops rooted at the
+    starts, at least W long: the minimum spanning tree with every start merged into one root and the
+    gap distances |p_a − p_b| ≥ |t_a − t_b| − ρ_a − ρ_b, |s_k − p_a| ≥ |s_k − t_a| − ρ_a. The
+    makespan is ≥ the teams' mean time ≥ (Σ g(L_k) + K·h) / m ≥ (g(W) + K·h) / m.
     """
     xy = np.array([q[:2] for q in problem.positions()], dtype=float).reshape(-1, 2)
     reach = ground_reach(problem)
@@ -65,8 +65,7 @@ def _stops_bound(problem: TeamsProblem) -> float:
     for i in np.argsort(reach, kind="stable"):  # smallest discs first: more of them fit
         if all(np.linalg.norm(xy[i] - xy[j]) > reach[i] + reach[j] for j in chosen):
             chosen.append(int(i))
-    handling = min(p.carrier.unload_time if isinstance(p, DeployProblem) else p.carrier.load_time
-                   for p in problem.problems)
+    handling = min(problem.stop_time(k) for k in range(problem.n_teams))
     k, m = len(chosen), problem.n_teams
     drive = min(leg_time(_forest_length(problem, xy[chosen], reach[chosen]), p.carrier.motion)
                 for p in problem.problems)

@@ -2,10 +2,11 @@
 
 Each team keeps an estimated route (an open path from its start through the centres of its
 groups, grown by cheapest insertion) whose time is the sum of ``timing.leg_time`` over its hops
-plus one unload/load per stop. Groups farthest from every start go first; each goes to the team
-whose estimate then makes the largest estimate smallest (ties: the smallest increase), within the
-team's deck. A group no team has room for is handed out item by item. The exact time model
-scores the result afterwards (``planners.teams.allocation``).
+plus one stop time (unload and take-off, or touch-down and load) per stop. Groups farthest from
+every start go first; each goes to the team whose estimate then makes the largest estimate
+smallest (ties: the smallest increase), within the team's deck. A group no team has room for is
+handed out item by item. The exact time model scores the result afterwards
+(``planners.teams.allocation``).
 """
 
 from __future__ import annotations
@@ -14,7 +15,7 @@ import math
 
 import numpy as np
 
-from planners.problem import DeployProblem, PlanningError
+from planners.problem import PlanningError
 from planners.teams.problem import TeamsProblem
 from planners.timing import leg_time
 
@@ -27,7 +28,7 @@ class _Route:
     def __init__(self, problem: TeamsProblem, team: int) -> None:
         p = problem.problems[team]
         self.motion = p.carrier.motion
-        self.handling = p.carrier.unload_time if isinstance(p, DeployProblem) else p.carrier.load_time
+        self.handling = problem.stop_time(team)
         self.points: list[Point] = [(p.start[0], p.start[1])]
         self.time = 0.0
         self.room = problem.capacity(team)

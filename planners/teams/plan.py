@@ -45,6 +45,8 @@ class TeamsPlan:
             teams.append({"carrier": t.carrier, "start": one["carrier"]["start"],
                           "heading": one["carrier"]["heading"], "stops": one["stops"],
                           "makespan": one["makespan"], "carrier_distance": one["carrier_distance"]})
+        model = next((t.plan.time_model for t in self.teams if t.plan.time_model is not None), None)
         return {"schema": PLAN_SCHEMA, "kind": self.kind, "planner": self.planner,
                 "allocation": self.allocation, "teams": teams,
-                "makespan": round(float(self.makespan), 6), "compute_ms": round(self.compute_ms, 3)}
+                "makespan": round(float(self.makespan), 6), "compute_ms": round(self.compute_ms, 3),
+                **({"time_model": dict(model)} if model is not None else {})}

@@ -59,6 +59,12 @@ class TeamsProblem(Generic[P]):
             return len(p.rovers) if p.rovers else len(p.tasks)
         return self.n_items
 
+    def stop_time(self, team: int) -> float:
+        """Team ``team``'s carrier's time at a stop: unload + take-off clearance (deployment), or
+        touch-down + load once its rovers are there (collection)."""
+        c = self.problems[team].carrier
+        return c.deploy_stop_time if self.kind == "deploy" else c.collect_stop_time
+
     def restrict(self, team: int, members: Sequence[int]) -> P:
         """Team ``team``'s own problem: its carrier and deck with the pool items ``members``."""
         p = self.problems[team]
