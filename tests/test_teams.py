@@ -35,7 +35,8 @@ EPS = 1e-6
 def _carrier(rng: random.Random) -> CarrierSpec:
     return CarrierSpec(max_speed=rng.uniform(8, 16), accel=rng.choice([None, rng.uniform(3, 10)]),
                        turn_rate=rng.choice([None, rng.uniform(1, 4)]), unload_time=rng.uniform(0, 5),
-                       load_time=rng.uniform(0, 5))
+                       load_time=rng.uniform(0, 5), takeoff_time=rng.choice([0.0, 1.5]),
+                       land_time=rng.choice([0.0, 2.0]))
 
 
 def deploy_teams(seed: int, n: int, m: int, spare: int = 2) -> TeamsProblem[DeployProblem]:
@@ -66,7 +67,7 @@ def collect_teams(seed: int, n: int, m: int) -> TeamsProblem[CollectProblem]:
         z = rng.choice([0.0, rng.uniform(0, 8)])
         rovers.append(CollectRover(f"r{i + 1}", (rng.uniform(0, 200), rng.uniform(0, 200), z),
                                    z + rng.uniform(5, 40)))
-    motion = Motion(rng.uniform(1, 3))
+    motion = Motion(rng.uniform(1, 3), None, rng.choice([0.0, 1.5]))  # fixed time: rovers on the ground
     problems = tuple(CollectProblem(_carrier(rng), motion, (rng.uniform(0, 200), rng.uniform(0, 200), 0.0),
                                     rng.uniform(-3, 3), tuple(rovers)) for _ in range(m))
     return TeamsProblem(tuple(f"c{k + 1}" for k in range(m)), problems)
@@ -86,8 +87,10 @@ def _retimed_equal(plan: Plan, p: DeployProblem | CollectProblem) -> None:
 def _independent_check(plan: Plan, p: DeployProblem | CollectProblem) -> None:
     """The JSON of one team's plan against tests/plan_checker (written from DESIGN.md's text)."""
     c = p.carrier
-    carrier = {"max_speed": c.max_speed, "accel": c.accel, "turn_rate": c.turn_rate,
-               "unload_time": c.unload_time, "load_time": c.load_time}
+    if p.rover.fixed_time:
+        return  # the checker knows no fixed flight time; retime covers it
+    carrier = {"max_speed": c.max_speed, "accel": c.accel, "turn_rate": c.turn_rate,  # time at a stop
+               "unload_time": c.deploy_stop_time, "load_time": c.collect_stop_time}
     rover = {"max_speed": p.rover.max_speed, "accel": p.rover.accel}
     if isinstance(p, DeployProblem):
         got = check_plan(plan.to_json(), carrier, rover, p.deploy_range)
@@ -222,7 +225,9 @@ def test_teams_json_shape() -> None:
     assert set(data) == {"schema", "kind", "planner", "allocation", "teams", "makespan", "compute_ms"}
     assert data["schema"] == "fleetctl.plan/1" and data["kind"] == "deploy" and data["planner"] == "lee"
     for team in data["teams"]:
-        assert set(team) == {"carrier", "start", "heading", "stops", "makespan", "carrier_distance"}
+        assert set(team) == {"carrier", "start", "heading", "stops", "makespan", "carrier_distance",
+                             "time_model"}
+        assert set(team["time_model"]) == {"takeoff_time", "land_time", "rover_fixed_time"}
         for stop in team["stops"]:
             assert set(stop) == {"position", "arrive", "depart", "carrier_path", "rovers"}
             for r in stop["rovers"]:
@@ -345,12 +350,12 @@ def test_plan_json_on_two_carriers(capsys: pytest.CaptureFixture[str]) -> None:
     tasks = sorted(r["task"] for t in data["teams"] for s in t["stops"] for r in s["rovers"])
     assert tasks == sorted(t.id for t in m.tasks)
     for team, cfg in zip(data["teams"], mission_teams(m), strict=True):
-        k = cfg.carrier
+        k = replace(m, carrier=cfg.carrier).carrier_spec()
         one = {"schema": data["schema"], "kind": "deploy", "carrier": {"start": team["start"],
                                                                        "heading": team["heading"]},
                "stops": team["stops"], "makespan": team["makespan"]}
         got = check_plan(one, {"max_speed": k.max_speed, "accel": k.accel, "turn_rate": k.turn_rate,
-                               "unload_time": k.unload_time, "load_time": k.load_time},
+                               "unload_time": k.deploy_stop_time, "load_time": k.collect_stop_time},
                          {"max_speed": m.rovers.max_speed, "accel": m.rovers.accel}, m.rovers.deploy_range)
         assert got == pytest.approx(team["makespan"], abs=1e-3)
         assert {r["rover"] for s in team["stops"] for r in s["rovers"]} <= set(cfg.rovers)

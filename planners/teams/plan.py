@@ -44,9 +44,8 @@ class TeamsPlan:
             one = t.plan.to_json()
             teams.append({"carrier": t.carrier, "start": one["carrier"]["start"],
                           "heading": one["carrier"]["heading"], "stops": one["stops"],
-                          "makespan": one["makespan"], "carrier_distance": one["carrier_distance"]})
-        model = next((t.plan.time_model for t in self.teams if t.plan.time_model is not None), None)
+                          "makespan": one["makespan"], "carrier_distance": one["carrier_distance"],
+                          **({"time_model": one["time_model"]} if "time_model" in one else {})})
         return {"schema": PLAN_SCHEMA, "kind": self.kind, "planner": self.planner,
                 "allocation": self.allocation, "teams": teams,
-                "makespan": round(float(self.makespan), 6), "compute_ms": round(self.compute_ms, 3),
-                **({"time_model": dict(model)} if model is not None else {})}
+                "makespan": round(float(self.makespan), 6), "compute_ms": round(self.compute_ms, 3)}
