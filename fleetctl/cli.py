@@ -54,7 +54,10 @@ def cmd_plan(args: argparse.Namespace) -> int:
     if several_teams(mission):  # carriers: [...] with more than one carrier (docs/teams.md)
         from fleetctl.teams_plan import plan_teams_command
 
-        return plan_teams_command(args, mission, registry[name], name)
+        try:
+            return plan_teams_command(args, mission, registry[name], name)
+        except PlanningError as e:
+            raise CliError(f"{args.mission}: cannot plan with {name!r}: {e}") from None
     problem = mission.collect_problem() if args.collect else mission.deploy_problem()
     try:
         plan = registry[name](problem)

@@ -9,7 +9,6 @@ import sys
 from collections.abc import Callable
 from typing import Any
 
-from fleetctl.cli import CliError
 from fleetctl.mission import Mission
 from fleetctl.mission.teams import teams_problem
 from planners.plan import Plan
@@ -18,14 +17,10 @@ from planners.teams import TeamsPlan, plan_teams, teams_lower_bound
 
 def plan_teams_command(args: argparse.Namespace, mission: Mission, planner: Callable[[Any], Plan],
                        name: str) -> int:
-    from planners import PlanningError
-
+    """Plan, then print the summary (or the JSON) and draw the plot; a PlanningError goes to the caller."""
     problem = teams_problem(mission, "collect" if args.collect else "deploy")
-    try:
-        plan = plan_teams(problem, planner, name)
-        bound = teams_lower_bound(problem)
-    except PlanningError as e:
-        raise CliError(f"{args.mission}: cannot plan with {name!r}: {e}") from None
+    plan = plan_teams(problem, planner, name)
+    bound = teams_lower_bound(problem)
     if args.json:
         json.dump(plan.to_json(), sys.stdout, indent=1)
         sys.stdout.write("\n")

@@ -375,3 +375,13 @@ def test_flying_several_teams_is_refused(command: str, capsys: pytest.CaptureFix
     assert main([command, "--mission", str(TWO)]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "several teams can only be planned for now" in err
+
+
+def test_a_planner_that_cannot_serve_the_shares_is_one_line() -> None:
+    import subprocess
+    import sys
+
+    cmd = [sys.executable, "-m", "fleetctl.cli", "plan", "-m", str(TWO), "--planner", "two-task"]
+    res = subprocess.run(cmd, capture_output=True, text=True, cwd=ROOT, timeout=120)
+    assert res.returncode == 2 and res.stderr.count("\n") == 1, res.stderr
+    assert "cannot plan with 'two-task'" in res.stderr
