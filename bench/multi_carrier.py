@@ -2,9 +2,10 @@
 
 Monte Carlo instances as in ch. 4.6.2 (bench/scaling.py): n = 20 … 100 tasks in a 300 m square,
 d_deploy 10–40 m, carrier and rover parameters drawn around 15 m/s, 5 m/s², 3 rad/s, 3 s unload,
-3 m/s. Each instance draws four carrier starts (and headings) in the square; with m carriers the
-first m start, all of the instance's carrier type, and the n rovers are split between their
-decks as evenly as possible (the same rovers as the one carrier has). Per (n, m) row:
+3 m/s, in the dissertation's time model (no take-off or touch-down terms, like bench/scaling.py).
+Each instance draws four carrier starts (and headings) in the square; with m carriers the first m
+start, all of the instance's carrier type, and the n rovers are split between their decks as
+evenly as possible (the same rovers as the one carrier has). Per (n, m) row:
 
 * makespan: mean over the instances (``planners.teams.plan_teams``, each team by ``lee``);
 * vs 1 carrier: mean of makespan(m) / makespan(1) on the same instance;
