@@ -9,7 +9,8 @@ the lowest battery any rover reached, and the controller's CPU share with 100 ro
    coordinates. The lowest battery is polled from the simulated rovers during the flight (a
    rover burns its battery per second in the air, hovering included); in a collect row each rover
    has ``reserve + range / endurance_range`` of its battery once the fleet is connected, as the
-   scenario gives it (the runner sets it).
+   scenario gives it (the runner sets it). "ETA error" is the largest gap between the live makespan
+   prediction at a stop (journal `eta` records) and the flown makespan, from the first stop on.
    Rows run in ``--jobs`` child processes at once (each flight is mostly waiting at speedup 1).
 2. A generated mission with 100 tasks and 100 rovers is deployed with the simulated fleet in a
    child process (so the two do not share a CPU account); the controller's CPU share is
@@ -78,10 +79,14 @@ async def _fly(path: Path, command: str, speedup: float, runs: Path) -> dict[str
     s = out.summary
     n = len(mission.tasks) if command == "deploy" else len(mission.collection or ())
     plan = json.loads((out.run_dir / "plan.json").read_text())
+    flown = s["makespan_flown"]
+    etas = [r["eta"] for r in map(json.loads, (out.run_dir / "journal.jsonl").read_text().splitlines())
+            if r.get("kind") == "eta" and r.get("eta") is not None]
+    eta_err = max((abs(e - flown) / flown for e in etas), default=None) if flown else None
     return {"mission": path.stem, "kind": command, "speedup": speedup, "n": n, "stops": len(plan["stops"]),
-            "planned": s["makespan_planned"], "flown": s["makespan_flown"], "result": s["result"],
+            "planned": s["makespan_planned"], "flown": flown, "result": s["result"],
             "lowest_battery": lowest["battery"], "reserve": mission.rovers.reserve,
-            "wall": time.perf_counter() - t, "error": out.error}
+            "eta_error": eta_err, "wall": time.perf_counter() - t, "error": out.error}
 
 
 def _fly_job(args: tuple[str, str, float, str]) -> dict[str, Any]:
@@ -94,7 +99,7 @@ def _fly_job(args: tuple[str, str, float, str]) -> dict[str, Any]:
     except Exception as exc:  # noqa: BLE001 - a failed row is reported in the table, the others go on
         return {"mission": Path(src).stem, "kind": kind, "speedup": speedup, "n": 0, "stops": 0,
                 "planned": None, "flown": None, "result": "error", "lowest_battery": None,
-                "reserve": None, "wall": 0.0, "error": f"{type(exc).__name__}: {exc}"}
+                "reserve": None, "eta_error": None, "wall": 0.0, "error": f"{type(exc).__name__}: {exc}"}
 
 
 def _jobs(only: str | None) -> list[tuple[Path, str]]:
@@ -190,15 +195,17 @@ def _fmt(v: Any, nd: int = 1) -> str:
 
 
 def _print_flights(rows: list[dict[str, Any]]) -> None:
-    print("| mission | kind | speedup | n | stops | planned s | flown s | Δ % | lowest battery % | reserve % "
-          "| result | wall s |")
-    print("|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---|---:|")
+    print("| mission | kind | speedup | n | stops | planned s | flown s | Δ % | ETA error % "
+          "| lowest battery % | reserve % | result | wall s |")
+    print("|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|---:|")
     for r in rows:
         pct = None if r["flown"] is None or not r["planned"] else 100 * (r["flown"] / r["planned"] - 1)
         low = None if r["lowest_battery"] is None else 100 * r["lowest_battery"]
         res = None if r["reserve"] is None else 100 * r["reserve"]
+        eta = None if r.get("eta_error") is None else 100 * r["eta_error"]
         print(f"| {r['mission']} | {r['kind']} | {r['speedup']:g} | {r['n']} | {r['stops']} | "
-              f"{_fmt(r['planned'])} | {_fmt(r['flown'])} | {_fmt(pct)} | {_fmt(low)} | {_fmt(res, 0)} | "
+              f"{_fmt(r['planned'])} | {_fmt(r['flown'])} | {_fmt(pct)} | {_fmt(eta)} | {_fmt(low)} | "
+              f"{_fmt(res, 0)} | "
               f"{r['result']} | {_fmt(r['wall'])} |")
     ok = [r for r in rows if r["flown"] is not None and r["planned"]]
     if ok:

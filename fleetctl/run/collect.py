@@ -365,6 +365,7 @@ class CollectPhase:
         if rnd.clock is not None:
             rnd.clock.reached(k, now)
             self._predict(rnd)
+            self.ctx.record(Ev.ETA, phase="collect", stop=k + 1, eta=self.ctx.state.eta)
 
     def _predict(self, rnd: _Round) -> None:
         if rnd.clock is not None and self.t0 is not None:
