@@ -132,7 +132,8 @@ def test_defaults(tmp_path: Path) -> None:
     assert (c.id, c.connection, c.sysid, c.heading_deg) == ("carrier", "sim", 1, 0.0)
     assert (c.accel, c.turn_rate, c.unload_time, c.load_time) == (None, None, 0.0, 0.0)
     r = m.rovers
-    assert (r.accel, r.reserve, r.energy, r.endurance_range) == (None, 0.1, None, 50.0)
+    # no endurance_range: a 10-minute battery at cruise speed (at least twice the deploy range)
+    assert (r.accel, r.reserve, r.energy, r.endurance_range) == (None, 0.1, None, 600.0 * r.max_speed)
     assert [(u.id, u.sysid, u.connection) for u in r.units] == [("r1", 11, None), ("r2", 12, None)]
     assert m.links.heartbeat_timeout == 3.0
     assert (m.planner.deploy, m.planner.collect, m.planner.seed, m.planner.roadmap) == ("lee", "lee", 0, None)

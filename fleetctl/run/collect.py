@@ -19,6 +19,7 @@ from __future__ import annotations
 import asyncio
 import dataclasses
 import logging
+import math
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 from enum import StrEnum
@@ -51,6 +52,7 @@ from planners.problem import CollectProblem, CollectRover, Vec3
 log = logging.getLogger(__name__)
 
 LANDING_TIMEOUT = 10.0  # mission s from the land command to the rover on the deck (at least 3x land_time)
+SPEED_SAMPLE = 0.5  # mission s between carrier speed samples (is it speeding up?)
 RECHECK = 1.0  # mission s between looks at the carrier's ETA while a rover waits for its release
 ENERGY_REPLANS = 3  # plans tried with shrunk ranges before a rover short of energy is left out
 
@@ -126,6 +128,8 @@ class CollectPhase:
         self.t0: float | None = None  # mission clock when the carrier first started
         self.result = PhaseResult("collect")
         self.resumed = resumed
+        self._speed_seen = (-math.inf, 0.0)  # (mission clock, carrier speed) of the last sample
+        self._accelerating = True
 
     # ============================================================================== the loop
     async def run(self, rover_ids: Iterable[str] | None = None) -> PhaseResult:
@@ -245,12 +249,13 @@ class CollectPhase:
         # the flight's own overhead in the air (the early release, the descent onto the deck) is
         # not travel: keep it out of the range the planner may use for travel
         overhead = (RELEASE_LEAD + m.rovers.land_time) * m.rovers.max_speed
+        battery = {c.id: c.range for c in crs}
         crs = [dataclasses.replace(c, range=max(c.range - overhead, 1e-3)) for c in crs]
         for attempt in range(ENERGY_REPLANS + 1):
             problem = CollectProblem(m.carrier_spec(), m.rovers.motion(any_on_ground(crs)), start, heading,
                                      tuple(crs), **m.environment())
             plan = await self.planning.plan("collect", problem)
-            short = energy_shortfalls(plan, crs, airborne, problem.carrier, m.rovers.max_speed)
+            short = energy_shortfalls(plan, battery, airborne, problem.carrier, m.rovers.max_speed)
             if not short:
                 return plan
             ranges = {s.rover: s for s in short}
@@ -266,7 +271,7 @@ class CollectPhase:
                 break
             crs = keep
             ctx.record(Ev.ROVER_STATE, text="replanned: rovers short of energy", rovers=sorted(ranges))
-        return plan if crs else Plan("collect", "none", start, heading, [])
+        return Plan("collect", "none", start, heading, [])  # nobody left to collect this round
 
     def _short_of_energy(self, rid: str, airborne: float, allowed: float) -> None:
         self.board.set(rid, RoverStatus.UNREACHABLE)
@@ -348,7 +353,11 @@ class CollectPhase:
         if c.enu is None:
             return None
         pos, heading = self.carrier.pose()
-        return CarrierNow(pos, c.ground_speed or 0.0, heading)
+        speed, now = c.ground_speed or 0.0, self.ctx.clock()
+        t0, v0 = self._speed_seen
+        if now - t0 >= SPEED_SAMPLE:
+            self._speed_seen, self._accelerating = (now, speed), speed > v0 + 0.1
+        return CarrierNow(pos, speed, heading, self._accelerating)
 
     def _at_stop(self, rnd: _Round, k: int) -> None:
         """The carrier is at stop ``k``: fix its arrival in the round's clock, predict the end."""
@@ -356,6 +365,7 @@ class CollectPhase:
         if rnd.clock is not None:
             rnd.clock.reached(k, now)
             self._predict(rnd)
+            self.ctx.record(Ev.ETA, phase="collect", stop=k + 1, eta=self.ctx.state.eta)
 
     def _predict(self, rnd: _Round) -> None:
         if rnd.clock is not None and self.t0 is not None:

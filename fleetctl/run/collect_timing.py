@@ -19,25 +19,30 @@ air burns ``hover_drain`` of its battery per second until it is on the deck, wai
 
 from __future__ import annotations
 
+import dataclasses
 import math
-from collections.abc import Iterable
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 from planners.plan import Plan
-from planners.problem import CarrierSpec, CollectRover, Vec3
+from planners.problem import CarrierSpec, Vec3
 from planners.timing import remaining_leg_time, turn_time
 
 RELEASE_LEAD = 1.0  # mission s: a rover is released this much early (its commands take time)
 TURN_TOLERANCE = 0.05  # rad: a carrier at rest pointing within this of its leg does not turn
+SLOW = 0.5  # m/s: a carrier slower than this is starting or stopping, not cruising
 
 
 @dataclass
 class CarrierNow:
-    """The carrier's live state for an ETA: ENU position, speed (m/s), math heading (rad)."""
+    """The carrier's live state for an ETA: ENU position, speed (m/s), math heading (rad), and
+    whether it is speeding up (then it will reach its top speed; otherwise it keeps the speed it
+    has, e.g. held back below its top speed)."""
 
     position: Vec3
     speed: float
     heading: float
+    accelerating: bool = True
 
 
 @dataclass
@@ -88,7 +93,10 @@ class RoundClock:
             return max(planned, now)
         target = self.plan.stops[j].position
         rest = _remaining_path(carrier.position, self.plan.stops[j].carrier_path, target)
-        t = now + remaining_leg_time(rest, carrier.speed, self.carrier.motion)
+        motion = self.carrier.motion
+        if not carrier.accelerating and carrier.speed > SLOW:  # cruising below its top speed
+            motion = dataclasses.replace(motion, max_speed=min(carrier.speed, motion.max_speed))
+        t = now + remaining_leg_time(rest, carrier.speed, motion)
         if carrier.speed < 0.1 and rest > 0.5:  # at rest: turns onto its leg first
             want = math.atan2(target[1] - carrier.position[1], target[0] - carrier.position[0])
             if abs(math.remainder(want - carrier.heading, math.tau)) > TURN_TOLERANCE:
@@ -125,22 +133,20 @@ class Shortfall:
     allowed: float  # s its battery above the reserve lasts
 
 
-def energy_shortfalls(plan: Plan, rovers: Iterable[CollectRover], airborne: set[str],
+def energy_shortfalls(plan: Plan, battery: Mapping[str, float], airborne: set[str],
                       carrier: CarrierSpec, max_speed: float) -> list[Shortfall]:
     """Rovers that would be below their reserve on the deck: a rover already in the air burns its
     battery from now until it is down (``max(carrier there, rover there) + land_time``), a rover
-    on the ground only from its release. ``range`` (metres above the reserve at cruise speed) /
-    ``max_speed`` is the time it has."""
-    by_id = {r.id: r for r in rovers}
+    on the ground only from its release. ``battery[rover]`` (metres above the reserve at cruise
+    speed, from its live reading) / ``max_speed`` is the time it has."""
     out = []
     for stop in plan.stops:
         for leg in stop.rovers:
-            r = by_id.get(leg.rover)
-            if r is None:
+            if leg.rover not in battery:
                 continue
             down = max(stop.arrive, leg.arrive) + carrier.land_time
             air = down if leg.rover in airborne else leg.arrive + RELEASE_LEAD + carrier.land_time
-            allowed = r.range / max_speed
+            allowed = battery[leg.rover] / max_speed
             if air > allowed + 1e-6:
                 out.append(Shortfall(leg.rover, air, allowed))
     return out

@@ -234,6 +234,7 @@ class DeployPhase:
         st = self.ctx.state
         if st.planned is not None:
             st.eta = st.planned + (arrived - plan.stops[k].arrive)
+            self.ctx.record(Ev.ETA, phase="deploy", stop=k + 1, eta=st.eta)
 
     async def _launch(
         self, slot: RoverMission, leg: RoverLeg, at: Vec3, plan_id: int, spares: Spares, plan_t0: float,

@@ -201,12 +201,18 @@ class Run:
         self.state.mission_clock = self.clock
         self.endpoints = dict(sim.endpoints)
         self.journal.write(Ev.SIM_STARTED, endpoints=self.endpoints, speedup=self.scale)
-        if self.command == "collect" and self.mission.collection:
-            rp = self.mission.rovers
-            for cr in self.mission.collection:  # battery: range = (rem - reserve) x endurance
-                sim.rover(cr.id).battery = min(1.0, rp.reserve + cr.range / rp.endurance_range)
         if self.opts.on_sim is not None:
             self.opts.on_sim(sim)
+
+    def _scenario_batteries(self) -> None:
+        """A collection on the embedded sim: each rover of the ``collection:`` section has its
+        ``range`` left (``range = (remaining - reserve) x endurance_range``) when the collection
+        starts, i.e. once the fleet is connected (the rovers hover, and burn, while it connects)."""
+        if self.sim is None or self.command != "collect" or not self.mission.collection:
+            return
+        rp = self.mission.rovers
+        for cr in self.mission.collection:
+            self.sim.rover(cr.id).battery = min(1.0, rp.reserve + cr.range / rp.endurance_range)
 
     async def _connect(self) -> None:
         st, view = self.state, self.opts.view
@@ -236,6 +242,7 @@ class Run:
             st.event(Ev.PREFLIGHT_FAILED, f"{vid}: {why}; flying without it", vid, reason=why)
         for kind, text, vid in adm.safety.notes if adm.safety is not None else ():
             st.event(kind, text, vid)
+        self._scenario_batteries()
         if self.opts.resume is not None:
             await self.opts.resume.reconcile(fleet, st, self._disarm)
             await self.journal.commit(Ev.RESUMED, **self.opts.resume.record())
