@@ -87,11 +87,10 @@ def _retimed_equal(plan: Plan, p: DeployProblem | CollectProblem) -> None:
 def _independent_check(plan: Plan, p: DeployProblem | CollectProblem) -> None:
     """The JSON of one team's plan against tests/plan_checker (written from DESIGN.md's text)."""
     c = p.carrier
-    if p.rover.fixed_time:
-        return  # the checker knows no fixed flight time; retime covers it
-    carrier = {"max_speed": c.max_speed, "accel": c.accel, "turn_rate": c.turn_rate,  # time at a stop
-               "unload_time": c.deploy_stop_time, "load_time": c.collect_stop_time}
-    rover = {"max_speed": p.rover.max_speed, "accel": p.rover.accel}
+    carrier = {"max_speed": c.max_speed, "accel": c.accel, "turn_rate": c.turn_rate,
+               "unload_time": c.unload_time, "load_time": c.load_time, "takeoff_time": c.takeoff_time,
+               "land_time": c.land_time}
+    rover = {"max_speed": p.rover.max_speed, "accel": p.rover.accel, "fixed_time": p.rover.fixed_time}
     if isinstance(p, DeployProblem):
         got = check_plan(plan.to_json(), carrier, rover, p.deploy_range)
     else:
@@ -354,8 +353,10 @@ def test_plan_json_on_two_carriers(capsys: pytest.CaptureFixture[str]) -> None:
         one = {"schema": data["schema"], "kind": "deploy", "carrier": {"start": team["start"],
                                                                        "heading": team["heading"]},
                "stops": team["stops"], "makespan": team["makespan"]}
+        one["time_model"] = team["time_model"]
         got = check_plan(one, {"max_speed": k.max_speed, "accel": k.accel, "turn_rate": k.turn_rate,
-                               "unload_time": k.deploy_stop_time, "load_time": k.collect_stop_time},
+                               "unload_time": k.unload_time, "load_time": k.load_time,
+                               "takeoff_time": k.takeoff_time, "land_time": k.land_time},
                          {"max_speed": m.rovers.max_speed, "accel": m.rovers.accel}, m.rovers.deploy_range)
         assert got == pytest.approx(team["makespan"], abs=1e-3)
         assert {r["rover"] for s in team["stops"] for r in s["rovers"]} <= set(cfg.rovers)
