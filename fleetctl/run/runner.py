@@ -154,7 +154,9 @@ class Run:
         self.bus = start_bus(self.mission, self.opts.mqtt, self.journal, self.state, self.opts.view)
         await self._begin_records()
         try:
+            await self._warm_planners()
             await self._start_sim()
+            self._scenario_batteries(hold=True)
             await self._connect()
             await self._phases()
             self.state.phase = Phase.DONE
@@ -204,15 +206,31 @@ class Run:
         if self.opts.on_sim is not None:
             self.opts.on_sim(sim)
 
-    def _scenario_batteries(self) -> None:
-        """A collection on the embedded sim: each rover of the ``collection:`` section has its
+    async def _warm_planners(self) -> None:
+        """Import the mission's planners (and the SciPy/shapely they need) before the fleet runs:
+        a first plan would otherwise pay the import while rovers hover (seconds of battery on a
+        fast simulated fleet)."""
+        from planners import COLLECT_PLANNERS, DEPLOY_PLANNERS
+
+        names: dict[str, dict[str, Any]] = {"deploy": DEPLOY_PLANNERS, "collect": COLLECT_PLANNERS}
+        kinds = ("deploy", "collect") if self.command == "run" else (self.command,)
+        loaders = [getattr(names[k].get(self.opts.planner or self.mission.planner_for(k)), "load", None)
+                   for k in kinds]
+        await asyncio.to_thread(lambda: [load() for load in loaders if load is not None])
+
+    def _scenario_batteries(self, hold: bool) -> None:
+        """A collection on a simulated fleet: each rover of the ``collection:`` section has its
         ``range`` left (``range = (remaining - reserve) x endurance_range``) when the collection
-        starts, i.e. once the fleet is connected (the rovers hover, and burn, while it connects)."""
+        starts; while the fleet connects (``hold``) the simulator holds it there, after that it
+        drains as usual."""
         if self.sim is None or self.command != "collect" or not self.mission.collection:
             return
         rp = self.mission.rovers
         for cr in self.mission.collection:
-            self.sim.rover(cr.id).battery = min(1.0, rp.reserve + cr.range / rp.endurance_range)
+            level = min(1.0, rp.reserve + cr.range / rp.endurance_range)
+            self.sim.pin_battery(cr.id, level)
+            if not hold:
+                self.sim.pin_battery(cr.id, None)
 
     async def _connect(self) -> None:
         st, view = self.state, self.opts.view
@@ -242,7 +260,7 @@ class Run:
             st.event(Ev.PREFLIGHT_FAILED, f"{vid}: {why}; flying without it", vid, reason=why)
         for kind, text, vid in adm.safety.notes if adm.safety is not None else ():
             st.event(kind, text, vid)
-        self._scenario_batteries()
+        self._scenario_batteries(hold=False)
         if self.opts.resume is not None:
             await self.opts.resume.reconcile(fleet, st, self._disarm)
             await self.journal.commit(Ev.RESUMED, **self.opts.resume.record())
