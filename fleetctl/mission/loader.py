@@ -39,6 +39,7 @@ from shapely.validation import explain_validity
 
 import fleetctl.mission.limits as L
 from fleetctl.geo import Origin, geodetic_to_local
+from fleetctl.mission.connections import ConnectionSpellingError, normalize_connection
 from fleetctl.mission.model import (
     FAILSAFE_ACTIONS,
     FAULT_KINDS,
@@ -257,15 +258,20 @@ _HOSTPORT = r"(?P<host>\[[0-9a-fA-F:.]+\]|[A-Za-z0-9_.-]+):(?P<port>\d+)"
 _CONNECTION_RES = (
     re.compile(r"sim"),
     re.compile(rf"(?:udp|udpout|udpin|tcp)://{_HOSTPORT}"),
-    re.compile(r"serial://(?P<dev>/[^?\s]+)\?baud=(?P<baud>\d+)"),
+    re.compile(r"serial://(?P<dev>/[^?\s]+|COM\d+)\?baud=(?P<baud>\d+)"),
 )
 _CONNECTION_FORMS = (
-    "sim, udp://HOST:PORT, udpout://HOST:PORT, udpin://HOST:PORT, tcp://HOST:PORT, serial:///dev/NAME?baud=N"
+    "sim, udp://HOST:PORT, udpout://HOST:PORT, udpin://HOST:PORT, tcp://HOST:PORT, serial:///dev/NAME?baud=N "
+    "(docs/mavlink.md)"
 )
 
 
 def _connection(ctx: _Ctx, v: Any, path: KeyPath) -> str:
     if isinstance(v, str):
+        try:  # MAVSDK/pymavlink/MAVProxy spellings: fleetctl's own, or what to write instead
+            v = normalize_connection(v)
+        except ConnectionSpellingError as exc:
+            ctx.fail(path, str(exc))
         for rx in _CONNECTION_RES:
             m = rx.fullmatch(v)
             if m is None:
