@@ -56,7 +56,8 @@ async def admit(fleet: Fleet, mission: Mission, command: str, adm: Admission) ->
     if carrier in missing:
         raise ExecutionError(f"the carrier did not answer ({CONNECT_HINT}):\n  {fleet.failure_line(carrier)}")
     if missing and adm.require_all:
-        raise ExecutionError(f"{len(missing)} vehicle(s) did not answer (--require-all; {CONNECT_HINT}):{lines}")
+        raise ExecutionError(f"{len(missing)} vehicle(s) did not answer (--require-all; "
+                             f"{CONNECT_HINT}):{lines}")
     answered = len(fleet.rovers) - len(missing)
     if command in ("deploy", "run") and answered < len(mission.tasks):
         raise ExecutionError(f"only {answered} rover(s) answered for {len(mission.tasks)} tasks "

@@ -39,7 +39,8 @@ async def test_one_line_per_missing_rover(tmp_path: Path) -> None:
     async with sim_fleet(mission_dict(rovers=1, carrier_connection=url)):  # the carrier and r1 only
         path = write_mission(mission_dict(rovers=2, carrier_connection=url), tmp_path / "m.yaml")
         proc = await asyncio.create_subprocess_exec(
-            *_deploy(path, tmp_path), stdout=asyncio.subprocess.PIPE, stderr=asyncio.subprocess.PIPE, cwd=ROOT)
+            *_deploy(path, tmp_path), stdout=asyncio.subprocess.PIPE, stderr=asyncio.subprocess.PIPE,
+            cwd=ROOT)
         out_b, err_b = await asyncio.wait_for(proc.communicate(), 60)
     out, err = out_b.decode(), err_b.decode()
     assert proc.returncode == 1, err
