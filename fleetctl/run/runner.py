@@ -412,6 +412,7 @@ class Run:
                 self.dwell_flown,
                 self.missing,
                 self.left_out,
+                mqtt=self.bus.stats() if self.bus is not None else None,
             )
         )
         self.journal.write(Ev.SUMMARY, **summary)
