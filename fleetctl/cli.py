@@ -770,6 +770,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("fleetctl: interrupted", file=sys.stderr)
         return 130
+    except BrokenPipeError:  # `fleetctl plan --json | head`: the reader left, no traceback
+        import os
+
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 141
 
 
 if __name__ == "__main__":
