@@ -1,4 +1,4 @@
-"""The ``fleetctl`` command line (DESIGN.md "Command line — the contract")."""
+"""The ``fleetctl`` command line (docs/cli.md)."""
 
 from __future__ import annotations
 

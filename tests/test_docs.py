@@ -39,7 +39,8 @@ def test_the_loader_has_specs() -> None:
     assert {"_TOP", "_CARRIER", "_ROVERS", "_TASK", "_MQTT", "_GEOFENCE"} <= names, names
 
 
-@pytest.mark.parametrize(("name", "spec"), list(_loader_specs()), ids=lambda x: x if isinstance(x, str) else "")
+@pytest.mark.parametrize(("name", "spec"), list(_loader_specs()),
+                         ids=lambda x: x if isinstance(x, str) else "")
 def test_every_mission_key_is_documented(name: str, spec: dict[str, tuple[object, object]]) -> None:
     keys = _doc_keys()
     prefixes = {k.rsplit(".", 1)[0] if "." in k else "" for k in keys if k.rsplit(".", 1)[-1] in spec}

@@ -411,7 +411,7 @@ class FleetBus:
             raise TaskMessageError(
                 "task changes over MQTT are off for this mission; to allow them set "
                 "'accept_task_changes: true' in the mission's mqtt section (and let only named users "
-                "publish to <prefix>/tasks/# on the broker: README, 'MQTT fleet bus'); nothing changed")
+                "publish to <prefix>/tasks/# on the broker: docs/mqtt.md); nothing changed")
         depth = json_depth(payload)
         if depth > MAX_JSON_DEPTH:
             raise TaskMessageError(f"JSON nested {depth} levels deep (at most {MAX_JSON_DEPTH}); "

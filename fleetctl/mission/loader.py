@@ -1,4 +1,4 @@
-"""Mission files: load and validate the YAML contract of DESIGN.md, build the planners' problems.
+"""Mission files: load and validate the YAML contract of docs/mission-file.md, build the planners' problems.
 
 Every error a user can make in a mission file raises :class:`MissionError` whose message names
 the file (and line, when the file was read from disk), the key path (``rovers.max_speed``,
