@@ -474,7 +474,7 @@ def cmd_status(args: argparse.Namespace) -> int:
 
 async def _status(mission: Mission, timeout: float, speedup: float | None) -> int:
 
-    from fleetctl.mavlink.fleet import connect_fleet
+    from fleetctl.mavlink.fleet import CONNECT_HINT, connect_fleet
     from fleetctl.mavlink.link import LinkError
 
     sim = None
@@ -510,7 +510,8 @@ async def _status(mission: Mission, timeout: float, speedup: float | None) -> in
             if w:
                 print(f"warning: {row['id']}: {w}")
     if problems:
-        print(f"fleetctl: {len(problems)} vehicle(s) missing or not ready:", file=sys.stderr)
+        print(f"fleetctl: {len(problems)} vehicle(s) missing or not ready (no heartbeat: {CONNECT_HINT}):",
+              file=sys.stderr)
         for line in problems:
             print(f"  {line}", file=sys.stderr)
         return EXIT_NOT_READY
@@ -572,7 +573,8 @@ def _status_rows(mission: Mission, fleet: Fleet, link_loss: dict[str, str] | Non
                 else:
                     row["deck"] = "?"
         if reasons:
-            problems.append(f"{vid} (sysid {v.sysid}) at {url}: " + "; ".join(reasons))
+            problems.append(fleet.failure_line(vid) if not v.connected
+                            else f"{vid} (sysid {v.sysid}) at {url}: " + "; ".join(reasons))
             row["reasons"] = "; ".join(reasons)
         else:
             row["ready"] = "ready"
