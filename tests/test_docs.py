@@ -20,10 +20,29 @@ DOCS = ROOT / "docs"
 WRITTEN_ELSEWHERE = {"time-model.md"}  # linked from docs/README.md, written with the time model change
 
 
+def _doc_rows() -> dict[str, list[str]]:
+    """Key path -> the cells of its row in docs/mission-file.md (``tasks[].id`` -> ``tasks.id``)."""
+    rows = {}
+    for line in (DOCS / "mission-file.md").read_text(encoding="utf-8").splitlines():
+        m = re.match(r"^\| `([A-Za-z0-9_.\[\]]+)` \|", line)
+        if m:
+            rows[m[1].replace("[]", "")] = [c.strip() for c in re.split(r"(?<!\\)\|", line)[1:-1]]
+    return rows
+
+
 def _doc_keys() -> set[str]:
-    """The key paths in the first column of docs/mission-file.md's tables (``tasks[].id`` -> ``tasks.id``)."""
-    text = (DOCS / "mission-file.md").read_text(encoding="utf-8")
-    return {m.replace("[]", "") for m in re.findall(r"^\| `([A-Za-z0-9_.\[\]]+)` \|", text, re.M)}
+    return set(_doc_rows())
+
+
+def _default_shown(default: object) -> str | None:
+    """How the doc's default column shows a loader default (None: not checked)."""
+    if default is loader._REQUIRED:
+        return "required"
+    if isinstance(default, bool):
+        return f"`{str(default).lower()}`"
+    if isinstance(default, int | float | str):
+        return f"`{default}`"
+    return None
 
 
 def _loader_specs() -> Iterator[tuple[str, dict[str, tuple[object, object]]]]:
@@ -47,6 +66,15 @@ def test_every_mission_key_is_documented(name: str, spec: dict[str, tuple[object
     full = [p for p in prefixes if all((f"{p}.{k}" if p else k) in keys for k in spec)]
     assert full, (f"{name}: keys {sorted(spec)} are not all documented under one section of "
                   "docs/mission-file.md (a row '| `section.key` | type | unit | default | limits |' each)")
+    rows = _doc_rows()
+
+    def defaults_agree(p: str) -> bool:  # the default column says what the loader does
+        shown = {key: _default_shown(default) for key, (_parse, default) in spec.items()}
+        return all(s is None or s in rows[f"{p}.{key}" if p else key][3] for key, s in shown.items())
+
+    assert any(defaults_agree(p) for p in full), (
+        f"{name}: the defaults in docs/mission-file.md (section {' or '.join(full)}) are not the loader's: "
+        + ", ".join(f"{k}={_default_shown(d)}" for k, (_p, d) in spec.items()))
 
 
 def test_every_documented_row_has_five_columns() -> None:
