@@ -6,11 +6,15 @@ benchmarks and the controller's ETA all call it.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Sequence
+from typing import TypeVar
 
 from planners.plan import Plan
-from planners.problem import CarrierSpec, Motion, Vec3
+from planners.problem import CarrierSpec, CollectProblem, DeployProblem, Motion, Vec3
+
+P = TypeVar("P", DeployProblem, CollectProblem)
 
 # Planners keep rover flights this far inside their range so that a plan whose coordinates are
 # rounded for JSON still satisfies the range when recomputed.
@@ -19,7 +23,13 @@ _TAU = 2.0 * math.pi
 
 
 def leg_time(length: float, motion: Motion) -> float:
-    """Eq. 4.2 without rotation: rest-to-rest travel of ``length`` metres."""
+    """Eq. 4.2 without rotation: rest-to-rest travel of ``length`` metres, plus the motion's
+    fixed per-flight time (take-off clearance or touch-down; 0 for the carrier)."""
+    return motion.fixed_time + travel_time(length, motion)
+
+
+def travel_time(length: float, motion: Motion) -> float:
+    """Eq. 4.2 without rotation and without the fixed time: rest-to-rest travel of ``length`` m."""
     if length <= 0.0:
         return 0.0
     v, a = motion.max_speed, motion.accel
@@ -28,6 +38,38 @@ def leg_time(length: float, motion: Motion) -> float:
     if length >= v * v / a:
         return length / v + v / a
     return 2.0 * math.sqrt(length / a)
+
+
+def remaining_leg_time(length: float, speed: float, motion: Motion) -> float:
+    """Time to cover the last ``length`` metres of a leg, moving at ``speed`` now and at rest at
+    its end (eq. 4.2's profile entered part-way: accelerate to the top speed, cruise, brake).
+
+    ``speed = 0`` gives :func:`travel_time`. For live estimates (the carrier's ETA at its stop).
+    """
+    if length <= 0.0:
+        return 0.0
+    v, a = motion.max_speed, motion.accel
+    v0 = min(max(speed, 0.0), v)
+    if a is None:
+        return length / v
+    if length <= v0 * v0 / (2.0 * a):  # inside its braking distance: brakes at ``a`` from sqrt(2·a·length)
+        return math.sqrt(2.0 * length / a)
+    ramp = (v * v - v0 * v0) / (2.0 * a) + v * v / (2.0 * a)
+    if length >= ramp:
+        return (v - v0) / a + v / a + (length - ramp) / v
+    peak = math.sqrt((2.0 * a * length + v0 * v0) / 2.0)
+    return (peak - v0) / a + peak / a
+
+
+def dissertation_model(problem: P) -> P:
+    """The same problem under the dissertation's time model: no take-off clearance, no
+    touch-down time, no fixed per-flight time (the paper tables in bench/ are computed this way so
+    that they stay comparable with the text)."""
+    c, r = problem.carrier, problem.rover
+    if c.takeoff_time == 0.0 and c.land_time == 0.0 and r.fixed_time == 0.0:
+        return problem
+    return dataclasses.replace(problem, carrier=dataclasses.replace(c, takeoff_time=0.0, land_time=0.0),
+                               rover=dataclasses.replace(r, fixed_time=0.0))
 
 
 def dist(p: Sequence[float], q: Sequence[float]) -> float:
@@ -109,8 +151,9 @@ def deploy_schedule(
 ) -> tuple[list[float], list[float], list[list[float]], float]:
     """Deployment times: each stop's arrival and departure, each rover's arrival, the makespan.
 
-    At stop k the carrier arrives, unloads once for ``unload_time`` and leaves; its rovers
-    depart when unloading ends (eq. 4.3). Makespan = the last rover's arrival.
+    At stop k the carrier arrives, unloads once for ``unload_time``, waits ``takeoff_time`` while
+    its rovers climb clear of the deck and leaves; the rovers' flights start then (eq. 4.3 with
+    the clearance). Makespan = the last rover's arrival.
     """
     t = 0.0
     arrive, depart, rover_arrive = [], [], []
@@ -119,7 +162,7 @@ def deploy_schedule(
         dt, heading = carrier_leg(path, heading, carrier)
         t += dt
         arrive.append(t)
-        t += carrier.unload_time
+        t += carrier.deploy_stop_time
         depart.append(t)
         arr = [t + leg_time(length, rover) for length in lengths]
         rover_arrive.append(arr)
@@ -138,7 +181,8 @@ def collect_schedule(
 ) -> tuple[list[float], list[float], list[list[float]], float]:
     """Collection times (eq. 5.2): rovers all start at t = 0; the carrier waits for late rovers.
 
-    eta_k = max(eta_{k-1} + rotation + leg_k, latest rover arrival at k) + load_time.
+    eta_k = max(eta_{k-1} + rotation + leg_k, latest rover arrival at k) + land_time + load_time:
+    a rover comes down onto the deck once both are there (``land_time``), then it is loaded.
     Returns each stop's carrier arrival, departure (= eta_k), rover arrivals, and the makespan.
     """
     eta = 0.0
@@ -147,7 +191,7 @@ def collect_schedule(
         dt, heading = carrier_leg(path, heading, carrier)
         here = eta + dt
         arr = [leg_time(length, rover) for length in lengths]
-        eta = max([here, *arr]) + carrier.load_time
+        eta = max([here, *arr]) + carrier.collect_stop_time
         arrive.append(here)
         depart.append(eta)
         rover_arrive.append(arr)
@@ -167,4 +211,11 @@ def retime(plan: Plan, carrier: CarrierSpec, rover: Motion) -> Plan:
             leg.arrive = t
     plan.makespan = makespan
     plan.carrier_distance = sum(path_length(p) for p in paths)
+    plan.time_model = time_model_terms(carrier, rover)
     return plan
+
+
+def time_model_terms(carrier: CarrierSpec, rover: Motion) -> dict[str, float]:
+    """The terms beyond the dissertation's model, as the plan JSON reports them."""
+    return {"takeoff_time": carrier.takeoff_time, "land_time": carrier.land_time,
+            "rover_fixed_time": rover.fixed_time}

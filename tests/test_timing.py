@@ -106,3 +106,53 @@ def test_carrier_hop_agrees_with_carrier_leg():
         t1, h1 = carrier_hop(p, q, h, c)
         t2, h2 = carrier_leg([p, q], h, c)
         assert t1 == pytest.approx(t2, rel=1e-12, abs=1e-12) and h1 == pytest.approx(h2)
+
+
+def test_fixed_time_is_added_to_every_rover_flight_and_not_to_the_carrier():
+    from planners.problem import CarrierSpec, Motion
+    from planners.timing import carrier_leg, leg_time, travel_time
+
+    rover = Motion(2.0, 1.0, fixed_time=1.5)
+    for length in (0.0, 0.5, 4.0, 30.0):
+        assert leg_time(length, rover) == pytest.approx(1.5 + travel_time(length, Motion(2.0, 1.0)))
+    carrier = CarrierSpec(10.0, 5.0, 1.0)
+    t, _ = carrier_leg([(0.0, 0.0, 0.0), (50.0, 0.0, 0.0)], 0.0, carrier)
+    assert t == pytest.approx(travel_time(50.0, carrier.motion))
+
+
+def test_dissertation_model_drops_the_fixed_time_and_shifts_a_deployment_by_it():
+    from planners import DEPLOY_PLANNERS
+    from planners.problem import CarrierSpec, DeployProblem, Motion, Task
+    from planners.timing import dissertation_model
+
+    tasks = tuple(Task(f"t{i}", (10.0 * i, 5.0 * (i % 3), 2.0)) for i in range(6))
+    p = DeployProblem(CarrierSpec(10.0, 5.0, 1.0, 2.0, 2.0), Motion(2.0, None, fixed_time=3.0), 15.0,
+                      (0.0, 0.0, 0.0), 0.0, tasks)
+    base = dissertation_model(p)
+    assert base.rover.fixed_time == 0.0 and dissertation_model(base) is base
+    p2 = DeployProblem(CarrierSpec(10.0, 5.0, 1.0, 2.0, 2.0, takeoff_time=1.0), Motion(2.0), 15.0,
+                       (0.0, 0.0, 0.0), 0.0, tasks)
+    assert DEPLOY_PLANNERS["lee"](p2).stops[0].depart == pytest.approx(DEPLOY_PLANNERS["lee"](p2).stops[0].arrive + 3.0)
+    a, b = DEPLOY_PLANNERS["lee"](p), DEPLOY_PLANNERS["lee"](base)
+    # in a deployment the fixed time is a constant on every rover arrival: same plan, makespan + 3 s
+    assert a.makespan == pytest.approx(b.makespan + 3.0)
+
+
+@pytest.mark.parametrize("accel", [None, 0.5, 3.0])
+def test_remaining_leg_time_matches_the_leg_from_rest_and_a_simulated_profile(accel):
+    from planners.problem import Motion
+    from planners.timing import remaining_leg_time, travel_time
+
+    m = Motion(4.0, accel)
+    for d in (0.5, 3.0, 40.0):
+        assert remaining_leg_time(d, 0.0, m) == pytest.approx(travel_time(d, m))
+    if accel is None:
+        return
+    # integrate the profile from a speed v0 part-way: accelerate, cruise, brake to rest at the end
+    for d, v0 in ((40.0, 2.0), (5.0, 3.0), (30.0, 4.0)):
+        x, v, t, dt = 0.0, v0, 0.0, 1e-4
+        while d - x > 1e-6 and t < 100:
+            v = max(min(4.0, v + accel * dt, math.sqrt(2 * accel * (d - x))), 1e-3)
+            x += v * dt
+            t += dt
+        assert remaining_leg_time(d, v0, m) == pytest.approx(t, rel=0.02)

@@ -40,6 +40,7 @@ from shapely.validation import explain_validity
 import fleetctl.mission.limits as L
 from fleetctl.geo import Origin, geodetic_to_local
 from fleetctl.mission.connections import ConnectionSpellingError, normalize_connection
+from fleetctl.mission.flight import DEFAULT_ENDURANCE, default_land_time, default_takeoff_time
 from fleetctl.mission.model import (
     FAILSAFE_ACTIONS,
     FAULT_KINDS,
@@ -375,6 +376,10 @@ _ROVERS = {
     "energy": (lambda c, v, p: c.section(v, p, _ENERGY), None),
     "endurance_range": (_RANGE, None),
     "reserve": (_number(ge=0, lt=1, unit="fraction of the battery"), 0.1),
+    "climb_rate": (_number(ge=L.MIN_SPEED, le=L.MAX_SPEED, null=True, unit="m/s"), None),
+    "land_speed": (_number(ge=L.MIN_SPEED, le=L.MAX_SPEED, null=True, unit="m/s"), None),
+    "takeoff_time": (_number(ge=0, le=L.MAX_HANDLING_TIME, null=True, unit="s"), None),
+    "land_time": (_number(ge=0, le=L.MAX_HANDLING_TIME, null=True, unit="s"), None),
     "fleet": (lambda c, v, p: c.section(v, p, _FLEET), None),
     "units": (_list(lambda c, v, p: c.section(v, p, _UNIT), "units {id, sysid, connection}", L.MAX_ROVERS),
               None),
@@ -717,7 +722,8 @@ def _build(ctx: _Ctx, data: Any, path: Path | None) -> Mission:
         name=d["name"] or (path.stem if path is not None else "mission"),
         origin=origin,
         carrier=CarrierConfig(**{**carrier, "position": tuple(carrier["position"])}),
-        rovers=RoversConfig(r["max_speed"], r["accel"], deploy_range, endurance, r["reserve"], units, energy),
+        rovers=RoversConfig(r["max_speed"], r["accel"], deploy_range, endurance, r["reserve"], units, energy,
+                            **_flight_times(r)),
         tasks=tasks,
         obstacles=obstacles,
         bounds=bounds,
@@ -763,6 +769,16 @@ def _tasks_and_collection(
     return tasks, collection
 
 
+def _flight_times(r: dict[str, Any]) -> dict[str, float]:
+    """Climb and landing speeds (default: the cruise speed) and the time model's take-off and
+    touch-down times (default: fleetctl.mission.flight)."""
+    climb = r["climb_rate"] if r["climb_rate"] is not None else r["max_speed"]
+    land = r["land_speed"] if r["land_speed"] is not None else climb
+    takeoff = r["takeoff_time"] if r["takeoff_time"] is not None else default_takeoff_time(climb)
+    touch = r["land_time"] if r["land_time"] is not None else default_land_time(land)
+    return {"climb_rate": climb, "land_speed": land, "takeoff_time": takeoff, "land_time": touch}
+
+
 def _ranges(ctx: _Ctx, r: dict[str, Any]) -> tuple[float, float, EnergyConfig | None]:
     """d_deploy (given, or from energy terms: dissertation ch. 3.2), endurance_range, energy."""
     if (r["deploy_range"] is None) == (r["energy"] is None):
@@ -791,7 +807,10 @@ def _ranges(ctx: _Ctx, r: dict[str, Any]) -> tuple[float, float, EnergyConfig | 
         deploy_range = r["deploy_range"]
     endurance = r["endurance_range"]
     if endurance is None:
-        endurance = energy.rho * energy.initial if energy is not None else 2.0 * deploy_range
+        # a multirotor burns its battery per second in the air, hovering included: without energy
+        # terms, a DEFAULT_ENDURANCE battery at cruise speed (at least there and back)
+        endurance = (energy.rho * energy.initial if energy is not None
+                     else max(2.0 * deploy_range, DEFAULT_ENDURANCE * r["max_speed"]))
         endurance = min(endurance, max(L.MAX_RANGE, deploy_range))  # physical cap of a derived value
     elif endurance < deploy_range:
         ctx.fail(

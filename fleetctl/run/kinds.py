@@ -17,6 +17,7 @@ class VehicleStatus(StrEnum):
     EN_ROUTE = "en_route"
     ON_TASK = "on_task"
     RETURNING = "returning"
+    WAITING = "waiting"  # a rover waiting for its timed release (collection)
     LANDED = "landed"
     LOADED = "loaded"
     LOST = "lost"

@@ -9,13 +9,14 @@ from typing import Any
 
 import planners
 from fleetctl.mavlink.compile import CompiledPlan, CompileError, compile_for_fleet
+from fleetctl.mission.flight import MEET_HEIGHT
 from fleetctl.run.context import ExecutionError, RunContext
 from fleetctl.run.kinds import Ev
 from fleetctl.run.safety import check_plan
 from planners.plan import Plan
 from planners.problem import PlanningError
 
-COLLECT_MEET_HEIGHT = 3.0  # m above the carrier's stop where a returning rover waits for the carrier
+COLLECT_MEET_HEIGHT = MEET_HEIGHT  # m above the carrier's stop where a returning rover waits for the carrier
 
 
 class Planning:

@@ -79,6 +79,7 @@ class FleetState:
         self.stop_index = 0  # 1-based stop being driven to / served; 0 before the first
         self.stop_count = 0
         self.planned: float | None = None  # planned makespan of the current phase (mission seconds)
+        self.eta: float | None = None  # predicted makespan from the live fleet (mission s of the phase)
         self.phase_started: float | None = None  # mission clock at the phase start
         self.mission_clock: Callable[[], float] = time.monotonic
         self.started = time.monotonic()
@@ -123,6 +124,7 @@ class FleetState:
     def set_phase(self, phase: str, planned: float | None = None, stops: int = 0) -> None:
         self.phase = phase
         self.planned = planned
+        self.eta = planned
         self.stop_count = stops
         self.stop_index = 0
         self.phase_started = self.mission_clock()
@@ -183,6 +185,7 @@ class FleetState:
         """Plain dict of the whole state (for the journal / tests)."""
         return {
             "phase": self.phase, "stop": self.stop_index, "stops": self.stop_count, "planned": self.planned,
+            "eta": self.eta,
             "elapsed": self.elapsed, "replans": self.replans, "last_replan": self.last_replan,
             "vehicles": {vid: {"state": v.state, "task": v.task, "enu": v.enu, "battery_pct": v.battery_pct,
                                "lost": v.lost} for vid, v in self.vehicles.items()},

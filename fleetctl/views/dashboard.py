@@ -50,6 +50,8 @@ def render(state: FleetState, max_rows: int | None = None, status: Sequence[str]
     head.add_column()
     stop = f"stop {state.stop_index}/{state.stop_count}" if state.stop_count else ""
     timing = f"elapsed {elapsed:6.1f} s" + (f" / planned {planned:.1f} s" if planned else "")
+    if state.eta is not None and planned and abs(state.eta - planned) >= 0.05:
+        timing += f" · ETA {state.eta:.1f} s"
     bar: Any = ProgressBar(total=max(planned or 1.0, 1e-6), completed=min(elapsed, planned or 0.0), width=30)
     head.add_row(Text(f"{state.mission_name}  ·  {state.phase}", style="bold"), Text(stop), Text(timing))
     head.add_row("", "", bar)

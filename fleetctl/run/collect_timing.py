@@ -1,0 +1,149 @@
+"""Timed release of a collection round: when each rover leaves, from the carrier's live ETA.
+
+A rover that leaves as soon as the round starts and reaches its stop before the carrier hovers
+there, burning battery. Instead each rover waits where it is (on the ground, or hovering at its
+task when it is in the air) and is released at
+
+    release_i = ETA_k − flight_i − RELEASE_LEAD
+
+so that it is above stop ``k`` when the carrier gets there; ``flight_i`` is its planned flight
+(the plan's rover arrival: take-off when it starts on the ground, plus travel), ``ETA_k`` is
+the carrier's arrival at ``k`` predicted from live telemetry (:class:`RoundClock`): the rest of
+its current leg from its position and speed (``planners.timing.remaining_leg_time``), then per
+stop ``depart = max(arrive, latest rover there) + land_time + load_time`` and the planned legs
+between stops. A late carrier moves every ETA, and the rovers not yet released follow it.
+
+:func:`energy_shortfalls` checks a plan against the reserve before it is flown: a rover in the
+air burns ``hover_drain`` of its battery per second until it is on the deck, waiting included.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable
+from dataclasses import dataclass, field
+
+from planners.plan import Plan
+from planners.problem import CarrierSpec, CollectRover, Vec3
+from planners.timing import remaining_leg_time, turn_time
+
+RELEASE_LEAD = 1.0  # mission s: a rover is released this much early (its commands take time)
+TURN_TOLERANCE = 0.05  # rad: a carrier at rest pointing within this of its leg does not turn
+
+
+@dataclass
+class CarrierNow:
+    """The carrier's live state for an ETA: ENU position, speed (m/s), math heading (rad)."""
+
+    position: Vec3
+    speed: float
+    heading: float
+
+
+@dataclass
+class RoundClock:
+    """Live ETAs of one collection round's stops (mission clock)."""
+
+    plan: Plan
+    carrier: CarrierSpec
+    start: float  # mission clock when the route started
+    next_stop: int = 0  # the stop the carrier drives to or holds at
+    arrived: dict[int, float] = field(default_factory=dict)  # stop -> when the carrier got there
+    ready: dict[int, float] = field(default_factory=dict)  # stop -> latest released rover's arrival
+
+    def reached(self, k: int, when: float) -> None:
+        self.arrived[k] = when
+        self.next_stop = k
+
+    def released(self, k: int) -> None:
+        self.next_stop = k + 1
+
+    def rover_ready(self, k: int, when: float) -> None:
+        self.ready[k] = max(self.ready.get(k, -math.inf), when)
+
+    def eta(self, k: int, now: float, carrier: CarrierNow | None) -> float:
+        """When the carrier will be at stop ``k`` (mission clock)."""
+        if k in self.arrived:
+            return self.arrived[k]
+        j = min(self.next_stop, k)
+        t = self._arrival(j, now, carrier)
+        for m in range(j, k):
+            depart = max(t, self.ready.get(m, -math.inf)) + self.carrier.collect_stop_time
+            t = depart + (self.plan.stops[m + 1].arrive - self.plan.stops[m].depart)
+        return t
+
+    def makespan(self, now: float, carrier: CarrierNow | None) -> float:
+        """The predicted end of the round (mission clock): the last stop's departure."""
+        last = len(self.plan.stops) - 1
+        if last < 0:
+            return now
+        t = self.eta(last, now, carrier)
+        return max(t, self.ready.get(last, -math.inf)) + self.carrier.collect_stop_time
+
+    def _arrival(self, j: int, now: float, carrier: CarrierNow | None) -> float:
+        if j in self.arrived:
+            return self.arrived[j]
+        planned = self.start + self.plan.stops[j].arrive
+        if carrier is None:
+            return max(planned, now)
+        target = self.plan.stops[j].position
+        rest = _remaining_path(carrier.position, self.plan.stops[j].carrier_path, target)
+        t = now + remaining_leg_time(rest, carrier.speed, self.carrier.motion)
+        if carrier.speed < 0.1 and rest > 0.5:  # at rest: turns onto its leg first
+            want = math.atan2(target[1] - carrier.position[1], target[0] - carrier.position[0])
+            if abs(math.remainder(want - carrier.heading, math.tau)) > TURN_TOLERANCE:
+                t += turn_time(carrier.heading, want, self.carrier.turn_rate)
+        return t
+
+
+def _remaining_path(pos: Vec3, path: list[Vec3], target: Vec3) -> float:
+    """Ground length still to drive to ``target``: to the nearest vertex ahead of ``pos`` on the
+    stop's carrier path, then along it (a straight leg: the distance to the stop)."""
+    pts = [p for p in path[1:]] if len(path) > 1 else [target]
+    best, at = math.inf, len(pts) - 1
+    for i, p in enumerate(pts):
+        d = math.hypot(p[0] - pos[0], p[1] - pos[1])
+        if d < best:
+            best, at = d, i
+    rest = math.hypot(pts[at][0] - pos[0], pts[at][1] - pos[1])
+    for a, b in zip(pts[at:], pts[at + 1 :], strict=False):
+        rest += math.hypot(b[0] - a[0], b[1] - a[1])
+    return rest
+
+
+def release_delay(eta: float, flight: float, now: float) -> float:
+    """Mission seconds a rover still waits before it leaves (0: go now)."""
+    return max(eta - flight - RELEASE_LEAD - now, 0.0)
+
+
+@dataclass(frozen=True)
+class Shortfall:
+    """A rover the plan would bring below its reserve."""
+
+    rover: str
+    airborne: float  # s in the air until it is on the deck, waiting included
+    allowed: float  # s its battery above the reserve lasts
+
+
+def energy_shortfalls(plan: Plan, rovers: Iterable[CollectRover], airborne: set[str],
+                      carrier: CarrierSpec, max_speed: float) -> list[Shortfall]:
+    """Rovers that would be below their reserve on the deck: a rover already in the air burns its
+    battery from now until it is down (``max(carrier there, rover there) + land_time``), a rover
+    on the ground only from its release. ``range`` (metres above the reserve at cruise speed) /
+    ``max_speed`` is the time it has."""
+    by_id = {r.id: r for r in rovers}
+    out = []
+    for stop in plan.stops:
+        for leg in stop.rovers:
+            r = by_id.get(leg.rover)
+            if r is None:
+                continue
+            down = max(stop.arrive, leg.arrive) + carrier.land_time
+            air = down if leg.rover in airborne else leg.arrive + RELEASE_LEAD + carrier.land_time
+            allowed = r.range / max_speed
+            if air > allowed + 1e-6:
+                out.append(Shortfall(leg.rover, air, allowed))
+    return out
+
+
+__all__ = ["RELEASE_LEAD", "CarrierNow", "RoundClock", "Shortfall", "energy_shortfalls", "release_delay"]
