@@ -104,3 +104,14 @@ def test_a_task_outside_bounds_is_an_error_naming_it(tmp_path: Path,
     assert main(["plan", "--mission", str(tmp_path / "m.yaml")]) == 2
     err = capsys.readouterr().err
     assert "task 't5'" in err and "outside bounds" in err and "Traceback" not in err
+
+
+def test_a_closed_stdout_is_no_traceback() -> None:
+    """`fleetctl plan --json | head -1`: the reader leaves early."""
+    proc = subprocess.Popen([sys.executable, "-m", "fleetctl.cli", "plan", "--mission", "missions/recon.yaml",
+                             "--json"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, cwd=ROOT)
+    assert proc.stdout is not None and proc.stderr is not None
+    proc.stdout.close()  # before the plan is printed (it is more than a pipe buffer's first write)
+    err = proc.stderr.read().decode()
+    assert proc.wait(60) == 141, err
+    assert "Traceback" not in err
