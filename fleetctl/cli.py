@@ -1,4 +1,4 @@
-"""The ``fleetctl`` command line (DESIGN.md "Command line — the contract")."""
+"""The ``fleetctl`` command line (docs/cli.md)."""
 
 from __future__ import annotations
 
@@ -9,7 +9,9 @@ import sys
 from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING, Any
 
+from fleetctl import package_version
 from fleetctl.mission import Mission, MissionError, load_mission
+from fleetctl.mission.outliers import far_task_warnings
 from planners.problem import CollectProblem
 
 if TYPE_CHECKING:
@@ -41,6 +43,7 @@ def cmd_plan(args: argparse.Namespace) -> int:
     from planners import PlanningError
 
     mission = load_mission(args.mission)
+    _warn(mission, args.collect)
     registry = _planners(args.collect)
     phase = "collect" if args.collect else "deploy"
     name = args.planner or mission.planner_for(phase)
@@ -67,6 +70,12 @@ def cmd_plan(args: argparse.Namespace) -> int:
         out = plot_plan(mission, plan, args.plot, bound)
         print(f"plot written to {out}", file=sys.stderr if args.json else sys.stdout)
     return 0
+
+
+def _warn(mission: Mission, collect: bool) -> None:
+    """Warnings about a mission that loads but looks wrong (a task far outside the others)."""
+    for line in [] if collect else far_task_warnings(mission):
+        print(f"fleetctl: warning: {mission.path or mission.name}: {line}", file=sys.stderr)
 
 
 def _lower_bound(problem: DeployProblem | CollectProblem, collect: bool) -> float | None:
@@ -133,6 +142,7 @@ EXIT_TERMINATED = 143  # SIGTERM: like Ctrl-C (airborne rovers hold, records wri
 
 def cmd_fly(args: argparse.Namespace) -> int:
     mission = load_mission(args.mission)
+    _warn(mission, args.command == "collect")
     if args.command in ("deploy", "run") and not mission.tasks:
         raise CliError(f"{mission.path}: tasks: the mission has no tasks to deploy rovers to (a collection-"
                        f"only mission); fly it with 'fleetctl collect --mission {args.mission}'")
@@ -336,6 +346,17 @@ def _add_resume_command(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=cmd_resume)
 
 
+class _Version(argparse.Action):
+    """``--version``: read the package metadata only when asked."""
+
+    def __init__(self, option_strings: Sequence[str], dest: str, **kw: Any) -> None:
+        super().__init__(option_strings, dest, nargs=0, default=argparse.SUPPRESS, **kw)
+
+    def __call__(self, parser: argparse.ArgumentParser, *_: Any) -> None:
+        print(f"fleetctl {package_version()}")
+        parser.exit()
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog="fleetctl",
@@ -343,6 +364,7 @@ def build_parser() -> argparse.ArgumentParser:
                     "rovers near their tasks and collects them again, over MAVLink.",
     )
     p.add_argument("-v", "--verbose", action="store_true", help="log debug messages")
+    p.add_argument("--version", action=_Version, help="print the fleetctl version and exit")
     sub = p.add_subparsers(dest="command", metavar="COMMAND")
     sub.required = True
 
@@ -452,7 +474,7 @@ def cmd_status(args: argparse.Namespace) -> int:
 
 async def _status(mission: Mission, timeout: float, speedup: float | None) -> int:
 
-    from fleetctl.mavlink.fleet import connect_fleet
+    from fleetctl.mavlink.fleet import CONNECT_HINT, connect_fleet
     from fleetctl.mavlink.link import LinkError
 
     sim = None
@@ -488,7 +510,8 @@ async def _status(mission: Mission, timeout: float, speedup: float | None) -> in
             if w:
                 print(f"warning: {row['id']}: {w}")
     if problems:
-        print(f"fleetctl: {len(problems)} vehicle(s) missing or not ready:", file=sys.stderr)
+        print(f"fleetctl: {len(problems)} vehicle(s) missing or not ready (no heartbeat: {CONNECT_HINT}):",
+              file=sys.stderr)
         for line in problems:
             print(f"  {line}", file=sys.stderr)
         return EXIT_NOT_READY
@@ -550,7 +573,8 @@ def _status_rows(mission: Mission, fleet: Fleet, link_loss: dict[str, str] | Non
                 else:
                     row["deck"] = "?"
         if reasons:
-            problems.append(f"{vid} (sysid {v.sysid}) at {url}: " + "; ".join(reasons))
+            problems.append(fleet.failure_line(vid) if not v.connected
+                            else f"{vid} (sysid {v.sysid}) at {url}: " + "; ".join(reasons))
             row["reasons"] = "; ".join(reasons)
         else:
             row["ready"] = "ready"
@@ -748,6 +772,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("fleetctl: interrupted", file=sys.stderr)
         return 130
+    except BrokenPipeError:  # `fleetctl plan --json | head`: the reader left, no traceback
+        import os
+
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 141
 
 
 if __name__ == "__main__":

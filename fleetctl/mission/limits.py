@@ -64,4 +64,10 @@ MAX_ROADMAP_EDGES = 100_000  # (the planner itself refuses more than 120,000 act
 FAR_FACTOR = 2.0
 MIN_EXTENT = 100.0  # m
 
+# --------------------------------------------------------------------------- warnings (mission/outliers.py)
+# ``plan`` and ``deploy`` warn about a task farther from the centroid of the other tasks than
+# OUTLIER_FACTOR x their median distance from it and than OUTLIER_MIN_DISTANCE.
+OUTLIER_FACTOR = 3.0
+OUTLIER_MIN_DISTANCE = 200.0  # m
+
 __all__ = [name for name in dir() if name.isupper()]

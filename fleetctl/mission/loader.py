@@ -1,4 +1,4 @@
-"""Mission files: load and validate the YAML contract of DESIGN.md, build the planners' problems.
+"""Mission files: load and validate the YAML contract of docs/mission-file.md, build the planners' problems.
 
 Every error a user can make in a mission file raises :class:`MissionError` whose message names
 the file (and line, when the file was read from disk), the key path (``rovers.max_speed``,
@@ -39,6 +39,7 @@ from shapely.validation import explain_validity
 
 import fleetctl.mission.limits as L
 from fleetctl.geo import Origin, geodetic_to_local
+from fleetctl.mission.connections import ConnectionSpellingError, normalize_connection
 from fleetctl.mission.flight import DEFAULT_ENDURANCE, default_land_time, default_takeoff_time
 from fleetctl.mission.model import (
     FAILSAFE_ACTIONS,
@@ -258,15 +259,20 @@ _HOSTPORT = r"(?P<host>\[[0-9a-fA-F:.]+\]|[A-Za-z0-9_.-]+):(?P<port>\d+)"
 _CONNECTION_RES = (
     re.compile(r"sim"),
     re.compile(rf"(?:udp|udpout|udpin|tcp)://{_HOSTPORT}"),
-    re.compile(r"serial://(?P<dev>/[^?\s]+)\?baud=(?P<baud>\d+)"),
+    re.compile(r"serial://(?P<dev>/[^?\s]+|COM\d+)\?baud=(?P<baud>\d+)"),
 )
 _CONNECTION_FORMS = (
-    "sim, udp://HOST:PORT, udpout://HOST:PORT, udpin://HOST:PORT, tcp://HOST:PORT, serial:///dev/NAME?baud=N"
+    "sim, udp://HOST:PORT, udpout://HOST:PORT, udpin://HOST:PORT, tcp://HOST:PORT, serial:///dev/NAME?baud=N "
+    "(docs/mavlink.md)"
 )
 
 
 def _connection(ctx: _Ctx, v: Any, path: KeyPath) -> str:
     if isinstance(v, str):
+        try:  # MAVSDK/pymavlink/MAVProxy spellings: fleetctl's own, or what to write instead
+            v = normalize_connection(v)
+        except ConnectionSpellingError as exc:
+            ctx.fail(path, str(exc))
         for rx in _CONNECTION_RES:
             m = rx.fullmatch(v)
             if m is None:

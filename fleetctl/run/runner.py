@@ -252,7 +252,7 @@ class Run:
         self.missing = await admit(fleet, self.mission, self.command, adm)
         for vid, why in self.missing.items():
             st.set_state(vid, VehicleStatus.LOST)
-            st.event(Ev.MISSING, f"{vid}: did not answer at connect ({why}); flying without it", vid,
+            st.event(Ev.MISSING, f"{fleet.failure_line(vid)}; flying without it", vid,
                      url=fleet.urls.get(vid), reason=why)
         self.left_out = adm.left_out
         for vid, why in self.left_out.items():  # failed preflight: like a missing rover
@@ -437,6 +437,7 @@ class Run:
                 self.dwell_flown,
                 self.missing,
                 self.left_out,
+                mqtt=self.bus.stats() if self.bus is not None else None,
             )
         )
         self.journal.write(Ev.SUMMARY, **summary)

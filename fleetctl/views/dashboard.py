@@ -153,6 +153,8 @@ class HeadlessView(View):
 
     def start(self, state: FleetState, fleet: Fleet | None) -> None:
         if self._unlisten is None:
+            for ev in list(state.events):  # what happened before the view started (e.g. the bus)
+                self._print(ev)
             self._unlisten = state.add_listener(self._print)
 
     def _print(self, ev: Event) -> None:

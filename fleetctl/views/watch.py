@@ -117,11 +117,14 @@ class Watcher:
         self.prefix = config.topic_prefix
         self.state = state or RemoteFleetState()
         self.status = "connecting"
+        self.last_error: str | None = None
+        self.connects = 0
         self.messages = 0
         self.finished = asyncio.Event()  # set when the controller's status is final
 
     def status_lines(self) -> list[str]:
-        out = [f"bus: {self.status} {self.config.url} {self.prefix}"
+        why = f" ({self.last_error})" if self.last_error and self.status != "connected" else ""
+        out = [f"bus: {self.status} {self.config.url} {self.prefix}{why}"
                + (f" · controller {self.state.remote_status}" if self.state.remote_status else
                   " · no controller status yet")]
         plan = self.state.plan
@@ -129,6 +132,23 @@ class Watcher:
             out.append(f"plan: {plan.get('kind', '?')} ({plan.get('planner', '?')}), "
                        f"{len(plan.get('stops') or [])} stops, makespan {plan.get('makespan', 0.0):.1f} s")
         return out
+
+    def _set_status(self, status: str, error: BaseException | None = None) -> None:
+        """Track the connection; every change is an event (a dead broker is not silent)."""
+        if error is not None:
+            self.last_error = (str(error) or type(error).__name__)[:300]
+        if status == self.status:
+            return
+        old, self.status = self.status, status
+        url, why = self.config.url, f" ({self.last_error})" if self.last_error else ""
+        if status == "connected":
+            self.connects += 1
+            text = f"bus: connected to {url}, watching {self.prefix}/#"
+        elif old == "connected":
+            text = f"bus: connection to {url} lost{why}; reconnecting"
+        else:
+            text = f"bus: cannot connect to {url}{why}; retrying"
+        self.state.event(f"bus_{status}", text, None, url=url, error=self.last_error)
 
     def handle(self, topic: str, payload: bytes) -> None:
         """Apply one message of the bus to the state."""
@@ -164,21 +184,21 @@ class Watcher:
                     await client.__aenter__()
             except (aiomqtt.MqttError, TimeoutError, OSError) as exc:
                 log.debug("watch %s: cannot connect: %s", self.config.url, exc)
-                self.status = "reconnecting"
+                self._set_status("reconnecting", exc)
                 await asyncio.sleep(delay)
                 delay = min(delay * 2, BACKOFF_MAX)
                 continue
             delay = BACKOFF_MIN
             try:
                 await client.subscribe(topics, timeout=CONNECT_TIMEOUT)
-                self.status = "connected"
+                self._set_status("connected")
                 async for msg in client.messages:
                     p = msg.payload
                     data = bytes(p) if isinstance(p, bytes | bytearray) else str(p).encode()
                     self.handle(msg.topic.value, data)
             except (aiomqtt.MqttError, TimeoutError, OSError) as exc:
                 log.debug("watch %s: connection lost: %s", self.config.url, exc)
-                self.status = "reconnecting"
+                self._set_status("reconnecting", exc)
             except asyncio.CancelledError:
                 self.status = "stopped"
                 raise
