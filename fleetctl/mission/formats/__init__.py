@@ -1,0 +1,93 @@
+"""Operators' file formats: a mission's ``tasks:`` and ``obstacles:`` may be ``{file: PATH}``.
+
+One module per format (:mod:`.qgc_plan`, :mod:`.geojson_file`, :mod:`.kml_file`, :mod:`.csv_file`),
+chosen here by the file's extension; :mod:`.common` converts what they read to the mission's ENU
+frame. The readers only say what the file says; the loader (:mod:`fleetctl.mission.loader`) then
+validates the tasks and obstacles exactly like lists written in the mission file. Writing plans
+for other tools (``fleetctl plan --export DIR``) is :mod:`.export`. docs/formats.md is the
+user's reference.
+
+To add a format: a module with ``points(doc) -> (raw points, planned home or None)`` and
+``polygons(doc) -> raw polygons``, and an entry in :data:`READERS`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from fleetctl.geo import Origin
+from fleetctl.mission.formats import csv_file, geojson_file, kml_file, qgc_plan
+from fleetctl.mission.formats.common import (
+    FormatError,
+    ObstacleRecord,
+    RawPoint,
+    RawPolygon,
+    TaskRecord,
+    Vec3,
+    decode,
+    parse_json,
+    read_bounded,
+    to_obstacles,
+    to_tasks,
+)
+
+
+@dataclass(frozen=True)
+class Reader:
+    name: str
+    parse: Callable[[bytes], Any]  # the file's bytes -> a document for points/polygons
+    points: Callable[[Any], tuple[list[RawPoint], Vec3 | None]]
+    polygons: Callable[[Any], list[RawPolygon]]
+
+
+def _json(raw: bytes) -> Any:
+    return parse_json(decode(raw))
+
+
+READERS: dict[str, Reader] = {
+    ".plan": Reader("QGroundControl plan", _json, qgc_plan.points, qgc_plan.polygons),
+    ".geojson": Reader("GeoJSON", _json, geojson_file.points, geojson_file.polygons),
+    ".json": Reader("GeoJSON", _json, geojson_file.points, geojson_file.polygons),
+    ".kml": Reader("KML", kml_file.parse, kml_file.points, kml_file.polygons),
+    ".csv": Reader("CSV", decode, csv_file.points, csv_file.polygons),
+}
+
+
+def reader_for(path: Path) -> Reader:
+    reader = READERS.get(path.suffix.lower())
+    if reader is None:
+        raise FormatError("", f"unknown file type {path.suffix or '(no extension)'!r}; use one of "
+                              f"{', '.join(READERS)} (QGroundControl plan, GeoJSON, KML, CSV)")
+    return reader
+
+
+def _named(shown: str, exc: FormatError) -> FormatError:
+    return FormatError(f"{shown}: {exc.where}" if exc.where else shown, exc.message)
+
+
+def read_tasks(path: Path, origin: Origin | None, shown: str | None = None) -> list[TaskRecord]:
+    """The tasks in ``path`` (ENU metres); ``shown`` names the file in messages (default: path)."""
+    shown = shown or str(path)
+    try:
+        reader = reader_for(path)
+        raw, home = reader.points(reader.parse(read_bounded(path)))
+        return to_tasks(raw, origin, path.stem, home)
+    except FormatError as exc:
+        raise _named(shown, exc) from None
+
+
+def read_obstacles(path: Path, origin: Origin | None, shown: str | None = None) -> list[ObstacleRecord]:
+    """The obstacle polygons in ``path`` (ENU metres)."""
+    shown = shown or str(path)
+    try:
+        reader = reader_for(path)
+        return to_obstacles(reader.polygons(reader.parse(read_bounded(path))), origin)
+    except FormatError as exc:
+        raise _named(shown, exc) from None
+
+
+__all__ = ["READERS", "FormatError", "ObstacleRecord", "Reader", "TaskRecord", "read_obstacles", "read_tasks",
+           "reader_for"]
