@@ -13,6 +13,8 @@ To add a format: a module with ``points(doc) -> (raw points, planned home or Non
 
 from __future__ import annotations
 
+import logging
+import shutil
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -33,6 +35,8 @@ from fleetctl.mission.formats.common import (
     to_obstacles,
     to_tasks,
 )
+
+log = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True)
@@ -89,5 +93,37 @@ def read_obstacles(path: Path, origin: Origin | None, shown: str | None = None) 
         raise _named(shown, exc) from None
 
 
-__all__ = ["READERS", "FormatError", "ObstacleRecord", "Reader", "TaskRecord", "read_obstacles", "read_tasks",
-           "reader_for"]
+def data_files(raw: Any) -> list[str]:
+    """The ``{file: PATH}`` paths of a parsed mission mapping (as written)."""
+    if not isinstance(raw, dict):
+        return []
+    refs = [raw.get(k) for k in ("tasks", "obstacles")]
+    return [r["file"] for r in refs if isinstance(r, dict) and isinstance(r.get("file"), str)]
+
+
+def copy_data_files(mission: Any, dest: Path) -> list[Path]:
+    """Copy the task/obstacle files of ``mission`` (a :class:`~fleetctl.mission.Mission` read from a
+    file) into ``dest`` at the same relative paths, so a copy of the mission file in ``dest`` (the
+    run folder's mission.yaml, which ``fleetctl resume`` loads) reads the same data. Absolute paths
+    need no copy; a path that leaves the mission's folder (``..``) cannot be mirrored and is
+    logged."""
+    if mission.path is None:
+        return []
+    out = []
+    for name in data_files(mission.raw):
+        rel = Path(name)
+        if rel.is_absolute():
+            continue
+        if ".." in rel.parts:
+            log.warning("%s is outside the mission's folder: not copied into %s", name, dest)
+            continue
+        target = dest / rel
+        target.parent.mkdir(parents=True, exist_ok=True)
+        shutil.copyfile(Path(mission.path).parent / rel, target)
+        out.append(target)
+    return out
+
+
+__all__ = ["READERS", "FormatError", "ObstacleRecord", "Reader", "TaskRecord", "copy_data_files",
+           "data_files",
+           "read_obstacles", "read_tasks", "reader_for"]
