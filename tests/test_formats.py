@@ -420,3 +420,28 @@ def test_data_files_are_copied_for_the_run_folder_copy(tmp_path: Path) -> None:
     shutil.copy(m.path, run / "mission.yaml")
     assert copy_data_files(m, run) == [run / "recon_tasks.geojson"]
     assert load_mission(run / "mission.yaml").tasks == m.tasks  # what `fleetctl resume` loads
+
+
+async def test_a_run_folder_holds_the_export_and_the_task_file(tmp_path: Path) -> None:
+    from fleetctl.run.runner import execute
+
+    (tmp_path / "tasks.csv").write_text("id,x,y,z\nt1,20,10,5\nt2,40,-10,4\n")
+    f = mission_yaml(tmp_path, {"file": "tasks.csv"}, sim={"speedup": 20.0},
+                     carrier={"position": [0, 0], "max_speed": 10.0, "accel": 5.0, "unload_time": 1.0},
+                     rovers={"max_speed": 5.0, "deploy_range": 40.0, "fleet": {"count": 2}})
+    m = load_mission(f)
+    out = await execute(m, "deploy", runs_dir=tmp_path / "runs")
+    assert out.exit_code == 0, out.error
+    run = out.run_dir
+    assert run is not None and load_mission(run / "mission.yaml").tasks == m.tasks  # what resume loads
+    plans = {p.stem: json.loads(p.read_text()) for p in (run / "export").glob("*.plan")}
+    assert sorted(plans) == ["carrier", "r1", "r2"]
+    records = [json.loads(line) for line in (run / "journal.jsonl").read_text().splitlines()]
+    uploads = {r["vehicle"]: r["items"] for r in records
+               if r["kind"] == "command" and r.get("command") == "upload_mission"}
+    assert sorted(uploads) == sorted(plans)
+    for vid, doc in plans.items():
+        assert not list(SCHEMA.iter_errors(doc)), vid
+        assert len(doc["mission"]["items"]) == uploads[vid], vid  # the items uploaded (PX4-style sim)
+        assert doc["mission"]["firmwareType"] == 12  # from the vehicle's HEARTBEAT
+    assert geojson.loads((run / "export" / "plan.geojson").read_text()).is_valid
