@@ -321,7 +321,7 @@ class Run:
         try:
             compiled = self.executor.planning.compile(plan)
             aps = {vid: v.autopilot for vid, v in self.fleet.vehicles.items() if v.autopilot is not None}
-            export_plan(self.mission, plan, compiled, self.journal.dir / folder, autopilots=aps)
+            export_plan(self.mission, plan, compiled, self.journal.dir / folder, autopilots=aps, prune=True)
         except (ExecutionError, OSError, ValueError) as exc:  # the records must never stop a flight
             log.warning("could not write %s/: %s", folder, exc)
 

@@ -42,9 +42,10 @@ _SAFE_NAME = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.-]*")
 
 
 def export_plan(mission: Mission, plan: Plan, compiled: CompiledPlan, out_dir: str | Path, *,
-                autopilots: Mapping[str, Autopilot] | None = None) -> list[Path]:
+                autopilots: Mapping[str, Autopilot] | None = None, prune: bool = False) -> list[Path]:
     """Write ``<vehicle>.plan`` for every vehicle of ``compiled`` and ``plan.geojson`` into
-    ``out_dir`` (created). Returns the files written, carrier first."""
+    ``out_dir`` (created). Returns the files written, carrier first. ``prune``: also remove the
+    ``.plan`` files of vehicles not in this plan (a run folder's export after a replan)."""
     origin = mission.origin
     if origin is None:
         raise ValueError("exporting needs the mission's origin: add origin: {lat, lon, alt}")
@@ -55,6 +56,9 @@ def export_plan(mission: Mission, plan: Plan, compiled: CompiledPlan, out_dir: s
         doc = vehicle_plan(mission, vid, items, (autopilots or {}).get(vid))
         written.append(_write(out / f"{file_name(vid)}.plan", doc))
     written.append(_write(out / GEOJSON_NAME, plan_geojson(mission, plan)))
+    if prune:
+        for stale in set(out.glob("*.plan")) - set(written):
+            stale.unlink()
     return written
 
 
