@@ -445,3 +445,32 @@ async def test_a_run_folder_holds_the_export_and_the_task_file(tmp_path: Path) -
         assert len(doc["mission"]["items"]) == uploads[vid], vid  # the items uploaded (PX4-style sim)
         assert doc["mission"]["firmwareType"] == 12  # from the vehicle's HEARTBEAT
     assert geojson.loads((run / "export" / "plan.geojson").read_text()).is_valid
+
+
+def test_mqtt_task_messages_work_with_obstacles_from_a_file(tmp_path: Path,
+                                                            monkeypatch: pytest.MonkeyPatch) -> None:
+    from fleetctl.bus.client import FleetBus, TaskMessageError
+    from fleetctl.bus.config import BusConfig
+
+    shutil.copy(DATA / "obstacles.csv", tmp_path)
+    f = mission_yaml(tmp_path, [{"id": "a", "position": [10, 10, 3]}], {"file": "obstacles.csv"})
+    m = load_mission(f)
+    monkeypatch.chdir(ROOT)  # relative data files start at the mission's folder, not the working directory
+    bus = FleetBus(BusConfig("127.0.0.1", 1883, "t"), m)
+    added = bus.parse_add({"tasks": [{"id": "n", "position": [50, 50, 2]}]}, "P/tasks/add")
+    assert [t.id for t in added] == ["n"]
+    with pytest.raises(TaskMessageError, match="lies inside obstacles"):
+        bus.parse_add({"id": "x", "position": [25, 30, 2]}, "P/tasks/add")
+
+
+def test_run_folder_export_prunes_vehicles_a_replan_left_out(tmp_path: Path) -> None:
+    from fleetctl.mission.formats.export import export_plan
+
+    m = load_mission(RECON)
+    plan = DEPLOY_PLANNERS["lee"](m.deploy_problem())
+    compiled = compile_plan(plan, m.origin, carrier_id=m.carrier.id)
+    (tmp_path / "r18.plan").write_text("{}")
+    export_plan(m, plan, compiled, tmp_path)
+    assert (tmp_path / "r18.plan").exists()  # --export DIR never deletes what it did not write
+    export_plan(m, plan, compiled, tmp_path, prune=True)
+    assert not (tmp_path / "r18.plan").exists() and (tmp_path / "r16.plan").exists()

@@ -496,7 +496,7 @@ class FleetBus:
         raw["rovers"] = rovers
         raw.pop("mqtt", None)
         try:
-            m = parse_mission(raw, f"mqtt {source}")
+            m = parse_mission(raw, f"mqtt {source}", self.mission.path)  # obstacles: {file} beside it
         except MissionError as exc:
             raise TaskMessageError(str(exc)) from None
         return list(m.tasks[: len(entries)])
