@@ -474,3 +474,32 @@ def test_run_folder_export_prunes_vehicles_a_replan_left_out(tmp_path: Path) -> 
     assert (tmp_path / "r18.plan").exists()  # --export DIR never deletes what it did not write
     export_plan(m, plan, compiled, tmp_path, prune=True)
     assert not (tmp_path / "r18.plan").exists() and (tmp_path / "r16.plan").exists()
+
+
+def test_ardupilot_home_item_becomes_the_planned_home(tmp_path: Path) -> None:
+    from fleetctl.mavlink.autopilots import ArduPilot
+    from fleetctl.mission.formats.export import export_plan
+
+    m = load_mission(RECON)
+    plan = DEPLOY_PLANNERS["lee"](m.deploy_problem())
+    ap = ArduPilot()
+    compiled = compile_plan(plan, m.origin, carrier_id=m.carrier.id, autopilot=ap)
+    export_plan(m, plan, compiled, tmp_path, autopilots={v: ap for v in compiled.missions})
+    for vid, items in compiled.missions.items():
+        doc = json.loads((tmp_path / f"{vid}.plan").read_text())
+        assert not list(SCHEMA.iter_errors(doc)) and doc["mission"]["firmwareType"] == 3
+        assert [i["command"] for i in doc["mission"]["items"]] == [it.command for it in items[1:]]
+        assert doc["mission"]["plannedHomePosition"] == [items[0].lat, items[0].lon, items[0].z]
+        assert doc["mission"]["items"][0]["doJumpId"] == 1  # QGroundControl inserts home itself
+
+
+def test_collection_export_homes_at_the_rovers(tmp_path: Path) -> None:
+    assert main(["plan", "--mission", str(RECON), "--collect", "--export", str(tmp_path)]) == 0
+    m = load_mission(RECON)
+    assert m.collection is not None
+    for c in m.collection:
+        doc = json.loads((tmp_path / f"{c.id}.plan").read_text())
+        assert not list(SCHEMA.iter_errors(doc))
+        lat, lon, alt = doc["mission"]["plannedHomePosition"]
+        assert geodetic_to_local(lat, lon, alt, ORG) == pytest.approx((*c.position[:2], 0.0), abs=1e-6)
+        assert [i["command"] for i in doc["mission"]["items"]][-1] == 21  # NAV_LAND on the carrier

@@ -52,8 +52,9 @@ def export_plan(mission: Mission, plan: Plan, compiled: CompiledPlan, out_dir: s
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     written = []
+    starts = {leg.rover: leg.start for leg in plan.legs()} | {mission.carrier.id: plan.start}
     for vid, items in compiled.missions.items():
-        doc = vehicle_plan(mission, vid, items, (autopilots or {}).get(vid))
+        doc = vehicle_plan(mission, vid, items, (autopilots or {}).get(vid), start=starts.get(vid))
         written.append(_write(out / f"{file_name(vid)}.plan", doc))
     written.append(_write(out / GEOJSON_NAME, plan_geojson(mission, plan)))
     if prune:
@@ -84,9 +85,11 @@ def _fence(mission: Mission, origin: Origin) -> tuple[list[list[Vec2]], list[Vec
     return [ring(p) for p in mission.obstacles], inclusion
 
 
-def vehicle_plan(mission: Mission, vid: str, items: Sequence[MissionItem],
-                 autopilot: Autopilot | None = None) -> dict[str, Any]:
-    """The ``.plan`` document of one vehicle's compiled mission."""
+def vehicle_plan(mission: Mission, vid: str, items: Sequence[MissionItem], autopilot: Autopilot | None = None,
+                 start: Sequence[float] | None = None) -> dict[str, Any]:
+    """The ``.plan`` document of one vehicle's compiled mission; ``start``: where its flight (or
+    route) starts in ENU metres, the planned home (at the origin's altitude) unless item 0 is
+    ArduPilot's home placeholder."""
     origin = mission.origin
     assert origin is not None
     items = list(items)
@@ -94,6 +97,8 @@ def vehicle_plan(mission: Mission, vid: str, items: Sequence[MissionItem],
     if items and items[0].frame == MAV_FRAME_GLOBAL and items[0].command == qgc_plan.NAV_WAYPOINT:
         home = (items[0].lat, items[0].lon, float(items[0].z))  # ArduPilot's home placeholder
         items = items[1:]
+    elif start is not None:
+        home = _latlon((start[0], start[1], 0.0), origin)
     elif carrier or not items:
         home = _latlon(mission.carrier.position, origin)
     else:
