@@ -413,6 +413,13 @@ def test_recon_geojson_plans_exactly_as_recon(capsys: pytest.CaptureFixture[str]
         assert ta.position == pytest.approx(tb.position, abs=1e-6)
 
 
+def test_recon_geojson_is_recon_but_for_its_tasks() -> None:
+    a, b = (yaml.safe_load((ROOT / "missions" / n).read_text()) for n in ("recon.yaml", "recon_geojson.yaml"))
+    assert b.pop("tasks") == {"file": "recon_tasks.geojson"} and b.pop("name") == "recon_geojson"
+    a.pop("tasks"), a.pop("name")
+    assert b == a, "keep missions/recon_geojson.yaml in step with recon.yaml"
+
+
 def test_data_files_are_copied_for_the_run_folder_copy(tmp_path: Path) -> None:
     m = load_mission(ROOT / "missions" / "recon_geojson.yaml")
     run = tmp_path / "run"
