@@ -303,6 +303,30 @@ def test_exported_plans_follow_the_qgroundcontrol_format(recon_export: Path) -> 
         assert not errors, (f.name, errors[:5])
 
 
+def test_the_schema_accepts_qgroundcontrols_own_files_and_refuses_broken_ones(recon_export: Path) -> None:
+    assert not list(SCHEMA.iter_errors(json.loads((DATA / "site.plan").read_text())))  # QGC-written style
+    good = json.loads((recon_export / "r1.plan").read_text())
+    broken = [("fileType", None), ("version", 2)]
+    for key, value in broken:
+        doc = json.loads(json.dumps(good))
+        doc.pop(key) if value is None else doc.__setitem__(key, value)
+        assert list(SCHEMA.iter_errors(doc)), key
+    for change in ({"params": [0, 0, 0, 0, 47.0, 8.0]}, {"frame": "3"}, {"type": "Simple"}, {"doJumpId": 0}):
+        doc = json.loads(json.dumps(good))
+        doc["mission"]["items"][0].update(change)
+        assert list(SCHEMA.iter_errors(doc)), change
+    doc = json.loads(json.dumps(good))
+    doc["mission"]["plannedHomePosition"] = [147.4, 8.5, 488.0]  # latitude > 90
+    assert list(SCHEMA.iter_errors(doc))
+
+
+def test_vehicle_ids_become_safe_file_names() -> None:
+    from fleetctl.mission.formats.export import file_name
+
+    assert [file_name(v) for v in ("r1", "carrier-2.b", "../etc/x", "a b")] == ["r1", "carrier-2.b", "_etc_x",
+                                                                                "a_b"]
+
+
 def test_exported_items_are_the_compiled_mission_items(recon_export: Path) -> None:
     out = recon_export
     m = load_mission(RECON)
