@@ -19,6 +19,8 @@ import geojson
 import jsonschema
 import pytest
 import yaml
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 from shapely.geometry import LineString, Point, Polygon, shape
 
 import fleetctl.mission.limits as L
@@ -534,3 +536,33 @@ def test_collection_export_homes_at_the_rovers(tmp_path: Path) -> None:
         lat, lon, alt = doc["mission"]["plannedHomePosition"]
         assert geodetic_to_local(lat, lon, alt, ORG) == pytest.approx((*c.position[:2], 0.0), abs=1e-6)
         assert [i["command"] for i in doc["mission"]["items"]][-1] == 21  # NAV_LAND on the carrier
+
+
+_ENU = st.tuples(st.floats(-5000, 5000), st.floats(-5000, 5000), st.floats(0, 20))
+
+
+@settings(max_examples=20, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(points=st.lists(_ENU, min_size=1, max_size=5))
+def test_any_positions_survive_every_geodetic_format(tmp_path: Path,
+                                                     points: list[tuple[float, float, float]]) -> None:
+    from fleetctl.geo import local_to_geodetic
+
+    geo = [local_to_geodetic(x, y, z, ORG) for x, y, z in points]  # (lat, lon, alt)
+    rows = [(f"t{i}", la, lo, al) for i, (la, lo, al) in enumerate(geo)]
+    point = ('{"type": "Feature", "properties": {"id": "%s"}, '
+             '"geometry": {"type": "Point", "coordinates": %s}}')
+    files = {
+        "p.csv": "id,lat,lon,alt\n" + "".join(f"{i},{la!r},{lo!r},{al!r}\n" for i, la, lo, al in rows),
+        "p.geojson": '{"type": "FeatureCollection", "features": ['
+                     + ",".join(point % (i, json.dumps([lo, la, al])) for i, la, lo, al in rows) + "]}",
+        "p.kml": '<kml xmlns="http://www.opengis.net/kml/2.2"><Document>' + "".join(
+            f"<Placemark><name>{i}</name><Point><altitudeMode>absolute</altitudeMode>"
+            f"<coordinates>{lo!r},{la!r},{al!r}</coordinates></Point></Placemark>"
+            for i, la, lo, al in rows) + "</Document></kml>",
+    }
+    for name, text in files.items():
+        (tmp_path / name).write_text(text)
+        got = read_tasks(tmp_path / name, ORG)
+        assert [t.id for t in got] == [r[0] for r in rows], name
+        for t, p in zip(got, points, strict=True):
+            assert t.position == pytest.approx(p, abs=1e-6), name
