@@ -965,10 +965,9 @@ def _mqtt(ctx: _Ctx, d: dict[str, Any], path: Path | None) -> MqttConfig | None:
 # (bounded: fleetctl.mission.yaml_safe; the line map visits every node once, never alias copies)
 
 
-def parse_mission(data: dict[str, Any], source: str, path: Path | None = None) -> Mission:
-    """Validate an already parsed mission mapping; ``source`` names it in error messages, ``path``
-    (the mission file it came from, if any) is where relative ``{file: PATH}`` entries start."""
-    return _build(_Ctx(source), data, path)
+def parse_mission(data: dict[str, Any], source: str) -> Mission:
+    """Validate an already parsed mission mapping; ``source`` names it in error messages."""
+    return _build(_Ctx(source), data, None)
 
 
 def load_mission(path: str | Path) -> Mission:
