@@ -7,12 +7,14 @@ validates the tasks and obstacles exactly like lists written in the mission file
 for other tools (``fleetctl plan --export DIR``) is :mod:`.export`. docs/formats.md is the
 user's reference.
 
-To add a format: a module with ``points(doc) -> (raw points, planned home or None)`` and
-``polygons(doc) -> raw polygons``, and an entry in :data:`READERS`.
+To add a format: a module here with ``parse(raw bytes) -> document``, ``points(document) -> (raw
+points, planned home or None)`` and ``polygons(document) -> raw polygons``, and its extension in
+:data:`READERS`.
 """
 
 from __future__ import annotations
 
+import importlib
 import logging
 import shutil
 from collections.abc import Callable
@@ -21,7 +23,6 @@ from pathlib import Path
 from typing import Any
 
 from fleetctl.geo import Origin
-from fleetctl.mission.formats import csv_file, geojson_file, kml_file, qgc_plan
 from fleetctl.mission.formats.common import (
     FormatError,
     ObstacleRecord,
@@ -29,8 +30,6 @@ from fleetctl.mission.formats.common import (
     RawPolygon,
     TaskRecord,
     Vec3,
-    decode,
-    parse_json,
     read_bounded,
     to_obstacles,
     to_tasks,
@@ -47,25 +46,23 @@ class Reader:
     polygons: Callable[[Any], list[RawPolygon]]
 
 
-def _json(raw: bytes) -> Any:
-    return parse_json(decode(raw))
-
-
-READERS: dict[str, Reader] = {
-    ".plan": Reader("QGroundControl plan", _json, qgc_plan.points, qgc_plan.polygons),
-    ".geojson": Reader("GeoJSON", _json, geojson_file.points, geojson_file.polygons),
-    ".json": Reader("GeoJSON", _json, geojson_file.points, geojson_file.polygons),
-    ".kml": Reader("KML", kml_file.parse, kml_file.points, kml_file.polygons),
-    ".csv": Reader("CSV", decode, csv_file.points, csv_file.polygons),
+# extension -> (format, module of this package); a module is imported when a file of its kind is read
+READERS: dict[str, tuple[str, str]] = {
+    ".plan": ("QGroundControl plan", "qgc_plan"),
+    ".geojson": ("GeoJSON", "geojson_file"),
+    ".json": ("GeoJSON", "geojson_file"),
+    ".kml": ("KML", "kml_file"),
+    ".csv": ("CSV", "csv_file"),
 }
 
 
 def reader_for(path: Path) -> Reader:
-    reader = READERS.get(path.suffix.lower())
-    if reader is None:
+    entry = READERS.get(path.suffix.lower())
+    if entry is None:
         raise FormatError("", f"unknown file type {path.suffix or '(no extension)'!r}; use one of "
                               f"{', '.join(READERS)} (QGroundControl plan, GeoJSON, KML, CSV)")
-    return reader
+    module = importlib.import_module(f"{__name__}.{entry[1]}")
+    return Reader(entry[0], module.parse, module.points, module.polygons)
 
 
 def _named(shown: str, exc: FormatError) -> FormatError:

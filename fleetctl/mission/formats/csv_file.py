@@ -19,12 +19,18 @@ import csv
 import difflib
 import math
 from dataclasses import dataclass
+from typing import Any
 
-from fleetctl.mission.formats.common import FormatError, RawPoint, RawPolygon, Vec2, check_count
+from fleetctl.mission.formats.common import FormatError, RawPoint, RawPolygon, Vec2, check_count, decode
 
 _SYNONYMS = {"latitude": "lat", "lng": "lon", "long": "lon", "longitude": "lon", "altitude": "alt"}
 _KNOWN = ("id", "lat", "lon", "alt", "height", "x", "y", "z")
 _FORMS = "id,lat,lon[,alt] (or height) or id,x,y[,z] (ENU metres)"
+
+
+def parse(raw: bytes) -> Any:
+    """The file's bytes as the document :func:`points` and :func:`polygons` read."""
+    return decode(raw)
 
 
 @dataclass(frozen=True)
@@ -137,4 +143,4 @@ def polygons(text: str) -> list[RawPolygon]:
     return out
 
 
-__all__ = ["points", "polygons"]
+__all__ = ["parse", "points", "polygons"]

@@ -21,9 +21,17 @@ from fleetctl.mission.formats.common import (
     RawPolygon,
     Vec2,
     check_count,
+    decode,
     number,
     open_ring,
+    parse_json,
 )
+
+
+def parse(raw: bytes) -> Any:
+    """The file's bytes as the document :func:`points` and :func:`polygons` read."""
+    return parse_json(decode(raw))
+
 
 _CRS84 = ("urn:ogc:def:crs:OGC:1.3:CRS84", "urn:ogc:def:crs:OGC::CRS84", "EPSG:4326",
           "urn:ogc:def:crs:EPSG::4326")
@@ -167,4 +175,4 @@ def collection(features: Sequence[dict[str, Any]], **members: Any) -> dict[str, 
     return {"type": "FeatureCollection", **members, "features": list(features)}
 
 
-__all__ = ["collection", "feature", "line", "point", "points", "polygon", "polygons", "position"]
+__all__ = ["collection", "feature", "line", "parse", "point", "points", "polygon", "polygons", "position"]

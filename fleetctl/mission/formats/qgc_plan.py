@@ -25,7 +25,17 @@ import math
 from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any
 
-from fleetctl.mission.formats.common import FormatError, RawPoint, RawPolygon, Vec2, Vec3, check_count, number
+from fleetctl.mission.formats.common import (
+    FormatError,
+    RawPoint,
+    RawPolygon,
+    Vec2,
+    Vec3,
+    check_count,
+    decode,
+    number,
+    parse_json,
+)
 
 if TYPE_CHECKING:
     from fleetctl.mavlink.link import MissionItem
@@ -41,6 +51,10 @@ MAV_AUTOPILOT = {"px4": 12, "ardupilot": 3, "generic": 0}
 
 
 # --------------------------------------------------------------------------- reading
+def parse(raw: bytes) -> Any:
+    """The file's bytes as the document :func:`points` and :func:`polygons` read."""
+    return parse_json(decode(raw))
+
 
 
 def _document(doc: Any) -> dict[str, Any]:
@@ -208,4 +222,4 @@ def plan_document(
     }
 
 
-__all__ = ["MAV_AUTOPILOT", "plan_document", "planned_home", "points", "polygons", "simple_item"]
+__all__ = ["MAV_AUTOPILOT", "parse", "plan_document", "planned_home", "points", "polygons", "simple_item"]
