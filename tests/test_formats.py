@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 import math
+import random
 import shutil
 import subprocess
 import sys
@@ -566,3 +567,47 @@ def test_any_positions_survive_every_geodetic_format(tmp_path: Path,
         assert [t.id for t in got] == [r[0] for r in rows], name
         for t, p in zip(got, points, strict=True):
             assert t.position == pytest.approx(p, abs=1e-6), name
+
+
+_ODD = [None, True, 0, -1, 1e308, "x", [], {}, [1], [1, 2, 3, 4], "Feature", "Point", [[1, 2]], [[[1, 2]]]]
+
+
+def _mutated(raw: bytes, name: str, rng: random.Random) -> bytes:
+    if name.endswith((".plan", ".geojson")) and rng.random() < 0.6:
+        def walk(x: Any) -> Any:
+            if rng.random() < 0.08:
+                return rng.choice(_ODD)
+            if isinstance(x, dict):
+                return {k: walk(v) for k, v in x.items() if rng.random() > 0.05}
+            if isinstance(x, list):
+                return [walk(v) for v in x if rng.random() > 0.05]
+            return x
+        return json.dumps(walk(json.loads(raw))).encode()
+    b = bytearray(raw)
+    for _ in range(rng.randint(1, 8)):
+        i = rng.randrange(len(b))
+        odd_byte = bytes([rng.choice(b',;<>"/0123456789.- \n')])
+        b[i:i + 1] = rng.choice([b"", bytes([rng.randrange(256)]), odd_byte])
+    return bytes(b)
+
+
+def test_mutated_files_only_ever_give_format_errors(tmp_path: Path) -> None:
+    """Deterministic mutations of the data files (odd JSON values, flipped bytes): readers raise
+    FormatError with a message, never another exception (an unknown XML encoding and a list as a
+    .plan frame did)."""
+    from fleetctl.mission.formats import FormatError, read_obstacles
+
+    rng = random.Random(0)
+    names = ["site.plan", "site.geojson", "site.kml", "site.csv", "obstacles.csv"]
+    outcomes = {"ok": 0, "refused": 0}
+    for _ in range(250):
+        name = rng.choice(names)
+        (tmp_path / name).write_bytes(_mutated((DATA / name).read_bytes(), name, rng))
+        for read in (read_tasks, read_obstacles):
+            try:
+                read(tmp_path / name, ORG)
+                outcomes["ok"] += 1
+            except FormatError as exc:
+                assert str(exc).startswith(str(tmp_path / name)) and len(str(exc)) < 1000
+                outcomes["refused"] += 1
+    assert outcomes["ok"] > 20 and outcomes["refused"] > 20, outcomes  # both kinds were exercised

@@ -31,6 +31,8 @@ def parse(raw: bytes) -> Element:
         line, col = getattr(exc, "position", (0, 0))
         raise FormatError(f"line {line} column {col}",
                           f"malformed XML: {exc}; fix the syntax there") from None
+    except (LookupError, ValueError) as exc:  # an unknown encoding in the XML declaration, bad bytes
+        raise FormatError("", f"cannot read the XML: {exc}; save the file as UTF-8") from None
     if _local(root.tag) != "kml":
         raise FormatError("", f"not a KML document (root element <{_local(root.tag)}>, expected <kml>)")
     return root

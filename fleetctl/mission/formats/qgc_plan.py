@@ -106,6 +106,8 @@ def _item_point(item: Any, i: int, home: Vec3 | None) -> RawPoint | None:
     lon = number(params[5], where, "params[5] (longitude)")
     alt = number(params[6], where, "params[6] (altitude)")
     frame = item.get("frame")
+    if isinstance(frame, bool) or not isinstance(frame, int):
+        raise FormatError(where, f"frame must be a MAV_FRAME number, got {frame!r:.40}")
     if frame in AMSL_FRAMES:
         return RawPoint(where, None, lat, lon, alt=alt)
     if frame in RELATIVE_FRAMES:
