@@ -593,8 +593,7 @@ def _mutated(raw: bytes, name: str, rng: random.Random) -> bytes:
 
 def test_mutated_files_only_ever_give_format_errors(tmp_path: Path) -> None:
     """Deterministic mutations of the data files (odd JSON values, flipped bytes): readers raise
-    FormatError with a message, never another exception (an unknown XML encoding and a list as a
-    .plan frame did)."""
+    FormatError with a message, never another exception."""
     from fleetctl.mission.formats import FormatError, read_obstacles
 
     rng = random.Random(0)
@@ -611,3 +610,14 @@ def test_mutated_files_only_ever_give_format_errors(tmp_path: Path) -> None:
                 assert str(exc).startswith(str(tmp_path / name)) and len(str(exc)) < 1000
                 outcomes["refused"] += 1
     assert outcomes["ok"] > 20 and outcomes["refused"] > 20, outcomes  # both kinds were exercised
+
+
+def test_odd_values_found_by_mutation_are_format_errors(tmp_path: Path) -> None:
+    kml = (DATA / "site.kml").read_text().replace('encoding="UTF-8"', 'encoding="UT-8"')
+    (tmp_path / "t.kml").write_text(kml)
+    assert "t.kml: cannot read the XML: unknown encoding" in error(tmp_path, {"file": "t.kml"})
+    doc = json.loads((DATA / "site.plan").read_text())
+    doc["mission"]["items"][1]["frame"] = [3]
+    (tmp_path / "t.plan").write_text(json.dumps(doc))
+    msg = error(tmp_path, {"file": "t.plan"})
+    assert "t.plan: mission.items[1]: frame must be a MAV_FRAME number, got [3]" in msg
