@@ -454,6 +454,9 @@ def test_data_files_are_copied_for_the_run_folder_copy(tmp_path: Path) -> None:
     shutil.copy(m.path, run / "mission.yaml")
     assert copy_data_files(m, run) == [run / "recon_tasks.geojson"]
     assert load_mission(run / "mission.yaml").tasks == m.tasks  # what `fleetctl resume` loads
+    shutil.copy(m.path.parent / "recon_tasks.geojson", tmp_path / "plan.json")  # named like a run record
+    f = mission_yaml(tmp_path, {"file": "plan.json"}, rovers={"max_speed": 1.0, "deploy_range": 25.0})
+    assert copy_data_files(load_mission(f), run) == [] and not (run / "plan.json").exists()
 
 
 async def test_a_run_folder_holds_the_export_and_the_task_file(tmp_path: Path) -> None:

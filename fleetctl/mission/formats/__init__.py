@@ -90,6 +90,9 @@ def read_obstacles(path: Path, origin: Origin | None, shown: str | None = None) 
         raise _named(shown, exc) from None
 
 
+RUN_RECORDS = {"plan.json", "plan-collect.json", "summary.json"}  # JSON files a run folder writes itself
+
+
 def data_files(raw: Any) -> list[str]:
     """The ``{file: PATH}`` paths of a parsed mission mapping (as written)."""
     if not isinstance(raw, dict):
@@ -103,7 +106,7 @@ def copy_data_files(mission: Any, dest: Path) -> list[Path]:
     file) into ``dest`` at the same relative paths, so a copy of the mission file in ``dest`` (the
     run folder's mission.yaml, which ``fleetctl resume`` loads) reads the same data. Absolute paths
     need no copy; a path that leaves the mission's folder (``..``) cannot be mirrored and is
-    logged."""
+    logged, and so is a data file named like one of the run's own JSON records (plan.json, ...)."""
     if mission.path is None:
         return []
     out = []
@@ -111,8 +114,9 @@ def copy_data_files(mission: Any, dest: Path) -> list[Path]:
         rel = Path(name)
         if rel.is_absolute():
             continue
-        if ".." in rel.parts:
-            log.warning("%s is outside the mission's folder: not copied into %s", name, dest)
+        if ".." in rel.parts or rel.as_posix() in RUN_RECORDS:
+            log.warning("%s is outside the mission's folder or named like a run record: not copied into %s",
+                        name, dest)
             continue
         target = dest / rel
         target.parent.mkdir(parents=True, exist_ok=True)
