@@ -69,6 +69,10 @@ def cmd_plan(args: argparse.Namespace) -> int:
 
         out = plot_plan(mission, plan, args.plot, bound)
         print(f"plot written to {out}", file=sys.stderr if args.json else sys.stdout)
+    if args.export:
+        files = _export(mission, plan, args.export)
+        print(f"exported {len(files) - 1} QGroundControl .plan files and {files[-1].name} to {args.export}",
+              file=sys.stderr if args.json else sys.stdout)
     return 0
 
 
@@ -76,6 +80,26 @@ def _warn(mission: Mission, collect: bool) -> None:
     """Warnings about a mission that loads but looks wrong (a task far outside the others)."""
     for line in [] if collect else far_task_warnings(mission):
         print(f"fleetctl: warning: {mission.path or mission.name}: {line}", file=sys.stderr)
+
+
+def _export(mission: Mission, plan: Any, out_dir: str) -> list[Any]:
+    """``--export DIR``: the mission items the controller would upload (compile_plan, no autopilot
+    known offline) as <vehicle>.plan, and plan.geojson (docs/formats.md)."""
+    from fleetctl.mavlink.compile import CompileError, compile_plan
+    from fleetctl.mission.formats.export import export_plan
+    from fleetctl.run.planning import COLLECT_MEET_HEIGHT
+
+    if mission.origin is None:
+        raise CliError(f"{mission.path or mission.name}: --export needs the mission's origin (QGroundControl "
+                       "plans and GeoJSON are in latitude/longitude); add origin: {lat, lon, alt}")
+    try:
+        compiled = compile_plan(plan, mission.origin, carrier_id=mission.carrier.id,
+                                meet_height=COLLECT_MEET_HEIGHT)
+        return export_plan(mission, plan, compiled, out_dir)
+    except CompileError as e:
+        raise CliError(f"cannot export the plan: {e}") from None
+    except OSError as e:
+        raise CliError(f"cannot write the export to {out_dir}: {e.strerror or e}") from None
 
 
 def _lower_bound(problem: DeployProblem | CollectProblem, collect: bool) -> float | None:
@@ -130,7 +154,8 @@ fly 'run' to deploy, dwell and collect in one go.
 
 Records: runs/<mission>-<timestamp>/ (or --run-dir DIR, named on the first output line) holds
 journal.jsonl (written ahead of every command), traffic.tlog (all MAVLink traffic), mission.yaml
-(a copy of the mission), plan.json and summary.json (schema fleetctl.summary/1; also --summary).
+(a copy of the mission), plan.json, export/ (the plan as QGroundControl .plan files and GeoJSON)
+and summary.json (schema fleetctl.summary/1; also --summary).
 Exit status: 0 mission complete, 1 not complete (or a vehicle did not answer, an upload was
 rejected), 2 bad mission file or option, 130 interrupted by Ctrl-C, 143 by SIGTERM (airborne
 rovers were told to hold; 'fleetctl resume --run DIR' finishes the run).
@@ -383,6 +408,9 @@ def build_parser() -> argparse.ArgumentParser:
                            "collection: lee (default), lee-convex, visit-all, gather")
     plan.add_argument("--json", action="store_true", help="print only the plan JSON (schema fleetctl.plan/1)")
     plan.add_argument("--plot", metavar="OUT.png", help="draw the plan to a PNG file")
+    plan.add_argument("--export", metavar="DIR",
+                      help="also write DIR/<vehicle>.plan (QGroundControl) for every vehicle and "
+                           "DIR/plan.geojson (see docs/formats.md)")
     plan.set_defaults(func=cmd_plan)
     _add_fly_commands(sub)
     _add_controller_commands(sub)

@@ -518,6 +518,8 @@ class FleetBus:
         rovers["units"] = [{"id": u.id, "sysid": u.sysid} for u in self.mission.rovers.units]
         raw["rovers"] = rovers
         raw.pop("mqtt", None)
+        if isinstance(raw.get("obstacles"), dict):  # {file: PATH}: the obstacles as loaded, no file I/O here
+            raw["obstacles"] = [[list(v) for v in poly] for poly in self.mission.obstacles]
         try:
             m = parse_mission(raw, f"mqtt {source}")
         except MissionError as exc:

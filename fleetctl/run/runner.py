@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import logging
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -24,6 +25,7 @@ from fleetctl.mavlink.fleet import Fleet, connect_fleet
 from fleetctl.mavlink.link import LinkError
 from fleetctl.mavlink.vehicle import CommandRejected, Vehicle
 from fleetctl.mission import Mission
+from fleetctl.mission.formats import copy_data_files
 from fleetctl.run.admission import Admission, admit
 from fleetctl.run.context import ExecutionError
 from fleetctl.run.executor import Executor
@@ -35,6 +37,8 @@ from fleetctl.run.state import FleetState
 from fleetctl.run.summary import RunFacts, build_summary
 from fleetctl.views.view import View
 from planners.plan import Plan
+
+log = logging.getLogger(__name__)
 
 EXIT_OK = 0
 EXIT_FAILED = 1
@@ -179,6 +183,7 @@ class Run:
         if m.path is not None:
             with contextlib.suppress(OSError):
                 await asyncio.to_thread(j.save_mission, m.path)
+                await asyncio.to_thread(copy_data_files, m, j.dir)  # tasks/obstacles {file}: for resume
         await j.commit(
             Ev.RUN,
             mission=m.name,
@@ -323,6 +328,20 @@ class Run:
     def _write_plan(self, kind: str, plan: Plan) -> None:
         name = "plan.json" if kind == "deploy" or self.command == "collect" else "plan-collect.json"
         self.journal.write_json(name, plan.to_json())
+        self._export(plan, "export" if name == "plan.json" else "export-collect")
+
+    def _export(self, plan: Plan, folder: str) -> None:
+        """RUN/export/: the uploaded mission items as QGroundControl plans, and plan.geojson."""
+        if self.executor is None or self.fleet is None or self.mission.origin is None:
+            return
+        from fleetctl.mission.formats.export import export_plan
+
+        try:
+            compiled = self.executor.planning.compile(plan)
+            aps = {vid: v.autopilot for vid, v in self.fleet.vehicles.items() if v.autopilot is not None}
+            export_plan(self.mission, plan, compiled, self.journal.dir / folder, autopilots=aps, prune=True)
+        except (ExecutionError, OSError, ValueError) as exc:  # the records must never stop a flight
+            log.warning("could not write %s/: %s", folder, exc)
 
     # ============================================================================== the phases
     async def _phases(self) -> None:
