@@ -54,6 +54,7 @@ class Planning:
             ) from None
         check_plan(plan, self.ctx.mission.geofence)  # ExecutionError naming the stop/rover outside it
         await self.ctx.commit(Ev.PLAN, plan=plan.to_json())
+        self.ctx.state.set_plan(plan.to_json())  # the views (map, time-to-go); started when it flies
         if self.write_plan is not None:
             self.write_plan(kind, plan)
         self.ctx.state.event(
