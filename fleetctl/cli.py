@@ -825,9 +825,13 @@ def cmd_replay(args: argparse.Namespace) -> int:
     view = _with_web(args, make_view(headless, latlon=args.latlon), run.origin)
     speed = 0.0 if args.instant else args.speed
     try:
-        asyncio.run(replay(run, view, speed=speed, linger=args.linger))
+        state = asyncio.run(replay(run, view, speed=speed, linger=args.linger))
     except KeyboardInterrupt:
         return 130
+    if headless:
+        from fleetctl.views.dashboard import render_text
+
+        print(render_text(state, latlon=args.latlon), end="", flush=True)
     return 0
 
 

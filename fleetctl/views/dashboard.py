@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import io
 import sys
 from collections.abc import Callable, Sequence
 from typing import IO, TYPE_CHECKING, Any
@@ -172,6 +173,13 @@ def fit(state: FleetState, height: int, status_lines: int) -> tuple[int, int]:
     return max(free - events, 2), events
 
 
+def render_text(state: FleetState, width: int = 160, latlon: bool = False) -> str:
+    """The whole dashboard of ``state`` as plain text (``--headless`` endings, tests)."""
+    console = Console(width=width, record=True, file=io.StringIO(), color_system=None)
+    console.print(render(state, None, latlon=latlon, width=width))
+    return console.export_text()
+
+
 class LiveView(View):
     """Redraws the dashboard at :data:`REFRESH_HZ` from a task on the running loop."""
 
@@ -254,4 +262,5 @@ def make_view(headless: bool | None = None, latlon: bool = False) -> View:
     return HeadlessView() if headless else LiveView(latlon=latlon)
 
 
-__all__ = ["REFRESH_HZ", "HeadlessView", "LiveView", "fit", "make_view", "order_rows", "render", "tplus"]
+__all__ = ["REFRESH_HZ", "HeadlessView", "LiveView", "fit", "make_view", "order_rows", "render", "render_text",
+           "tplus"]
