@@ -262,5 +262,5 @@ def make_view(headless: bool | None = None, latlon: bool = False) -> View:
     return HeadlessView() if headless else LiveView(latlon=latlon)
 
 
-__all__ = ["REFRESH_HZ", "HeadlessView", "LiveView", "fit", "make_view", "order_rows", "render", "render_text",
-           "tplus"]
+__all__ = ["REFRESH_HZ", "HeadlessView", "LiveView", "fit", "make_view", "order_rows", "render",
+           "render_text", "tplus"]

@@ -112,9 +112,11 @@ class MapServer:
         app = web.Application()
         app.add_routes([web.get("/", self._page), web.get("/static/{name}", self._static),
                         web.get("/events", self._events), web.get("/state", self._state)])
-        self._runner = web.AppRunner(app, handle_signals=False, access_log=None)
+        # handler_cancellation: a stream whose browser went away ends at once (not at its next write)
+        self._runner = web.AppRunner(app, handle_signals=False, access_log=None, shutdown_timeout=1.0,
+                                     handler_cancellation=True)
         await self._runner.setup()
-        site = web.TCPSite(self._runner, self.host, self.port, shutdown_timeout=1.0)
+        site = web.TCPSite(self._runner, self.host, self.port)
         try:
             await site.start()
         except OSError as exc:

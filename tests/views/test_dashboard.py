@@ -112,7 +112,8 @@ def _column(group: object, title: str) -> list[Text]:
 
 def test_battery_and_link_colours(tmp_path: Path) -> None:
     st, _ = _fleet(tmp_path)  # reserve 0.1: red below 10 %, yellow below 20 %
-    st.vehicles["r1"].battery_pct, st.vehicles["r2"].battery_pct, st.vehicles["r3"].battery_pct = 9.0, 15.0, 20.0
+    for k, pct in ((1, 9.0), (2, 15.0), (3, 20.0)):
+        st.vehicles[f"r{k}"].battery_pct = pct
     st.vehicles["r4"].lost = True
     st.vehicles["r5"].link_age = 0.4
     assert [battery_level(st, st.vehicles[f"r{k}"]) for k in (1, 2, 3)] == ["reserve", "low", "ok"]

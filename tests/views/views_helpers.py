@@ -91,7 +91,8 @@ def write_run(d: Path, t0: float = 1_000_000.0, speedup: float = 2.0) -> Path:
     write_mission(mission_dict(rovers=2), d / "mission.yaml")
     plan = deploy_plan([("r1", "t1", [0, 0, 0], [20, 10, 5], 6.0)], 6.0)
     recs = [
-        {"t": t0, "elapsed": 0.0, "kind": "run", "mission": "viewtest", "command": "deploy", "speedup": speedup},
+        {"t": t0, "elapsed": 0.0, "kind": "run", "mission": "viewtest", "command": "deploy",
+         "speedup": speedup},
         {"t": t0 + 0.2, "elapsed": 0.2, "kind": "phase", "phase": "deploy"},
         {"t": t0 + 0.5, "elapsed": 0.5, "kind": "plan", "plan": plan},
         {"t": t0 + 1.0, "elapsed": 1.0, "kind": "carrier_started", "vehicle": "carrier",
@@ -110,6 +111,7 @@ def write_run(d: Path, t0: float = 1_000_000.0, speedup: float = 2.0) -> Path:
     out += tlog_record(t0 + 0.3, position_msg(11, 0, 0, 0))  # on the deck
     for k in range(11):
         f = k / 10
-        out += tlog_record(t0 + 2.5 + 0.5 * k, position_msg(11, 20 * f, 10 * f, 5 * f, 4.0 if 0 < k < 10 else 0.0))
+        vx = 4.0 if 0 < k < 10 else 0.0
+        out += tlog_record(t0 + 2.5 + 0.5 * k, position_msg(11, 20 * f, 10 * f, 5 * f, vx))
     (d / "traffic.tlog").write_bytes(bytes(out))
     return d
