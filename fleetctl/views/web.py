@@ -83,9 +83,10 @@ class MapClient:
         except asyncio.QueueFull:
             return False
 
-    def close(self) -> None:
+    def close(self, drain: bool = False) -> None:
+        """End the stream: at once, or (``drain``, at shutdown) after what is queued."""
         self.closed = True
-        while not self.queue.empty():
+        while not self.queue.empty() and (not drain or self.queue.full()):
             self.queue.get_nowait()
         self.queue.put_nowait(None)
 
@@ -134,13 +135,15 @@ class MapServer:
                 self.dropped += 1
                 self._drop(c)
 
-    def _drop(self, c: MapClient) -> None:
-        self.clients.discard(c)
-        c.close()
+    def _drop(self, c: MapClient, drain: bool = False) -> None:
+        if c in self.clients:
+            self.clients.discard(c)
+            c.close(drain)
 
     async def stop(self) -> None:
+        """Close every stream (after the messages queued for it) and the listening socket."""
         for c in list(self.clients):
-            self._drop(c)
+            self._drop(c, drain=True)
         if self._runner is not None:
             runner, self._runner = self._runner, None
             with contextlib.suppress(TimeoutError):
@@ -179,7 +182,7 @@ class MapServer:
         return resp
 
     async def _pump(self, client: MapClient, resp: web.StreamResponse) -> None:
-        while not client.closed:
+        while True:
             try:
                 msg = await asyncio.wait_for(client.queue.get(), KEEPALIVE)
             except TimeoutError:
