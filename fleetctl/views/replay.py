@@ -33,6 +33,7 @@ TLOG_NAME = "traffic.tlog"
 CHUNK = 0.25  # wall s: the longest single wait, so the views see the clock move
 YIELD_EVERY = 200  # steps between yields to the loop when playing as fast as possible
 EN_ROUTE_SPEED = 0.3  # m/s: a climbing rover moving this fast horizontally is on its way
+NOT_EVENTS = frozenset({Ev.STATUSTEXT})  # records with a text that the live view did not show
 
 
 class ReplayError(Exception):
@@ -192,7 +193,7 @@ class ReplayState(FleetState):
             handler = self._handlers.get(str(rec.get("kind")))
             if handler is not None:
                 handler(rec)
-            if isinstance(rec.get("text"), str):
+            if isinstance(rec.get("text"), str) and rec.get("kind") not in NOT_EVENTS:
                 self._tell(rec)
 
     def _tell(self, rec: dict[str, Any]) -> None:
