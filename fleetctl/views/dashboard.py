@@ -100,8 +100,10 @@ def _columns(width: int | None, latlon: bool) -> list[tuple[str, JustifyMethod]]
     wide = width is None or width >= 100
     pos: list[tuple[str, JustifyMethod]] = ([("lat", "right"), ("lon", "right")] if latlon else
                                             [("E m", "right"), ("N m", "right")])
-    cols: list[tuple[str, JustifyMethod]] = [("id", "left"), ("state", "left"), ("task", "left"), *pos,
-                                             ("alt", "right")]
+    cols: list[tuple[str, JustifyMethod]] = [("id", "left")]
+    if wide:
+        cols.append(("role", "left"))
+    cols += [("state", "left"), ("task", "left"), *pos, ("alt", "right")]
     if wide:
         cols.append(("m/s", "right"))
     cols.append(("batt%", "right"))
@@ -119,7 +121,7 @@ def _cells(state: FleetState, v: VehicleState, cols: list[tuple[str, JustifyMeth
     ttg = rover_time_to_go(state, v, legs) if v.role == "rover" else None
     ll = v.latlon
     values: dict[str, Any] = {
-        "id": Text(v.id, style="bold" if v.role == "carrier" else ""),
+        "id": Text(v.id, style="bold" if v.role == "carrier" else ""), "role": v.role,
         "state": Text(st, style=_STATE_STYLE.get(st, "")), "task": v.task or "",
         "E m": _num(v.enu[0] if v.enu else None), "N m": _num(v.enu[1] if v.enu else None),
         "lat": _num(ll[0] if ll else None, "{:.6f}"), "lon": _num(ll[1] if ll else None, "{:.6f}"),
@@ -145,7 +147,7 @@ def render(state: FleetState, max_rows: int | None = None, status: Sequence[str]
     """The dashboard for ``state``: header (phase, stop k of N, ``T+`` mission time and time to go,
     the phase's planned vs elapsed with a progress bar), one row per vehicle (at most ``max_rows``
     lines with "… N more"), the latest ``events``; ``status`` lines (e.g. the MQTT bus) under the
-    header. ``width`` < 100 leaves out speed and range; ``latlon`` shows WGS84 instead of E/N."""
+    header. ``width`` < 100 leaves out role, speed and range; ``latlon`` shows WGS84 instead of E/N."""
     table = Table(expand=False, pad_edge=False, box=None, header_style="bold")
     cols = _columns(width, latlon)
     for col, justify in cols:

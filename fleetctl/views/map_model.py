@@ -48,7 +48,7 @@ def plan_layer(state: FleetState) -> dict[str, Any]:
         for r in stop.get("rovers") or []:
             if r.get("task") and r.get("target"):
                 tasks.setdefault(str(r["task"]), list(r["target"]))
-            path = r.get("path") or [pos, r.get("target") or pos]
+            path = r.get("path") or [r.get("from") or pos, r.get("target") or pos]  # collect: from -> stop
             paths.append({"rover": r.get("rover"), "path": [[p[0], p[1]] for p in path]})
     return {"kind": plan.get("kind"), "makespan": plan.get("makespan"), "route": route, "stops": stops,
             "paths": paths,

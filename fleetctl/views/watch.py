@@ -71,9 +71,9 @@ class RemoteFleetState(FleetState):
         data = {k: v for k, v in rec.items() if k not in ("t", "elapsed", "kind", "vehicle", "text")}
         elapsed = rec.get("elapsed")
         mission_t = rec.get("T")
-        mission_t = float(mission_t) if isinstance(mission_t, int | float) else None
-        if mission_t is not None:
-            self.remote_T = max(self.remote_T, mission_t)
+        if isinstance(mission_t, int | float):  # else (a vehicle's STATUSTEXT): the latest T seen
+            self.remote_T = max(self.remote_T, float(mission_t))
+        mission_t = float(mission_t) if isinstance(mission_t, int | float) else self.remote_T
         ev = Event(float(elapsed) if isinstance(elapsed, int | float) else 0.0, str(rec.get("kind", "?")),
                    rec.get("vehicle") if isinstance(rec.get("vehicle"), str) else None, text, data,
                    float(rec.get("t", 0.0)) if isinstance(rec.get("t"), int | float) else 0.0, mission_t)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import asyncio
+import io
 import json
 import socket
 from pathlib import Path
@@ -134,3 +135,31 @@ async def test_the_view_streams_state_and_shutdown_cancels_its_tasks(tmp_path: P
         assert asyncio.all_tasks() - before - {asyncio.current_task()} == set()  # nothing left running
         with pytest.raises(aiohttp.ClientConnectionError):
             await s.get(urls[0])  # the socket is closed too
+
+
+async def test_watch_feeds_the_extra_view_and_stops_it() -> None:
+    from fleetctl.bus.config import BusConfig
+    from fleetctl.views.watch import RemoteFleetState, watch
+
+    with socket.socket() as s:  # a port where no broker listens: the watcher keeps retrying
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    config = BusConfig("127.0.0.1", port, "test/web", False, None, None, None, None, None, None)
+    seen: list[object] = []
+    started = asyncio.Event()
+
+    class Spy:
+        def start(self, state: object, fleet: object) -> None:
+            seen.append(state)
+            started.set()
+
+        async def stop(self) -> None:
+            seen.append("stopped")
+
+    task = asyncio.create_task(watch(config, headless=True, out=io.StringIO(),
+                                     extra_view=Spy()))  # type: ignore[arg-type]
+    await asyncio.wait_for(started.wait(), TIMEOUT)
+    task.cancel()
+    with pytest.raises(asyncio.CancelledError):
+        await task
+    assert isinstance(seen[0], RemoteFleetState) and seen[-1] == "stopped"
