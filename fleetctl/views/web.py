@@ -103,6 +103,7 @@ class MapServer:
         self.refused = 0  # streams refused (too many clients)
         self.dropped = 0  # slow clients dropped
         self._runner: web.AppRunner | None = None
+        self._files: dict[str, bytes] = {}  # the page's files, read once (off the loop) at start
 
     @property
     def url(self) -> str:
@@ -110,6 +111,7 @@ class MapServer:
         return f"http://{host}:{self.port}/"
 
     async def start(self) -> None:
+        self._files = await asyncio.to_thread(lambda: {name: static_file(name) for name in STATIC})
         app = web.Application()
         app.add_routes([web.get("/", self._page), web.get("/static/{name}", self._static),
                         web.get("/events", self._events), web.get("/state", self._state)])
@@ -152,13 +154,13 @@ class MapServer:
 
     # -- routes ------------------------------------------------------------------------------
     async def _page(self, request: web.Request) -> web.Response:
-        return web.Response(body=static_file("index.html"), content_type="text/html")
+        return web.Response(body=self._files["index.html"], content_type="text/html")
 
     async def _static(self, request: web.Request) -> web.Response:
         name = request.match_info["name"]
         if name not in STATIC:
             raise web.HTTPNotFound()
-        return web.Response(body=static_file(name), content_type=STATIC[name])
+        return web.Response(body=self._files[name], content_type=STATIC[name])
 
     async def _state(self, request: web.Request) -> web.Response:
         return web.Response(body=self.hello()[len(b"event: hello\ndata: "):].strip(),
