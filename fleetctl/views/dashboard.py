@@ -64,7 +64,7 @@ def _header(state: FleetState) -> Table:
     clock = tplus(state.mission_time) + ("" if togo is None else f"  to go {togo:.1f} s")
     bar: Any = ProgressBar(total=max(planned or 1.0, 1e-6), completed=min(elapsed, planned or 0.0), width=24)
     head.add_row(Text(f"{state.mission_name} · {state.phase}", style="bold"), Text(stop), Text(clock))
-    phase = f"{state.phase} {elapsed:.1f}" + (f" / {planned:.1f} s" if planned else " s")
+    phase = f"{state.phase} elapsed {elapsed:.1f} s" + (f" / planned {planned:.1f} s" if planned else "")
     head.add_row(Text(phase, style="dim"), "", bar)
     if state.link_line:
         head.add_row(Text("link", style="bold"), Text(state.link_line, style=state.link_style), "")
