@@ -5,6 +5,7 @@ from __future__ import annotations
 import asyncio
 import io
 import json
+import math
 import socket
 from pathlib import Path
 
@@ -163,3 +164,33 @@ async def test_watch_feeds_the_extra_view_and_stops_it() -> None:
     with pytest.raises(asyncio.CancelledError):
         await task
     assert isinstance(seen[0], RemoteFleetState) and seen[-1] == "stopped"
+
+
+@pytest.mark.parametrize(("args", "says"), [
+    (["--tiles", "http://t/{z}/{x}/{y}.png"], "--tiles needs --web"),
+    (["--web", "8080"], "give HOST:PORT"),
+])
+def test_bad_web_options_are_refused_before_flying(tmp_path: Path, capsys: pytest.CaptureFixture[str],
+                                                   args: list[str], says: str) -> None:
+    from views_helpers import mission_dict, write_mission
+
+    from fleetctl.cli import main
+
+    m = write_mission(mission_dict(), tmp_path / "m.yaml")
+    assert main(["deploy", "--mission", str(m), "--headless", "--runs", str(tmp_path / "runs"), *args]) == 2
+    assert says in capsys.readouterr().err
+    assert not (tmp_path / "runs").exists()  # nothing flew
+
+
+def test_tiles_are_placed_with_the_metres_per_degree_at_the_origin() -> None:
+    from fleetctl.geo import Origin
+    from fleetctl.views.web import map_config
+
+    lat = 47.397742
+    cfg = map_config(Origin(lat, 8.545594, 488.0), "http://t/{z}/{x}/{y}.png")
+    assert cfg["tiles"] == "http://t/{z}/{x}/{y}.png"
+    a, e2, phi = 6_378_137.0, 0.00669437999014, math.radians(lat)  # WGS84 radii of curvature there
+    w = 1 - e2 * math.sin(phi) ** 2
+    assert cfg["m_per_deg"]["lat"] == pytest.approx(math.radians(1) * a * (1 - e2) / w ** 1.5, rel=1e-4)
+    assert cfg["m_per_deg"]["lon"] == pytest.approx(math.radians(1) * a / w ** 0.5 * math.cos(phi), rel=1e-4)
+    assert map_config(None, None) == {"tiles": None}
