@@ -2,8 +2,9 @@
 
 :func:`load_run` reads the run folder (``journal.jsonl``, ``mission.yaml`` and, when there,
 ``traffic.tlog``: the vehicles' positions and batteries as the controller heard them);
-:func:`timeline` merges them into :class:`Step` s in mission seconds since the run started (a
-record's ``T`` when it has one, else its Unix time from the run's start times the run's speedup);
+:func:`timeline` merges them into :class:`Step` s in mission seconds since the run started (on
+the embedded simulator a record's ``T`` when it has one, else its Unix time from the run's start
+times the run's speedup);
 :class:`Player` applies them to a :class:`ReplayState` - the journal's records change vehicle
 states, stops, plan and phase as the controller did, telemetry moves the vehicles - waiting
 ``ΔT / speed`` wall seconds between steps (``speed`` 0: no waiting at all).
@@ -70,6 +71,7 @@ class RunRecord:
     samples: list[Sample]
     t0: float  # Unix time of the run record
     speedup: float  # mission seconds per wall second of that run
+    sim: bool = False  # flown on the embedded simulator (never resumed: its records' T is one clock)
 
     @property
     def origin(self) -> Origin | None:
@@ -99,7 +101,8 @@ def load_run(run_dir: str | Path) -> RunRecord:
     speedup = records[0].get("speedup")
     samples = read_tlog(d / TLOG_NAME, mission) if (d / TLOG_NAME).is_file() else []
     return RunRecord(d, mission, records, samples, float(records[0]["t"]),
-                     float(speedup) if isinstance(speedup, int | float) and speedup > 0 else 1.0)
+                     float(speedup) if isinstance(speedup, int | float) and speedup > 0 else 1.0,
+                     records[0].get("sim") is True)
 
 
 def read_tlog(path: Path, mission: Mission) -> list[Sample]:
@@ -148,14 +151,16 @@ def timeline(run: RunRecord) -> list[Step]:
     def mission_t(unix: float) -> float:
         return max(0.0, (unix - run.t0) * run.speedup)
 
-    steps = [Step(_record_time(r, mission_t, run.t0), record=r) for r in run.records]
+    steps = [Step(_record_time(r, mission_t, run.t0, run.sim), record=r) for r in run.records]
     steps += [Step(mission_t(s.t), sample=s) for s in run.samples]
     steps.sort(key=lambda s: (s.T, s.record is None))
     return steps
 
 
-def _record_time(rec: dict[str, Any], mission_t: Callable[[float], float], t0: float) -> float:
-    if isinstance(rec.get("T"), int | float):
+def _record_time(rec: dict[str, Any], mission_t: Callable[[float], float], t0: float, sim: bool) -> float:
+    """A simulated run's records keep their ``T`` (simulated seconds); real vehicles' go by the wall
+    clock (``T`` starts again at 0 in a ``fleetctl resume``, the wall clock does not)."""
+    if sim and isinstance(rec.get("T"), int | float):
         return float(rec["T"])
     return mission_t(float(rec["t"]) if isinstance(rec.get("t"), int | float) else t0)
 

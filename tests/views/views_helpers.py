@@ -82,7 +82,7 @@ def position_msg(sysid: int, e: float, n: float, u: float, vx: float = 0.0, vy: 
     return bytes(msg.pack(mav))
 
 
-def write_run(d: Path, t0: float = 1_000_000.0, speedup: float = 2.0) -> Path:
+def write_run(d: Path, t0: float = 1_000_000.0, speedup: float = 2.0, sim: bool = True) -> Path:
     """A run folder of a one-rover deployment: r1 launched at stop 1 flies to t1 at (20, 10, 5).
 
     Wall times: run at t0, plan +0.5, carrier started +1, stop reached +2, launched +2.5, reached +7.5,
@@ -92,7 +92,7 @@ def write_run(d: Path, t0: float = 1_000_000.0, speedup: float = 2.0) -> Path:
     plan = deploy_plan([("r1", "t1", [0, 0, 0], [20, 10, 5], 6.0)], 6.0)
     recs = [
         {"t": t0, "elapsed": 0.0, "kind": "run", "mission": "viewtest", "command": "deploy",
-         "speedup": speedup},
+         "speedup": speedup, "sim": sim},
         {"t": t0 + 0.2, "elapsed": 0.2, "kind": "phase", "phase": "deploy"},
         {"t": t0 + 0.5, "elapsed": 0.5, "kind": "plan", "plan": plan},
         {"t": t0 + 1.0, "elapsed": 1.0, "kind": "carrier_started", "vehicle": "carrier",
