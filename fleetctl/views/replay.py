@@ -13,6 +13,7 @@ states, stops, plan and phase as the controller did, telemetry moves the vehicle
 from __future__ import annotations
 
 import asyncio
+import bisect
 import contextlib
 import logging
 from collections.abc import Awaitable, Callable, Iterator
@@ -146,23 +147,49 @@ def _sample(msg: Any, vid: str, origin: Origin | None) -> Sample:
     return Sample(t, vid, enu, (lat, lon), msg.relative_alt / 1000.0, speed)
 
 
+class MissionClock:
+    """Unix time -> mission seconds of a run: ``(t - t0) x speedup``; on the embedded simulator,
+    interpolated between the records that carry their ``T`` (the simulator's clock, which a loaded
+    machine slows down) so that telemetry and records share the one time base."""
+
+    def __init__(self, run: RunRecord) -> None:
+        self.t0, self.speedup = run.t0, run.speedup
+        timed = [r for r in run.records if _number(r.get("t")) and _number(r.get("T"))]
+        pairs = sorted((float(r["t"]), float(r["T"])) for r in timed) if run.sim else []
+        self.ts = [t for t, _ in pairs]
+        self.Ts = [T for _, T in pairs]
+
+    def __call__(self, unix: float) -> float:
+        ts, Ts = self.ts, self.Ts
+        if not ts:
+            return max(0.0, (unix - self.t0) * self.speedup)
+        k = bisect.bisect_left(ts, unix)
+        if k == 0 or k == len(ts):  # before the first / after the last: the run's speedup
+            i = 0 if k == 0 else len(ts) - 1
+            return max(0.0, Ts[i] + (unix - ts[i]) * self.speedup)
+        span = ts[k] - ts[k - 1]
+        f = (unix - ts[k - 1]) / span if span > 0 else 1.0
+        return Ts[k - 1] + f * (Ts[k] - Ts[k - 1])
+
+    def of(self, rec: dict[str, Any]) -> float:
+        """A record's mission time: its own ``T`` on the simulator, else by its Unix time. (Real
+        vehicles' runs go by the wall clock: ``T`` starts again at 0 in a ``fleetctl resume``.)"""
+        if self.ts and isinstance(rec.get("T"), int | float):
+            return float(rec["T"])
+        return self(float(rec["t"]) if isinstance(rec.get("t"), int | float) else self.t0)
+
+
+def _number(x: object) -> bool:
+    return isinstance(x, int | float) and not isinstance(x, bool)
+
+
 def timeline(run: RunRecord) -> list[Step]:
     """Records and telemetry in mission-time order (records first at equal times)."""
-    def mission_t(unix: float) -> float:
-        return max(0.0, (unix - run.t0) * run.speedup)
-
-    steps = [Step(_record_time(r, mission_t, run.t0, run.sim), record=r) for r in run.records]
-    steps += [Step(mission_t(s.t), sample=s) for s in run.samples]
+    clock = MissionClock(run)
+    steps = [Step(clock.of(r), record=r) for r in run.records]
+    steps += [Step(clock(s.t), sample=s) for s in run.samples]
     steps.sort(key=lambda s: (s.T, s.record is None))
     return steps
-
-
-def _record_time(rec: dict[str, Any], mission_t: Callable[[float], float], t0: float, sim: bool) -> float:
-    """A simulated run's records keep their ``T`` (simulated seconds); real vehicles' go by the wall
-    clock (``T`` starts again at 0 in a ``fleetctl resume``, the wall clock does not)."""
-    if sim and isinstance(rec.get("T"), int | float):
-        return float(rec["T"])
-    return mission_t(float(rec["t"]) if isinstance(rec.get("t"), int | float) else t0)
 
 
 class ReplayState(FleetState):

@@ -63,7 +63,8 @@ def test_events_carry_the_one_time_base(tmp_path: Path, sim: bool) -> None:
     d = write_run(tmp_path / "run", speedup=SPEEDUP, sim=sim)
     lines = (d / "journal.jsonl").read_text().splitlines()
     recs = [json.loads(x) for x in lines]
-    recs[3]["T"] = 1.25  # a record that knows its mission time keeps it
+    recs[3]["T"] = 1.25  # carrier_started, 1.0 s wall into the run, knows its mission time
+    recs[6]["T"] = 20.0  # task_reached, 7.5 s wall in: the simulator ran faster than 2x meanwhile
     (d / "journal.jsonl").write_text("".join(json.dumps(r) + "\n" for r in recs))
     state = ReplayState(load_run(d).mission)
     for step in timeline(load_run(d)):
@@ -71,7 +72,11 @@ def test_events_carry_the_one_time_base(tmp_path: Path, sim: bool) -> None:
     times = {ev.kind: ev.mission_time for ev in state.events}
     # the simulator's T is kept; real vehicles' records go by the wall clock (T restarts on resume)
     assert times["carrier_started"] == pytest.approx(1.25 if sim else 1.0 * SPEEDUP)
-    assert times["task_reached"] == pytest.approx(7.5 * SPEEDUP)
+    assert times["task_reached"] == pytest.approx(20.0 if sim else 7.5 * SPEEDUP)
+    # telemetry between them on the simulator's clock too: r1's sample 4.0 s wall in (f = 3/6.5)
+    sample_t = [s.T for s in timeline(load_run(d)) if s.sample is not None and s.sample.vehicle == "r1"]
+    expected = 1.25 + (4.0 - 1.0) / 6.5 * (20.0 - 1.25) if sim else 4.0 * SPEEDUP
+    assert sample_t[4] == pytest.approx(expected)
 
 
 @pytest.mark.parametrize("speed", [1.0, 4.0])
