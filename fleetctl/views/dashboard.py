@@ -21,6 +21,7 @@ from rich.progress_bar import ProgressBar
 from rich.table import Table
 from rich.text import Text
 
+from fleetctl.run.kinds import Ev
 from fleetctl.run.state import Event, FleetState, VehicleState
 from fleetctl.views.eta import FLYING, PlannedLeg, mission_time_to_go, planned_legs, rover_time_to_go
 from fleetctl.views.levels import STYLE, battery_level, link_level
@@ -49,7 +50,7 @@ def tplus(t: float | None) -> str:
 
 
 ALERT_KINDS = frozenset({"error", "rover_refused", "link_lost", "task_unserved", "rover_failed",
-                         "task_change_rejected", "web_failed"})
+                         "task_change_rejected", Ev.WEB_FAILED})
 HEADER_LINES = 2  # title line and progress bar
 MAX_EVENTS = 8
 

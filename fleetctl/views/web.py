@@ -27,6 +27,7 @@ from typing import TYPE_CHECKING, Any
 from aiohttp import web
 
 from fleetctl.journal import json_safe
+from fleetctl.run.kinds import Ev
 from fleetctl.views.map_model import Trails, frame, plan_layer
 from fleetctl.views.view import View
 
@@ -228,7 +229,7 @@ class WebMapView(View):
             self.error = str(exc)
             log.error("%s", exc)
             if self._state is not None:
-                self._state.event("web_failed", f"web map: {exc}")
+                self._state.event(Ev.WEB_FAILED, f"web map: {exc}")
             self.ready.set()
             return
         self.ready.set()
