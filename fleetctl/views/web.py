@@ -95,10 +95,10 @@ class MapClient:
 class MapServer:
     """The HTTP side: page, static files and the bounded event streams."""
 
-    def __init__(self, host: str, port: int, hello: Callable[[], bytes], *,
+    def __init__(self, host: str, port: int, hello: Callable[[], dict[str, Any]], *,
                  max_clients: int = MAX_CLIENTS, queue_size: int = QUEUE_SIZE) -> None:
         self.host, self.port = host, port
-        self.hello = hello
+        self.hello = hello  # the document a new page starts from
         self.max_clients, self.queue_size = max_clients, queue_size
         self.clients: set[MapClient] = set()
         self.refused = 0  # streams refused (too many clients)
@@ -164,8 +164,7 @@ class MapServer:
         return web.Response(body=self._files[name], content_type=STATIC[name])
 
     async def _state(self, request: web.Request) -> web.Response:
-        return web.Response(body=self.hello()[len(b"event: hello\ndata: "):].strip(),
-                            content_type="application/json")
+        return web.json_response(json_safe(self.hello()))
 
     async def _events(self, request: web.Request) -> web.StreamResponse:
         if len(self.clients) >= self.max_clients:
@@ -176,7 +175,7 @@ class MapServer:
         resp = web.StreamResponse(headers={"Content-Type": "text/event-stream", "Cache-Control": "no-cache"})
         try:
             await resp.prepare(request)
-            await self._send(resp, self.hello())
+            await self._send(resp, sse("hello", self.hello()))
             await self._pump(client, resp)
         except (ConnectionError, TimeoutError):
             self.dropped += 1
@@ -206,7 +205,7 @@ class WebMapView(View):
     def __init__(self, host: str, port: int, *, origin: Origin | None = None, tiles: str | None = None,
                  hz: float = FRAME_HZ, on_ready: Callable[[str], None] | None = None,
                  max_clients: int = MAX_CLIENTS, queue_size: int = QUEUE_SIZE) -> None:
-        self.server = MapServer(host, port, self._hello, max_clients=max_clients, queue_size=queue_size)
+        self.server = MapServer(host, port, self.hello, max_clients=max_clients, queue_size=queue_size)
         self.config = map_config(origin, tiles)
         self.hz = hz
         self.on_ready = on_ready
@@ -253,12 +252,13 @@ class WebMapView(View):
             self.server.broadcast(sse("plan", plan_layer(st)))
         self.server.broadcast(sse("frame", frame(st)))
 
-    def _hello(self) -> bytes:
+    def hello(self) -> dict[str, Any]:
+        """What a page opened now starts from: configuration, plan layer, trails, a frame."""
         st = self._state
         doc: dict[str, Any] = {"config": self.config}
         if st is not None:
             doc.update(plan=plan_layer(st), trails=self.trails.to_json(), frame=frame(st))
-        return sse("hello", doc)
+        return doc
 
     async def stop(self) -> None:
         task, self._task = self._task, None

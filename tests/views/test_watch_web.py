@@ -68,7 +68,7 @@ async def test_watch_web_draws_the_mission_flown_elsewhere(tmp_path: Path, broke
     out = await asyncio.wait_for(execute(mission, "deploy", runs_dir=tmp_path / "runs"), WAIT * 2)
     assert out.exit_code == 0
     await asyncio.wait_for(watcher, WAIT)  # the controller's status went 'done'
-    hello = json.loads(web._hello()[len(b"event: hello\ndata: "):])  # what a page opened now would get
+    hello = json.loads(json.dumps(web.hello()))  # what a page opened now would get (as JSON)
     assert {t["id"] for t in hello["plan"]["tasks"]} == {"t1", "t2"}  # from the plan on the bus
     rovers = {v["id"]: v for v in hello["frame"]["vehicles"] if v["role"] == "rover"}
     assert set(rovers) == {"r1", "r2"}

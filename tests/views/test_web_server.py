@@ -42,7 +42,7 @@ async def _eof(resp: aiohttp.ClientResponse) -> bool:
 
 
 def _server(**kw: int) -> MapServer:
-    return MapServer("127.0.0.1", 0, lambda: sse("hello", {"config": {}}), **kw)
+    return MapServer("127.0.0.1", 0, lambda: {"config": {}}, **kw)
 
 
 def test_addresses() -> None:
@@ -131,6 +131,9 @@ async def test_the_view_streams_state_and_shutdown_cancels_its_tasks(tmp_path: P
         assert (r1["e"], r1["n"]) == (10.0, 5.0)
         page = await s.get(urls[0])
         assert page.status == 200 and "map.js" in await page.text()
+        doc = await (await s.get(urls[0] + "state")).json()  # the hello document, for scripts
+        r1_doc = next(v for v in doc["frame"]["vehicles"] if v["id"] == "r1")
+        assert doc["plan"]["route"] and r1_doc["e"] == 10.0
         await view.stop()
         assert await _eof(stream)  # the open stream was closed
         assert asyncio.all_tasks() - before - {asyncio.current_task()} == set()  # nothing left running
