@@ -84,9 +84,8 @@ class FleetState:
         self.phase_started: float | None = None  # mission clock at the phase start
         self._clock: Callable[[], float] = time.monotonic
         self._clock_t0 = self._clock()  # the clock's reading at T+0 (the run's start)
-        self.tasks: dict[str, tuple[float, float, float]] = {
-            t.id: tuple(t.position) for t in getattr(mission, "tasks", ())}
-        self.rover_motion: Any = mission.rovers.motion() if hasattr(mission.rovers, "motion") else None
+        self.tasks: dict[str, tuple[float, float, float]] = {t.id: t.position for t in mission.tasks}
+        self.rover_motion: Any = mission.rovers.motion()  # the time model's rover motion (None: unknown)
         self.plan: dict[str, Any] | None = None  # the plan being flown (fleetctl.plan/1 JSON)
         self.plan_started: float | None = None  # mission clock at the plan's t = 0
         self.started = time.monotonic()

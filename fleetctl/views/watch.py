@@ -43,8 +43,9 @@ class RemoteFleetState(FleetState):
 
     def __init__(self, mission_name: str = "?", max_events: int = 12) -> None:
         # FleetState builds its vehicles from a Mission; here they come from telemetry
-        nobody = SimpleNamespace(name=mission_name, carrier=SimpleNamespace(id="", sysid=0),
-                                 rovers=SimpleNamespace(reserve=0.0, endurance_range=0.0, units=()))
+        nobody = SimpleNamespace(name=mission_name, carrier=SimpleNamespace(id="", sysid=0), tasks=(),
+                                 rovers=SimpleNamespace(reserve=0.0, endurance_range=0.0, units=(),
+                                                        motion=lambda: None))
         super().__init__(nobody, max_events=max_events)  # type: ignore[arg-type]
         self.vehicles = {}
         self.remote_status: str | None = None  # online | done | failed | interrupted | offline
