@@ -105,7 +105,10 @@ def _waits_for_pickup(state: FleetState, v: VehicleState) -> bool:
 
 
 def mission_time_to_go(state: FleetState) -> float | None:
-    """Seconds until the phase's plan is done: the latest rover, at least the plan's makespan left."""
+    """Seconds until the phase's plan is done: the latest rover, at least the plan's makespan left
+    (the dwell: its time left)."""
+    if state.phase == "dwell":
+        return None if state.planned is None else max(0.0, state.planned - state.elapsed)
     if state.plan is None or state.phase in ("done", "failed", "interrupted", "connect"):
         return None
     legs = planned_legs(state.plan)

@@ -89,6 +89,9 @@ def test_time_to_go_per_rover_and_for_the_mission(tmp_path: Path) -> None:
     assert mission_time_to_go(st) == pytest.approx(5.0)
     text = render_text(st, width=160)
     assert "to go 5.0 s" in text
+    st.set_phase("dwell", 60.0)  # run: the dwell's time left
+    clock.t += 45.0
+    assert mission_time_to_go(st) == pytest.approx(15.0)
 
 
 def test_one_time_base_mission_seconds_in_header_and_events(tmp_path: Path) -> None:
