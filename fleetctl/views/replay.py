@@ -198,6 +198,7 @@ class ReplayState(FleetState):
 
     def __init__(self, mission: Mission) -> None:
         super().__init__(mission)
+        self.dwell: float | None = mission.dwell  # the run record's --dwell overrides it
         self.now = 0.0
         self.mission_clock = lambda: self.now
         self._handlers: dict[str, Callable[[dict[str, Any]], None]] = {
@@ -258,11 +259,16 @@ class ReplayState(FleetState):
     def _run(self, rec: dict[str, Any]) -> None:
         if isinstance(rec.get("mission"), str):
             self.mission_name = rec["mission"]
+        if _number(rec.get("dwell")):
+            self.dwell = float(rec["dwell"])
         self.set_state(self.carrier_id, VehicleStatus.IDLE)
 
     def _phase(self, rec: dict[str, Any]) -> None:
         phase = str(rec.get("phase"))
-        self.set_phase(Phase.DWELL if phase == "dwell" else Phase.PLAN)
+        if phase == "dwell":
+            self.set_phase(Phase.DWELL, self.dwell)
+        else:
+            self.set_phase(Phase.PLAN)
 
     def _plan(self, rec: dict[str, Any]) -> None:
         plan = rec.get("plan")

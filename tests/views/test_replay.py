@@ -150,3 +150,18 @@ def test_cli_replays_instantly_and_prints_the_final_table(tmp_path: Path,
     out = capsys.readouterr().out
     assert "r1: reached t1" in out and f"T+{7.5 * SPEEDUP:.1f}s" in out
     assert "on_task" in out  # the fleet table at the end
+
+
+def test_a_runs_dwell_is_its_planned_time(tmp_path: Path) -> None:
+    d = write_run(tmp_path / "run", speedup=SPEEDUP)
+    recs = [json.loads(x) for x in (d / "journal.jsonl").read_text().splitlines()]
+    recs[0]["command"], recs[0]["dwell"] = "run", 30.0
+    recs.insert(-1, {"t": recs[-1]["t"] - 0.1, "elapsed": 7.9, "kind": "phase", "phase": "dwell"})
+    (d / "journal.jsonl").write_text("".join(json.dumps(r) + "\n" for r in recs))
+    run = load_run(d)
+    state = ReplayState(run.mission)
+    for step in timeline(run):
+        if step.record is not None and step.record["kind"] == "summary":
+            break
+        state.apply(step)
+    assert state.phase == "dwell" and state.planned == 30.0  # the run's --dwell, not the mission's
