@@ -23,7 +23,7 @@ from rich.text import Text
 
 from fleetctl.run.kinds import Ev
 from fleetctl.run.state import Event, FleetState, VehicleState
-from fleetctl.views.eta import FLYING, PlannedLeg, mission_time_to_go, planned_legs, rover_time_to_go
+from fleetctl.views.eta import FLYING, PlannedLeg, mission_time_to_go, planned_legs, time_to_go
 from fleetctl.views.levels import STYLE, battery_level, link_level
 from fleetctl.views.view import View
 
@@ -119,7 +119,7 @@ def _cells(state: FleetState, v: VehicleState, cols: list[tuple[str, JustifyMeth
     st = "lost" if v.lost else v.state
     batt = STYLE.get(battery_level(state, v), "")
     link = link_level(v)
-    ttg = rover_time_to_go(state, v, legs) if v.role == "rover" else None
+    ttg = time_to_go(state, v, legs)
     ll = v.latlon
     values: dict[str, Any] = {
         "id": Text(v.id, style="bold" if v.role == "carrier" else ""), "role": v.role,

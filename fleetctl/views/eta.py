@@ -1,5 +1,6 @@
-"""Time to go, for the views: per rover (to its task, or to touch-down on the carrier) and for the
-mission, from the plan being flown and the time model (:mod:`planners.timing`).
+"""Time to go, for the views: per rover (to its task, or to touch-down on the carrier), for the
+carrier (to the stop it drives to) and for the mission, from the plan being flown and the time
+model (:mod:`planners.timing`).
 
 A rover in the air has ``leg_time(rest of its path)`` to go (the rover motion of the mission); a
 rover waiting on the deck, or a view without the mission's rover motion (``watch``), goes by the
@@ -96,6 +97,24 @@ def rover_time_to_go(state: FleetState, v: VehicleState,
     return max(0.0, togo)
 
 
+def carrier_time_to_go(state: FleetState) -> float | None:
+    """Seconds until the carrier reaches the stop it drives to, by the plan; None when it holds."""
+    stops = (state.plan or {}).get("stops") or []
+    k = state.stop_index
+    if state.vehicles.get(state.carrier_id) is None or state.vehicles[state.carrier_id].state != "driving":
+        return None
+    if not 1 <= k <= len(stops):
+        return None
+    return max(0.0, float(stops[k - 1].get("arrive") or 0.0) - plan_now(state))
+
+
+def time_to_go(state: FleetState, v: VehicleState, legs: dict[str, PlannedLeg] | None = None) -> float | None:
+    """A vehicle's time to go: a rover's (:func:`rover_time_to_go`), the carrier's to its next stop."""
+    if v.role == "carrier":
+        return carrier_time_to_go(state)
+    return rover_time_to_go(state, v, legs)
+
+
 def _is_collect(state: FleetState) -> bool:
     return (state.plan or {}).get("kind") == "collect"
 
@@ -117,4 +136,5 @@ def mission_time_to_go(state: FleetState) -> float | None:
     return max([left, *(t for t in rovers if t is not None)])
 
 
-__all__ = ["PlannedLeg", "mission_time_to_go", "path_left", "plan_now", "planned_legs", "rover_time_to_go"]
+__all__ = ["PlannedLeg", "carrier_time_to_go", "mission_time_to_go", "path_left", "plan_now", "planned_legs",
+           "rover_time_to_go", "time_to_go"]

@@ -13,7 +13,7 @@ import math
 from collections import deque
 from typing import TYPE_CHECKING, Any
 
-from fleetctl.views.eta import mission_time_to_go, planned_legs, rover_time_to_go
+from fleetctl.views.eta import mission_time_to_go, planned_legs, time_to_go
 from fleetctl.views.levels import battery_level, link_level
 
 if TYPE_CHECKING:
@@ -66,7 +66,7 @@ def frame(state: FleetState) -> dict[str, Any]:
             "id": v.id, "role": v.role, "state": "lost" if v.lost else v.state, "task": v.task,
             "e": _r(e), "n": _r(n), "u": _r(u), "battery": _r(v.battery_pct, 0),
             "battery_level": battery_level(state, v), "link": link_level(v),
-            "ttg": _r(rover_time_to_go(state, v, legs), 1) if v.role == "rover" else None,
+            "ttg": _r(time_to_go(state, v, legs), 1),
         })
     return {
         "mission": state.mission_name, "T": _r(state.mission_time, 1), "phase": str(state.phase),

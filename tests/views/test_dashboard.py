@@ -13,7 +13,7 @@ from views_helpers import FakeClock, deploy_plan, mission, state_of
 
 from fleetctl.run.state import FleetState
 from fleetctl.views.dashboard import LiveView, render, render_text
-from fleetctl.views.eta import mission_time_to_go, rover_time_to_go
+from fleetctl.views.eta import carrier_time_to_go, mission_time_to_go, rover_time_to_go
 from fleetctl.views.levels import battery_level
 
 ROVERS = 18
@@ -84,6 +84,12 @@ def test_time_to_go_per_rover_and_for_the_mission(tmp_path: Path) -> None:
     assert rover_time_to_go(st, st.vehicles["r15"]) == pytest.approx(10.0 / 2.0)  # time model, its path left
     assert rover_time_to_go(st, st.vehicles["r11"]) is None  # not in the plan
     assert mission_time_to_go(st) == pytest.approx(30.0)
+    st.stop_index = 1  # the carrier drives to stop 1, planned at 0 s of the plan: already due
+    assert carrier_time_to_go(st) == pytest.approx(0.0)
+    st.plan["stops"][0]["arrive"] = 26.0  # type: ignore[index]
+    assert carrier_time_to_go(st) == pytest.approx(6.0)
+    st.vehicles["carrier"].state = "holding"
+    assert carrier_time_to_go(st) is None
     st.vehicles["r1"].state = "on_task"
     clock.t = 140.0  # the plan's makespan is over: the flying rover is what is left
     assert mission_time_to_go(st) == pytest.approx(5.0)
