@@ -199,7 +199,7 @@ def _fly(args: argparse.Namespace, mission: Mission, command: str, extra: dict[s
     if getattr(args, "dwell", None) is not None and args.dwell < 0:
         raise CliError(f"--dwell must be >= 0 s, got {args.dwell}")
     mqtt = _bus_config(mission, args)
-    view = make_view(True if args.headless else None)
+    view = _with_web(args, make_view(True if args.headless else None, latlon=args.latlon), mission.origin)
 
     def announce(run_dir: object) -> None:
         print(f"run folder: {run_dir}", flush=True)
@@ -335,6 +335,7 @@ def _add_shared_fly_options(p: argparse.ArgumentParser) -> None:
                    help="fly although another ground station is on the link or vehicles are already "
                         "armed or in a mission")
     _add_bus_options(p)
+    _add_view_options(p)
 
 
 _RESUME_EPILOG = """\
@@ -415,6 +416,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_fly_commands(sub)
     _add_controller_commands(sub)
     _add_watch_command(sub)
+    _add_replay_command(sub)
     _add_keys_command(sub)
     return p
 
@@ -672,6 +674,7 @@ def _add_watch_command(sub: argparse._SubParsersAction) -> None:
     w.add_argument("--tls-ca", metavar="FILE", help="CA certificate(s) to verify the broker (implies TLS)")
     w.add_argument("--tls-cert", metavar="FILE", help="client certificate (implies TLS)")
     w.add_argument("--tls-key", metavar="FILE", help="client private key")
+    _add_view_options(w)
     w.set_defaults(func=cmd_watch)
 
 
@@ -698,8 +701,9 @@ def cmd_watch(args: argparse.Namespace) -> int:
                        Secret(password) if password is not None else None, args.tls_ca, args.tls_cert,
                        args.tls_key)
     try:
-        return asyncio.run(watch(config, headless=args.headless or not sys.stdout.isatty(),
-                                 exit_on_done=args.exit_on_done))
+        headless = args.headless or not sys.stdout.isatty()
+        return asyncio.run(watch(config, headless=headless, exit_on_done=args.exit_on_done,
+                                 latlon=args.latlon, extra_view=_web_view(args, None, headless)))
     except BusConfigError as e:
         raise CliError(str(e)) from None
     except KeyboardInterrupt:
@@ -784,6 +788,102 @@ async def _keys_provision(mission: Mission, key: object, timeout: float) -> int:
         print(f"fleetctl: {len(failed)} of {len(results)} vehicle(s) not provisioned", file=sys.stderr)
         return 1
     print(f"all {len(results)} vehicles sign with key {key.fingerprint}")
+    return 0
+
+
+# ---------------------------------------------------------------------------------------------------
+# the views: --web HOST:PORT (live map), --tiles, --latlon; fleetctl replay (docs/web-map.md)
+# ---------------------------------------------------------------------------------------------------
+
+
+def _add_view_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--web", metavar="HOST:PORT",
+                   help="also serve a live map page there (e.g. 127.0.0.1:8080; 0.0.0.0:PORT lets other "
+                        "machines see it); self-contained, no internet needed")
+    p.add_argument("--tiles", metavar="URL",
+                   help="with --web: draw map tiles under the map from this XYZ template, e.g. "
+                        "http://tiles.local/{z}/{x}/{y}.png (default: none)")
+    p.add_argument("--latlon", action="store_true",
+                   help="terminal view: latitude/longitude instead of E/N metres")
+
+
+def _web_view(args: argparse.Namespace, origin: object, headless: bool) -> Any:
+    """The web map view of ``--web`` (None without it); refuses a bad address or --tiles alone."""
+    if getattr(args, "tiles", None) and not args.web:
+        raise CliError("--tiles needs --web HOST:PORT")
+    if not getattr(args, "web", None):
+        return None
+    from fleetctl.views.web import WebError, WebMapView, parse_address
+
+    try:
+        host, port = parse_address(args.web)
+    except WebError as e:
+        raise CliError(str(e)) from None
+    if args.tiles and origin is None:
+        raise CliError("--tiles needs the mission origin: watch has no mission file (use replay or the "
+                       "flying commands)")
+
+    def ready(url: str) -> None:
+        if headless:
+            print(f"web map: {url}", flush=True)
+
+    return WebMapView(host, port, origin=origin, tiles=args.tiles, on_ready=ready)  # type: ignore[arg-type]
+
+
+def _with_web(args: argparse.Namespace, view: Any, origin: object) -> Any:
+    """``view`` plus the web map of ``--web`` (its address shown as a status line of the live view)."""
+    from fleetctl.views.dashboard import HeadlessView
+    from fleetctl.views.view import Views
+
+    web = _web_view(args, origin, isinstance(view, HeadlessView))
+    if web is None:
+        return view
+    if hasattr(view, "add_status"):
+        view.add_status(lambda: f"web map: {web.error or web.server.url}")
+    return Views(view, web)
+
+
+def _add_replay_command(sub: argparse._SubParsersAction) -> None:
+    r = sub.add_parser(
+        "replay", help="play a run's records back into the terminal view (and the web map)",
+        description="Play RUN_DIR's journal, plan and MAVLink log (traffic.tlog) back in mission time: "
+                    "the vehicles' states and positions as they were, into the terminal view and, with "
+                    "--web, the map. Exit status 2 for a missing or unreadable run folder.",
+    )
+    r.add_argument("run_dir", metavar="RUN_DIR", help="a run folder (runs/<mission>-<timestamp>)")
+    r.add_argument("--speed", type=float, default=1.0, metavar="X",
+                   help="mission seconds per wall second (default 1; 0 = as fast as possible)")
+    r.add_argument("--instant", action="store_true", help="as fast as possible (like --speed 0)")
+    r.add_argument("--headless", action="store_true", help="print the events instead of the live view")
+    r.add_argument("--linger", type=float, default=0.0, metavar="S",
+                   help="with --web: keep serving the final state S wall seconds after the end")
+    _add_view_options(r)
+    r.set_defaults(func=cmd_replay)
+
+
+def cmd_replay(args: argparse.Namespace) -> int:
+    import asyncio
+
+    from fleetctl.views.dashboard import make_view
+    from fleetctl.views.replay import ReplayError, load_run, replay
+
+    if args.speed < 0 or args.linger < 0:
+        raise CliError("--speed and --linger must be >= 0")
+    try:
+        run = load_run(args.run_dir)
+    except ReplayError as e:
+        raise CliError(str(e)) from None
+    headless = args.headless or not sys.stdout.isatty()
+    view = _with_web(args, make_view(headless, latlon=args.latlon), run.origin)
+    speed = 0.0 if args.instant else args.speed
+    try:
+        state = asyncio.run(replay(run, view, speed=speed, linger=args.linger))
+    except KeyboardInterrupt:
+        return 130
+    if headless:
+        from fleetctl.views.dashboard import render_text
+
+        print(render_text(state, latlon=args.latlon), end="", flush=True)
     return 0
 
 
