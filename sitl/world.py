@@ -166,6 +166,7 @@ class Rover(Body):
         self.climb_rate = spec.climb_rate or spec.max_speed
         self.land_speed = spec.land_speed or self.climb_rate
         self.battery = 1.0  # 0..1
+        self.battery_pinned = False  # the battery holds its level (a scenario's state until it starts)
         self.flown = 0.0  # metres flown in total
         self.landing = False
         self._land_xy: tuple[float, float] | None = None
@@ -251,7 +252,7 @@ class Rover(Body):
             self._coast(_brake(self.speed, self.spec.accel, dt), dt)
         elif self.landing:
             self._descend(dt)
-        if self.spec.endurance_range is not None and self.battery > 0.0:
+        if self.spec.endurance_range is not None and self.battery > 0.0 and not self.battery_pinned:
             # a multirotor burns its battery per second in the air, hovering included:
             # ``endurance_range`` metres at cruise speed
             used = dt * self.spec.max_speed * self.drain_factor() / self.spec.endurance_range

@@ -52,9 +52,9 @@ def _recompute(js: dict, problem: CollectProblem) -> float:
             turn = abs((h - heading + math.pi) % (2 * math.pi) - math.pi)
             drive = (0.0 if c.turn_rate is None else turn / c.turn_rate) + _leg(length, c.max_speed, c.accel)
             heading = math.atan2(segs[-1][1], segs[-1][0])
-        flights = [r.fixed_time + _leg(sum(math.dist(p, q) for p, q in zip(leg["path"], leg["path"][1:],
-                                                                          strict=False)), r.max_speed, r.accel)
+        lengths = [sum(math.dist(p, q) for p, q in zip(leg["path"], leg["path"][1:], strict=False))
                    for leg in stop["rovers"]]
+        flights = [r.fixed_time + _leg(length, r.max_speed, r.accel) for length in lengths]
         eta = max([eta + drive, *flights]) + c.land_time + c.load_time
     return eta
 

@@ -617,7 +617,6 @@ def test_missing_file(tmp_path: Path) -> None:
     "url",
     [
         "udp://127.0.0.1",
-        "udp://:14550",
         "http://host:80",
         "tcp://host:70000",
         "serial:///dev/ttyUSB0",

@@ -371,6 +371,11 @@ def test_plan_summary_collect_and_plot(tmp_path: Path, capsys: pytest.CaptureFix
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
+def test_export_of_several_teams_is_refused(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["plan", "--mission", str(TWO), "--export", str(tmp_path / "x")]) == 2
+    assert "exporting several teams is not supported yet" in capsys.readouterr().err
+
+
 @pytest.mark.parametrize("command", ["deploy", "collect", "run", "status", "sim"])
 def test_flying_several_teams_is_refused(command: str, capsys: pytest.CaptureFixture[str]) -> None:
     assert main([command, "--mission", str(TWO)]) == 2

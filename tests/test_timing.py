@@ -132,7 +132,8 @@ def test_dissertation_model_drops_the_fixed_time_and_shifts_a_deployment_by_it()
     assert base.rover.fixed_time == 0.0 and dissertation_model(base) is base
     p2 = DeployProblem(CarrierSpec(10.0, 5.0, 1.0, 2.0, 2.0, takeoff_time=1.0), Motion(2.0), 15.0,
                        (0.0, 0.0, 0.0), 0.0, tasks)
-    assert DEPLOY_PLANNERS["lee"](p2).stops[0].depart == pytest.approx(DEPLOY_PLANNERS["lee"](p2).stops[0].arrive + 3.0)
+    first = DEPLOY_PLANNERS["lee"](p2).stops[0]
+    assert first.depart == pytest.approx(first.arrive + 3.0)  # unload 2 s + take-off clearance 1 s
     a, b = DEPLOY_PLANNERS["lee"](p), DEPLOY_PLANNERS["lee"](base)
     # in a deployment the fixed time is a constant on every rover arrival: same plan, makespan + 3 s
     assert a.makespan == pytest.approx(b.makespan + 3.0)

@@ -1,4 +1,4 @@
-"""Plan → MAVLink mission items per vehicle (DESIGN.md "MAVLink mapping").
+"""Plan → MAVLink mission items per vehicle (docs/mavlink.md, "Plan to mission items").
 
 Positions are converted from the plan's ENU frame with :func:`fleetctl.geo.local_to_geodetic` and
 written as ``_INT`` coordinates (degrees·1e7) in ``MAV_FRAME_GLOBAL_RELATIVE_ALT_INT``; ``z`` is

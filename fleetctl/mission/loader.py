@@ -1,4 +1,4 @@
-"""Mission files: load and validate the YAML contract of DESIGN.md, build the planners' problems.
+"""Mission files: load and validate the YAML contract of docs/mission-file.md, build the planners' problems.
 
 Every error a user can make in a mission file raises :class:`MissionError` whose message names
 the file (and line, when the file was read from disk), the key path (``rovers.max_speed``,
@@ -24,6 +24,11 @@ Decisions beyond the contract:
   and ``sysid`` required) and its own ``fleet`` or ``units``; ``fleet`` ids run on across carriers
   and its ``sysid_start`` defaults to one after the previous carrier's last rover. ``Mission.carrier``
   is the first carrier, ``rovers.units`` every team's rovers, ``Mission.teams`` the decks.
+* ``tasks: {file: PATH}`` / ``obstacles: {file: PATH}`` (PATH relative to the mission file's folder)
+  read a QGroundControl .plan, GeoJSON, KML or CSV file (:mod:`fleetctl.mission.formats`); the
+  result is validated here like a list in the file, and messages name the file and the feature.
+  Lat/lon in such a file need the mission's ``origin`` (a .plan's planned home is never taken as
+  the origin: it would move every ENU position of the mission; the message quotes it instead).
 """
 
 from __future__ import annotations
@@ -41,8 +46,10 @@ import yaml
 from shapely.geometry import Point, Polygon
 from shapely.validation import explain_validity
 
+import fleetctl.mission.formats as formats
 import fleetctl.mission.limits as L
 from fleetctl.geo import Origin, geodetic_to_local
+from fleetctl.mission.connections import ConnectionSpellingError, normalize_connection
 from fleetctl.mission.flight import DEFAULT_ENDURANCE, default_land_time, default_takeoff_time
 from fleetctl.mission.model import (
     FAILSAFE_ACTIONS,
@@ -119,6 +126,7 @@ class _Ctx:
         self.source = source
         self.lines = lines or {}
         self.raw: Any = None
+        self.notes: dict[KeyPath, str] = {}  # key path -> where it came from (a task file's feature)
 
     def fail(self, path: KeyPath, message: str) -> NoReturn:
         where = self.source
@@ -126,7 +134,9 @@ class _Ctx:
             if path[:n] in self.lines:
                 where = f"{self.source}:{self.lines[path[:n]]}"
                 break
-        raise MissionError(f"{where}: {_fmt_path(path)}: {message}")
+        note = next((self.notes[path[:n]] for n in range(len(path), 0, -1) if path[:n] in self.notes), None)
+        shown = _fmt_path(path) + (f" (from {note})" if note else "")
+        raise MissionError(f"{where}: {shown}: {message}")
 
     def section(self, value: Any, path: KeyPath, spec: Mapping[str, tuple[Parser, Any]]) -> dict[str, Any]:
         """Check a mapping against ``spec`` (key → (parser, default or _REQUIRED)); parse every key."""
@@ -263,15 +273,20 @@ _HOSTPORT = r"(?P<host>\[[0-9a-fA-F:.]+\]|[A-Za-z0-9_.-]+):(?P<port>\d+)"
 _CONNECTION_RES = (
     re.compile(r"sim"),
     re.compile(rf"(?:udp|udpout|udpin|tcp)://{_HOSTPORT}"),
-    re.compile(r"serial://(?P<dev>/[^?\s]+)\?baud=(?P<baud>\d+)"),
+    re.compile(r"serial://(?P<dev>/[^?\s]+|COM\d+)\?baud=(?P<baud>\d+)"),
 )
 _CONNECTION_FORMS = (
-    "sim, udp://HOST:PORT, udpout://HOST:PORT, udpin://HOST:PORT, tcp://HOST:PORT, serial:///dev/NAME?baud=N"
+    "sim, udp://HOST:PORT, udpout://HOST:PORT, udpin://HOST:PORT, tcp://HOST:PORT, serial:///dev/NAME?baud=N "
+    "(docs/mavlink.md)"
 )
 
 
 def _connection(ctx: _Ctx, v: Any, path: KeyPath) -> str:
     if isinstance(v, str):
+        try:  # MAVSDK/pymavlink/MAVProxy spellings: fleetctl's own, or what to write instead
+            v = normalize_connection(v)
+        except ConnectionSpellingError as exc:
+            ctx.fail(path, str(exc))
         for rx in _CONNECTION_RES:
             m = rx.fullmatch(v)
             if m is None:
@@ -475,6 +490,42 @@ _MQTT = {
     "tls": (lambda c, v, p: TlsConfig(**c.section(v, p, _TLS)), None),
     "accept_task_changes": (_boolean, False),
 }
+_TASK_LIST = _list(lambda c, v, p: c.section(v, p, _TASK), "tasks {id, position}", L.MAX_TASKS)
+_OBSTACLE_LIST = _list(_list(_vector(2), "[x, y] vertices", L.MAX_OBSTACLE_VERTICES), "polygons",
+                       L.MAX_OBSTACLES)
+
+
+class _FileRef(str):
+    """``{file: PATH}`` in place of a list (tasks, obstacles): read in :func:`_read_files`."""
+
+
+def _file_ref(ctx: _Ctx, v: Any, path: KeyPath) -> _FileRef:
+    return _FileRef(ctx.section(v, path, {"file": (_string(), _REQUIRED)})["file"])
+
+
+def _read_files(ctx: _Ctx, d: dict[str, Any], origin: Origin | None, path: Path | None) -> None:
+    """Replace ``tasks``/``obstacles`` given as ``{file: PATH}`` by what the file holds, validated
+    like a list in the mission; later messages name the file's feature (ctx.notes)."""
+    base = path.parent if path is not None else Path.cwd()
+    for key in ("tasks", "obstacles"):
+        ref = d[key]
+        if not isinstance(ref, _FileRef):
+            continue
+        try:
+            if key == "tasks":
+                tasks = formats.read_tasks(base / ref, origin, shown=str(ref))
+                rows: list[Any] = [{"id": t.id, "position": list(t.position)} for t in tasks]
+                wheres = [t.where for t in tasks]
+            else:
+                obstacles = formats.read_obstacles(base / ref, origin, shown=str(ref))
+                rows = [[list(v) for v in o.vertices] for o in obstacles]
+                wheres = [o.where for o in obstacles]
+        except formats.FormatError as exc:
+            ctx.fail((key, "file"), str(exc))
+        ctx.notes.update({(key, i): f"{ref} {w}" for i, w in enumerate(wheres)})
+        d[key] = (_TASK_LIST if key == "tasks" else _OBSTACLE_LIST)(ctx, rows, (key,))
+
+
 _TOP = {
     "name": (_ID, None),
     "origin": (lambda c, v, p: Origin(**c.section(v, p, _ORIGIN)), None),
@@ -482,9 +533,8 @@ _TOP = {
     "carriers": (_list(lambda c, v, p: c.section(v, p, _TEAM), "carriers {id, sysid, position, ..., fleet}",
                        L.MAX_CARRIERS), None),
     "rovers": (lambda c, v, p: c.section(v, p, _ROVERS), _REQUIRED),
-    "tasks": (_list(lambda c, v, p: c.section(v, p, _TASK), "tasks {id, position}", L.MAX_TASKS), _REQUIRED),
-    "obstacles": (_list(_list(_vector(2), "[x, y] vertices", L.MAX_OBSTACLE_VERTICES), "polygons",
-                        L.MAX_OBSTACLES), []),
+    "tasks": (lambda c, v, p: _file_ref(c, v, p) if isinstance(v, dict) else _TASK_LIST(c, v, p), _REQUIRED),
+    "obstacles": (lambda c, v, p: _file_ref(c, v, p) if isinstance(v, dict) else _OBSTACLE_LIST(c, v, p), []),
     "bounds": (_list(_vector(2), "two corners [[xmin, ymin], [xmax, ymax]]", 100), None),
     "collection": (lambda c, v, p: c.section(v, p, _COLLECTION), None),
     "sim": (lambda c, v, p: c.section(v, p, _SIM), {"speedup": 1.0, "faults": []}),
@@ -711,6 +761,7 @@ def _build(ctx: _Ctx, data: Any, path: Path | None) -> Mission:
     d = ctx.section(data, (), _TOP)
     origin: Origin | None = d["origin"]
     _carriers(ctx, d)
+    _read_files(ctx, d, origin, path)
     carrier, r = d["carrier"], d["rovers"]
     tasks, collection = _tasks_and_collection(ctx, d, origin)
     deploy_range, endurance, energy = _ranges(ctx, r)

@@ -288,7 +288,7 @@ class CollectPhase:
         ctx = self.ctx
         q = self.supervisor.queue
         stops, cstops = list(rnd.plan.stops), list(rnd.compiled.stops)
-        rnd.start = ctx.clock()
+        rnd.start = ctx.state.plan_started = ctx.clock()
         k, prev = 0, 0.0
         while k < len(stops):
             stop, items = stops[k], cstops[k]
@@ -484,6 +484,7 @@ class CollectPhase:
         ctx.replans.ready(new)
         await self.carrier.start_route(compiled)
         rnd.start = ctx.clock()
+        ctx.state.set_plan(new.to_json(), rnd.start)
         return keep, list(compiled.stops)
 
     # ============================================================================== events

@@ -188,7 +188,7 @@ class DeployPhase:
             st.planned = (ctx.clock() - self.t0) + plan.makespan
             st.stop_count, st.stop_index = len(plan.stops), 0
         await self.carrier.start_route(compiled)
-        plan_t0 = ctx.clock()
+        plan_t0 = st.plan_started = ctx.clock()
         if self.t0 is None:
             self.t0 = self.result.started = st.phase_started = plan_t0
             cid = ctx.fleet.carrier_id

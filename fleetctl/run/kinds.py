@@ -53,6 +53,7 @@ class Ev(StrEnum):
     PHASE = "phase"
     SUMMARY = "summary"
     BUS = "bus"
+    WEB_FAILED = "web_failed"  # the web map (--web) could not listen; the run flies on without it
     # planning and commands
     PLAN = "plan"
     REPLAN = "replan"

@@ -54,7 +54,9 @@ class Planning:
                 f"cannot plan the {'deployment' if kind == 'deploy' else 'collection'} with {name!r}: {exc}"
             ) from None
         check_plan(plan, self.ctx.mission.geofence)  # ExecutionError naming the stop/rover outside it
-        await self.ctx.commit(Ev.PLAN, plan=plan.to_json())
+        doc = plan.to_json()
+        await self.ctx.commit(Ev.PLAN, plan=doc)
+        self.ctx.state.set_plan(doc)  # the views (map, time to go); its start is set when it flies
         if self.write_plan is not None:
             self.write_plan(kind, plan)
         self.ctx.state.event(

@@ -46,6 +46,7 @@ def sim_mission_dict(mission: Mission, command: str = "deploy") -> dict[str, Any
     c = dict(d["carrier"])
     c.setdefault("id", mission.carrier.id)
     c.setdefault("sysid", mission.carrier.sysid)
+    c["connection"] = mission.carrier.connection  # in fleetctl's spelling (docs/mavlink.md)
     d["carrier"] = c
     return d
 

@@ -31,6 +31,7 @@ class RunFacts:
     dwell_flown: float | None = None
     missing: dict[str, str] | None = None  # rovers that did not answer at connect -> why
     left_out: dict[str, str] | None = None  # rovers that failed preflight -> why
+    mqtt: dict[str, Any] | None = None  # FleetBus.stats() (None: no bus)
 
 
 def build_summary(f: RunFacts) -> dict[str, Any]:
@@ -67,6 +68,7 @@ def build_summary(f: RunFacts) -> dict[str, Any]:
         "rovers_lost_reasons": {r: left_out[r] if r in left_out else _lost_reason(r, missing, f.state)
                                 for r in lost},
         "link": dict(f.state.link),
+        "mqtt": f.mqtt,
         "replans": f.state.replans,
         "journal": f.journal_path,
     }
