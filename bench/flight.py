@@ -113,7 +113,7 @@ def _jobs(only: str | None) -> list[tuple[Path, str]]:
             jobs.append((p, "deploy"))
         if d.get("collection"):
             jobs.append((p, "collect"))
-    jobs.append((ROOT / "missions" / "recon.yaml", "run"))  # deploy, dwell, collect: the battery over a whole run
+    jobs.append((ROOT / "missions" / "recon.yaml", "run"))  # deploy, dwell, collect: a whole run
     if only:
         keep = set(only.split(","))
         jobs = [j for j in jobs if j[0].stem in keep]
