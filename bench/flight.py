@@ -48,6 +48,7 @@ from fleetctl.run.sim import sim_mission_dict  # noqa: E402
 from sitl import FleetConfig, SimFleet  # noqa: E402
 
 ORIGIN = {"lat": 47.397742, "lon": 8.545594, "alt": 488.0}
+RUN_DWELL = 30.0  # s on task in the recon "run" row (fleetctl run --dwell 30)
 
 
 def _with_origin(src: Path, tmp: Path, **extra: Any) -> Path:
@@ -73,7 +74,8 @@ async def _fly(path: Path, command: str, speedup: float, runs: Path) -> dict[str
 
         poll = asyncio.ensure_future(watch())
         try:
-            out = await execute(mission, command, sim=sim, runs_dir=runs)
+            extra = {"dwell": RUN_DWELL} if command == "run" else {}
+            out = await execute(mission, command, sim=sim, runs_dir=runs, **extra)
         finally:
             poll.cancel()
     s = out.summary
@@ -111,6 +113,7 @@ def _jobs(only: str | None) -> list[tuple[Path, str]]:
             jobs.append((p, "deploy"))
         if d.get("collection"):
             jobs.append((p, "collect"))
+    jobs.append((ROOT / "missions" / "recon.yaml", "run"))  # deploy, dwell, collect: a whole run
     if only:
         keep = set(only.split(","))
         jobs = [j for j in jobs if j[0].stem in keep]

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import importlib
 import logging
 import time
 from collections.abc import Callable
@@ -221,7 +222,14 @@ class Run:
         kinds = ("deploy", "collect") if self.command == "run" else (self.command,)
         loaders = [getattr(names[k].get(self.opts.planner or self.mission.planner_for(k)), "load", None)
                    for k in kinds]
-        await asyncio.to_thread(lambda: [load() for load in loaders if load is not None])
+
+        def warm() -> None:
+            for load in loaders:
+                if load is not None:
+                    load()
+            importlib.import_module("scipy.optimize")  # the placement searches use it on their first call
+
+        await asyncio.to_thread(warm)
 
     def _scenario_batteries(self, hold: bool) -> None:
         """A collection on a simulated fleet: each rover of the ``collection:`` section has its
