@@ -29,11 +29,10 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 from fleetctl.mavlink.compile import CompiledPlan, StopItems
 from fleetctl.mavlink.link import LinkError, MissionItem
 from fleetctl.mavlink.vehicle import CommandRejected, Vehicle
-from fleetctl.mission.flight import GROUND_HEIGHT
+from fleetctl.mission.flight import GROUND_HEIGHT, MEET_HEIGHT
 from fleetctl.mission.model import any_on_ground
 from fleetctl.run.carrier import upload
 from fleetctl.run.collect_timing import (
-    RELEASE_LEAD,
     CarrierNow,
     RoundClock,
     energy_shortfalls,
@@ -246,16 +245,13 @@ class CollectPhase:
         range and the round is planned again; after ENERGY_REPLANS it is left out (unreachable)."""
         m, ctx = self.ctx.mission, self.ctx
         airborne = {c.id for c in crs if c.position[2] > GROUND_HEIGHT}
-        # the flight's own overhead in the air (the early release, the descent onto the deck) is
-        # not travel: keep it out of the range the planner may use for travel
-        overhead = (RELEASE_LEAD + m.rovers.land_time) * m.rovers.max_speed
         battery = {c.id: c.range for c in crs}
-        crs = [dataclasses.replace(c, range=max(c.range - overhead, 1e-3)) for c in crs]
         for attempt in range(ENERGY_REPLANS + 1):
             problem = CollectProblem(m.carrier_spec(), m.rovers.motion(any_on_ground(crs)), start, heading,
                                      tuple(crs), **m.environment())
             plan = await self.planning.plan("collect", problem)
-            short = energy_shortfalls(plan, battery, airborne, problem.carrier, m.rovers.max_speed)
+            short = energy_shortfalls(plan, battery, airborne, problem.carrier, m.rovers.max_speed,
+                                      MEET_HEIGHT)
             if not short:
                 return plan
             ranges = {s.rover: s for s in short}
