@@ -35,6 +35,7 @@ from fleetctl.run.carrier import upload
 from fleetctl.run.collect_timing import (
     CarrierNow,
     RoundClock,
+    Shortfall,
     energy_shortfalls,
     release_delay,
 )
@@ -246,28 +247,38 @@ class CollectPhase:
         m, ctx = self.ctx.mission, self.ctx
         airborne = {c.id for c in crs if c.position[2] > GROUND_HEIGHT}
         battery = {c.id: c.range for c in crs}
-        for attempt in range(ENERGY_REPLANS + 1):
+        for attempt in range(ENERGY_REPLANS + len(crs) + 1):
             problem = CollectProblem(m.carrier_spec(), m.rovers.motion(any_on_ground(crs)), start, heading,
                                      tuple(crs), **m.environment())
             plan = await self.planning.plan("collect", problem)
-            short = energy_shortfalls(plan, battery, airborne, problem.carrier, m.rovers.max_speed,
-                                      MEET_HEIGHT)
+            short = {s.rover: s for s in energy_shortfalls(plan, battery, airborne, problem.carrier,
+                                                           m.rovers.max_speed, MEET_HEIGHT)}
             if not short:
                 return plan
-            ranges = {s.rover: s for s in short}
-            keep = []
-            for c in crs:
-                s = ranges.get(c.id)
-                shrunk = c.range - (s.airborne - s.allowed) * m.rovers.max_speed if s is not None else c.range
-                if s is not None and (attempt == ENERGY_REPLANS or shrunk <= max(c.position[2], 0.0)):
-                    self._short_of_energy(c.id, s.airborne, s.allowed)
-                    continue
-                keep.append(dataclasses.replace(c, range=shrunk) if s is not None else c)
-            if not keep:
+            crs = self._shrink(crs, short, hopeless=attempt >= ENERGY_REPLANS)
+            if not crs:
                 break
-            crs = keep
-            ctx.record(Ev.ROVER_STATE, text="replanned: rovers short of energy", rovers=sorted(ranges))
+            ctx.record(Ev.ROVER_STATE, text="replanned: rovers short of energy", rovers=sorted(short))
         return Plan("collect", "none", start, heading, [])  # nobody left to collect this round
+
+    def _shrink(
+        self, crs: list[CollectRover], short: dict[str, Shortfall], hopeless: bool
+    ) -> list[CollectRover]:
+        """The rovers to plan again: one short of energy with its range cut by the excess, or left
+        out (unreachable) once that leaves it nothing or the replans are used up (``hopeless``:
+        every later plan leaves out at least one more rover, so this ends)."""
+        speed, keep = self.ctx.mission.rovers.max_speed, []
+        for c in crs:
+            s = short.get(c.id)
+            if s is None:
+                keep.append(c)
+                continue
+            shrunk = c.range - (s.airborne - s.allowed) * speed
+            if hopeless or shrunk <= max(c.position[2], 0.0):
+                self._short_of_energy(c.id, s.airborne, s.allowed)
+            else:
+                keep.append(dataclasses.replace(c, range=shrunk))
+        return keep
 
     def _short_of_energy(self, rid: str, airborne: float, allowed: float) -> None:
         self.board.set(rid, RoverStatus.UNREACHABLE)
