@@ -49,8 +49,9 @@ class Plan:
     compute_ms: float = 0.0
     notes: list[str] = field(default_factory=list)
     # The time model's per-stop and per-flight terms the times were computed with (set by
-    # ``planners.timing.retime``; docs/time-model.md): takeoff_time, land_time, rover_fixed_time.
-    time_model: dict[str, float] | None = None
+    # ``planners.timing.retime``; docs/time-model.md): takeoff_time, land_time, rover_fixed_time,
+    # vertex_stops.
+    time_model: dict[str, float | bool] | None = None
     # Roadmap planners (ch. 6) attach their graph for drawing: an object with ``xy`` ((N, 2)
     # node coordinates) and ``edges()`` ((E, 2) node index pairs). Not part of the JSON.
     roadmap: Any = field(default=None, repr=False, compare=False)

@@ -50,6 +50,10 @@ class CarrierSpec:
     load_time: float = 0.0
     takeoff_time: float = 0.0
     land_time: float = 0.0
+    # a polyline leg (the roadmap) driven as rest-to-rest segments with a turn on the spot at each
+    # inner vertex, as a ground carrier flying a mission of waypoints does; False = one leg over
+    # the whole length with no inner turns (the dissertation's accounting)
+    vertex_stops: bool = False
 
     @property
     def deploy_stop_time(self) -> float:

@@ -66,10 +66,10 @@ def dissertation_model(problem: P) -> P:
     touch-down time, no fixed per-flight time (the paper tables in bench/ are computed this way so
     that they stay comparable with the text)."""
     c, r = problem.carrier, problem.rover
-    if c.takeoff_time == 0.0 and c.land_time == 0.0 and r.fixed_time == 0.0:
+    if c.takeoff_time == 0.0 and c.land_time == 0.0 and r.fixed_time == 0.0 and not c.vertex_stops:
         return problem
-    return dataclasses.replace(problem, carrier=dataclasses.replace(c, takeoff_time=0.0, land_time=0.0),
-                               rover=dataclasses.replace(r, fixed_time=0.0))
+    paper = dataclasses.replace(c, takeoff_time=0.0, land_time=0.0, vertex_stops=False)
+    return dataclasses.replace(problem, carrier=paper, rover=dataclasses.replace(r, fixed_time=0.0))
 
 
 def dist(p: Sequence[float], q: Sequence[float]) -> float:
@@ -105,14 +105,22 @@ def _segment_headings(path: Sequence[Vec3]) -> list[float]:
 def carrier_leg(path: Sequence[Vec3], heading: float, carrier: CarrierSpec) -> tuple[float, float]:
     """Time to drive a carrier leg (rotation at its start + travel) and the heading afterwards.
 
-    The carrier turns at the stop from ``heading`` to the direction of the leg's first segment;
-    turns at intermediate vertices of a polyline leg are not charged (DESIGN.md).
+    The carrier turns at the stop from ``heading`` to the direction of the leg's first segment.
+    A polyline leg (the roadmap) is one leg over its whole length with no inner turns, or, with
+    ``carrier.vertex_stops``, rest-to-rest segments with a turn at each inner vertex
+    (docs/time-model.md).
     """
     headings = _segment_headings(path)
     if not headings:
         return 0.0, heading
-    t = turn_time(heading, headings[0], carrier.turn_rate) + leg_time(path_length(path), carrier.motion)
-    return t, headings[-1]
+    if not carrier.vertex_stops or len(headings) == 1:
+        t = turn_time(heading, headings[0], carrier.turn_rate) + leg_time(path_length(path), carrier.motion)
+        return t, headings[-1]
+    t, h = 0.0, heading
+    for p, q in zip(path, path[1:], strict=False):
+        dt, h = carrier_hop(p, q, h, carrier)
+        t += dt
+    return t, h
 
 
 def carrier_hop(p: Sequence[float], q: Sequence[float], heading: float,
@@ -215,7 +223,7 @@ def retime(plan: Plan, carrier: CarrierSpec, rover: Motion) -> Plan:
     return plan
 
 
-def time_model_terms(carrier: CarrierSpec, rover: Motion) -> dict[str, float]:
+def time_model_terms(carrier: CarrierSpec, rover: Motion) -> dict[str, float | bool]:
     """The terms beyond the dissertation's model, as the plan JSON reports them."""
     return {"takeoff_time": carrier.takeoff_time, "land_time": carrier.land_time,
-            "rover_fixed_time": rover.fixed_time}
+            "rover_fixed_time": rover.fixed_time, "vertex_stops": carrier.vertex_stops}

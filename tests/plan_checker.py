@@ -42,6 +42,8 @@ def check_plan(plan: dict[str, Any], carrier: dict[str, Any], rover: dict[str, A
     fixed = rover.get("fixed_time", reported.get("rover_fixed_time", 0.0))
     for k, v in (("takeoff_time", takeoff), ("land_time", land), ("rover_fixed_time", fixed)):
         assert abs(reported.get(k, v) - v) < TOL, (k, reported.get(k), v)
+    vertex_stops = carrier.get("vertex_stops", reported.get("vertex_stops", False))
+    assert reported.get("vertex_stops", vertex_stops) == vertex_stops
     heading = plan["carrier"]["heading"]
     prev = plan["carrier"]["start"]
     t = 0.0
@@ -53,12 +55,17 @@ def check_plan(plan: dict[str, Any], carrier: dict[str, Any], rover: dict[str, A
         segs = [(q[0] - p[0], q[1] - p[1]) for p, q in zip(path, path[1:], strict=False)]
         segs = [s for s in segs if math.hypot(*s) > 1e-9]
         dt = 0.0
-        if segs:
-            h = math.atan2(segs[0][1], segs[0][0])
+        # a roadmap route with vertex stops: rest-to-rest segments, a turn on the spot at each
+        pieces = [(s, math.hypot(*s)) for s in segs] if vertex_stops else (
+            [(segs[0], _length(path))] if segs else [])
+        for seg, length in pieces:
+            h = math.atan2(seg[1], seg[0])
             turn = abs((h - heading + math.pi) % (2 * math.pi) - math.pi)
             if carrier["turn_rate"] is not None:
                 dt += turn / carrier["turn_rate"]
-            dt += _leg(_length(path), carrier["max_speed"], carrier["accel"])
+            dt += _leg(length, carrier["max_speed"], carrier["accel"])
+            heading = h
+        if segs:
             heading = math.atan2(segs[-1][1], segs[-1][0])
         if plan["kind"] == "deploy":
             t += dt

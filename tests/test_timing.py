@@ -157,3 +157,22 @@ def test_remaining_leg_time_matches_the_leg_from_rest_and_a_simulated_profile(ac
             x += v * dt
             t += dt
         assert remaining_leg_time(d, v0, m) == pytest.approx(t, rel=0.02)
+
+
+def test_vertex_stops_drive_a_polyline_as_rest_to_rest_segments_with_turns():
+    from planners.problem import CarrierSpec
+    from planners.timing import carrier_hop, carrier_leg
+
+    path = [(0.0, 0.0, 0.0), (30.0, 0.0, 0.0), (30.0, 40.0, 0.0), (0.0, 40.0, 0.0)]
+    one = CarrierSpec(10.0, 5.0, 1.0)
+    stops = CarrierSpec(10.0, 5.0, 1.0, vertex_stops=True)
+    t_one, h_one = carrier_leg(path, 0.0, one)
+    t_stops, h_stops = carrier_leg(path, 0.0, stops)
+    expect, h = 0.0, 0.0
+    for p, q in zip(path, path[1:], strict=False):
+        dt, h = carrier_hop(p, q, h, stops)
+        expect += dt
+    assert t_stops == pytest.approx(expect) and h_stops == pytest.approx(h_one)
+    # two π/2 turns at 1 rad/s and two extra accelerations (v/a = 2 s each) over one 110 m leg
+    assert t_stops == pytest.approx(t_one + math.pi + 2 * 2.0)
+    assert carrier_leg(path[:2], 0.0, stops) == carrier_leg(path[:2], 0.0, one)  # a straight leg

@@ -16,8 +16,8 @@ GROUND_HEIGHT = 0.2  # m: a rover this low is on the ground (a collection flight
 TAKEOFF_HEIGHT = 1.0  # m above the deck: a launched rover climbs this high before it turns onto its line
 MEET_HEIGHT = 3.0  # m above a collection stop: a returning rover waits here for the carrier, then lands
 DEFAULT_ENDURANCE = 600.0  # s in the air on a full battery when the mission gives no endurance_range
-TAKEOFF_SETTLE = 0.5  # s beyond the climb: take-off detection and the turn onto the line (measured)
-LAND_SETTLE = 0.5  # s beyond the descent: touch-down detection, disarm, the controller seeing it (measured)
+TAKEOFF_SETTLE = 0.1  # s beyond the climb: take-off detection and the turn onto the line (measured)
+LAND_SETTLE = 0.1  # s beyond the descent: touch-down detection, disarm, the controller seeing it (measured)
 
 
 def default_takeoff_time(climb_rate: float) -> float:

@@ -208,10 +208,11 @@ class Mission:
     teams: tuple[TeamConfig, ...] = ()  # every carrier with its deck; () = one team (carrier, every rover)
 
     def carrier_spec(self) -> CarrierSpec:
-        """The carrier in the time model, with the rovers' take-off and touch-down times."""
+        """The carrier in the time model, with the rovers' take-off and touch-down times; it stops and
+        turns at every vertex of a roadmap route, as it flies its mission of waypoints."""
         c, r = self.carrier, self.rovers
         return CarrierSpec(c.max_speed, c.accel, c.turn_rate, c.unload_time, c.load_time,
-                           r.takeoff_time, r.land_time)
+                           r.takeoff_time, r.land_time, vertex_stops=True)
 
     def _start(self) -> Vec3:
         return (self.carrier.position[0], self.carrier.position[1], 0.0)

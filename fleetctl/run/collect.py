@@ -29,13 +29,13 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 from fleetctl.mavlink.compile import CompiledPlan, StopItems
 from fleetctl.mavlink.link import LinkError, MissionItem
 from fleetctl.mavlink.vehicle import CommandRejected, Vehicle
-from fleetctl.mission.flight import GROUND_HEIGHT
+from fleetctl.mission.flight import GROUND_HEIGHT, MEET_HEIGHT
 from fleetctl.mission.model import any_on_ground
 from fleetctl.run.carrier import upload
 from fleetctl.run.collect_timing import (
-    RELEASE_LEAD,
     CarrierNow,
     RoundClock,
+    Shortfall,
     energy_shortfalls,
     release_delay,
 )
@@ -246,32 +246,39 @@ class CollectPhase:
         range and the round is planned again; after ENERGY_REPLANS it is left out (unreachable)."""
         m, ctx = self.ctx.mission, self.ctx
         airborne = {c.id for c in crs if c.position[2] > GROUND_HEIGHT}
-        # the flight's own overhead in the air (the early release, the descent onto the deck) is
-        # not travel: keep it out of the range the planner may use for travel
-        overhead = (RELEASE_LEAD + m.rovers.land_time) * m.rovers.max_speed
         battery = {c.id: c.range for c in crs}
-        crs = [dataclasses.replace(c, range=max(c.range - overhead, 1e-3)) for c in crs]
-        for attempt in range(ENERGY_REPLANS + 1):
+        for attempt in range(ENERGY_REPLANS + len(crs) + 1):
             problem = CollectProblem(m.carrier_spec(), m.rovers.motion(any_on_ground(crs)), start, heading,
                                      tuple(crs), **m.environment())
             plan = await self.planning.plan("collect", problem)
-            short = energy_shortfalls(plan, battery, airborne, problem.carrier, m.rovers.max_speed)
+            short = {s.rover: s for s in energy_shortfalls(plan, battery, airborne, problem.carrier,
+                                                           m.rovers.max_speed, MEET_HEIGHT)}
             if not short:
                 return plan
-            ranges = {s.rover: s for s in short}
-            keep = []
-            for c in crs:
-                s = ranges.get(c.id)
-                shrunk = c.range - (s.airborne - s.allowed) * m.rovers.max_speed if s is not None else c.range
-                if s is not None and (attempt == ENERGY_REPLANS or shrunk <= max(c.position[2], 0.0)):
-                    self._short_of_energy(c.id, s.airborne, s.allowed)
-                    continue
-                keep.append(dataclasses.replace(c, range=shrunk) if s is not None else c)
-            if not keep:
+            crs = self._shrink(crs, short, hopeless=attempt >= ENERGY_REPLANS)
+            if not crs:
                 break
-            crs = keep
-            ctx.record(Ev.ROVER_STATE, text="replanned: rovers short of energy", rovers=sorted(ranges))
+            ctx.record(Ev.ROVER_STATE, text="replanned: rovers short of energy", rovers=sorted(short))
         return Plan("collect", "none", start, heading, [])  # nobody left to collect this round
+
+    def _shrink(
+        self, crs: list[CollectRover], short: dict[str, Shortfall], hopeless: bool
+    ) -> list[CollectRover]:
+        """The rovers to plan again: one short of energy with its range cut by the excess, or left
+        out (unreachable) once that leaves it nothing or the replans are used up (``hopeless``:
+        every later plan leaves out at least one more rover, so this ends)."""
+        speed, keep = self.ctx.mission.rovers.max_speed, []
+        for c in crs:
+            s = short.get(c.id)
+            if s is None:
+                keep.append(c)
+                continue
+            shrunk = c.range - (s.airborne - s.allowed) * speed
+            if hopeless or shrunk <= max(c.position[2], 0.0):
+                self._short_of_energy(c.id, s.airborne, s.allowed)
+            else:
+                keep.append(dataclasses.replace(c, range=shrunk))
+        return keep
 
     def _short_of_energy(self, rid: str, airborne: float, allowed: float) -> None:
         self.board.set(rid, RoverStatus.UNREACHABLE)

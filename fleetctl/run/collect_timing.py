@@ -26,7 +26,7 @@ from dataclasses import dataclass, field
 
 from planners.plan import Plan
 from planners.problem import CarrierSpec, Vec3
-from planners.timing import remaining_leg_time, turn_time
+from planners.timing import path_length, remaining_leg_time, turn_time
 
 RELEASE_LEAD = 1.0  # mission s: a rover is released this much early (its commands take time)
 TURN_TOLERANCE = 0.05  # rad: a carrier at rest pointing within this of its leg does not turn
@@ -133,19 +133,30 @@ class Shortfall:
     allowed: float  # s its battery above the reserve lasts
 
 
+def _below_approach(path: list[Vec3], approach: float) -> float:
+    """How much longer the path is to the deck than to the point ``approach`` m above it."""
+    end = path[-1]
+    up = (end[0], end[1], max(float(end[2]), approach))
+    return max(path_length(path) - path_length([*path[:-1], up]), 0.0)
+
+
 def energy_shortfalls(plan: Plan, battery: Mapping[str, float], airborne: set[str],
-                      carrier: CarrierSpec, max_speed: float) -> list[Shortfall]:
+                      carrier: CarrierSpec, max_speed: float, approach: float = 0.0) -> list[Shortfall]:
     """Rovers that would be below their reserve on the deck: a rover already in the air burns its
     battery from now until it is down (``max(carrier there, rover there) + land_time``), a rover
     on the ground only from its release. ``battery[rover]`` (metres above the reserve at cruise
-    speed, from its live reading) / ``max_speed`` is the time it has."""
+    speed, from its live reading) / ``max_speed`` is the time it has. ``approach``: the height above
+    the stop where the rover's own flight ends and its landing (``land_time``) begins."""
     out = []
     for stop in plan.stops:
         for leg in stop.rovers:
             if leg.rover not in battery:
                 continue
-            down = max(stop.arrive, leg.arrive) + carrier.land_time
-            air = down if leg.rover in airborne else leg.arrive + RELEASE_LEAD + carrier.land_time
+            # the plan's flight ends on the deck; the rover's ends above it and comes down in
+            # land_time: the part of the line below the approach point is counted once
+            below = _below_approach(leg.path, approach) / max_speed
+            down = max(stop.arrive, leg.arrive) + carrier.land_time - below
+            air = down if leg.rover in airborne else leg.arrive + RELEASE_LEAD + carrier.land_time - below
             allowed = battery[leg.rover] / max_speed
             if air > allowed + 1e-6:
                 out.append(Shortfall(leg.rover, air, allowed))
