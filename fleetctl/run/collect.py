@@ -55,6 +55,7 @@ LANDING_TIMEOUT = 10.0  # mission s from the land command to the rover on the de
 SPEED_SAMPLE = 0.5  # mission s between carrier speed samples (is it speeding up?)
 RECHECK = 1.0  # mission s between looks at the carrier's ETA while a rover waits for its release
 ENERGY_REPLANS = 3  # plans tried with shrunk ranges before a rover short of energy is left out
+SHRINK_MARGIN = 0.1  # m: a range cut for energy goes this much further
 
 
 class RoverStatus(StrEnum):
@@ -233,8 +234,8 @@ class CollectPhase:
             st.stop_count, st.stop_index = len(plan.stops), 0
         self.plan = plan
         planned = {leg.rover for leg in plan.legs()}
-        for c in crs:  # a rover the plan leaves out waits for the next round
-            if c.id not in planned:
+        for c in crs:  # a rover the plan leaves out waits for the next round (not one short of energy)
+            if c.id not in planned and self.board.in_round(c.id):
                 self.board.set(c.id, RoverStatus.PENDING)
         await self._fly(_Round(plan, compiled))
         for rid in self.board.with_status(RoverStatus.IN_ROUND):  # not loaded in its round
@@ -273,7 +274,8 @@ class CollectPhase:
             if s is None:
                 keep.append(c)
                 continue
-            shrunk = c.range - (s.airborne - s.allowed) * speed
+            # below what it flies now (its range may be longer than its flight), by the excess
+            shrunk = min(c.range, s.flight) - (s.airborne - s.allowed) * speed - SHRINK_MARGIN
             if hopeless or shrunk <= max(c.position[2], 0.0):
                 self._short_of_energy(c.id, s.airborne, s.allowed)
             else:
@@ -281,13 +283,25 @@ class CollectPhase:
         return keep
 
     def _short_of_energy(self, rid: str, airborne: float, allowed: float) -> None:
+        """Leave ``rid`` out; in the air it lands where it is while it still has its reserve
+        (rather than hover its battery away), to be picked up by hand."""
+        v = self.ctx.fleet.rovers[rid]
+        up = v.on_ground is False or (v.relative_alt or 0.0) > GROUND_HEIGHT
         self.board.set(rid, RoverStatus.UNREACHABLE)
         self.ctx.state.event(
             Ev.ROVER_UNREACHABLE,
             f"{rid}: would be {airborne:.0f} s in the air before it is on the deck but has "
-            f"{allowed:.0f} s above its reserve: not collected",
+            f"{allowed:.0f} s above its reserve: not collected" + ("; landing where it is" if up else ""),
             rid, airborne=airborne, allowed=allowed,
         )
+        if up:
+            self.ctx.spawn(self._land_in_place(v), f"land {rid}")
+
+    async def _land_in_place(self, v: Vehicle) -> None:
+        try:
+            await self.ctx.command(v, "land", v.land())
+        except (CommandRejected, LinkError, TimeoutError) as exc:
+            log.warning("%s: could not land: %s", v.name, exc)
 
     # ============================================================================== one round
     async def _fly(self, rnd: _Round) -> None:

@@ -131,6 +131,7 @@ class Shortfall:
     rover: str
     airborne: float  # s in the air until it is on the deck, waiting included
     allowed: float  # s its battery above the reserve lasts
+    flight: float = 0.0  # m: the length of its planned flight
 
 
 def _below_approach(path: list[Vec3], approach: float) -> float:
@@ -159,7 +160,7 @@ def energy_shortfalls(plan: Plan, battery: Mapping[str, float], airborne: set[st
             air = down if leg.rover in airborne else leg.arrive + RELEASE_LEAD + carrier.land_time - below
             allowed = battery[leg.rover] / max_speed
             if air > allowed + 1e-6:
-                out.append(Shortfall(leg.rover, air, allowed))
+                out.append(Shortfall(leg.rover, air, allowed, path_length(leg.path)))
     return out
 
 
