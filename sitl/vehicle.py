@@ -1110,8 +1110,13 @@ class SimVehicle:
         else:
             state = M.MAV_BATTERY_CHARGE_STATE_OK
         cells = [self._cell_mv()] * 4 + [0xFFFF] * 6
+        # time_remaining: seconds in the air left at this drain (0 = no estimate), finer than the %
+        spec = self.rover.spec if self.rover is not None else None
+        left = 0
+        if spec is not None and spec.endurance_range:
+            left = max(1, int(frac * spec.endurance_range / spec.max_speed)) if frac > 0 else 0
         return self.mav.battery_status_encode(0, M.MAV_BATTERY_FUNCTION_ALL, M.MAV_BATTERY_TYPE_LIPO, 0x7FFF,
-                                              cells, -1, -1, -1, int(round(frac * 100)), 0, state)
+                                              cells, -1, -1, -1, int(round(frac * 100)), left, state)
 
     def _extended_sys_state(self) -> Any:
         return self.mav.extended_sys_state_encode(M.MAV_VTOL_STATE_UNDEFINED, self.landed_state())

@@ -49,6 +49,7 @@ M = mavlink2
 FORCE_MAGIC = 21196.0  # MAV_CMD_COMPONENT_ARM_DISARM param2: force (ignore checks)
 DEFAULT_POSITION_HZ = 10.0
 DEFAULT_BATTERY_HZ = 1.0
+MAX_BATTERY_TIME = 86_400  # s: a BATTERY_STATUS.time_remaining above a day is not believed
 _STATUS_REASON_S = 2.0  # a STATUSTEXT this recent explains a rejected command
 # position plausibility (issue 12): a fix farther from the last applied one than
 # JUMP_FACTOR x max_speed x dt + JUMP_SLACK_M is held back until CONFIRM_FIXES consecutive fixes
@@ -140,6 +141,7 @@ class Vehicle:
         self.home: tuple[float, float, float] | None = None  # lat, lon, alt AMSL (HOME_POSITION)
         self.landed_state: int | None = None  # MAV_LANDED_STATE
         self.battery_pct: float | None = None  # 0..100
+        self.battery_time: float | None = None  # s of flight left (BATTERY_STATUS.time_remaining), if sent
         self.battery_at = 0.0  # time.monotonic() of the last BATTERY_STATUS
         # preflight (fleetctl.run.preflight): GPS_RAW_INT, SYS_STATUS sensors, FENCE_STATUS
         self.gps_fix_type: int | None = None  # GPS_FIX_TYPE (3 = 3D fix)
@@ -421,6 +423,8 @@ class Vehicle:
         if msg.battery_remaining >= 0:
             self.battery_pct = float(msg.battery_remaining)
             self.battery_at = time.monotonic()
+        left = getattr(msg, "time_remaining", 0)  # MAVLink 2 extension: s of flight left, 0 = none
+        self.battery_time = float(left) if isinstance(left, int) and 0 < left < MAX_BATTERY_TIME else None
 
     def _on_sys_status(self, msg: Any) -> None:
         if msg.battery_remaining >= 0 and self.battery_pct is None:

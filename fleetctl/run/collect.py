@@ -198,7 +198,7 @@ class CollectPhase:
             if p is None:
                 self.board.set(rid, RoverStatus.LOST)
                 continue
-            rng = range_from_percent(v.battery_pct, rp.reserve, rp.endurance_range)
+            rng = range_from_percent(self._battery_percent(v), rp.reserve, rp.endurance_range)
             if rng is None:
                 rng = (1.0 - rp.reserve) * rp.endurance_range
                 log.warning("%s reports no battery; assuming a full one", rid)
@@ -217,6 +217,16 @@ class CollectPhase:
             self.board.set(rid, RoverStatus.IN_ROUND)
             crs.append(CollectRover(rid, (p[0], p[1], max(p[2], 0.0)), rng))
         return crs
+
+    def _battery_percent(self, v: Vehicle) -> float | None:
+        """The battery in percent, finer from the autopilot's time left in the air when it sends
+        one (``time_remaining · max_speed / endurance_range``; the percentage is whole numbers)."""
+        rp = self.ctx.mission.rovers
+        if v.battery_time is not None and rp.endurance_range > 0:
+            fine = 100.0 * v.battery_time * rp.max_speed / rp.endurance_range
+            if v.battery_pct is None or abs(fine - v.battery_pct) <= 1.5:  # the same battery, finer
+                return fine
+        return v.battery_pct
 
     async def _round(self, crs: list[CollectRover]) -> None:
         ctx, st = self.ctx, self.ctx.state
