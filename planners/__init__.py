@@ -11,6 +11,7 @@ import importlib
 from collections.abc import Callable
 from typing import Any
 
+from planners.approach import WithApproach
 from planners.bounds import deploy_lower_bound
 from planners.collection_bounds import collect_lower_bound
 from planners.plan import Plan
@@ -45,11 +46,12 @@ DEPLOY_PLANNERS: dict[str, Callable[[DeployProblem], Plan]] = {
 }
 
 COLLECT_PLANNERS: dict[str, Callable[[CollectProblem], Plan]] = {
-    "lee": LazyPlanner("planners.collection", "plan_collect_lee"),
-    "lee-convex": LazyPlanner("planners.collection_convex", "plan_collect_lee_convex"),  # SciPy
-    "visit-all": LazyPlanner("planners.collection_baselines", "plan_collect_visit_all"),
-    "gather": LazyPlanner("planners.collection_baselines", "plan_collect_gather"),
-    "lee-graph": LazyPlanner("planners.collect_graph", "plan_collect_lee_graph"),  # shapely, SciPy
+    "lee": WithApproach(LazyPlanner("planners.collection", "plan_collect_lee")),
+    "lee-convex": WithApproach(LazyPlanner("planners.collection_convex", "plan_collect_lee_convex")),  # SciPy
+    "visit-all": WithApproach(LazyPlanner("planners.collection_baselines", "plan_collect_visit_all")),
+    "gather": WithApproach(LazyPlanner("planners.collection_baselines", "plan_collect_gather")),
+    # shapely, SciPy
+    "lee-graph": WithApproach(LazyPlanner("planners.collect_graph", "plan_collect_lee_graph")),
 }
 
 __all__ = ["COLLECT_PLANNERS", "DEPLOY_PLANNERS", "LazyPlanner", "Plan", "PlanningError",

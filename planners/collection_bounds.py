@@ -6,6 +6,7 @@ import math
 
 import numpy as np
 
+from planners.approach import lifted
 from planners.bounds import separated_stops_bound
 from planners.collection import CollectInstance
 from planners.problem import CollectProblem
@@ -23,6 +24,8 @@ def collect_lower_bound(problem: CollectProblem) -> float:
     Reach radii are the exact ones, sqrt(range² − z²), not the planners' RANGE_MARGIN-reduced ones,
     so the bound also holds for plans that use the full range.
     """
+    if problem.approach_height > 0.0:  # flights end above the stop (planners.approach)
+        problem = lifted(problem)
     CollectInstance(problem)  # the same validation as the planners: infeasible rovers by id
     if not problem.rovers:
         return 0.0

@@ -153,3 +153,6 @@ class CollectProblem:
     bounds: tuple[Point2, Point2] | None = None
     roadmap: RoadmapParams = field(default_factory=RoadmapParams)
     seed: int = 0
+    # height above the stop where a rover's flight ends and its landing (land_time) begins
+    # (planners.approach); 0 = on the deck, the dissertation's model
+    approach_height: float = 0.0

@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import copy
+import dataclasses
 import json
 import math
 from pathlib import Path
@@ -76,7 +77,9 @@ def check_plan(problem: CollectProblem, plan: Plan) -> None:
         for leg in stop["rovers"]:
             rv = rovers[leg["rover"]]
             assert leg["from"] == pytest.approx(list(rv.position), abs=1e-6)
-            assert leg["path"][-1] == stop["position"], "rovers land on the carrier"
+            # rovers fly to the approach point above the stop and land on the carrier from there
+            end = [*stop["position"][:2], problem.approach_height]
+            assert leg["path"][-1] == pytest.approx(end, abs=1e-6), "rovers land on the carrier"
             flight = sum(math.dist(p, q) for p, q in zip(leg["path"], leg["path"][1:], strict=False))
             # the JSON rounds coordinates to 1e-6 m: a rover exactly at its range height may read 1e-6 over
             assert flight <= rv.range + 2e-6, f"{rv.id} flies {flight} m with a range of {rv.range} m"
@@ -230,3 +233,28 @@ def test_scenario_files_plan_with_every_planner(path: Path) -> None:
         plan = planner(problem)
         assert plan.planner == name
         check_plan(problem, plan)
+
+
+def test_flights_end_at_the_approach_point_and_keep_their_times():
+    from planners.approach import lifted
+    from planners.timing import path_length
+
+    rovers = (CollectRover("a", (30.0, 5.0, 8.0), 40.0), CollectRover("b", (60.0, -10.0, 0.0), 40.0))
+    base = CollectProblem(CarrierSpec(10.0, 5.0, None, 0.0, 2.0), Motion(2.0), (0.0, 0.0, 0.0), 0.0, rovers)
+    up = dataclasses.replace(base, approach_height=3.0)
+    plan = COLLECT_PLANNERS["lee"](up)
+    lift = COLLECT_PLANNERS["lee"](lifted(up))
+    assert plan.makespan == pytest.approx(lift.makespan, abs=1e-9)
+    start = {r.id: r.position for r in rovers}
+    for stop in plan.stops:
+        for leg in stop.rovers:
+            assert leg.path[0] == pytest.approx(start[leg.rover])
+            assert leg.path[-1] == pytest.approx((stop.position[0], stop.position[1], 3.0))
+            # the flight to the point 3 m above the stop: shorter than to the deck from 8 m up,
+            # longer (a climb) from the ground
+            to_deck = math.dist(start[leg.rover], stop.position)
+            assert (path_length(leg.path) < to_deck) == (start[leg.rover][2] > 1.5)
+    assert plan.to_json()["time_model"]["approach_height"] == 3.0
+    assert collect_lower_bound(up) <= plan.makespan + 1e-7
+    again = retime(copy.deepcopy(plan), up.carrier, up.rover)
+    assert again.makespan == pytest.approx(plan.makespan, abs=1e-9)

@@ -9,7 +9,7 @@ from pathlib import Path
 from typing import Any
 
 from fleetctl.geo import Origin, compass_to_math
-from fleetctl.mission.flight import GROUND_HEIGHT
+from fleetctl.mission.flight import GROUND_HEIGHT, MEET_HEIGHT
 from planners.problem import (
     CarrierSpec,
     CollectProblem,
@@ -243,6 +243,7 @@ class Mission:
             start=self._start(),
             heading=compass_to_math(self.carrier.heading_deg),
             rovers=self.collection,
+            approach_height=MEET_HEIGHT,
             **self.environment(),
         )
 

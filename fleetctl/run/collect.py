@@ -260,7 +260,7 @@ class CollectPhase:
         battery = {c.id: c.range for c in crs}
         for attempt in range(ENERGY_REPLANS + len(crs) + 1):
             problem = CollectProblem(m.carrier_spec(), m.rovers.motion(any_on_ground(crs)), start, heading,
-                                     tuple(crs), **m.environment())
+                                     tuple(crs), approach_height=MEET_HEIGHT, **m.environment())
             plan = await self.planning.plan("collect", problem)
             short = {s.rover: s for s in energy_shortfalls(plan, battery, airborne, problem.carrier,
                                                            m.rovers.max_speed, MEET_HEIGHT)}
