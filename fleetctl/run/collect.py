@@ -203,12 +203,12 @@ class CollectPhase:
                 rng = (1.0 - rp.reserve) * rp.endurance_range
                 log.warning("%s reports no battery; assuming a full one", rid)
             ctx.record(Ev.ROVER_STATE, vehicle=rid, position=p, battery_pct=v.battery_pct, range=rng)
-            if rng < max(p[2], 0.0):  # cannot even land below itself: out of the carrier's reach
+            if rng < _to_approach(p[2]):  # not even to the approach height above itself: out of reach
                 self.board.set(rid, RoverStatus.UNREACHABLE)
                 ctx.state.event(
                     Ev.ROVER_UNREACHABLE,
-                    f"{rid}: {rng:.1f} m of range left at {p[2]:.1f} m up: "
-                    "cannot reach the ground, not collected",
+                    f"{rid}: {rng:.1f} m of range left at {p[2]:.1f} m up: cannot reach the approach "
+                    f"height {MEET_HEIGHT:g} m above a stop, not collected",
                     rid,
                     range=rng,
                     height=p[2],
@@ -286,7 +286,7 @@ class CollectPhase:
                 continue
             # below what it flies now (its range may be longer than its flight), by the excess
             shrunk = min(c.range, s.flight) - (s.airborne - s.allowed) * speed - SHRINK_MARGIN
-            if hopeless or shrunk <= max(c.position[2], 0.0):
+            if hopeless or shrunk <= _to_approach(c.position[2]):
                 self._short_of_energy(c.id, s.airborne, s.allowed)
             else:
                 keep.append(dataclasses.replace(c, range=shrunk))
@@ -585,6 +585,11 @@ class CollectPhase:
             res.complete = res.complete and not lost_at_start
         res.flown = (last_load if last_load is not None else 0.0) if res.complete else None
         return res
+
+
+def _to_approach(z: float) -> float:
+    """The least flight of a rover ``z`` m up: to the approach height above a stop under it."""
+    return abs(max(z, 0.0) - MEET_HEIGHT)
 
 
 __all__ = ["CollectPhase", "ResumedCollect", "RoverBoard", "RoverStatus"]
