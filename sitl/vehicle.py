@@ -698,13 +698,27 @@ class SimVehicle:
             return False
         # NAV_WAYPOINT, NAV_LOITER_TIME, NAV_LOITER_UNLIM
         x, y, z = self._target(item)
-        if not body.goto(x, y, z):
+        if isinstance(body, Rover) and self._flown_through(item):
+            ok = body.goto(x, y, z, through=True)
+        else:
+            ok = body.goto(x, y, z)
+        if not ok:
             self.statustext(f"Mission item {item.seq}: cannot fly there", M.MAV_SEVERITY_WARNING)
         return False
+
+    def _flown_through(self, item: MissionItem) -> bool:
+        """A multirotor flies through a waypoint with no hold that another waypoint follows, as
+        the autopilots do (PX4, ArduCopter); it stops at the last one."""
+        nxt = item.seq + 1
+        return (item.command == ms.NAV_WAYPOINT and not (math.isfinite(item.param1) and item.param1 > 0)
+                and nxt < len(self.mission) and self.mission[nxt].command == ms.NAV_WAYPOINT)
 
     def _check_item(self, item: MissionItem, t: float) -> bool:
         cmd = item.command
         body = self.body
+        if isinstance(body, Rover) and body.passed and cmd == ms.NAV_WAYPOINT:
+            body.passed = False
+            return True
         if cmd == ms.NAV_TAKEOFF:
             return isinstance(body, Rover) and body.arrived and body.phase is Phase.AIR
         if cmd == ms.NAV_LAND:

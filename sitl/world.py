@@ -7,7 +7,9 @@ at z = 0, the carrier's deck at z = 0 too. Motion model (matches the planners' t
   speed) and turns on the spot at ``turn_rate`` (None = instantly) before a leg; it stops at
   every target.
 * a rover flies straight 3D lines at up to ``max_speed`` (vertical speed capped by
-  ``climb_rate``) with the same speed profile, lands vertically at ``land_speed``.
+  ``climb_rate``) with the same speed profile, lands vertically at ``land_speed``; a waypoint
+  flown through (``goto(..., through=True)``: one another waypoint follows) is passed without
+  braking, as multirotor autopilots do.
 * battery: a rover in the air (hovering included) uses ``dt * max_speed * drain_factor /
   endurance_range`` of its battery per step, i.e. ``endurance_range`` metres at cruise speed on a
   full battery, as a multirotor does; on the ground or the deck it uses none. An empty rover in
@@ -169,6 +171,8 @@ class Rover(Body):
         self.battery_pinned = False  # the battery holds its level (a scenario's state until it starts)
         self.flown = 0.0  # metres flown in total
         self.landing = False
+        self.through = False  # the current target is a waypoint flown through
+        self.passed = False  # the last target was flown through (the rover still moves)
         self._land_xy: tuple[float, float] | None = None
         self.drain_factor: Callable[[], float] = lambda: 1.0
         self.events: list[str] = []  # "touchdown", "loaded", "battery_empty", "takeoff"
@@ -214,10 +218,13 @@ class Rover(Body):
             return False
         x, y, _ = self.position
         self.landing = False
+        self.through = False
         self.target = (x, y, max(float(alt), 0.1))
         return True
 
-    def goto(self, x: float, y: float, z: float, speed: float | None = None) -> bool:
+    def goto(self, x: float, y: float, z: float, speed: float | None = None, through: bool = False) -> bool:
+        """Fly to (x, y, z); ``through``: a waypoint on the way, flown through without braking
+        (``passed`` is set there and the rover keeps its speed for the next one)."""
         if speed is not None and speed > 0:
             self.set_speed(speed)
         if self.phase is not Phase.AIR and z <= 0.05:
@@ -225,6 +232,7 @@ class Rover(Body):
         if not self._lift_off():
             return False
         self.landing = False
+        self.through, self.passed = through, False
         self.target = (float(x), float(y), max(float(z), 0.0))
         return True
 
@@ -233,12 +241,14 @@ class Rover(Body):
         if self.phase is not Phase.AIR:
             return
         self.landing = True
+        self.through = False
         self._land_xy = None if x is None or y is None else (float(x), float(y))
         self.target = None if self._land_xy is None else (self._land_xy[0], self._land_xy[1], self._pos[2])
 
     def hold(self) -> None:
         self.target = None
         self.landing = False
+        self.through = False
 
     # -- physics ---------------------------------------------------------------------------
     def step(self, dt: float) -> None:
@@ -273,7 +283,10 @@ class Rover(Body):
         vmax = self.cruise_speed
         if abs(dz) > _EPS:
             vmax = min(vmax, self.climb_rate * dist / abs(dz))
-        speed = _approach(self.speed, vmax, self.spec.accel, dist, dt)
+        if self.through:  # no braking for a waypoint flown through
+            speed = vmax if self.spec.accel is None else min(vmax, self.speed + self.spec.accel * dt)
+        else:
+            speed = _approach(self.speed, vmax, self.spec.accel, dist, dt)
         step = min(dist, speed * dt)
         ux, uy, uz = dx / dist, dy / dist, dz / dist
         p[0] += ux * step
@@ -286,7 +299,15 @@ class Rover(Body):
         self.flown += step
         self.moves += 1
         if step >= dist - _EPS:
-            self._stop_at(target)
+            if self.through:
+                self._pass(target)
+            else:
+                self._stop_at(target)
+
+    def _pass(self, target: tuple[float, float, float]) -> None:
+        self._pos = [target[0], target[1], target[2]]
+        self.target, self.through, self.passed = None, False, True
+        self.moves += 1
 
     def _stop_at(self, target: tuple[float, float, float]) -> None:
         self._pos = [target[0], target[1], target[2]]

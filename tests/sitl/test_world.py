@@ -176,3 +176,16 @@ def test_world_is_deterministic() -> None:
         return out
 
     assert trace() == trace()
+
+
+def test_a_waypoint_flown_through_keeps_the_speed_a_final_one_stops() -> None:
+    w = world(endurance=None, rover_accel=2.0)
+    r = w.rovers["r1"]
+    r.takeoff(5.0)
+    run_until(w, lambda: r.arrived)
+    r.goto(20.0, 0.0, 5.0, through=True)
+    run_until(w, lambda: r.passed)
+    assert r.speed > 1.0 and r.position == pytest.approx((20.0, 0.0, 5.0))  # no braking there
+    r.goto(20.0, 20.0, 5.0)
+    run_until(w, lambda: r.arrived)
+    assert r.speed == 0.0 and r.position == pytest.approx((20.0, 20.0, 5.0))
