@@ -11,7 +11,7 @@ import importlib
 from collections.abc import Callable
 from typing import Any
 
-from planners.approach import WithApproach
+from planners.approach import WithApproach, WithTakeoff
 from planners.bounds import deploy_lower_bound
 from planners.collection_bounds import collect_lower_bound
 from planners.plan import Plan
@@ -38,11 +38,11 @@ class LazyPlanner:
 
 
 DEPLOY_PLANNERS: dict[str, Callable[[DeployProblem], Plan]] = {
-    "lee": LazyPlanner("planners.deploy", "plan_lee"),
-    "greedy2opt": LazyPlanner("planners.baselines", "plan_greedy2opt"),
-    "direct": LazyPlanner("planners.baselines", "plan_direct"),
-    "two-task": LazyPlanner("planners.two_task", "plan_two_tasks"),
-    "lee-graph": LazyPlanner("planners.deploy_graph", "plan_lee_graph"),  # shapely, SciPy
+    "lee": WithTakeoff(LazyPlanner("planners.deploy", "plan_lee")),
+    "greedy2opt": WithTakeoff(LazyPlanner("planners.baselines", "plan_greedy2opt")),
+    "direct": WithTakeoff(LazyPlanner("planners.baselines", "plan_direct")),
+    "two-task": WithTakeoff(LazyPlanner("planners.two_task", "plan_two_tasks")),
+    "lee-graph": WithTakeoff(LazyPlanner("planners.deploy_graph", "plan_lee_graph")),  # shapely, SciPy
 }
 
 COLLECT_PLANNERS: dict[str, Callable[[CollectProblem], Plan]] = {

@@ -1,4 +1,8 @@
-"""Collection flights that end at the approach point above the stop, not on the deck.
+"""Rover flights that start (deployment) or end (collection) above the deck, not on it.
+
+A launched rover climbs to ``takeoff_height`` above its stop and flies its line to the task from
+there; the planners solve the deployment with each task's height ``z`` lifted to ``|z − h|``
+(the same flight from the ground) and the paths are put back (:class:`WithTakeoff`).
 
 A returning rover flies to the point ``approach_height`` above its stop and comes down onto the
 deck from there (the time model's ``land_time``). Its flight is the line (or roadmap polyline)
@@ -18,7 +22,7 @@ from collections.abc import Callable
 from typing import Any
 
 from planners.plan import Plan
-from planners.problem import CollectProblem, Vec3
+from planners.problem import CollectProblem, DeployProblem, Task, Vec3
 
 
 def lifted(problem: CollectProblem) -> CollectProblem:
@@ -27,6 +31,26 @@ def lifted(problem: CollectProblem) -> CollectProblem:
     rovers = tuple(dataclasses.replace(r, position=(r.position[0], r.position[1], abs(r.position[2] - h)))
                    for r in problem.rovers)
     return dataclasses.replace(problem, rovers=rovers, approach_height=0.0)
+
+
+def lifted_tasks(problem: DeployProblem) -> DeployProblem:
+    """The same deployment with each task's height ``z`` replaced by ``|z − takeoff_height|``."""
+    h = problem.takeoff_height
+    tasks = tuple(Task(t.id, (t.position[0], t.position[1], abs(t.position[2] - h))) for t in problem.tasks)
+    return dataclasses.replace(problem, tasks=tasks, takeoff_height=0.0)
+
+
+def restored_tasks(plan: Plan, problem: DeployProblem) -> Plan:
+    """``plan`` (made for :func:`lifted_tasks`) with each rover's path from the take-off height
+    above its stop to its task."""
+    h = problem.takeoff_height
+    height = {t.id: float(t.position[2]) for t in problem.tasks}
+    for leg in plan.legs():
+        if leg.task in height:
+            leg.path = _put_back(list(leg.path), h, height[leg.task])
+    if plan.time_model is not None:
+        plan.time_model = {**plan.time_model, "takeoff_height": h}
+    return plan
 
 
 def _put_back(path: list[Vec3], z0: float, h: float) -> list[Vec3]:
@@ -74,4 +98,23 @@ class WithApproach:
         return f"<with approach {self.inner!r}>"
 
 
-__all__ = ["WithApproach", "lifted", "restored"]
+class WithTakeoff:
+    """A deployment planner that honours ``takeoff_height`` (see the module docstring)."""
+
+    def __init__(self, inner: Callable[[DeployProblem], Plan]) -> None:
+        self.inner = inner
+
+    def load(self) -> Any:
+        load = getattr(self.inner, "load", None)
+        return load() if load is not None else self.inner
+
+    def __call__(self, problem: DeployProblem) -> Plan:
+        if problem.takeoff_height <= 0.0:
+            return self.inner(problem)
+        return restored_tasks(self.inner(lifted_tasks(problem)), problem)
+
+    def __repr__(self) -> str:
+        return f"<with take-off {self.inner!r}>"
+
+
+__all__ = ["WithApproach", "WithTakeoff", "lifted", "lifted_tasks", "restored", "restored_tasks"]

@@ -7,6 +7,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from planners.approach import lifted_tasks
 from planners.problem import DeployProblem, Motion
 from planners.timing import leg_time
 
@@ -19,6 +20,8 @@ def deploy_lower_bound(problem: DeployProblem) -> float:
     1. Per task (``_task_bound``): the earliest any rover can reach one task.
     2. Stops (``_stops_bound``): the carrier's unloading and driving that any plan needs.
     """
+    if problem.takeoff_height > 0.0:  # flights start above the stop (planners.approach)
+        problem = lifted_tasks(problem)
     return max(_task_bound(problem), _stops_bound(problem))
 
 

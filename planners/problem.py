@@ -123,6 +123,9 @@ class DeployProblem:
     bounds: tuple[Point2, Point2] | None = None
     roadmap: RoadmapParams = field(default_factory=RoadmapParams)
     seed: int = 0
+    # height above the stop where a launched rover's line to its task starts (planners.approach);
+    # 0 = from the deck, the dissertation's model
+    takeoff_height: float = 0.0
 
     def rover_ids(self) -> tuple[str, ...]:
         if self.rovers:

@@ -66,12 +66,15 @@ def dissertation_model(problem: P) -> P:
     touch-down time, no fixed per-flight time (the paper tables in bench/ are computed this way so
     that they stay comparable with the text)."""
     c, r = problem.carrier, problem.rover
-    flat = not isinstance(problem, CollectProblem) or problem.approach_height == 0.0
+    flat = (problem.approach_height == 0.0 if isinstance(problem, CollectProblem)
+            else problem.takeoff_height == 0.0)
     if c.takeoff_time == 0.0 and c.land_time == 0.0 and r.fixed_time == 0.0 and not c.vertex_stops and flat:
         return problem
     paper = dataclasses.replace(c, takeoff_time=0.0, land_time=0.0, vertex_stops=False)
     out = dataclasses.replace(problem, carrier=paper, rover=dataclasses.replace(r, fixed_time=0.0))
-    return dataclasses.replace(out, approach_height=0.0) if isinstance(out, CollectProblem) else out
+    if isinstance(out, CollectProblem):
+        return dataclasses.replace(out, approach_height=0.0)
+    return dataclasses.replace(out, takeoff_height=0.0)
 
 
 def dist(p: Sequence[float], q: Sequence[float]) -> float:

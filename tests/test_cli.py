@@ -29,7 +29,8 @@ def test_plan_json_matches_the_contract(mission, planner, capsys):
     plan = json.loads(out)  # nothing but the JSON on stdout
     assert set(plan) == {"schema", "kind", "planner", "carrier", "stops", "makespan", "carrier_distance",
                          "compute_ms", "time_model"}
-    assert set(plan["time_model"]) == {"takeoff_time", "land_time", "rover_fixed_time", "vertex_stops"}
+    assert set(plan["time_model"]) == {"takeoff_time", "land_time", "rover_fixed_time", "vertex_stops",
+                                       "takeoff_height"}
     assert plan["schema"] == "fleetctl.plan/1" and plan["kind"] == "deploy" and plan["planner"] == planner
     assert set(plan["carrier"]) == {"start", "heading"}
     for stop in plan["stops"]:

@@ -113,7 +113,10 @@ def check_teams(problem: TeamsProblem, out: TeamsPlan) -> None:
             _independent_check(plan, p)
         for stop in plan.stops:
             for leg in stop.rovers:
-                assert math.dist(leg.path[0 if problem.kind == "deploy" else -1], stop.position) < EPS
+                # a flight starts above the deck (take-off height) or ends above it (approach)
+                h = p.takeoff_height if isinstance(p, DeployProblem) else p.approach_height
+                end = leg.path[0 if problem.kind == "deploy" else -1]
+                assert math.dist(end, (*stop.position[:2], h)) < EPS
         if isinstance(p, DeployProblem):
             rovers = [leg.rover for leg in legs]
             assert len(set(rovers)) == len(rovers) <= len(p.rovers) and set(rovers) <= set(p.rovers)

@@ -9,7 +9,7 @@ from pathlib import Path
 from typing import Any
 
 from fleetctl.geo import Origin, compass_to_math
-from fleetctl.mission.flight import GROUND_HEIGHT, MEET_HEIGHT
+from fleetctl.mission.flight import GROUND_HEIGHT, MEET_HEIGHT, TAKEOFF_HEIGHT
 from planners.problem import (
     CarrierSpec,
     CollectProblem,
@@ -228,6 +228,7 @@ class Mission:
             heading=compass_to_math(self.carrier.heading_deg),
             tasks=self.tasks,
             rovers=self.rovers.ids,
+            takeoff_height=TAKEOFF_HEIGHT,
             **self.environment(),
         )
 
