@@ -18,6 +18,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -26,6 +27,7 @@ from planners.geometry import minimize_1d
 from planners.plan import Plan, RoverLeg, Stop
 from planners.problem import CollectProblem, PlanningError, Vec3, refuse_obstacles
 from planners.reach import Point2, Region, make_region
+from planners.moves import apply, local_search
 from planners.search import merge_neighbours, reorder, split_loop
 from planners.timing import RANGE_MARGIN, carrier_hop, leg_time, retime
 
@@ -292,6 +294,51 @@ def polish(builder: _PathBuilder, route: _Route,
     return route
 
 
+_DIRECTIONS = [(math.cos(a * math.pi / 4), math.sin(a * math.pi / 4)) for a in range(8)]
+
+
+def _moved(route: _Route, k: int, q: Point2) -> float:
+    """Makespan of ``route`` with stop k moved to ``q`` (the others kept), re-timed from k on."""
+    b = route.b
+    prev, t, h = route.state_before(k)
+    dt, h = carrier_hop(prev, q, h, b.carrier)
+    t = max(t + dt, b.ready(route.regions[k], q)) + b.load
+    return route._finish(k + 1, q, t, h) if k + 1 < len(route.positions) else t
+
+
+def compass(builder: _PathBuilder, route: _Route, sweeps: int = 2) -> _Route:
+    """Move each stop on its own inside its region I_β wherever the route gets faster (a compass
+    search on the exact time model, 8 directions, halving steps): the candidate points of eq.
+    5.13–5.16 miss the interior point where the carrier and the cluster's last rover arrive
+    together."""
+    inst = builder.inst
+    for _ in range(sweeps):
+        before = route.makespan
+        for k, members in enumerate(route.clusters):
+            rows = [(inst.pts2[i][0], inst.pts2[i][1], float(inst.radii[i]) ** 2) for i in members]
+            best = route.makespan
+            x, y = route.positions[k]
+            step = max(min(math.sqrt(r2) for _, _, r2 in rows) / 4, 0.05)
+            while step > 1e-3:
+                for dx, dy in _DIRECTIONS:
+                    cx, cy = x + step * dx, y + step * dy
+                    if any((cx - gx) ** 2 + (cy - gy) ** 2 > r2 for gx, gy, r2 in rows):
+                        continue
+                    t = _moved(route, k, (cx, cy))
+                    if t < best - 1e-9:
+                        best, x, y = t, cx, cy
+                        break
+                else:
+                    step /= 2
+            if (x, y) != route.positions[k]:
+                positions = list(route.positions)
+                positions[k] = (x, y)
+                route = _Route(builder, route.clusters, route.regions, positions)
+        if route.makespan >= before - 1e-6:
+            break
+    return route
+
+
 def _initial_clusters(builder: _PathBuilder) -> list[list[int]]:
     """Algorithm 5.1, initial clustering: divide until every cluster has a common region."""
     inst = builder.inst
@@ -330,17 +377,43 @@ def lee_route(problem: CollectProblem, improve: bool = True,
             break
         route = better
     small = len(problem.rovers) <= fine_upto
-    if small:  # place every stop afresh, finely, and keep the faster
-        fresh = builder.route(route.clusters, 2)
-        route = fresh if fresh.makespan <= route.makespan else route
-    route = polish(builder, route, sweeps=2 if small else 1, level=2 if small else 1)
+
+    def finish(r: _Route) -> _Route:
+        if small:  # place every stop afresh, finely, and keep the faster
+            fresh = builder.route(r.clusters, 2)
+            r = fresh if fresh.makespan <= r.makespan else r
+        return compass(builder, polish(builder, r, sweeps=2 if small else 1, level=2 if small else 1))
+
+    best = finish(route)
+    if improve:  # group and order moves (planners.moves), scored on the quick placement ...
+        moved = local_search(route, inst.fits, lambda r, ch: _scored(r.replace(*ch)),
+                             lambda r, cand: r.accept(cand), _makespan)
+        if moved is not route:
+            moved = finish(moved)
+            best = moved if moved.makespan < best.makespan else best
+        if len(problem.rovers) <= FINE_MOVES_UPTO:  # ... and on small problems on the final stops
+            best = local_search(best, inst.fits,
+                                lambda r, ch: _scored(finish(builder.route(apply(r.clusters, ch)))),
+                                lambda r, cand: cand, _makespan)
+    route = best
     if len(problem.rovers) == 2:
         from planners.collection_two import two_rover_route  # the ch. 5.3 optimum, where it applies
 
         two = two_rover_route(builder)
         if two.makespan < route.makespan:
-            route = two
+            route = compass(builder, two)
     return builder, route
+
+
+FINE_MOVES_UPTO = 8  # rovers: up to this many, every move is scored on fine, polished stops
+
+
+def _scored(cand: Any) -> tuple[float, Any]:
+    return (cand[0], cand) if isinstance(cand, tuple) else (cand.makespan, cand)
+
+
+def _makespan(r: _Route) -> float:
+    return r.makespan
 
 
 def build_collect_plan(problem: CollectProblem, planner: str, clusters: Sequence[Sequence[int]],

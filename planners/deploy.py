@@ -10,6 +10,7 @@ import math
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
 
 from scipy.optimize import brentq
 
@@ -17,6 +18,7 @@ from planners.clustering import divide_cluster
 from planners.geometry import enclosing_ball, minimize_1d
 from planners.plan import Plan, RoverLeg, Stop
 from planners.problem import DeployProblem, PlanningError, Vec3, refuse_obstacles
+from planners.moves import apply, local_search
 from planners.search import merge_neighbours, reorder, split_loop, swap_neighbours
 from planners.timing import RANGE_MARGIN, carrier_hop, leg_time, retime
 
@@ -347,15 +349,37 @@ def lee_clusters(problem: DeployProblem, improve: bool = True) -> tuple[list[lis
         route = better
 
     # The loop re-placed stops only around each change; place every stop afresh, finely, and
-    # keep whichever of the two routes is faster.
-    fresh = builder.route(route.clusters, fine=True)
-    best = fresh if fresh.makespan <= route.makespan else route
-    if improve and len(best.clusters) <= POLISH_MAX_STOPS:
-        best = _polish(builder, best)
+    # keep whichever of the two routes is faster; then polish every stop (routes of any length).
+    def finish(r: _Route) -> _Route:
+        fresh = builder.route(r.clusters, fine=True)
+        r = fresh if fresh.makespan <= r.makespan else r
+        return _polish(builder, r) if improve else r
+
+    best = finish(route)
+    if improve:  # group and order moves (planners.moves), scored on the quick placement ...
+        moved = local_search(route, inst.fits_quick, lambda r, ch: _scored(r.replace(*ch)),
+                             lambda r, cand: r.accept(cand), _makespan)
+        if moved is not route:
+            moved = finish(moved)
+            best = moved if moved.makespan < best.makespan else best
+        if n <= FINE_MOVES_UPTO:  # ... and on small problems on the final placement
+            best = local_search(best, inst.fits_quick,
+                                lambda r, ch: _scored(finish(builder.route(apply(r.clusters, ch)))),
+                                lambda r, cand: cand, _makespan)
     return best.clusters, best.positions, best.makespan
 
 
-POLISH_MAX_STOPS = 24  # routes with more stops skip the polish: it would cost more than the planning
+FINE_MOVES_UPTO = 8  # tasks: up to this many, every move is scored on fine, polished stops
+
+
+def _scored(cand: Any) -> tuple[float, Any]:
+    return (cand[0], cand) if isinstance(cand, tuple) else (cand.makespan, cand)
+
+
+def _makespan(r: _Route) -> float:
+    return r.makespan
+
+
 _DIRECTIONS = [(math.cos(a * math.pi / 4), math.sin(a * math.pi / 4)) for a in range(8)]
 
 
@@ -394,6 +418,16 @@ def _polish(builder: _PathBuilder, route: _Route, sweeps: int = 3) -> _Route:
             head = max(route.done[:k], default=0.0)  # stops before k are not affected
             best = route.makespan
             x, y = route.positions[k]
+            # a jump first: the compass search cannot leave a stop where moving a little costs a
+            # turn (e.g. a stop on the start); try the cluster's centre and its point nearest the
+            # carrier's line to the next stop
+            prev = builder.start if k == 0 else route.positions[k - 1]
+            nxt = route.positions[k + 1] if k + 1 < len(route.positions) else route.geos[k].center
+            for cand in (route.geos[k].center, max_range_point(prev, route.geos[k], nxt)):
+                if inst.reach_from(cand, members) <= inst.d:
+                    t = _moved(builder, route, k, cand, head)
+                    if t < best - 1e-9:
+                        best, (x, y) = t, cand
             step = max(inst.d / 4, 0.05)
             while step > 1e-3:
                 for dx, dy in _DIRECTIONS:
