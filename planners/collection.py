@@ -16,9 +16,9 @@ model; ``planners.collection_convex`` solves the same placement as a constrained
 from __future__ import annotations
 
 import math
+import random
 import time
 from collections.abc import Callable, Sequence
-from typing import Any
 
 import numpy as np
 
@@ -27,7 +27,7 @@ from planners.geometry import minimize_1d
 from planners.plan import Plan, RoverLeg, Stop
 from planners.problem import CollectProblem, PlanningError, Vec3, refuse_obstacles
 from planners.reach import Point2, Region, make_region
-from planners.moves import apply, local_search
+from planners.moves import deadline, fine_descent, iterated_search, quick_descent
 from planners.search import merge_neighbours, reorder, split_loop
 from planners.timing import RANGE_MARGIN, carrier_hop, leg_time, retime
 
@@ -354,8 +354,8 @@ def _initial_clusters(builder: _PathBuilder) -> list[list[int]]:
     return clusters
 
 
-def lee_route(problem: CollectProblem, improve: bool = True,
-              fine_upto: int = 30) -> tuple[_PathBuilder, _Route]:
+def lee_route(problem: CollectProblem, improve: bool = True, fine_upto: int = 30,
+              t0: float | None = None) -> tuple[_PathBuilder, _Route]:
     """Algorithm 5.1–5.2, then (with ``improve``) re-sequencing, merging and handing rovers over
     while that helps, and a final fine placement of every stop with both neighbours known."""
     inst = CollectInstance(problem)
@@ -385,16 +385,18 @@ def lee_route(problem: CollectProblem, improve: bool = True,
         return compass(builder, polish(builder, r, sweeps=2 if small else 1, level=2 if small else 1))
 
     best = finish(route)
+    stop = deadline(problem.budget_ms, t0) if improve else None
     if improve:  # group and order moves (planners.moves), scored on the quick placement ...
-        moved = local_search(route, inst.fits, lambda r, ch: _scored(r.replace(*ch)),
-                             lambda r, cand: r.accept(cand), _makespan)
+        moved = quick_descent(route, inst.fits)
         if moved is not route:
             moved = finish(moved)
             best = moved if moved.makespan < best.makespan else best
-        if len(problem.rovers) <= FINE_MOVES_UPTO:  # ... and on small problems on the final stops
-            best = local_search(best, inst.fits,
-                                lambda r, ch: _scored(finish(builder.route(apply(r.clusters, ch)))),
-                                lambda r, cand: cand, _makespan)
+        if len(problem.rovers) <= FINE_MOVES_UPTO or stop is not None:  # ... and on the final stops
+            best = fine_descent(best, inst.fits, builder.route, finish,
+                                stop if len(problem.rovers) > FINE_MOVES_UPTO else None)
+    if stop is not None:  # anytime: iterated local search until the budget
+        best = iterated_search(best, inst.fits, builder.route, finish, random.Random(problem.seed), stop,
+                               max_fails=ILS_PATIENCE * len(problem.rovers))
     route = best
     if len(problem.rovers) == 2:
         from planners.collection_two import two_rover_route  # the ch. 5.3 optimum, where it applies
@@ -405,15 +407,10 @@ def lee_route(problem: CollectProblem, improve: bool = True,
     return builder, route
 
 
-FINE_MOVES_UPTO = 8  # rovers: up to this many, every move is scored on fine, polished stops
+FINE_MOVES_UPTO = 8  # rovers: up to this many, every move is also scored on fine, polished stops
 
 
-def _scored(cand: Any) -> tuple[float, Any]:
-    return (cand[0], cand) if isinstance(cand, tuple) else (cand.makespan, cand)
-
-
-def _makespan(r: _Route) -> float:
-    return r.makespan
+ILS_PATIENCE = 20  # kicks per rover without a new best before the anytime search gives up
 
 
 def build_collect_plan(problem: CollectProblem, planner: str, clusters: Sequence[Sequence[int]],
@@ -471,7 +468,7 @@ def plan_collect_lee(problem: CollectProblem) -> Plan:
     """The dissertation's collection path generator (ch. 5.4) with the fast meeting points; ``lee``."""
     t0 = time.perf_counter()
     refuse_obstacles(problem, "lee")
-    _, route = lee_route(problem)
+    _, route = lee_route(problem, t0=t0)
     ms = (time.perf_counter() - t0) * 1e3
     return build_collect_plan(problem, "lee", route.clusters, route.positions, ms)
 

@@ -8,9 +8,9 @@ from __future__ import annotations
 
 import math
 import time
+import random
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any
 
 from scipy.optimize import brentq
 
@@ -18,7 +18,7 @@ from planners.clustering import divide_cluster
 from planners.geometry import enclosing_ball, minimize_1d
 from planners.plan import Plan, RoverLeg, Stop
 from planners.problem import DeployProblem, PlanningError, Vec3, refuse_obstacles
-from planners.moves import apply, local_search
+from planners.moves import deadline, fine_descent, iterated_search, quick_descent
 from planners.search import merge_neighbours, reorder, split_loop, swap_neighbours
 from planners.timing import RANGE_MARGIN, carrier_hop, leg_time, retime
 
@@ -313,7 +313,8 @@ class _Route:
         return worst, clusters, geos, positions
 
 
-def lee_clusters(problem: DeployProblem, improve: bool = True) -> tuple[list[list[int]], list[Point2], float]:
+def lee_clusters(problem: DeployProblem, improve: bool = True,
+                 t0: float | None = None) -> tuple[list[list[int]], list[Point2], float]:
     """Algorithm 4.1–4.2: divide until every cluster fits d_deploy, then the split/swap/merge loop
     that keeps the fastest path; with ``improve``, then re-sequence and merge clusters and run
     the loop again while that helps. Returns clusters in visiting order, stops and makespan."""
@@ -356,28 +357,25 @@ def lee_clusters(problem: DeployProblem, improve: bool = True) -> tuple[list[lis
         return _polish(builder, r) if improve else r
 
     best = finish(route)
-    if improve:  # group and order moves (planners.moves), scored on the quick placement ...
-        moved = local_search(route, inst.fits_quick, lambda r, ch: _scored(r.replace(*ch)),
-                             lambda r, cand: r.accept(cand), _makespan)
-        if moved is not route:
-            moved = finish(moved)
-            best = moved if moved.makespan < best.makespan else best
-        if n <= FINE_MOVES_UPTO:  # ... and on small problems on the final placement
-            best = local_search(best, inst.fits_quick,
-                                lambda r, ch: _scored(finish(builder.route(apply(r.clusters, ch)))),
-                                lambda r, cand: cand, _makespan)
+    if not improve:
+        return best.clusters, best.positions, best.makespan
+    stop = deadline(problem.budget_ms, t0)
+    # group and order moves (planners.moves), scored on the quick placement ...
+    moved = quick_descent(route, inst.fits_quick)
+    if moved is not route:
+        moved = finish(moved)
+        best = moved if moved.makespan < best.makespan else best
+    if n <= FINE_MOVES_UPTO or stop is not None:  # ... and on the final placement
+        best = fine_descent(best, inst.fits_quick, builder.route, finish,
+                                stop if n > FINE_MOVES_UPTO else None)
+    if stop is not None:  # anytime: iterated local search until the budget
+        best = iterated_search(best, inst.fits_quick, builder.route, finish,
+                               random.Random(problem.seed), stop, max_fails=ILS_PATIENCE * n)
     return best.clusters, best.positions, best.makespan
 
 
-FINE_MOVES_UPTO = 8  # tasks: up to this many, every move is scored on fine, polished stops
-
-
-def _scored(cand: Any) -> tuple[float, Any]:
-    return (cand[0], cand) if isinstance(cand, tuple) else (cand.makespan, cand)
-
-
-def _makespan(r: _Route) -> float:
-    return r.makespan
+FINE_MOVES_UPTO = 8  # tasks: up to this many, every move is also scored on fine, polished stops
+ILS_PATIENCE = 20  # kicks per task without a new best before the anytime search gives up
 
 
 _DIRECTIONS = [(math.cos(a * math.pi / 4), math.sin(a * math.pi / 4)) for a in range(8)]
@@ -482,7 +480,7 @@ def plan_lee(problem: DeployProblem) -> Plan:
     if len(problem.rover_ids()) < len(problem.tasks):
         raise PlanningError(f"{len(problem.tasks)} tasks need as many rovers, only "
                             f"{len(problem.rover_ids())} on the carrier")
-    clusters, positions, _ = lee_clusters(problem)
+    clusters, positions, _ = lee_clusters(problem, t0=t0)
     plan = build_plan(problem, "lee", clusters, positions)
     if len(problem.tasks) == 2:  # where it applies, the two-task optimum of ch. 4.3 (jointly placed stops)
         from planners.two_task import plan_two_tasks

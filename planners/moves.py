@@ -12,6 +12,8 @@ Beyond the dissertation: Algorithms 4.2 and 5.2 only divide, swap two halves and
 
 from __future__ import annotations
 
+import math
+import time
 from collections.abc import Callable, Iterator, Sequence
 from typing import Any, TypeVar
 
@@ -126,3 +128,82 @@ def local_search(route: R, fits: Fits, score: Callable[[R, Change], tuple[float,
         if not improved:
             break
     return route
+
+
+def deadline(budget_ms: float | None, t0: float | None = None) -> Callable[[], bool] | None:
+    """``stop()`` for a time budget of ``budget_ms`` from ``t0`` (perf_counter; default now), or None."""
+    if budget_ms is None:
+        return None
+    end = (time.perf_counter() if t0 is None else t0) + budget_ms / 1e3
+    return lambda: time.perf_counter() > end
+
+
+def _quick_score(route: Any, change: Change) -> tuple[float, Any]:
+    cand = route.replace(*change)
+    return cand[0], cand
+
+
+def _accept(route: Any, cand: Any) -> Any:
+    return route.accept(cand)
+
+
+def _makespan(route: Any) -> float:
+    return float(route.makespan)
+
+
+def quick_descent(route: R, fits: Fits, stop: Callable[[], bool] | None = None) -> R:
+    """``local_search`` with every change re-timed by ``route.replace`` (stops re-placed around it)."""
+    return local_search(route, fits, _quick_score, _accept, _makespan, stop=stop)
+
+
+def fine_descent(route: R, fits: Fits, rebuild: Callable[[list[list[int]]], R], finish: Callable[[R], R],
+                 stop: Callable[[], bool] | None = None, slack: float = 0.03) -> R:
+    """``local_search`` with every change scored on the final placement: ``finish(rebuild(clusters))``.
+    Changes whose quick route ``rebuild(clusters)`` is more than ``slack`` slower than the route
+    are not placed finely (the fine placement rarely gains more)."""
+    def score(r: R, change: Change) -> tuple[float, R | None]:
+        quick = rebuild(apply(r.clusters, change))  # type: ignore[attr-defined]
+        if _makespan(quick) > _makespan(r) * (1 + slack):
+            return math.inf, None
+        cand = finish(quick)
+        return _makespan(cand), cand
+    return local_search(route, fits, score, lambda r, cand: cand, _makespan, stop=stop)
+
+
+def perturb(clusters: Clusters, fits: Fits, rng: Any, strength: int = 2, window: int = 6) -> list[list[int]]:
+    """``strength`` random changes inside one random window of consecutive clusters (the kick of
+    the iterated local search)."""
+    out = [list(c) for c in clusters]
+    if not out:
+        return out
+    lo = rng.randrange(max(len(out) - window + 1, 1))
+    for _ in range(strength):
+        hi = min(lo + window, len(out))
+        changes = [ch for move in MOVES for ch in move(out[lo:hi], fits)]
+        if not changes:
+            break
+        i, pieces, count = rng.choice(changes)
+        out = apply(out, (lo + i, pieces, count))
+    return out
+
+
+def iterated_search(best: R, fits: Fits, rebuild: Callable[[list[list[int]]], R],
+                    finish: Callable[[R], R], rng: Any, stop: Callable[[], bool],
+                    max_fails: int) -> R:
+    """Anytime improvement: kick the current route (``perturb``), descend on the quick placement,
+    place finely (``finish``), keep the best route seen. Runs until ``stop()`` or ``max_fails``
+    kicks in a row without a new best; the sequence of kicks depends only on ``rng``."""
+    current, fails = best, 0
+    while fails < max_fails and not stop():
+        clusters = perturb(current.clusters, fits, rng, strength=1 + rng.randrange(3))  # type: ignore[attr-defined]
+        cand = quick_descent(rebuild(clusters), fits, stop)
+        if stop():
+            break
+        cand = finish(cand)
+        if _makespan(cand) < _makespan(best) - 1e-9:
+            best, current, fails = cand, cand, 0
+            continue
+        fails += 1
+        # walk on from near-best routes so that the kicks can chain; restart from the best otherwise
+        current = cand if _makespan(cand) <= _makespan(best) * 1.01 else best
+    return best

@@ -90,6 +90,10 @@ class DeployProblem:
     bounds: tuple[Point2, Point2] | None = None
     roadmap: RoadmapParams = field(default_factory=RoadmapParams)
     seed: int = 0
+    # Anytime planning (open-space ``lee``): None = the quick plan; a number = after it, improve
+    # the plan (iterated local search, seeded by ``seed``) for about this many milliseconds of
+    # wall time, counted from the planner's call, and return the best plan found.
+    budget_ms: float | None = None
 
     def rover_ids(self) -> tuple[str, ...]:
         if self.rovers:
@@ -120,3 +124,7 @@ class CollectProblem:
     bounds: tuple[Point2, Point2] | None = None
     roadmap: RoadmapParams = field(default_factory=RoadmapParams)
     seed: int = 0
+    # Anytime planning (open-space ``lee``): None = the quick plan; a number = after it, improve
+    # the plan (iterated local search, seeded by ``seed``) for about this many milliseconds of
+    # wall time, counted from the planner's call, and return the best plan found.
+    budget_ms: float | None = None
