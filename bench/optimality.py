@@ -33,7 +33,8 @@ def deploy_instance(n: int, seed: int) -> DeployProblem:
     d = rng.uniform(8.0, 25.0)
     size = rng.uniform(1.5, 4.0) * d
     carrier = CarrierSpec(max_speed=rng.uniform(5.0, 15.0), accel=rng.choice([None, rng.uniform(1.0, 5.0)]),
-                          turn_rate=rng.choice([None, rng.uniform(0.5, 3.0)]), unload_time=rng.uniform(0.0, 4.0))
+                          turn_rate=rng.choice([None, rng.uniform(0.5, 3.0)]),
+                          unload_time=rng.uniform(0.0, 4.0))
     rover = Motion(rng.uniform(1.0, 4.0), rng.choice([None, rng.uniform(0.5, 3.0)]))
     tasks = tuple(Task(f"t{i}", (rng.uniform(0, size), rng.uniform(0, size), rng.uniform(0, min(d / 2, 8.0))))
                   for i in range(n))
@@ -46,7 +47,8 @@ def collect_instance(n: int, seed: int) -> CollectProblem:
     mean = rng.uniform(8.0, 25.0)
     size = rng.uniform(1.5, 4.0) * mean
     carrier = CarrierSpec(max_speed=rng.uniform(5.0, 15.0), accel=rng.choice([None, rng.uniform(1.0, 5.0)]),
-                          turn_rate=rng.choice([None, rng.uniform(0.5, 3.0)]), load_time=rng.uniform(0.0, 4.0))
+                          turn_rate=rng.choice([None, rng.uniform(0.5, 3.0)]),
+                          load_time=rng.uniform(0.0, 4.0))
     rover = Motion(rng.uniform(1.0, 4.0), rng.choice([None, rng.uniform(0.5, 3.0)]))
     rovers = []
     for i in range(n):

@@ -24,10 +24,10 @@ import numpy as np
 
 from planners.clustering import divide_cluster
 from planners.geometry import minimize_1d
+from planners.moves import deadline, fine_descent, iterated_search, quick_descent
 from planners.plan import Plan, RoverLeg, Stop
 from planners.problem import CollectProblem, PlanningError, Vec3, refuse_obstacles
 from planners.reach import Point2, Region, make_region
-from planners.moves import deadline, fine_descent, iterated_search, quick_descent
 from planners.search import merge_neighbours, reorder, split_loop
 from planners.timing import RANGE_MARGIN, carrier_hop, leg_time, retime
 

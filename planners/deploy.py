@@ -7,18 +7,16 @@ per cluster at a deployment point q_ω, unloads, and the cluster's rovers fly to
 from __future__ import annotations
 
 import math
-import time
 import random
+import time
 from collections.abc import Sequence
 from dataclasses import dataclass
 
-from scipy.optimize import brentq
-
 from planners.clustering import divide_cluster
-from planners.geometry import enclosing_ball, minimize_1d
+from planners.geometry import enclosing_ball, find_root, minimize_1d
+from planners.moves import deadline, fine_descent, iterated_search, quick_descent
 from planners.plan import Plan, RoverLeg, Stop
 from planners.problem import DeployProblem, PlanningError, Vec3, refuse_obstacles
-from planners.moves import deadline, fine_descent, iterated_search, quick_descent
 from planners.search import merge_neighbours, reorder, split_loop, swap_neighbours
 from planners.timing import RANGE_MARGIN, carrier_hop, leg_time, retime
 
@@ -201,7 +199,7 @@ class _PathBuilder:
             cands = [s_lo, 1.0]
             g_lo, g_hi = gap(s_lo), gap(1.0)
             if g_lo * g_hi < 0:
-                cands.append(brentq(gap, s_lo, 1.0, xtol=1e-4))
+                cands.append(find_root(gap, s_lo, 1.0, xtol=1e-4))
             return _lerp(prev, center, min(cands, key=makespan))
 
         def best_s(u: float) -> tuple[float, float]:

@@ -164,7 +164,6 @@ class _Model:
                 t = np.cumsum(hops(z)) + pause * np.arange(1, k + 1)
                 return z[-1] - (t[js] + np.array(arrivals(z)))
             z0 = [c for p in x0 for c in p] + [self.makespan(clusters, x0)]
-            fun = (lambda z: z[-1])
         else:  # variables: positions, η_1..η_k
             def timing(z: np.ndarray) -> np.ndarray:
                 eta = z[2 * k:]
@@ -178,12 +177,11 @@ class _Model:
                 etas.append(t)
                 prev = p
             z0 = [c for p in x0 for c in p] + etas
-            fun = (lambda z: z[-1])
         try:
             z0a = np.array(z0, dtype=float)
             grad = np.zeros(len(z0a))
             grad[-1] = 1.0
-            res = minimize(fun, z0a, jac=lambda z: grad, method="SLSQP",
+            res = minimize(lambda z: z[-1], z0a, jac=lambda z: grad, method="SLSQP",
                            constraints=[{"type": "ineq", "fun": timing},
                                         {"type": "ineq", "fun": reach, "jac": reach_jac}],
                            options={"maxiter": 40, "ftol": 1e-9})
@@ -193,7 +191,8 @@ class _Model:
         out = [self.project((float(z[2 * j]), float(z[2 * j + 1])), c) for j, c in enumerate(clusters)]
         return out
 
-    def _compass(self, clusters: list[list[int]], pos: list[Point2], step: float) -> tuple[float, list[Point2]]:
+    def _compass(self, clusters: list[list[int]], pos: list[Point2],
+                 step: float) -> tuple[float, list[Point2]]:
         dirs = [(math.cos(a * math.pi / 4), math.sin(a * math.pi / 4)) for a in range(8)]
         pos = list(pos)
         best = self.makespan(clusters, pos)
@@ -248,8 +247,9 @@ def exact_plan(problem: DeployProblem | CollectProblem, seed: int = 0, starts: i
 
     Every partition is placed from the power centres and the greedy start (compass search);
     the partitions within ``keep`` (relative) of the best are placed again by SLSQP + compass
-    search from their best point and ``starts`` more random starts. ``hint`` (clusters, positions), e.g. a planner's plan, is one
-    more start for its partition, so the reference is never worse than that plan.
+    search from their best point and ``starts`` more random starts. ``hint`` (clusters,
+    positions), e.g. a planner's plan, is one more start for its partition, so the reference is
+    never worse than that plan.
     """
     m = _Model(problem)
     n = len(m.g)
@@ -274,7 +274,7 @@ def exact_plan(problem: DeployProblem | CollectProblem, seed: int = 0, starts: i
         scored.append((t, clusters, pos, cpts))
     if hint is not None:
         hc = [sorted(c) for c in hint[0]]
-        for idx, (t, clusters, pos, cpts) in enumerate(scored):
+        for idx, (t, clusters, _pos, cpts) in enumerate(scored):
             if [sorted(c) for c in clusters] == hc:
                 t2, pos2 = m.place(clusters, [list(hint[1])])
                 if t2 < t:

@@ -166,3 +166,41 @@ def minimize_1d(f: Callable[[float], float], lo: float, hi: float, samples: int 
         if v < best_v:
             best_x, best_v = x, v
     return best_x, best_v
+
+
+def find_root(f: Callable[[float], float], lo: float, hi: float, xtol: float = 1e-9,
+              max_iter: int = 200) -> float:
+    """A root of ``f`` in [lo, hi] where f(lo) and f(hi) have opposite signs (or one is 0).
+
+    Regula falsi with the Illinois modification (superlinear on smooth functions; the bracket
+    always shrinks); stops when the bracket is narrower than ``xtol``.
+    """
+    a, b = lo, hi
+    fa, fb = f(a), f(b)
+    if fa == 0.0:
+        return a
+    if fb == 0.0:
+        return b
+    if fa * fb > 0:
+        raise ValueError("find_root: f(lo) and f(hi) must have opposite signs")
+    side = 0
+    for _ in range(max_iter):
+        if abs(b - a) <= xtol:
+            break
+        x = (a * fb - b * fa) / (fb - fa)
+        if not min(a, b) < x < max(a, b):
+            x = 0.5 * (a + b)
+        fx = f(x)
+        if fx == 0.0:
+            return x
+        if fx * fb > 0:
+            b, fb = x, fx
+            if side == -1:
+                fa *= 0.5
+            side = -1
+        else:
+            a, fa = x, fx
+            if side == 1:
+                fb *= 0.5
+            side = 1
+    return 0.5 * (a + b)

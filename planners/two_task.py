@@ -17,10 +17,8 @@ from __future__ import annotations
 import math
 import time
 
-from scipy.optimize import brentq
-
 from planners.deploy import build_plan
-from planners.geometry import enclosing_ball, minimize_1d
+from planners.geometry import enclosing_ball, find_root, minimize_1d
 from planners.plan import Plan
 from planners.problem import DeployProblem, PlanningError, refuse_obstacles
 from planners.timing import RANGE_MARGIN, carrier_hop, leg_time
@@ -117,7 +115,7 @@ def plan_two_tasks(problem: DeployProblem) -> Plan:
         if s_old is not None:
             options.append(min(max(s_old, s_lo), 1.0))
         if balance(s_lo) * balance(1.0) < 0:
-            options.append(brentq(balance, s_lo, 1.0, xtol=1e-12))  # Δd of eq. 4.14 / 4.17
+            options.append(find_root(balance, s_lo, 1.0, xtol=1e-12))  # Δd of eq. 4.14 / 4.17
         options.append(minimize_1d(makespan, s_lo, 1.0, tol=1e-9)[0])  # the exact time model's optimum
         s_best = min(options, key=makespan)
         p_best = at(s_best)
