@@ -350,13 +350,14 @@ def lee_clusters(problem: DeployProblem, improve: bool = True,
     # The loop re-placed stops only around each change; place every stop afresh, finely, and
     # keep whichever of the two routes is faster; then polish every stop (routes of any length).
     def finish(r: _Route) -> _Route:
-        fresh = builder.route(r.clusters, fine=True)
-        r = fresh if fresh.makespan <= r.makespan else r
+        r = _fresh(builder, r)
         return _polish(builder, r) if improve else r
 
-    best = finish(route)
     if not improve:
+        best = finish(route)
         return best.clusters, best.positions, best.makespan
+    # today's plan (the polish used to stop at POLISH_MAX_STOPS), to never return a slower one
+    best = finish(route) if len(route.clusters) <= 24 else _fresh(builder, route)
     stop = deadline(problem.budget_ms, t0)
     # group and order moves (planners.moves), scored on the quick placement ...
     moved = quick_descent(route, inst.fits_quick)
@@ -370,6 +371,12 @@ def lee_clusters(problem: DeployProblem, improve: bool = True,
         best = iterated_search(best, inst.fits_quick, builder.route, finish,
                                random.Random(problem.seed), stop, max_fails=ILS_PATIENCE * n)
     return best.clusters, best.positions, best.makespan
+
+
+def _fresh(builder: _PathBuilder, r: _Route) -> _Route:
+    """``r`` or its clusters' stops placed afresh, finely: whichever is faster."""
+    fresh = builder.route(r.clusters, fine=True)
+    return fresh if fresh.makespan <= r.makespan else r
 
 
 FINE_MOVES_UPTO = 8  # tasks: up to this many, every move is also scored on fine, polished stops

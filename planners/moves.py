@@ -20,16 +20,16 @@ from typing import Any, TypeVar
 Clusters = Sequence[Sequence[int]]
 Change = tuple[int, list[list[int]], int]
 Fits = Callable[[Sequence[int]], bool]
-Move = Callable[[Clusters, Fits], Iterator[Change]]
+Move = Callable[[Clusters, Fits, int], Iterator[Change]]
 R = TypeVar("R")
 
 WINDOW = 4  # re-sequencing moves look this many stops ahead
 
 
-def relocate(clusters: Clusters, fits: Fits) -> Iterator[Change]:
+def relocate(clusters: Clusters, fits: Fits, start: int = 0) -> Iterator[Change]:
     """Hand one task (rover) over to the neighbouring cluster (the 3 + 1 splits a straight cut
     misses)."""
-    for k in range(len(clusters) - 1):
+    for k in range(start, len(clusters) - 1):
         a, b = list(clusters[k]), list(clusters[k + 1])
         for r in a:
             if len(a) > 1 and fits([*b, r]):
@@ -39,9 +39,9 @@ def relocate(clusters: Clusters, fits: Fits) -> Iterator[Change]:
                 yield k, [[*a, r], [x for x in b if x != r]], 2
 
 
-def exchange(clusters: Clusters, fits: Fits) -> Iterator[Change]:
+def exchange(clusters: Clusters, fits: Fits, start: int = 0) -> Iterator[Change]:
     """Exchange one task (rover) of a cluster with one of the next cluster."""
-    for k in range(len(clusters) - 1):
+    for k in range(start, len(clusters) - 1):
         a, b = list(clusters[k]), list(clusters[k + 1])
         for r in a:
             for s in b:
@@ -51,9 +51,10 @@ def exchange(clusters: Clusters, fits: Fits) -> Iterator[Change]:
                     yield k, [a2, b2], 2
 
 
-def split_off(clusters: Clusters, fits: Fits) -> Iterator[Change]:
+def split_off(clusters: Clusters, fits: Fits, start: int = 0) -> Iterator[Change]:
     """Serve one task (rover) from a stop of its own, just before or just after its cluster's."""
-    for k, c in enumerate(clusters):
+    for k in range(start, len(clusters)):
+        c = clusters[k]
         if len(c) < 2:
             continue
         for r in c:
@@ -62,24 +63,24 @@ def split_off(clusters: Clusters, fits: Fits) -> Iterator[Change]:
             yield k, [rest, [r]], 1
 
 
-def merge(clusters: Clusters, fits: Fits) -> Iterator[Change]:
+def merge(clusters: Clusters, fits: Fits, start: int = 0) -> Iterator[Change]:
     """Serve two consecutive clusters from one stop."""
-    for k in range(len(clusters) - 1):
+    for k in range(start, len(clusters) - 1):
         union = [*clusters[k], *clusters[k + 1]]
         if fits(union):
             yield k, [union], 2
 
 
-def swap(clusters: Clusters, fits: Fits) -> Iterator[Change]:
+def swap(clusters: Clusters, fits: Fits, start: int = 0) -> Iterator[Change]:
     """Visit two consecutive clusters the other way round (every route length, two stops included)."""
-    for k in range(len(clusters) - 1):
+    for k in range(start, len(clusters) - 1):
         yield k, [list(clusters[k + 1]), list(clusters[k])], 2
 
 
-def shift(clusters: Clusters, fits: Fits) -> Iterator[Change]:
+def shift(clusters: Clusters, fits: Fits, start: int = 0) -> Iterator[Change]:
     """Re-sequence: move one cluster up to ``WINDOW`` stops later or earlier (or-opt)."""
     n = len(clusters)
-    for k in range(n):
+    for k in range(start, n):
         for j in range(k + 2, min(k + WINDOW, n - 1) + 1):  # k goes after j
             seg = [list(c) for c in clusters[k + 1:j + 1]]
             yield k, [*seg, list(clusters[k])], j - k + 1
@@ -88,15 +89,17 @@ def shift(clusters: Clusters, fits: Fits) -> Iterator[Change]:
             yield j, [list(clusters[k]), *seg], k - j + 1
 
 
-def reverse(clusters: Clusters, fits: Fits) -> Iterator[Change]:
+def reverse(clusters: Clusters, fits: Fits, start: int = 0) -> Iterator[Change]:
     """Re-sequence: visit up to ``WINDOW`` consecutive clusters backwards (2-opt)."""
     n = len(clusters)
-    for k in range(n):
+    for k in range(start, n):
         for j in range(k + 2, min(k + WINDOW, n)):
             yield k, [list(c) for c in reversed(clusters[k:j + 1])], j - k + 1
 
 
 MOVES: tuple[Move, ...] = (swap, relocate, split_off, merge, exchange, shift, reverse)
+CHEAP_MOVES: tuple[Move, ...] = (swap, relocate, merge)  # linear in the route's length
+LARGE = 60  # tasks (rovers): beyond this the quick plan uses CHEAP_MOVES
 
 
 def apply(clusters: Clusters, change: Change) -> list[list[int]]:
@@ -114,14 +117,13 @@ def local_search(route: R, fits: Fits, score: Callable[[R, Change], tuple[float,
     for _ in range(rounds):
         improved = False
         for move in moves:
-            restart = True
-            while restart:
-                restart = False
-                clusters = route.clusters  # type: ignore[attr-defined]
-                for change in move(clusters, fits):
+            begin: int | None = 0
+            while begin is not None:  # after an improvement at cluster i, go on from i − 1
+                clusters, at, begin = route.clusters, begin, None  # type: ignore[attr-defined]
+                for change in move(clusters, fits, at):
                     t, cand = score(route, change)
                     if t < makespan(route) - 1e-9:
-                        route, improved, restart = accept(route, cand), True, True
+                        route, improved, begin = accept(route, cand), True, max(change[0] - 1, 0)
                         break
                     if stop is not None and stop():
                         return route
@@ -152,12 +154,16 @@ def _makespan(route: Any) -> float:
 
 
 def quick_descent(route: R, fits: Fits, stop: Callable[[], bool] | None = None) -> R:
-    """``local_search`` with every change re-timed by ``route.replace`` (stops re-placed around it)."""
+    """``local_search`` with every change re-timed by ``route.replace`` (stops re-placed around it).
+    Routes of more than ``LARGE`` items get the cheaper moves only, in two rounds at most."""
+    if sum(len(c) for c in route.clusters) > LARGE:  # type: ignore[attr-defined,misc]
+        return local_search(route, fits, _quick_score, _accept, _makespan, moves=CHEAP_MOVES, rounds=2,
+                            stop=stop)
     return local_search(route, fits, _quick_score, _accept, _makespan, stop=stop)
 
 
 def fine_descent(route: R, fits: Fits, rebuild: Callable[[list[list[int]]], R], finish: Callable[[R], R],
-                 stop: Callable[[], bool] | None = None, slack: float = 0.03) -> R:
+                 stop: Callable[[], bool] | None = None, slack: float = 0.15) -> R:
     """``local_search`` with every change scored on the final placement: ``finish(rebuild(clusters))``.
     Changes whose quick route ``rebuild(clusters)`` is more than ``slack`` slower than the route
     are not placed finely (the fine placement rarely gains more)."""
@@ -179,7 +185,7 @@ def perturb(clusters: Clusters, fits: Fits, rng: Any, strength: int = 2, window:
     lo = rng.randrange(max(len(out) - window + 1, 1))
     for _ in range(strength):
         hi = min(lo + window, len(out))
-        changes = [ch for move in MOVES for ch in move(out[lo:hi], fits)]
+        changes = [ch for move in MOVES for ch in move(out[lo:hi], fits, 0)]
         if not changes:
             break
         i, pieces, count = rng.choice(changes)
