@@ -393,7 +393,8 @@ def lee_route(problem: CollectProblem, improve: bool = True, fine_upto: int = 30
             best = moved if moved.makespan < best.makespan else best
         if len(problem.rovers) <= FINE_MOVES_UPTO or stop is not None:  # ... and on the final stops
             best = fine_descent(best, inst.fits, builder.route, finish,
-                                stop if len(problem.rovers) > FINE_MOVES_UPTO else None)
+                                stop if len(problem.rovers) > FINE_MOVES_UPTO else None,
+                                slack=0.15 if stop is None else math.inf)
     if stop is not None:  # anytime: iterated local search until the budget
         best = iterated_search(best, inst.fits, builder.route, finish, random.Random(problem.seed), stop,
                                max_fails=ILS_PATIENCE * len(problem.rovers))

@@ -366,7 +366,8 @@ def lee_clusters(problem: DeployProblem, improve: bool = True,
         best = moved if moved.makespan < best.makespan else best
     if n <= FINE_MOVES_UPTO or stop is not None:  # ... and on the final placement
         best = fine_descent(best, inst.fits_quick, builder.route, finish,
-                                stop if n > FINE_MOVES_UPTO else None)
+                                stop if n > FINE_MOVES_UPTO else None,
+                                slack=0.15 if stop is None else math.inf)
     if stop is not None:  # anytime: iterated local search until the budget
         best = iterated_search(best, inst.fits_quick, builder.route, finish,
                                random.Random(problem.seed), stop, max_fails=ILS_PATIENCE * n)
