@@ -18,10 +18,18 @@ class PlanningError(ValueError):
 
 @dataclass(frozen=True)
 class Motion:
-    """Straight-line motion capability: top speed (m/s) and acceleration (m/s², None = instant)."""
+    """Straight-line motion capability: top speed (m/s), acceleration (m/s², None = instant) and
+    the fixed time of every flight (s) on top of its travel.
+
+    ``fixed_time`` is what a rover's flight costs whatever its length: in a deployment the take-off
+    clearance (``rovers.takeoff_time``), in a collection the touch-down and disarm on the deck
+    (``rovers.land_time``, plus ``takeoff_time`` when the rovers wait on the ground); 0 for the
+    carrier and in the dissertation's model (docs/time-model.md).
+    """
 
     max_speed: float
     accel: float | None = None
+    fixed_time: float = 0.0
 
 
 @dataclass(frozen=True)

@@ -32,6 +32,16 @@ from planners.problem import PlanningError, Point2, Polygon2, RoadmapParams
 
 Bounds = tuple[Point2, Point2]
 
+MAX_NODES = 6000  # a roadmap larger than this is refused (PlanningError) rather than planned for minutes
+MAX_EDGES = 120_000  # the same for edges (a long edge radius makes the roadmap a complete graph)
+
+
+def _node_count(value: float, what: str) -> int:
+    if not math.isfinite(value) or value > MAX_NODES:
+        raise PlanningError(f"the {what} roadmap would have {value:.3g} nodes, more than {MAX_NODES}; "
+                            "lower the roadmap parameters (xi1..xi4) or the workspace bounds")
+    return int(round(value))
+
 
 class Workspace:
     """The ground workspace: bounds and obstacle polygons, with vectorised collision tests."""
@@ -150,6 +160,14 @@ class Roadmap:
         if not len(pts):
             return new
         tree = cKDTree(self.xy)
+        if len(self.xy) > MAX_NODES:
+            raise PlanningError(f"the roadmap would have {len(self.xy)} nodes, more than {MAX_NODES}; "
+                                "lower the roadmap parameters (xi1..xi4) or the workspace bounds")
+        near = int(np.sum(tree.query_ball_point(pts, radius, return_length=True)))
+        if self.n_edges + near // 2 > MAX_EDGES:  # about the candidate edges: refuse before building them
+            raise PlanningError(f"the roadmap would have about {self.n_edges + near // 2} edges (up to "
+                                f"{radius:.3g} m long), more than {MAX_EDGES}; lower rovers.deploy_range, "
+                                "the roadmap parameters (xi1..xi4, phi) or the workspace bounds")
         pairs = []
         for k, nbrs in zip(new, tree.query_ball_point(pts, radius), strict=True):
             nb = np.asarray(nbrs, dtype=np.int64)
@@ -226,7 +244,7 @@ def global_prm(workspace: Workspace, fixed: np.ndarray, d_deploy: float, params:
                rng: np.random.Generator) -> Roadmap:
     """Global PRM: the fixed nodes (carrier start, tasks) plus samples up to ℵ₁ nodes in all."""
     w, h = workspace.width, workspace.height
-    count = int(round(math.sqrt(w * h) * params.xi1 + params.xi2))  # eq. 6.5
+    count = _node_count(math.sqrt(w * h) * params.xi1 + params.xi2, "global")  # eq. 6.5
     delta = max(d_deploy, (w + h) / 2.0 * params.phi)  # eq. 6.6
     samples = workspace.sample(rng, max(count - len(fixed), 0))
     rm = Roadmap(workspace, np.concatenate([np.asarray(fixed, dtype=float).reshape(-1, 2), samples]), delta)
@@ -239,7 +257,7 @@ def densify(rm: Roadmap, rng: np.random.Generator, params: RoadmapParams, nodes:
     """Half of ℵ₁ more global samples per round while some of ``nodes`` are cut off from node 0
     (a sparse roadmap may miss a narrow door)."""
     w, h = rm.ws.width, rm.ws.height
-    count = int(round((math.sqrt(w * h) * params.xi1 + params.xi2) / 2))
+    count = _node_count((math.sqrt(w * h) * params.xi1 + params.xi2) / 2, "global")
     for _ in range(rounds):
         if np.all(np.isfinite(rm.shortest(0)[0][list(nodes)])):
             return
@@ -280,6 +298,6 @@ def local_prm(rm: Roadmap, rng: np.random.Generator, lo: Point2, hi: Point2, d_d
     w, h = hi[0] - lo[0], hi[1] - lo[1]
     if w < 0 or h < 0:
         return np.zeros(0, dtype=np.int64)
-    count = int(round(math.sqrt(max(w * h, 0.0)) * params.xi3 + params.xi4))
+    count = _node_count(math.sqrt(max(w * h, 0.0)) * params.xi3 + params.xi4, "local")
     pts = rm.ws.sample(rng, count, lo, hi)
     return rm.add(pts, d_deploy)

@@ -6,11 +6,15 @@ benchmarks and the controller's ETA all call it.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Sequence
+from typing import TypeVar
 
 from planners.plan import Plan
-from planners.problem import CarrierSpec, Motion, Vec3
+from planners.problem import CarrierSpec, CollectProblem, DeployProblem, Motion, Vec3
+
+P = TypeVar("P", DeployProblem, CollectProblem)
 
 # Planners keep rover flights this far inside their range so that a plan whose coordinates are
 # rounded for JSON still satisfies the range when recomputed.
@@ -19,7 +23,13 @@ _TAU = 2.0 * math.pi
 
 
 def leg_time(length: float, motion: Motion) -> float:
-    """Eq. 4.2 without rotation: rest-to-rest travel of ``length`` metres."""
+    """Eq. 4.2 without rotation: rest-to-rest travel of ``length`` metres, plus the motion's
+    fixed per-flight time (take-off clearance or touch-down; 0 for the carrier)."""
+    return motion.fixed_time + travel_time(length, motion)
+
+
+def travel_time(length: float, motion: Motion) -> float:
+    """Eq. 4.2 without rotation and without the fixed time: rest-to-rest travel of ``length`` m."""
     if length <= 0.0:
         return 0.0
     v, a = motion.max_speed, motion.accel
@@ -28,6 +38,14 @@ def leg_time(length: float, motion: Motion) -> float:
     if length >= v * v / a:
         return length / v + v / a
     return 2.0 * math.sqrt(length / a)
+
+
+def dissertation_model(problem: P) -> P:
+    """The same problem under the dissertation's time model: no fixed per-flight time (the paper
+    tables in bench/ are computed this way so that they stay comparable with the text)."""
+    if problem.rover.fixed_time == 0.0:
+        return problem
+    return dataclasses.replace(problem, rover=dataclasses.replace(problem.rover, fixed_time=0.0))
 
 
 def dist(p: Sequence[float], q: Sequence[float]) -> float:

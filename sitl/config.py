@@ -133,96 +133,15 @@ class FleetConfig:
         """
         if not isinstance(d, Mapping):
             raise ConfigError("mission: expected a mapping at the top level")
-        if d.get("origin") is None:
-            raise ConfigError("origin: the simulated fleet needs the mission's origin to place the vehicles "
-                              "on the globe; add  origin: {lat: ..., lon: ..., alt: ...}  to the mission")
-        origin = _mapping(d.get("origin"), "origin")
-        try:
-            lat, lon = float(origin["lat"]), float(origin["lon"])
-            alt = float(origin.get("alt", 0.0))
-        except (KeyError, TypeError, ValueError):
-            raise ConfigError("origin: needs numbers lat, lon (degrees) and alt (m)") from None
-        if not (-90 <= lat <= 90 and -180 <= lon <= 180):
-            raise ConfigError(f"origin: lat/lon out of range ({lat}, {lon})")
-
-        c = _mapping(d.get("carrier"), "carrier")
-        carrier = VehicleSpec(
-            id=str(c.get("id", "carrier")),
-            sysid=_int(c.get("sysid", 1), "carrier.sysid"),
-            role="carrier",
-            connection=str(c.get("connection", "sim")),
-            position=_position(c.get("position", (0.0, 0.0)), "carrier.position", ground=True),
-            heading_deg=_num(c.get("heading_deg", 0.0), "carrier.heading_deg"),
-            max_speed=_pos_num(c.get("max_speed"), "carrier.max_speed"),
-            accel=_opt_pos(c.get("accel"), "carrier.accel"),
-            turn_rate=_opt_pos(c.get("turn_rate"), "carrier.turn_rate"),
-            frame=str(c.get("frame", "ground")),
-        )
-
-        r = _mapping(d.get("rovers"), "rovers")
-        max_speed = _pos_num(r.get("max_speed"), "rovers.max_speed")
-        accel = _opt_pos(r.get("accel"), "rovers.accel")
-        climb_rate = _opt_pos(r.get("climb_rate"), "rovers.climb_rate")
-        land_speed = _opt_pos(r.get("land_speed"), "rovers.land_speed")
-        endurance_range = _opt_pos(r.get("endurance_range"), "rovers.endurance_range")
-
-        def rover_spec(vid: str, sysid: int, connection: str | None = None,
-                       position: tuple[float, float, float] | None = None) -> VehicleSpec:
-            return VehicleSpec(
-                id=vid, sysid=sysid, role="rover", connection=connection, position=position,
-                max_speed=max_speed, accel=accel, climb_rate=climb_rate, land_speed=land_speed,
-                endurance_range=endurance_range,
-            )
-
-        rovers: list[VehicleSpec] = []
-        if "units" in r and r["units"] is not None:
-            units = r["units"]
-            if not isinstance(units, list) or not units:
-                raise ConfigError("rovers.units: expected a non-empty list of {id, sysid, connection}")
-            for i, u in enumerate(units):
-                u = _mapping(u, f"rovers.units[{i}]")
-                if "id" not in u or "sysid" not in u:
-                    raise ConfigError(f"rovers.units[{i}]: needs id and sysid")
-                pos = u.get("position")
-                rovers.append(rover_spec(
-                    str(u["id"]),
-                    _int(u["sysid"], f"rovers.units[{i}].sysid"),
-                    connection=None if u.get("connection") is None else str(u["connection"]),
-                    position=None if pos is None else _position(pos, f"rovers.units[{i}].position"),
-                ))
-        else:
-            fl = _mapping(r.get("fleet"), "rovers.fleet")
-            count = _int(fl.get("count"), "rovers.fleet.count")
-            start = _int(fl.get("sysid_start", carrier.sysid + 1), "rovers.fleet.sysid_start")
-            if count < 0 or start + count - 1 > 255:
-                raise ConfigError(f"rovers.fleet: sysids {start}..{start + count - 1} do not fit in 1..255")
-            rovers = [rover_spec(f"r{k + 1}", start + k) for k in range(count)]
-
-        sim = d.get("sim") or {}
-        sim = _mapping(sim, "sim")
-        faults: list[Fault] = []
-        raw_faults = sim.get("faults") or []
-        if not isinstance(raw_faults, list):
-            raise ConfigError("sim.faults: expected a list")
-        for i, fd in enumerate(raw_faults):
-            try:
-                faults.append(Fault.from_dict(fd, f"sim.faults[{i}]"))
-            except FaultError as exc:
-                raise ConfigError(str(exc)) from None
+        lat, lon, alt = _origin(d)
+        carrier = _carrier(_mapping(d.get("carrier"), "carrier"))
+        rovers = _rovers(_mapping(d.get("rovers"), "rovers"), carrier)
+        sim = _mapping(d.get("sim") or {}, "sim")
+        faults = _faults(sim)
         raw_planner = d.get("planner")
         planner: Mapping[str, Any] = raw_planner if isinstance(raw_planner, Mapping) else {}
         seed_val = seed if seed is not None else sim.get("seed", planner.get("seed", 0))
-        kw: dict[str, Any] = {}
-        links = d.get("links")
-        signing = links.get("signing") if isinstance(links, Mapping) else None
-        key_env = signing.get("key_env") if isinstance(signing, Mapping) else None
-        if signing_key is not None:
-            kw["signing_key"] = bytes(signing_key)
-        elif signing_from_env and isinstance(key_env, str):
-            try:
-                kw["signing_key"] = key_from_env(key_env)
-            except ValueError as exc:
-                raise ConfigError(f"links.signing: {exc}") from None
+        kw = _signing(d, signing_key, signing_from_env)
         if sim.get("position_hz") is not None:
             kw["position_hz"] = _num(sim["position_hz"], "sim.position_hz")
         return cls(
@@ -236,6 +155,101 @@ class FleetConfig:
             name=str(d.get("name", "sim")),
             **kw,
         )
+
+
+def _origin(d: Mapping[str, Any]) -> tuple[float, float, float]:
+    if d.get("origin") is None:
+        raise ConfigError("origin: the simulated fleet needs the mission's origin to place the vehicles "
+                          "on the globe; add  origin: {lat: ..., lon: ..., alt: ...}  to the mission")
+    origin = _mapping(d.get("origin"), "origin")
+    try:
+        lat, lon = float(origin["lat"]), float(origin["lon"])
+        alt = float(origin.get("alt", 0.0))
+    except (KeyError, TypeError, ValueError):
+        raise ConfigError("origin: needs numbers lat, lon (degrees) and alt (m)") from None
+    if not (-90 <= lat <= 90 and -180 <= lon <= 180):
+        raise ConfigError(f"origin: lat/lon out of range ({lat}, {lon})")
+    return lat, lon, alt
+
+
+def _carrier(c: Mapping[str, Any]) -> VehicleSpec:
+    return VehicleSpec(
+        id=str(c.get("id", "carrier")),
+        sysid=_int(c.get("sysid", 1), "carrier.sysid"),
+        role="carrier",
+        connection=str(c.get("connection", "sim")),
+        position=_position(c.get("position", (0.0, 0.0)), "carrier.position", ground=True),
+        heading_deg=_num(c.get("heading_deg", 0.0), "carrier.heading_deg"),
+        max_speed=_pos_num(c.get("max_speed"), "carrier.max_speed"),
+        accel=_opt_pos(c.get("accel"), "carrier.accel"),
+        turn_rate=_opt_pos(c.get("turn_rate"), "carrier.turn_rate"),
+        frame=str(c.get("frame", "ground")),
+    )
+
+
+def _rovers(r: Mapping[str, Any], carrier: VehicleSpec) -> list[VehicleSpec]:
+    max_speed = _pos_num(r.get("max_speed"), "rovers.max_speed")
+    accel = _opt_pos(r.get("accel"), "rovers.accel")
+    climb_rate = _opt_pos(r.get("climb_rate"), "rovers.climb_rate")
+    land_speed = _opt_pos(r.get("land_speed"), "rovers.land_speed")
+    endurance_range = _opt_pos(r.get("endurance_range"), "rovers.endurance_range")
+
+    def spec(vid: str, sysid: int, connection: str | None = None,
+             position: tuple[float, float, float] | None = None) -> VehicleSpec:
+        return VehicleSpec(id=vid, sysid=sysid, role="rover", connection=connection, position=position,
+                           max_speed=max_speed, accel=accel, climb_rate=climb_rate, land_speed=land_speed,
+                           endurance_range=endurance_range)
+
+    if "units" in r and r["units"] is not None:
+        units = r["units"]
+        if not isinstance(units, list) or not units:
+            raise ConfigError("rovers.units: expected a non-empty list of {id, sysid, connection}")
+        rovers = []
+        for i, u in enumerate(units):
+            u = _mapping(u, f"rovers.units[{i}]")
+            if "id" not in u or "sysid" not in u:
+                raise ConfigError(f"rovers.units[{i}]: needs id and sysid")
+            pos = u.get("position")
+            rovers.append(spec(
+                str(u["id"]),
+                _int(u["sysid"], f"rovers.units[{i}].sysid"),
+                connection=None if u.get("connection") is None else str(u["connection"]),
+                position=None if pos is None else _position(pos, f"rovers.units[{i}].position"),
+            ))
+        return rovers
+    fl = _mapping(r.get("fleet"), "rovers.fleet")
+    count = _int(fl.get("count"), "rovers.fleet.count")
+    start = _int(fl.get("sysid_start", carrier.sysid + 1), "rovers.fleet.sysid_start")
+    if count < 0 or start + count - 1 > 255:
+        raise ConfigError(f"rovers.fleet: sysids {start}..{start + count - 1} do not fit in 1..255")
+    return [spec(f"r{k + 1}", start + k) for k in range(count)]
+
+
+def _faults(sim: Mapping[str, Any]) -> list[Fault]:
+    raw_faults = sim.get("faults") or []
+    if not isinstance(raw_faults, list):
+        raise ConfigError("sim.faults: expected a list")
+    faults: list[Fault] = []
+    for i, fd in enumerate(raw_faults):
+        try:
+            faults.append(Fault.from_dict(fd, f"sim.faults[{i}]"))
+        except FaultError as exc:
+            raise ConfigError(str(exc)) from None
+    return faults
+
+
+def _signing(d: Mapping[str, Any], signing_key: bytes | None, from_env: bool) -> dict[str, Any]:
+    links = d.get("links")
+    signing = links.get("signing") if isinstance(links, Mapping) else None
+    key_env = signing.get("key_env") if isinstance(signing, Mapping) else None
+    if signing_key is not None:
+        return {"signing_key": bytes(signing_key)}
+    if from_env and isinstance(key_env, str):
+        try:
+            return {"signing_key": key_from_env(key_env)}
+        except ValueError as exc:
+            raise ConfigError(f"links.signing: {exc}") from None
+    return {}
 
 
 def _positive(val: Any, where: str) -> None:

@@ -156,7 +156,7 @@ class StateProbe(View):
 def bus_mission(tmp_path: Path, port: int, prefix: str, **kw: Any) -> Mission:
     d = mission_dict(**kw)
     d["mqtt"] = {"url": f"mqtt://127.0.0.1:{port}", "topic_prefix": prefix, "username": "operator",
-                 "password_env": "FLEETCTL_TEST_MQTT_PASSWORD"}
+                 "password_env": "FLEETCTL_TEST_MQTT_PASSWORD", "accept_task_changes": True}
     return mission_from(d, tmp_path)
 
 

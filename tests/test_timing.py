@@ -106,3 +106,30 @@ def test_carrier_hop_agrees_with_carrier_leg():
         t1, h1 = carrier_hop(p, q, h, c)
         t2, h2 = carrier_leg([p, q], h, c)
         assert t1 == pytest.approx(t2, rel=1e-12, abs=1e-12) and h1 == pytest.approx(h2)
+
+
+def test_fixed_time_is_added_to_every_rover_flight_and_not_to_the_carrier():
+    from planners.problem import CarrierSpec, Motion
+    from planners.timing import carrier_leg, leg_time, travel_time
+
+    rover = Motion(2.0, 1.0, fixed_time=1.5)
+    for length in (0.0, 0.5, 4.0, 30.0):
+        assert leg_time(length, rover) == pytest.approx(1.5 + travel_time(length, Motion(2.0, 1.0)))
+    carrier = CarrierSpec(10.0, 5.0, 1.0)
+    t, _ = carrier_leg([(0.0, 0.0, 0.0), (50.0, 0.0, 0.0)], 0.0, carrier)
+    assert t == pytest.approx(travel_time(50.0, carrier.motion))
+
+
+def test_dissertation_model_drops_the_fixed_time_and_shifts_a_deployment_by_it():
+    from planners import DEPLOY_PLANNERS
+    from planners.problem import CarrierSpec, DeployProblem, Motion, Task
+    from planners.timing import dissertation_model
+
+    tasks = tuple(Task(f"t{i}", (10.0 * i, 5.0 * (i % 3), 2.0)) for i in range(6))
+    p = DeployProblem(CarrierSpec(10.0, 5.0, 1.0, 2.0, 2.0), Motion(2.0, None, fixed_time=3.0), 15.0,
+                      (0.0, 0.0, 0.0), 0.0, tasks)
+    base = dissertation_model(p)
+    assert base.rover.fixed_time == 0.0 and dissertation_model(base) is base
+    a, b = DEPLOY_PLANNERS["lee"](p), DEPLOY_PLANNERS["lee"](base)
+    # in a deployment the fixed time is a constant on every rover arrival: same plan, makespan + 3 s
+    assert a.makespan == pytest.approx(b.makespan + 3.0)

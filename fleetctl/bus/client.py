@@ -27,6 +27,8 @@ import contextlib
 import copy
 import json
 import logging
+import math
+import re
 import time
 from collections import deque
 from collections.abc import Callable, Iterable
@@ -41,7 +43,9 @@ from fleetctl.bus.config import (
     BUFFER_SIZE,
     CONNECT_TIMEOUT,
     FINAL_STATES,
+    MAX_JSON_DEPTH,
     MAX_MESSAGE,
+    MAX_PENDING,
     PUBLISH_TIMEOUT,
     STATUS_INTERVAL,
     TELEMETRY_HZ,
@@ -54,6 +58,7 @@ from fleetctl.bus.config import (
 )
 from fleetctl.journal import json_safe
 from fleetctl.mission import MissionError, parse_mission
+from fleetctl.mission.limits import FAR_FACTOR, MIN_EXTENT
 
 if TYPE_CHECKING:
     from fleetctl.mission import Mission
@@ -64,6 +69,23 @@ log = logging.getLogger(__name__)
 
 def _dumps(data: Any) -> bytes:
     return json.dumps(json_safe(data), separators=(",", ":")).encode()
+
+
+_JSON_STRING = re.compile(rb'"(?:[^"\\]|\\.)*"')
+_BRACKETS = re.compile(rb"[\[\]{}]")
+
+
+def json_depth(payload: bytes) -> int:
+    """The deepest nesting of lists/objects in a JSON text (brackets inside strings ignored);
+    linear, no recursion, so it can be checked before ``json.loads`` (which recurses)."""
+    depth = deepest = 0
+    for m in _BRACKETS.finditer(_JSON_STRING.sub(b'""', payload)):
+        if m.group() in (b"[", b"{"):
+            depth += 1
+            deepest = max(deepest, depth)
+        else:
+            depth -= 1
+    return deepest
 
 
 class TaskMessageError(ValueError):
@@ -94,6 +116,9 @@ class FleetBus:
         self._last_status_t = 0.0
         self._final: str | None = None
         self._on_status: list[Callable[[str], None]] = []
+        self.rejected = 0  # task messages answered on P/errors
+        self.failed: str | None = None  # why the bus task stopped (it should never)
+        self._pending: deque[tuple[list[Task], list[str], str]] = deque()  # before an executor exists
 
     # -- outgoing ---------------------------------------------------------------------------------
     def topic(self, suffix: str) -> str:
@@ -131,7 +156,7 @@ class FleetBus:
     def status_payload(self, status: str | None = None) -> dict[str, Any]:
         st = self.state
         out: dict[str, Any] = {"status": status or self._final or "online", "mission": self.mission.name,
-                               "t": round(time.time(), 3)}
+                               "t": round(time.time(), 3), "rejected": self.rejected}
         if st is not None:
             out.update(phase=st.phase, stop=st.stop_index, stops=st.stop_count, planned=st.planned,
                        elapsed=round(st.elapsed, 2))
@@ -168,13 +193,55 @@ class FleetBus:
             self.record = record
         self.publish("status", self.status_payload("online"), retain=True, qos=1)
         loop = asyncio.get_running_loop()
-        self._tasks.append(loop.create_task(self._run(), name="mqtt bus"))
+        run = loop.create_task(self._run(), name="mqtt bus")
+        run.add_done_callback(self._on_run_done)
+        self._tasks.append(run)
         if state is not None:
-            self._tasks.append(loop.create_task(self._telemetry(), name="mqtt telemetry"))
+            tel = loop.create_task(self._telemetry(), name="mqtt telemetry")
+            tel.add_done_callback(self._on_run_done)
+            self._tasks.append(tel)
 
     def attach_executor(self, executor: Any) -> None:
-        """Task messages go to ``executor.submit_task_change`` from now on."""
+        """Task messages go to ``executor.submit_task_change`` from now on; changes queued before
+        (a controller still connecting or planning) are handed on now, in order."""
         self.executor = executor
+        pending, self._pending = list(self._pending), deque()
+        submit = getattr(executor, "submit_task_change", None)
+        for add, remove, topic in pending:
+            try:
+                if submit is None:
+                    raise TaskMessageError("task changes are not supported by this controller "
+                                           "(no replanner); nothing changed")
+                submit(add=add, remove=remove, source=f"mqtt:{topic}")
+            except Exception as exc:  # noqa: BLE001 - the sender's answer, never the bus's end
+                self._answer_error(topic, b"", f"queued change refused by the controller: {exc}")
+                continue
+            self.record("bus_task_change", op="queued", add=sorted(t.id for t in add), remove=remove,
+                        topic=topic)
+
+    def _on_run_done(self, task: asyncio.Task[None]) -> None:
+        """The bus's tasks never end by themselves: if one does, say so (journal, view, status)."""
+        if task.cancelled() or task.exception() is None:
+            return
+        exc = task.exception()
+        why = f"{type(exc).__name__}: {exc}"
+        log.error("bus %s: %s stopped: %s", self.config.url, task.get_name(), why, exc_info=exc)
+        if task.get_name() != "mqtt bus":  # telemetry: the connection itself goes on
+            text = f"bus: telemetry stopped ({why}); events and task changes still go over MQTT"
+            kind = "bus_telemetry_failed"
+        else:
+            self.failed = why
+            self.status = "failed"
+            text = f"bus: stopped ({why}); no telemetry or task changes over MQTT for the rest of the run"
+            kind = "bus_failed"
+        if self.state is not None:
+            self.state.event(kind, text, None, url=self.config.url)
+        with contextlib.suppress(Exception):
+            self.record(kind, error=why)
+        if kind == "bus_failed":
+            for cb in list(self._on_status):
+                with contextlib.suppress(Exception):
+                    cb("failed")
 
     def show_in(self, view: Any) -> None:
         """Put :meth:`status_line` into a live view that shows status lines."""
@@ -234,6 +301,14 @@ class FleetBus:
             except* (aiomqtt.MqttError, TimeoutError, OSError) as eg:
                 log.debug("bus %s: connection lost: %s", self.config.url, eg.exceptions[0])
                 self._set_status("reconnecting")
+            except* Exception as eg:  # a bug must not end the bus: say so, reconnect
+                log.error("bus %s: unexpected error, reconnecting: %r", self.config.url, eg.exceptions[0],
+                          exc_info=eg.exceptions[0])
+                with contextlib.suppress(Exception):
+                    self.record("bus_error", error=f"{type(eg.exceptions[0]).__name__}: {eg.exceptions[0]}")
+                self._set_status("reconnecting")
+                await asyncio.sleep(delay)
+                delay = min(delay * 2, BACKOFF_MAX)
             finally:
                 with contextlib.suppress(Exception):
                     async with asyncio.timeout(1.0):
@@ -261,9 +336,14 @@ class FleetBus:
 
     async def _receive(self, client: aiomqtt.Client) -> None:
         async for msg in client.messages:
-            topic = msg.topic.value
-            payload = msg.payload if isinstance(msg.payload, bytes | bytearray) else str(msg.payload).encode()
-            self.handle_task_message(topic, bytes(payload))
+            try:  # every message in its own error boundary: one bad message never stops the bus
+                topic = msg.topic.value
+                raw = msg.payload
+                payload = (bytes(raw) if isinstance(raw, bytes | bytearray)
+                           else str(raw).encode()[:MAX_MESSAGE + 1])
+                self.handle_task_message(topic, payload)
+            except Exception:  # noqa: BLE001 - handle_task_message answers everything; this is a last guard
+                log.exception("bus: a message could not be handled")
 
     async def _telemetry(self) -> None:
         assert self.state is not None
@@ -288,39 +368,98 @@ class FleetBus:
     # -- incoming task changes ------------------------------------------------------------------------
     def handle_task_message(self, topic: str, payload: bytes) -> bool:
         """Validate and apply one ``tasks/add`` or ``tasks/remove`` message; a bad one is answered on
-        ``errors`` and changes nothing. Returns whether the change was handed on."""
-        op = topic.rsplit("/", 1)[-1]
+        ``errors``, counted (:attr:`rejected`) and changes nothing. Never raises. Returns whether
+        the change was handed on (or queued for the controller)."""
         try:
-            if len(payload) > MAX_MESSAGE:
-                raise TaskMessageError(f"message of {len(payload)} bytes is larger than {MAX_MESSAGE}")
-            try:
-                data = json.loads(payload)
-            except (ValueError, UnicodeDecodeError) as exc:
-                raise TaskMessageError(f"not JSON: {exc}") from None
-            if op == "add":
-                add, remove = self.parse_add(data, topic), []
-            elif op == "remove":
-                add, remove = [], self.parse_remove(data)
-            else:
-                raise TaskMessageError(f"unknown topic {topic!r}")
-            submit = getattr(self.executor, "submit_task_change", None)
-            if submit is None:
-                raise TaskMessageError("task changes are not supported by this controller "
-                                       "(no replanner) or no mission is flying yet; nothing changed")
+            return self._handle_task_message(topic, payload)
+        except TaskMessageError as exc:
+            self._answer_error(topic, payload, str(exc))
+        except Exception as exc:  # noqa: BLE001 - whatever a message holds, the bus goes on
+            log.exception("bus: task message on %s", topic)
+            self._answer_error(topic, payload, f"cannot handle the message ({type(exc).__name__}: {exc}); "
+                                               "nothing changed")
+        return False
+
+    def _handle_task_message(self, topic: str, payload: bytes) -> bool:
+        op = topic.rsplit("/", 1)[-1]
+        if len(payload) > MAX_MESSAGE:
+            raise TaskMessageError(f"message of {len(payload)} bytes is larger than {MAX_MESSAGE}")
+        if not self.config.accept_task_changes:
+            raise TaskMessageError(
+                "task changes over MQTT are off for this mission; to allow them set "
+                "'accept_task_changes: true' in the mission's mqtt section (and let only named users "
+                "publish to <prefix>/tasks/# on the broker: README, 'MQTT fleet bus'); nothing changed")
+        depth = json_depth(payload)
+        if depth > MAX_JSON_DEPTH:
+            raise TaskMessageError(f"JSON nested {depth} levels deep (at most {MAX_JSON_DEPTH}); "
+                                   "nothing changed")
+        try:
+            data = json.loads(payload)
+        except (ValueError, UnicodeDecodeError, RecursionError) as exc:
+            raise TaskMessageError(f"not JSON: {exc}") from None
+        force = False
+        if isinstance(data, dict) and "force" in data:
+            force = data.pop("force")
+            if not isinstance(force, bool):
+                raise TaskMessageError('"force" must be true or false')
+        if op == "add":
+            add, remove = self.parse_add(data, topic), []
+        elif op == "remove":
+            add, remove = [], self.parse_remove(data)
+        else:
+            raise TaskMessageError(f"unknown topic {topic!r}")
+        if not force:
+            why = self.absurd_change(add, remove)
+            if why is not None:
+                raise TaskMessageError(f'{why}; nothing changed (send "force": true in the message to '
+                                       "apply it anyway)")
+        submit = getattr(self.executor, "submit_task_change", None)
+        if self.executor is None:  # still connecting / planning: queue it for the controller
+            if len(self._pending) >= MAX_PENDING:
+                raise TaskMessageError(f"{MAX_PENDING} task changes are already waiting for the controller "
+                                       "to start; try again when the plan is out")
+            self._pending.append((add, remove, topic))
+        elif submit is None:
+            raise TaskMessageError("task changes are not supported by this controller (no replanner); "
+                                   "nothing changed")
+        else:
             try:
                 submit(add=add, remove=remove, source=f"mqtt:{topic}")
             except Exception as exc:  # noqa: BLE001 - the replanner's refusal is the sender's answer
                 raise TaskMessageError(f"refused by the controller: {exc}") from None
-        except TaskMessageError as exc:
-            self._answer_error(topic, payload, str(exc))
-            return False
         ids = {t.id for t in add}
         self.tasks = [t for t in self.current_tasks() if t.id not in remove] + list(add)
-        self.record("bus_task_change", op=op, add=sorted(ids), remove=remove, topic=topic)
+        self.record("bus_task_change", op=op, add=sorted(ids), remove=remove, topic=topic,
+                    **({"queued": True} if self.executor is None else {}),
+                    **({"force": True} if force else {}))
         return True
 
+    def absurd_change(self, add: list[Task], remove: list[str]) -> str | None:
+        """Why a valid change would make the mission absurd (None: it does not). Tasks outside
+        ``bounds`` are refused by the mission checks already; without bounds, a new task farther
+        than FAR_FACTOR x the mission's extent (largest carrier-start-to-task distance of the
+        mission file, at least MIN_EXTENT m) from every remaining task and the carrier start is
+        absurd, and so is removing every task."""
+        current = self.current_tasks()
+        keep = [t for t in current if t.id not in remove]
+        if current and not keep and not add:
+            return f"this would remove every task ({', '.join(sorted(t.id for t in current))})"
+        if not add:
+            return None
+        start = (float(self.mission.carrier.position[0]), float(self.mission.carrier.position[1]))
+        extent = max([MIN_EXTENT] + [math.dist(start, t.position[:2]) for t in self.mission.tasks])
+        anchors = [start] + [tuple(t.position[:2]) for t in keep]
+        for t in add:
+            d = min(math.dist(t.position[:2], a) for a in anchors)
+            if d > FAR_FACTOR * extent:
+                return (f"task {t.id!r} at ({t.position[0]:.0f}, {t.position[1]:.0f}) is {d:.0f} m from the "
+                        f"nearest task or the carrier start, more than {FAR_FACTOR:g} x the mission's "
+                        f"extent of {extent:.0f} m; check its coordinates")
+        return None
+
     def _answer_error(self, topic: str, payload: bytes, error: str) -> None:
-        log.warning("bus: rejected %s: %s", topic, error)
+        self.rejected += 1
+        log.warning("bus: rejected %s: %s", topic, error[:500])
         text = payload[:500].decode("utf-8", "replace")
         self.publish("errors", {"topic": topic, "error": error, "payload": text, "t": round(time.time(), 3)},
                      qos=1)
@@ -346,7 +485,7 @@ class FleetBus:
         current = self.current_tasks()
         known = {t.id for t in current}
         for i, e in enumerate(entries):
-            if e.get("id") in known:
+            if isinstance(e.get("id"), str) and e["id"] in known:
                 raise TaskMessageError(f"tasks[{i}].id: task {e['id']!r} already exists; use a new id")
         raw = copy.deepcopy(self.mission.raw)
         raw["tasks"] = list(entries) + [{"id": t.id, "position": [float(c) for c in t.position]}

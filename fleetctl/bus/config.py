@@ -20,6 +20,8 @@ BACKOFF_MIN = 0.2  # s before the first reconnect
 BACKOFF_MAX = 5.0
 STATUS_INTERVAL = 1.0  # s between retained status updates (and on every change)
 MAX_MESSAGE = 64 * 1024  # bytes of an incoming task message
+MAX_JSON_DEPTH = 16  # nesting of lists/objects in an incoming task message (a task message needs 4)
+MAX_PENDING = 32  # task changes queued before the controller can take them (oldest refused)
 FINAL_STATES = ("done", "failed", "interrupted", "offline")
 
 _URL = re.compile(r"(?P<scheme>mqtts?)://(?P<host>[A-Za-z0-9_.-]+)(?::(?P<port>\d{1,5}))?/?")
@@ -50,6 +52,7 @@ class BusConfig:
     key: str | None = None
     telemetry_hz: float = TELEMETRY_HZ
     buffer_size: int = BUFFER_SIZE
+    accept_task_changes: bool = False  # the mission's mqtt.accept_task_changes
 
     @property
     def url(self) -> str:
@@ -113,7 +116,8 @@ def bus_config(mission: Mission, url: str | None = None, topic_prefix: str | Non
     if not telemetry_hz > 0:
         raise BusConfigError(f"telemetry rate must be > 0 Hz, got {telemetry_hz}")
     return BusConfig(host, port, prefix, tls, m.client_id if m else None, m.username if m else None, password,
-                     t.ca if t else None, t.cert if t else None, t.key if t else None, telemetry_hz)
+                     t.ca if t else None, t.cert if t else None, t.key if t else None, telemetry_hz,
+                     accept_task_changes=bool(m.accept_task_changes) if m is not None else False)
 
 
 def client_kwargs(config: BusConfig, ssl_context: ssl.SSLContext | None) -> dict[str, Any]:

@@ -591,6 +591,11 @@ class Link:
             self.rx_bad += 1
             self._parsers[addr] = _new_parser()
             return
+        if self._udp is not None and parser.buf_len() > 0:
+            # a UDP datagram is self-contained: a partial (truncated) message left in the parser
+            # would swallow the start of the next good datagram from this peer
+            self.rx_bad += 1
+            self._parsers[addr] = _new_parser()
         for msg in msgs:
             self._dispatch(msg, addr)
 
@@ -632,22 +637,13 @@ class Link:
             for w in list(waiters):
                 if w.offer(msg):
                     self._remove_waiter(w)
-        per = self._sub_index.get(src)
-        if per is not None:
-            hs = per.get(mtype)
-            if hs is not None:
-                self._call(hs, msg, src)
-            hs = per.get(None)
-            if hs is not None:
-                self._call(hs, msg, src)
-        per = self._any_src
-        if per is not None:
-            hs = per.get(mtype)
-            if hs is not None:
-                self._call(hs, msg, src)
-            hs = per.get(None)
-            if hs is not None:
-                self._call(hs, msg, src)
+        for per in (self._sub_index.get(src), self._any_src):  # this sender's, then any sender's
+            if per is None:
+                continue
+            for key in (mtype, None):  # this message type's handlers, then all-types handlers
+                hs = per.get(key)
+                if hs is not None:
+                    self._call(hs, msg, src)
 
     def _call(self, handlers: tuple[Handler, ...], msg: Any, src: int) -> None:
         for handler in handlers:

@@ -37,6 +37,7 @@ import yaml
 from shapely.geometry import Point, Polygon
 from shapely.validation import explain_validity
 
+import fleetctl.mission.limits as L
 from fleetctl.geo import Origin, geodetic_to_local
 from fleetctl.mission.model import (
     FAILSAFE_ACTIONS,
@@ -58,8 +59,10 @@ from fleetctl.mission.model import (
     SimConfig,
     TlsConfig,
 )
+from fleetctl.mission.yaml_safe import YamlError, read_yaml
 from planners.problem import (
     CollectRover,
+    RoadmapParams,
     Task,
 )
 
@@ -82,15 +85,22 @@ def _fmt_path(path: KeyPath) -> str:
     return out or "(top level)"
 
 
+def _short(text: str, n: int = 60) -> str:
+    """``repr`` of a string, cut to about ``n`` characters for a message."""
+    return repr(text) if len(text) <= n else repr(text[:n]) + f"... ({len(text)} characters)"
+
+
 def _type_name(value: Any) -> str:
     if value is None:
         return "null"
     if isinstance(value, bool):
         return f"a boolean ({str(value).lower()})"
+    if isinstance(value, int) and value.bit_length() > 64:
+        return f"an integer of about {int(value.bit_length() * 0.30103) + 1} digits"
     if isinstance(value, int | float):
         return f"a number ({value})"
     if isinstance(value, str):
-        return f"a string ({value!r})"
+        return f"a string ({_short(value)})"
     if isinstance(value, list):
         return "a list"
     if isinstance(value, dict):
@@ -102,6 +112,7 @@ class _Ctx:
     def __init__(self, source: str, lines: Mapping[KeyPath, int] | None = None) -> None:
         self.source = source
         self.lines = lines or {}
+        self.raw: Any = None
 
     def fail(self, path: KeyPath, message: str) -> NoReturn:
         where = self.source
@@ -131,6 +142,9 @@ class _Ctx:
         return out
 
 
+_FLOATISH = re.compile(r"[-+]?(\d+\.?\d*|\.\d+)[eE][-+]?\d+")
+
+
 def _number(
     *,
     gt: float | None = None,
@@ -142,22 +156,30 @@ def _number(
 ) -> Parser:
     """A real number (bool is not a number) within the given limits; ``null`` allows None."""
     limits = [f"{op} {x:g}" for op, x in ((">", gt), (">=", ge), ("<", lt), ("<=", le)) if x is not None]
-    want = " ".join(["a number", *limits]) + (f" ({unit})" if unit else "") + (" or null" if null else "")
+    want = "a number " + " and ".join(limits) if limits else "a number"
+    want = want + (f" ({unit})" if unit else "") + (" or null" if null else "")
 
     def parse(ctx: _Ctx, v: Any, path: KeyPath) -> float | None:
         if v is None and null:
             return None
+        if isinstance(v, int) and not isinstance(v, bool) and not -1e300 < v < 1e300:  # any length
+            ctx.fail(path, f"{_type_name(v)} is out of range; set it to {want}")
         if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
-            ctx.fail(path, f"expected {want}, got {_type_name(v)}")
+            hint = ""
+            if isinstance(v, str) and _FLOATISH.fullmatch(v.strip()):
+                hint = " (YAML reads 1e20 as text: write 1.0e+20)"
+            ctx.fail(path, f"expected {want}, got {_type_name(v)}{hint}")
+        x = float(v)  # an int of any size was compared above: now safe
         bad = (
-            (gt is not None and not v > gt)
-            or (ge is not None and not v >= ge)
-            or (lt is not None and not v < lt)
-            or (le is not None and not v <= le)
+            (gt is not None and not x > gt)
+            or (ge is not None and not x >= ge)
+            or (lt is not None and not x < lt)
+            or (le is not None and not x <= le)
         )
         if bad:
-            ctx.fail(path, f"{v} is out of range; set it to {want}")
-        return float(v)
+            shown = v if not isinstance(v, int) or v.bit_length() <= 64 else _type_name(v)
+            ctx.fail(path, f"{shown} is out of range; set it to {want}")
+        return x
 
     return parse
 
@@ -170,7 +192,8 @@ def _integer(lo: int, hi: int | None = None, what: str = "") -> Parser:
         if isinstance(v, bool) or not isinstance(v, int):
             ctx.fail(path, f"expected {want}, got {_type_name(v)}")
         if v < lo or (hi is not None and v > hi):
-            ctx.fail(path, f"{v} is out of range; set it to {want}")
+            shown = v if v.bit_length() <= 64 else _type_name(v)
+            ctx.fail(path, f"{shown} is out of range; set it to {want}")
         return v
 
     return parse
@@ -182,6 +205,8 @@ def _string(null: bool = False) -> Parser:
             return None
         if not isinstance(v, str) or not v.strip():
             ctx.fail(path, f"expected a non-empty string, got {_type_name(v)} (quote values like '1')")
+        if len(v) > L.MAX_STRING:
+            ctx.fail(path, f"a string of {len(v)} characters is too long; use at most {L.MAX_STRING}")
         return v
 
     return parse
@@ -208,20 +233,25 @@ def _vector(*dims: int) -> Parser:
                 f"expected {want} (ENU metres), got {_type_name(v)}"
                 + (f" of {len(v)} numbers" if isinstance(v, list) else ""),
             )
-        num = _number(unit="metres")
-        return tuple(num(ctx, c, path + (i,)) for i, c in enumerate(v))
+        return tuple(_COORD(ctx, c, path + (i,)) for i, c in enumerate(v))
 
     return parse
 
 
-def _list(item: Parser, what: str) -> Parser:
+def _list(item: Parser, what: str, max_len: int) -> Parser:
     def parse(ctx: _Ctx, v: Any, path: KeyPath) -> list[Any]:
         if not isinstance(v, list):
             ctx.fail(path, f"expected a list of {what}, got {_type_name(v)}")
+        if len(v) > max_len:
+            ctx.fail(path, f"{len(v)} entries are too many; give at most {max_len} {what} "
+                           "(see docs/mission-limits.md)")
         return [item(ctx, x, path + (i,)) for i, x in enumerate(v)]
 
     return parse
 
+
+_COORD = _number(ge=-L.MAX_COORD, le=L.MAX_COORD, unit="metres")
+_ALT = _number(ge=L.MIN_ALT, le=L.MAX_ALT, unit="metres above the WGS84 ellipsoid")
 
 _HOSTPORT = r"(?P<host>\[[0-9a-fA-F:.]+\]|[A-Za-z0-9_.-]+):(?P<port>\d+)"
 _CONNECTION_RES = (
@@ -253,7 +283,7 @@ _POINT_SPEC: dict[str, tuple[Parser, Any]] = {
     "position": (_vector(2, 3), None),
     "lat": (_number(ge=-90, le=90, unit="degrees"), None),
     "lon": (_number(ge=-180, le=180, unit="degrees"), None),
-    "alt": (_number(unit="metres above the WGS84 ellipsoid"), None),
+    "alt": (_ALT, None),
 }
 
 
@@ -283,38 +313,45 @@ def _point(ctx: _Ctx, d: dict[str, Any], path: KeyPath, origin: Origin | None) -
             "add an origin or give 'position: [x, y, z]' in ENU metres",
         )
     alt = d["alt"] if d["alt"] is not None else origin.alt
-    return geodetic_to_local(d["lat"], d["lon"], alt, origin)
+    p = geodetic_to_local(d["lat"], d["lon"], alt, origin)
+    if not all(abs(c) <= L.MAX_COORD for c in p):
+        ctx.fail(path + ("lat",), f"lat/lon/alt lie ({p[0]:.0f}, {p[1]:.0f}, {p[2]:.0f}) m from the origin, "
+                                  f"farther than {L.MAX_COORD:g} m; move the position or the origin")
+    return p
 
 
 # --------------------------------------------------------------------------- the contract
 
-_POS = _number(gt=0, unit="m/s")
-_ACCEL = _number(gt=0, null=True, unit="m/s²")
-_TIME = _number(ge=0, unit="seconds")
+_POS = _number(ge=L.MIN_SPEED, le=L.MAX_SPEED, unit="m/s")
+_ACCEL = _number(ge=L.MIN_ACCEL, le=L.MAX_ACCEL, null=True, unit="m/s²")
+_TIME = _number(ge=0, le=L.MAX_HANDLING_TIME, unit="seconds")
+_RANGE = _number(ge=L.MIN_RANGE, le=L.MAX_RANGE, unit="metres")
 _ID = _string()
 _OPT_STR = _string(null=True)
 
 _ORIGIN = {
     "lat": (_number(ge=-90, le=90, unit="degrees"), _REQUIRED),
     "lon": (_number(ge=-180, le=180, unit="degrees"), _REQUIRED),
-    "alt": (_number(unit="metres above the WGS84 ellipsoid"), _REQUIRED),
+    "alt": (_ALT, _REQUIRED),
 }
 _CARRIER = {
     "id": (_ID, "carrier"),
     "connection": (_connection, "sim"),
     "sysid": (_integer(1, 255, "MAVLink system id"), 1),
     "position": (_vector(2), _REQUIRED),
-    "heading_deg": (_number(unit="compass degrees, 0 = north, 90 = east"), 0.0),
+    "heading_deg": (
+        _number(ge=-L.MAX_HEADING, le=L.MAX_HEADING, unit="compass degrees, 0 = north, 90 = east"), 0.0
+    ),
     "max_speed": (_POS, _REQUIRED),
     "accel": (_ACCEL, None),
-    "turn_rate": (_number(gt=0, null=True, unit="rad/s"), None),
+    "turn_rate": (_number(ge=L.MIN_TURN_RATE, le=L.MAX_TURN_RATE, null=True, unit="rad/s"), None),
     "unload_time": (_TIME, 0.0),
     "load_time": (_TIME, 0.0),
 }
 _ENERGY = {
-    "initial": (_number(gt=0), _REQUIRED),
-    "task": (_number(ge=0), _REQUIRED),
-    "rho": (_number(gt=0, unit="metres per unit of energy"), _REQUIRED),
+    "initial": (_number(gt=0, le=L.MAX_ENERGY), _REQUIRED),
+    "task": (_number(ge=0, le=L.MAX_ENERGY), _REQUIRED),
+    "rho": (_number(gt=0, le=L.MAX_RHO, unit="metres per unit of energy"), _REQUIRED),
 }
 _FLEET = {
     "count": (_integer(1, 255, "number of rovers"), None),
@@ -328,36 +365,43 @@ _UNIT = {
 _ROVERS = {
     "max_speed": (_POS, _REQUIRED),
     "accel": (_ACCEL, None),
-    "deploy_range": (_number(gt=0, unit="metres"), None),
+    "deploy_range": (_RANGE, None),
     "energy": (lambda c, v, p: c.section(v, p, _ENERGY), None),
-    "endurance_range": (_number(gt=0, unit="metres"), None),
+    "endurance_range": (_RANGE, None),
     "reserve": (_number(ge=0, lt=1, unit="fraction of the battery"), 0.1),
     "fleet": (lambda c, v, p: c.section(v, p, _FLEET), None),
-    "units": (_list(lambda c, v, p: c.section(v, p, _UNIT), "units {id, sysid, connection}"), None),
+    "units": (_list(lambda c, v, p: c.section(v, p, _UNIT), "units {id, sysid, connection}", L.MAX_ROVERS),
+              None),
 }
 _TASK = {"id": (_ID, _REQUIRED), **_POINT_SPEC}
-_COLLECT_ROVER = {"id": (_ID, _REQUIRED), **_POINT_SPEC, "range": (_number(gt=0, unit="metres"), _REQUIRED)}
+_COLLECT_ROVER = {
+    "id": (_ID, _REQUIRED),
+    **_POINT_SPEC,
+    "range": (_number(gt=0, le=L.MAX_RANGE, unit="metres"), _REQUIRED),
+}
 _COLLECTION = {
     "rovers": (
-        _list(lambda c, v, p: c.section(v, p, _COLLECT_ROVER), "rovers {id, position, range}"),
+        _list(lambda c, v, p: c.section(v, p, _COLLECT_ROVER), "rovers {id, position, range}", L.MAX_ROVERS),
         _REQUIRED,
     )
 }
 _FAULT = {
     "vehicle": (_OPT_STR, None),
     "kind": (_one_of(*FAULT_KINDS), _REQUIRED),
-    "at": (_number(ge=0, unit="simulated seconds"), 0.0),
-    "until": (_number(ge=0, null=True, unit="simulated seconds; omit = never back"), None),
+    "at": (_number(ge=0, le=L.MAX_SIM_TIME, unit="simulated seconds"), 0.0),
+    "until": (_number(ge=0, le=L.MAX_SIM_TIME, null=True, unit="simulated seconds; omit = never back"), None),
     "rate": (_number(ge=0, le=1, unit="fraction of packets lost"), None),
-    "seconds": (_number(ge=0, unit="added latency in seconds"), None),
-    "factor": (_number(gt=0, unit="battery drain multiplier"), None),
+    "seconds": (_number(ge=0, le=L.MAX_LATENCY, unit="added latency in seconds"), None),
+    "factor": (_number(gt=0, le=L.MAX_DRAIN, unit="battery drain multiplier"), None),
     "level": (_number(ge=0, le=1, unit="fraction of a full battery"), None),
 }
 _FAULT_PARAM = {"packet_loss": "rate", "latency": "seconds", "battery_drain": "factor",
                 "low_battery": "level"}
 _SIM = {
-    "speedup": (_number(gt=0, unit="simulated seconds per wall second"), 1.0),
-    "faults": (_list(lambda c, v, p: c.section(v, p, _FAULT), "faults {vehicle, kind, ...}"), []),
+    "speedup": (_number(ge=L.MIN_SPEEDUP, le=L.MAX_SPEEDUP, unit="simulated seconds per wall second"), 1.0),
+    "faults": (
+        _list(lambda c, v, p: c.section(v, p, _FAULT), "faults {vehicle, kind, ...}", L.MAX_FAULTS), []
+    ),
 }
 _ENV_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
 
@@ -371,12 +415,14 @@ def _env_name(ctx: _Ctx, v: Any, path: KeyPath) -> str:
 
 _SIGNING = {"key_env": (_env_name, _REQUIRED)}
 _LINKS = {
-    "heartbeat_timeout": (_number(gt=0, unit="seconds"), 3.0),
-    "reassign_after": (_number(ge=0, unit="seconds"), 10.0),
+    "heartbeat_timeout": (
+        _number(ge=L.MIN_HEARTBEAT_TIMEOUT, le=L.MAX_HEARTBEAT_TIMEOUT, unit="seconds"), 3.0
+    ),
+    "reassign_after": (_number(ge=0, le=L.MAX_HEARTBEAT_TIMEOUT, unit="seconds"), 10.0),
     "signing": (lambda c, v, p: SigningConfig(**c.section(v, p, _SIGNING)), None),
     "failsafe": (_one_of(*FAILSAFE_ACTIONS), "keep"),
 }
-_XI = _number(ge=0)
+_XI = _number(ge=0, le=L.MAX_XI)
 _ROADMAP = {
     "xi1": (_XI, None),
     "xi2": (_XI, None),
@@ -387,10 +433,16 @@ _ROADMAP = {
 _PLANNER = {
     "deploy": (_ID, "lee"),
     "collect": (_ID, "lee"),
-    "seed": (_integer(0), 0),
+    "seed": (_integer(0, L.MAX_SEED), 0),
     "roadmap": (lambda c, v, p: RoadmapConfig(**c.section(v, p, _ROADMAP)), None),
 }
 _TLS = {"ca": (_OPT_STR, None), "cert": (_OPT_STR, None), "key": (_OPT_STR, None)}
+def _boolean(ctx: _Ctx, v: Any, path: KeyPath) -> bool:
+    if not isinstance(v, bool):
+        ctx.fail(path, f"expected true or false, got {_type_name(v)}")
+    return v
+
+
 _MQTT_URL = re.compile(r"mqtts?://[A-Za-z0-9_.-]+(:\d{1,5})?/?")
 
 
@@ -409,20 +461,22 @@ _MQTT = {
     "username": (_OPT_STR, None),
     "password_env": (_OPT_STR, None),
     "tls": (lambda c, v, p: TlsConfig(**c.section(v, p, _TLS)), None),
+    "accept_task_changes": (_boolean, False),
 }
 _TOP = {
     "name": (_ID, None),
     "origin": (lambda c, v, p: Origin(**c.section(v, p, _ORIGIN)), None),
     "carrier": (lambda c, v, p: c.section(v, p, _CARRIER), _REQUIRED),
     "rovers": (lambda c, v, p: c.section(v, p, _ROVERS), _REQUIRED),
-    "tasks": (_list(lambda c, v, p: c.section(v, p, _TASK), "tasks {id, position}"), _REQUIRED),
-    "obstacles": (_list(_list(_vector(2), "[x, y] vertices"), "polygons"), []),
-    "bounds": (_list(_vector(2), "two corners [[xmin, ymin], [xmax, ymax]]"), None),
+    "tasks": (_list(lambda c, v, p: c.section(v, p, _TASK), "tasks {id, position}", L.MAX_TASKS), _REQUIRED),
+    "obstacles": (_list(_list(_vector(2), "[x, y] vertices", L.MAX_OBSTACLE_VERTICES), "polygons",
+                        L.MAX_OBSTACLES), []),
+    "bounds": (_list(_vector(2), "two corners [[xmin, ymin], [xmax, ymax]]", 100), None),
     "collection": (lambda c, v, p: c.section(v, p, _COLLECTION), None),
     "sim": (lambda c, v, p: c.section(v, p, _SIM), {"speedup": 1.0, "faults": []}),
     "links": (lambda c, v, p: LinksConfig(**c.section(v, p, _LINKS)), LinksConfig()),
     "planner": (lambda c, v, p: PlannerConfig(**c.section(v, p, _PLANNER)), PlannerConfig()),
-    "dwell": (_number(ge=0, unit="seconds on task"), 60.0),
+    "dwell": (_number(ge=0, le=L.MAX_DWELL, unit="seconds on task"), 60.0),
     "mqtt": (lambda c, v, p: c.section(v, p, _MQTT), None),
     "geofence": (lambda c, v, p: c.section(v, p, _GEOFENCE), None),
 }
@@ -497,6 +551,10 @@ def _check_geometry(
                 "expected two corners [[xmin, ymin], [xmax, ymax]] with xmin < xmax and ymin < ymax",
             )
         bounds = (b[0], b[1])
+    total = sum(len(pts) for pts in d["obstacles"])
+    if total > L.MAX_TOTAL_VERTICES:
+        ctx.fail(("obstacles",), f"{total} obstacle vertices in all are too many; give at most "
+                                 f"{L.MAX_TOTAL_VERTICES} (merge or simplify the polygons)")
     polys = [_polygon(ctx, pts, ("obstacles", i)) for i, pts in enumerate(d["obstacles"])]
     if polys and bounds is None:
         ctx.fail(
@@ -535,9 +593,9 @@ def _fence_vertex(ctx: _Ctx, v: Any, path: KeyPath) -> Any:
 
 
 _GEOFENCE: dict[str, tuple[Parser, Any]] = {
-    "polygon": (_list(_fence_vertex, "vertices [x, y] or {lat, lon}"), None),
+    "polygon": (_list(_fence_vertex, "vertices [x, y] or {lat, lon}", L.MAX_OBSTACLE_VERTICES), None),
     "from": (_one_of("bounds"), None),
-    "alt_max": (_number(gt=0, null=True, unit="metres above home"), None),
+    "alt_max": (_number(gt=0, le=L.MAX_ALT, null=True, unit="metres above home"), None),
     "action": (_one_of(*FENCE_ACTIONS), "report"),
 }
 
@@ -585,13 +643,97 @@ def _geofence(ctx: _Ctx, d: dict[str, Any], tasks: tuple[Task, ...], obstacles: 
     return GeofenceConfig(tuple(pts), obstacles, g["alt_max"], g["action"])
 
 
+def _check_roadmap(
+    ctx: _Ctx,
+    d: dict[str, Any],
+    tasks: tuple[Task, ...],
+    collection: tuple[CollectRover, ...] | None,
+    bounds: tuple[Vec2, Vec2] | None,
+    deploy_range: float,
+) -> None:
+    """Refuse roadmap parameters whose PRM (planner lee-graph, eq. 6.5–6.7) could not be planned in
+    bounded time: more than MAX_ROADMAP_NODES nodes or MAX_ROADMAP_EDGES expected edges."""
+    names = {str(v) for v in ((d["planner"].deploy, d["planner"].collect)) if v}
+    raw_planner = (ctx.raw.get("planner") if isinstance(ctx.raw, dict) else None) or {}
+    named = isinstance(raw_planner, dict) and ("deploy" in raw_planner or "collect" in raw_planner)
+    if not d["obstacles"] and not (named and "lee-graph" in names) and d["planner"].roadmap is None:
+        return  # the open-space planners build no roadmap
+    rp = RoadmapParams(**({} if d["planner"].roadmap is None else
+                          {k: v for k, v in vars(d["planner"].roadmap).items() if v is not None}))
+    radii = [deploy_range] + [c.range for c in collection or ()]
+    if bounds is None:  # the graph planners' workspace: the points' box grown by the edge length
+        pts = [d["carrier"]["position"], *(t.position[:2] for t in tasks)]
+        pts += [c.position[:2] for c in collection or ()]
+        pad = max(max(radii), 1.0)
+        w = max(p[0] for p in pts) - min(p[0] for p in pts) + 2 * pad
+        h = max(p[1] for p in pts) - min(p[1] for p in pts) + 2 * pad
+    else:
+        w, h = bounds[1][0] - bounds[0][0], bounds[1][1] - bounds[0][1]
+    side = math.sqrt(w * h)
+    where: KeyPath = ("planner", "roadmap") if d["planner"].roadmap is not None else ("bounds",)
+    nodes = side * rp.xi1 + rp.xi2
+    local = side * rp.xi3 + rp.xi4
+    for what, n, key in (("global", nodes, "xi1"), ("local", local, "xi3")):
+        if n > L.MAX_ROADMAP_NODES:
+            ctx.fail(
+                where,
+                f"the {what} roadmap would have {n:.0f} nodes (√(w·h) = {side:.0f} m); at most "
+                f"{L.MAX_ROADMAP_NODES} can be planned: lower planner.roadmap.{key} (or its constant term) "
+                "or the workspace bounds",
+            )
+    delta = max(max(radii), (w + h) / 2.0 * rp.phi)
+    edges = nodes * nodes / 2.0 * min(1.0, math.pi * delta * delta / (w * h))
+    if edges > L.MAX_ROADMAP_EDGES:
+        ctx.fail(
+            where,
+            f"the roadmap would have about {edges:.0f} edges ({nodes:.0f} nodes, edges up to {delta:.0f} m); "
+            f"at most {L.MAX_ROADMAP_EDGES} can be planned: lower planner.roadmap.xi1/xi2, phi "
+            "or rovers.deploy_range",
+        )
+
+
 def _build(ctx: _Ctx, data: Any, path: Path | None) -> Mission:
     if data is None:
-        ctx.fail((), "the mission file is empty; see DESIGN.md 'Mission file (YAML)' for the keys")
+        ctx.fail((), "the mission file is empty; see the annotated examples in missions/ for the keys")
+    ctx.raw = data
     d = ctx.section(data, (), _TOP)
     origin: Origin | None = d["origin"]
     carrier, r = d["carrier"], d["rovers"]
+    tasks, collection = _tasks_and_collection(ctx, d, origin)
+    deploy_range, endurance, energy = _ranges(ctx, r)
+    _check_task_heights(ctx, tasks, deploy_range)
+    units = _fleet_units(ctx, r, carrier, tasks, collection)
+    obstacles, bounds = _check_geometry(ctx, d, tasks)
+    geofence = _geofence(ctx, d, tasks, obstacles, bounds, origin)
+    _check_roadmap(ctx, d, tasks, collection, bounds, deploy_range)
+    faults = _faults(ctx, d, {u.id for u in units} | {carrier["id"]})
+    mission = Mission(
+        name=d["name"] or (path.stem if path is not None else "mission"),
+        origin=origin,
+        carrier=CarrierConfig(**{**carrier, "position": tuple(carrier["position"])}),
+        rovers=RoversConfig(r["max_speed"], r["accel"], deploy_range, endurance, r["reserve"], units, energy),
+        tasks=tasks,
+        obstacles=obstacles,
+        bounds=bounds,
+        collection=collection,
+        sim=SimConfig(d["sim"]["speedup"], tuple(faults)),
+        links=d["links"],
+        planner=d["planner"],
+        dwell=d["dwell"],
+        mqtt=_mqtt(ctx, d, path),
+        raw=copy.deepcopy(data),
+        path=path,
+        geofence=geofence,
+    )
+    log.debug(
+        "mission %s: %d tasks, %d rovers, d_deploy %.2f m", mission.name, len(tasks), len(units), deploy_range
+    )
+    return mission
 
+
+def _tasks_and_collection(
+    ctx: _Ctx, d: dict[str, Any], origin: Origin | None
+) -> tuple[tuple[Task, ...], tuple[CollectRover, ...] | None]:
     tasks = tuple(Task(t["id"], _point(ctx, t, ("tasks", i), origin)) for i, t in enumerate(d["tasks"]))
     collection = None
     if d["collection"] is not None:
@@ -612,8 +754,11 @@ def _build(ctx: _Ctx, data: Any, path: Path | None) -> Mission:
             "(an empty list is allowed only in a collection-only mission with a 'collection' section)",
         )
     _unique(ctx, [(t.id, ("tasks", i, "id")) for i, t in enumerate(tasks)], "task id")
+    return tasks, collection
 
-    # deploy range: given, or from energy terms (dissertation ch. 3.2)
+
+def _ranges(ctx: _Ctx, r: dict[str, Any]) -> tuple[float, float, EnergyConfig | None]:
+    """d_deploy (given, or from energy terms: dissertation ch. 3.2), endurance_range, energy."""
     if (r["deploy_range"] is None) == (r["energy"] is None):
         ctx.fail(
             ("rovers", "deploy_range"),
@@ -630,18 +775,28 @@ def _build(ctx: _Ctx, data: Any, path: Path | None) -> Mission:
                 f"energy {energy.initial:g} for flight; lower 'task' or raise 'initial'",
             )
         deploy_range = energy.rho * (energy.initial - energy.task) / 2.0
+        if not L.MIN_RANGE <= deploy_range <= L.MAX_RANGE:
+            ctx.fail(
+                ("rovers", "energy"),
+                f"the deploy range rho·(initial − task)/2 = {deploy_range:g} m is outside "
+                f"{L.MIN_RANGE:g}..{L.MAX_RANGE:g} m; change rho, initial or task",
+            )
     else:
         deploy_range = r["deploy_range"]
     endurance = r["endurance_range"]
     if endurance is None:
         endurance = energy.rho * energy.initial if energy is not None else 2.0 * deploy_range
+        endurance = min(endurance, max(L.MAX_RANGE, deploy_range))  # physical cap of a derived value
     elif endurance < deploy_range:
         ctx.fail(
             ("rovers", "endurance_range"),
             f"{endurance:g} m on a full battery is less than the deploy range "
             f"{deploy_range:g} m; raise endurance_range or lower deploy_range",
         )
+    return deploy_range, endurance, energy
 
+
+def _check_task_heights(ctx: _Ctx, tasks: tuple[Task, ...], deploy_range: float) -> None:
     for i, t in enumerate(tasks):
         z = t.position[2]
         if z < 0:
@@ -656,6 +811,12 @@ def _build(ctx: _Ctx, data: Any, path: Path | None) -> Mission:
                 f"{deploy_range:g} m, so no rover can reach it; lower the task or raise the deploy range",
             )
 
+
+def _fleet_units(
+    ctx: _Ctx, r: dict[str, Any], carrier: dict[str, Any], tasks: tuple[Task, ...],
+    collection: tuple[CollectRover, ...] | None,
+) -> tuple[RoverUnit, ...]:
+    """The rover units, enough for the tasks, ids and sysids unique, collection rovers among them."""
     n_default = len(tasks) if tasks else len(collection or ())
     units = _build_fleet(ctx, r, carrier, n_default)
     fleet_key = ("rovers", "units") if r["units"] is not None else ("rovers", "fleet", "count")
@@ -696,12 +857,11 @@ def _build(ctx: _Ctx, data: Any, path: Path | None) -> Mission:
                     f"{c.id!r} is not a rover of the fleet "
                     f"({', '.join(sorted(rover_ids))}); use a fleet rover id",
                 )
+    return tuple(units)
 
-    obstacles, bounds = _check_geometry(ctx, d, tasks)
-    geofence = _geofence(ctx, d, tasks, obstacles, bounds, origin)
 
+def _faults(ctx: _Ctx, d: dict[str, Any], vehicles: set[str]) -> list[Fault]:
     faults = []
-    vehicles = rover_ids | {carrier["id"]}
     for i, f in enumerate(d["sim"]["faults"]):
         fp: KeyPath = ("sim", "faults", i)
         if f["vehicle"] is not None and f["vehicle"] not in vehicles:
@@ -719,63 +879,26 @@ def _build(ctx: _Ctx, data: Any, path: Path | None) -> Mission:
         if f["until"] is not None and f["until"] <= f["at"]:
             ctx.fail(fp + ("until",), f"until ({f['until']:g} s) must be later than at ({f['at']:g} s)")
         faults.append(Fault(**f))
+    return faults
 
-    mqtt = None
-    if d["mqtt"] is not None:
-        m = dict(d["mqtt"])
-        tls: TlsConfig | None = m["tls"]
-        if tls is not None and (tls.cert is None) != (tls.key is None):
-            ctx.fail(
-                ("mqtt", "tls", "cert" if tls.cert is None else "key"),
-                "a client certificate needs both 'cert' and 'key'; add the missing one",
-            )
-        name_for_topic = d["name"] or (path.stem if path else "mission")
-        m["topic_prefix"] = m["topic_prefix"] or f"fleetctl/{name_for_topic}"
-        mqtt = MqttConfig(**m)
 
-    mission = Mission(
-        name=d["name"] or (path.stem if path is not None else "mission"),
-        origin=origin,
-        carrier=CarrierConfig(**{**carrier, "position": tuple(carrier["position"])}),
-        rovers=RoversConfig(r["max_speed"], r["accel"], deploy_range, endurance, r["reserve"], units, energy),
-        tasks=tasks,
-        obstacles=obstacles,
-        bounds=bounds,
-        collection=collection,
-        sim=SimConfig(d["sim"]["speedup"], tuple(faults)),
-        links=d["links"],
-        planner=d["planner"],
-        dwell=d["dwell"],
-        mqtt=mqtt,
-        raw=copy.deepcopy(data),
-        path=path,
-        geofence=geofence,
-    )
-    log.debug(
-        "mission %s: %d tasks, %d rovers, d_deploy %.2f m", mission.name, len(tasks), len(units), deploy_range
-    )
-    return mission
+def _mqtt(ctx: _Ctx, d: dict[str, Any], path: Path | None) -> MqttConfig | None:
+    if d["mqtt"] is None:
+        return None
+    m = dict(d["mqtt"])
+    tls: TlsConfig | None = m["tls"]
+    if tls is not None and (tls.cert is None) != (tls.key is None):
+        ctx.fail(
+            ("mqtt", "tls", "cert" if tls.cert is None else "key"),
+            "a client certificate needs both 'cert' and 'key'; add the missing one",
+        )
+    name_for_topic = d["name"] or (path.stem if path else "mission")
+    m["topic_prefix"] = m["topic_prefix"] or f"fleetctl/{name_for_topic}"
+    return MqttConfig(**m)
 
 
 # --------------------------------------------------------------------------- YAML with line numbers
-
-
-def _line_map(ctx: _Ctx, node: yaml.Node, path: KeyPath, lines: dict[KeyPath, int]) -> None:
-    """Record the 1-based line of every key path; reject duplicate keys in a mapping."""
-    if isinstance(node, yaml.MappingNode):
-        seen: set[Any] = set()
-        for key_node, value_node in node.value:
-            key = key_node.value
-            if key in seen:
-                lines[path + (key,)] = key_node.start_mark.line + 1
-                ctx.fail(path + (key,), "duplicate key in the same mapping; keep only one")
-            seen.add(key)
-            lines[path + (key,)] = key_node.start_mark.line + 1
-            _line_map(ctx, value_node, path + (key,), lines)
-    elif isinstance(node, yaml.SequenceNode):
-        for i, item in enumerate(node.value):
-            lines[path + (i,)] = item.start_mark.line + 1
-            _line_map(ctx, item, path + (i,), lines)
+# (bounded: fleetctl.mission.yaml_safe; the line map visits every node once, never alias copies)
 
 
 def parse_mission(data: dict[str, Any], source: str) -> Mission:
@@ -784,21 +907,30 @@ def parse_mission(data: dict[str, Any], source: str) -> Mission:
 
 
 def load_mission(path: str | Path) -> Mission:
-    """Read, parse and validate a mission YAML file. Raises :class:`MissionError` on any problem."""
+    """Read, parse and validate a mission YAML file. Raises :class:`MissionError` on any problem
+    (never another exception for any file content: see :mod:`fleetctl.mission.limits`)."""
     path = Path(path)
     source = str(path)
     try:
-        text = path.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as exc:
+        with path.open("rb") as f:
+            raw = f.read(L.MAX_FILE_BYTES + 1)
+        if len(raw) > L.MAX_FILE_BYTES:
+            raise MissionError(f"{source}: the mission file is larger than {L.MAX_FILE_BYTES} bytes; "
+                               "a mission file is a few kilobytes: remove what does not belong in it")
+        text = raw.decode("utf-8")
+    except (OSError, UnicodeDecodeError, ValueError) as exc:
         raise MissionError(f"{source}: cannot read the mission file: {exc}") from None
+    return parse_mission_text(text, source, path)
+
+
+def parse_mission_text(text: str, source: str, path: Path | None = None) -> Mission:
+    """Parse and validate mission YAML ``text`` (``source`` names it in messages)."""
     ctx = _Ctx(source)
     try:
-        loader = yaml.SafeLoader(text)
-        try:
-            node = loader.get_single_node()
-            data = loader.construct_document(node) if node is not None else None
-        finally:
-            loader.dispose()
+        data, lines = read_yaml(text)
+    except YamlError as exc:
+        line = f":{exc.line}" if exc.line is not None else ""
+        raise MissionError(f"{source}{line}: {exc.message}") from None
     except yaml.MarkedYAMLError as exc:
         mark = exc.problem_mark or exc.context_mark
         line = f":{mark.line + 1}" if mark is not None else ""
@@ -810,8 +942,5 @@ def load_mission(path: str | Path) -> Mission:
         raise MissionError(f"{source}{line}: malformed YAML: {what}; fix the syntax there") from None
     except yaml.YAMLError as exc:
         raise MissionError(f"{source}: malformed YAML: {exc}") from None
-    if node is not None:
-        lines: dict[KeyPath, int] = {}
-        ctx.lines = lines
-        _line_map(ctx, node, (), lines)
+    ctx.lines = lines
     return _build(ctx, data, path)

@@ -162,6 +162,7 @@ class MqttConfig:
     username: str | None = None
     password_env: str | None = None  # name of the environment variable holding the password
     tls: TlsConfig | None = None
+    accept_task_changes: bool = False  # P/tasks/add|remove change the mission only when true
 
 
 @dataclass(frozen=True)

@@ -28,15 +28,14 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 from fleetctl.mavlink.compile import CompiledPlan, StopItems
 from fleetctl.mavlink.link import LinkError, MissionItem
 from fleetctl.mavlink.vehicle import CommandRejected, Vehicle
-from fleetctl.run.carrier import CarrierControl, upload
-from fleetctl.run.context import RunContext
+from fleetctl.run.carrier import upload
 from fleetctl.run.energy import range_from_percent
 from fleetctl.run.events import announce_warning, drain, race
 from fleetctl.run.kinds import Ev, Phase, VehicleStatus, Watch
 from fleetctl.run.launch import flight_path, rover_on_deck
-from fleetctl.run.planning import Planning
+from fleetctl.run.parts import PhaseParts
 from fleetctl.run.results import PhaseResult
-from fleetctl.run.supervisor import Supervisor, SupervisorEvent
+from fleetctl.run.supervisor import SupervisorEvent
 from planners.plan import Plan, Stop
 from planners.problem import CollectProblem, CollectRover
 
@@ -103,16 +102,11 @@ class CollectPhase:
 
     def __init__(
         self,
-        ctx: RunContext,
-        carrier: CarrierControl,
-        supervisor: Supervisor,
-        planning: Planning,
+        parts: PhaseParts,
         resumed: ResumedCollect | None = None,
     ) -> None:
-        self.ctx = ctx
-        self.carrier = carrier
-        self.supervisor = supervisor
-        self.planning = planning
+        self.ctx, self.carrier = parts.ctx, parts.carrier
+        self.supervisor, self.planning = parts.supervisor, parts.planning
         self.board = RoverBoard()
         self.plan: Plan | None = None
         self.t0: float | None = None  # mission clock when the carrier first started

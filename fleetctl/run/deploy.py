@@ -21,14 +21,13 @@ from dataclasses import dataclass
 from fleetctl.mavlink.compile import CompiledPlan, RoverMission
 from fleetctl.mavlink.link import LinkError
 from fleetctl.mavlink.vehicle import CommandRejected, Vehicle
-from fleetctl.run.carrier import CarrierControl
 from fleetctl.run.context import ExecutionError, RunContext
 from fleetctl.run.events import announce_warning, drain, next_event, race
 from fleetctl.run.kinds import Ev, Phase, VehicleStatus, Watch
 from fleetctl.run.launch import DECK_CHECK_TIMEOUT, Launcher, Spares, flight_path, rover_on_deck, takeoff_seq
-from fleetctl.run.planning import Planning
+from fleetctl.run.parts import PhaseParts
 from fleetctl.run.results import PhaseResult
-from fleetctl.run.supervisor import Supervisor, SupervisorEvent, validate_task_change
+from fleetctl.run.supervisor import SupervisorEvent, validate_task_change
 from fleetctl.run.task_board import TaskBoard
 from planners.plan import Plan, RoverLeg
 from planners.problem import Task, Vec3
@@ -54,19 +53,14 @@ class DeployPhase:
 
     def __init__(
         self,
-        ctx: RunContext,
-        carrier: CarrierControl,
-        supervisor: Supervisor,
-        planning: Planning,
+        parts: PhaseParts,
         board: TaskBoard,
         resumed: ResumedDeploy | None = None,
     ) -> None:
-        self.ctx = ctx
-        self.carrier = carrier
-        self.supervisor = supervisor
-        self.planning = planning
+        self.ctx, self.carrier = parts.ctx, parts.carrier
+        self.supervisor, self.planning = parts.supervisor, parts.planning
         self.board = board
-        self.launcher = Launcher(ctx, carrier, board)
+        self.launcher = Launcher(parts.ctx, parts.carrier, board)
         self.watchers: dict[str, asyncio.Task[None]] = {}  # task -> the watch of its rover
         self.grace: dict[str, asyncio.Task[None]] = {}  # lost flying rover -> its reassign timer
         self.deck: list[str] = []  # rovers on the deck when the phase began

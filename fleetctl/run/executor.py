@@ -24,6 +24,7 @@ from fleetctl.run.context import Committer, Recorder, RunContext
 from fleetctl.run.deploy import DeployPhase, ResumedDeploy
 from fleetctl.run.kinds import Ev, VehicleStatus, Watch
 from fleetctl.run.launch import AIRBORNE_HEIGHT
+from fleetctl.run.parts import PhaseParts
 from fleetctl.run.planning import Planning
 from fleetctl.run.results import PhaseResult
 from fleetctl.run.state import FleetState
@@ -63,6 +64,7 @@ class Executor:
             mission, fleet, state, tasks=lambda: dict(self.board.tasks), record=self.ctx.record
         )
         self.planning = Planning(self.ctx, planner, write_plan)
+        self.parts = PhaseParts(self.ctx, self.carrier, self.supervisor, self.planning)
         self.deploy_phase: DeployPhase | None = None
         self.collect_phase: CollectPhase | None = None
         self._unlisten = fleet.add_listener(self._on_vehicle_event)
@@ -75,9 +77,7 @@ class Executor:
     async def deploy(self, resumed: ResumedDeploy | None = None) -> PhaseResult:
         """Plan from the live state and fly the deployment (the board's pooled tasks), replanning
         on supervision events; ``resumed`` takes over an interrupted one."""
-        self.deploy_phase = DeployPhase(
-            self.ctx, self.carrier, self.supervisor, self.planning, self.board, resumed
-        )
+        self.deploy_phase = DeployPhase(self.parts, self.board, resumed)
         return await self.deploy_phase.run()
 
     async def collect(
@@ -85,7 +85,7 @@ class Executor:
     ) -> PhaseResult:
         """Plan the collection of ``rover_ids`` (default: every connected rover not on the deck)
         from live positions and batteries and fly it; ``resumed`` takes over an interrupted one."""
-        self.collect_phase = CollectPhase(self.ctx, self.carrier, self.supervisor, self.planning, resumed)
+        self.collect_phase = CollectPhase(self.parts, resumed)
         return await self.collect_phase.run(rover_ids)
 
     async def sleep_mission(self, seconds: float) -> None:

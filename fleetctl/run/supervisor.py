@@ -34,6 +34,7 @@ from typing import Any
 from fleetctl.mavlink.fleet import Fleet
 from fleetctl.mavlink.vehicle import VehicleEvent
 from fleetctl.mission import Mission, MissionError, load_mission
+from fleetctl.mission.limits import MAX_FILE_BYTES
 from fleetctl.run.state import FleetState
 from planners.problem import Task, Vec3
 
@@ -178,28 +179,44 @@ class Supervisor:
                     self._off.discard(rid)
 
     async def _file_loop(self) -> None:
+        """Poll the mission file; never dies: any problem with one edit rejects that edit (the
+        running plan is kept) and the next edit is looked at as usual."""
         path = Path(self.mission.path)  # type: ignore[arg-type]
         while True:
             await asyncio.sleep(FILE_POLL_S)
             try:
-                mtime = (await asyncio.to_thread(path.stat)).st_mtime_ns
-            except OSError:
-                continue
-            if mtime == self._mtime:
-                continue
-            self._mtime = mtime
-            try:
-                new = await asyncio.to_thread(load_mission, path)
-            except MissionError as exc:
-                self.reject(f"{exc}", source=f"file {path}")
-                continue
-            current = self.tasks()
-            newt = {t.id: t for t in new.tasks}
-            remove = tuple(i for i, t in current.items()
-                           if i not in newt or tuple(newt[i].position) != tuple(t.position))
-            add = tuple(t for i, t in newt.items() if i not in current or i in remove)
-            if add or remove:
-                self.put(SupervisorEvent("tasks", None, add=add, remove=remove, source=f"file {path}"))
+                await self._file_check(path)
+            except asyncio.CancelledError:
+                raise
+            except Exception as exc:  # noqa: BLE001 - the watcher must outlive any bad edit
+                log.exception("mission file %s: edit not applied", path)
+                self.reject(f"{path}: the edit could not be read ({type(exc).__name__}: {exc}); "
+                            "fix the file and save it again", source=f"file {path}")
+
+    async def _file_check(self, path: Path) -> None:
+        try:
+            st = await asyncio.to_thread(path.stat)
+        except OSError:
+            return
+        if st.st_mtime_ns == self._mtime:
+            return
+        self._mtime = st.st_mtime_ns
+        if st.st_size > MAX_FILE_BYTES:  # refused before reading it
+            self.reject(f"{path}: the mission file is larger than {MAX_FILE_BYTES} bytes; edit not read",
+                        source=f"file {path}")
+            return
+        try:
+            new = await asyncio.to_thread(load_mission, path)
+        except MissionError as exc:
+            self.reject(f"{exc}", source=f"file {path}")
+            return
+        current = self.tasks()
+        newt = {t.id: t for t in new.tasks}
+        remove = tuple(i for i, t in current.items()
+                       if i not in newt or tuple(newt[i].position) != tuple(t.position))
+        add = tuple(t for i, t in newt.items() if i not in current or i in remove)
+        if add or remove:
+            self.put(SupervisorEvent("tasks", None, add=add, remove=remove, source=f"file {path}"))
 
     def reject(self, why: str, source: str) -> None:
         """An invalid task change: say so; the running plan is kept."""

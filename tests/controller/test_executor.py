@@ -345,9 +345,10 @@ def test_cli_ctrl_c_holds_rovers_writes_summary_and_exits_130(tmp_path: Path) ->
 
 async def test_link_lost_and_back_are_journaled_and_the_run_still_completes(tmp_path: Path) -> None:
     # the spare r3 stays on the deck and goes silent during the dwell for longer than the
-    # heartbeat timeout (3 s wall = 60 simulated s at 20x), then comes back
-    d = mission_dict(rovers=3, faults=[{"vehicle": "r3", "kind": "dropout", "at": 20.0, "until": 110.0}])
-    d["dwell"] = 120.0
+    # heartbeat timeout (3 s wall = 60 simulated s at 20x), then comes back; connect, preflight and
+    # the deployment take about 100 simulated s
+    d = mission_dict(rovers=3, faults=[{"vehicle": "r3", "kind": "dropout", "at": 160.0, "until": 250.0}])
+    d["dwell"] = 220.0
     mission = mission_from(d, tmp_path)
     out, sim, _probe = await fly(mission, "run", tmp_path, d)
     assert out.exit_code == 0, out.error
