@@ -173,18 +173,56 @@ class _Route:
         self.hop: list[float] = []
         self.heading: list[float] = []
         self.ready: list[float] = []
-        self.eta: list[float] = []
-        prev, t, h = b.start, 0.0, b.heading0
+        prev, h = b.start, b.heading0
         for reg, pos in zip(regions, positions, strict=True):
             dt, h = carrier_hop(prev, pos, h, b.carrier)
-            ready = b.ready(reg, pos)
-            t = max(t + dt, ready) + b.load
             self.hop.append(dt)
             self.heading.append(h)
-            self.ready.append(ready)
-            self.eta.append(t)
+            self.ready.append(b.ready(reg, pos))
             prev = pos
-        self.makespan = self.eta[-1] if self.eta else 0.0
+        self._times()
+
+    def _times(self) -> None:
+        """``eta`` and the makespan from ``hop`` and ``ready`` (eq. 5.2), and the suffix sums.
+
+        Eq. 5.2 is max-plus linear in a departure time: leaving stop j at t, the route ends at
+        max(t + after[j], late[j]) (after: hops and loads still to come; late: the latest a later
+        cluster's rovers hold the carrier up), so re-timing a local change costs O(1)."""
+        load, n = self.b.load, len(self.hop)
+        self.eta = []
+        t = 0.0
+        for dt, ready in zip(self.hop, self.ready, strict=True):
+            t = max(t + dt, ready) + load
+            self.eta.append(t)
+        self.makespan = t if n else 0.0
+        self.after = [0.0] * n
+        self.late = [-math.inf] * n
+        for j in range(n - 2, -1, -1):
+            self.after[j] = self.after[j + 1] + self.hop[j + 1] + load
+            self.late[j] = max(self.late[j + 1], self.ready[j + 1] + load + self.after[j + 1])
+
+    def moved(self, k: int, q: Point2) -> _Route:
+        """This route with stop k moved to ``q``: only the hops whose turn or length changed (into
+        k, k + 1, k + 2 and on while the arrival heading differs) are driven again."""
+        b = self.b
+        r = _Route.__new__(_Route)
+        r.b, r.clusters, r.regions = b, self.clusters, self.regions
+        r.positions = [*self.positions[:k], q, *self.positions[k + 1:]]
+        r.hop, r.heading, r.ready = self.hop[:], self.heading[:], self.ready[:]
+        r.ready[k] = b.ready(self.regions[k], q)
+        prev, h = (b.start, b.heading0) if k == 0 else (self.positions[k - 1], self.heading[k - 1])
+        for j in range(k, len(r.positions)):
+            if j > k + 1 and h == self.heading[j - 1]:
+                break
+            r.hop[j], h = carrier_hop(prev, r.positions[j], h, b.carrier)
+            r.heading[j] = h
+            prev = r.positions[j]
+        r._times()
+        return r
+
+    def end_from(self, j: int, t: float) -> float:
+        """Makespan when the carrier leaves stop j at ``t`` and later stops keep their places."""
+        return max(t + self.after[j], self.late[j])
 
     def state_before(self, k: int) -> tuple[Point2, float, float]:
         """Carrier position, time and heading when it leaves the stop before stop k."""
@@ -195,17 +233,13 @@ class _Route:
     def _finish(self, m: int, prev: Point2, t: float, h: float) -> float:
         """Makespan when the carrier leaves ``prev`` at ``t`` with heading ``h`` for old stop m."""
         b = self.b
-        for j in range(m, len(self.positions)):
+        last = min(m + 2, len(self.positions))
+        for j in range(m, last):  # the heading into m changed, so the rotation at m (into m + 1) too
             pos = self.positions[j]
-            if j <= m + 1:  # the heading into m changed, so the rotation at m (into m + 1) too
-                dt, h = carrier_hop(prev, pos, h, b.carrier)
-            else:
-                dt = self.hop[j]
+            dt, h = carrier_hop(prev, pos, h, b.carrier)
             t = max(t + dt, self.ready[j]) + b.load
-            if j > m and abs(t - self.eta[j]) <= 1e-12:
-                return self.makespan  # the schedule has rejoined the old one (eq. 5.2 is a max)
             prev = pos
-        return t
+        return self.end_from(last - 1, t)
 
     def accept(self, cand: tuple[float, list[list[int]], list[Point2]]) -> _Route:
         return _Route(self.b, cand[1], [self.b.inst.region(x) for x in cand[1]], cand[2])
@@ -285,8 +319,7 @@ def polish(builder: _PathBuilder, route: _Route,
             pos = place(route.regions[k], prev, t, h, nxt, route.positions[k])
             if math.dist(pos, route.positions[k]) < 1e-9:
                 continue
-            positions = route.positions[:k] + [pos] + route.positions[k + 1:]
-            cand = _Route(builder, route.clusters, route.regions, positions)
+            cand = route.moved(k, pos)
             if cand.makespan < route.makespan - 1e-9:
                 route, improved = cand, True
         if not improved:
@@ -294,48 +327,93 @@ def polish(builder: _PathBuilder, route: _Route,
     return route
 
 
+_TAU = 2.0 * math.pi
 _DIRECTIONS = [(math.cos(a * math.pi / 4), math.sin(a * math.pi / 4)) for a in range(8)]
 
 
-def _moved(route: _Route, k: int, q: Point2) -> float:
-    """Makespan of ``route`` with stop k moved to ``q`` (the others kept), re-timed from k on."""
+def _stop_cost(route: _Route, k: int) -> Callable[[float, float], float]:
+    """Makespan of ``route`` with stop k moved to (x, y), the others kept, or inf outside I_β:
+    the hops into k, k + 1 and k + 2 are re-timed, later stops by ``_Route.end_from``. Written
+    out (no helper calls) because the compass search calls it thousands of times;
+    ``carrier_hop`` and ``leg_time`` are the same arithmetic."""
     b = route.b
-    prev, t, h = route.state_before(k)
-    dt, h = carrier_hop(prev, q, h, b.carrier)
-    t = max(t + dt, b.ready(route.regions[k], q)) + b.load
-    return route._finish(k + 1, q, t, h) if k + 1 < len(route.positions) else t
+    inst, c, rover, load = b.inst, b.carrier, b.rover, b.load
+    v, a, w = c.max_speed, c.accel, c.turn_rate
+    vv_a = v * v / a if a is not None else 0.0
+    members = route.clusters[k]
+    rows = [(inst.pts2[i][0], inst.pts2[i][1], float(inst.radii[i]) ** 2, float(inst.heights2[i]))
+            for i in members]
+    (px, py), t0, h0 = route.state_before(k)
+    n = len(route.positions)
+    nxt = route.positions[k + 1:k + 3]
+    ready = route.ready[k + 1:k + 3]
+
+    def drive(dx: float, dy: float, h: float) -> tuple[float, float]:
+        d2 = dx * dx + dy * dy
+        if d2 <= 1e-18:
+            return 0.0, h
+        g = math.atan2(dy, dx)
+        length = math.sqrt(d2)
+        if a is None:
+            t = length / v
+        elif length >= vv_a:
+            t = length / v + v / a
+        else:
+            t = 2.0 * math.sqrt(length / a)
+        if w is not None:
+            turn = (g - h) % _TAU
+            t += min(turn, _TAU - turn) / w
+        return t, g
+
+    def cost(x: float, y: float) -> float:
+        far = 0.0
+        for gx, gy, r2, z2 in rows:
+            e = (x - gx) ** 2 + (y - gy) ** 2
+            if e > r2:
+                return math.inf
+            if e + z2 > far:
+                far = e + z2
+        dt, h = drive(x - px, y - py, h0)
+        t = max(t0 + dt, leg_time(math.sqrt(far), rover)) + load
+        qx, qy = x, y
+        for (nx, ny), rd in zip(nxt, ready, strict=True):
+            dt, h = drive(nx - qx, ny - qy, h)
+            t = max(t + dt, rd) + load
+            qx, qy = nx, ny
+        return route.end_from(k + len(nxt), t) if k + 1 < n else t
+
+    return cost
 
 
-def compass(builder: _PathBuilder, route: _Route, sweeps: int = 2) -> _Route:
+def compass(builder: _PathBuilder, route: _Route, sweeps: int = 2, tol: float = 1e-3) -> _Route:
     """Move each stop on its own inside its region I_β wherever the route gets faster (a compass
-    search on the exact time model, 8 directions, halving steps): the candidate points of eq.
-    5.13–5.16 miss the interior point where the carrier and the cluster's last rover arrive
-    together."""
+    search on the exact time model, 8 directions, halving steps down to ``tol`` m): the candidate
+    points of eq. 5.13–5.16 miss the interior point where the carrier and the cluster's last rover
+    arrive together. After the first sweep only stops with a moved neighbour are searched again."""
     inst = builder.inst
+    todo = set(range(len(route.clusters)))
     for _ in range(sweeps):
         before = route.makespan
-        for k, members in enumerate(route.clusters):
-            rows = [(inst.pts2[i][0], inst.pts2[i][1], float(inst.radii[i]) ** 2) for i in members]
+        moved: set[int] = set()
+        for k in sorted(todo):
+            cost = _stop_cost(route, k)
             best = route.makespan
             x, y = route.positions[k]
-            step = max(min(math.sqrt(r2) for _, _, r2 in rows) / 4, 0.05)
-            while step > 1e-3:
+            step = max(float(min(inst.radii[i] for i in route.clusters[k])) / 4, 0.05)
+            while step > tol:
                 for dx, dy in _DIRECTIONS:
-                    cx, cy = x + step * dx, y + step * dy
-                    if any((cx - gx) ** 2 + (cy - gy) ** 2 > r2 for gx, gy, r2 in rows):
-                        continue
-                    t = _moved(route, k, (cx, cy))
+                    t = cost(x + step * dx, y + step * dy)
                     if t < best - 1e-9:
-                        best, x, y = t, cx, cy
+                        best, x, y = t, x + step * dx, y + step * dy
                         break
                 else:
                     step /= 2
             if (x, y) != route.positions[k]:
-                positions = list(route.positions)
-                positions[k] = (x, y)
-                route = _Route(builder, route.clusters, route.regions, positions)
+                route = route.moved(k, (x, y))
+                moved.add(k)
         if route.makespan >= before - 1e-6:
             break
+        todo = {j for k in moved for j in range(k - 2, k + 3) if 0 <= j < len(route.clusters)}
     return route
 
 

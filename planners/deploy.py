@@ -9,7 +9,7 @@ from __future__ import annotations
 import math
 import random
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 from planners.clustering import divide_cluster
@@ -269,6 +269,32 @@ class _Route:
             self.tail[j] = max(self.tail[j], self.tail[j + 1])
         self.makespan = self.tail[0] if self.tail else 0.0
 
+    def moved(self, k: int, q: Point2) -> _Route:
+        """This route with stop k moved to ``q``: times before k are kept, the rest re-timed."""
+        b = self.b
+        r = _Route.__new__(_Route)
+        r.b, r.clusters, r.geos = b, self.clusters, self.geos
+        r.positions = [*self.positions[:k], q, *self.positions[k + 1:]]
+        r.arrive, r.heading, r.done = self.arrive[:k], self.heading[:k], self.done[:k]
+        if k == 0:
+            prev, t, h = b.start, 0.0, b.inst.problem.heading
+        else:
+            prev, t, h = self.positions[k - 1], self.arrive[k - 1] + b.unload, self.heading[k - 1]
+        for j in range(k, len(self.positions)):
+            pos = r.positions[j]
+            dt, h = carrier_hop(prev, pos, h, b.carrier)
+            t += dt
+            r.arrive.append(t)
+            r.heading.append(h)
+            t += b.unload
+            r.done.append(t + b.finish(pos, self.clusters[j]))
+            prev = pos
+        r.tail = r.done[:]
+        for j in range(len(r.tail) - 2, -1, -1):
+            r.tail[j] = max(r.tail[j], r.tail[j + 1])
+        r.makespan = r.tail[0] if r.tail else 0.0
+        return r
+
     def accept(self, cand: tuple[float, list[list[int]], list[ClusterGeometry], list[Point2]]) -> _Route:
         return _Route(self.b, *cand[1:])
 
@@ -384,42 +410,101 @@ FINE_MOVES_UPTO = 8  # tasks: up to this many, every move is also scored on fine
 ILS_PATIENCE = 20  # kicks per task without a new best before the anytime search gives up
 
 
+_TAU = 2.0 * math.pi
 _DIRECTIONS = [(math.cos(a * math.pi / 4), math.sin(a * math.pi / 4)) for a in range(8)]
 
 
-def _moved(builder: _PathBuilder, r: _Route, k: int, q: Point2, head: float) -> float:
-    """Makespan of route ``r`` with stop k moved to ``q`` (the others kept): only the legs into k
-    and k + 1 and the turn at k + 1 change; later stops shift in time by the same amount."""
-    b, pos, unload = builder, r.positions, builder.unload
+def _stop_cost(builder: _PathBuilder, r: _Route, k: int) -> Callable[[float, float], float]:
+    """Makespan of route ``r`` with stop k moved to (x, y), the others kept, or inf where a task of
+    stop k is out of reach: only the legs into k and k + 1 and the turn at k + 1 change; later
+    stops shift in time by the same amount. Written out (no helper calls) because the polish
+    calls it thousands of times; ``carrier_hop`` is the same arithmetic."""
+    b, pos, unload, d2max = builder, r.positions, builder.unload, builder.inst.d ** 2
+    c = b.carrier
+    v, a, w = c.max_speed, c.accel, c.turn_rate
+    vv_a = v * v / a if a is not None else 0.0
+    rover = b.rover
+    rows = [b.inst.pts[i] for i in r.clusters[k]]
+    rows2 = [(x, y, z * z) for x, y, z in rows]
     if k == 0:
-        prev, t, h = b.start, 0.0, b.inst.problem.heading
+        (px, py), t0, h0 = b.start, 0.0, b.inst.problem.heading
     else:
-        prev, t, h = pos[k - 1], r.arrive[k - 1] + unload, r.heading[k - 1]
-    dt, h = carrier_hop(prev, q, h, b.carrier)
-    t += dt + unload
-    worst = max(head, t + b.finish(q, r.clusters[k]))
+        (px, py), t0, h0 = pos[k - 1], r.arrive[k - 1] + unload, r.heading[k - 1]
+    head = max(r.done[:k], default=0.0)  # stops before k are not affected
     n = len(pos)
+    nx1 = ny1 = 0.0
+    done1 = arrive1 = 0.0
     if k + 1 < n:
-        dt, h = carrier_hop(q, pos[k + 1], h, b.carrier)
-        t1 = t + dt  # new arrival at k + 1
-        worst = max(worst, r.done[k + 1] + (t1 - r.arrive[k + 1]))
-        if k + 2 < n:
-            dt, _ = carrier_hop(pos[k + 1], pos[k + 2], h, b.carrier)
-            worst = max(worst, r.tail[k + 2] + (t1 + unload + dt - r.arrive[k + 2]))
-    return worst
+        (nx1, ny1), done1, arrive1 = pos[k + 1], r.done[k + 1], r.arrive[k + 1]
+    # the hop k + 1 → k + 2 keeps its length; only the turn at k + 1 depends on stop k
+    h12: float | None = None
+    hop12 = tail2 = arrive2 = 0.0
+    if k + 2 < n:
+        qx, qy = pos[k + 2]
+        if (qx - nx1) ** 2 + (qy - ny1) ** 2 > 1e-18:
+            h12 = math.atan2(qy - ny1, qx - nx1)
+            hop12 = carrier_hop(pos[k + 1], pos[k + 2], h12, c)[0]  # travel only (no turn)
+        tail2, arrive2 = r.tail[k + 2], r.arrive[k + 2]
+
+    def drive(dx: float, dy: float, h: float) -> tuple[float, float]:
+        d2 = dx * dx + dy * dy
+        if d2 <= 1e-18:
+            return 0.0, h
+        g = math.atan2(dy, dx)
+        length = math.sqrt(d2)
+        if a is None:
+            t = length / v
+        elif length >= vv_a:
+            t = length / v + v / a
+        else:
+            t = 2.0 * math.sqrt(length / a)
+        if w is not None:
+            turn = (g - h) % _TAU
+            t += min(turn, _TAU - turn) / w
+        return t, g
+
+    def cost(x: float, y: float) -> float:
+        far = 0.0
+        for tx, ty, z2 in rows2:
+            e = (tx - x) ** 2 + (ty - y) ** 2 + z2
+            if e > far:
+                far = e
+        if far > d2max:
+            return math.inf
+        dt, h = drive(x - px, y - py, h0)
+        t = t0 + dt + unload
+        worst = max(head, t + leg_time(math.sqrt(far), rover))
+        if k + 1 < n:
+            dt, h = drive(nx1 - x, ny1 - y, h)
+            t1 = t + dt  # new arrival at k + 1
+            worst = max(worst, done1 + (t1 - arrive1))
+            if k + 2 < n:
+                dt = hop12
+                if h12 is not None and w is not None:
+                    turn = (h12 - h) % _TAU
+                    dt += min(turn, _TAU - turn) / w
+                elif h12 is None:
+                    dt = 0.0
+                worst = max(worst, tail2 + (t1 + unload + dt - arrive2))
+        return worst
+
+    return cost
 
 
-def _polish(builder: _PathBuilder, route: _Route, sweeps: int = 3) -> _Route:
+def _polish(builder: _PathBuilder, route: _Route, sweeps: int = 3, tol: float = 1e-3) -> _Route:
     """Improvement beyond the dissertation: move each stop on its own, with every other stop fixed,
     wherever the whole route gets faster and the stop still serves its cluster within d_deploy
     (a compass search on the exact time model, 8 directions, halving steps). The chapter's rules
     place early stops for the shortest drive and the last two by eq. 4.20; this trades the two
-    against each other across the whole route."""
+    against each other across the whole route. After the first sweep only stops with a moved
+    neighbour (two either side) are searched again."""
     inst = builder.inst
+    todo = set(range(len(route.clusters)))
     for _ in range(sweeps):
         before = route.makespan
-        for k, members in enumerate(route.clusters):
-            head = max(route.done[:k], default=0.0)  # stops before k are not affected
+        moved: set[int] = set()
+        for k in sorted(todo):
+            cost = _stop_cost(builder, route, k)
             best = route.makespan
             x, y = route.positions[k]
             # a jump first: the compass search cannot leave a stop where moving a little costs a
@@ -428,28 +513,24 @@ def _polish(builder: _PathBuilder, route: _Route, sweeps: int = 3) -> _Route:
             prev = builder.start if k == 0 else route.positions[k - 1]
             nxt = route.positions[k + 1] if k + 1 < len(route.positions) else route.geos[k].center
             for cand in (route.geos[k].center, max_range_point(prev, route.geos[k], nxt)):
-                if inst.reach_from(cand, members) <= inst.d:
-                    t = _moved(builder, route, k, cand, head)
-                    if t < best - 1e-9:
-                        best, (x, y) = t, cand
+                t = cost(*cand)
+                if t < best - 1e-9:
+                    best, (x, y) = t, cand
             step = max(inst.d / 4, 0.05)
-            while step > 1e-3:
+            while step > tol:
                 for dx, dy in _DIRECTIONS:
-                    cand = (x + step * dx, y + step * dy)
-                    if inst.reach_from(cand, members) > inst.d:
-                        continue
-                    t = _moved(builder, route, k, cand, head)
+                    t = cost(x + step * dx, y + step * dy)
                     if t < best - 1e-9:
-                        best, (x, y) = t, cand
+                        best, x, y = t, x + step * dx, y + step * dy
                         break
                 else:
                     step /= 2
             if (x, y) != route.positions[k]:
-                positions = list(route.positions)
-                positions[k] = (x, y)
-                route = _Route(builder, route.clusters, route.geos, positions)
+                route = route.moved(k, (x, y))
+                moved.add(k)
         if route.makespan >= before - 1e-6:
             break
+        todo = {j for k in moved for j in range(k - 2, k + 3) if 0 <= j < len(route.clusters)}
     return route
 
 
