@@ -205,7 +205,7 @@ class _Route:
         """This route with stop k moved to ``q``: only the hops whose turn or length changed (into
         k, k + 1, k + 2 and on while the arrival heading differs) are driven again."""
         b = self.b
-        r = _Route.__new__(_Route)
+        r = object.__new__(type(self))
         r.b, r.clusters, r.regions = b, self.clusters, self.regions
         r.positions = [*self.positions[:k], q, *self.positions[k + 1:]]
         r.hop, r.heading, r.ready = self.hop[:], self.heading[:], self.ready[:]
@@ -460,15 +460,18 @@ def lee_route(problem: CollectProblem, improve: bool = True, fine_upto: int = 30
         if small:  # place every stop afresh, finely, and keep the faster
             fresh = builder.route(r.clusters, 2)
             r = fresh if fresh.makespan <= r.makespan else r
-        return compass(builder, polish(builder, r, sweeps=2 if small else 1, level=2 if small else 1))
+        r = polish(builder, r, sweeps=2 if small else 1, level=2 if small else 1)
+        return compass(builder, r, tol=1e-3 if small else COARSE_TOL)
 
-    best = finish(route)
     stop = deadline(problem.budget_ms, t0) if improve else None
-    if improve:  # group and order moves (planners.moves), scored on the quick placement ...
+    if not improve:
+        best = finish(route)
+    else:  # group and order moves (planners.moves), scored on the quick placement ...
         moved = quick_descent(route, inst.fits)
-        if moved is not route:
-            moved = finish(moved)
-            best = moved if moved.makespan < best.makespan else best
+        best = finish(moved)
+        if small and moved is not route:  # (large routes: the moves' route alone is placed finely)
+            today = finish(route)
+            best = today if today.makespan < best.makespan else best
         if len(problem.rovers) <= FINE_MOVES_UPTO or stop is not None:  # ... and on the final stops
             best = fine_descent(best, inst.fits, builder.route, finish,
                                 stop if len(problem.rovers) > FINE_MOVES_UPTO else None,
@@ -487,6 +490,7 @@ def lee_route(problem: CollectProblem, improve: bool = True, fine_upto: int = 30
 
 
 FINE_MOVES_UPTO = 8  # rovers: up to this many, every move is also scored on fine, polished stops
+COARSE_TOL = 1e-2  # m: the compass search's last step on large routes (1 mm on small ones)
 
 
 ILS_PATIENCE = 20  # kicks per rover without a new best before the anytime search gives up

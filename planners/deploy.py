@@ -272,7 +272,7 @@ class _Route:
     def moved(self, k: int, q: Point2) -> _Route:
         """This route with stop k moved to ``q``: times before k are kept, the rest re-timed."""
         b = self.b
-        r = _Route.__new__(_Route)
+        r = object.__new__(type(self))
         r.b, r.clusters, r.geos = b, self.clusters, self.geos
         r.positions = [*self.positions[:k], q, *self.positions[k + 1:]]
         r.arrive, r.heading, r.done = self.arrive[:k], self.heading[:k], self.done[:k]
