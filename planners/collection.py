@@ -23,7 +23,7 @@ from collections.abc import Callable, Sequence
 import numpy as np
 
 from planners.clustering import divide_cluster
-from planners.geometry import minimize_1d
+from planners.geometry import compass_search, minimize_1d
 from planners.moves import deadline, fine_descent, iterated_search, quick_descent
 from planners.plan import Plan, RoverLeg, Stop
 from planners.problem import CollectProblem, PlanningError, Vec3, refuse_obstacles
@@ -160,6 +160,11 @@ class _PathBuilder:
         return _Route(self, clusters, regions, positions)
 
 
+# a scored change: makespan, clusters, stops, first re-placed stop, end of the re-placed stops,
+# the old index of the first kept stop
+Candidate = tuple[float, list[list[int]], list[Point2], int, int, int]
+
+
 class _Route:
     """An ordered cluster list with its stops and the times eq. 5.2 gives them.
 
@@ -241,11 +246,33 @@ class _Route:
             prev = pos
         return self.end_from(last - 1, t)
 
-    def accept(self, cand: tuple[float, list[list[int]], list[Point2]]) -> _Route:
-        return _Route(self.b, cand[1], [self.b.inst.region(x) for x in cand[1]], cand[2])
+    def accept(self, cand: Candidate) -> _Route:
+        """The route of a scored change: stops before ``lo`` and from old stop ``m`` on keep their
+        hops and rovers' times; only the changed stops (and the hops whose heading changed) are
+        driven again, so a long route accepts a local change in a few hops."""
+        _, clusters, positions, lo, hi, m = cand
+        b = self.b
+        r = object.__new__(type(self))
+        r.b, r.clusters, r.positions = b, clusters, positions
+        r.regions = [*self.regions[:lo], *(b.inst.region(c) for c in clusters[lo:hi]), *self.regions[m:]]
+        r.hop, r.heading, r.ready = self.hop[:lo], self.heading[:lo], self.ready[:lo]
+        prev, h = (b.start, b.heading0) if lo == 0 else (positions[lo - 1], self.heading[lo - 1])
+        for j in range(lo, len(positions)):
+            o = j - hi + m  # the old index of a kept stop
+            if j > hi and h == self.heading[o - 1]:  # the rest is driven as before
+                r.hop += self.hop[o:]
+                r.heading += self.heading[o:]
+                r.ready += self.ready[o:]
+                break
+            dt, h = carrier_hop(prev, positions[j], h, b.carrier)
+            r.hop.append(dt)
+            r.heading.append(h)
+            r.ready.append(b.ready(r.regions[j], positions[j]) if j < hi else self.ready[o])
+            prev = positions[j]
+        r._times()
+        return r
 
-    def replace(self, i: int, pieces: list[list[int]],
-                count: int = 1) -> tuple[float, list[list[int]], list[Point2]]:
+    def replace(self, i: int, pieces: list[list[int]], count: int = 1) -> Candidate:
         """Makespan after clusters i..i+count-1 are replaced by ``pieces``: the stop before, the
         pieces and their stops are placed afresh; later stops keep their places and are re-timed."""
         b, old = self.b, self.clusters
@@ -269,7 +296,7 @@ class _Route:
         if m < len(old):
             t = self._finish(m, prev, t, h)
             positions = positions + self.positions[m:]
-        return t, clusters, positions
+        return t, clusters, positions, lo, hi, m
 
 
 def _move_rovers(builder: _PathBuilder, route: _Route) -> _Route:
@@ -328,7 +355,6 @@ def polish(builder: _PathBuilder, route: _Route,
 
 
 _TAU = 2.0 * math.pi
-_DIRECTIONS = [(math.cos(a * math.pi / 4), math.sin(a * math.pi / 4)) for a in range(8)]
 
 
 def _stop_cost(route: _Route, k: int) -> Callable[[float, float], float]:
@@ -400,14 +426,7 @@ def compass(builder: _PathBuilder, route: _Route, sweeps: int = 2, tol: float = 
             best = route.makespan
             x, y = route.positions[k]
             step = max(float(min(inst.radii[i] for i in route.clusters[k])) / 4, 0.05)
-            while step > tol:
-                for dx, dy in _DIRECTIONS:
-                    t = cost(x + step * dx, y + step * dy)
-                    if t < best - 1e-9:
-                        best, x, y = t, x + step * dx, y + step * dy
-                        break
-                else:
-                    step /= 2
+            x, y, best = compass_search(cost, x, y, best, step, tol)
             if (x, y) != route.positions[k]:
                 route = route.moved(k, (x, y))
                 moved.add(k)
@@ -490,7 +509,7 @@ def lee_route(problem: CollectProblem, improve: bool = True, fine_upto: int = 30
 
 
 FINE_MOVES_UPTO = 8  # rovers: up to this many, every move is also scored on fine, polished stops
-COARSE_TOL = 1e-2  # m: the compass search's last step on large routes (1 mm on small ones)
+COARSE_TOL = 5e-2  # m: the compass search's last step on large routes (1 mm on small ones)
 
 
 ILS_PATIENCE = 20  # kicks per rover without a new best before the anytime search gives up

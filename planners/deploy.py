@@ -6,6 +6,7 @@ per cluster at a deployment point q_ω, unloads, and the cluster's rovers fly to
 
 from __future__ import annotations
 
+import itertools
 import math
 import random
 import time
@@ -13,8 +14,8 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 from planners.clustering import divide_cluster
-from planners.geometry import enclosing_ball, find_root, minimize_1d
-from planners.moves import deadline, fine_descent, iterated_search, quick_descent
+from planners.geometry import compass_search, enclosing_ball, find_root, minimize_1d
+from planners.moves import deadline, fine_descent, iterated_search, merge, quick_descent, relocate_nearest
 from planners.plan import Plan, RoverLeg, Stop
 from planners.problem import DeployProblem, PlanningError, Vec3, refuse_obstacles
 from planners.search import merge_neighbours, reorder, split_loop, swap_neighbours
@@ -242,6 +243,10 @@ class _PathBuilder:
         return _Route(self, clusters, geos, positions)
 
 
+# a scored change: makespan, clusters, their geometry, stops, first re-placed stop
+Candidate = tuple[float, list[list[int]], list[ClusterGeometry], list[Point2], int]
+
+
 class _Route:
     """An ordered cluster list with its stops and the times needed to re-time a local change.
 
@@ -250,13 +255,18 @@ class _Route:
     """
 
     def __init__(self, b: _PathBuilder, clusters: list[list[int]], geos: list[ClusterGeometry],
-                 positions: list[Point2]) -> None:
+                 positions: list[Point2], base: _Route | None = None, lo: int = 0) -> None:
+        """``base``: a route with the same first ``lo`` stops, whose times are kept."""
         self.b, self.clusters, self.geos, self.positions = b, clusters, geos, positions
-        self.arrive: list[float] = []
-        self.heading: list[float] = []
-        self.done: list[float] = []
-        prev, t, h = b.start, 0.0, b.inst.problem.heading
-        for members, pos in zip(clusters, positions, strict=True):
+        if base is None or lo == 0:
+            lo, prev, t, h = 0, b.start, 0.0, b.inst.problem.heading
+            self.arrive: list[float] = []
+            self.heading: list[float] = []
+            self.done: list[float] = []
+        else:
+            self.arrive, self.heading, self.done = base.arrive[:lo], base.heading[:lo], base.done[:lo]
+            prev, t, h = positions[lo - 1], base.arrive[lo - 1] + b.unload, base.heading[lo - 1]
+        for members, pos in zip(clusters[lo:], positions[lo:], strict=True):
             dt, h = carrier_hop(prev, pos, h, b.carrier)
             t += dt
             self.arrive.append(t)
@@ -268,6 +278,7 @@ class _Route:
         for j in range(len(self.tail) - 2, -1, -1):
             self.tail[j] = max(self.tail[j], self.tail[j + 1])
         self.makespan = self.tail[0] if self.tail else 0.0
+        self.head = list(itertools.accumulate(self.done, max))  # head[j] = max(done[:j + 1])
 
     def moved(self, k: int, q: Point2) -> _Route:
         """This route with stop k moved to ``q``: times before k are kept, the rest re-timed."""
@@ -293,13 +304,14 @@ class _Route:
         for j in range(len(r.tail) - 2, -1, -1):
             r.tail[j] = max(r.tail[j], r.tail[j + 1])
         r.makespan = r.tail[0] if r.tail else 0.0
+        r.head = list(itertools.accumulate(r.done, max))
         return r
 
-    def accept(self, cand: tuple[float, list[list[int]], list[ClusterGeometry], list[Point2]]) -> _Route:
-        return _Route(self.b, *cand[1:])
+    def accept(self, cand: Candidate) -> _Route:
+        _, clusters, geos, positions, lo = cand
+        return _Route(self.b, clusters, geos, positions, self, lo)
 
-    def replace(self, i: int, pieces: list[list[int]],
-                count: int = 1) -> tuple[float, list[list[int]], list[ClusterGeometry], list[Point2]]:
+    def replace(self, i: int, pieces: list[list[int]], count: int = 1) -> Candidate:
         """Makespan after clusters i..i+count-1 are replaced by ``pieces``, recomputing the stops
         around the change (the one before, the pieces, the one after) and keeping later stops."""
         b, old = self.b, self.clusters
@@ -314,7 +326,7 @@ class _Route:
         else:
             prev = self.positions[lo - 1]
             t, h = self.arrive[lo - 1] + b.unload, self.heading[lo - 1]
-            worst = max(self.done[: lo])
+            worst = self.head[lo - 1]
         positions = self.positions[:lo]
         for k in range(lo, hi):
             pos = b.place(clusters, geos, k, prev, t, h, worst, fine=False)
@@ -334,7 +346,7 @@ class _Route:
                 shift = t + dt - self.arrive[m + 1]
                 worst = max(worst, self.tail[m + 1] + shift)
             positions += self.positions[m:]
-        return worst, clusters, geos, positions
+        return worst, clusters, geos, positions, lo
 
 
 def lee_clusters(problem: DeployProblem, improve: bool = True,
@@ -375,21 +387,27 @@ def lee_clusters(problem: DeployProblem, improve: bool = True,
 
     # The loop re-placed stops only around each change; place every stop afresh, finely, and
     # keep whichever of the two routes is faster; then polish every stop (routes of any length).
+    small = n <= FINE_UPTO
+
     def finish(r: _Route) -> _Route:
         r = _fresh(builder, r)
-        return _polish(builder, r) if improve else r
+        return _polish(builder, r, 3 if small else 2, 1e-3 if small else COARSE_TOL) if improve else r
 
     if not improve:
         best = finish(route)
         return best.clusters, best.positions, best.makespan
-    # today's plan (the polish used to stop at POLISH_MAX_STOPS), to never return a slower one
-    best = finish(route) if len(route.clusters) <= 24 else _fresh(builder, route)
     stop = deadline(problem.budget_ms, t0)
     # group and order moves (planners.moves), scored on the quick placement ...
-    moved = quick_descent(route, inst.fits_quick)
-    if moved is not route:
-        moved = finish(moved)
-        best = moved if moved.makespan < best.makespan else best
+    def nearness(task: int, cluster: Sequence[int]) -> float:
+        c, p = inst.geometry(cluster).center, inst.pts[task]
+        return (p[0] - c[0]) ** 2 + (p[1] - c[1]) ** 2
+
+    keep = next(k for upto, k in QD_KEEP if n <= upto)
+    moved = quick_descent(route, inst.fits_quick, cheap=(relocate_nearest(nearness, keep), merge))
+    best = finish(moved)
+    if small and moved is not route:  # today's plan too (large: the moves' route alone is polished)
+        today = finish(route)
+        best = today if today.makespan < best.makespan else best
     if n <= FINE_MOVES_UPTO or stop is not None:  # ... and on the final placement
         best = fine_descent(best, inst.fits_quick, builder.route, finish,
                                 stop if n > FINE_MOVES_UPTO else None,
@@ -407,11 +425,15 @@ def _fresh(builder: _PathBuilder, r: _Route) -> _Route:
 
 
 FINE_MOVES_UPTO = 8  # tasks: up to this many, every move is also scored on fine, polished stops
+# (up to n tasks, k): the tasks of a cluster nearest its neighbour that the quick descent offers to it
+# (big clusters of big problems: each offer costs an enclosing circle)
+QD_KEEP = ((200, 3), (500, 1), (math.inf, 0))
+FINE_UPTO = 30  # tasks: up to this many, the polish steps down to 1 mm and today's route is polished too
+COARSE_TOL = 5e-2  # m: the polish's last step on larger problems (5 cm of carrier drive: ~3 ms)
 ILS_PATIENCE = 20  # kicks per task without a new best before the anytime search gives up
 
 
 _TAU = 2.0 * math.pi
-_DIRECTIONS = [(math.cos(a * math.pi / 4), math.sin(a * math.pi / 4)) for a in range(8)]
 
 
 def _stop_cost(builder: _PathBuilder, r: _Route, k: int) -> Callable[[float, float], float]:
@@ -430,7 +452,7 @@ def _stop_cost(builder: _PathBuilder, r: _Route, k: int) -> Callable[[float, flo
         (px, py), t0, h0 = b.start, 0.0, b.inst.problem.heading
     else:
         (px, py), t0, h0 = pos[k - 1], r.arrive[k - 1] + unload, r.heading[k - 1]
-    head = max(r.done[:k], default=0.0)  # stops before k are not affected
+    head = r.head[k - 1] if k else 0.0  # stops before k are not affected
     n = len(pos)
     nx1 = ny1 = 0.0
     done1 = arrive1 = 0.0
@@ -516,15 +538,7 @@ def _polish(builder: _PathBuilder, route: _Route, sweeps: int = 3, tol: float = 
                 t = cost(*cand)
                 if t < best - 1e-9:
                     best, (x, y) = t, cand
-            step = max(inst.d / 4, 0.05)
-            while step > tol:
-                for dx, dy in _DIRECTIONS:
-                    t = cost(x + step * dx, y + step * dy)
-                    if t < best - 1e-9:
-                        best, x, y = t, x + step * dx, y + step * dy
-                        break
-                else:
-                    step /= 2
+            x, y, best = compass_search(cost, x, y, best, max(inst.d / 4, 0.05), tol)
             if (x, y) != route.positions[k]:
                 route = route.moved(k, (x, y))
                 moved.add(k)

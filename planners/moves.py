@@ -39,6 +39,24 @@ def relocate(clusters: Clusters, fits: Fits, start: int = 0) -> Iterator[Change]
                 yield k, [[*a, r], [x for x in b if x != r]], 2
 
 
+def relocate_nearest(near: Callable[[int, Sequence[int]], float], keep: int = 2) -> Move:
+    """``relocate`` with a bounded candidate list: of each cluster only the ``keep`` members
+    nearest the neighbouring cluster (``near(item, cluster)``) are handed over (long routes)."""
+    def move(clusters: Clusters, fits: Fits, start: int = 0) -> Iterator[Change]:
+        for k in range(start, len(clusters) - 1):
+            a, b = list(clusters[k]), list(clusters[k + 1])
+            if len(a) > 1:
+                for r in sorted(a, key=lambda x: near(x, b))[:keep]:
+                    if fits([*b, r]):
+                        yield k, [[x for x in a if x != r], [*b, r]], 2
+            if len(b) > 1:
+                for r in sorted(b, key=lambda x: near(x, a))[:keep]:
+                    if fits([*a, r]):
+                        yield k, [[*a, r], [x for x in b if x != r]], 2
+    move.__name__ = "relocate_nearest"
+    return move
+
+
 def exchange(clusters: Clusters, fits: Fits, start: int = 0) -> Iterator[Change]:
     """Exchange one task (rover) of a cluster with one of the next cluster."""
     for k in range(start, len(clusters) - 1):
@@ -100,6 +118,7 @@ def reverse(clusters: Clusters, fits: Fits, start: int = 0) -> Iterator[Change]:
 MOVES: tuple[Move, ...] = (swap, relocate, split_off, merge, exchange, shift, reverse)
 CHEAP_MOVES: tuple[Move, ...] = (swap, relocate, merge)  # linear in the route's length
 LARGE = 60  # tasks (rovers): beyond this the quick plan uses CHEAP_MOVES
+LARGE_ROUNDS = 2  # improvement sweeps of the cheap moves
 
 
 def apply(clusters: Clusters, change: Change) -> list[list[int]]:
@@ -153,11 +172,12 @@ def _makespan(route: Any) -> float:
     return float(route.makespan)
 
 
-def quick_descent(route: R, fits: Fits, stop: Callable[[], bool] | None = None) -> R:
+def quick_descent(route: R, fits: Fits, stop: Callable[[], bool] | None = None,
+                  cheap: Sequence[Move] = CHEAP_MOVES) -> R:
     """``local_search`` with every change re-timed by ``route.replace`` (stops re-placed around it).
-    Routes of more than ``LARGE`` items get the cheaper moves only, in two rounds at most."""
+    Routes of more than ``LARGE`` items get the ``cheap`` moves only, in two rounds at most."""
     if sum(len(c) for c in route.clusters) > LARGE:  # type: ignore[attr-defined,misc]
-        return local_search(route, fits, _quick_score, _accept, _makespan, moves=CHEAP_MOVES, rounds=2,
+        return local_search(route, fits, _quick_score, _accept, _makespan, moves=cheap, rounds=LARGE_ROUNDS,
                             stop=stop)
     return local_search(route, fits, _quick_score, _accept, _makespan, stop=stop)
 
