@@ -24,7 +24,15 @@ import numpy as np
 
 from planners.clustering import divide_cluster
 from planners.geometry import compass_search, minimize_1d
-from planners.moves import deadline, fine_descent, iterated_search, quick_descent
+from planners.moves import (
+    deadline,
+    fine_descent,
+    iterated_search,
+    merge,
+    quick_descent,
+    relocate_nearest,
+    swap,
+)
 from planners.plan import Plan, RoverLeg, Stop
 from planners.problem import CollectProblem, PlanningError, Vec3, refuse_obstacles
 from planners.reach import Point2, Region, make_region
@@ -468,7 +476,9 @@ def lee_route(problem: CollectProblem, improve: bool = True, fine_upto: int = 30
     route = split_loop(builder.route(_initial_clusters(builder)), divide, rejected, accept_ties=False)
     for _ in range(3 if improve else 0):  # improvement search beyond the dissertation
         better = reorder(route, route.positions, builder.start, builder.route)
-        better = _move_rovers(builder, merge_neighbours(better, inst.fits))
+        better = merge_neighbours(better, inst.fits)
+        if len(problem.rovers) <= MOVE_ROVERS_UPTO:  # (larger: the quick descent's bounded relocate)
+            better = _move_rovers(builder, better)
         better = split_loop(better, divide, rejected, accept_ties=False)
         if better.makespan >= route.makespan - 1e-9:
             break
@@ -486,7 +496,13 @@ def lee_route(problem: CollectProblem, improve: bool = True, fine_upto: int = 30
     if not improve:
         best = finish(route)
     else:  # group and order moves (planners.moves), scored on the quick placement ...
-        moved = quick_descent(route, inst.fits)
+        keep = next(k for upto, k in QD_KEEP if len(problem.rovers) <= upto)
+
+        def nearness(rover: int, cluster: Sequence[int]) -> float:
+            c, p = inst.region(cluster).center, inst.pts2[rover]
+            return (p[0] - c[0]) ** 2 + (p[1] - c[1]) ** 2
+
+        moved = quick_descent(route, inst.fits, cheap=(swap, relocate_nearest(nearness, keep), merge))
         best = finish(moved)
         if small and moved is not route:  # (large routes: the moves' route alone is placed finely)
             today = finish(route)
@@ -509,6 +525,9 @@ def lee_route(problem: CollectProblem, improve: bool = True, fine_upto: int = 30
 
 
 FINE_MOVES_UPTO = 8  # rovers: up to this many, every move is also scored on fine, polished stops
+# (up to n rovers, k): the rovers of a cluster nearest its neighbour that the quick descent offers to it
+QD_KEEP = ((200, 4), (math.inf, 2))
+MOVE_ROVERS_UPTO = 200  # rovers: beyond, the loop does not hand rovers over (the quick descent does)
 COARSE_TOL = 5e-2  # m: the compass search's last step on large routes (1 mm on small ones)
 
 
