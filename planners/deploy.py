@@ -428,7 +428,7 @@ FINE_MOVES_UPTO = 8  # tasks: up to this many, every move is also scored on fine
 # (up to n tasks, k): the tasks of a cluster nearest its neighbour that the quick descent offers to it
 # (big clusters of big problems: each offer costs an enclosing circle)
 QD_KEEP = ((200, 3), (500, 1), (math.inf, 0))
-FINE_UPTO = 30  # tasks: up to this many, the polish steps down to 1 mm and today's route is polished too
+FINE_UPTO = 12  # tasks: up to this many, the polish steps down to 1 mm and today's route is polished too
 COARSE_TOL = 5e-2  # m: the polish's last step on larger problems (5 cm of carrier drive: ~3 ms)
 ILS_PATIENCE = 20  # kicks per task without a new best before the anytime search gives up
 

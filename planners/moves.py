@@ -117,7 +117,9 @@ def reverse(clusters: Clusters, fits: Fits, start: int = 0) -> Iterator[Change]:
 
 MOVES: tuple[Move, ...] = (swap, relocate, split_off, merge, exchange, shift, reverse)
 CHEAP_MOVES: tuple[Move, ...] = (swap, relocate, merge)  # linear in the route's length
-LARGE = 60  # tasks (rovers): beyond this the quick plan uses CHEAP_MOVES
+LARGE = 30  # tasks (rovers): beyond this the quick plan uses CHEAP_MOVES
+SMALL = 8  # tasks (rovers): up to this many, the moves sweep until none helps (else SMALL_ROUNDS sweeps)
+SMALL_ROUNDS = 2
 LARGE_ROUNDS = 2  # improvement sweeps of the cheap moves
 
 
@@ -179,7 +181,9 @@ def quick_descent(route: R, fits: Fits, stop: Callable[[], bool] | None = None,
     if sum(len(c) for c in route.clusters) > LARGE:  # type: ignore[attr-defined,misc]
         return local_search(route, fits, _quick_score, _accept, _makespan, moves=cheap, rounds=LARGE_ROUNDS,
                             stop=stop)
-    return local_search(route, fits, _quick_score, _accept, _makespan, stop=stop)
+    size = sum(len(c) for c in route.clusters)  # type: ignore[attr-defined,misc]
+    rounds = 20 if size <= SMALL or stop is not None else SMALL_ROUNDS
+    return local_search(route, fits, _quick_score, _accept, _makespan, rounds=rounds, stop=stop)
 
 
 def fine_descent(route: R, fits: Fits, rebuild: Callable[[list[list[int]]], R], finish: Callable[[R], R],
