@@ -1,4 +1,4 @@
-"""The ``fleetctl`` command line (DESIGN.md "Command line — the contract")."""
+"""The ``fleetctl`` command line (docs/cli.md)."""
 
 from __future__ import annotations
 
@@ -10,8 +10,11 @@ import sys
 from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING, Any
 
+from fleetctl import package_version
 from fleetctl.mission import Mission, MissionError, load_mission
 from fleetctl.mission.limits import MAX_BUDGET_MS
+from fleetctl.mission.outliers import far_task_warnings
+from fleetctl.mission.teams import several_teams
 from planners.problem import CollectProblem
 
 if TYPE_CHECKING:
@@ -43,6 +46,7 @@ def cmd_plan(args: argparse.Namespace) -> int:
     from planners import PlanningError
 
     mission = load_mission(args.mission)
+    _warn(mission, args.collect)
     registry = _planners(args.collect)
     phase = "collect" if args.collect else "deploy"
     name = args.planner or mission.planner_for(phase)
@@ -52,6 +56,16 @@ def cmd_plan(args: argparse.Namespace) -> int:
     if name not in registry:
         raise CliError(f"unknown planner {name!r} for {'collection' if args.collect else 'deployment'}; "
                        f"choose one of: {', '.join(sorted(registry))}")
+    if several_teams(mission):  # carriers: [...] with more than one carrier (docs/teams.md)
+        from fleetctl.teams_plan import plan_teams_command
+
+        if args.export:
+            raise CliError(f"{args.mission}: --export writes one carrier's plan; exporting several teams "
+                           "is not supported yet")
+        try:
+            return plan_teams_command(args, mission, registry[name], name)
+        except PlanningError as e:
+            raise CliError(f"{args.mission}: cannot plan with {name!r}: {e}") from None
     problem = mission.collect_problem() if args.collect else mission.deploy_problem()
     if args.budget_ms is not None:
         problem = dataclasses.replace(problem, budget_ms=args.budget_ms)
@@ -70,7 +84,37 @@ def cmd_plan(args: argparse.Namespace) -> int:
 
         out = plot_plan(mission, plan, args.plot, bound)
         print(f"plot written to {out}", file=sys.stderr if args.json else sys.stdout)
+    if args.export:
+        files = _export(mission, plan, args.export)
+        print(f"exported {len(files) - 1} QGroundControl .plan files and {files[-1].name} to {args.export}",
+              file=sys.stderr if args.json else sys.stdout)
     return 0
+
+
+def _warn(mission: Mission, collect: bool) -> None:
+    """Warnings about a mission that loads but looks wrong (a task far outside the others)."""
+    for line in [] if collect else far_task_warnings(mission):
+        print(f"fleetctl: warning: {mission.path or mission.name}: {line}", file=sys.stderr)
+
+
+def _export(mission: Mission, plan: Any, out_dir: str) -> list[Any]:
+    """``--export DIR``: the mission items the controller would upload (compile_plan, no autopilot
+    known offline) as <vehicle>.plan, and plan.geojson (docs/formats.md)."""
+    from fleetctl.mavlink.compile import CompileError, compile_plan
+    from fleetctl.mission.formats.export import export_plan
+    from fleetctl.run.planning import COLLECT_MEET_HEIGHT
+
+    if mission.origin is None:
+        raise CliError(f"{mission.path or mission.name}: --export needs the mission's origin (QGroundControl "
+                       "plans and GeoJSON are in latitude/longitude); add origin: {lat, lon, alt}")
+    try:
+        compiled = compile_plan(plan, mission.origin, carrier_id=mission.carrier.id,
+                                meet_height=COLLECT_MEET_HEIGHT)
+        return export_plan(mission, plan, compiled, out_dir)
+    except CompileError as e:
+        raise CliError(f"cannot export the plan: {e}") from None
+    except OSError as e:
+        raise CliError(f"cannot write the export to {out_dir}: {e.strerror or e}") from None
 
 
 def _lower_bound(problem: DeployProblem | CollectProblem, collect: bool) -> float | None:
@@ -125,7 +169,8 @@ fly 'run' to deploy, dwell and collect in one go.
 
 Records: runs/<mission>-<timestamp>/ (or --run-dir DIR, named on the first output line) holds
 journal.jsonl (written ahead of every command), traffic.tlog (all MAVLink traffic), mission.yaml
-(a copy of the mission), plan.json and summary.json (schema fleetctl.summary/1; also --summary).
+(a copy of the mission), plan.json, export/ (the plan as QGroundControl .plan files and GeoJSON)
+and summary.json (schema fleetctl.summary/1; also --summary).
 Exit status: 0 mission complete, 1 not complete (or a vehicle did not answer, an upload was
 rejected), 2 bad mission file or option, 130 interrupted by Ctrl-C, 143 by SIGTERM (airborne
 rovers were told to hold; 'fleetctl resume --run DIR' finishes the run).
@@ -137,6 +182,7 @@ EXIT_TERMINATED = 143  # SIGTERM: like Ctrl-C (airborne rovers hold, records wri
 
 def cmd_fly(args: argparse.Namespace) -> int:
     mission = load_mission(args.mission)
+    _warn(mission, args.command == "collect")
     if args.command in ("deploy", "run") and not mission.tasks:
         raise CliError(f"{mission.path}: tasks: the mission has no tasks to deploy rovers to (a collection-"
                        f"only mission); fly it with 'fleetctl collect --mission {args.mission}'")
@@ -156,6 +202,13 @@ def cmd_resume(args: argparse.Namespace) -> int:
     return _fly(args, resumption.mission, resumption.command, {"resume": resumption})
 
 
+def _one_team(mission: Mission, command: str) -> None:
+    if several_teams(mission):
+        raise CliError(f"{mission.path or mission.name}: '{command}' flies one carrier and this mission has "
+                       f"{len(mission.teams)} (carriers:); several teams can only be planned for now: "
+                       "fleetctl plan --mission FILE")
+
+
 def _fly(args: argparse.Namespace, mission: Mission, command: str, extra: dict[str, Any]) -> int:
     import asyncio
 
@@ -163,6 +216,7 @@ def _fly(args: argparse.Namespace, mission: Mission, command: str, extra: dict[s
     from fleetctl.run.runner import EXIT_INTERRUPTED
     from fleetctl.views.dashboard import make_view
 
+    _one_team(mission, command)
     if args.speedup is not None and args.speedup <= 0:
         raise CliError(f"--speedup must be > 0, got {args.speedup}")
     if getattr(args, "dwell", None) is not None and args.dwell < 0:
@@ -171,7 +225,7 @@ def _fly(args: argparse.Namespace, mission: Mission, command: str, extra: dict[s
         planner = dataclasses.replace(mission.planner, budget_ms=args.budget_ms)
         mission = dataclasses.replace(mission, planner=planner)
     mqtt = _bus_config(mission, args)
-    view = make_view(True if args.headless else None)
+    view = _with_web(args, make_view(True if args.headless else None, latlon=args.latlon), mission.origin)
 
     def announce(run_dir: object) -> None:
         print(f"run folder: {run_dir}", flush=True)
@@ -325,6 +379,7 @@ def _add_shared_fly_options(p: argparse.ArgumentParser) -> None:
                    help="fly although another ground station is on the link or vehicles are already "
                         "armed or in a mission")
     _add_bus_options(p)
+    _add_view_options(p)
 
 
 _RESUME_EPILOG = """\
@@ -361,6 +416,17 @@ def _add_resume_command(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=cmd_resume)
 
 
+class _Version(argparse.Action):
+    """``--version``: read the package metadata only when asked."""
+
+    def __init__(self, option_strings: Sequence[str], dest: str, **kw: Any) -> None:
+        super().__init__(option_strings, dest, nargs=0, default=argparse.SUPPRESS, **kw)
+
+    def __call__(self, parser: argparse.ArgumentParser, *_: Any) -> None:
+        print(f"fleetctl {package_version()}")
+        parser.exit()
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog="fleetctl",
@@ -368,6 +434,7 @@ def build_parser() -> argparse.ArgumentParser:
                     "rovers near their tasks and collects them again, over MAVLink.",
     )
     p.add_argument("-v", "--verbose", action="store_true", help="log debug messages")
+    p.add_argument("--version", action=_Version, help="print the fleetctl version and exit")
     sub = p.add_subparsers(dest="command", metavar="COMMAND")
     sub.required = True
 
@@ -387,10 +454,14 @@ def build_parser() -> argparse.ArgumentParser:
     _add_budget_option(plan)
     plan.add_argument("--json", action="store_true", help="print only the plan JSON (schema fleetctl.plan/1)")
     plan.add_argument("--plot", metavar="OUT.png", help="draw the plan to a PNG file")
+    plan.add_argument("--export", metavar="DIR",
+                      help="also write DIR/<vehicle>.plan (QGroundControl) for every vehicle and "
+                           "DIR/plan.geojson (see docs/formats.md)")
     plan.set_defaults(func=cmd_plan)
     _add_fly_commands(sub)
     _add_controller_commands(sub)
     _add_watch_command(sub)
+    _add_replay_command(sub)
     _add_keys_command(sub)
     return p
 
@@ -449,6 +520,7 @@ def cmd_sim(args: argparse.Namespace) -> int:
     from sitl import SimFleet, serve
 
     mission = load_mission(args.mission)
+    _one_team(mission, "sim")
     config = _sim_config(mission, args.speedup)
 
     def ready(fleet: SimFleet) -> None:
@@ -471,6 +543,7 @@ def cmd_status(args: argparse.Namespace) -> int:
     import asyncio
 
     mission = load_mission(args.mission)
+    _one_team(mission, "status")
     if not args.timeout > 0:
         raise CliError(f"--timeout must be > 0, got {args.timeout}")
     return asyncio.run(_status(mission, args.timeout, args.speedup))
@@ -478,7 +551,7 @@ def cmd_status(args: argparse.Namespace) -> int:
 
 async def _status(mission: Mission, timeout: float, speedup: float | None) -> int:
 
-    from fleetctl.mavlink.fleet import connect_fleet
+    from fleetctl.mavlink.fleet import CONNECT_HINT, connect_fleet
     from fleetctl.mavlink.link import LinkError
 
     sim = None
@@ -514,7 +587,8 @@ async def _status(mission: Mission, timeout: float, speedup: float | None) -> in
             if w:
                 print(f"warning: {row['id']}: {w}")
     if problems:
-        print(f"fleetctl: {len(problems)} vehicle(s) missing or not ready:", file=sys.stderr)
+        print(f"fleetctl: {len(problems)} vehicle(s) missing or not ready (no heartbeat: {CONNECT_HINT}):",
+              file=sys.stderr)
         for line in problems:
             print(f"  {line}", file=sys.stderr)
         return EXIT_NOT_READY
@@ -576,7 +650,8 @@ def _status_rows(mission: Mission, fleet: Fleet, link_loss: dict[str, str] | Non
                 else:
                     row["deck"] = "?"
         if reasons:
-            problems.append(f"{vid} (sysid {v.sysid}) at {url}: " + "; ".join(reasons))
+            problems.append(fleet.failure_line(vid) if not v.connected
+                            else f"{vid} (sysid {v.sysid}) at {url}: " + "; ".join(reasons))
             row["reasons"] = "; ".join(reasons)
         else:
             row["ready"] = "ready"
@@ -646,6 +721,7 @@ def _add_watch_command(sub: argparse._SubParsersAction) -> None:
     w.add_argument("--tls-ca", metavar="FILE", help="CA certificate(s) to verify the broker (implies TLS)")
     w.add_argument("--tls-cert", metavar="FILE", help="client certificate (implies TLS)")
     w.add_argument("--tls-key", metavar="FILE", help="client private key")
+    _add_view_options(w)
     w.set_defaults(func=cmd_watch)
 
 
@@ -672,8 +748,9 @@ def cmd_watch(args: argparse.Namespace) -> int:
                        Secret(password) if password is not None else None, args.tls_ca, args.tls_cert,
                        args.tls_key)
     try:
-        return asyncio.run(watch(config, headless=args.headless or not sys.stdout.isatty(),
-                                 exit_on_done=args.exit_on_done))
+        headless = args.headless or not sys.stdout.isatty()
+        return asyncio.run(watch(config, headless=headless, exit_on_done=args.exit_on_done,
+                                 latlon=args.latlon, extra_view=_web_view(args, None, headless)))
     except BusConfigError as e:
         raise CliError(str(e)) from None
     except KeyboardInterrupt:
@@ -709,6 +786,7 @@ def cmd_keys_provision(args: argparse.Namespace) -> int:
     from fleetctl.mavlink.signing import SigningKey, SigningKeyError
 
     mission = load_mission(args.mission)
+    _one_team(mission, "keys provision")
     if not args.timeout > 0:
         raise CliError(f"--timeout must be > 0, got {args.timeout}")
     if mission.links.signing is None:
@@ -761,6 +839,102 @@ async def _keys_provision(mission: Mission, key: object, timeout: float) -> int:
     return 0
 
 
+# ---------------------------------------------------------------------------------------------------
+# the views: --web HOST:PORT (live map), --tiles, --latlon; fleetctl replay (docs/web-map.md)
+# ---------------------------------------------------------------------------------------------------
+
+
+def _add_view_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--web", metavar="HOST:PORT",
+                   help="also serve a live map page there (e.g. 127.0.0.1:8080; 0.0.0.0:PORT lets other "
+                        "machines see it); self-contained, no internet needed")
+    p.add_argument("--tiles", metavar="URL",
+                   help="with --web: draw map tiles under the map from this XYZ template, e.g. "
+                        "http://tiles.local/{z}/{x}/{y}.png (default: none)")
+    p.add_argument("--latlon", action="store_true",
+                   help="terminal view: latitude/longitude instead of E/N metres")
+
+
+def _web_view(args: argparse.Namespace, origin: object, headless: bool) -> Any:
+    """The web map view of ``--web`` (None without it); refuses a bad address or --tiles alone."""
+    if getattr(args, "tiles", None) and not args.web:
+        raise CliError("--tiles needs --web HOST:PORT")
+    if not getattr(args, "web", None):
+        return None
+    from fleetctl.views.web import WebError, WebMapView, parse_address
+
+    try:
+        host, port = parse_address(args.web)
+    except WebError as e:
+        raise CliError(str(e)) from None
+    if args.tiles and origin is None:
+        raise CliError("--tiles needs the mission origin: watch has no mission file (use replay or the "
+                       "flying commands)")
+
+    def ready(url: str) -> None:
+        if headless:
+            print(f"web map: {url}", flush=True)
+
+    return WebMapView(host, port, origin=origin, tiles=args.tiles, on_ready=ready)  # type: ignore[arg-type]
+
+
+def _with_web(args: argparse.Namespace, view: Any, origin: object) -> Any:
+    """``view`` plus the web map of ``--web`` (its address shown as a status line of the live view)."""
+    from fleetctl.views.dashboard import HeadlessView
+    from fleetctl.views.view import Views
+
+    web = _web_view(args, origin, isinstance(view, HeadlessView))
+    if web is None:
+        return view
+    if hasattr(view, "add_status"):
+        view.add_status(lambda: f"web map: {web.error or web.server.url}")
+    return Views(view, web)
+
+
+def _add_replay_command(sub: argparse._SubParsersAction) -> None:
+    r = sub.add_parser(
+        "replay", help="play a run's records back into the terminal view (and the web map)",
+        description="Play RUN_DIR's journal, plan and MAVLink log (traffic.tlog) back in mission time: "
+                    "the vehicles' states and positions as they were, into the terminal view and, with "
+                    "--web, the map. Exit status 2 for a missing or unreadable run folder.",
+    )
+    r.add_argument("run_dir", metavar="RUN_DIR", help="a run folder (runs/<mission>-<timestamp>)")
+    r.add_argument("--speed", type=float, default=1.0, metavar="X",
+                   help="mission seconds per wall second (default 1; 0 = as fast as possible)")
+    r.add_argument("--instant", action="store_true", help="as fast as possible (like --speed 0)")
+    r.add_argument("--headless", action="store_true", help="print the events instead of the live view")
+    r.add_argument("--linger", type=float, default=0.0, metavar="S",
+                   help="with --web: keep serving the final state S wall seconds after the end")
+    _add_view_options(r)
+    r.set_defaults(func=cmd_replay)
+
+
+def cmd_replay(args: argparse.Namespace) -> int:
+    import asyncio
+
+    from fleetctl.views.dashboard import make_view
+    from fleetctl.views.replay import ReplayError, load_run, replay
+
+    if args.speed < 0 or args.linger < 0:
+        raise CliError("--speed and --linger must be >= 0")
+    try:
+        run = load_run(args.run_dir)
+    except ReplayError as e:
+        raise CliError(str(e)) from None
+    headless = args.headless or not sys.stdout.isatty()
+    view = _with_web(args, make_view(headless, latlon=args.latlon), run.origin)
+    speed = 0.0 if args.instant else args.speed
+    try:
+        state = asyncio.run(replay(run, view, speed=speed, linger=args.linger))
+    except KeyboardInterrupt:
+        return 130
+    if headless:
+        from fleetctl.views.dashboard import render_text
+
+        print(render_text(state, latlon=args.latlon), end="", flush=True)
+    return 0
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
@@ -774,6 +948,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("fleetctl: interrupted", file=sys.stderr)
         return 130
+    except BrokenPipeError:  # `fleetctl plan --json | head`: the reader left, no traceback
+        import os
+
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 141
 
 
 if __name__ == "__main__":

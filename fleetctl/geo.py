@@ -1,7 +1,7 @@
 """Geodesy: WGS84 latitude/longitude/altitude ↔ the mission's local ENU frame, and headings.
 
-This is the only module of the project that converts to or from latitude/longitude (DESIGN.md
-"Frames and units"). The conversions are pymap3d's exact ellipsoidal ones on WGS84, so a round
+This is the only module of the project that converts to or from latitude/longitude (docs/mission-file.md,
+"Conventions"). The conversions are pymap3d's exact ellipsoidal ones on WGS84, so a round
 trip is exact to far below a millimetre.
 
 Two local frames are offered:

@@ -114,7 +114,8 @@ class Journal(BackgroundFile[str]):
 
     def on_event(self, ev: Event) -> None:
         """A :class:`fleetctl.fleet.FleetState` listener: journal every event."""
-        self.write(ev.kind, vehicle=ev.vehicle, text=ev.text, **ev.data)
+        mission_t = None if ev.mission_time is None else round(ev.mission_time, 3)
+        self.write(ev.kind, **{"vehicle": ev.vehicle, "text": ev.text, **ev.data, "T": mission_t})
 
     def tap(self) -> Callable[[str, float, bytes], None]:
         """The link tap writing the ``.tlog``."""

@@ -39,7 +39,7 @@ def _stops_bound(problem: DeployProblem) -> float:
     z = np.array([t.position[2] for t in problem.tasks], dtype=float)
     reach = np.sqrt(np.maximum(problem.deploy_range**2 - z**2, 0.0))
     return separated_stops_bound(xy, reach, problem.start[:2], problem.carrier.motion,
-                                 problem.carrier.unload_time)
+                                 problem.carrier.deploy_stop_time)
 
 
 def separated_stops_bound(xy: np.ndarray, reach: np.ndarray, start: Sequence[float], carrier: Motion,
@@ -93,7 +93,7 @@ def _task_bound(problem: DeployProblem) -> float:
             bound = car[0] + rov[0]
         else:
             bound = min(car[j] + rov[j + 1] for j in range(_GRID))
-        best = max(best, c.unload_time + bound)
+        best = max(best, c.deploy_stop_time + bound)
     return best
 
 

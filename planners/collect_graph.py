@@ -83,14 +83,14 @@ class _Collect:
             rover_t = np.max([[leg_time(math.hypot(dist[k, c], self.z[i]), self.p.rover) for c in cands]
                               for k, i in enumerate(mem)], axis=0)
             carrier_t = np.array([leg_time(d_prev[c], cr.motion) for c in cands])
-            score = np.maximum(self.eta + carrier_t, rover_t) + cr.load_time
+            score = np.maximum(self.eta + carrier_t, rover_t) + cr.collect_stop_time
             if nxt is not None:
                 d_next = w.rm.shortest(w.node(nxt))[0]
                 score = score + np.array([leg_time(d_next[c], cr.motion) for c in cands])
             node = int(cands[int(np.argmin(score))])
             path = _ground_path(w.rm.smoothed_path(self.prev, node))
             dt, self.heading = carrier_leg(path, self.heading, cr)
-            self.eta = max(self.eta + dt, self.arrivals(mem, node)) + cr.load_time
+            self.eta = max(self.eta + dt, self.arrivals(mem, node)) + cr.collect_stop_time
             self.stops.append((node, mem))
             self.prev = node
             remaining = rest

@@ -102,7 +102,7 @@ class _PathBuilder:
         self.inst = inst
         p = inst.problem
         self.carrier, self.rover = p.carrier, p.rover
-        self.load = p.carrier.load_time
+        self.load = p.carrier.collect_stop_time
         self.start: Point2 = (p.start[0], p.start[1])
         self.heading0 = p.heading
 

@@ -82,7 +82,7 @@ def _rover_bound(problem: CollectProblem) -> float:
                 else:
                     hi = mid
             bound = max(car(lo), rov(hi))
-        best = max(best, bound + c.load_time)
+        best = max(best, bound + c.collect_stop_time)
     return best
 
 
@@ -98,6 +98,6 @@ def _stops_bound(problem: CollectProblem) -> float:
     """
     xy, _, reach = _reach(problem)
     carrier = problem.carrier
-    return separated_stops_bound(xy, reach, problem.start[:2], carrier.motion, carrier.load_time)
+    return separated_stops_bound(xy, reach, problem.start[:2], carrier.motion, carrier.collect_stop_time)
 
 

@@ -149,7 +149,7 @@ class _PathBuilder:
         self.inst = inst
         p = inst.problem
         self.carrier, self.rover = p.carrier, p.rover
-        self.unload = p.carrier.unload_time
+        self.unload = p.carrier.deploy_stop_time
         self.start: Point2 = (p.start[0], p.start[1])
 
     def finish(self, pos: Point2, members: Sequence[int]) -> float:

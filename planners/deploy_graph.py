@@ -198,7 +198,7 @@ class _Deploy:
     def commit(self, node: int, mem: list[int], dist: np.ndarray) -> None:
         path = _ground_path(self.w.rm.smoothed_path(self.prev, node))  # Algorithm 6.2
         dt, self.heading = carrier_leg(path, self.heading, self.p.carrier)
-        self.t += dt + self.p.carrier.unload_time
+        self.t += dt + self.p.carrier.deploy_stop_time
         self.worst = max(self.worst, self.t + self.rover_time(mem, dist, node))
         self.stops.append((node, mem))
         self.prev = node
@@ -207,7 +207,7 @@ class _Deploy:
         """Makespan if the carrier's last stop is ``node`` serving ``mem`` (eq. 6.3)."""
         path = _ground_path(self.w.rm.smoothed_path(self.prev, node))
         dt, _ = carrier_leg(path, self.heading, self.p.carrier)
-        t = self.t + dt + self.p.carrier.unload_time
+        t = self.t + dt + self.p.carrier.deploy_stop_time
         return max(self.worst, t + self.rover_time(mem, dist, node))
 
     def cluster(self, remaining: list[int]) -> tuple[list[int], int]:
@@ -313,7 +313,7 @@ class _Deploy:
         k1, k2 = self._serving(c1), self._serving(c2)
         if not len(k1) or not len(k2):
             return None
-        cr, unload = self.p.carrier, self.p.carrier.unload_time
+        cr, unload = self.p.carrier, self.p.carrier.deploy_stop_time
         d1, d2 = self._member_dist(c1), self._member_dist(c2)
         r1 = np.array([self.rover_time(c1, d1, int(n)) for n in k1])
         r2 = np.array([self.rover_time(c2, d2, int(n)) for n in k2])

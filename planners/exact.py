@@ -64,7 +64,7 @@ class _Model:
         self.deploy = isinstance(problem, DeployProblem)
         c = problem.carrier
         self.carrier, self.rover = c, problem.rover
-        self.pause = c.unload_time if self.deploy else c.load_time
+        self.pause = c.deploy_stop_time if self.deploy else c.collect_stop_time
         self.start: Point2 = (problem.start[0], problem.start[1])
         self.heading = problem.heading
         if isinstance(problem, DeployProblem):

@@ -48,6 +48,10 @@ class Plan:
     carrier_distance: float = 0.0
     compute_ms: float = 0.0
     notes: list[str] = field(default_factory=list)
+    # The time model's per-stop and per-flight terms the times were computed with (set by
+    # ``planners.timing.retime``; docs/time-model.md): takeoff_time, land_time, rover_fixed_time,
+    # vertex_stops.
+    time_model: dict[str, float | bool] | None = None
     # Roadmap planners (ch. 6) attach their graph for drawing: an object with ``xy`` ((N, 2)
     # node coordinates) and ``edges()`` ((E, 2) node index pairs). Not part of the JSON.
     roadmap: Any = field(default=None, repr=False, compare=False)
@@ -77,6 +81,7 @@ class Plan:
             "makespan": _t(self.makespan),
             "carrier_distance": round(self.carrier_distance, 4),
             "compute_ms": round(self.compute_ms, 3),
+            **({"time_model": dict(self.time_model)} if self.time_model is not None else {}),
         }
 
 

@@ -34,11 +34,36 @@ class Motion:
 
 @dataclass(frozen=True)
 class CarrierSpec:
+    """The carrier's motion and its time at a stop (docs/time-model.md).
+
+    At a deployment stop it unloads (``unload_time``), then waits while the rovers climb clear of
+    the deck (``takeoff_time``, the rovers' take-off clearance) and leaves; the rovers' flights
+    start when it leaves. At a collection stop every rover, once the carrier and the rover are
+    both there, descends and touches down (``land_time``), then the carrier loads them
+    (``load_time``). ``takeoff_time = land_time = 0`` is the dissertation's model.
+    """
+
     max_speed: float
     accel: float | None = None
     turn_rate: float | None = None  # rad/s, None = instantaneous turns
     unload_time: float = 0.0
     load_time: float = 0.0
+    takeoff_time: float = 0.0
+    land_time: float = 0.0
+    # a polyline leg (the roadmap) driven as rest-to-rest segments with a turn on the spot at each
+    # inner vertex, as a ground carrier flying a mission of waypoints does; False = one leg over
+    # the whole length with no inner turns (the dissertation's accounting)
+    vertex_stops: bool = False
+
+    @property
+    def deploy_stop_time(self) -> float:
+        """Arrival to departure at a deployment stop; the rovers' flights start at its end."""
+        return self.unload_time + self.takeoff_time
+
+    @property
+    def collect_stop_time(self) -> float:
+        """From the moment the carrier and the last of its rovers are there to departure."""
+        return self.land_time + self.load_time
 
     @cached_property
     def motion(self) -> Motion:

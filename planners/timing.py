@@ -40,12 +40,36 @@ def travel_time(length: float, motion: Motion) -> float:
     return 2.0 * math.sqrt(length / a)
 
 
+def remaining_leg_time(length: float, speed: float, motion: Motion) -> float:
+    """Time to cover the last ``length`` metres of a leg, moving at ``speed`` now and at rest at
+    its end (eq. 4.2's profile entered part-way: accelerate to the top speed, cruise, brake).
+
+    ``speed = 0`` gives :func:`travel_time`. For live estimates (the carrier's ETA at its stop).
+    """
+    if length <= 0.0:
+        return 0.0
+    v, a = motion.max_speed, motion.accel
+    v0 = min(max(speed, 0.0), v)
+    if a is None:
+        return length / v
+    if length <= v0 * v0 / (2.0 * a):  # inside its braking distance: brakes at ``a`` from sqrt(2·a·length)
+        return math.sqrt(2.0 * length / a)
+    ramp = (v * v - v0 * v0) / (2.0 * a) + v * v / (2.0 * a)
+    if length >= ramp:
+        return (v - v0) / a + v / a + (length - ramp) / v
+    peak = math.sqrt((2.0 * a * length + v0 * v0) / 2.0)
+    return (peak - v0) / a + peak / a
+
+
 def dissertation_model(problem: P) -> P:
-    """The same problem under the dissertation's time model: no fixed per-flight time (the paper
-    tables in bench/ are computed this way so that they stay comparable with the text)."""
-    if problem.rover.fixed_time == 0.0:
+    """The same problem under the dissertation's time model: no take-off clearance, no
+    touch-down time, no fixed per-flight time (the paper tables in bench/ are computed this way so
+    that they stay comparable with the text)."""
+    c, r = problem.carrier, problem.rover
+    if c.takeoff_time == 0.0 and c.land_time == 0.0 and r.fixed_time == 0.0 and not c.vertex_stops:
         return problem
-    return dataclasses.replace(problem, rover=dataclasses.replace(problem.rover, fixed_time=0.0))
+    paper = dataclasses.replace(c, takeoff_time=0.0, land_time=0.0, vertex_stops=False)
+    return dataclasses.replace(problem, carrier=paper, rover=dataclasses.replace(r, fixed_time=0.0))
 
 
 def dist(p: Sequence[float], q: Sequence[float]) -> float:
@@ -81,14 +105,22 @@ def _segment_headings(path: Sequence[Vec3]) -> list[float]:
 def carrier_leg(path: Sequence[Vec3], heading: float, carrier: CarrierSpec) -> tuple[float, float]:
     """Time to drive a carrier leg (rotation at its start + travel) and the heading afterwards.
 
-    The carrier turns at the stop from ``heading`` to the direction of the leg's first segment;
-    turns at intermediate vertices of a polyline leg are not charged (DESIGN.md).
+    The carrier turns at the stop from ``heading`` to the direction of the leg's first segment.
+    A polyline leg (the roadmap) is one leg over its whole length with no inner turns, or, with
+    ``carrier.vertex_stops``, rest-to-rest segments with a turn at each inner vertex
+    (docs/time-model.md).
     """
     headings = _segment_headings(path)
     if not headings:
         return 0.0, heading
-    t = turn_time(heading, headings[0], carrier.turn_rate) + leg_time(path_length(path), carrier.motion)
-    return t, headings[-1]
+    if not carrier.vertex_stops or len(headings) == 1:
+        t = turn_time(heading, headings[0], carrier.turn_rate) + leg_time(path_length(path), carrier.motion)
+        return t, headings[-1]
+    t, h = 0.0, heading
+    for p, q in zip(path, path[1:], strict=False):
+        dt, h = carrier_hop(p, q, h, carrier)
+        t += dt
+    return t, h
 
 
 def carrier_hop(p: Sequence[float], q: Sequence[float], heading: float,
@@ -127,8 +159,9 @@ def deploy_schedule(
 ) -> tuple[list[float], list[float], list[list[float]], float]:
     """Deployment times: each stop's arrival and departure, each rover's arrival, the makespan.
 
-    At stop k the carrier arrives, unloads once for ``unload_time`` and leaves; its rovers
-    depart when unloading ends (eq. 4.3). Makespan = the last rover's arrival.
+    At stop k the carrier arrives, unloads once for ``unload_time``, waits ``takeoff_time`` while
+    its rovers climb clear of the deck and leaves; the rovers' flights start then (eq. 4.3 with
+    the clearance). Makespan = the last rover's arrival.
     """
     t = 0.0
     arrive, depart, rover_arrive = [], [], []
@@ -137,7 +170,7 @@ def deploy_schedule(
         dt, heading = carrier_leg(path, heading, carrier)
         t += dt
         arrive.append(t)
-        t += carrier.unload_time
+        t += carrier.deploy_stop_time
         depart.append(t)
         arr = [t + leg_time(length, rover) for length in lengths]
         rover_arrive.append(arr)
@@ -156,7 +189,8 @@ def collect_schedule(
 ) -> tuple[list[float], list[float], list[list[float]], float]:
     """Collection times (eq. 5.2): rovers all start at t = 0; the carrier waits for late rovers.
 
-    eta_k = max(eta_{k-1} + rotation + leg_k, latest rover arrival at k) + load_time.
+    eta_k = max(eta_{k-1} + rotation + leg_k, latest rover arrival at k) + land_time + load_time:
+    a rover comes down onto the deck once both are there (``land_time``), then it is loaded.
     Returns each stop's carrier arrival, departure (= eta_k), rover arrivals, and the makespan.
     """
     eta = 0.0
@@ -165,7 +199,7 @@ def collect_schedule(
         dt, heading = carrier_leg(path, heading, carrier)
         here = eta + dt
         arr = [leg_time(length, rover) for length in lengths]
-        eta = max([here, *arr]) + carrier.load_time
+        eta = max([here, *arr]) + carrier.collect_stop_time
         arrive.append(here)
         depart.append(eta)
         rover_arrive.append(arr)
@@ -185,4 +219,11 @@ def retime(plan: Plan, carrier: CarrierSpec, rover: Motion) -> Plan:
             leg.arrive = t
     plan.makespan = makespan
     plan.carrier_distance = sum(path_length(p) for p in paths)
+    plan.time_model = time_model_terms(carrier, rover)
     return plan
+
+
+def time_model_terms(carrier: CarrierSpec, rover: Motion) -> dict[str, float | bool]:
+    """The terms beyond the dissertation's model, as the plan JSON reports them."""
+    return {"takeoff_time": carrier.takeoff_time, "land_time": carrier.land_time,
+            "rover_fixed_time": rover.fixed_time, "vertex_stops": carrier.vertex_stops}

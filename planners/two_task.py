@@ -58,7 +58,7 @@ def plan_two_tasks(problem: DeployProblem) -> Plan:
     d = problem.deploy_range - RANGE_MARGIN
     pts = [t.position for t in problem.tasks]
     start: Point2 = (problem.start[0], problem.start[1])
-    c, r, unload = problem.carrier, problem.rover, problem.carrier.unload_time
+    c, r, unload = problem.carrier, problem.rover, problem.carrier.deploy_stop_time
     candidates: list[tuple[list[list[int]], list[Point2]]] = []
 
     def rover_time(p: Point2, i: int) -> float:

@@ -1,7 +1,7 @@
 """Plain configuration of a simulated fleet, and its reading from a parsed mission-file dict.
 
 sitl is independent of the controller package: ``FleetConfig.from_mission_dict`` takes the raw
-YAML mapping of a mission file (see DESIGN.md, "Mission file") and keeps only what the
+YAML mapping of a mission file (see docs/mission-file.md) and keeps only what the
 simulation needs. Keys the simulation does not use (tasks, planner, obstacles, ...) are ignored
 here; validating them is the mission loader's job.
 """

@@ -166,6 +166,14 @@ class SimFleet:
     def rover(self, vehicle_id: str) -> Rover:
         return self.world.rovers[vehicle_id]
 
+    def pin_battery(self, vehicle_id: str, level: float | None) -> None:
+        """Hold a rover's battery at ``level`` (0..1) while a scenario is being set up (it uses none
+        in the air meanwhile); ``None`` lets it drain again from where it is."""
+        r = self.world.rovers[vehicle_id]
+        if level is not None:
+            r.battery = min(max(float(level), 0.0), 1.0)
+        r.battery_pinned = level is not None
+
     def link_stats(self, vehicle_id: str | None = None) -> dict[str, int]:
         """Counters of one vehicle's endpoint, or summed over all endpoints."""
         eps = [self._endpoint_of[vehicle_id]] if vehicle_id else self._endpoints

@@ -8,8 +8,10 @@ at z = 0, the carrier's deck at z = 0 too. Motion model (matches the planners' t
   every target.
 * a rover flies straight 3D lines at up to ``max_speed`` (vertical speed capped by
   ``climb_rate``) with the same speed profile, lands vertically at ``land_speed``.
-* battery: ``flown_distance * drain_factor / endurance_range`` of the battery is used; an empty
-  rover in the air lands where it is.
+* battery: a rover in the air (hovering included) uses ``dt * max_speed * drain_factor /
+  endurance_range`` of its battery per step, i.e. ``endurance_range`` metres at cruise speed on a
+  full battery, as a multirotor does; on the ground or the deck it uses none. An empty rover in
+  the air lands where it is.
 * a rover loaded on the carrier moves with it; any flight command detaches it; touching down
   within ``LOAD_RADIUS`` (horizontal) of the stopped carrier loads it again.
 """
@@ -164,6 +166,7 @@ class Rover(Body):
         self.climb_rate = spec.climb_rate or spec.max_speed
         self.land_speed = spec.land_speed or self.climb_rate
         self.battery = 1.0  # 0..1
+        self.battery_pinned = False  # the battery holds its level (a scenario's state until it starts)
         self.flown = 0.0  # metres flown in total
         self.landing = False
         self._land_xy: tuple[float, float] | None = None
@@ -241,7 +244,6 @@ class Rover(Body):
     def step(self, dt: float) -> None:
         if self.phase is not Phase.AIR:
             return
-        before = self.flown
         if self.landing and self.target is None and self.speed == 0.0:
             self._descend(dt)
         elif self.target is not None:
@@ -250,9 +252,11 @@ class Rover(Body):
             self._coast(_brake(self.speed, self.spec.accel, dt), dt)
         elif self.landing:
             self._descend(dt)
-        used = self.flown - before
-        if used > 0.0 and self.spec.endurance_range is not None and self.battery > 0.0:
-            self.battery = max(0.0, self.battery - used * self.drain_factor() / self.spec.endurance_range)
+        if self.spec.endurance_range is not None and self.battery > 0.0 and not self.battery_pinned:
+            # a multirotor burns its battery per second in the air, hovering included:
+            # ``endurance_range`` metres at cruise speed
+            used = dt * self.spec.max_speed * self.drain_factor() / self.spec.endurance_range
+            self.battery = max(0.0, self.battery - used)
             if self.battery <= 0.0:
                 self.events.append("battery_empty")
                 if self.phase is Phase.AIR and not (self.landing and self._land_xy is None):

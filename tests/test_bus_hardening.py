@@ -83,7 +83,7 @@ def test_task_changes_are_off_by_default(tmp_path: Path) -> None:
     assert not bus.handle_task_message(ADD, msg({"tasks": [{"id": "t9", "position": [5, 5, 2]}]}))
     assert not bus.handle_task_message(REMOVE, msg({"tasks": ["t1"]}))
     assert not ex.changes and bus.rejected == 2
-    assert "accept_task_changes: true" in errors[0]["error"] and "README" in errors[0]["error"]
+    assert "accept_task_changes: true" in errors[0]["error"] and "docs/mqtt.md" in errors[0]["error"]
 
 
 @pytest.mark.parametrize("payload", [

@@ -28,7 +28,8 @@ def test_plan_json_matches_the_contract(mission, planner, capsys):
     out = capsys.readouterr().out
     plan = json.loads(out)  # nothing but the JSON on stdout
     assert set(plan) == {"schema", "kind", "planner", "carrier", "stops", "makespan", "carrier_distance",
-                         "compute_ms"}
+                         "compute_ms", "time_model"}
+    assert set(plan["time_model"]) == {"takeoff_time", "land_time", "rover_fixed_time", "vertex_stops"}
     assert plan["schema"] == "fleetctl.plan/1" and plan["kind"] == "deploy" and plan["planner"] == planner
     assert set(plan["carrier"]) == {"start", "heading"}
     for stop in plan["stops"]:
@@ -38,7 +39,9 @@ def test_plan_json_matches_the_contract(mission, planner, capsys):
     m = load_mission(mission)
     c = m.carrier
     check_plan(plan, {"max_speed": c.max_speed, "accel": c.accel, "turn_rate": c.turn_rate,
-                      "unload_time": c.unload_time, "load_time": c.load_time},
+                      "unload_time": c.unload_time, "load_time": c.load_time,
+                      "takeoff_time": m.rovers.takeoff_time, "land_time": m.rovers.land_time,
+                      "vertex_stops": True},
                {"max_speed": m.rovers.max_speed, "accel": m.rovers.accel}, m.rovers.deploy_range)
     assert sorted(r["task"] for s in plan["stops"] for r in s["rovers"]) == sorted(t.id for t in m.tasks)
 

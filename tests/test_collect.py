@@ -37,7 +37,8 @@ def _leg(length: float, v: float, a: float | None) -> float:
 
 
 def _recompute(js: dict, problem: CollectProblem) -> float:
-    """Eq. 5.2 from the plan JSON alone, written from DESIGN.md's time model (not timing.py)."""
+    """Eq. 5.2 from the plan JSON alone, written from docs/time-model.md (not timing.py): rover
+    flights plus the fixed time, a stop's land_time + load_time once carrier and rovers are there."""
     c, r = problem.carrier, problem.rover
     heading, eta = js["carrier"]["heading"], 0.0
     for stop in js["stops"]:
@@ -51,9 +52,10 @@ def _recompute(js: dict, problem: CollectProblem) -> float:
             turn = abs((h - heading + math.pi) % (2 * math.pi) - math.pi)
             drive = (0.0 if c.turn_rate is None else turn / c.turn_rate) + _leg(length, c.max_speed, c.accel)
             heading = math.atan2(segs[-1][1], segs[-1][0])
-        flights = [_leg(sum(math.dist(p, q) for p, q in zip(leg["path"], leg["path"][1:], strict=False)),
-                        r.max_speed, r.accel) for leg in stop["rovers"]]
-        eta = max([eta + drive, *flights]) + c.load_time
+        lengths = [sum(math.dist(p, q) for p, q in zip(leg["path"], leg["path"][1:], strict=False))
+                   for leg in stop["rovers"]]
+        flights = [r.fixed_time + _leg(length, r.max_speed, r.accel) for length in lengths]
+        eta = max([eta + drive, *flights]) + c.land_time + c.load_time
     return eta
 
 
@@ -80,7 +82,7 @@ def check_plan(problem: CollectProblem, plan: Plan) -> None:
             assert flight <= rv.range + 2e-6, f"{rv.id} flies {flight} m with a range of {rv.range} m"
             latest = max(latest, leg["arrive"])
         # the carrier leaves only after its rovers have landed and the load time has passed
-        assert stop["depart"] >= latest + problem.carrier.load_time - TOL
+        assert stop["depart"] >= latest + problem.carrier.land_time + problem.carrier.load_time - TOL
         prev_depart, prev_pos = stop["depart"], stop["position"]
     for leg in plan.legs():  # unrounded: every flight within its range
         # planned flights stay RANGE_MARGIN inside the range; a rover with (almost) no range left is

@@ -32,8 +32,9 @@ def random_problem(seed: int, n: int, three_d: bool, size: float = 150.0) -> Dep
 def as_dicts(p: DeployProblem):
     c = p.carrier
     return ({"max_speed": c.max_speed, "accel": c.accel, "turn_rate": c.turn_rate,
-             "unload_time": c.unload_time, "load_time": c.load_time},
-            {"max_speed": p.rover.max_speed, "accel": p.rover.accel})
+             "unload_time": c.unload_time, "load_time": c.load_time, "takeoff_time": c.takeoff_time,
+             "land_time": c.land_time},
+            {"max_speed": p.rover.max_speed, "accel": p.rover.accel, "fixed_time": p.rover.fixed_time})
 
 
 def check(problem: DeployProblem, planner: str) -> dict:

@@ -12,6 +12,14 @@ import yaml
 
 from fleetctl.geo import Origin, compass_to_math, enu_to_geodetic
 from fleetctl.mission import Mission, MissionError, load_mission, parse_mission
+from fleetctl.mission.flight import (
+    LAND_SETTLE,
+    MEET_HEIGHT,
+    TAKEOFF_HEIGHT,
+    TAKEOFF_SETTLE,
+    default_land_time,
+    default_takeoff_time,
+)
 from planners.problem import CarrierSpec, CollectProblem, DeployProblem, Motion, Task
 
 MISSIONS = Path(__file__).resolve().parent.parent / "missions"
@@ -124,7 +132,8 @@ def test_defaults(tmp_path: Path) -> None:
     assert (c.id, c.connection, c.sysid, c.heading_deg) == ("carrier", "sim", 1, 0.0)
     assert (c.accel, c.turn_rate, c.unload_time, c.load_time) == (None, None, 0.0, 0.0)
     r = m.rovers
-    assert (r.accel, r.reserve, r.energy, r.endurance_range) == (None, 0.1, None, 50.0)
+    # no endurance_range: a 10-minute battery at cruise speed (at least twice the deploy range)
+    assert (r.accel, r.reserve, r.energy, r.endurance_range) == (None, 0.1, None, 600.0 * r.max_speed)
     assert [(u.id, u.sysid, u.connection) for u in r.units] == [("r1", 11, None), ("r2", 12, None)]
     assert m.links.heartbeat_timeout == 3.0
     assert (m.planner.deploy, m.planner.collect, m.planner.seed, m.planner.roadmap) == ("lee", "lee", 0, None)
@@ -284,13 +293,29 @@ def test_deploy_problem(tmp_path: Path) -> None:
     data["rovers"]["accel"] = 4.0
     p = load(tmp_path, data).deploy_problem()
     assert isinstance(p, DeployProblem)
-    assert p.carrier == CarrierSpec(15.0, 2.0, 1.5, 3.0, 2.0)
+    # the time model's take-off and touch-down times default to fleetctl.mission.flight's
+    times = default_takeoff_time(1.0), default_land_time(1.0)
+    assert p.carrier == CarrierSpec(15.0, 2.0, 1.5, 3.0, 2.0, *times, vertex_stops=True)
     assert p.rover == Motion(1.0, 4.0) and p.deploy_range == 25.0
     assert p.start == (5.0, 6.0, 0.0) and p.heading == pytest.approx(compass_to_math(90)) == pytest.approx(
         0.0
     )
     assert p.tasks == (Task("a", (10.0, 20.0, 4.0)), Task("b", (40.0, 10.0, 0.0)))
     assert p.rovers == ("r1", "r2")
+
+
+def test_takeoff_and_land_times_from_the_vertical_speeds_or_given(tmp_path: Path) -> None:
+    data = with_("rovers", climb_rate=2.0, land_speed=0.5)
+    r = load(tmp_path, data).rovers
+    assert r.takeoff_time == pytest.approx(TAKEOFF_HEIGHT / 2.0 + TAKEOFF_SETTLE)
+    assert r.land_time == pytest.approx(MEET_HEIGHT / 0.5 + LAND_SETTLE)
+    data = with_("rovers", takeoff_time=0, land_time=2.5)
+    m = load(tmp_path, data)
+    assert (m.rovers.takeoff_time, m.rovers.land_time) == (0.0, 2.5)
+    assert m.deploy_problem().carrier.deploy_stop_time == pytest.approx(m.carrier.unload_time)
+    for bad in ({"land_time": -1}, {"takeoff_time": "soon"}, {"climb_rate": 0}):
+        with pytest.raises(MissionError, match="rovers"):
+            load(tmp_path, with_("rovers", **bad))
 
 
 def test_collect_problem(tmp_path: Path) -> None:
@@ -603,7 +628,6 @@ def test_missing_file(tmp_path: Path) -> None:
     "url",
     [
         "udp://127.0.0.1",
-        "udp://:14550",
         "http://host:80",
         "tcp://host:70000",
         "serial:///dev/ttyUSB0",

@@ -38,7 +38,7 @@ def _carrier(m: Mission) -> dict:
 
 
 def _rover(motion: Motion) -> dict:
-    return {"max_speed": motion.max_speed, "accel": motion.accel}
+    return {"max_speed": motion.max_speed, "accel": motion.accel, "fixed_time": motion.fixed_time}
 
 
 def assert_outside(plan: dict, obstacles) -> None:
@@ -57,7 +57,8 @@ def check_deploy(plan, problem: DeployProblem, obstacles) -> None:
     js = plan.to_json()
     carrier = {"max_speed": problem.carrier.max_speed, "accel": problem.carrier.accel,
                "turn_rate": problem.carrier.turn_rate, "unload_time": problem.carrier.unload_time,
-               "load_time": problem.carrier.load_time}
+               "load_time": problem.carrier.load_time, "takeoff_time": problem.carrier.takeoff_time,
+               "land_time": problem.carrier.land_time, "vertex_stops": problem.carrier.vertex_stops}
     makespan = check_plan(js, carrier, _rover(problem.rover), problem.deploy_range)
     assert makespan == pytest.approx(plan.makespan, abs=1e-4)
     served = [r["task"] for s in js["stops"] for r in s["rovers"]]
@@ -71,7 +72,8 @@ def check_collect(plan, problem: CollectProblem, obstacles) -> None:
     js = plan.to_json()
     carrier = {"max_speed": problem.carrier.max_speed, "accel": problem.carrier.accel,
                "turn_rate": problem.carrier.turn_rate, "unload_time": problem.carrier.unload_time,
-               "load_time": problem.carrier.load_time}
+               "load_time": problem.carrier.load_time, "takeoff_time": problem.carrier.takeoff_time,
+               "land_time": problem.carrier.land_time, "vertex_stops": problem.carrier.vertex_stops}
     ranges = {r.id: r.range for r in problem.rovers}
     starts = {r.id: list(r.position) for r in problem.rovers}
     makespan = check_plan(js, carrier, _rover(problem.rover), ranges, starts)

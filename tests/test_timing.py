@@ -130,6 +130,49 @@ def test_dissertation_model_drops_the_fixed_time_and_shifts_a_deployment_by_it()
                       (0.0, 0.0, 0.0), 0.0, tasks)
     base = dissertation_model(p)
     assert base.rover.fixed_time == 0.0 and dissertation_model(base) is base
+    p2 = DeployProblem(CarrierSpec(10.0, 5.0, 1.0, 2.0, 2.0, takeoff_time=1.0), Motion(2.0), 15.0,
+                       (0.0, 0.0, 0.0), 0.0, tasks)
+    first = DEPLOY_PLANNERS["lee"](p2).stops[0]
+    assert first.depart == pytest.approx(first.arrive + 3.0)  # unload 2 s + take-off clearance 1 s
     a, b = DEPLOY_PLANNERS["lee"](p), DEPLOY_PLANNERS["lee"](base)
     # in a deployment the fixed time is a constant on every rover arrival: same plan, makespan + 3 s
     assert a.makespan == pytest.approx(b.makespan + 3.0)
+
+
+@pytest.mark.parametrize("accel", [None, 0.5, 3.0])
+def test_remaining_leg_time_matches_the_leg_from_rest_and_a_simulated_profile(accel):
+    from planners.problem import Motion
+    from planners.timing import remaining_leg_time, travel_time
+
+    m = Motion(4.0, accel)
+    for d in (0.5, 3.0, 40.0):
+        assert remaining_leg_time(d, 0.0, m) == pytest.approx(travel_time(d, m))
+    if accel is None:
+        return
+    # integrate the profile from a speed v0 part-way: accelerate, cruise, brake to rest at the end
+    for d, v0 in ((40.0, 2.0), (5.0, 3.0), (30.0, 4.0)):
+        x, v, t, dt = 0.0, v0, 0.0, 1e-4
+        while d - x > 1e-6 and t < 100:
+            v = max(min(4.0, v + accel * dt, math.sqrt(2 * accel * (d - x))), 1e-3)
+            x += v * dt
+            t += dt
+        assert remaining_leg_time(d, v0, m) == pytest.approx(t, rel=0.02)
+
+
+def test_vertex_stops_drive_a_polyline_as_rest_to_rest_segments_with_turns():
+    from planners.problem import CarrierSpec
+    from planners.timing import carrier_hop, carrier_leg
+
+    path = [(0.0, 0.0, 0.0), (30.0, 0.0, 0.0), (30.0, 40.0, 0.0), (0.0, 40.0, 0.0)]
+    one = CarrierSpec(10.0, 5.0, 1.0)
+    stops = CarrierSpec(10.0, 5.0, 1.0, vertex_stops=True)
+    t_one, h_one = carrier_leg(path, 0.0, one)
+    t_stops, h_stops = carrier_leg(path, 0.0, stops)
+    expect, h = 0.0, 0.0
+    for p, q in zip(path, path[1:], strict=False):
+        dt, h = carrier_hop(p, q, h, stops)
+        expect += dt
+    assert t_stops == pytest.approx(expect) and h_stops == pytest.approx(h_one)
+    # two π/2 turns at 1 rad/s and two extra accelerations (v/a = 2 s each) over one 110 m leg
+    assert t_stops == pytest.approx(t_one + math.pi + 2 * 2.0)
+    assert carrier_leg(path[:2], 0.0, stops) == carrier_leg(path[:2], 0.0, one)  # a straight leg

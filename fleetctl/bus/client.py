@@ -103,6 +103,8 @@ class FleetBus:
         self.dropped = 0
         self.published = 0
         self.connects = 0
+        self.disconnects = 0  # connections lost after they were up
+        self.last_error: str | None = None  # why the last connect failed or the connection dropped
         self.state: FleetState | None = None
         self.executor: Any = None
         self.record: Callable[..., None] = lambda kind, **data: None  # the journal's write
@@ -164,22 +166,41 @@ class FleetBus:
 
     def status_line(self) -> str:
         """``bus: connected`` / ``bus: reconnecting (12 dropped)`` for the live view."""
-        extra = [f"{len(self._buf)} queued"] if self.status != "connected" and self._buf else []
+        extra = [self.last_error] if self.status != "connected" and self.last_error else []
+        extra += [f"{len(self._buf)} queued"] if self.status != "connected" and self._buf else []
         if self.dropped:
             extra.append(f"{self.dropped} dropped")
         line = f"bus: {self.status} {self.config.url} {self.prefix}"
         return line + (f" ({', '.join(extra)})" if extra else "")
 
-    def _set_status(self, status: str) -> None:
+    def stats(self) -> dict[str, Any]:
+        """The summary's ``"mqtt"`` section (docs/summary-json.md)."""
+        return {"url": self.config.url, "topic_prefix": self.prefix, "state": self.status,
+                "connects": self.connects, "disconnects": self.disconnects, "last_error": self.last_error,
+                "published": self.published, "dropped": self.dropped, "queued": len(self._buf),
+                "rejected": self.rejected}
+
+    def _set_status(self, status: str, error: BaseException | None = None) -> None:
+        if error is not None:
+            self.last_error = (str(error) or type(error).__name__)[:300]
         if status == self.status:
             return
         old, self.status = self.status, status
         log.info("bus %s: %s", self.config.url, status)
-        if self.state is not None and (status == "connected" or old == "connected"):
-            text = f"bus: {status}" + (f" ({self.dropped} dropped)" if self.dropped else "")
-            self.state.event("bus_" + status, text, None, url=self.config.url, dropped=self.dropped)
+        if self.state is not None:  # a broker that never answers is shown too (was silent)
+            self.state.event("bus_" + status, self._status_text(old), None, url=self.config.url,
+                             dropped=self.dropped, error=self.last_error)
         for cb in list(self._on_status):
             cb(status)
+
+    def _status_text(self, old: str) -> str:
+        url = self.config.url
+        if self.status == "connected":
+            return f"bus: connected to {url}" + (f" ({self.dropped} dropped)" if self.dropped else "")
+        why = f" ({self.last_error})" if self.last_error else ""
+        if old == "connected":
+            return f"bus: connection to {url} lost{why}; reconnecting, messages are queued"
+        return f"bus: cannot connect to {url}{why}; retrying, messages are queued (the mission flies on)"
 
     def add_status_listener(self, cb: Callable[[str], None]) -> None:
         self._on_status.append(cb)
@@ -284,7 +305,7 @@ class FleetBus:
                     await client.__aenter__()
             except (aiomqtt.MqttError, TimeoutError, OSError) as exc:
                 log.debug("bus %s: cannot connect: %s", self.config.url, exc)
-                self._set_status("reconnecting")
+                self._set_status("reconnecting", exc)
                 await asyncio.sleep(delay)
                 delay = min(delay * 2, BACKOFF_MAX)
                 continue
@@ -300,13 +321,15 @@ class FleetBus:
                     tg.create_task(self._receive(client))
             except* (aiomqtt.MqttError, TimeoutError, OSError) as eg:
                 log.debug("bus %s: connection lost: %s", self.config.url, eg.exceptions[0])
-                self._set_status("reconnecting")
+                self.disconnects += 1
+                self._set_status("reconnecting", eg.exceptions[0])
             except* Exception as eg:  # a bug must not end the bus: say so, reconnect
                 log.error("bus %s: unexpected error, reconnecting: %r", self.config.url, eg.exceptions[0],
                           exc_info=eg.exceptions[0])
                 with contextlib.suppress(Exception):
                     self.record("bus_error", error=f"{type(eg.exceptions[0]).__name__}: {eg.exceptions[0]}")
-                self._set_status("reconnecting")
+                self.disconnects += 1
+                self._set_status("reconnecting", eg.exceptions[0])
                 await asyncio.sleep(delay)
                 delay = min(delay * 2, BACKOFF_MAX)
             finally:
@@ -388,7 +411,7 @@ class FleetBus:
             raise TaskMessageError(
                 "task changes over MQTT are off for this mission; to allow them set "
                 "'accept_task_changes: true' in the mission's mqtt section (and let only named users "
-                "publish to <prefix>/tasks/# on the broker: README, 'MQTT fleet bus'); nothing changed")
+                "publish to <prefix>/tasks/# on the broker: docs/mqtt.md); nothing changed")
         depth = json_depth(payload)
         if depth > MAX_JSON_DEPTH:
             raise TaskMessageError(f"JSON nested {depth} levels deep (at most {MAX_JSON_DEPTH}); "
@@ -490,11 +513,14 @@ class FleetBus:
         raw = copy.deepcopy(self.mission.raw)
         raw["tasks"] = list(entries) + [{"id": t.id, "position": [float(c) for c in t.position]}
                                         for t in current]
-        rovers = dict(raw.get("rovers") or {})
-        rovers.pop("fleet", None)  # the fleet is fixed: spell out its units
-        rovers["units"] = [{"id": u.id, "sysid": u.sysid} for u in self.mission.rovers.units]
-        raw["rovers"] = rovers
+        if "carriers" not in raw:  # (a carriers: list gives every fleet's count itself)
+            rovers = dict(raw.get("rovers") or {})
+            rovers.pop("fleet", None)  # the fleet is fixed: spell out its units
+            rovers["units"] = [{"id": u.id, "sysid": u.sysid} for u in self.mission.rovers.units]
+            raw["rovers"] = rovers
         raw.pop("mqtt", None)
+        if isinstance(raw.get("obstacles"), dict):  # {file: PATH}: the obstacles as loaded, no file I/O here
+            raw["obstacles"] = [[list(v) for v in poly] for poly in self.mission.obstacles]
         try:
             m = parse_mission(raw, f"mqtt {source}")
         except MissionError as exc:

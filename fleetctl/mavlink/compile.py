@@ -1,4 +1,4 @@
-"""Plan → MAVLink mission items per vehicle (DESIGN.md "MAVLink mapping").
+"""Plan → MAVLink mission items per vehicle (docs/mavlink.md, "Plan to mission items").
 
 Positions are converted from the plan's ENU frame with :func:`fleetctl.geo.local_to_geodetic` and
 written as ``_INT`` coordinates (degrees·1e7) in ``MAV_FRAME_GLOBAL_RELATIVE_ALT_INT``; ``z`` is
@@ -17,11 +17,12 @@ while rovers take off from (or land on) it. The controller releases it with
 the hold, i.e. the first item of the way to the next stop). The last stop has
 ``release_seq = None``: the carrier stays there until told otherwise.
 
-Deployment rover: ``NAV_TAKEOFF`` (at the stop, to the task height), ``NAV_WAYPOINT`` per vertex
-of its path after the start (3D; the last one is the task → ``target_seq``), ``NAV_LOITER_UNLIM``
-at the task (``final_seq``).
+Deployment rover: ``NAV_TAKEOFF`` (at the stop, to the take-off clearance
+``fleetctl.mission.flight.TAKEOFF_HEIGHT``), ``NAV_WAYPOINT`` per vertex of its path after the
+start (3D: the straight line from the clearance to the task; the last one is the task →
+``target_seq``), ``NAV_LOITER_UNLIM`` at the task (``final_seq``).
 
-Collection rover: ``NAV_TAKEOFF`` to the meeting height when its path starts on the ground,
+Collection rover: ``NAV_TAKEOFF`` to the take-off clearance when its path starts on the ground,
 ``NAV_WAYPOINT`` per intermediate vertex of its path, ``NAV_WAYPOINT`` to the meeting point above
 the carrier's stop at ``max(meet_height, path end height)`` (``target_seq``), ``NAV_LAND`` on the
 stop (``final_seq``).
@@ -42,6 +43,7 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 from fleetctl.geo import Origin, geodetic_to_local, local_to_geodetic
 from fleetctl.mavlink.autopilots import Autopilot
 from fleetctl.mavlink.link import MissionItem
+from fleetctl.mission.flight import GROUND_HEIGHT, MEET_HEIGHT, TAKEOFF_HEIGHT
 from planners.plan import Plan
 
 if TYPE_CHECKING:
@@ -49,7 +51,6 @@ if TYPE_CHECKING:
 
 M = mavlink2
 FRAME = M.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT
-ON_GROUND_Z = 0.2  # m: a collection path starting this low starts on the ground (take off first)
 
 
 class CompileError(ValueError):
@@ -100,7 +101,7 @@ AutopilotSpec = Autopilot | Mapping[str, Autopilot] | None
 
 def compile_plan(
     plan: Plan, origin: Origin | None, *, carrier_id: str = "carrier", autopilot: AutopilotSpec = None,
-    home_height: float = 0.0, meet_height: float = 3.0, min_takeoff_height: float = 1.0,
+    home_height: float = 0.0, meet_height: float = MEET_HEIGHT, takeoff_height: float = TAKEOFF_HEIGHT,
 ) -> CompiledPlan:
     """Turn a deployment or collection :class:`~planners.plan.Plan` into mission items.
 
@@ -108,7 +109,7 @@ def compile_plan(
     vehicle id -> autopilot (e.g. ``{vid: v.autopilot for vid, v in fleet.vehicles.items()}``);
     only ``home_is_item0`` matters here. None = no home item (PX4 / generic).
     ``meet_height``: the safe height (above home) of the approach point above a collection stop;
-    ``min_takeoff_height``: lowest take-off height for a task on the ground.
+    ``takeoff_height``: the take-off clearance before a rover turns onto its line.
     """
     if origin is None:
         raise CompileError("the mission has no origin: mission items need WGS84 coordinates; "
@@ -156,8 +157,7 @@ def compile_plan(
                 if home0(leg.rover):
                     items.append(home_item(start))
                 target = leg.end
-                takeoff_z = max(float(target[2]), min_takeoff_height)
-                items.append(wp(M.MAV_CMD_NAV_TAKEOFF, (start[0], start[1], takeoff_z)))
+                items.append(wp(M.MAV_CMD_NAV_TAKEOFF, (start[0], start[1], takeoff_height)))
                 for v in leg.path[1:]:
                     items.append(wp(M.MAV_CMD_NAV_WAYPOINT, v))
                 target_seq = len(items) - 1
@@ -168,8 +168,8 @@ def compile_plan(
                     items.append(home_item(start))
                 pos = _ground(stop.position)
                 meet_z = max(meet_height, float(leg.end[2]))
-                if float(start[2]) <= ON_GROUND_Z:
-                    items.append(wp(M.MAV_CMD_NAV_TAKEOFF, (start[0], start[1], meet_z)))
+                if float(start[2]) <= GROUND_HEIGHT:
+                    items.append(wp(M.MAV_CMD_NAV_TAKEOFF, (start[0], start[1], takeoff_height)))
                 for v in leg.path[1:-1]:
                     items.append(wp(M.MAV_CMD_NAV_WAYPOINT, v))
                 items.append(wp(M.MAV_CMD_NAV_WAYPOINT, (pos[0], pos[1], meet_z)))

@@ -17,14 +17,18 @@ if TYPE_CHECKING:
 Tap = Callable[[str, float, bytes], None]
 
 
+CONNECT_HINT = "check the URL, the system id and that the vehicle is powered"
+
+
 class FleetConnectError(Exception):
     """Some vehicles of the mission did not answer; ``missing`` maps vehicle id -> its URL."""
 
-    def __init__(self, missing: Mapping[str, str], reasons: Mapping[str, str]) -> None:
+    def __init__(self, missing: Mapping[str, str], reasons: Mapping[str, str],
+                 lines: list[str] | None = None) -> None:
         self.missing = dict(missing)
         self.reasons = dict(reasons)
-        lines = [f"{vid} at {url}: {reasons.get(vid, 'no answer')}" for vid, url in self.missing.items()]
-        super().__init__(f"{len(lines)} vehicle(s) did not answer: " + "; ".join(lines))
+        lines = lines or [f"{vid}: {reasons.get(vid, 'no answer')} on {url}" for vid, url in missing.items()]
+        super().__init__(f"{len(lines)} vehicle(s) did not answer ({CONNECT_HINT}):\n  " + "\n  ".join(lines))
 
 
 class Fleet:
@@ -53,6 +57,12 @@ class Fleet:
         if rover_id == self.carrier_id:
             raise ValueError("the carrier cannot be left out")
         self.left_out[rover_id] = why
+
+    def failure_line(self, vid: str) -> str:
+        """One short line on why a vehicle is not connected: ``r3 (sysid 13): no heartbeat within
+        10 s on udp://127.0.0.1:14550``."""
+        why = self.errors.get(vid, "no heartbeat")
+        return f"{vid} (sysid {self.vehicles[vid].sysid}): {why} on {self.urls[vid]}"
 
     def missing(self) -> dict[str, str]:
         """id -> URL of every vehicle never heard from."""
@@ -184,7 +194,7 @@ async def connect_fleet(
         except LinkError as exc:
             for vid, u in urls.items():
                 if u == url:
-                    errors[vid] = str(exc)
+                    errors[vid] = str(exc).removeprefix(f"connection {url!r}: ")
     # a vehicle whose link failed to open keeps a proxy on the unopened link: it is reported, never heard
     # plausibility bound: a rover rides the carrier, so it may move at the faster of the two speeds
     speeds = {mission.carrier.id: mission.carrier.max_speed}
@@ -200,14 +210,13 @@ async def connect_fleet(
         try:
             await v.wait_heartbeat(timeout)
         except TimeoutError:
-            errors[vid] = (f"no heartbeat from system {v.sysid} within {timeout:g} s "
-                           "(check the URL, the system id and that the vehicle is powered)")
+            errors[vid] = f"no heartbeat within {timeout:g} s"
 
     await asyncio.gather(*(first_heartbeat(vid, v) for vid, v in vehicles.items()))
     missing = fleet.missing()
     if missing and require_all:
         await fleet.close()
-        raise FleetConnectError(missing, errors)
+        raise FleetConnectError(missing, errors, [fleet.failure_line(vid) for vid in missing])
     if configure_streams:
         await asyncio.gather(*(v.configure_streams(position_hz) for v in vehicles.values() if v.connected))
     return fleet
@@ -215,4 +224,4 @@ async def connect_fleet(
 
 
 
-__all__ = ["Fleet", "FleetConnectError", "Tap", "connect_fleet", "fleet_urls"]
+__all__ = ["CONNECT_HINT", "Fleet", "FleetConnectError", "Tap", "connect_fleet", "fleet_urls"]

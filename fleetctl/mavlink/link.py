@@ -3,7 +3,7 @@
 pymavlink is used only as the codec (``pymavlink.dialects.v20.ardupilotmega``); sockets, timers
 and retries are asyncio. Nothing here blocks the event loop.
 
-Connection URLs are written from the controller's side (DESIGN.md "Mission file"):
+Connection URLs are written from the controller's side (docs/mavlink.md):
 
 * ``udpin://HOST:PORT`` - listen there; a reply goes to the address its system id was last heard
   from, a broadcast (heartbeat) to every address heard from.

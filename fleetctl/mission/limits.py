@@ -15,9 +15,14 @@ MAX_ALIASES = 100  # uses of '*anchor' in one file
 MAX_STRING = 256  # characters of an id, name or other string value
 MAX_NUMBER_DIGITS = 40  # characters of a number as written (more cannot be a physical value)
 
+# --------------------------------------------------------------------------- tasks/obstacles {file: PATH}
+MAX_DATA_FILE_BYTES = 2 * 1024 * 1024  # a .plan/.geojson/.kml/.csv (5000 vertices as GeoJSON ~ 250 KB)
+MAX_DATA_FILE_ENTRIES = 10_000  # features, mission items, placemarks or rows looked at in one file
+
 # --------------------------------------------------------------------------- list lengths
 MAX_TASKS = 254  # MAVLink system ids 1..255: one carrier + 254 rovers, one rover per task
 MAX_ROVERS = 254
+MAX_CARRIERS = 16  # teams of one mission (carriers:)
 MAX_OBSTACLES = 500
 MAX_OBSTACLE_VERTICES = 200  # per polygon
 MAX_TOTAL_VERTICES = 5000  # all polygons together
@@ -35,7 +40,7 @@ MIN_ACCEL = 0.01  # m/s²
 MAX_ACCEL = 200.0  # m/s² (~20 g)
 MIN_TURN_RATE = 0.001  # rad/s
 MAX_TURN_RATE = 100.0  # rad/s
-MAX_HANDLING_TIME = 3600.0  # s: unload_time, load_time
+MAX_HANDLING_TIME = 3600.0  # s: unload_time, load_time, rovers.takeoff_time, rovers.land_time
 MAX_DWELL = 7 * 86_400.0  # s on task (a week)
 MIN_RANGE = 0.01  # m: deploy_range, endurance_range, collection range
 MAX_RANGE = 1_000_000.0  # m (1000 km): more than any battery flies
@@ -64,5 +69,11 @@ MAX_ROADMAP_EDGES = 100_000  # (the planner itself refuses more than 120,000 act
 # current task and from the carrier start. Removing every task is refused the same way.
 FAR_FACTOR = 2.0
 MIN_EXTENT = 100.0  # m
+
+# --------------------------------------------------------------------------- warnings (mission/outliers.py)
+# ``plan`` and ``deploy`` warn about a task farther from the centroid of the other tasks than
+# OUTLIER_FACTOR x their median distance from it and than OUTLIER_MIN_DISTANCE.
+OUTLIER_FACTOR = 3.0
+OUTLIER_MIN_DISTANCE = 200.0  # m
 
 __all__ = [name for name in dir() if name.isupper()]

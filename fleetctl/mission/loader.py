@@ -1,4 +1,4 @@
-"""Mission files: load and validate the YAML contract of DESIGN.md, build the planners' problems.
+"""Mission files: load and validate the YAML contract of docs/mission-file.md, build the planners' problems.
 
 Every error a user can make in a mission file raises :class:`MissionError` whose message names
 the file (and line, when the file was read from disk), the key path (``rovers.max_speed``,
@@ -20,6 +20,15 @@ Decisions beyond the contract:
 * Collection rover ids must be rovers of the fleet; fault ``vehicle`` must be a vehicle id.
 * The carrier's start and every task must lie outside every obstacle and inside ``bounds``.
 * Duplicate keys in a YAML mapping are rejected (YAML silently keeps the last one).
+* ``carriers: [...]`` (docs/teams.md) replaces ``carrier:``: each entry takes the carrier keys (``id``
+  and ``sysid`` required) and its own ``fleet`` or ``units``; ``fleet`` ids run on across carriers
+  and its ``sysid_start`` defaults to one after the previous carrier's last rover. ``Mission.carrier``
+  is the first carrier, ``rovers.units`` every team's rovers, ``Mission.teams`` the decks.
+* ``tasks: {file: PATH}`` / ``obstacles: {file: PATH}`` (PATH relative to the mission file's folder)
+  read a QGroundControl .plan, GeoJSON, KML or CSV file (:mod:`fleetctl.mission.formats`); the
+  result is validated here like a list in the file, and messages name the file and the feature.
+  Lat/lon in such a file need the mission's ``origin`` (a .plan's planned home is never taken as
+  the origin: it would move every ENU position of the mission; the message quotes it instead).
 """
 
 from __future__ import annotations
@@ -37,8 +46,11 @@ import yaml
 from shapely.geometry import Point, Polygon
 from shapely.validation import explain_validity
 
+import fleetctl.mission.formats as formats
 import fleetctl.mission.limits as L
 from fleetctl.geo import Origin, geodetic_to_local
+from fleetctl.mission.connections import ConnectionSpellingError, normalize_connection
+from fleetctl.mission.flight import DEFAULT_ENDURANCE, default_land_time, default_takeoff_time
 from fleetctl.mission.model import (
     FAILSAFE_ACTIONS,
     FAULT_KINDS,
@@ -57,6 +69,7 @@ from fleetctl.mission.model import (
     RoverUnit,
     SigningConfig,
     SimConfig,
+    TeamConfig,
     TlsConfig,
 )
 from fleetctl.mission.yaml_safe import YamlError, read_yaml
@@ -113,6 +126,7 @@ class _Ctx:
         self.source = source
         self.lines = lines or {}
         self.raw: Any = None
+        self.notes: dict[KeyPath, str] = {}  # key path -> where it came from (a task file's feature)
 
     def fail(self, path: KeyPath, message: str) -> NoReturn:
         where = self.source
@@ -120,7 +134,9 @@ class _Ctx:
             if path[:n] in self.lines:
                 where = f"{self.source}:{self.lines[path[:n]]}"
                 break
-        raise MissionError(f"{where}: {_fmt_path(path)}: {message}")
+        note = next((self.notes[path[:n]] for n in range(len(path), 0, -1) if path[:n] in self.notes), None)
+        shown = _fmt_path(path) + (f" (from {note})" if note else "")
+        raise MissionError(f"{where}: {shown}: {message}")
 
     def section(self, value: Any, path: KeyPath, spec: Mapping[str, tuple[Parser, Any]]) -> dict[str, Any]:
         """Check a mapping against ``spec`` (key → (parser, default or _REQUIRED)); parse every key."""
@@ -257,15 +273,20 @@ _HOSTPORT = r"(?P<host>\[[0-9a-fA-F:.]+\]|[A-Za-z0-9_.-]+):(?P<port>\d+)"
 _CONNECTION_RES = (
     re.compile(r"sim"),
     re.compile(rf"(?:udp|udpout|udpin|tcp)://{_HOSTPORT}"),
-    re.compile(r"serial://(?P<dev>/[^?\s]+)\?baud=(?P<baud>\d+)"),
+    re.compile(r"serial://(?P<dev>/[^?\s]+|COM\d+)\?baud=(?P<baud>\d+)"),
 )
 _CONNECTION_FORMS = (
-    "sim, udp://HOST:PORT, udpout://HOST:PORT, udpin://HOST:PORT, tcp://HOST:PORT, serial:///dev/NAME?baud=N"
+    "sim, udp://HOST:PORT, udpout://HOST:PORT, udpin://HOST:PORT, tcp://HOST:PORT, serial:///dev/NAME?baud=N "
+    "(docs/mavlink.md)"
 )
 
 
 def _connection(ctx: _Ctx, v: Any, path: KeyPath) -> str:
     if isinstance(v, str):
+        try:  # MAVSDK/pymavlink/MAVProxy spellings: fleetctl's own, or what to write instead
+            v = normalize_connection(v)
+        except ConnectionSpellingError as exc:
+            ctx.fail(path, str(exc))
         for rx in _CONNECTION_RES:
             m = rx.fullmatch(v)
             if m is None:
@@ -369,10 +390,16 @@ _ROVERS = {
     "energy": (lambda c, v, p: c.section(v, p, _ENERGY), None),
     "endurance_range": (_RANGE, None),
     "reserve": (_number(ge=0, lt=1, unit="fraction of the battery"), 0.1),
+    "climb_rate": (_number(ge=L.MIN_SPEED, le=L.MAX_SPEED, null=True, unit="m/s"), None),
+    "land_speed": (_number(ge=L.MIN_SPEED, le=L.MAX_SPEED, null=True, unit="m/s"), None),
+    "takeoff_time": (_number(ge=0, le=L.MAX_HANDLING_TIME, null=True, unit="s"), None),
+    "land_time": (_number(ge=0, le=L.MAX_HANDLING_TIME, null=True, unit="s"), None),
     "fleet": (lambda c, v, p: c.section(v, p, _FLEET), None),
     "units": (_list(lambda c, v, p: c.section(v, p, _UNIT), "units {id, sysid, connection}", L.MAX_ROVERS),
               None),
 }
+_TEAM = {**_CARRIER, "id": (_ID, _REQUIRED), "sysid": (_CARRIER["sysid"][0], _REQUIRED),
+         "fleet": _ROVERS["fleet"], "units": _ROVERS["units"]}  # carriers[i]: a carrier and its rovers
 _TASK = {"id": (_ID, _REQUIRED), **_POINT_SPEC}
 _COLLECT_ROVER = {
     "id": (_ID, _REQUIRED),
@@ -464,14 +491,51 @@ _MQTT = {
     "tls": (lambda c, v, p: TlsConfig(**c.section(v, p, _TLS)), None),
     "accept_task_changes": (_boolean, False),
 }
+_TASK_LIST = _list(lambda c, v, p: c.section(v, p, _TASK), "tasks {id, position}", L.MAX_TASKS)
+_OBSTACLE_LIST = _list(_list(_vector(2), "[x, y] vertices", L.MAX_OBSTACLE_VERTICES), "polygons",
+                       L.MAX_OBSTACLES)
+
+
+class _FileRef(str):
+    """``{file: PATH}`` in place of a list (tasks, obstacles): read in :func:`_read_files`."""
+
+
+def _file_ref(ctx: _Ctx, v: Any, path: KeyPath) -> _FileRef:
+    return _FileRef(ctx.section(v, path, {"file": (_string(), _REQUIRED)})["file"])
+
+
+def _read_files(ctx: _Ctx, d: dict[str, Any], origin: Origin | None, path: Path | None) -> None:
+    """Replace ``tasks``/``obstacles`` given as ``{file: PATH}`` by what the file holds, validated
+    like a list in the mission; later messages name the file's feature (ctx.notes)."""
+    base = path.parent if path is not None else Path.cwd()
+    for key in ("tasks", "obstacles"):
+        ref = d[key]
+        if not isinstance(ref, _FileRef):
+            continue
+        try:
+            if key == "tasks":
+                tasks = formats.read_tasks(base / ref, origin, shown=str(ref))
+                rows: list[Any] = [{"id": t.id, "position": list(t.position)} for t in tasks]
+                wheres = [t.where for t in tasks]
+            else:
+                obstacles = formats.read_obstacles(base / ref, origin, shown=str(ref))
+                rows = [[list(v) for v in o.vertices] for o in obstacles]
+                wheres = [o.where for o in obstacles]
+        except formats.FormatError as exc:
+            ctx.fail((key, "file"), str(exc))
+        ctx.notes.update({(key, i): f"{ref} {w}" for i, w in enumerate(wheres)})
+        d[key] = (_TASK_LIST if key == "tasks" else _OBSTACLE_LIST)(ctx, rows, (key,))
+
+
 _TOP = {
     "name": (_ID, None),
     "origin": (lambda c, v, p: Origin(**c.section(v, p, _ORIGIN)), None),
-    "carrier": (lambda c, v, p: c.section(v, p, _CARRIER), _REQUIRED),
+    "carrier": (lambda c, v, p: c.section(v, p, _CARRIER), None),
+    "carriers": (_list(lambda c, v, p: c.section(v, p, _TEAM), "carriers {id, sysid, position, ..., fleet}",
+                       L.MAX_CARRIERS), None),
     "rovers": (lambda c, v, p: c.section(v, p, _ROVERS), _REQUIRED),
-    "tasks": (_list(lambda c, v, p: c.section(v, p, _TASK), "tasks {id, position}", L.MAX_TASKS), _REQUIRED),
-    "obstacles": (_list(_list(_vector(2), "[x, y] vertices", L.MAX_OBSTACLE_VERTICES), "polygons",
-                        L.MAX_OBSTACLES), []),
+    "tasks": (lambda c, v, p: _file_ref(c, v, p) if isinstance(v, dict) else _TASK_LIST(c, v, p), _REQUIRED),
+    "obstacles": (lambda c, v, p: _file_ref(c, v, p) if isinstance(v, dict) else _OBSTACLE_LIST(c, v, p), []),
     "bounds": (_list(_vector(2), "two corners [[xmin, ymin], [xmax, ymax]]", 100), None),
     "collection": (lambda c, v, p: c.section(v, p, _COLLECTION), None),
     "sim": (lambda c, v, p: c.section(v, p, _SIM), {"speedup": 1.0, "faults": []}),
@@ -562,9 +626,7 @@ def _check_geometry(
             ("bounds",),
             "obstacles need a workspace for roadmap sampling; add 'bounds: [[xmin, ymin], [xmax, ymax]]'",
         )
-    points: list[tuple[str, Vec2, KeyPath]] = [
-        ("the carrier's start", d["carrier"]["position"], ("carrier", "position"))
-    ]
+    points: list[tuple[str, Vec2, KeyPath]] = _carrier_starts(d)
     points += [(f"task {t.id!r}", t.position[:2], ("tasks", i)) for i, t in enumerate(tasks)]
     for what, (x, y), path in points:
         if bounds is not None and not (
@@ -631,7 +693,7 @@ def _geofence(ctx: _Ctx, d: dict[str, Any], tasks: tuple[Task, ...], obstacles: 
                      "order around the outline without self-crossings")
     poly = Polygon(pts)
     where = ("geofence", "polygon") if g["polygon"] is not None else ("geofence", "from")
-    inside = [("the carrier's start", tuple(d["carrier"]["position"][:2]))]
+    inside = [(what, tuple(p[:2])) for what, p, _ in _carrier_starts(d)]
     inside += [(f"task {t.id!r}", t.position[:2]) for t in tasks]
     for what, (x, y) in inside:
         if not poly.covers(Point(x, y)):
@@ -663,7 +725,7 @@ def _check_roadmap(
                           {k: v for k, v in vars(d["planner"].roadmap).items() if v is not None}))
     radii = [deploy_range] + [c.range for c in collection or ()]
     if bounds is None:  # the graph planners' workspace: the points' box grown by the edge length
-        pts = [d["carrier"]["position"], *(t.position[:2] for t in tasks)]
+        pts = [*(p for _, p, _ in _carrier_starts(d)), *(t.position[:2] for t in tasks)]
         pts += [c.position[:2] for c in collection or ()]
         pad = max(max(radii), 1.0)
         w = max(p[0] for p in pts) - min(p[0] for p in pts) + 2 * pad
@@ -699,20 +761,28 @@ def _build(ctx: _Ctx, data: Any, path: Path | None) -> Mission:
     ctx.raw = data
     d = ctx.section(data, (), _TOP)
     origin: Origin | None = d["origin"]
+    _carriers(ctx, d)
+    _read_files(ctx, d, origin, path)
     carrier, r = d["carrier"], d["rovers"]
     tasks, collection = _tasks_and_collection(ctx, d, origin)
     deploy_range, endurance, energy = _ranges(ctx, r)
     _check_task_heights(ctx, tasks, deploy_range)
-    units = _fleet_units(ctx, r, carrier, tasks, collection)
+    teams: tuple[tuple[dict[str, Any], tuple[str, ...]], ...]
+    if d["carriers"] is None:
+        units = _fleet_units(ctx, r, carrier, tasks, collection)
+        teams = ((carrier, tuple(u.id for u in units)),)
+    else:
+        units, teams = _team_units(ctx, d, tasks, collection)
     obstacles, bounds = _check_geometry(ctx, d, tasks)
     geofence = _geofence(ctx, d, tasks, obstacles, bounds, origin)
     _check_roadmap(ctx, d, tasks, collection, bounds, deploy_range)
-    faults = _faults(ctx, d, {u.id for u in units} | {carrier["id"]})
+    faults = _faults(ctx, d, {u.id for u in units} | {c["id"] for c, _ in teams})
     mission = Mission(
         name=d["name"] or (path.stem if path is not None else "mission"),
         origin=origin,
-        carrier=CarrierConfig(**{**carrier, "position": tuple(carrier["position"])}),
-        rovers=RoversConfig(r["max_speed"], r["accel"], deploy_range, endurance, r["reserve"], units, energy),
+        carrier=_carrier_config(carrier),
+        rovers=RoversConfig(r["max_speed"], r["accel"], deploy_range, endurance, r["reserve"], units, energy,
+                            **_flight_times(r)),
         tasks=tasks,
         obstacles=obstacles,
         bounds=bounds,
@@ -725,6 +795,7 @@ def _build(ctx: _Ctx, data: Any, path: Path | None) -> Mission:
         raw=copy.deepcopy(data),
         path=path,
         geofence=geofence,
+        teams=tuple(TeamConfig(_carrier_config(c), ids) for c, ids in teams),
     )
     log.debug(
         "mission %s: %d tasks, %d rovers, d_deploy %.2f m", mission.name, len(tasks), len(units), deploy_range
@@ -758,6 +829,16 @@ def _tasks_and_collection(
     return tasks, collection
 
 
+def _flight_times(r: dict[str, Any]) -> dict[str, float]:
+    """Climb and landing speeds (default: the cruise speed) and the time model's take-off and
+    touch-down times (default: fleetctl.mission.flight)."""
+    climb = r["climb_rate"] if r["climb_rate"] is not None else r["max_speed"]
+    land = r["land_speed"] if r["land_speed"] is not None else climb
+    takeoff = r["takeoff_time"] if r["takeoff_time"] is not None else default_takeoff_time(climb)
+    touch = r["land_time"] if r["land_time"] is not None else default_land_time(land)
+    return {"climb_rate": climb, "land_speed": land, "takeoff_time": takeoff, "land_time": touch}
+
+
 def _ranges(ctx: _Ctx, r: dict[str, Any]) -> tuple[float, float, EnergyConfig | None]:
     """d_deploy (given, or from energy terms: dissertation ch. 3.2), endurance_range, energy."""
     if (r["deploy_range"] is None) == (r["energy"] is None):
@@ -786,7 +867,10 @@ def _ranges(ctx: _Ctx, r: dict[str, Any]) -> tuple[float, float, EnergyConfig | 
         deploy_range = r["deploy_range"]
     endurance = r["endurance_range"]
     if endurance is None:
-        endurance = energy.rho * energy.initial if energy is not None else 2.0 * deploy_range
+        # a multirotor burns its battery per second in the air, hovering included: without energy
+        # terms, a DEFAULT_ENDURANCE battery at cruise speed (at least there and back)
+        endurance = (energy.rho * energy.initial if energy is not None
+                     else max(2.0 * deploy_range, DEFAULT_ENDURANCE * r["max_speed"]))
         endurance = min(endurance, max(L.MAX_RANGE, deploy_range))  # physical cap of a derived value
     elif endurance < deploy_range:
         ctx.fail(
@@ -844,7 +928,12 @@ def _fleet_units(
         + [(u.sysid, unit_path(i, "sysid")) for i, u in enumerate(units)],
         "vehicle sysid",
     )
-    rover_ids = {u.id for u in units}
+    _check_collection(ctx, collection, {u.id for u in units})
+    return tuple(units)
+
+
+def _check_collection(ctx: _Ctx, collection: tuple[CollectRover, ...] | None, rover_ids: set[str]) -> None:
+    """Collection rover ids: unique, and rovers of the fleet."""
     if collection is not None:
         _unique(
             ctx,
@@ -858,7 +947,102 @@ def _fleet_units(
                     f"{c.id!r} is not a rover of the fleet "
                     f"({', '.join(sorted(rover_ids))}); use a fleet rover id",
                 )
-    return tuple(units)
+
+
+# --- several carriers (docs/teams.md): carriers: [{carrier keys..., fleet | units}] ------------------
+def _carrier_config(c: dict[str, Any]) -> CarrierConfig:
+    keys = {k: v for k, v in c.items() if k not in ("fleet", "units")}
+    return CarrierConfig(**{**keys, "position": tuple(c["position"])})
+
+
+def _carrier_starts(d: dict[str, Any]) -> list[tuple[str, Vec2, KeyPath]]:
+    """Every carrier's start: what to call it in a message, where it is, its key path."""
+    if d.get("carriers") is None:
+        return [("the carrier's start", d["carrier"]["position"], ("carrier", "position"))]
+    return [(f"carrier {c['id']!r}'s start", c["position"], ("carriers", i, "position"))
+            for i, c in enumerate(d["carriers"])]
+
+
+def _carriers(ctx: _Ctx, d: dict[str, Any]) -> None:
+    """Exactly one of ``carrier:`` and ``carriers:``; with ``carriers:`` the rovers are the carriers'
+    own and ``d["carrier"]`` becomes the first carrier (the one that flies a one-team mission)."""
+    teams = d["carriers"]
+    if d["carrier"] is not None and teams is not None:
+        ctx.fail(("carriers",), "give either 'carrier: {...}' (one team) or 'carriers: [...]', not both")
+    if teams is None:
+        if d["carrier"] is None:
+            ctx.fail(("carrier",), "required key is missing; add 'carrier: {id, position, max_speed, ...}' "
+                                   "(one team) or 'carriers: [...]' (several)")
+        return
+    if not teams:
+        ctx.fail(("carriers",), "the list is empty; list one carrier {id, sysid, position, ..., fleet} "
+                                "per team")
+    for key in ("fleet", "units"):
+        if d["rovers"][key] is not None:
+            ctx.fail(("rovers", key), f"with 'carriers:' every carrier lists its own rovers; move "
+                                      f"rovers.{key} into each carriers[i].{key}")
+    for i, c in enumerate(teams[1:], 1):
+        if (c["connection"] == "sim") != (teams[0]["connection"] == "sim"):
+            ctx.fail(("carriers", i, "connection"), f"{c['connection']!r} mixes a simulated and a real "
+                     f"fleet (carriers[0].connection is {teams[0]['connection']!r}); use one kind for every "
+                     "carrier")
+    d["carrier"] = teams[0]
+
+
+def _team_units(
+    ctx: _Ctx, d: dict[str, Any], tasks: tuple[Task, ...], collection: tuple[CollectRover, ...] | None,
+) -> tuple[tuple[RoverUnit, ...], tuple[tuple[dict[str, Any], tuple[str, ...]], ...]]:
+    """Every carrier's rovers (``fleet:`` ids run on across carriers in list order), enough for the
+    tasks, ids and sysids unique over every vehicle, collection rovers among them."""
+    rows: list[tuple[RoverUnit, KeyPath, KeyPath]] = []
+    teams = []
+    for i, c in enumerate(d["carriers"]):
+        next_sysid = rows[-1][0].sysid + 1 if rows else c["sysid"] + 10
+        own = _team_fleet(ctx, c, ("carriers", i), len(rows), next_sysid)
+        rows += own
+        teams.append((c, tuple(u.id for u, _, _ in own)))
+    if len(rows) < len(tasks):
+        ctx.fail(("carriers",), f"only {len(rows)} rover(s) on the carriers for {len(tasks)} tasks; every "
+                                f"task needs its own rover, give at least {len(tasks)} rovers in all")
+    cars = d["carriers"]
+    _unique(ctx, [(c["id"], ("carriers", i, "id")) for i, c in enumerate(cars)]
+            + [(u.id, p) for u, p, _ in rows], "vehicle id")
+    _unique(ctx, [(c["sysid"], ("carriers", i, "sysid")) for i, c in enumerate(cars)]
+            + [(u.sysid, p) for u, _, p in rows], "vehicle sysid")
+    _check_collection(ctx, collection, {u.id for u, _, _ in rows})
+    return tuple(u for u, _, _ in rows), tuple(teams)
+
+
+def _team_fleet(ctx: _Ctx, c: dict[str, Any], path: KeyPath, first: int,
+                next_sysid: int) -> list[tuple[RoverUnit, KeyPath, KeyPath]]:
+    """One carrier's rovers with the key paths of their id and sysid: ``units: [...]`` as given, or
+    ``fleet: {count, sysid_start}`` as r<first+1>.. with sysids from sysid_start (default: after
+    the previous carrier's last rover; for the first carrier, its sysid + 10)."""
+    if c["fleet"] is not None and c["units"] is not None:
+        ctx.fail(path + ("units",), "give either 'fleet: {count, sysid_start}' or 'units: [...]', not both")
+    if c["units"] is not None:
+        if not c["units"]:
+            ctx.fail(path + ("units",), "the list of rover units is empty; list one unit per rover")
+        out = []
+        for j, u in enumerate(c["units"]):
+            up = path + ("units", j)
+            if u["connection"] is not None and (u["connection"] == "sim") != (c["connection"] == "sim"):
+                ctx.fail(up + ("connection",), f"{u['connection']!r} mixes a simulated and a real link "
+                         f"(carrier connection is {c['connection']!r}); remove it to share the carrier's "
+                         "link")
+            out.append((RoverUnit(u["id"], u["sysid"], u["connection"]), up + ("id",), up + ("sysid",)))
+        return out
+    if c["fleet"] is None or c["fleet"]["count"] is None:
+        ctx.fail(path + ("fleet",) + (() if c["fleet"] is None else ("count",)),
+                 "required key is missing; every carrier of 'carriers:' needs its own rovers: "
+                 "'fleet: {count, sysid_start}' or 'units: [{id, sysid}, ...]'")
+    count, start = c["fleet"]["count"], c["fleet"]["sysid_start"] or next_sysid
+    fp = path + ("fleet",)
+    if start + count - 1 > 255:
+        ctx.fail(fp + ("sysid_start",), f"rover sysids {start}..{start + count - 1} exceed 255; lower "
+                                        "sysid_start (or the carriers' sysids)")
+    return [(RoverUnit(f"r{first + j + 1}", start + j, None), fp, fp + ("sysid_start",))
+            for j in range(count)]
 
 
 def _faults(ctx: _Ctx, d: dict[str, Any], vehicles: set[str]) -> list[Fault]:

@@ -3,11 +3,13 @@ it), and the planning problems it gives the planners."""
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from fleetctl.geo import Origin, compass_to_math
+from fleetctl.mission.flight import GROUND_HEIGHT
 from planners.problem import (
     CarrierSpec,
     CollectProblem,
@@ -52,6 +54,14 @@ class CarrierConfig:
 
 
 @dataclass(frozen=True)
+class TeamConfig:
+    """One carrier and the ids of the rovers on its deck (``carriers:``; docs/teams.md)."""
+
+    carrier: CarrierConfig
+    rovers: tuple[str, ...]
+
+
+@dataclass(frozen=True)
 class RoverUnit:
     id: str
     sysid: int
@@ -74,13 +84,25 @@ class RoversConfig:
     reserve: float
     units: tuple[RoverUnit, ...]  # deck order
     energy: EnergyConfig | None = None
+    climb_rate: float = 1.0  # m/s (the loader defaults it to max_speed)
+    land_speed: float = 1.0  # m/s (the loader defaults it to climb_rate)
+    takeoff_time: float = 0.0  # s, time model: start command -> clear of the deck (fleetctl.mission.flight)
+    land_time: float = 0.0  # s, time model: above the stop with the carrier there -> loaded
 
     @property
     def ids(self) -> tuple[str, ...]:
         return tuple(u.id for u in self.units)
 
-    def motion(self) -> Motion:
-        return Motion(self.max_speed, self.accel)
+    def motion(self, from_ground: bool = False) -> Motion:
+        """The rovers' flight in the time model; a flight that starts on the ground (a collection
+        of landed rovers) first takes off: ``takeoff_time`` more."""
+        return Motion(self.max_speed, self.accel, self.takeoff_time if from_ground else 0.0)
+
+    @property
+    def hover_drain(self) -> float:
+        """Fraction of a full battery used per second airborne: ``endurance_range`` metres at
+        cruise speed (hovering costs the same as flying)."""
+        return self.max_speed / self.endurance_range if self.endurance_range > 0 else 0.0
 
 
 @dataclass(frozen=True)
@@ -184,6 +206,14 @@ class Mission:
     raw: dict[str, Any]  # the parsed YAML as written (no defaults filled in)
     path: Path | None = None
     geofence: GeofenceConfig | None = None
+    teams: tuple[TeamConfig, ...] = ()  # every carrier with its deck; () = one team (carrier, every rover)
+
+    def carrier_spec(self) -> CarrierSpec:
+        """The carrier in the time model, with the rovers' take-off and touch-down times; it stops and
+        turns at every vertex of a roadmap route, as it flies its mission of waypoints."""
+        c, r = self.carrier, self.rovers
+        return CarrierSpec(c.max_speed, c.accel, c.turn_rate, c.unload_time, c.load_time,
+                           r.takeoff_time, r.land_time, vertex_stops=True)
 
     def _start(self) -> Vec3:
         return (self.carrier.position[0], self.carrier.position[1], 0.0)
@@ -192,7 +222,7 @@ class Mission:
         if not self.tasks:
             raise MissionError(f"{self._where()}: tasks: the mission has no tasks to deploy rovers to")
         return DeployProblem(
-            carrier=self.carrier.spec(),
+            carrier=self.carrier_spec(),
             rover=self.rovers.motion(),
             deploy_range=self.rovers.deploy_range,
             start=self._start(),
@@ -209,8 +239,8 @@ class Mission:
                 "collection: {rovers: [{id, position, range}, ...]} to plan a collection offline"
             )
         return CollectProblem(
-            carrier=self.carrier.spec(),
-            rover=self.rovers.motion(),
+            carrier=self.carrier_spec(),
+            rover=self.rovers.motion(from_ground=any_on_ground(self.collection)),
             start=self._start(),
             heading=compass_to_math(self.carrier.heading_deg),
             rovers=self.collection,
@@ -245,3 +275,6 @@ class Mission:
         return str(self.path) if self.path is not None else self.name
 
 
+def any_on_ground(rovers: Iterable[CollectRover]) -> bool:
+    """A collection whose rovers (any of them) start on the ground: their flights take off first."""
+    return any(r.position[2] <= GROUND_HEIGHT for r in rovers)

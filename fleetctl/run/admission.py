@@ -26,7 +26,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
-from fleetctl.mavlink.fleet import Fleet
+from fleetctl.mavlink.fleet import CONNECT_HINT, Fleet
 from fleetctl.mavlink.vehicle import Vehicle
 from fleetctl.mission import Mission
 from fleetctl.run.context import ExecutionError
@@ -52,16 +52,16 @@ async def admit(fleet: Fleet, mission: Mission, command: str, adm: Admission) ->
     Raises :class:`ExecutionError` when the run must not go ahead."""
     missing = {vid: fleet.errors.get(vid, "no heartbeat") for vid in fleet.missing()}
     carrier = fleet.carrier_id
+    lines = "".join(f"\n  {fleet.failure_line(vid)}" for vid in missing)  # one short line per vehicle
     if carrier in missing:
-        raise ExecutionError(f"the carrier {carrier} at {fleet.urls[carrier]} did not answer: "
-                             f"{missing[carrier]}")
+        raise ExecutionError(f"the carrier did not answer ({CONNECT_HINT}):\n  {fleet.failure_line(carrier)}")
     if missing and adm.require_all:
-        lines = "; ".join(f"{vid} at {fleet.urls[vid]}: {why}" for vid, why in missing.items())
-        raise ExecutionError(f"{len(missing)} vehicle(s) did not answer (--require-all): {lines}")
+        raise ExecutionError(f"{len(missing)} vehicle(s) did not answer (--require-all; "
+                             f"{CONNECT_HINT}):{lines}")
     answered = len(fleet.rovers) - len(missing)
     if command in ("deploy", "run") and answered < len(mission.tasks):
-        raise ExecutionError(f"only {answered} rover(s) answered for {len(mission.tasks)} tasks; not "
-                             "answering: " + ", ".join(f"{vid} ({why})" for vid, why in missing.items()))
+        raise ExecutionError(f"only {answered} rover(s) answered for {len(mission.tasks)} tasks "
+                             f"({CONNECT_HINT}):{lines}")
     params = prefetch_failsafes(fleet)  # read while listening for another controller
     try:
         if not adm.force:

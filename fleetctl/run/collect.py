@@ -19,6 +19,7 @@ from __future__ import annotations
 import asyncio
 import dataclasses
 import logging
+import math
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 from enum import StrEnum
@@ -28,7 +29,16 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 from fleetctl.mavlink.compile import CompiledPlan, StopItems
 from fleetctl.mavlink.link import LinkError, MissionItem
 from fleetctl.mavlink.vehicle import CommandRejected, Vehicle
+from fleetctl.mission.flight import GROUND_HEIGHT, MEET_HEIGHT
+from fleetctl.mission.model import any_on_ground
 from fleetctl.run.carrier import upload
+from fleetctl.run.collect_timing import (
+    CarrierNow,
+    RoundClock,
+    Shortfall,
+    energy_shortfalls,
+    release_delay,
+)
 from fleetctl.run.energy import range_from_percent
 from fleetctl.run.events import announce_warning, drain, race
 from fleetctl.run.kinds import Ev, Phase, VehicleStatus, Watch
@@ -37,11 +47,14 @@ from fleetctl.run.parts import PhaseParts
 from fleetctl.run.results import PhaseResult
 from fleetctl.run.supervisor import SupervisorEvent
 from planners.plan import Plan, Stop
-from planners.problem import CollectProblem, CollectRover
+from planners.problem import CollectProblem, CollectRover, Vec3
 
 log = logging.getLogger(__name__)
 
-LANDING_TIMEOUT = 10.0  # mission s from the land command to the rover on the deck
+LANDING_TIMEOUT = 10.0  # mission s from the land command to the rover on the deck (at least 3x land_time)
+SPEED_SAMPLE = 0.5  # mission s between carrier speed samples (is it speeding up?)
+RECHECK = 1.0  # mission s between looks at the carrier's ETA while a rover waits for its release
+ENERGY_REPLANS = 3  # plans tried with shrunk ranges before a rover short of energy is left out
 
 
 class RoverStatus(StrEnum):
@@ -86,6 +99,9 @@ class _Round:
     items: dict[str, list[MissionItem]] = field(default_factory=dict)
     failed: set[str] = field(default_factory=set)
     start: float = 0.0  # mission clock when the route (or its trimmed rest) started
+    clock: RoundClock | None = None  # live ETAs of the stops (timed release)
+    going: dict[str, asyncio.Task[None]] = field(default_factory=dict)  # rover -> its timed release
+    due: dict[str, float] = field(default_factory=dict)  # rover -> expected above its stop (mission clock)
 
 
 @dataclass(frozen=True)
@@ -112,6 +128,8 @@ class CollectPhase:
         self.t0: float | None = None  # mission clock when the carrier first started
         self.result = PhaseResult("collect")
         self.resumed = resumed
+        self._speed_seen = (-math.inf, 0.0)  # (mission clock, carrier speed) of the last sample
+        self._accelerating = True
 
     # ============================================================================== the loop
     async def run(self, rover_ids: Iterable[str] | None = None) -> PhaseResult:
@@ -202,11 +220,9 @@ class CollectPhase:
     async def _round(self, crs: list[CollectRover]) -> None:
         ctx, st = self.ctx, self.ctx.state
         start, heading = self.carrier.pose()
-        m = ctx.mission
-        problem = CollectProblem(
-            m.carrier.spec(), m.rovers.motion(), start, heading, tuple(crs), **m.environment()
-        )
-        plan = await self.planning.plan("collect", problem)
+        plan = await self._plan_within_reserve(crs, start, heading)
+        if not plan.stops:  # every rover of the round is short of energy
+            return
         compiled = self.planning.compile(plan)
         ctx.replans.ready(plan)
         if self.t0 is None:
@@ -224,13 +240,62 @@ class CollectPhase:
         for rid in self.board.with_status(RoverStatus.IN_ROUND):  # not loaded in its round
             self.board.set(rid, RoverStatus.FAILED)
 
+    async def _plan_within_reserve(self, crs: list[CollectRover], start: Vec3, heading: float) -> Plan:
+        """A plan that brings no rover below its reserve: a rover in the air burns its battery while
+        it waits (hovering costs as flying does); one the plan would bring too low gets a shorter
+        range and the round is planned again; after ENERGY_REPLANS it is left out (unreachable)."""
+        m, ctx = self.ctx.mission, self.ctx
+        airborne = {c.id for c in crs if c.position[2] > GROUND_HEIGHT}
+        battery = {c.id: c.range for c in crs}
+        for attempt in range(ENERGY_REPLANS + len(crs) + 1):
+            problem = CollectProblem(m.carrier_spec(), m.rovers.motion(any_on_ground(crs)), start, heading,
+                                     tuple(crs), **m.environment())
+            plan = await self.planning.plan("collect", problem)
+            short = {s.rover: s for s in energy_shortfalls(plan, battery, airborne, problem.carrier,
+                                                           m.rovers.max_speed, MEET_HEIGHT)}
+            if not short:
+                return plan
+            crs = self._shrink(crs, short, hopeless=attempt >= ENERGY_REPLANS)
+            if not crs:
+                break
+            ctx.record(Ev.ROVER_STATE, text="replanned: rovers short of energy", rovers=sorted(short))
+        return Plan("collect", "none", start, heading, [])  # nobody left to collect this round
+
+    def _shrink(
+        self, crs: list[CollectRover], short: dict[str, Shortfall], hopeless: bool
+    ) -> list[CollectRover]:
+        """The rovers to plan again: one short of energy with its range cut by the excess, or left
+        out (unreachable) once that leaves it nothing or the replans are used up (``hopeless``:
+        every later plan leaves out at least one more rover, so this ends)."""
+        speed, keep = self.ctx.mission.rovers.max_speed, []
+        for c in crs:
+            s = short.get(c.id)
+            if s is None:
+                keep.append(c)
+                continue
+            shrunk = c.range - (s.airborne - s.allowed) * speed
+            if hopeless or shrunk <= max(c.position[2], 0.0):
+                self._short_of_energy(c.id, s.airborne, s.allowed)
+            else:
+                keep.append(dataclasses.replace(c, range=shrunk))
+        return keep
+
+    def _short_of_energy(self, rid: str, airborne: float, allowed: float) -> None:
+        self.board.set(rid, RoverStatus.UNREACHABLE)
+        self.ctx.state.event(
+            Ev.ROVER_UNREACHABLE,
+            f"{rid}: would be {airborne:.0f} s in the air before it is on the deck but has "
+            f"{allowed:.0f} s above its reserve: not collected",
+            rid, airborne=airborne, allowed=allowed,
+        )
+
     # ============================================================================== one round
     async def _fly(self, rnd: _Round) -> None:
         await self._send_rovers(rnd)
         ctx = self.ctx
         q = self.supervisor.queue
         stops, cstops = list(rnd.plan.stops), list(rnd.compiled.stops)
-        rnd.start = ctx.clock()
+        rnd.start = ctx.state.plan_started = ctx.clock()
         k, prev = 0, 0.0
         while k < len(stops):
             stop, items = stops[k], cstops[k]
@@ -242,6 +307,7 @@ class CollectPhase:
                 k, prev = 0, 0.0
                 continue
             prev = stop.depart
+            self._at_stop(rnd, k)
             await asyncio.gather(*(self._bring_in(rnd, leg.rover, leg.arrive) for leg in stop.rovers))
             await ctx.sleep_mission(ctx.mission.carrier.load_time)
             assert self.t0 is not None
@@ -251,7 +317,11 @@ class CollectPhase:
                 k, prev = 0, 0.0
                 continue
             await self.carrier.release(k, items.release_seq)
+            if rnd.clock is not None:
+                rnd.clock.released(k)
             k += 1
+        for t in rnd.going.values():
+            t.cancel()
 
     async def _send_rovers(self, rnd: _Round) -> None:
         """Upload every rover's way back (with a hold above its meeting point), start the
@@ -271,32 +341,76 @@ class CollectPhase:
                 rnd.failed.add(rid)
                 st.event(Ev.ROVER_FAILED, f"{rid}: mission upload failed ({r})", rid)
         await self.carrier.start_route(rnd.compiled)
+        rnd.start = ctx.clock()
         if self.t0 is None:
-            self.t0 = self.result.started = st.phase_started = ctx.clock()
-        await asyncio.gather(*(self._go(rnd, rid) for rid in rnd.items if rid not in rnd.failed))
+            self.t0 = self.result.started = st.phase_started = rnd.start
+        rnd.clock = RoundClock(rnd.plan, ctx.mission.carrier_spec(), rnd.start)
+        for k, stop in enumerate(rnd.plan.stops):
+            for leg in stop.rovers:
+                if leg.rover in rnd.items and leg.rover not in rnd.failed:
+                    go = self._go(rnd, leg.rover, k, leg.arrive)
+                    rnd.going[leg.rover] = ctx.spawn(go, f"release {leg.rover}")
         for rid in rnd.failed:
             if self.board.in_round(rid):
                 self.board.set(rid, RoverStatus.LOST if rovers[rid].lost else RoverStatus.FAILED)
         st.event(Ev.COLLECTION_STARTED, f"collecting {len(rnd.items) - len(rnd.failed)} rovers", None)
 
-    async def _go(self, rnd: _Round, rid: str) -> None:
-        v = self.ctx.fleet.rovers[rid]
+    def _carrier_now(self) -> CarrierNow | None:
+        c = self.ctx.fleet.carrier
+        if c.enu is None:
+            return None
+        pos, heading = self.carrier.pose()
+        speed, now = c.ground_speed or 0.0, self.ctx.clock()
+        t0, v0 = self._speed_seen
+        if now - t0 >= SPEED_SAMPLE:
+            self._speed_seen, self._accelerating = (now, speed), speed > v0 + 0.1
+        return CarrierNow(pos, speed, heading, self._accelerating)
+
+    def _at_stop(self, rnd: _Round, k: int) -> None:
+        """The carrier is at stop ``k``: fix its arrival in the round's clock, predict the end."""
+        now = self.ctx.clock()
+        if rnd.clock is not None:
+            rnd.clock.reached(k, now)
+            self._predict(rnd)
+            self.ctx.record(Ev.ETA, phase="collect", stop=k + 1, eta=self.ctx.state.eta)
+
+    def _predict(self, rnd: _Round) -> None:
+        if rnd.clock is not None and self.t0 is not None:
+            self.ctx.state.eta = rnd.clock.makespan(self.ctx.clock(), self._carrier_now()) - self.t0
+
+    async def _go(self, rnd: _Round, rid: str, k: int, flight: float) -> None:
+        """Release ``rid`` when it is due (timed release: above stop ``k`` as the carrier gets
+        there), then arm it and start its way back."""
+        ctx, v = self.ctx, self.ctx.fleet.rovers[rid]
+        assert rnd.clock is not None
+        while not v.lost:
+            now = ctx.clock()
+            wait = release_delay(rnd.clock.eta(k, now, self._carrier_now()), flight, now)
+            self._predict(rnd)
+            if wait <= 0.0:
+                break
+            ctx.state.set_state(rid, VehicleStatus.WAITING)
+            await ctx.sleep_mission(min(wait, RECHECK))
         try:
             if not v.armed:
-                await self.ctx.command(v, "arm", v.arm())
-            await self.ctx.command(v, "start_mission", v.start_mission())
-            self.ctx.state.set_state(rid, VehicleStatus.RETURNING)
-            self.supervisor.expect(
-                rid, flight_path(self.ctx, rnd.compiled.rovers[rid], v.enu or (0.0, 0.0, 0.0))
-            )
+                await ctx.command(v, "arm", v.arm())
+            await ctx.command(v, "start_mission", v.start_mission())
+            now = ctx.clock()
+            rnd.due[rid] = now + flight
+            rnd.clock.rover_ready(k, now + flight)
+            ctx.state.set_state(rid, VehicleStatus.RETURNING)
+            self.supervisor.expect(rid, flight_path(ctx, rnd.compiled.rovers[rid], v.enu or (0.0, 0.0, 0.0)))
         except (CommandRejected, LinkError, TimeoutError) as exc:
-            self.ctx.state.event(Ev.ROVER_FAILED, f"{rid}: cannot start its way back ({exc})", rid)
+            ctx.state.event(Ev.ROVER_FAILED, f"{rid}: cannot start its way back ({exc})", rid)
             rnd.failed.add(rid)
 
     async def _bring_in(self, rnd: _Round, rid: str, leg_arrive: float) -> None:
         """Wait for ``rid`` above the stop, send it down onto the carrier, wait until loaded."""
         ctx, st = self.ctx, self.ctx.state
         v = ctx.fleet.rovers[rid]
+        going = rnd.going.get(rid)
+        if going is not None and not going.done():
+            await asyncio.wait({going}, timeout=ctx.wall(leg_arrive + RECHECK))
         if rid in rnd.failed or not self.board.in_round(rid):
             return
         try:
@@ -306,8 +420,9 @@ class CollectPhase:
             if not rover_on_deck(ctx, v):
                 await ctx.command(v, "set_current", v.set_current(rnd.land_seq[rid]), seq=rnd.land_seq[rid])
                 st.set_state(rid, VehicleStatus.LANDED)
+            landing = max(LANDING_TIMEOUT, 3.0 * ctx.mission.rovers.land_time)
             await v.wait_until(
-                lambda v: rover_on_deck(ctx, v) or v.lost, ctx.wall(LANDING_TIMEOUT), "landing on the carrier"
+                lambda v: rover_on_deck(ctx, v) or v.lost, ctx.wall(landing), "landing on the carrier"
             )
             if v.lost:
                 return
@@ -330,7 +445,7 @@ class CollectPhase:
                     lambda v: (
                         (v.mission_current or 0) >= rnd.hold_seq[rid] or rover_on_deck(ctx, v) or v.lost
                     ),
-                    ctx.wall(max(leg_arrive - (ctx.clock() - rnd.start), 0.0)),
+                    ctx.wall(max(rnd.due.get(rid, rnd.start + leg_arrive) - ctx.clock(), 0.0)),
                     "meeting point",
                 )
                 return
@@ -376,6 +491,7 @@ class CollectPhase:
         ctx.replans.ready(new)
         await self.carrier.start_route(compiled)
         rnd.start = ctx.clock()
+        ctx.state.set_plan(new.to_json(), rnd.start)
         return keep, list(compiled.stops)
 
     # ============================================================================== events

@@ -188,7 +188,7 @@ class DeployPhase:
             st.planned = (ctx.clock() - self.t0) + plan.makespan
             st.stop_count, st.stop_index = len(plan.stops), 0
         await self.carrier.start_route(compiled)
-        plan_t0 = ctx.clock()
+        plan_t0 = st.plan_started = ctx.clock()
         if self.t0 is None:
             self.t0 = self.result.started = st.phase_started = plan_t0
             cid = ctx.fleet.carrier_id
@@ -214,24 +214,35 @@ class DeployPhase:
             if not ok or arrived is None:
                 return  # the rest of the route is thrown away
             prev = stop.depart
+            self._predict(plan, k, arrived - plan_t0)
             at = (stop.position[0], stop.position[1], 0.0)
+            unloaded = arrived + ctx.mission.carrier.unload_time  # the rovers leave the deck then
             launches = [
-                self._launch(slots[leg.rover], leg, at, id(compiled), spares, plan_t0)
+                self._launch(slots[leg.rover], leg, at, id(compiled), spares, plan_t0, unloaded)
                 for leg in stop.rovers
                 if leg.task is not None and board.is_pooled(leg.task)
             ]
-            unload = ctx.sleep_mission(max(arrived + ctx.mission.carrier.unload_time - ctx.clock(), 0.0))
+            unload = ctx.sleep_mission(max(unloaded - ctx.clock(), 0.0))
             await asyncio.gather(unload, *launches)
             if drain(q, self.handle) and k < last or board.pooled() and k == last:
                 return  # replan from this stop (the carrier holds here)
             await self.carrier.release(k, items.release_seq)
 
+    def _predict(self, plan: Plan, k: int, arrived: float) -> None:
+        """The live makespan prediction once the carrier is at stop ``k``: the plan shifted by
+        how late (or early) it got there (the rest of the route keeps its planned times)."""
+        st = self.ctx.state
+        if st.planned is not None:
+            st.eta = st.planned + (arrived - plan.stops[k].arrive)
+            self.ctx.record(Ev.ETA, phase="deploy", stop=k + 1, eta=st.eta)
+
     async def _launch(
-        self, slot: RoverMission, leg: RoverLeg, at: Vec3, plan_id: int, spares: Spares, plan_t0: float
+        self, slot: RoverMission, leg: RoverLeg, at: Vec3, plan_id: int, spares: Spares, plan_t0: float,
+        go_at: float,
     ) -> None:
         ctx, board, st = self.ctx, self.board, self.ctx.state
         task = slot.task or ""
-        rid = await self.launcher.launch(slot, plan_id, spares)
+        rid = await self.launcher.launch(slot, plan_id, spares, go_at)
         if rid is None:
             if board.is_pooled(task):
                 board.unserve(task, "no rover left on the deck to fly it (every spare used, lost or refused)")

@@ -1,4 +1,4 @@
-"""Battery → flight range (DESIGN.md "MAVLink mapping": battery).
+"""Battery → flight range (docs/mavlink.md, "Telemetry read").
 
 ``range = (remaining - reserve) · endurance_range``, clamped at 0: the reserve fraction of the
 battery is never planned away, and ``endurance_range`` is the distance a rover flies on a full

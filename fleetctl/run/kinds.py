@@ -17,6 +17,7 @@ class VehicleStatus(StrEnum):
     EN_ROUTE = "en_route"
     ON_TASK = "on_task"
     RETURNING = "returning"
+    WAITING = "waiting"  # a rover waiting for its timed release (collection)
     LANDED = "landed"
     LOADED = "loaded"
     LOST = "lost"
@@ -52,6 +53,7 @@ class Ev(StrEnum):
     PHASE = "phase"
     SUMMARY = "summary"
     BUS = "bus"
+    WEB_FAILED = "web_failed"  # the web map (--web) could not listen; the run flies on without it
     # planning and commands
     PLAN = "plan"
     REPLAN = "replan"
@@ -64,6 +66,7 @@ class Ev(StrEnum):
     CARRIER_STARTED = "carrier_started"
     STOP_REACHED = "stop_reached"
     CARRIER_RELEASED = "carrier_released"
+    ETA = "eta"  # the live makespan prediction at a stop (mission s of the phase)
     CARRIER_LOST = "carrier_lost"
     CARRIER_BACK = "carrier_back"
     HOLD = "hold"

@@ -17,6 +17,7 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 from fleetctl.mavlink.compile import RoverMission, item_position
 from fleetctl.mavlink.link import LinkError
 from fleetctl.mavlink.vehicle import CommandRejected, Vehicle
+from fleetctl.mission.flight import TAKEOFF_HEIGHT
 from fleetctl.run.carrier import CarrierControl, upload
 from fleetctl.run.context import ExecutionError, RunContext
 from fleetctl.run.kinds import Ev, VehicleStatus
@@ -24,8 +25,9 @@ from fleetctl.run.state import on_deck
 from fleetctl.run.task_board import TaskBoard
 
 AIRBORNE_HEIGHT = 0.3  # m above home: a launched rover is off the deck
+CLEAR_HEIGHT = 0.8 * TAKEOFF_HEIGHT  # m above home: a launched rover is clear of the deck, the carrier may go
 DECK_CHECK_TIMEOUT = 2.0  # wall s for fresh telemetry to show a rover on the (stopped) carrier's deck
-LIFTOFF_TIMEOUT = 5.0  # mission s from start_mission to lift-off
+LIFTOFF_TIMEOUT = 5.0  # mission s from start_mission to clear of the deck (at least; 3x takeoff_time)
 
 Vec3 = tuple[float, float, float]
 
@@ -90,9 +92,12 @@ class Launcher:
                 text=f"upload failed ({exc}); a spare will fly {slot.task}",
             )
 
-    async def launch(self, slot: RoverMission, plan_id: int, spares: Spares) -> str | None:
-        """Launch a rover for ``slot``'s task; returns the rover that lifted off (None: no rover
-        left to fly it)."""
+    async def launch(
+        self, slot: RoverMission, plan_id: int, spares: Spares, go_at: float | None = None
+    ) -> str | None:
+        """Launch a rover for ``slot``'s task: armed at once, started at ``go_at`` (mission clock:
+        when unloading ends) or at once; returns the rover that is clear of the deck (None: no
+        rover left to fly it)."""
         task = slot.task or ""
         rid: str | None = slot.rover
         while rid is not None:
@@ -109,7 +114,7 @@ class Launcher:
             if not armed:
                 rid = spare
                 continue
-            if not await self._lift_off(v, slot):
+            if not await self._lift_off(v, slot, go_at):
                 rid = spares.take(self.ctx, self.board)
                 continue
             return rid
@@ -163,18 +168,23 @@ class Launcher:
             )
             return False, spare
 
-    async def _lift_off(self, v: Vehicle, slot: RoverMission) -> bool:
-        tk = takeoff_seq(slot)
+    async def _lift_off(self, v: Vehicle, slot: RoverMission, go_at: float | None) -> bool:
+        """Start ``v`` (at ``go_at``) and wait until it is clear of the deck: its take-off item
+        done or above CLEAR_HEIGHT (the time model's ``takeoff_time``)."""
+        tk, ctx = takeoff_seq(slot), self.ctx
+        if go_at is not None:
+            await ctx.sleep_mission(max(go_at - ctx.clock(), 0.0))
+        timeout = max(LIFTOFF_TIMEOUT, 3.0 * ctx.mission.rovers.takeoff_time)
         try:
-            await self.ctx.command(v, "start_mission", v.start_mission())
+            await ctx.command(v, "start_mission", v.start_mission())
             # a task on the ground may be left again before a position shows it
             await v.wait_until(
                 lambda v: (
-                    (v.relative_alt or 0.0) > AIRBORNE_HEIGHT
+                    (v.relative_alt or 0.0) > CLEAR_HEIGHT
                     or tk in v.items_reached
                     or (v.mission_current or -1) > tk
                 ),
-                self.ctx.wall(LIFTOFF_TIMEOUT),
+                ctx.wall(timeout),
                 "lift-off",
             )
             return True
@@ -189,6 +199,7 @@ class Launcher:
 
 __all__ = [
     "AIRBORNE_HEIGHT",
+    "CLEAR_HEIGHT",
     "DECK_CHECK_TIMEOUT",
     "Launcher",
     "Spares",

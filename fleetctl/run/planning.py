@@ -10,13 +10,14 @@ from typing import Any
 
 import planners
 from fleetctl.mavlink.compile import CompiledPlan, CompileError, compile_for_fleet
+from fleetctl.mission.flight import MEET_HEIGHT
 from fleetctl.run.context import ExecutionError, RunContext
 from fleetctl.run.kinds import Ev
 from fleetctl.run.safety import check_plan
 from planners.plan import Plan
 from planners.problem import PlanningError
 
-COLLECT_MEET_HEIGHT = 3.0  # m above the carrier's stop where a returning rover waits for the carrier
+COLLECT_MEET_HEIGHT = MEET_HEIGHT  # m above the carrier's stop where a returning rover waits for the carrier
 REPLAN_BUDGET_MS = 50.0  # a replan (every plan of a phase after its first) improves for at most this long
 
 
@@ -60,7 +61,9 @@ class Planning:
                 f"cannot plan the {'deployment' if kind == 'deploy' else 'collection'} with {name!r}: {exc}"
             ) from None
         check_plan(plan, self.ctx.mission.geofence)  # ExecutionError naming the stop/rover outside it
-        await self.ctx.commit(Ev.PLAN, plan=plan.to_json())
+        doc = plan.to_json()
+        await self.ctx.commit(Ev.PLAN, plan=doc)
+        self.ctx.state.set_plan(doc)  # the views (map, time to go); its start is set when it flies
         if self.write_plan is not None:
             self.write_plan(kind, plan)
         self.ctx.state.event(

@@ -13,6 +13,8 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import importlib
+import logging
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -24,6 +26,7 @@ from fleetctl.mavlink.fleet import Fleet, connect_fleet
 from fleetctl.mavlink.link import LinkError
 from fleetctl.mavlink.vehicle import CommandRejected, Vehicle
 from fleetctl.mission import Mission
+from fleetctl.mission.formats import copy_data_files
 from fleetctl.run.admission import Admission, admit
 from fleetctl.run.context import ExecutionError
 from fleetctl.run.executor import Executor
@@ -35,6 +38,8 @@ from fleetctl.run.state import FleetState
 from fleetctl.run.summary import RunFacts, build_summary
 from fleetctl.views.view import View
 from planners.plan import Plan
+
+log = logging.getLogger(__name__)
 
 EXIT_OK = 0
 EXIT_FAILED = 1
@@ -154,7 +159,9 @@ class Run:
         self.bus = start_bus(self.mission, self.opts.mqtt, self.journal, self.state, self.opts.view)
         await self._begin_records()
         try:
+            await self._warm_planners()
             await self._start_sim()
+            self._scenario_batteries(hold=True)
             await self._connect()
             await self._phases()
             self.state.phase = Phase.DONE
@@ -177,6 +184,7 @@ class Run:
         if m.path is not None:
             with contextlib.suppress(OSError):
                 await asyncio.to_thread(j.save_mission, m.path)
+                await asyncio.to_thread(copy_data_files, m, j.dir)  # tasks/obstacles {file}: for resume
         await j.commit(
             Ev.RUN,
             mission=m.name,
@@ -201,12 +209,41 @@ class Run:
         self.state.mission_clock = self.clock
         self.endpoints = dict(sim.endpoints)
         self.journal.write(Ev.SIM_STARTED, endpoints=self.endpoints, speedup=self.scale)
-        if self.command == "collect" and self.mission.collection:
-            rp = self.mission.rovers
-            for cr in self.mission.collection:  # battery: range = (rem - reserve) x endurance
-                sim.rover(cr.id).battery = min(1.0, rp.reserve + cr.range / rp.endurance_range)
         if self.opts.on_sim is not None:
             self.opts.on_sim(sim)
+
+    async def _warm_planners(self) -> None:
+        """Import the mission's planners (and the SciPy/shapely they need) before the fleet runs:
+        a first plan would otherwise pay the import while rovers hover (seconds of battery on a
+        fast simulated fleet)."""
+        from planners import COLLECT_PLANNERS, DEPLOY_PLANNERS
+
+        names: dict[str, dict[str, Any]] = {"deploy": DEPLOY_PLANNERS, "collect": COLLECT_PLANNERS}
+        kinds = ("deploy", "collect") if self.command == "run" else (self.command,)
+        loaders = [getattr(names[k].get(self.opts.planner or self.mission.planner_for(k)), "load", None)
+                   for k in kinds]
+
+        def warm() -> None:
+            for load in loaders:
+                if load is not None:
+                    load()
+            importlib.import_module("scipy.optimize")  # the placement searches use it on their first call
+
+        await asyncio.to_thread(warm)
+
+    def _scenario_batteries(self, hold: bool) -> None:
+        """A collection on a simulated fleet: each rover of the ``collection:`` section has its
+        ``range`` left (``range = (remaining - reserve) x endurance_range``) when the collection
+        starts; while the fleet connects (``hold``) the simulator holds it there, after that it
+        drains as usual."""
+        if self.sim is None or self.command != "collect" or not self.mission.collection:
+            return
+        rp = self.mission.rovers
+        for cr in self.mission.collection:
+            level = min(1.0, rp.reserve + cr.range / rp.endurance_range)
+            self.sim.pin_battery(cr.id, level)
+            if not hold:
+                self.sim.pin_battery(cr.id, None)
 
     async def _connect(self) -> None:
         st, view = self.state, self.opts.view
@@ -228,7 +265,7 @@ class Run:
         self.missing = await admit(fleet, self.mission, self.command, adm)
         for vid, why in self.missing.items():
             st.set_state(vid, VehicleStatus.LOST)
-            st.event(Ev.MISSING, f"{vid}: did not answer at connect ({why}); flying without it", vid,
+            st.event(Ev.MISSING, f"{fleet.failure_line(vid)}; flying without it", vid,
                      url=fleet.urls.get(vid), reason=why)
         self.left_out = adm.left_out
         for vid, why in self.left_out.items():  # failed preflight: like a missing rover
@@ -236,6 +273,7 @@ class Run:
             st.event(Ev.PREFLIGHT_FAILED, f"{vid}: {why}; flying without it", vid, reason=why)
         for kind, text, vid in adm.safety.notes if adm.safety is not None else ():
             st.event(kind, text, vid)
+        self._scenario_batteries(hold=False)
         if self.opts.resume is not None:
             await self.opts.resume.reconcile(fleet, st, self._disarm)
             await self.journal.commit(Ev.RESUMED, **self.opts.resume.record())
@@ -298,6 +336,20 @@ class Run:
     def _write_plan(self, kind: str, plan: Plan) -> None:
         name = "plan.json" if kind == "deploy" or self.command == "collect" else "plan-collect.json"
         self.journal.write_json(name, plan.to_json())
+        self._export(plan, "export" if name == "plan.json" else "export-collect")
+
+    def _export(self, plan: Plan, folder: str) -> None:
+        """RUN/export/: the uploaded mission items as QGroundControl plans, and plan.geojson."""
+        if self.executor is None or self.fleet is None or self.mission.origin is None:
+            return
+        from fleetctl.mission.formats.export import export_plan
+
+        try:
+            compiled = self.executor.planning.compile(plan)
+            aps = {vid: v.autopilot for vid, v in self.fleet.vehicles.items() if v.autopilot is not None}
+            export_plan(self.mission, plan, compiled, self.journal.dir / folder, autopilots=aps, prune=True)
+        except (ExecutionError, OSError, ValueError) as exc:  # the records must never stop a flight
+            log.warning("could not write %s/: %s", folder, exc)
 
     # ============================================================================== the phases
     async def _phases(self) -> None:
@@ -412,6 +464,7 @@ class Run:
                 self.dwell_flown,
                 self.missing,
                 self.left_out,
+                mqtt=self.bus.stats() if self.bus is not None else None,
             )
         )
         self.journal.write(Ev.SUMMARY, **summary)

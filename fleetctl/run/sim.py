@@ -15,6 +15,8 @@ def sim_mission_dict(mission: Mission, command: str = "deploy") -> dict[str, Any
     named in the mission's ``collection`` section start in the field at their positions (the
     others on the deck); without that section a collection on the simulator is refused."""
     d = copy.deepcopy(mission.raw)
+    if "carriers" in d:  # one team written as 'carriers: [...]' (several teams do not fly yet)
+        d["carrier"] = {k: v for k, v in d.pop("carriers")[0].items() if k not in ("fleet", "units")}
     if mission.origin is None:
         raise ExecutionError(
             f"{mission.path or mission.name}: the mission has no origin; flying needs "
@@ -44,6 +46,7 @@ def sim_mission_dict(mission: Mission, command: str = "deploy") -> dict[str, Any
     c = dict(d["carrier"])
     c.setdefault("id", mission.carrier.id)
     c.setdefault("sysid", mission.carrier.sysid)
+    c["connection"] = mission.carrier.connection  # in fleetctl's spelling (docs/mavlink.md)
     d["carrier"] = c
     return d
 

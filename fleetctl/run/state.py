@@ -46,6 +46,7 @@ class VehicleState:
     armed: bool = False
     mode: str | None = None
     on_ground: bool | None = None
+    latlon: tuple[float, float] | None = None  # WGS84 degrees (the view's --latlon)
 
 
 @dataclass(frozen=True)
@@ -56,6 +57,7 @@ class Event:
     text: str
     data: dict[str, Any] = field(default_factory=dict)
     time: float = 0.0  # Unix time
+    mission_time: float | None = None  # mission s since the run started (T+; FleetState.mission_time)
 
 
 EventListener = Callable[[Event], None]
@@ -79,8 +81,14 @@ class FleetState:
         self.stop_index = 0  # 1-based stop being driven to / served; 0 before the first
         self.stop_count = 0
         self.planned: float | None = None  # planned makespan of the current phase (mission seconds)
+        self.eta: float | None = None  # predicted makespan from the live fleet (mission s of the phase)
         self.phase_started: float | None = None  # mission clock at the phase start
-        self.mission_clock: Callable[[], float] = time.monotonic
+        self._clock: Callable[[], float] = time.monotonic
+        self._clock_t0 = self._clock()  # the clock's reading at T+0 (the run's start)
+        self.tasks: dict[str, tuple[float, float, float]] = {t.id: t.position for t in mission.tasks}
+        self.rover_motion: Any = mission.rovers.motion()  # the time model's rover motion (None: unknown)
+        self.plan: dict[str, Any] | None = None  # the plan being flown (fleetctl.plan/1 JSON)
+        self.plan_started: float | None = None  # mission clock at the plan's t = 0
         self.started = time.monotonic()
         self.events: deque[Event] = deque(maxlen=max_events)
         self._listeners: list[EventListener] = []
@@ -109,7 +117,7 @@ class FleetState:
 
     def event(self, kind: str, text: str, vehicle: str | None = None, **data: Any) -> Event:
         """Record an event and tell every listener."""
-        ev = Event(time.monotonic() - self.started, kind, vehicle, text, data, time.time())
+        ev = Event(time.monotonic() - self.started, kind, vehicle, text, data, time.time(), self.mission_time)
         self.events.append(ev)
         log.info("%s", text)
         for listener in list(self._listeners):
@@ -119,10 +127,33 @@ class FleetState:
                 log.exception("event listener failed")
         return ev
 
+    # -- the one time base: mission seconds since the run started ------------------------------
+    @property
+    def mission_clock(self) -> Callable[[], float]:
+        return self._clock
+
+    @mission_clock.setter
+    def mission_clock(self, clock: Callable[[], float]) -> None:
+        """A new clock (e.g. the simulator's once it runs) keeps T+ continuous."""
+        t = self.mission_time
+        self._clock = clock
+        self._clock_t0 = clock() - t
+
+    @property
+    def mission_time(self) -> float:
+        """Mission seconds since the run started (``T+``): simulated seconds on the embedded sim."""
+        return self._clock() - self._clock_t0
+
+    def set_plan(self, plan: dict[str, Any], started: float | None = None) -> None:
+        """The plan now flown (its JSON) and the mission clock at its t = 0 (None: not yet)."""
+        self.plan = plan
+        self.plan_started = started
+
     # -- phase / stops --------------------------------------------------------------------------
     def set_phase(self, phase: str, planned: float | None = None, stops: int = 0) -> None:
         self.phase = phase
         self.planned = planned
+        self.eta = planned
         self.stop_count = stops
         self.stop_index = 0
         self.phase_started = self.mission_clock()
@@ -170,6 +201,7 @@ class FleetState:
             s.battery_pct = v.battery_pct
             s.link_age = v.last_heard_age
             s.on_ground = v.on_ground
+            s.latlon = (v.position[0], v.position[1]) if v.position is not None else None
             if s.role == "rover":
                 try:
                     s.range_m = range_from_percent(v.battery_pct, self.reserve, self.endurance_range)
@@ -183,6 +215,7 @@ class FleetState:
         """Plain dict of the whole state (for the journal / tests)."""
         return {
             "phase": self.phase, "stop": self.stop_index, "stops": self.stop_count, "planned": self.planned,
+            "eta": self.eta,
             "elapsed": self.elapsed, "replans": self.replans, "last_replan": self.last_replan,
             "vehicles": {vid: {"state": v.state, "task": v.task, "enu": v.enu, "battery_pct": v.battery_pct,
                                "lost": v.lost} for vid, v in self.vehicles.items()},

@@ -31,6 +31,7 @@ class RunFacts:
     dwell_flown: float | None = None
     missing: dict[str, str] | None = None  # rovers that did not answer at connect -> why
     left_out: dict[str, str] | None = None  # rovers that failed preflight -> why
+    mqtt: dict[str, Any] | None = None  # FleetBus.stats() (None: no bus)
 
 
 def build_summary(f: RunFacts) -> dict[str, Any]:
@@ -67,6 +68,7 @@ def build_summary(f: RunFacts) -> dict[str, Any]:
         "rovers_lost_reasons": {r: left_out[r] if r in left_out else _lost_reason(r, missing, f.state)
                                 for r in lost},
         "link": dict(f.state.link),
+        "mqtt": f.mqtt,
         "replans": f.state.replans,
         "journal": f.journal_path,
     }
@@ -133,7 +135,9 @@ def _accounting(
         pos = [round(c, 2) for c in v.enu] if v.enu is not None else None
         if v.id in loaded:
             continue
-        up = _is_airborne(v)
+        # a rover seen lifting off that no later state puts down is in the air, whatever an older
+        # telemetry snapshot says
+        up = _is_airborne(v) or (v.id in launched and v.state in _IN_THE_AIR)
         if v.id in lost:
             last[v.id] = pos
         elif not up and v.id not in launched and v.id not in unreachable and _on_the_deck(f, v):
@@ -153,6 +157,9 @@ def _lost_reason(rid: str, missing: dict[str, str], state: FleetState) -> str:
     if rid in missing:
         return f"did not answer at connect: {missing[rid]}"
     return "link lost while flying the mission" if state.vehicles[rid].connected else "link lost"
+
+
+_IN_THE_AIR = frozenset({VehicleStatus.CLIMBING, VehicleStatus.EN_ROUTE, VehicleStatus.ON_TASK})
 
 
 def _is_airborne(v: VehicleState) -> bool:

@@ -31,6 +31,7 @@ from fleetctl.bus.config import (
 )
 from fleetctl.run.state import Event, FleetState, VehicleState
 from fleetctl.views.dashboard import HeadlessView, LiveView, render
+from fleetctl.views.view import View, Views
 
 log = logging.getLogger(__name__)
 
@@ -42,18 +43,24 @@ class RemoteFleetState(FleetState):
 
     def __init__(self, mission_name: str = "?", max_events: int = 12) -> None:
         # FleetState builds its vehicles from a Mission; here they come from telemetry
-        nobody = SimpleNamespace(name=mission_name, carrier=SimpleNamespace(id="", sysid=0),
-                                 rovers=SimpleNamespace(reserve=0.0, endurance_range=0.0, units=()))
+        nobody = SimpleNamespace(name=mission_name, carrier=SimpleNamespace(id="", sysid=0), tasks=(),
+                                 rovers=SimpleNamespace(reserve=0.0, endurance_range=0.0, units=(),
+                                                        motion=lambda: None))
         super().__init__(nobody, max_events=max_events)  # type: ignore[arg-type]
         self.vehicles = {}
         self.remote_status: str | None = None  # online | done | failed | interrupted | offline
         self.remote_elapsed = 0.0
         self.plan: dict[str, Any] | None = None
         self.records = 0  # journal records seen on <prefix>/events
+        self.remote_T = 0.0  # the latest mission time (T+) seen in an event
 
     @property
     def elapsed(self) -> float:  # the controller's mission clock as last reported
         return self.remote_elapsed
+
+    @property
+    def mission_time(self) -> float:  # T+ of the latest event the controller journalled
+        return self.remote_T
 
     def add_event(self, rec: dict[str, Any]) -> Event | None:
         """A journal record from ``<prefix>/events``; operator events (with a text) are kept and
@@ -64,9 +71,13 @@ class RemoteFleetState(FleetState):
             return None
         data = {k: v for k, v in rec.items() if k not in ("t", "elapsed", "kind", "vehicle", "text")}
         elapsed = rec.get("elapsed")
+        mission_t = rec.get("T")
+        if isinstance(mission_t, int | float):  # else (a vehicle's STATUSTEXT): the latest T seen
+            self.remote_T = max(self.remote_T, float(mission_t))
+        mission_t = float(mission_t) if isinstance(mission_t, int | float) else self.remote_T
         ev = Event(float(elapsed) if isinstance(elapsed, int | float) else 0.0, str(rec.get("kind", "?")),
                    rec.get("vehicle") if isinstance(rec.get("vehicle"), str) else None, text, data,
-                   float(rec.get("t", 0.0)) if isinstance(rec.get("t"), int | float) else 0.0)
+                   float(rec.get("t", 0.0)) if isinstance(rec.get("t"), int | float) else 0.0, mission_t)
         self.events.append(ev)
         for listener in list(self._listeners):
             try:
@@ -117,11 +128,14 @@ class Watcher:
         self.prefix = config.topic_prefix
         self.state = state or RemoteFleetState()
         self.status = "connecting"
+        self.last_error: str | None = None
+        self.connects = 0
         self.messages = 0
         self.finished = asyncio.Event()  # set when the controller's status is final
 
     def status_lines(self) -> list[str]:
-        out = [f"bus: {self.status} {self.config.url} {self.prefix}"
+        why = f" ({self.last_error})" if self.last_error and self.status != "connected" else ""
+        out = [f"bus: {self.status} {self.config.url} {self.prefix}{why}"
                + (f" · controller {self.state.remote_status}" if self.state.remote_status else
                   " · no controller status yet")]
         plan = self.state.plan
@@ -129,6 +143,23 @@ class Watcher:
             out.append(f"plan: {plan.get('kind', '?')} ({plan.get('planner', '?')}), "
                        f"{len(plan.get('stops') or [])} stops, makespan {plan.get('makespan', 0.0):.1f} s")
         return out
+
+    def _set_status(self, status: str, error: BaseException | None = None) -> None:
+        """Track the connection; every change is an event (a dead broker is not silent)."""
+        if error is not None:
+            self.last_error = (str(error) or type(error).__name__)[:300]
+        if status == self.status:
+            return
+        old, self.status = self.status, status
+        url, why = self.config.url, f" ({self.last_error})" if self.last_error else ""
+        if status == "connected":
+            self.connects += 1
+            text = f"bus: connected to {url}, watching {self.prefix}/#"
+        elif old == "connected":
+            text = f"bus: connection to {url} lost{why}; reconnecting"
+        else:
+            text = f"bus: cannot connect to {url}{why}; retrying"
+        self.state.event(f"bus_{status}", text, None, url=url, error=self.last_error)
 
     def handle(self, topic: str, payload: bytes) -> None:
         """Apply one message of the bus to the state."""
@@ -164,21 +195,21 @@ class Watcher:
                     await client.__aenter__()
             except (aiomqtt.MqttError, TimeoutError, OSError) as exc:
                 log.debug("watch %s: cannot connect: %s", self.config.url, exc)
-                self.status = "reconnecting"
+                self._set_status("reconnecting", exc)
                 await asyncio.sleep(delay)
                 delay = min(delay * 2, BACKOFF_MAX)
                 continue
             delay = BACKOFF_MIN
             try:
                 await client.subscribe(topics, timeout=CONNECT_TIMEOUT)
-                self.status = "connected"
+                self._set_status("connected")
                 async for msg in client.messages:
                     p = msg.payload
                     data = bytes(p) if isinstance(p, bytes | bytearray) else str(p).encode()
                     self.handle(msg.topic.value, data)
             except (aiomqtt.MqttError, TimeoutError, OSError) as exc:
                 log.debug("watch %s: connection lost: %s", self.config.url, exc)
-                self.status = "reconnecting"
+                self._set_status("reconnecting", exc)
             except asyncio.CancelledError:
                 self.status = "stopped"
                 raise
@@ -196,19 +227,23 @@ def render_text(watcher: Watcher, width: int = 160) -> str:
 
 
 async def watch(config: BusConfig, *, headless: bool = False, exit_on_done: bool = False,
-                out: IO[str] | None = None) -> int:
+                out: IO[str] | None = None, latlon: bool = False, extra_view: View | None = None) -> int:
     """Show the mission on ``config``'s bus until cancelled (Ctrl-C) or, with ``exit_on_done``,
-    until the controller's status is final (done, failed, interrupted, offline). Returns 0."""
+    until the controller's status is final (done, failed, interrupted, offline). ``extra_view``
+    (the web map) is fed the same state. Returns 0."""
     out = out or sys.stdout
     watcher = Watcher(config)
-    view: HeadlessView | LiveView
+    view: View
     if headless:
         view = HeadlessView(out)
         out.write(f"watching {config.url} {config.topic_prefix}/# (Ctrl-C to stop)\n")
         out.flush()
     else:
-        view = LiveView()
-        view.add_status(lambda: " · ".join(watcher.status_lines()))
+        live = LiveView(latlon=latlon)
+        live.add_status(lambda: " · ".join(watcher.status_lines()))
+        view = live
+    if extra_view is not None:
+        view = Views(view, extra_view)
     view.start(watcher.state, None)
     runner = asyncio.create_task(watcher.run(), name="watch bus")
     try:

@@ -21,7 +21,7 @@ BASE: dict[str, Any] = {
     "origin": ORIGIN,
     "carrier": {"id": "carrier", "connection": "sim", "sysid": 1, "position": [0, 0], "heading_deg": 0,
                 "max_speed": 10.0, "accel": 5.0, "turn_rate": None, "unload_time": 1.0, "load_time": 1.0},
-    "rovers": {"max_speed": 5.0, "accel": None, "deploy_range": 40.0, "endurance_range": 200.0,
+    "rovers": {"max_speed": 5.0, "accel": None, "deploy_range": 40.0, "endurance_range": 600.0,
                "reserve": 0.1, "fleet": {"count": 2, "sysid_start": 11}},
     "tasks": [{"id": "t1", "position": [20, 10, 5]}, {"id": "t2", "position": [40, -10, 4]}],
     "sim": {"speedup": 20.0, "faults": []},

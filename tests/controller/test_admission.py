@@ -105,9 +105,9 @@ def test_real_vehicles_are_not_armed_without_a_terminal_or_yes(tmp_path: Path) -
 
 async def test_collect_reports_a_rover_that_does_not_answer_and_collects_the_rest(tmp_path: Path) -> None:
     d = mission_dict(rovers=3, faults=[{"vehicle": "r2", "kind": "dropout", "at": 0.0}])
-    d["collection"] = {"rovers": [{"id": "r1", "position": [20, 10, 5], "range": 60.0},
-                                  {"id": "r2", "position": [35, -12, 4], "range": 45.0},
-                                  {"id": "r3", "position": [-10, 25, 3], "range": 50.0}]}
+    d["collection"] = {"rovers": [{"id": "r1", "position": [20, 10, 5], "range": 300.0},
+                                  {"id": "r2", "position": [35, -12, 4], "range": 225.0},
+                                  {"id": "r3", "position": [-10, 25, 3], "range": 250.0}]}
     mission = mission_from(d, tmp_path)
     out = await asyncio.wait_for(execute(mission, "collect", runs_dir=tmp_path / "runs", connect_timeout=3.0),
                                  120)

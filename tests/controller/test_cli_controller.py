@@ -37,8 +37,8 @@ def test_status_names_a_vehicle_that_does_not_answer(tmp_path: Path,
     rc = main(["status", "--mission", str(path), "--timeout", "1.2"])
     cap = capsys.readouterr()
     assert rc == 1
-    assert f"carrier (sysid 1) at {url}: no heartbeat" in cap.err
-    assert f"r1 (sysid 11) at {url}: no heartbeat" in cap.err
+    assert f"carrier (sysid 1): no heartbeat within 1.2 s on {url}" in cap.err
+    assert f"r1 (sysid 11): no heartbeat within 1.2 s on {url}" in cap.err
     assert "no answer" in cap.out
 
 
@@ -51,7 +51,7 @@ async def test_status_against_an_external_fleet_with_a_missing_rover(tmp_path: P
             stdout=asyncio.subprocess.PIPE, stderr=asyncio.subprocess.PIPE, cwd=ROOT)
         out, err = await asyncio.wait_for(proc.communicate(), 30)
     assert proc.returncode == 1, err.decode()
-    assert f"r3 (sysid 13) at {url}: no heartbeat" in err.decode()
+    assert f"r3 (sysid 13): no heartbeat within 2 s on {url}" in err.decode()
     assert "carrier (sysid 1)" not in err.decode() and "r1 (sysid" not in err.decode()
     assert out.decode().count("on deck") == 2
 

@@ -12,6 +12,7 @@ import planners
 from fleetctl.mavlink.autopilots import ArduPilot, Px4
 from fleetctl.mavlink.compile import CompileError, compile_plan, item_position
 from fleetctl.mission import load_mission
+from fleetctl.mission.flight import TAKEOFF_HEIGHT
 
 RECON = Path(__file__).resolve().parents[2] / "missions" / "recon.yaml"
 WP, LOITER, TAKEOFF, LAND = (M.MAV_CMD_NAV_WAYPOINT, M.MAV_CMD_NAV_LOITER_UNLIM, M.MAV_CMD_NAV_TAKEOFF,
@@ -58,7 +59,8 @@ def test_deploy_items_round_trip_to_the_plan(recon) -> None:
         assert cmds == [TAKEOFF] + [WP] * (len(leg.path) - 1) + [LOITER]
         assert rm.task == leg.task and rm.target_seq == len(cmds) - 2 and rm.final_seq == len(cmds) - 1
         start, target = leg.path[0], leg.end
-        assert close_to(rm.items[0], (start[0], start[1], max(target[2], 1.0)), origin)
+        # take off to the clearance only, then the straight line to the task
+        assert close_to(rm.items[0], (start[0], start[1], TAKEOFF_HEIGHT), origin)
         for item, v in zip(rm.items[1:-1], leg.path[1:], strict=True):
             assert close_to(item, v, origin)  # 3D, within 1 cm
         assert close_to(rm.items[-1], target, origin)
@@ -93,7 +95,7 @@ def test_collect_from_the_ground_takes_off_first() -> None:
                 [RoverLeg("r1", [(5, 5, 0), (10, 0, 0)])])
     rm = compile_plan(Plan("collect", "x", (0, 0, 0), 0.0, [stop]), origin, meet_height=4.0).rovers["r1"]
     assert [i.command for i in rm.items] == [TAKEOFF, WP, LAND]
-    assert close_to(rm.items[0], (5, 5, 4.0), origin) and rm.target_seq == 1
+    assert close_to(rm.items[0], (5, 5, TAKEOFF_HEIGHT), origin) and rm.target_seq == 1
 
 
 def test_ardupilot_item_0_is_home_and_indices_count_it(recon) -> None:

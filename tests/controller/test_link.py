@@ -178,7 +178,7 @@ async def test_connect_fleet_names_missing_vehicles(tmp_path: Path, sim: SimFlee
     with pytest.raises(FleetConnectError) as exc:
         await connect_fleet(mission, sim.endpoints | {"r3": sim.endpoints["carrier"]}, timeout=1.5)
     assert set(exc.value.missing) == {"r3"}
-    assert f"r3 at {sim.endpoints['carrier']}" in str(exc.value) and "system 13" in str(exc.value)
+    assert f"r3 (sysid 13): no heartbeat within 1.5 s on {sim.endpoints['carrier']}" in str(exc.value)
 
 
 def test_sim_connection_needs_endpoints(tmp_path: Path) -> None:

@@ -34,6 +34,7 @@ async def test_every_check_fails_on_its_fault_and_passes_without(tmp_path: Path)
         {"vehicle": "r4", "kind": "low_battery", "level": 0.2},
     ]
     d = mission_dict(rovers=6, faults=faults)
+    d["rovers"]["endurance_range"] = 200.0
     mission = mission_from(d, tmp_path)
     async with sim_fleet(d) as sim, await connect_fleet(mission, sim.endpoints, timeout=5.0) as fleet:
         await gather(fleet)

@@ -52,7 +52,7 @@ def mission_dict(rovers: int = 3, carrier_speed: float = 8.0, rover_speed: float
         "carrier": {"id": "carrier", "connection": "sim", "sysid": 1, "position": [0, 0], "heading_deg": 0,
                     "max_speed": carrier_speed, "accel": None, "turn_rate": None, "unload_time": 1.0,
                     "load_time": 1.0},
-        "rovers": {"max_speed": rover_speed, "accel": None, "deploy_range": 40.0, "endurance_range": 300.0,
+        "rovers": {"max_speed": rover_speed, "accel": None, "deploy_range": 40.0, "endurance_range": 1800.0,
                    "reserve": RESERVE, "fleet": {"count": rovers, "sysid_start": 11}},
         "tasks": copy.deepcopy(TASKS) + ([{"id": "t3", "position": [0, 200, 3]}] if far else []),
         "sim": {"speedup": speedup, "faults": []},
@@ -74,7 +74,7 @@ async def fly(tmp_path: Path, d: dict[str, Any],
     return out.summary | {"_exit": out.exit_code, "_dir": str(out.run_dir)}, trig
 
 
-async def drain_to_reserve(sim: SimFleet, rid: str, factor: float = 25.0) -> None:
+async def drain_to_reserve(sim: SimFleet, rid: str, factor: float = 150.0) -> None:
     """Drain ``rid``'s battery ``factor`` times faster while it flies, until it is at the reserve.
 
     The fault ends (``until``) when, flying at full speed (accel None), the battery is at 60 % of the

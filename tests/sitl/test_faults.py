@@ -103,10 +103,14 @@ async def test_battery_drain_factor(fleet: SimFleet, gcs: Gcs) -> None:
     r1, r2 = fleet.rover("r1"), fleet.rover("r2")
     await fleet.wait_for(lambda: r1.arrived and r2.arrived and r1.position[2] > 9 and r2.position[2] > 9,
                          timeout=5)
-    assert r1.battery == pytest.approx(1.0 - 10.0 / 200.0)
-    assert r2.battery == pytest.approx(1.0 - 3 * 10.0 / 200.0)
+    # per second in the air (5 m/s on 200 m: 2.5 %/s), three times as fast for r2; at least the
+    # 2 s climb to 10 m
+    used1, used2 = 1.0 - r1.battery, 1.0 - r2.battery
+    assert used1 >= 2.0 * 5.0 / 200.0 - 1e-6
+    assert used2 == pytest.approx(3 * used1, rel=0.15)
+    level = r2.battery
     st = await gcs.recv("BATTERY_STATUS", sysid=12, since=gcs.mark())
-    assert st.battery_remaining == 85
+    assert st.battery_remaining <= round(100 * level)
 
 
 async def test_empty_battery_lands_the_rover() -> None:
@@ -124,9 +128,11 @@ async def test_empty_battery_lands_the_rover() -> None:
                                         (-1, 1, 0, math.nan), lat, lon, 3.0)
             assert ack.result == M.MAV_RESULT_ACCEPTED
             await fleet.wait_for(lambda: rover.on_ground, timeout=5)
-            # 20 m of endurance at drain factor 2 = 10 m: 3 m up, 7 m across, then straight down
+            # 20 m of endurance at drain factor 2 = 2 s in the air at 5 m/s: 0.6 s up to 3 m, at
+            # most 1.4 s (7 m) across, less the hover before the reposition, then straight down
             assert rover.battery == 0.0 and not rover.loaded
-            assert rover.position == pytest.approx((7.0, 0.0, 0.0), abs=0.15)
+            x, y, z = rover.position
+            assert 0.5 < x <= 7.0 + 0.15 and y == pytest.approx(0.0, abs=0.05) and z == 0.0
             v = fleet.vehicle("r1")
             assert any("Battery empty" in text for _, _, text in v.statustexts)
             await fleet.wait_for(lambda: not v.armed, timeout=5)

@@ -105,6 +105,23 @@ def test_landing_on_a_moving_carrier_does_not_load() -> None:
     assert r.phase is Phase.GROUND
 
 
+def test_hovering_costs_the_battery_as_flying_does() -> None:
+    w = world(endurance=60.0)
+    r = w.rovers["r1"]
+    r.takeoff(10.0)
+    run_until(w, lambda: r.arrived)
+    before, t0 = r.battery, w.time
+    while w.time < t0 + 6.0 - 1e-9:  # hover 6 s at a cruise speed of max_speed: 6·v metres' worth
+        w.step(DT)
+    assert r.flown == pytest.approx(10.0, abs=1e-6)
+    assert before - r.battery == pytest.approx((w.time - t0) * r.spec.max_speed / 60.0, rel=1e-6)
+    w2 = world(endurance=60.0)
+    on_deck = w2.rovers["r1"]
+    for _ in range(100):
+        w2.step(DT)
+    assert on_deck.battery == 1.0  # on the deck it uses none
+
+
 def test_battery_drains_with_distance_flown() -> None:
     w = world(endurance=60.0)
     r = w.rovers["r1"]

@@ -1,0 +1,34 @@
+"""How a rover leaves and comes back to the deck, and what it costs in the time model
+(docs/time-model.md): the take-off clearance, the approach height above a collection stop, and
+the defaults of ``rovers.takeoff_time`` and ``rovers.land_time``.
+
+The defaults are the vertical legs at the rover's climb and landing speeds plus a settle time
+measured on the simulated fleet (``bench/flight.py``: mode change, the autopilot's take-off and
+landing detection, the controller seeing it in telemetry):
+
+    takeoff_time = TAKEOFF_HEIGHT / climb_rate + TAKEOFF_SETTLE
+    land_time    = MEET_HEIGHT / land_speed + LAND_SETTLE
+"""
+
+from __future__ import annotations
+
+GROUND_HEIGHT = 0.2  # m: a rover this low is on the ground (a collection flight from there takes off first)
+TAKEOFF_HEIGHT = 1.0  # m above the deck: a launched rover climbs this high before it turns onto its line
+MEET_HEIGHT = 3.0  # m above a collection stop: a returning rover waits here for the carrier, then lands
+DEFAULT_ENDURANCE = 600.0  # s in the air on a full battery when the mission gives no endurance_range
+TAKEOFF_SETTLE = 0.1  # s beyond the climb: take-off detection and the turn onto the line (measured)
+LAND_SETTLE = 0.1  # s beyond the descent: touch-down detection, disarm, the controller seeing it (measured)
+
+
+def default_takeoff_time(climb_rate: float) -> float:
+    """Seconds from a rover's start command to it being clear of the deck."""
+    return TAKEOFF_HEIGHT / climb_rate + TAKEOFF_SETTLE
+
+
+def default_land_time(land_speed: float) -> float:
+    """Seconds from a rover above its stop (with the carrier there) to it loaded on the deck."""
+    return MEET_HEIGHT / land_speed + LAND_SETTLE
+
+
+__all__ = ["DEFAULT_ENDURANCE", "GROUND_HEIGHT", "LAND_SETTLE", "MEET_HEIGHT", "TAKEOFF_HEIGHT",
+           "TAKEOFF_SETTLE", "default_land_time", "default_takeoff_time"]

@@ -1,0 +1,166 @@
+"""Timed release of a collection round: when each rover leaves, from the carrier's live ETA.
+
+A rover that leaves as soon as the round starts and reaches its stop before the carrier hovers
+there, burning battery. Instead each rover waits where it is (on the ground, or hovering at its
+task when it is in the air) and is released at
+
+    release_i = ETA_k − flight_i − RELEASE_LEAD
+
+so that it is above stop ``k`` when the carrier gets there; ``flight_i`` is its planned flight
+(the plan's rover arrival: take-off when it starts on the ground, plus travel), ``ETA_k`` is
+the carrier's arrival at ``k`` predicted from live telemetry (:class:`RoundClock`): the rest of
+its current leg from its position and speed (``planners.timing.remaining_leg_time``), then per
+stop ``depart = max(arrive, latest rover there) + land_time + load_time`` and the planned legs
+between stops. A late carrier moves every ETA, and the rovers not yet released follow it.
+
+:func:`energy_shortfalls` checks a plan against the reserve before it is flown: a rover in the
+air burns ``hover_drain`` of its battery per second until it is on the deck, waiting included.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+
+from planners.plan import Plan
+from planners.problem import CarrierSpec, Vec3
+from planners.timing import path_length, remaining_leg_time, turn_time
+
+RELEASE_LEAD = 1.0  # mission s: a rover is released this much early (its commands take time)
+TURN_TOLERANCE = 0.05  # rad: a carrier at rest pointing within this of its leg does not turn
+SLOW = 0.5  # m/s: a carrier slower than this is starting or stopping, not cruising
+
+
+@dataclass
+class CarrierNow:
+    """The carrier's live state for an ETA: ENU position, speed (m/s), math heading (rad), and
+    whether it is speeding up (then it will reach its top speed; otherwise it keeps the speed it
+    has, e.g. held back below its top speed)."""
+
+    position: Vec3
+    speed: float
+    heading: float
+    accelerating: bool = True
+
+
+@dataclass
+class RoundClock:
+    """Live ETAs of one collection round's stops (mission clock)."""
+
+    plan: Plan
+    carrier: CarrierSpec
+    start: float  # mission clock when the route started
+    next_stop: int = 0  # the stop the carrier drives to or holds at
+    arrived: dict[int, float] = field(default_factory=dict)  # stop -> when the carrier got there
+    ready: dict[int, float] = field(default_factory=dict)  # stop -> latest released rover's arrival
+
+    def reached(self, k: int, when: float) -> None:
+        self.arrived[k] = when
+        self.next_stop = k
+
+    def released(self, k: int) -> None:
+        self.next_stop = k + 1
+
+    def rover_ready(self, k: int, when: float) -> None:
+        self.ready[k] = max(self.ready.get(k, -math.inf), when)
+
+    def eta(self, k: int, now: float, carrier: CarrierNow | None) -> float:
+        """When the carrier will be at stop ``k`` (mission clock)."""
+        if k in self.arrived:
+            return self.arrived[k]
+        j = min(self.next_stop, k)
+        t = self._arrival(j, now, carrier)
+        for m in range(j, k):
+            depart = max(t, self.ready.get(m, -math.inf)) + self.carrier.collect_stop_time
+            t = depart + (self.plan.stops[m + 1].arrive - self.plan.stops[m].depart)
+        return t
+
+    def makespan(self, now: float, carrier: CarrierNow | None) -> float:
+        """The predicted end of the round (mission clock): the last stop's departure."""
+        last = len(self.plan.stops) - 1
+        if last < 0:
+            return now
+        t = self.eta(last, now, carrier)
+        return max(t, self.ready.get(last, -math.inf)) + self.carrier.collect_stop_time
+
+    def _arrival(self, j: int, now: float, carrier: CarrierNow | None) -> float:
+        if j in self.arrived:
+            return self.arrived[j]
+        planned = self.start + self.plan.stops[j].arrive
+        if carrier is None:
+            return max(planned, now)
+        target = self.plan.stops[j].position
+        rest = _remaining_path(carrier.position, self.plan.stops[j].carrier_path, target)
+        motion = self.carrier.motion
+        if not carrier.accelerating and carrier.speed > SLOW:  # cruising below its top speed
+            motion = dataclasses.replace(motion, max_speed=min(carrier.speed, motion.max_speed))
+        t = now + remaining_leg_time(rest, carrier.speed, motion)
+        if carrier.speed < 0.1 and rest > 0.5:  # at rest: turns onto its leg first
+            want = math.atan2(target[1] - carrier.position[1], target[0] - carrier.position[0])
+            if abs(math.remainder(want - carrier.heading, math.tau)) > TURN_TOLERANCE:
+                t += turn_time(carrier.heading, want, self.carrier.turn_rate)
+        return t
+
+
+def _remaining_path(pos: Vec3, path: list[Vec3], target: Vec3) -> float:
+    """Ground length still to drive to ``target``: to the nearest vertex ahead of ``pos`` on the
+    stop's carrier path, then along it (a straight leg: the distance to the stop)."""
+    pts = [p for p in path[1:]] if len(path) > 1 else [target]
+    best, at = math.inf, len(pts) - 1
+    for i, p in enumerate(pts):
+        d = math.hypot(p[0] - pos[0], p[1] - pos[1])
+        if d < best:
+            best, at = d, i
+    rest = math.hypot(pts[at][0] - pos[0], pts[at][1] - pos[1])
+    for a, b in zip(pts[at:], pts[at + 1 :], strict=False):
+        rest += math.hypot(b[0] - a[0], b[1] - a[1])
+    return rest
+
+
+def release_delay(eta: float, flight: float, now: float) -> float:
+    """Mission seconds a rover still waits before it leaves (0: go now)."""
+    return max(eta - flight - RELEASE_LEAD - now, 0.0)
+
+
+@dataclass(frozen=True)
+class Shortfall:
+    """A rover the plan would bring below its reserve."""
+
+    rover: str
+    airborne: float  # s in the air until it is on the deck, waiting included
+    allowed: float  # s its battery above the reserve lasts
+
+
+def _below_approach(path: list[Vec3], approach: float) -> float:
+    """How much longer the path is to the deck than to the point ``approach`` m above it."""
+    end = path[-1]
+    up = (end[0], end[1], max(float(end[2]), approach))
+    return max(path_length(path) - path_length([*path[:-1], up]), 0.0)
+
+
+def energy_shortfalls(plan: Plan, battery: Mapping[str, float], airborne: set[str],
+                      carrier: CarrierSpec, max_speed: float, approach: float = 0.0) -> list[Shortfall]:
+    """Rovers that would be below their reserve on the deck: a rover already in the air burns its
+    battery from now until it is down (``max(carrier there, rover there) + land_time``), a rover
+    on the ground only from its release. ``battery[rover]`` (metres above the reserve at cruise
+    speed, from its live reading) / ``max_speed`` is the time it has. ``approach``: the height above
+    the stop where the rover's own flight ends and its landing (``land_time``) begins."""
+    out = []
+    for stop in plan.stops:
+        for leg in stop.rovers:
+            if leg.rover not in battery:
+                continue
+            # the plan's flight ends on the deck; the rover's ends above it and comes down in
+            # land_time: the part of the line below the approach point is counted once
+            below = _below_approach(leg.path, approach) / max_speed
+            down = max(stop.arrive, leg.arrive) + carrier.land_time - below
+            air = down if leg.rover in airborne else leg.arrive + RELEASE_LEAD + carrier.land_time - below
+            allowed = battery[leg.rover] / max_speed
+            if air > allowed + 1e-6:
+                out.append(Shortfall(leg.rover, air, allowed))
+    return out
+
+
+__all__ = ["RELEASE_LEAD", "CarrierNow", "RoundClock", "Shortfall", "energy_shortfalls", "release_delay"]

@@ -1,0 +1,105 @@
+"""What the web map shows, as JSON (the page draws it; :mod:`fleetctl.views.web` serves it).
+
+* :func:`plan_layer` - tasks, carrier stops, the planned carrier route and the rovers' planned
+  paths, in ENU metres, from the plan being flown (and the mission's tasks);
+* :func:`frame` - one moment: ``T`` (mission seconds since the run started), phase, stop k of N,
+  time to go, and per vehicle its state, task, ENU position, battery and link level, time to go;
+* :class:`Trails` - the last positions of every vehicle (a bounded history a new page starts with).
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from typing import TYPE_CHECKING, Any
+
+from fleetctl.views.eta import mission_time_to_go, planned_legs, time_to_go
+from fleetctl.views.levels import battery_level, link_level
+
+if TYPE_CHECKING:
+    from fleetctl.run.state import FleetState
+
+TRAIL_POINTS = 400  # positions kept per vehicle
+TRAIL_STEP = 0.5  # m: a new trail point once a vehicle moved this far
+EVENTS_SHOWN = 8
+ON_DECK = frozenset({"on_deck", "loaded", "unknown"})
+
+
+def _r(x: float | None, nd: int = 2) -> float | None:
+    return None if x is None or not math.isfinite(x) else round(float(x), nd)
+
+
+def plan_layer(state: FleetState) -> dict[str, Any]:
+    """Tasks, stops, route and rover paths (ENU metres) of the current plan."""
+    plan = state.plan or {}
+    tasks = {tid: list(p) for tid, p in state.tasks.items()}
+    route: list[list[float]] = []
+    start = (plan.get("carrier") or {}).get("start")
+    if start:
+        route.append([start[0], start[1]])
+    stops, paths = [], []
+    for k, stop in enumerate(plan.get("stops") or [], 1):
+        pos = stop.get("position") or [0.0, 0.0, 0.0]
+        for p in (stop.get("carrier_path") or [])[1:-1]:
+            route.append([p[0], p[1]])
+        route.append([pos[0], pos[1]])
+        stops.append({"k": k, "e": pos[0], "n": pos[1], "arrive": stop.get("arrive"),
+                      "rovers": [r.get("rover") for r in stop.get("rovers") or []]})
+        for r in stop.get("rovers") or []:
+            if r.get("task") and r.get("target"):
+                tasks.setdefault(str(r["task"]), list(r["target"]))
+            path = r.get("path") or [r.get("from") or pos, r.get("target") or pos]  # collect: from -> stop
+            paths.append({"rover": r.get("rover"), "path": [[p[0], p[1]] for p in path]})
+    return {"kind": plan.get("kind"), "makespan": plan.get("makespan"), "route": route, "stops": stops,
+            "paths": paths,
+            "tasks": [{"id": tid, "e": p[0], "n": p[1], "u": p[2] if len(p) > 2 else 0.0}
+                      for tid, p in sorted(tasks.items())]}
+
+
+def frame(state: FleetState) -> dict[str, Any]:
+    """The state of the run now (see the module docstring)."""
+    legs = planned_legs(state.plan)
+    vehicles = []
+    for v in state.vehicles.values():
+        e, n, u = v.enu if v.enu is not None else (None, None, None)
+        vehicles.append({
+            "id": v.id, "role": v.role, "state": "lost" if v.lost else v.state, "task": v.task,
+            "e": _r(e), "n": _r(n), "u": _r(u), "battery": _r(v.battery_pct, 0),
+            "battery_level": battery_level(state, v), "link": link_level(v),
+            "ttg": _r(time_to_go(state, v, legs), 1),
+        })
+    return {
+        "mission": state.mission_name, "T": _r(state.mission_time, 1), "phase": str(state.phase),
+        "stop": state.stop_index, "stops": state.stop_count, "elapsed": _r(state.elapsed, 1),
+        "planned": _r(state.planned, 1), "ttg": _r(mission_time_to_go(state), 1), "replans": state.replans,
+        "vehicles": vehicles,
+        "events": [{"T": _r(ev.mission_time, 1), "kind": ev.kind, "text": ev.text}
+                   for ev in list(state.events)[-EVENTS_SHOWN:]],
+    }
+
+
+class Trails:
+    """The last :data:`TRAIL_POINTS` positions (E, N) of every vehicle, a point per :data:`TRAIL_STEP` m."""
+
+    def __init__(self, points: int = TRAIL_POINTS, step: float = TRAIL_STEP) -> None:
+        self.points = points
+        self.step = step
+        self.trails: dict[str, deque[tuple[float, float]]] = {}
+
+    def add(self, state: FleetState) -> None:
+        for v in state.vehicles.values():
+            if v.enu is None:
+                continue
+            if v.role == "rover" and v.state in ON_DECK:  # riding on the carrier: no trail of its own
+                self.trails.pop(v.id, None)
+                continue
+            trail = self.trails.setdefault(v.id, deque(maxlen=self.points))
+            p = (round(v.enu[0], 2), round(v.enu[1], 2))
+            if not trail or math.dist(trail[-1], p) >= self.step:
+                trail.append(p)
+
+    def to_json(self) -> dict[str, list[list[float]]]:
+        return {vid: [list(p) for p in t] for vid, t in self.trails.items()}
+
+
+__all__ = ["EVENTS_SHOWN", "TRAIL_POINTS", "Trails", "frame", "plan_layer"]

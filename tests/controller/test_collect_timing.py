@@ -1,0 +1,91 @@
+"""Timed release and the reserve check of a collection round (fleetctl.run.collect_timing)."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from fleetctl.run.collect_timing import (
+    RELEASE_LEAD,
+    CarrierNow,
+    RoundClock,
+    energy_shortfalls,
+    release_delay,
+)
+from planners import COLLECT_PLANNERS
+from planners.problem import CarrierSpec, CollectProblem, CollectRover, Motion
+from planners.timing import remaining_leg_time
+
+CARRIER = CarrierSpec(10.0, 5.0, None, 0.0, 2.0, takeoff_time=1.5, land_time=3.5)
+ROVER = Motion(2.0)
+
+
+def two_stop_plan():
+    rovers = (CollectRover("near", (20.0, 5.0, 4.0), 30.0), CollectRover("far", (150.0, 10.0, 4.0), 30.0))
+    problem = CollectProblem(CARRIER, ROVER, (0.0, 0.0, 0.0), 0.0, rovers)
+    plan = COLLECT_PLANNERS["lee"](problem)
+    assert len(plan.stops) == 2
+    return problem, plan
+
+
+def test_on_plan_the_live_eta_is_the_planned_arrival():
+    _, plan = two_stop_plan()
+    clock = RoundClock(plan, CARRIER, start=100.0)
+    at_start = CarrierNow((0.0, 0.0, 0.0), 0.0, 0.0)
+    for k, stop in enumerate(plan.stops):
+        for leg in stop.rovers:  # released at the start: there at its planned arrival
+            clock.rover_ready(k, 100.0 + leg.arrive)
+    assert clock.eta(0, 100.0, at_start) == pytest.approx(100.0 + plan.stops[0].arrive, abs=1e-6)
+    assert clock.eta(1, 100.0, at_start) == pytest.approx(100.0 + plan.stops[1].arrive, abs=1e-6)
+    assert clock.makespan(100.0, at_start) == pytest.approx(100.0 + plan.makespan, abs=1e-6)
+
+
+def test_a_late_carrier_moves_the_eta_and_the_release_of_the_rovers_waiting():
+    _, plan = two_stop_plan()
+    clock = RoundClock(plan, CARRIER, start=0.0)
+    leg = plan.stops[1].rovers[0]
+    on_time = clock.eta(1, 0.0, CarrierNow((0.0, 0.0, 0.0), 0.0, 0.0))
+    # 10 s later the carrier has not moved (held up): everything after it is 10 s later
+    late = clock.eta(1, 10.0, CarrierNow((0.0, 0.0, 0.0), 0.0, 0.0))
+    assert late == pytest.approx(on_time + 10.0, abs=1e-6)
+    assert release_delay(late, leg.arrive, 10.0) == pytest.approx(
+        release_delay(on_time, leg.arrive, 0.0), abs=1e-6)
+    # part-way along its first leg, moving at full speed: the rest of the leg from there
+    x = plan.stops[0].position
+    half = (x[0] / 2, x[1] / 2, 0.0)
+    eta0 = clock.eta(0, 50.0, CarrierNow(half, 10.0, math.atan2(x[1], x[0])))
+    rest = remaining_leg_time(math.dist(half, x), 10.0, CARRIER.motion)
+    assert eta0 == pytest.approx(50.0 + rest, abs=1e-6)
+    clock.reached(0, 60.0)
+    assert clock.eta(0, 70.0, None) == 60.0  # an arrival, once seen, is fixed
+
+
+def test_a_rover_is_released_to_meet_the_carrier_not_to_wait_for_it():
+    _, plan = two_stop_plan()
+    clock = RoundClock(plan, CARRIER, start=0.0)
+    now, here = 0.0, CarrierNow((0.0, 0.0, 0.0), 0.0, 0.0)
+    for k, stop in enumerate(plan.stops):
+        for leg in stop.rovers:
+            wait = release_delay(clock.eta(k, now, here), leg.arrive, now)
+            # released so that it is above its stop RELEASE_LEAD before the carrier (or at once
+            # when its own flight is the longer one)
+            assert wait == pytest.approx(max(stop.arrive - leg.arrive - RELEASE_LEAD, 0.0), abs=1e-6)
+
+
+def test_reserve_check_counts_the_hover_of_a_rover_in_the_air():
+    problem, plan = two_stop_plan()
+    rovers = problem.rovers
+    speed = ROVER.max_speed
+    # plenty of battery: nobody short
+    rich = {r.id: 10_000.0 for r in rovers}
+    assert energy_shortfalls(plan, rich, {"near", "far"}, CARRIER, speed) == []
+    # exactly the flight's range: in the air it also hovers until the carrier is there -> short;
+    # on the ground it waits for free
+    tight = {leg.rover: (leg.arrive + RELEASE_LEAD + CARRIER.land_time) * speed
+             for stop in plan.stops for leg in stop.rovers}
+    in_air = energy_shortfalls(plan, tight, {"near", "far"}, CARRIER, speed)
+    assert {s.rover for s in in_air} == {leg.rover for s in plan.stops for leg in s.rovers
+                                         if max(s.arrive, leg.arrive) > leg.arrive + RELEASE_LEAD}
+    assert all(s.airborne > s.allowed for s in in_air)
+    assert energy_shortfalls(plan, tight, set(), CARRIER, speed) == []

@@ -1,0 +1,143 @@
+"""The live web map in a real browser: a short deployment on the embedded simulated fleet with
+``--web``, its page opened in Debian's chromium through Playwright (no browser download).
+
+Skipped only when chromium (or the playwright package) is missing here; scripts/test.sh installs
+both, so CI runs it.
+"""
+
+from __future__ import annotations
+
+import math
+import queue
+import shutil
+import socket
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+from typing import Any
+
+import pytest
+from views_helpers import mission_dict, write_mission
+
+CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
+CHROMIUM_FLAGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
+                  "--disable-background-networking", "--disable-component-update", "--disable-sync"]
+REPO = Path(__file__).resolve().parents[2]
+RUN_TIMEOUT = 180.0  # s: the whole deployment (a bound, not a measurement)
+POLL = 0.1  # s between two looks at the page
+
+pytestmark = pytest.mark.skipif(CHROMIUM is None, reason="chromium is not installed (scripts/test.sh "
+                                "installs Debian's chromium; apt-get install -y chromium)")
+
+READ_VEHICLES = """() => [...document.querySelectorAll('[data-vehicle]')].map(e => ({
+    id: e.dataset.vehicle, state: e.dataset.state, e: e.dataset.e, n: e.dataset.n}))"""
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+def _lines(proc: subprocess.Popen[str]) -> queue.Queue[str]:
+    q: queue.Queue[str] = queue.Queue()
+
+    def read() -> None:
+        assert proc.stdout is not None
+        for line in proc.stdout:
+            q.put(line)
+    threading.Thread(target=read, daemon=True).start()
+    return q
+
+
+def _wait_for_url(lines: queue.Queue[str], proc: subprocess.Popen[str]) -> str:
+    deadline = time.monotonic() + 60.0
+    seen: list[str] = []
+    while time.monotonic() < deadline:
+        try:
+            line = lines.get(timeout=1.0)
+        except queue.Empty:
+            if proc.poll() is not None:
+                break
+            continue
+        seen.append(line)
+        if line.startswith("web map: "):
+            return line.split(": ", 1)[1].strip()
+    raise AssertionError("no 'web map:' line from fleetctl:\n" + "".join(seen))
+
+
+def _watch_page(start: Any, user_dir: Path) -> tuple[list[list[dict[str, Any]]], subprocess.Popen[str]]:
+    """Start the browser, then the deployment (``start()`` -> (url, process)); what the page's
+    vehicle elements said, every POLL s until the deployment is over."""
+    sync_api = pytest.importorskip("playwright.sync_api", reason="the playwright package is not installed")
+    looks: list[list[dict[str, Any]]] = []
+    with sync_api.sync_playwright() as p:
+        browser = p.chromium.launch_persistent_context(str(user_dir), executable_path=CHROMIUM, headless=True,
+                                                       args=CHROMIUM_FLAGS)
+        try:
+            page = browser.new_page()  # ready before the rovers leave the deck
+            url, proc = start()
+            page.goto(url, timeout=30_000)
+            page.wait_for_selector("[data-vehicle]", timeout=30_000)
+            deadline = time.monotonic() + RUN_TIMEOUT
+            while proc.poll() is None and time.monotonic() < deadline:
+                looks.append(page.evaluate(READ_VEHICLES))
+                page.wait_for_timeout(POLL * 1000)
+            looks.append(page.evaluate(READ_VEHICLES))  # the last frame stays on the page
+        finally:
+            browser.close()
+    return looks, proc
+
+
+def _history(looks: list[list[dict[str, Any]]], vid: str) -> list[dict[str, Any]]:
+    return [v for look in looks for v in look if v["id"] == vid and v["e"] is not None]
+
+
+def _changes(seq: list[str]) -> list[str]:
+    return [s for k, s in enumerate(seq) if k == 0 or seq[k - 1] != s]
+
+
+def test_deploy_shows_vehicles_moving_to_their_tasks(tmp_path: Path) -> None:
+    d = mission_dict(rovers=2, speedup=2.0)
+    mission = write_mission(d, tmp_path / "mission.yaml")
+    port = _free_port()
+    procs: list[subprocess.Popen[str]] = []
+
+    def start() -> tuple[str, subprocess.Popen[str]]:
+        proc = subprocess.Popen(
+            [sys.executable, "-m", "fleetctl.cli", "deploy", "--mission", str(mission), "--headless",
+             "--run-dir", str(tmp_path / "run"), "--web", f"127.0.0.1:{port}"],
+            cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+        procs.append(proc)
+        return _wait_for_url(_lines(proc), proc), proc
+
+    try:
+        looks, proc = _watch_page(start, tmp_path / "chromium-profile")
+        assert proc.wait(timeout=60) == 0
+    finally:
+        for proc in procs:
+            if proc.poll() is None:
+                proc.kill()
+                proc.wait(timeout=10)
+    assert {v["id"] for v in looks[-1]} == {"carrier", "r1", "r2"}
+    tasks = {t["id"]: t["position"] for t in d["tasks"]}
+    for rid in ("r1", "r2"):
+        hist = _history(looks, rid)
+        states = _changes([v["state"] for v in hist])
+        assert "on_deck" in states and states[-1] == "on_task", states
+        flying = [k for k, s in enumerate(states) if s in ("climbing", "en_route")]
+        assert flying and states.index("on_deck") < flying[0], states  # deck, then in the air on its way
+        positions = {(v["e"], v["n"]) for v in hist}
+        assert len(positions) > 2  # it moved on the page
+        last = hist[-1]
+        task = next(tasks[t] for t in tasks if math.hypot(float(last["e"]) - tasks[t][0],
+                                                          float(last["n"]) - tasks[t][1]) < 2.0)
+        assert task in tasks.values()  # it ended at a task (within 2 m, the controller's reach is 1 m 3D)
+    ends = {min(tasks, key=lambda t: math.hypot(float(_history(looks, r)[-1]["e"]) - tasks[t][0],
+                                                float(_history(looks, r)[-1]["n"]) - tasks[t][1]))
+            for r in ("r1", "r2")}
+    assert ends == {"t1", "t2"}  # each at its own task
+    carrier = _changes([v["state"] for v in _history(looks, "carrier")])
+    assert "driving" in carrier and "holding" in carrier
