@@ -459,7 +459,7 @@ def _initial_clusters(builder: _PathBuilder) -> list[list[int]]:
     return clusters
 
 
-def lee_route(problem: CollectProblem, improve: bool = True, fine_upto: int = 30,
+def lee_route(problem: CollectProblem, improve: bool = True, fine_upto: int = 12,
               t0: float | None = None) -> tuple[_PathBuilder, _Route]:
     """Algorithm 5.1–5.2, then (with ``improve``) re-sequencing, merging and handing rovers over
     while that helps, and a final fine placement of every stop with both neighbours known."""

@@ -391,7 +391,8 @@ def lee_clusters(problem: DeployProblem, improve: bool = True,
 
     def finish(r: _Route) -> _Route:
         r = _fresh(builder, r)
-        return _polish(builder, r, 3 if small else 2, 1e-3 if small else COARSE_TOL) if improve else r
+        sweeps = 3 if small else 2 if n <= 60 else 1
+        return _polish(builder, r, sweeps, 1e-3 if small else COARSE_TOL) if improve else r
 
     if not improve:
         best = finish(route)
@@ -427,7 +428,7 @@ def _fresh(builder: _PathBuilder, r: _Route) -> _Route:
 FINE_MOVES_UPTO = 8  # tasks: up to this many, every move is also scored on fine, polished stops
 # (up to n tasks, k): the tasks of a cluster nearest its neighbour that the quick descent offers to it
 # (big clusters of big problems: each offer costs an enclosing circle)
-QD_KEEP = ((200, 3), (500, 1), (math.inf, 0))
+QD_KEEP = ((60, 3), (300, 1), (math.inf, 0))
 FINE_UPTO = 12  # tasks: up to this many, the polish steps down to 1 mm and today's route is polished too
 COARSE_TOL = 5e-2  # m: the polish's last step on larger problems (5 cm of carrier drive: ~3 ms)
 ILS_PATIENCE = 20  # kicks per task without a new best before the anytime search gives up
