@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import logging
 import sys
@@ -11,6 +12,7 @@ from typing import TYPE_CHECKING, Any
 
 from fleetctl import package_version
 from fleetctl.mission import Mission, MissionError, load_mission
+from fleetctl.mission.limits import MAX_BUDGET_MS
 from fleetctl.mission.outliers import far_task_warnings
 from fleetctl.mission.teams import several_teams
 from planners.problem import CollectProblem
@@ -65,6 +67,8 @@ def cmd_plan(args: argparse.Namespace) -> int:
         except PlanningError as e:
             raise CliError(f"{args.mission}: cannot plan with {name!r}: {e}") from None
     problem = mission.collect_problem() if args.collect else mission.deploy_problem()
+    if args.budget_ms is not None:
+        problem = dataclasses.replace(problem, budget_ms=args.budget_ms)
     try:
         plan = registry[name](problem)
         bound = _lower_bound(problem, args.collect)
@@ -217,6 +221,9 @@ def _fly(args: argparse.Namespace, mission: Mission, command: str, extra: dict[s
         raise CliError(f"--speedup must be > 0, got {args.speedup}")
     if getattr(args, "dwell", None) is not None and args.dwell < 0:
         raise CliError(f"--dwell must be >= 0 s, got {args.dwell}")
+    if args.budget_ms is not None:  # every plan of the run (replans: at most planning.REPLAN_BUDGET_MS)
+        planner = dataclasses.replace(mission.planner, budget_ms=args.budget_ms)
+        mission = dataclasses.replace(mission, planner=planner)
     mqtt = _bus_config(mission, args)
     view = _with_web(args, make_view(True if args.headless else None, latlon=args.latlon), mission.origin)
 
@@ -341,7 +348,25 @@ def _add_fly_commands(sub: argparse._SubParsersAction) -> None:
     _add_resume_command(sub)
 
 
+def _budget_ms(text: str) -> float:
+    """``--budget-ms N``: milliseconds of anytime improvement search after the quick plan."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number of milliseconds, got {text!r}") from None
+    if not 0 <= value <= MAX_BUDGET_MS:
+        raise argparse.ArgumentTypeError(f"must be 0..{MAX_BUDGET_MS:.0f} ms, got {text}")
+    return value
+
+
+def _add_budget_option(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--budget-ms", type=_budget_ms, metavar="N",
+                   help="after the quick plan, improve it for about N ms (iterated local search, seeded "
+                        "by planner.seed; default: the mission's planner.budget_ms, none = quick plan)")
+
+
 def _add_shared_fly_options(p: argparse.ArgumentParser) -> None:
+    _add_budget_option(p)
     p.add_argument("--timeout", type=float, default=10.0, metavar="S",
                    help="seconds to wait for every vehicle's first heartbeat (default: 10)")
     p.add_argument("--yes", "-y", action="store_true",
@@ -426,6 +451,7 @@ def build_parser() -> argparse.ArgumentParser:
     plan.add_argument("--planner", "-p",
                       help="deployment: lee (default), greedy2opt, direct, two-task; "
                            "collection: lee (default), lee-convex, visit-all, gather")
+    _add_budget_option(plan)
     plan.add_argument("--json", action="store_true", help="print only the plan JSON (schema fleetctl.plan/1)")
     plan.add_argument("--plot", metavar="OUT.png", help="draw the plan to a PNG file")
     plan.add_argument("--export", metavar="DIR",

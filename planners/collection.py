@@ -16,13 +16,23 @@ model; ``planners.collection_convex`` solves the same placement as a constrained
 from __future__ import annotations
 
 import math
+import random
 import time
 from collections.abc import Callable, Sequence
 
 import numpy as np
 
 from planners.clustering import divide_cluster
-from planners.geometry import minimize_1d
+from planners.geometry import compass_search, minimize_1d
+from planners.moves import (
+    deadline,
+    fine_descent,
+    iterated_search,
+    merge,
+    quick_descent,
+    relocate_nearest,
+    swap,
+)
 from planners.plan import Plan, RoverLeg, Stop
 from planners.problem import CollectProblem, PlanningError, Vec3, refuse_obstacles
 from planners.reach import Point2, Region, make_region
@@ -158,6 +168,11 @@ class _PathBuilder:
         return _Route(self, clusters, regions, positions)
 
 
+# a scored change: makespan, clusters, stops, first re-placed stop, end of the re-placed stops,
+# the old index of the first kept stop
+Candidate = tuple[float, list[list[int]], list[Point2], int, int, int]
+
+
 class _Route:
     """An ordered cluster list with its stops and the times eq. 5.2 gives them.
 
@@ -171,18 +186,56 @@ class _Route:
         self.hop: list[float] = []
         self.heading: list[float] = []
         self.ready: list[float] = []
-        self.eta: list[float] = []
-        prev, t, h = b.start, 0.0, b.heading0
+        prev, h = b.start, b.heading0
         for reg, pos in zip(regions, positions, strict=True):
             dt, h = carrier_hop(prev, pos, h, b.carrier)
-            ready = b.ready(reg, pos)
-            t = max(t + dt, ready) + b.load
             self.hop.append(dt)
             self.heading.append(h)
-            self.ready.append(ready)
-            self.eta.append(t)
+            self.ready.append(b.ready(reg, pos))
             prev = pos
-        self.makespan = self.eta[-1] if self.eta else 0.0
+        self._times()
+
+    def _times(self) -> None:
+        """``eta`` and the makespan from ``hop`` and ``ready`` (eq. 5.2), and the suffix sums.
+
+        Eq. 5.2 is max-plus linear in a departure time: leaving stop j at t, the route ends at
+        max(t + after[j], late[j]) (after: hops and loads still to come; late: the latest a later
+        cluster's rovers hold the carrier up), so re-timing a local change costs O(1)."""
+        load, n = self.b.load, len(self.hop)
+        self.eta = []
+        t = 0.0
+        for dt, ready in zip(self.hop, self.ready, strict=True):
+            t = max(t + dt, ready) + load
+            self.eta.append(t)
+        self.makespan = t if n else 0.0
+        self.after = [0.0] * n
+        self.late = [-math.inf] * n
+        for j in range(n - 2, -1, -1):
+            self.after[j] = self.after[j + 1] + self.hop[j + 1] + load
+            self.late[j] = max(self.late[j + 1], self.ready[j + 1] + load + self.after[j + 1])
+
+    def moved(self, k: int, q: Point2) -> _Route:
+        """This route with stop k moved to ``q``: only the hops whose turn or length changed (into
+        k, k + 1, k + 2 and on while the arrival heading differs) are driven again."""
+        b = self.b
+        r = object.__new__(type(self))
+        r.b, r.clusters, r.regions = b, self.clusters, self.regions
+        r.positions = [*self.positions[:k], q, *self.positions[k + 1:]]
+        r.hop, r.heading, r.ready = self.hop[:], self.heading[:], self.ready[:]
+        r.ready[k] = b.ready(self.regions[k], q)
+        prev, h = (b.start, b.heading0) if k == 0 else (self.positions[k - 1], self.heading[k - 1])
+        for j in range(k, len(r.positions)):
+            if j > k + 1 and h == self.heading[j - 1]:
+                break
+            r.hop[j], h = carrier_hop(prev, r.positions[j], h, b.carrier)
+            r.heading[j] = h
+            prev = r.positions[j]
+        r._times()
+        return r
+
+    def end_from(self, j: int, t: float) -> float:
+        """Makespan when the carrier leaves stop j at ``t`` and later stops keep their places."""
+        return max(t + self.after[j], self.late[j])
 
     def state_before(self, k: int) -> tuple[Point2, float, float]:
         """Carrier position, time and heading when it leaves the stop before stop k."""
@@ -193,23 +246,41 @@ class _Route:
     def _finish(self, m: int, prev: Point2, t: float, h: float) -> float:
         """Makespan when the carrier leaves ``prev`` at ``t`` with heading ``h`` for old stop m."""
         b = self.b
-        for j in range(m, len(self.positions)):
+        last = min(m + 2, len(self.positions))
+        for j in range(m, last):  # the heading into m changed, so the rotation at m (into m + 1) too
             pos = self.positions[j]
-            if j <= m + 1:  # the heading into m changed, so the rotation at m (into m + 1) too
-                dt, h = carrier_hop(prev, pos, h, b.carrier)
-            else:
-                dt = self.hop[j]
+            dt, h = carrier_hop(prev, pos, h, b.carrier)
             t = max(t + dt, self.ready[j]) + b.load
-            if j > m and abs(t - self.eta[j]) <= 1e-12:
-                return self.makespan  # the schedule has rejoined the old one (eq. 5.2 is a max)
             prev = pos
-        return t
+        return self.end_from(last - 1, t)
 
-    def accept(self, cand: tuple[float, list[list[int]], list[Point2]]) -> _Route:
-        return _Route(self.b, cand[1], [self.b.inst.region(x) for x in cand[1]], cand[2])
+    def accept(self, cand: Candidate) -> _Route:
+        """The route of a scored change: stops before ``lo`` and from old stop ``m`` on keep their
+        hops and rovers' times; only the changed stops (and the hops whose heading changed) are
+        driven again, so a long route accepts a local change in a few hops."""
+        _, clusters, positions, lo, hi, m = cand
+        b = self.b
+        r = object.__new__(type(self))
+        r.b, r.clusters, r.positions = b, clusters, positions
+        r.regions = [*self.regions[:lo], *(b.inst.region(c) for c in clusters[lo:hi]), *self.regions[m:]]
+        r.hop, r.heading, r.ready = self.hop[:lo], self.heading[:lo], self.ready[:lo]
+        prev, h = (b.start, b.heading0) if lo == 0 else (positions[lo - 1], self.heading[lo - 1])
+        for j in range(lo, len(positions)):
+            o = j - hi + m  # the old index of a kept stop
+            if j > hi and h == self.heading[o - 1]:  # the rest is driven as before
+                r.hop += self.hop[o:]
+                r.heading += self.heading[o:]
+                r.ready += self.ready[o:]
+                break
+            dt, h = carrier_hop(prev, positions[j], h, b.carrier)
+            r.hop.append(dt)
+            r.heading.append(h)
+            r.ready.append(b.ready(r.regions[j], positions[j]) if j < hi else self.ready[o])
+            prev = positions[j]
+        r._times()
+        return r
 
-    def replace(self, i: int, pieces: list[list[int]],
-                count: int = 1) -> tuple[float, list[list[int]], list[Point2]]:
+    def replace(self, i: int, pieces: list[list[int]], count: int = 1) -> Candidate:
         """Makespan after clusters i..i+count-1 are replaced by ``pieces``: the stop before, the
         pieces and their stops are placed afresh; later stops keep their places and are re-timed."""
         b, old = self.b, self.clusters
@@ -233,7 +304,7 @@ class _Route:
         if m < len(old):
             t = self._finish(m, prev, t, h)
             positions = positions + self.positions[m:]
-        return t, clusters, positions
+        return t, clusters, positions, lo, hi, m
 
 
 def _move_rovers(builder: _PathBuilder, route: _Route) -> _Route:
@@ -283,12 +354,93 @@ def polish(builder: _PathBuilder, route: _Route,
             pos = place(route.regions[k], prev, t, h, nxt, route.positions[k])
             if math.dist(pos, route.positions[k]) < 1e-9:
                 continue
-            positions = route.positions[:k] + [pos] + route.positions[k + 1:]
-            cand = _Route(builder, route.clusters, route.regions, positions)
+            cand = route.moved(k, pos)
             if cand.makespan < route.makespan - 1e-9:
                 route, improved = cand, True
         if not improved:
             break
+    return route
+
+
+_TAU = 2.0 * math.pi
+
+
+def _stop_cost(route: _Route, k: int) -> Callable[[float, float], float]:
+    """Makespan of ``route`` with stop k moved to (x, y), the others kept, or inf outside I_β:
+    the hops into k, k + 1 and k + 2 are re-timed, later stops by ``_Route.end_from``. Written
+    out (no helper calls) because the compass search calls it thousands of times;
+    ``carrier_hop`` and ``leg_time`` are the same arithmetic."""
+    b = route.b
+    inst, c, rover, load = b.inst, b.carrier, b.rover, b.load
+    v, a, w = c.max_speed, c.accel, c.turn_rate
+    vv_a = v * v / a if a is not None else 0.0
+    members = route.clusters[k]
+    rows = [(inst.pts2[i][0], inst.pts2[i][1], float(inst.radii[i]) ** 2, float(inst.heights2[i]))
+            for i in members]
+    (px, py), t0, h0 = route.state_before(k)
+    n = len(route.positions)
+    nxt = route.positions[k + 1:k + 3]
+    ready = route.ready[k + 1:k + 3]
+
+    def drive(dx: float, dy: float, h: float) -> tuple[float, float]:
+        d2 = dx * dx + dy * dy
+        if d2 <= 1e-18:
+            return 0.0, h
+        g = math.atan2(dy, dx)
+        length = math.sqrt(d2)
+        if a is None:
+            t = length / v
+        elif length >= vv_a:
+            t = length / v + v / a
+        else:
+            t = 2.0 * math.sqrt(length / a)
+        if w is not None:
+            turn = (g - h) % _TAU
+            t += min(turn, _TAU - turn) / w
+        return t, g
+
+    def cost(x: float, y: float) -> float:
+        far = 0.0
+        for gx, gy, r2, z2 in rows:
+            e = (x - gx) ** 2 + (y - gy) ** 2
+            if e > r2:
+                return math.inf
+            if e + z2 > far:
+                far = e + z2
+        dt, h = drive(x - px, y - py, h0)
+        t = max(t0 + dt, leg_time(math.sqrt(far), rover)) + load
+        qx, qy = x, y
+        for (nx, ny), rd in zip(nxt, ready, strict=True):
+            dt, h = drive(nx - qx, ny - qy, h)
+            t = max(t + dt, rd) + load
+            qx, qy = nx, ny
+        return route.end_from(k + len(nxt), t) if k + 1 < n else t
+
+    return cost
+
+
+def compass(builder: _PathBuilder, route: _Route, sweeps: int = 2, tol: float = 1e-3) -> _Route:
+    """Move each stop on its own inside its region I_β wherever the route gets faster (a compass
+    search on the exact time model, 8 directions, halving steps down to ``tol`` m): the candidate
+    points of eq. 5.13–5.16 miss the interior point where the carrier and the cluster's last rover
+    arrive together. After the first sweep only stops with a moved neighbour are searched again."""
+    inst = builder.inst
+    todo = set(range(len(route.clusters)))
+    for _ in range(sweeps):
+        before = route.makespan
+        moved: set[int] = set()
+        for k in sorted(todo):
+            cost = _stop_cost(route, k)
+            best = route.makespan
+            x, y = route.positions[k]
+            step = max(float(min(inst.radii[i] for i in route.clusters[k])) / 4, 0.05)
+            x, y, best = compass_search(cost, x, y, best, step, tol)
+            if (x, y) != route.positions[k]:
+                route = route.moved(k, (x, y))
+                moved.add(k)
+        if route.makespan >= before - 1e-6:
+            break
+        todo = {j for k in moved for j in range(k - 2, k + 3) if 0 <= j < len(route.clusters)}
     return route
 
 
@@ -307,8 +459,8 @@ def _initial_clusters(builder: _PathBuilder) -> list[list[int]]:
     return clusters
 
 
-def lee_route(problem: CollectProblem, improve: bool = True,
-              fine_upto: int = 30) -> tuple[_PathBuilder, _Route]:
+def lee_route(problem: CollectProblem, improve: bool = True, fine_upto: int = 12,
+              t0: float | None = None) -> tuple[_PathBuilder, _Route]:
     """Algorithm 5.1–5.2, then (with ``improve``) re-sequencing, merging and handing rovers over
     while that helps, and a final fine placement of every stop with both neighbours known."""
     inst = CollectInstance(problem)
@@ -324,23 +476,62 @@ def lee_route(problem: CollectProblem, improve: bool = True,
     route = split_loop(builder.route(_initial_clusters(builder)), divide, rejected, accept_ties=False)
     for _ in range(3 if improve else 0):  # improvement search beyond the dissertation
         better = reorder(route, route.positions, builder.start, builder.route)
-        better = _move_rovers(builder, merge_neighbours(better, inst.fits))
+        better = merge_neighbours(better, inst.fits)
+        if len(problem.rovers) <= MOVE_ROVERS_UPTO:  # (larger: the quick descent's bounded relocate)
+            better = _move_rovers(builder, better)
         better = split_loop(better, divide, rejected, accept_ties=False)
         if better.makespan >= route.makespan - 1e-9:
             break
         route = better
     small = len(problem.rovers) <= fine_upto
-    if small:  # place every stop afresh, finely, and keep the faster
-        fresh = builder.route(route.clusters, 2)
-        route = fresh if fresh.makespan <= route.makespan else route
-    route = polish(builder, route, sweeps=2 if small else 1, level=2 if small else 1)
+
+    def finish(r: _Route) -> _Route:
+        if small:  # place every stop afresh, finely, and keep the faster
+            fresh = builder.route(r.clusters, 2)
+            r = fresh if fresh.makespan <= r.makespan else r
+        r = polish(builder, r, sweeps=2 if small else 1, level=2 if small else 1)
+        return compass(builder, r, tol=1e-3 if small else COARSE_TOL)
+
+    stop = deadline(problem.budget_ms, t0) if improve else None
+    if not improve:
+        best = finish(route)
+    else:  # group and order moves (planners.moves), scored on the quick placement ...
+        keep = next(k for upto, k in QD_KEEP if len(problem.rovers) <= upto)
+
+        def nearness(rover: int, cluster: Sequence[int]) -> float:
+            c, p = inst.region(cluster).center, inst.pts2[rover]
+            return (p[0] - c[0]) ** 2 + (p[1] - c[1]) ** 2
+
+        moved = quick_descent(route, inst.fits, cheap=(swap, relocate_nearest(nearness, keep), merge))
+        best = finish(moved)
+        if small and moved is not route:  # (large routes: the moves' route alone is placed finely)
+            today = finish(route)
+            best = today if today.makespan < best.makespan else best
+        if len(problem.rovers) <= FINE_MOVES_UPTO or stop is not None:  # ... and on the final stops
+            best = fine_descent(best, inst.fits, builder.route, finish,
+                                stop if len(problem.rovers) > FINE_MOVES_UPTO else None,
+                                slack=0.15 if stop is None else math.inf)
+    if stop is not None:  # anytime: iterated local search until the budget
+        best = iterated_search(best, inst.fits, builder.route, finish, random.Random(problem.seed), stop,
+                               max_fails=ILS_PATIENCE * len(problem.rovers))
+    route = best
     if len(problem.rovers) == 2:
         from planners.collection_two import two_rover_route  # the ch. 5.3 optimum, where it applies
 
         two = two_rover_route(builder)
         if two.makespan < route.makespan:
-            route = two
+            route = compass(builder, two)
     return builder, route
+
+
+FINE_MOVES_UPTO = 8  # rovers: up to this many, every move is also scored on fine, polished stops
+# (up to n rovers, k): the rovers of a cluster nearest its neighbour that the quick descent offers to it
+QD_KEEP = ((200, 4), (math.inf, 2))
+MOVE_ROVERS_UPTO = 200  # rovers: beyond, the loop does not hand rovers over (the quick descent does)
+COARSE_TOL = 5e-2  # m: the compass search's last step on large routes (1 mm on small ones)
+
+
+ILS_PATIENCE = 20  # kicks per rover without a new best before the anytime search gives up
 
 
 def build_collect_plan(problem: CollectProblem, planner: str, clusters: Sequence[Sequence[int]],
@@ -398,7 +589,7 @@ def plan_collect_lee(problem: CollectProblem) -> Plan:
     """The dissertation's collection path generator (ch. 5.4) with the fast meeting points; ``lee``."""
     t0 = time.perf_counter()
     refuse_obstacles(problem, "lee")
-    _, route = lee_route(problem)
+    _, route = lee_route(problem, t0=t0)
     ms = (time.perf_counter() - t0) * 1e3
     return build_collect_plan(problem, "lee", route.clusters, route.positions, ms)
 

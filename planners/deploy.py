@@ -6,13 +6,16 @@ per cluster at a deployment point q_ω, unloads, and the cluster's rovers fly to
 
 from __future__ import annotations
 
+import itertools
 import math
+import random
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 from planners.clustering import divide_cluster
-from planners.geometry import enclosing_ball, find_root, minimize_1d
+from planners.geometry import compass_search, enclosing_ball, find_root, minimize_1d
+from planners.moves import deadline, fine_descent, iterated_search, merge, quick_descent, relocate_nearest
 from planners.plan import Plan, RoverLeg, Stop
 from planners.problem import DeployProblem, PlanningError, Vec3, refuse_obstacles
 from planners.search import merge_neighbours, reorder, split_loop, swap_neighbours
@@ -240,6 +243,10 @@ class _PathBuilder:
         return _Route(self, clusters, geos, positions)
 
 
+# a scored change: makespan, clusters, their geometry, stops, first re-placed stop
+Candidate = tuple[float, list[list[int]], list[ClusterGeometry], list[Point2], int]
+
+
 class _Route:
     """An ordered cluster list with its stops and the times needed to re-time a local change.
 
@@ -248,13 +255,18 @@ class _Route:
     """
 
     def __init__(self, b: _PathBuilder, clusters: list[list[int]], geos: list[ClusterGeometry],
-                 positions: list[Point2]) -> None:
+                 positions: list[Point2], base: _Route | None = None, lo: int = 0) -> None:
+        """``base``: a route with the same first ``lo`` stops, whose times are kept."""
         self.b, self.clusters, self.geos, self.positions = b, clusters, geos, positions
-        self.arrive: list[float] = []
-        self.heading: list[float] = []
-        self.done: list[float] = []
-        prev, t, h = b.start, 0.0, b.inst.problem.heading
-        for members, pos in zip(clusters, positions, strict=True):
+        if base is None or lo == 0:
+            lo, prev, t, h = 0, b.start, 0.0, b.inst.problem.heading
+            self.arrive: list[float] = []
+            self.heading: list[float] = []
+            self.done: list[float] = []
+        else:
+            self.arrive, self.heading, self.done = base.arrive[:lo], base.heading[:lo], base.done[:lo]
+            prev, t, h = positions[lo - 1], base.arrive[lo - 1] + b.unload, base.heading[lo - 1]
+        for members, pos in zip(clusters[lo:], positions[lo:], strict=True):
             dt, h = carrier_hop(prev, pos, h, b.carrier)
             t += dt
             self.arrive.append(t)
@@ -266,12 +278,40 @@ class _Route:
         for j in range(len(self.tail) - 2, -1, -1):
             self.tail[j] = max(self.tail[j], self.tail[j + 1])
         self.makespan = self.tail[0] if self.tail else 0.0
+        self.head = list(itertools.accumulate(self.done, max))  # head[j] = max(done[:j + 1])
 
-    def accept(self, cand: tuple[float, list[list[int]], list[ClusterGeometry], list[Point2]]) -> _Route:
-        return _Route(self.b, *cand[1:])
+    def moved(self, k: int, q: Point2) -> _Route:
+        """This route with stop k moved to ``q``: times before k are kept, the rest re-timed."""
+        b = self.b
+        r = object.__new__(type(self))
+        r.b, r.clusters, r.geos = b, self.clusters, self.geos
+        r.positions = [*self.positions[:k], q, *self.positions[k + 1:]]
+        r.arrive, r.heading, r.done = self.arrive[:k], self.heading[:k], self.done[:k]
+        if k == 0:
+            prev, t, h = b.start, 0.0, b.inst.problem.heading
+        else:
+            prev, t, h = self.positions[k - 1], self.arrive[k - 1] + b.unload, self.heading[k - 1]
+        for j in range(k, len(self.positions)):
+            pos = r.positions[j]
+            dt, h = carrier_hop(prev, pos, h, b.carrier)
+            t += dt
+            r.arrive.append(t)
+            r.heading.append(h)
+            t += b.unload
+            r.done.append(t + b.finish(pos, self.clusters[j]))
+            prev = pos
+        r.tail = r.done[:]
+        for j in range(len(r.tail) - 2, -1, -1):
+            r.tail[j] = max(r.tail[j], r.tail[j + 1])
+        r.makespan = r.tail[0] if r.tail else 0.0
+        r.head = list(itertools.accumulate(r.done, max))
+        return r
 
-    def replace(self, i: int, pieces: list[list[int]],
-                count: int = 1) -> tuple[float, list[list[int]], list[ClusterGeometry], list[Point2]]:
+    def accept(self, cand: Candidate) -> _Route:
+        _, clusters, geos, positions, lo = cand
+        return _Route(self.b, clusters, geos, positions, self, lo)
+
+    def replace(self, i: int, pieces: list[list[int]], count: int = 1) -> Candidate:
         """Makespan after clusters i..i+count-1 are replaced by ``pieces``, recomputing the stops
         around the change (the one before, the pieces, the one after) and keeping later stops."""
         b, old = self.b, self.clusters
@@ -286,7 +326,7 @@ class _Route:
         else:
             prev = self.positions[lo - 1]
             t, h = self.arrive[lo - 1] + b.unload, self.heading[lo - 1]
-            worst = max(self.done[: lo])
+            worst = self.head[lo - 1]
         positions = self.positions[:lo]
         for k in range(lo, hi):
             pos = b.place(clusters, geos, k, prev, t, h, worst, fine=False)
@@ -306,10 +346,11 @@ class _Route:
                 shift = t + dt - self.arrive[m + 1]
                 worst = max(worst, self.tail[m + 1] + shift)
             positions += self.positions[m:]
-        return worst, clusters, geos, positions
+        return worst, clusters, geos, positions, lo
 
 
-def lee_clusters(problem: DeployProblem, improve: bool = True) -> tuple[list[list[int]], list[Point2], float]:
+def lee_clusters(problem: DeployProblem, improve: bool = True,
+                 t0: float | None = None) -> tuple[list[list[int]], list[Point2], float]:
     """Algorithm 4.1–4.2: divide until every cluster fits d_deploy, then the split/swap/merge loop
     that keeps the fastest path; with ``improve``, then re-sequence and merge clusters and run
     the loop again while that helps. Returns clusters in visiting order, stops and makespan."""
@@ -345,71 +386,166 @@ def lee_clusters(problem: DeployProblem, improve: bool = True) -> tuple[list[lis
         route = better
 
     # The loop re-placed stops only around each change; place every stop afresh, finely, and
-    # keep whichever of the two routes is faster.
-    fresh = builder.route(route.clusters, fine=True)
-    best = fresh if fresh.makespan <= route.makespan else route
-    if improve and len(best.clusters) <= POLISH_MAX_STOPS:
-        best = _polish(builder, best)
+    # keep whichever of the two routes is faster; then polish every stop (routes of any length).
+    small = n <= FINE_UPTO
+
+    def finish(r: _Route) -> _Route:
+        r = _fresh(builder, r)
+        sweeps = 3 if small else 2 if n <= 60 else 1
+        return _polish(builder, r, sweeps, 1e-3 if small else COARSE_TOL) if improve else r
+
+    if not improve:
+        best = finish(route)
+        return best.clusters, best.positions, best.makespan
+    stop = deadline(problem.budget_ms, t0)
+    # group and order moves (planners.moves), scored on the quick placement ...
+    def nearness(task: int, cluster: Sequence[int]) -> float:
+        c, p = inst.geometry(cluster).center, inst.pts[task]
+        return (p[0] - c[0]) ** 2 + (p[1] - c[1]) ** 2
+
+    keep = next(k for upto, k in QD_KEEP if n <= upto)
+    moved = quick_descent(route, inst.fits_quick, cheap=(relocate_nearest(nearness, keep), merge))
+    best = finish(moved)
+    if small and moved is not route:  # today's plan too (large: the moves' route alone is polished)
+        today = finish(route)
+        best = today if today.makespan < best.makespan else best
+    if n <= FINE_MOVES_UPTO or stop is not None:  # ... and on the final placement
+        best = fine_descent(best, inst.fits_quick, builder.route, finish,
+                                stop if n > FINE_MOVES_UPTO else None,
+                                slack=0.15 if stop is None else math.inf)
+    if stop is not None:  # anytime: iterated local search until the budget
+        best = iterated_search(best, inst.fits_quick, builder.route, finish,
+                               random.Random(problem.seed), stop, max_fails=ILS_PATIENCE * n)
     return best.clusters, best.positions, best.makespan
 
 
-POLISH_MAX_STOPS = 24  # routes with more stops skip the polish: it would cost more than the planning
-_DIRECTIONS = [(math.cos(a * math.pi / 4), math.sin(a * math.pi / 4)) for a in range(8)]
+def _fresh(builder: _PathBuilder, r: _Route) -> _Route:
+    """``r`` or its clusters' stops placed afresh, finely: whichever is faster."""
+    fresh = builder.route(r.clusters, fine=True)
+    return fresh if fresh.makespan <= r.makespan else r
 
 
-def _moved(builder: _PathBuilder, r: _Route, k: int, q: Point2, head: float) -> float:
-    """Makespan of route ``r`` with stop k moved to ``q`` (the others kept): only the legs into k
-    and k + 1 and the turn at k + 1 change; later stops shift in time by the same amount."""
-    b, pos, unload = builder, r.positions, builder.unload
+FINE_MOVES_UPTO = 8  # tasks: up to this many, every move is also scored on fine, polished stops
+# (up to n tasks, k): the tasks of a cluster nearest its neighbour that the quick descent offers to it
+# (big clusters of big problems: each offer costs an enclosing circle)
+QD_KEEP = ((60, 3), (300, 1), (math.inf, 0))
+FINE_UPTO = 12  # tasks: up to this many, the polish steps down to 1 mm and today's route is polished too
+COARSE_TOL = 5e-2  # m: the polish's last step on larger problems (5 cm of carrier drive: ~3 ms)
+ILS_PATIENCE = 20  # kicks per task without a new best before the anytime search gives up
+
+
+_TAU = 2.0 * math.pi
+
+
+def _stop_cost(builder: _PathBuilder, r: _Route, k: int) -> Callable[[float, float], float]:
+    """Makespan of route ``r`` with stop k moved to (x, y), the others kept, or inf where a task of
+    stop k is out of reach: only the legs into k and k + 1 and the turn at k + 1 change; later
+    stops shift in time by the same amount. Written out (no helper calls) because the polish
+    calls it thousands of times; ``carrier_hop`` is the same arithmetic."""
+    b, pos, unload, d2max = builder, r.positions, builder.unload, builder.inst.d ** 2
+    c = b.carrier
+    v, a, w = c.max_speed, c.accel, c.turn_rate
+    vv_a = v * v / a if a is not None else 0.0
+    rover = b.rover
+    rows = [b.inst.pts[i] for i in r.clusters[k]]
+    rows2 = [(x, y, z * z) for x, y, z in rows]
     if k == 0:
-        prev, t, h = b.start, 0.0, b.inst.problem.heading
+        (px, py), t0, h0 = b.start, 0.0, b.inst.problem.heading
     else:
-        prev, t, h = pos[k - 1], r.arrive[k - 1] + unload, r.heading[k - 1]
-    dt, h = carrier_hop(prev, q, h, b.carrier)
-    t += dt + unload
-    worst = max(head, t + b.finish(q, r.clusters[k]))
+        (px, py), t0, h0 = pos[k - 1], r.arrive[k - 1] + unload, r.heading[k - 1]
+    head = r.head[k - 1] if k else 0.0  # stops before k are not affected
     n = len(pos)
+    nx1 = ny1 = 0.0
+    done1 = arrive1 = 0.0
     if k + 1 < n:
-        dt, h = carrier_hop(q, pos[k + 1], h, b.carrier)
-        t1 = t + dt  # new arrival at k + 1
-        worst = max(worst, r.done[k + 1] + (t1 - r.arrive[k + 1]))
-        if k + 2 < n:
-            dt, _ = carrier_hop(pos[k + 1], pos[k + 2], h, b.carrier)
-            worst = max(worst, r.tail[k + 2] + (t1 + unload + dt - r.arrive[k + 2]))
-    return worst
+        (nx1, ny1), done1, arrive1 = pos[k + 1], r.done[k + 1], r.arrive[k + 1]
+    # the hop k + 1 → k + 2 keeps its length; only the turn at k + 1 depends on stop k
+    h12: float | None = None
+    hop12 = tail2 = arrive2 = 0.0
+    if k + 2 < n:
+        qx, qy = pos[k + 2]
+        if (qx - nx1) ** 2 + (qy - ny1) ** 2 > 1e-18:
+            h12 = math.atan2(qy - ny1, qx - nx1)
+            hop12 = carrier_hop(pos[k + 1], pos[k + 2], h12, c)[0]  # travel only (no turn)
+        tail2, arrive2 = r.tail[k + 2], r.arrive[k + 2]
+
+    def drive(dx: float, dy: float, h: float) -> tuple[float, float]:
+        d2 = dx * dx + dy * dy
+        if d2 <= 1e-18:
+            return 0.0, h
+        g = math.atan2(dy, dx)
+        length = math.sqrt(d2)
+        if a is None:
+            t = length / v
+        elif length >= vv_a:
+            t = length / v + v / a
+        else:
+            t = 2.0 * math.sqrt(length / a)
+        if w is not None:
+            turn = (g - h) % _TAU
+            t += min(turn, _TAU - turn) / w
+        return t, g
+
+    def cost(x: float, y: float) -> float:
+        far = 0.0
+        for tx, ty, z2 in rows2:
+            e = (tx - x) ** 2 + (ty - y) ** 2 + z2
+            if e > far:
+                far = e
+        if far > d2max:
+            return math.inf
+        dt, h = drive(x - px, y - py, h0)
+        t = t0 + dt + unload
+        worst = max(head, t + leg_time(math.sqrt(far), rover))
+        if k + 1 < n:
+            dt, h = drive(nx1 - x, ny1 - y, h)
+            t1 = t + dt  # new arrival at k + 1
+            worst = max(worst, done1 + (t1 - arrive1))
+            if k + 2 < n:
+                dt = hop12
+                if h12 is not None and w is not None:
+                    turn = (h12 - h) % _TAU
+                    dt += min(turn, _TAU - turn) / w
+                elif h12 is None:
+                    dt = 0.0
+                worst = max(worst, tail2 + (t1 + unload + dt - arrive2))
+        return worst
+
+    return cost
 
 
-def _polish(builder: _PathBuilder, route: _Route, sweeps: int = 3) -> _Route:
+def _polish(builder: _PathBuilder, route: _Route, sweeps: int = 3, tol: float = 1e-3) -> _Route:
     """Improvement beyond the dissertation: move each stop on its own, with every other stop fixed,
     wherever the whole route gets faster and the stop still serves its cluster within d_deploy
     (a compass search on the exact time model, 8 directions, halving steps). The chapter's rules
     place early stops for the shortest drive and the last two by eq. 4.20; this trades the two
-    against each other across the whole route."""
+    against each other across the whole route. After the first sweep only stops with a moved
+    neighbour (two either side) are searched again."""
     inst = builder.inst
+    todo = set(range(len(route.clusters)))
     for _ in range(sweeps):
         before = route.makespan
-        for k, members in enumerate(route.clusters):
-            head = max(route.done[:k], default=0.0)  # stops before k are not affected
+        moved: set[int] = set()
+        for k in sorted(todo):
+            cost = _stop_cost(builder, route, k)
             best = route.makespan
             x, y = route.positions[k]
-            step = max(inst.d / 4, 0.05)
-            while step > 1e-3:
-                for dx, dy in _DIRECTIONS:
-                    cand = (x + step * dx, y + step * dy)
-                    if inst.reach_from(cand, members) > inst.d:
-                        continue
-                    t = _moved(builder, route, k, cand, head)
-                    if t < best - 1e-9:
-                        best, (x, y) = t, cand
-                        break
-                else:
-                    step /= 2
+            # a jump first: the compass search cannot leave a stop where moving a little costs a
+            # turn (e.g. a stop on the start); try the cluster's centre and its point nearest the
+            # carrier's line to the next stop
+            prev = builder.start if k == 0 else route.positions[k - 1]
+            nxt = route.positions[k + 1] if k + 1 < len(route.positions) else route.geos[k].center
+            for cand in (route.geos[k].center, max_range_point(prev, route.geos[k], nxt)):
+                t = cost(*cand)
+                if t < best - 1e-9:
+                    best, (x, y) = t, cand
+            x, y, best = compass_search(cost, x, y, best, max(inst.d / 4, 0.05), tol)
             if (x, y) != route.positions[k]:
-                positions = list(route.positions)
-                positions[k] = (x, y)
-                route = _Route(builder, route.clusters, route.geos, positions)
+                route = route.moved(k, (x, y))
+                moved.add(k)
         if route.makespan >= before - 1e-6:
             break
+        todo = {j for k in moved for j in range(k - 2, k + 3) if 0 <= j < len(route.clusters)}
     return route
 
 
@@ -446,7 +582,7 @@ def plan_lee(problem: DeployProblem) -> Plan:
     if len(problem.rover_ids()) < len(problem.tasks):
         raise PlanningError(f"{len(problem.tasks)} tasks need as many rovers, only "
                             f"{len(problem.rover_ids())} on the carrier")
-    clusters, positions, _ = lee_clusters(problem)
+    clusters, positions, _ = lee_clusters(problem, t0=t0)
     plan = build_plan(problem, "lee", clusters, positions)
     if len(problem.tasks) == 2:  # where it applies, the two-task optimum of ch. 4.3 (jointly placed stops)
         from planners.two_task import plan_two_tasks

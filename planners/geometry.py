@@ -9,6 +9,7 @@ place on the ground to deploy a cluster of tasks at heights.
 
 from __future__ import annotations
 
+import functools
 import math
 import random
 from collections.abc import Callable, Sequence
@@ -86,14 +87,13 @@ def enclosing_ball(points: Sequence[Sequence[float]], weights: Sequence[float] |
     """
     if not points:
         raise ValueError("enclosing_ball of no points")
-    pts = [tuple(float(c) for c in p) for p in points]
+    pts = [tuple(map(float, p)) for p in points]
     ws = [0.0] * len(pts) if weights is None else [float(w) for w in weights]
     dim = len(pts[0])
-    order = list(range(len(pts)))
-    random.Random(seed).shuffle(order)
+    order = _shuffled(len(pts), seed)
     pts = [pts[i] for i in order]
     ws = [ws[i] for i in order]
-    scale = max(1.0, max(abs(c) for p in pts for c in p), math.sqrt(max(ws)))
+    scale = max(1.0, max(max(p) for p in pts), -min(min(p) for p in pts), math.sqrt(max(ws)))
     eps = _REL_EPS * scale
 
     def outside(ball: Ball, k: int) -> bool:
@@ -118,26 +118,66 @@ def enclosing_ball(points: Sequence[Sequence[float]], weights: Sequence[float] |
     return solve([], len(pts), 0)
 
 
+@functools.lru_cache(maxsize=4096)
+def _shuffled(n: int, seed: int) -> tuple[int, ...]:
+    """The visiting order of Welzl's algorithm: ``range(n)`` shuffled by ``random.Random(seed)``."""
+    order = list(range(n))
+    random.Random(seed).shuffle(order)
+    return tuple(order)
+
+
 def _welzl_2d(pts: list[tuple[float, ...]], ws: list[float], eps: float) -> Ball:
-    """The same three nested loops as ``solve`` for the plane, unrolled for speed."""
+    """The same three nested loops as ``solve`` for the plane, unrolled for speed: balls are
+    (x, y, radius) tuples and the closed forms of ``_ball_2d`` are written out (the planners
+    compute thousands of these per plan)."""
+    xs = [p[0] for p in pts]
+    ys = [p[1] for p in pts]
+    dist = math.dist
 
-    def out(ball: Ball, k: int) -> bool:
-        (cx, cy), (x, y) = ball.center, pts[k]
-        return (cx - x) ** 2 + (cy - y) ** 2 + ws[k] > (ball.radius + eps) ** 2
+    def two(i: int, j: int) -> tuple[float, float, float]:
+        x0, y0, w0 = xs[i], ys[i], ws[i]
+        ux, uy = xs[j] - x0, ys[j] - y0
+        n = ux * ux + uy * uy
+        if n < 1e-24:
+            return _as_tuple(_ball_on_boundary([pts[i], pts[j]], [w0, ws[j]]))
+        lam = (n + ws[j] - w0) / (2.0 * n)
+        c = (x0 + lam * ux, y0 + lam * uy)
+        value = max(dist(c, pts[i]) ** 2 + w0, dist(c, pts[j]) ** 2 + ws[j])
+        return c[0], c[1], math.sqrt(max(value, 0.0))
 
-    ball = _ball_on_boundary([pts[0]], [ws[0]])
+    def three(i: int, j: int, k: int) -> tuple[float, float, float]:
+        x0, y0, w0 = xs[i], ys[i], ws[i]
+        u1x, u1y = xs[j] - x0, ys[j] - y0
+        u2x, u2y = xs[k] - x0, ys[k] - y0
+        b1 = u1x * u1x + u1y * u1y + ws[j] - w0
+        b2 = u2x * u2x + u2y * u2y + ws[k] - w0
+        det = u1x * u2y - u1y * u2x
+        if abs(det) < 1e-12 * max(1.0, (u1x * u1x + u1y * u1y) * (u2x * u2x + u2y * u2y)) ** 0.5:
+            return _as_tuple(_ball_on_boundary([pts[i], pts[j], pts[k]], [w0, ws[j], ws[k]]))
+        c = (x0 + (b1 * u2y - b2 * u1y) / (2.0 * det), y0 + (u1x * b2 - u2x * b1) / (2.0 * det))
+        value = max(dist(c, pts[i]) ** 2 + w0, dist(c, pts[j]) ** 2 + ws[j], dist(c, pts[k]) ** 2 + ws[k])
+        return c[0], c[1], math.sqrt(max(value, 0.0))
+
+    def one(i: int) -> tuple[float, float, float]:
+        return xs[i], ys[i], math.sqrt(max(ws[i], 0.0))
+
+    cx, cy, r = one(0)
     for i in range(1, len(pts)):
-        if not out(ball, i):
+        if (cx - xs[i]) ** 2 + (cy - ys[i]) ** 2 + ws[i] <= (r + eps) ** 2:
             continue
-        ball = _ball_on_boundary([pts[i]], [ws[i]])
+        cx, cy, r = one(i)
         for j in range(i):
-            if not out(ball, j):
+            if (cx - xs[j]) ** 2 + (cy - ys[j]) ** 2 + ws[j] <= (r + eps) ** 2:
                 continue
-            ball = _ball_on_boundary([pts[i], pts[j]], [ws[i], ws[j]])
+            cx, cy, r = two(i, j)
             for k in range(j):
-                if out(ball, k):
-                    ball = _ball_on_boundary([pts[i], pts[j], pts[k]], [ws[i], ws[j], ws[k]])
-    return ball
+                if (cx - xs[k]) ** 2 + (cy - ys[k]) ** 2 + ws[k] > (r + eps) ** 2:
+                    cx, cy, r = three(i, j, k)
+    return Ball((cx, cy), r)
+
+
+def _as_tuple(ball: Ball) -> tuple[float, float, float]:
+    return ball.center[0], ball.center[1], ball.radius
 
 
 def minimize_1d(f: Callable[[float], float], lo: float, hi: float, samples: int = 12,
@@ -204,3 +244,26 @@ def find_root(f: Callable[[float], float], lo: float, hi: float, xtol: float = 1
                 fb *= 0.5
             side = 1
     return 0.5 * (a + b)
+
+
+COMPASS = [(math.cos(a * math.pi / 4), math.sin(a * math.pi / 4)) for a in range(8)]
+
+
+def compass_search(f: Callable[[float, float], float], x: float, y: float, best: float, step: float,
+                   tol: float) -> tuple[float, float, float]:
+    """Minimise ``f(x, y)`` from (x, y), whose value is ``best``, by a compass search: 8 directions,
+    first improvement (the last successful direction tried first), halving the step down to
+    ``tol``. Returns the point and its value; ``f`` may return inf where a point is infeasible."""
+    first = 0
+    while step > tol:
+        for i in range(8):
+            j = (first + i) & 7
+            dx, dy = COMPASS[j]
+            cx, cy = x + step * dx, y + step * dy
+            t = f(cx, cy)
+            if t < best - 1e-9:
+                best, x, y, first = t, cx, cy, j
+                break
+        else:
+            step /= 2
+    return x, y, best

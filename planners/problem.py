@@ -126,6 +126,10 @@ class DeployProblem:
     # height above the stop where a launched rover's line to its task starts (planners.approach);
     # 0 = from the deck, the dissertation's model
     takeoff_height: float = 0.0
+    # Anytime planning (open-space ``lee``): None = the quick plan; a number = after it, improve
+    # the plan (iterated local search, seeded by ``seed``) for about this many milliseconds of
+    # wall time, counted from the planner's call, and return the best plan found.
+    budget_ms: float | None = None
 
     def rover_ids(self) -> tuple[str, ...]:
         if self.rovers:
@@ -159,3 +163,7 @@ class CollectProblem:
     # height above the stop where a rover's flight ends and its landing (land_time) begins
     # (planners.approach); 0 = on the deck, the dissertation's model
     approach_height: float = 0.0
+    # Anytime planning (open-space ``lee``): None = the quick plan; a number = after it, improve
+    # the plan (iterated local search, seeded by ``seed``) for about this many milliseconds of
+    # wall time, counted from the planner's call, and return the best plan found.
+    budget_ms: float | None = None

@@ -32,6 +32,7 @@ Point2 = tuple[float, float]
 
 # Points within this many metres outside a disc count as inside (flights keep RANGE_MARGIN spare).
 INSIDE_TOL = 1e-9
+MEMO_SIZE = 256  # projections and line points a region remembers (then it starts afresh)
 
 
 @dataclass
@@ -50,6 +51,7 @@ class Region:
     _rows: list[tuple[float, float, float]] | None = field(default=None, repr=False)
     _discs: list[tuple[float, float, float]] | None = field(default=None, repr=False)
     _vertex_list: list[Point2] | None = field(default=None, repr=False)
+    _memo: dict[tuple[float, ...], Point2] = field(default_factory=dict, repr=False, compare=False)
 
     @property
     def rows(self) -> list[tuple[float, float, float]]:
@@ -109,8 +111,17 @@ class Region:
 
     def project(self, p: Sequence[float]) -> Point2:
         """Nearest point of I_β to ``p``: ``p`` itself, its projection onto one disc, or a vertex
-        (a nearest point of an intersection of discs has one or two active constraints)."""
-        x, y = float(p[0]), float(p[1])
+        (a nearest point of an intersection of discs has one or two active constraints).
+        Remembered per point: the cluster searches project the same stops again and again."""
+        key = (float(p[0]), float(p[1]))
+        got = self._memo.get(key)
+        if got is None:
+            if len(self._memo) > MEMO_SIZE:
+                self._memo.clear()
+            got = self._memo[key] = self._project(key[0], key[1])
+        return got
+
+    def _project(self, x: float, y: float) -> Point2:
         if self.contains((x, y)):
             return (x, y)
         discs = self.discs
@@ -127,6 +138,8 @@ class Region:
             d = n - r
             if d < best_d and self.contains(q):
                 best, best_d = q, d
+        if best_d < math.inf:  # a disc's nearest point inside I_β is I_β's nearest point
+            return best
         for q in self.vertex_list:
             d = math.hypot(q[0] - x, q[1] - y)
             if d < best_d:
@@ -192,6 +205,15 @@ class Region:
         the line's point nearest the time centre."""
         if nxt is None:
             return self.project(prev)
+        key = (prev[0], prev[1], nxt[0], nxt[1])
+        got = self._memo.get(key)
+        if got is None:
+            if len(self._memo) > MEMO_SIZE:
+                self._memo.clear()
+            got = self._memo[key] = self._line_point(prev, nxt)
+        return got
+
+    def _line_point(self, prev: Point2, nxt: Point2) -> Point2:
         seg = self.clip_segment(prev, nxt)
         if seg is not None:
             s0 = seg[0]

@@ -47,6 +47,18 @@ def test_plan_json_matches_the_contract(mission, planner, capsys):
     assert sorted(r["task"] for s in plan["stops"] for r in s["rovers"]) == sorted(t.id for t in m.tasks)
 
 
+def test_plan_budget_ms_improves_or_keeps_the_quick_plan(capsys):
+    recon = str(ROOT / "missions" / "recon.yaml")
+    assert main(["plan", "-m", recon, "--json"]) == 0
+    quick = json.loads(capsys.readouterr().out)
+    assert main(["plan", "-m", recon, "--json", "--budget-ms", "30"]) == 0
+    better = json.loads(capsys.readouterr().out)
+    assert better["makespan"] <= quick["makespan"] + 1e-6
+    with pytest.raises(SystemExit) as exc:
+        main(["plan", "-m", recon, "--budget-ms", "-5"])
+    assert exc.value.code == 2 and "--budget-ms" in capsys.readouterr().err
+
+
 def test_summary_and_plot(tmp_path):
     png = tmp_path / "recon.png"
     res = run("plan", "--mission", "missions/recon.yaml", "--plot", str(png))

@@ -238,6 +238,17 @@ def test_optional_sections(tmp_path: Path) -> None:
     assert m.sim.speedup == 10.0 and m.sim.faults[0].vehicle == "beta"
 
 
+def test_planner_budget_reaches_both_problems(tmp_path: Path) -> None:
+    data = copy.deepcopy(BASE)
+    data["planner"] = {"budget_ms": 250}
+    m = load(tmp_path, data)
+    assert m.planner.budget_ms == 250.0 and m.deploy_problem().budget_ms == 250.0
+    assert load(tmp_path, copy.deepcopy(BASE)).deploy_problem().budget_ms is None  # quick plan by default
+    data["planner"] = {"budget_ms": -1}
+    with pytest.raises(MissionError, match="budget_ms"):
+        load(tmp_path, data)
+
+
 @pytest.mark.parametrize(
     "url",
     [

@@ -54,6 +54,7 @@ MAX_DRAIN = 1000.0  # battery drain multiplier
 MAX_HEARTBEAT_TIMEOUT = 3600.0  # s
 MIN_HEARTBEAT_TIMEOUT = 0.01
 MAX_SEED = 2**32 - 1
+MAX_BUDGET_MS = 600_000.0  # planner.budget_ms: ten minutes of improvement search
 
 # --------------------------------------------------------------------------- the roadmap (planner lee-graph)
 MAX_XI = 1000.0  # ξ₁, ξ₃ (nodes per metre of √area); ξ₂, ξ₄ (nodes)

@@ -461,6 +461,7 @@ _PLANNER = {
     "deploy": (_ID, "lee"),
     "collect": (_ID, "lee"),
     "seed": (_integer(0, L.MAX_SEED), 0),
+    "budget_ms": (_number(ge=0, le=L.MAX_BUDGET_MS, null=True, unit="ms of improvement search"), None),
     "roadmap": (lambda c, v, p: RoadmapConfig(**c.section(v, p, _ROADMAP)), None),
 }
 _TLS = {"ca": (_OPT_STR, None), "cert": (_OPT_STR, None), "key": (_OPT_STR, None)}

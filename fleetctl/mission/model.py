@@ -167,6 +167,7 @@ class PlannerConfig:
     collect: str = "lee"
     seed: int = 0
     roadmap: RoadmapConfig | None = None
+    budget_ms: float | None = None  # anytime improvement after the quick plan (None: quick plan only)
 
 
 @dataclass(frozen=True)
@@ -260,7 +261,8 @@ class Mission:
         return self.planner.deploy if phase == "deploy" else self.planner.collect
 
     def environment(self) -> dict[str, Any]:
-        """Chapter 6 fields of a planning problem: obstacles, bounds, roadmap parameters, seed.
+        """Chapter 6 fields of a planning problem: obstacles, bounds, roadmap parameters, seed, and
+        the planning budget (``planner.budget_ms``).
 
         ``dataclasses.replace(problem, **mission.environment())`` gives any problem built from
         live state the mission's obstacles. Roadmap parameters left out of the file take the
@@ -269,7 +271,7 @@ class Mission:
         rc = self.planner.roadmap
         given = {} if rc is None else {k: v for k, v in vars(rc).items() if v is not None}
         return {"obstacles": self.obstacles, "bounds": self.bounds, "roadmap": RoadmapParams(**given),
-                "seed": self.planner.seed}
+                "seed": self.planner.seed, "budget_ms": self.planner.budget_ms}
 
     def _where(self) -> str:
         return str(self.path) if self.path is not None else self.name

@@ -4,6 +4,7 @@ compilation of a plan into mission items for the live fleet."""
 from __future__ import annotations
 
 import asyncio
+import dataclasses
 from collections.abc import Callable
 from typing import Any
 
@@ -17,6 +18,7 @@ from planners.plan import Plan
 from planners.problem import PlanningError
 
 COLLECT_MEET_HEIGHT = MEET_HEIGHT  # m above the carrier's stop where a returning rover waits for the carrier
+REPLAN_BUDGET_MS = 50.0  # a replan (every plan of a phase after its first) improves for at most this long
 
 
 class Planning:
@@ -32,6 +34,7 @@ class Planning:
         self.ctx = ctx
         self.planner = planner
         self.write_plan = write_plan
+        self.planned: set[str] = set()  # the kinds planned once already: later plans are replans
 
     def name(self, kind: str) -> str:
         given = None
@@ -47,6 +50,10 @@ class Planning:
             raise ExecutionError(
                 f"unknown {kind} planner {name!r}; choose one of {', '.join(sorted(registry))}"
             )
+        budget = getattr(problem, "budget_ms", None)
+        if kind in self.planned and budget is not None and budget > REPLAN_BUDGET_MS:
+            problem = dataclasses.replace(problem, budget_ms=REPLAN_BUDGET_MS)  # the fleet is waiting
+        self.planned.add(kind)
         try:
             plan = await asyncio.to_thread(registry[name], problem)
         except PlanningError as exc:
