@@ -208,6 +208,11 @@ class Vehicle:
         return self.lat, self.lon, self.alt
 
     @property
+    def position_age(self) -> float | None:
+        """Wall seconds since the position now held arrived (None before any)."""
+        return None if self._fix is None else max(time.monotonic() - self._fix[4], 0.0)
+
+    @property
     def enu(self) -> tuple[float, float, float] | None:
         """Position in the mission frame (ENU east, north; z = altitude - origin altitude) via
         :func:`fleetctl.geo.geodetic_to_local`; None without telemetry or origin."""

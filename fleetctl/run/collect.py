@@ -45,6 +45,7 @@ from fleetctl.run.kinds import Ev, Phase, VehicleStatus, Watch
 from fleetctl.run.launch import flight_path, rover_on_deck
 from fleetctl.run.parts import PhaseParts
 from fleetctl.run.results import PhaseResult
+from fleetctl.run.state import DECK_RADIUS
 from fleetctl.run.supervisor import SupervisorEvent
 from planners.plan import Plan, Stop
 from planners.problem import CollectProblem, CollectRover, Vec3
@@ -52,6 +53,7 @@ from planners.problem import CollectProblem, CollectRover, Vec3
 log = logging.getLogger(__name__)
 
 LANDING_TIMEOUT = 10.0  # mission s from the land command to the rover on the deck (at least 3x land_time)
+MAX_POSITION_AGE = 5.0  # mission s: an older carrier position is not moved on by its speed
 SPEED_SAMPLE = 0.5  # mission s between carrier speed samples (is it speeding up?)
 RECHECK = 1.0  # mission s between looks at the carrier's ETA while a rover waits for its release
 ENERGY_REPLANS = 3  # plans tried with shrunk ranges before a rover short of energy is left out
@@ -388,7 +390,8 @@ class CollectPhase:
         t0, v0 = self._speed_seen
         if now - t0 >= SPEED_SAMPLE:
             self._speed_seen, self._accelerating = (now, speed), speed > v0 + 0.1
-        return CarrierNow(pos, speed, heading, self._accelerating)
+        age = (c.position_age or 0.0) * self.ctx.speedup
+        return CarrierNow(pos, speed, heading, self._accelerating, min(age, MAX_POSITION_AGE))
 
     def _at_stop(self, rnd: _Round, k: int) -> None:
         """The carrier is at stop ``k``: fix its arrival in the round's clock, predict the end."""
@@ -446,7 +449,9 @@ class CollectPhase:
                 st.set_state(rid, VehicleStatus.LANDED)
             landing = max(LANDING_TIMEOUT, 3.0 * ctx.mission.rovers.land_time)
             await v.wait_until(
-                lambda v: rover_on_deck(ctx, v) or v.lost, ctx.wall(landing), "landing on the carrier"
+                lambda v: rover_on_deck(ctx, v) or self._down_on_deck(rnd, v) or v.lost,
+                ctx.wall(landing),
+                "landing on the carrier",
             )
             if v.lost:
                 return
@@ -459,6 +464,15 @@ class CollectPhase:
         self.supervisor.expect(rid, None)
         st.set_state(rid, VehicleStatus.LOADED)
         st.event(Ev.ROVER_LOADED, f"{rid}: loaded on the carrier at {flown:.1f} s", rid, flown=flown)
+
+    def _down_on_deck(self, rnd: _Round, v: Vehicle) -> bool:
+        """``v``'s autopilot reports its landing done (at once; the landed state and positions come
+        at the telemetry rate) right over the carrier (the last position: it came straight down)."""
+        c = self.ctx.fleet.carrier
+        seq = rnd.land_seq.get(v.name)
+        if seq is None or seq not in v.items_reached or v.enu is None or c.enu is None:
+            return False
+        return math.hypot(v.enu[0] - c.enu[0], v.enu[1] - c.enu[1]) <= DECK_RADIUS
 
     async def _wait_meeting_point(self, rnd: _Round, v: Vehicle, leg_arrive: float) -> None:
         ctx, rid = self.ctx, v.name

@@ -43,6 +43,7 @@ class CarrierNow:
     speed: float
     heading: float
     accelerating: bool = True
+    age: float = 0.0  # mission s since that position was measured (it has moved on since)
 
 
 @dataclass
@@ -93,6 +94,7 @@ class RoundClock:
             return max(planned, now)
         target = self.plan.stops[j].position
         rest = _remaining_path(carrier.position, self.plan.stops[j].carrier_path, target)
+        rest = max(rest - carrier.speed * carrier.age, 0.0)  # where it is by now
         motion = self.carrier.motion
         if not carrier.accelerating and carrier.speed > SLOW:  # cruising below its top speed
             motion = dataclasses.replace(motion, max_speed=min(carrier.speed, motion.max_speed))

@@ -263,20 +263,23 @@ class DeployPhase:
             stop=slot.stop + 1,
         )
         self.supervisor.expect(rid, flight_path(ctx, slot, at))
-        self.watch(rid, task, leg.end, leg.arrive, plan_t0, takeoff_seq(slot))
+        self.watch(rid, task, leg.end, leg.arrive, plan_t0, takeoff_seq(slot), slot.target_seq)
 
     # ============================================================================== task watch
     def watch(
-        self, rid: str, task: str, target: Vec3, arrive: float, plan_t0: float, takeoff: int = -1
+        self, rid: str, task: str, target: Vec3, arrive: float, plan_t0: float, takeoff: int = -1,
+        target_seq: int = -1,
     ) -> None:
         """Watch ``rid`` until it holds at ``task`` (planned to arrive ``arrive`` s after
-        ``plan_t0``)."""
+        ``plan_t0``): its position there, or its autopilot reporting the task's item reached
+        (``target_seq``; at once, where positions come at the telemetry rate)."""
         self.watchers[task] = self.ctx.spawn(
-            self._watch(rid, task, target, arrive, plan_t0, takeoff), f"watch {rid}"
+            self._watch(rid, task, target, arrive, plan_t0, takeoff, target_seq), f"watch {rid}"
         )
 
     async def _watch(
-        self, rid: str, task: str, target: Vec3, arrive: float, plan_t0: float, takeoff: int
+        self, rid: str, task: str, target: Vec3, arrive: float, plan_t0: float, takeoff: int,
+        target_seq: int,
     ) -> None:
         ctx, st = self.ctx, self.ctx.state
         v = ctx.fleet.rovers[rid]
@@ -288,6 +291,8 @@ class DeployPhase:
                 st.set_state(rid, VehicleStatus.EN_ROUTE)
             p = v.enu
             if trouble.seen(v):
+                return True
+            if target_seq >= 0 and target_seq in v.items_reached:
                 return True
             return (
                 p is not None
