@@ -84,7 +84,9 @@ async def _fly(path: Path, command: str, speedup: float, runs: Path) -> dict[str
     flown = s["makespan_flown"]
     etas = [r["eta"] for r in map(json.loads, (out.run_dir / "journal.jsonl").read_text().splitlines())
             if r.get("kind") == "eta" and r.get("eta") is not None]
-    eta_err = max((abs(e - flown) / flown for e in etas), default=None) if flown else None
+    # the eta records are per phase: a whole run's makespan is not theirs
+    per_phase = flown and command != "run"
+    eta_err = max((abs(e - flown) / flown for e in etas), default=None) if per_phase else None
     return {"mission": path.stem, "kind": command, "speedup": speedup, "n": n, "stops": len(plan["stops"]),
             "planned": s["makespan_planned"], "flown": flown, "result": s["result"],
             "lowest_battery": lowest["battery"], "reserve": mission.rovers.reserve,
