@@ -6,16 +6,11 @@ The defaults are the vertical legs at the rover's climb and landing speeds plus 
 measured on the simulated fleet (``bench/flight.py``: mode change, the autopilot's take-off and
 landing detection, the controller seeing it in telemetry):
 
-    takeoff_time = T(TAKEOFF_HEIGHT; climb_rate, accel) + TAKEOFF_SETTLE
-    land_time    = T(MEET_HEIGHT; land_speed, accel) + LAND_SETTLE
-
-with ``T`` the rest-to-rest leg of eq. 4.2 (``S/v`` without acceleration).
+    takeoff_time = TAKEOFF_HEIGHT / climb_rate + TAKEOFF_SETTLE
+    land_time    = MEET_HEIGHT / land_speed + LAND_SETTLE
 """
 
 from __future__ import annotations
-
-from planners.problem import Motion
-from planners.timing import travel_time
 
 GROUND_HEIGHT = 0.2  # m: a rover this low is on the ground (a collection flight from there takes off first)
 TAKEOFF_HEIGHT = 1.0  # m above the deck: a launched rover climbs this high before it turns onto its line
@@ -25,16 +20,14 @@ TAKEOFF_SETTLE = 0.1  # s beyond the climb: take-off detection and the turn onto
 LAND_SETTLE = 0.1  # s beyond the descent: touch-down detection, disarm, the controller seeing it (measured)
 
 
-def default_takeoff_time(climb_rate: float, accel: float | None = None) -> float:
-    """Seconds from a rover's start command to it being clear of the deck: the climb as a
-    rest-to-rest leg (eq. 4.2) at ``climb_rate`` and ``accel``, plus the settle time."""
-    return travel_time(TAKEOFF_HEIGHT, Motion(climb_rate, accel)) + TAKEOFF_SETTLE
+def default_takeoff_time(climb_rate: float) -> float:
+    """Seconds from a rover's start command to it being clear of the deck."""
+    return TAKEOFF_HEIGHT / climb_rate + TAKEOFF_SETTLE
 
 
-def default_land_time(land_speed: float, accel: float | None = None) -> float:
-    """Seconds from a rover above its stop (with the carrier there) to it loaded on the deck: the
-    descent as a rest-to-rest leg at ``land_speed`` and ``accel``, plus the settle time."""
-    return travel_time(MEET_HEIGHT, Motion(land_speed, accel)) + LAND_SETTLE
+def default_land_time(land_speed: float) -> float:
+    """Seconds from a rover above its stop (with the carrier there) to it loaded on the deck."""
+    return MEET_HEIGHT / land_speed + LAND_SETTLE
 
 
 __all__ = ["DEFAULT_ENDURANCE", "GROUND_HEIGHT", "LAND_SETTLE", "MEET_HEIGHT", "TAKEOFF_HEIGHT",
