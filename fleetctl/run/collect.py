@@ -104,6 +104,7 @@ class _Round:
     start: float = 0.0  # mission clock when the route (or its trimmed rest) started
     clock: RoundClock | None = None  # live ETAs of the stops (timed release)
     going: dict[str, asyncio.Task[None]] = field(default_factory=dict)  # rover -> its timed release
+    stop_of: dict[str, int] = field(default_factory=dict)  # rover -> index of its stop in the route flown
     due: dict[str, float] = field(default_factory=dict)  # rover -> expected above its stop (mission clock)
 
 
@@ -339,7 +340,10 @@ class CollectPhase:
             assert self.t0 is not None
             self.result.flown = ctx.clock() - self.t0
             if drain(q, self.handle) and k + 1 < len(stops):
-                stops, cstops = await self._trim(rnd, stops[k + 1 :], cstops[k + 1 :])
+                rest_items = cstops[k + 1 :]
+                stops, cstops = await self._trim(rnd, stops[k + 1 :], rest_items)
+                if cstops == rest_items and cstops:  # the same route goes on: let the carrier go
+                    await self.carrier.release(k, items.release_seq)
                 k, prev = 0, 0.0
                 continue
             await self.carrier.release(k, items.release_seq)
@@ -374,12 +378,19 @@ class CollectPhase:
         for k, stop in enumerate(rnd.plan.stops):
             for leg in stop.rovers:
                 if leg.rover in rnd.items and leg.rover not in rnd.failed:
-                    go = self._go(rnd, leg.rover, k, leg.arrive)
+                    rnd.stop_of[leg.rover] = k
+                    go = self._go(rnd, leg.rover, leg.arrive)
                     rnd.going[leg.rover] = ctx.spawn(go, f"release {leg.rover}")
         for rid in rnd.failed:
             if self.board.in_round(rid):
                 self.board.set(rid, RoverStatus.LOST if rovers[rid].lost else RoverStatus.FAILED)
         st.event(Ev.COLLECTION_STARTED, f"collecting {len(rnd.items) - len(rnd.failed)} rovers", None)
+
+    def _retime_round(self, rnd: _Round, rest: Plan) -> None:
+        """The route goes on as ``rest`` (a trimmed one): the live ETAs and each waiting rover's
+        stop follow it."""
+        rnd.clock = RoundClock(rest, self.ctx.mission.carrier_spec(), self.ctx.clock())
+        rnd.stop_of = {leg.rover: k for k, stop in enumerate(rest.stops) for leg in stop.rovers}
 
     def _carrier_now(self) -> CarrierNow | None:
         c = self.ctx.fleet.carrier
@@ -405,13 +416,14 @@ class CollectPhase:
         if rnd.clock is not None and self.t0 is not None:
             self.ctx.state.eta = rnd.clock.makespan(self.ctx.clock(), self._carrier_now()) - self.t0
 
-    async def _go(self, rnd: _Round, rid: str, k: int, flight: float) -> None:
+    async def _go(self, rnd: _Round, rid: str, flight: float) -> None:
         """Release ``rid`` when it is due (timed release: above stop ``k`` as the carrier gets
         there), then arm it and start its way back."""
         ctx, v = self.ctx, self.ctx.fleet.rovers[rid]
         assert rnd.clock is not None
         while not v.lost:
             now = ctx.clock()
+            k = rnd.stop_of[rid]  # (a trimmed route renumbers the stops)
             wait = release_delay(rnd.clock.eta(k, now, self._carrier_now()), flight, now)
             self._predict(rnd)
             if wait <= 0.0:
@@ -424,7 +436,7 @@ class CollectPhase:
             await ctx.command(v, "start_mission", v.start_mission())
             now = ctx.clock()
             rnd.due[rid] = now + flight
-            rnd.clock.rover_ready(k, now + flight)
+            rnd.clock.rover_ready(rnd.stop_of[rid], now + flight)
             ctx.state.set_state(rid, VehicleStatus.RETURNING)
             self.supervisor.expect(rid, flight_path(ctx, rnd.compiled.rovers[rid], v.enu or (0.0, 0.0, 0.0)))
         except (CommandRejected, LinkError, TimeoutError) as exc:
@@ -517,6 +529,7 @@ class CollectPhase:
             notes=["trimmed: lost rovers removed"],
         )
         rnd.start = ctx.clock()
+        self._retime_round(rnd, new)
         if [s.position for s in keep] == [s.position for s in rest] and keep:
             ctx.replans.ready(new)  # the route itself is unchanged: no new command
             ctx.replans.finish(None)
