@@ -37,7 +37,7 @@ from planners.plan import Plan, RoverLeg, Stop
 from planners.problem import CollectProblem, PlanningError, Vec3, refuse_obstacles
 from planners.reach import Point2, Region, make_region
 from planners.search import merge_neighbours, reorder, split_loop
-from planners.timing import RANGE_MARGIN, carrier_hop, leg_time, retime
+from planners.timing import RANGE_MARGIN, carrier_hop, carrier_step, leg_time, retime
 
 
 class CollectInstance:
@@ -362,18 +362,12 @@ def polish(builder: _PathBuilder, route: _Route,
     return route
 
 
-_TAU = 2.0 * math.pi
-
-
 def _stop_cost(route: _Route, k: int) -> Callable[[float, float], float]:
     """Makespan of ``route`` with stop k moved to (x, y), the others kept, or inf outside I_β:
-    the hops into k, k + 1 and k + 2 are re-timed, later stops by ``_Route.end_from``. Written
-    out (no helper calls) because the compass search calls it thousands of times;
-    ``carrier_hop`` and ``leg_time`` are the same arithmetic."""
+    the hops into k, k + 1 and k + 2 are re-timed, later stops by ``_Route.end_from``. The compass
+    search calls it thousands of times: the hops are ``planners.timing.carrier_step``."""
     b = route.b
     inst, c, rover, load = b.inst, b.carrier, b.rover, b.load
-    v, a, w = c.max_speed, c.accel, c.turn_rate
-    vv_a = v * v / a if a is not None else 0.0
     members = route.clusters[k]
     rows = [(inst.pts2[i][0], inst.pts2[i][1], float(inst.radii[i]) ** 2, float(inst.heights2[i]))
             for i in members]
@@ -381,23 +375,6 @@ def _stop_cost(route: _Route, k: int) -> Callable[[float, float], float]:
     n = len(route.positions)
     nxt = route.positions[k + 1:k + 3]
     ready = route.ready[k + 1:k + 3]
-
-    def drive(dx: float, dy: float, h: float) -> tuple[float, float]:
-        d2 = dx * dx + dy * dy
-        if d2 <= 1e-18:
-            return 0.0, h
-        g = math.atan2(dy, dx)
-        length = math.sqrt(d2)
-        if a is None:
-            t = length / v
-        elif length >= vv_a:
-            t = length / v + v / a
-        else:
-            t = 2.0 * math.sqrt(length / a)
-        if w is not None:
-            turn = (g - h) % _TAU
-            t += min(turn, _TAU - turn) / w
-        return t, g
 
     def cost(x: float, y: float) -> float:
         far = 0.0
@@ -407,11 +384,11 @@ def _stop_cost(route: _Route, k: int) -> Callable[[float, float], float]:
                 return math.inf
             if e + z2 > far:
                 far = e + z2
-        dt, h = drive(x - px, y - py, h0)
+        dt, h = carrier_step(x - px, y - py, h0, c)
         t = max(t0 + dt, leg_time(math.sqrt(far), rover)) + load
         qx, qy = x, y
         for (nx, ny), rd in zip(nxt, ready, strict=True):
-            dt, h = drive(nx - qx, ny - qy, h)
+            dt, h = carrier_step(nx - qx, ny - qy, h, c)
             t = max(t + dt, rd) + load
             qx, qy = nx, ny
         return route.end_from(k + len(nxt), t) if k + 1 < n else t

@@ -19,7 +19,7 @@ from planners.moves import deadline, fine_descent, iterated_search, merge, quick
 from planners.plan import Plan, RoverLeg, Stop
 from planners.problem import DeployProblem, PlanningError, Vec3, refuse_obstacles
 from planners.search import merge_neighbours, reorder, split_loop, swap_neighbours
-from planners.timing import RANGE_MARGIN, carrier_hop, leg_time, retime
+from planners.timing import RANGE_MARGIN, carrier_hop, carrier_step, leg_time, retime
 
 Point2 = tuple[float, float]
 
@@ -440,12 +440,11 @@ _TAU = 2.0 * math.pi
 def _stop_cost(builder: _PathBuilder, r: _Route, k: int) -> Callable[[float, float], float]:
     """Makespan of route ``r`` with stop k moved to (x, y), the others kept, or inf where a task of
     stop k is out of reach: only the legs into k and k + 1 and the turn at k + 1 change; later
-    stops shift in time by the same amount. Written out (no helper calls) because the polish
-    calls it thousands of times; ``carrier_hop`` is the same arithmetic."""
+    stops shift in time by the same amount. The polish calls it
+    thousands of times: the hops are ``planners.timing.carrier_step``."""
     b, pos, unload, d2max = builder, r.positions, builder.unload, builder.inst.d ** 2
     c = b.carrier
-    v, a, w = c.max_speed, c.accel, c.turn_rate
-    vv_a = v * v / a if a is not None else 0.0
+    w = c.turn_rate
     rover = b.rover
     rows = [b.inst.pts[i] for i in r.clusters[k]]
     rows2 = [(x, y, z * z) for x, y, z in rows]
@@ -469,23 +468,6 @@ def _stop_cost(builder: _PathBuilder, r: _Route, k: int) -> Callable[[float, flo
             hop12 = carrier_hop(pos[k + 1], pos[k + 2], h12, c)[0]  # travel only (no turn)
         tail2, arrive2 = r.tail[k + 2], r.arrive[k + 2]
 
-    def drive(dx: float, dy: float, h: float) -> tuple[float, float]:
-        d2 = dx * dx + dy * dy
-        if d2 <= 1e-18:
-            return 0.0, h
-        g = math.atan2(dy, dx)
-        length = math.sqrt(d2)
-        if a is None:
-            t = length / v
-        elif length >= vv_a:
-            t = length / v + v / a
-        else:
-            t = 2.0 * math.sqrt(length / a)
-        if w is not None:
-            turn = (g - h) % _TAU
-            t += min(turn, _TAU - turn) / w
-        return t, g
-
     def cost(x: float, y: float) -> float:
         far = 0.0
         for tx, ty, z2 in rows2:
@@ -494,11 +476,11 @@ def _stop_cost(builder: _PathBuilder, r: _Route, k: int) -> Callable[[float, flo
                 far = e
         if far > d2max:
             return math.inf
-        dt, h = drive(x - px, y - py, h0)
+        dt, h = carrier_step(x - px, y - py, h0, c)
         t = t0 + dt + unload
         worst = max(head, t + leg_time(math.sqrt(far), rover))
         if k + 1 < n:
-            dt, h = drive(nx1 - x, ny1 - y, h)
+            dt, h = carrier_step(nx1 - x, ny1 - y, h, c)
             t1 = t + dt  # new arrival at k + 1
             worst = max(worst, done1 + (t1 - arrive1))
             if k + 2 < n:

@@ -135,7 +135,11 @@ def carrier_hop(p: Sequence[float], q: Sequence[float], heading: float,
     The same numbers as ``carrier_leg`` (turn at the start + eq. 4.2), written out inline because
     planners call it hundreds of thousands of times; tests check that the two agree.
     """
-    dx, dy = q[0] - p[0], q[1] - p[1]
+    return carrier_step(q[0] - p[0], q[1] - p[1], heading, carrier)
+
+
+def carrier_step(dx: float, dy: float, heading: float, carrier: CarrierSpec) -> tuple[float, float]:
+    """:func:`carrier_hop` for the ground displacement (dx, dy): time and the heading after it."""
     d2 = dx * dx + dy * dy
     if d2 <= 1e-18:
         return 0.0, heading
