@@ -57,15 +57,7 @@ def cmd_plan(args: argparse.Namespace) -> int:
         raise CliError(f"unknown planner {name!r} for {'collection' if args.collect else 'deployment'}; "
                        f"choose one of: {', '.join(sorted(registry))}")
     if several_teams(mission):  # carriers: [...] with more than one carrier (docs/teams.md)
-        from fleetctl.teams_plan import plan_teams_command
-
-        if args.export:
-            raise CliError(f"{args.mission}: --export writes one carrier's plan; exporting several teams "
-                           "is not supported yet")
-        try:
-            return plan_teams_command(args, mission, registry[name], name)
-        except PlanningError as e:
-            raise CliError(f"{args.mission}: cannot plan with {name!r}: {e}") from None
+        return _plan_teams(args, mission, registry[name], name)
     problem = mission.collect_problem() if args.collect else mission.deploy_problem()
     if args.budget_ms is not None:
         problem = dataclasses.replace(problem, budget_ms=args.budget_ms)
@@ -74,21 +66,52 @@ def cmd_plan(args: argparse.Namespace) -> int:
         bound = _lower_bound(problem, args.collect)
     except PlanningError as e:
         raise CliError(f"{args.mission}: cannot plan with {name!r}: {e}") from None
-    if args.json:
-        json.dump(plan.to_json(), sys.stdout, indent=1)
-        sys.stdout.write("\n")
-    else:
-        _print_summary(mission, plan, bound)
-    if args.plot:
+    def draw(out: str) -> Any:
         from fleetctl.views.plot import plot_plan
 
-        out = plot_plan(mission, plan, args.plot, bound)
-        print(f"plot written to {out}", file=sys.stderr if args.json else sys.stdout)
+        return plot_plan(mission, plan, out, bound)
+
+    _report(args, plan.to_json(), lambda: _print_summary(mission, plan, bound), draw)
     if args.export:
         files = _export(mission, plan, args.export)
         print(f"exported {len(files) - 1} QGroundControl .plan files and {files[-1].name} to {args.export}",
               file=sys.stderr if args.json else sys.stdout)
     return 0
+
+
+def _plan_teams(args: argparse.Namespace, mission: Mission, planner: Any, name: str) -> int:
+    """``plan`` on a mission with several carriers (docs/teams.md)."""
+    from fleetctl.teams_plan import plan_for_teams, print_teams_summary
+    from planners import PlanningError
+
+    if args.export:
+        raise CliError(f"{args.mission}: --export writes one carrier's plan; exporting several teams "
+                       "is not supported yet")
+    try:
+        plan, bound = plan_for_teams(mission, args.collect, planner, name)
+    except PlanningError as e:
+        raise CliError(f"{args.mission}: cannot plan with {name!r}: {e}") from None
+
+    def draw(out: str) -> Any:
+        from fleetctl.views.plot_teams import plot_teams
+
+        return plot_teams(mission, plan, out, bound)
+
+    _report(args, plan.to_json(), lambda: print_teams_summary(mission, plan, bound), draw)
+    return 0
+
+
+def _report(args: argparse.Namespace, doc: dict[str, Any], summary: Callable[[], None],
+            draw: Callable[[str], Any]) -> None:
+    """The plan JSON on stdout (``--json``) or the summary, and the plot (``--plot``)."""
+    if args.json:
+        json.dump(doc, sys.stdout, indent=1)
+        sys.stdout.write("\n")
+    else:
+        summary()
+    if args.plot:
+        out = draw(args.plot)
+        print(f"plot written to {out}", file=sys.stderr if args.json else sys.stdout)
 
 
 def _warn(mission: Mission, collect: bool) -> None:

@@ -1,11 +1,8 @@
 """``fleetctl plan`` on a mission with several carriers (docs/teams.md): share the tasks (or the
-rovers to collect) between the teams, plan each team, print the summary or the plan JSON."""
+rovers to collect) between the teams, plan each team, and the summary the command prints."""
 
 from __future__ import annotations
 
-import argparse
-import json
-import sys
 from collections.abc import Callable
 from typing import Any
 
@@ -15,23 +12,12 @@ from planners.plan import Plan
 from planners.teams import TeamsPlan, plan_teams, teams_lower_bound
 
 
-def plan_teams_command(args: argparse.Namespace, mission: Mission, planner: Callable[[Any], Plan],
-                       name: str) -> int:
-    """Plan, then print the summary (or the JSON) and draw the plot; a PlanningError goes to the caller."""
-    problem = teams_problem(mission, "collect" if args.collect else "deploy")
-    plan = plan_teams(problem, planner, name)
-    bound = teams_lower_bound(problem)
-    if args.json:
-        json.dump(plan.to_json(), sys.stdout, indent=1)
-        sys.stdout.write("\n")
-    else:
-        print_teams_summary(mission, plan, bound)
-    if args.plot:
-        from fleetctl.views.plot_teams import plot_teams
-
-        out = plot_teams(mission, plan, args.plot, bound)
-        print(f"plot written to {out}", file=sys.stderr if args.json else sys.stdout)
-    return 0
+def plan_for_teams(mission: Mission, collect: bool, planner: Callable[[Any], Plan],
+                   name: str) -> tuple[TeamsPlan, float]:
+    """Share the work between the teams and plan each; the plan and its lower bound (a
+    PlanningError goes to the caller)."""
+    problem = teams_problem(mission, "collect" if collect else "deploy")
+    return plan_teams(problem, planner, name), teams_lower_bound(problem)
 
 
 def print_teams_summary(mission: Mission, plan: TeamsPlan, bound: float) -> None:
