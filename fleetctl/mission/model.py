@@ -98,12 +98,6 @@ class RoversConfig:
         of landed rovers) first takes off: ``takeoff_time`` more."""
         return Motion(self.max_speed, self.accel, self.takeoff_time if from_ground else 0.0)
 
-    @property
-    def hover_drain(self) -> float:
-        """Fraction of a full battery used per second airborne: ``endurance_range`` metres at
-        cruise speed (hovering costs the same as flying)."""
-        return self.max_speed / self.endurance_range if self.endurance_range > 0 else 0.0
-
 
 @dataclass(frozen=True)
 class Fault:

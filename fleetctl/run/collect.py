@@ -266,7 +266,7 @@ class CollectPhase:
                                      tuple(crs), approach_height=MEET_HEIGHT, **m.environment())
             plan = await self.planning.plan("collect", problem)
             short = {s.rover: s for s in energy_shortfalls(plan, battery, airborne, problem.carrier,
-                                                           m.rovers.max_speed, MEET_HEIGHT)}
+                                                           m.rovers.max_speed)}
             if not short:
                 return plan
             crs = self._shrink(crs, short, hopeless=attempt >= ENERGY_REPLANS)

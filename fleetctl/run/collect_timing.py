@@ -14,7 +14,8 @@ stop ``depart = max(arrive, latest rover there) + land_time + load_time`` and th
 between stops. A late carrier moves every ETA, and the rovers not yet released follow it.
 
 :func:`energy_shortfalls` checks a plan against the reserve before it is flown: a rover in the
-air burns ``hover_drain`` of its battery per second until it is on the deck, waiting included.
+air burns ``max_speed / endurance_range`` of its battery per second until it is on the deck,
+waiting included (a plan's collection flights end at the approach point, where ``land_time`` starts).
 """
 
 from __future__ import annotations
@@ -136,30 +137,19 @@ class Shortfall:
     flight: float = 0.0  # m: the length of its planned flight
 
 
-def _below_approach(path: list[Vec3], approach: float) -> float:
-    """How much longer the path is to the deck than to the point ``approach`` m above it."""
-    end = path[-1]
-    up = (end[0], end[1], max(float(end[2]), approach))
-    return max(path_length(path) - path_length([*path[:-1], up]), 0.0)
-
-
 def energy_shortfalls(plan: Plan, battery: Mapping[str, float], airborne: set[str],
-                      carrier: CarrierSpec, max_speed: float, approach: float = 0.0) -> list[Shortfall]:
+                      carrier: CarrierSpec, max_speed: float) -> list[Shortfall]:
     """Rovers that would be below their reserve on the deck: a rover already in the air burns its
     battery from now until it is down (``max(carrier there, rover there) + land_time``), a rover
     on the ground only from its release. ``battery[rover]`` (metres above the reserve at cruise
-    speed, from its live reading) / ``max_speed`` is the time it has. ``approach``: the height above
-    the stop where the rover's own flight ends and its landing (``land_time``) begins."""
+    speed, from its live reading) / ``max_speed`` is the time it has."""
     out = []
     for stop in plan.stops:
         for leg in stop.rovers:
             if leg.rover not in battery:
                 continue
-            # the plan's flight ends on the deck; the rover's ends above it and comes down in
-            # land_time: the part of the line below the approach point is counted once
-            below = _below_approach(leg.path, approach) / max_speed
-            down = max(stop.arrive, leg.arrive) + carrier.land_time - below
-            air = down if leg.rover in airborne else leg.arrive + RELEASE_LEAD + carrier.land_time - below
+            down = max(stop.arrive, leg.arrive) + carrier.land_time
+            air = down if leg.rover in airborne else leg.arrive + RELEASE_LEAD + carrier.land_time
             allowed = battery[leg.rover] / max_speed
             if air > allowed + 1e-6:
                 out.append(Shortfall(leg.rover, air, allowed, path_length(leg.path)))
