@@ -94,9 +94,7 @@ class BoundedLoader(Composer, SafeConstructor, Resolver):
         start = self.peek_event()
         self._depth += 1
         if self._depth > self.max_depth:
-            raise YamlError(_line(start.start_mark),
-                            f"lists/mappings nested more than {self.max_depth} levels deep; "
-                            "a mission file needs at most 5, flatten it")
+            raise YamlError(_line(start.start_mark), _too_deep(self.max_depth))
         before = self._nodes
         self._grow(1, start.start_mark, "this value")
         try:
@@ -146,6 +144,11 @@ class _PyParser(Reader, Scanner, Parser):
         Parser.__init__(self)
 
 
+def _too_deep(max_depth: int) -> str:
+    return (f"lists/mappings nested more than {max_depth} levels deep; a mission file needs at most 5, "
+            "flatten it")
+
+
 def read_yaml(text: str) -> tuple[Any, dict[KeyPath, int]]:
     """Parse one YAML document (bounded, see the module doc): (data, key path -> 1-based line).
 
@@ -158,6 +161,13 @@ def read_yaml(text: str) -> tuple[Any, dict[KeyPath, int]]:
             data = loader.construct_document(node) if node is not None else None
         except RecursionError:  # cannot happen below MAX_YAML_DEPTH; never a traceback all the same
             raise YamlError(None, "the YAML is nested too deeply; flatten it") from None
+        except yaml.MarkedYAMLError as exc:
+            # PyYAML ≥ 6.0.4 stops deep flow nesting in its scanner, before the composer's bound:
+            # the same limit, said the same way
+            if "maximum nesting depth" not in str(exc.problem or ""):
+                raise
+            mark = exc.context_mark or exc.problem_mark
+            raise YamlError(None if mark is None else mark.line + 1, _too_deep(loader.max_depth)) from None
     finally:
         loader.dispose()
     lines: dict[KeyPath, int] = {}
