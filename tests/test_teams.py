@@ -394,3 +394,22 @@ def test_a_planner_that_cannot_serve_the_shares_is_one_line() -> None:
     res = subprocess.run(cmd, capture_output=True, text=True, cwd=ROOT, timeout=120)
     assert res.returncode == 2 and res.stderr.count("\n") == 1, res.stderr
     assert "cannot plan with 'two-task'" in res.stderr
+
+
+def test_team_mission_is_one_team_of_the_file() -> None:
+    from fleetctl.mission import load_mission
+    from fleetctl.mission.model import MissionError
+    from fleetctl.mission.teams import team_mission
+
+    m = load_mission(Path(__file__).parent.parent / "missions" / "two_carriers.yaml")
+    t = team_mission(m, "c2", tasks=["t11", "t12"])
+    assert t.carrier.id == "c2" and t.carrier.sysid == 2 and t.teams == ()
+    assert t.rovers.ids == tuple(f"r{i}" for i in range(9, 17))
+    assert [x.id for x in t.tasks] == ["t11", "t12"]
+    assert t.collection is not None and {r.id for r in t.collection} <= set(t.rovers.ids)
+    assert "carriers" not in t.raw and t.raw["carrier"]["id"] == "c2"
+    assert [u["sysid"] for u in t.raw["rovers"]["units"]] == list(range(31, 39))
+    both = team_mission(m, "c1", rovers=["r1", "r9"])  # a collection may hand a team another deck's rover
+    assert both.rovers.ids == ("r1", "r9") and {r.id for r in both.collection or ()} == {"r1", "r9"}
+    with pytest.raises(MissionError, match="no carrier 'c3'"):
+        team_mission(m, "c3")

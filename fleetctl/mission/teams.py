@@ -3,9 +3,12 @@ problem that shares its tasks or rovers between them (``planners.teams``)."""
 
 from __future__ import annotations
 
+import copy
+from collections.abc import Iterable
 from dataclasses import replace
+from typing import Any
 
-from fleetctl.mission.model import Mission, TeamConfig
+from fleetctl.mission.model import Mission, MissionError, RoverUnit, TeamConfig
 from planners.teams import TeamsProblem
 
 
@@ -27,3 +30,51 @@ def teams_problem(mission: Mission, phase: str) -> TeamsProblem:
         problems.append(replace(own.deploy_problem(), rovers=team.rovers) if phase == "deploy"
                         else own.collect_problem())
     return TeamsProblem(tuple(t.carrier.id for t in mission_teams(mission)), tuple(problems))
+
+
+def team_of(mission: Mission, team_id: str) -> TeamConfig:
+    """The team whose carrier is ``team_id`` (MissionError naming the carriers if none is)."""
+    for team in mission_teams(mission):
+        if team.carrier.id == team_id:
+            return team
+    ids = ", ".join(t.carrier.id for t in mission_teams(mission))
+    raise MissionError(f"{mission.path or mission.name}: no carrier {team_id!r} in the mission "
+                       f"(carriers: {ids})")
+
+
+def team_mission(mission: Mission, team_id: str, tasks: Iterable[str] | None = None,
+                 rovers: Iterable[str] | None = None) -> Mission:
+    """The mission as one team flies it: that carrier, the rovers ``rovers`` (default: the ones on
+    its deck; a collection may give it rovers of other decks), the tasks ``tasks`` (ids; default
+    every task) and the collection entries of its rovers. ``raw`` is rewritten to the one-team
+    form (``carrier:`` and ``rovers.units``), so whatever reads the file as written (the embedded
+    simulator, the run folder's records) sees this team only."""
+    team = team_of(mission, team_id)
+    ids = tuple(team.rovers if rovers is None else rovers)
+    by_id = {u.id: u for u in mission.rovers.units}
+    missing = [r for r in ids if r not in by_id]
+    if missing:
+        raise MissionError(f"{mission.path or mission.name}: no rover {missing[0]!r} in the mission")
+    wanted = None if tasks is None else set(tasks)
+    own_tasks = tuple(t for t in mission.tasks if wanted is None or t.id in wanted)
+    collection = (None if mission.collection is None
+                  else tuple(r for r in mission.collection if r.id in ids))
+    units = tuple(by_id[r] for r in ids)
+    return replace(mission, carrier=team.carrier, rovers=replace(mission.rovers, units=units),
+                   tasks=own_tasks, collection=collection, teams=(),
+                   raw=_one_team_raw(mission.raw, team_id, units))
+
+
+def _one_team_raw(raw: dict[str, Any], team_id: str, units: tuple[RoverUnit, ...]) -> dict[str, Any]:
+    d = copy.deepcopy(raw)
+    if "carriers" in d:
+        entry = next(c for c in d.pop("carriers") if c.get("id") == team_id)
+        d["carrier"] = {k: v for k, v in entry.items() if k not in ("fleet", "units")}
+    rovers = {k: v for k, v in dict(d.get("rovers") or {}).items() if k not in ("fleet", "units")}
+    rovers["units"] = [_unit_raw(u) for u in units]
+    d["rovers"] = rovers
+    return d
+
+
+def _unit_raw(u: RoverUnit) -> dict[str, Any]:
+    return {"id": u.id, "sysid": u.sysid} | ({} if u.connection is None else {"connection": u.connection})
