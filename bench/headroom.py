@@ -22,7 +22,8 @@ from types import ModuleType
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from planners import collection, deploy  # noqa: E402
+from planners.collect import lee as collection  # noqa: E402
+from planners.deploy import lee as deploy  # noqa: E402
 
 
 def _bench(name: str) -> ModuleType:

@@ -1,7 +1,7 @@
 """Open-space collection (dissertation ch. 5): clusters of rovers meet the carrier at one stop each.
 
 Vocabulary follows the chapter: rovers are grouped into clusters P_γβ whose reach discs share a
-region I_β (eq. 5.12, ``planners.reach``); the carrier stops once per cluster at a collection
+region I_β (eq. 5.12, ``planners.collect.reach``); the carrier stops once per cluster at a collection
 location q_γβ in I_β; every rover starts flying to its meeting point at t = 0 and the carrier waits
 for the cluster's last rover, then loads (eq. 5.2). The makespan is the last stop's departure.
 
@@ -10,7 +10,7 @@ tries to divide each cluster, in both orders (SWAP_CLUSTERS), keeps the division
 gets faster and merges it back otherwise. GET_COLLECT_PATH places every cluster's stop in turn
 (``_PathBuilder.place``): the fast way scores the chapter's candidate points (the circles'
 intersection points and the points of I_β nearest the carrier's line, eq. 5.13–5.16) on the time
-model; ``planners.collection_convex`` solves the same placement as a constrained program.
+model; ``planners.collect.convex`` solves the same placement as a constrained program.
 """
 
 from __future__ import annotations
@@ -22,9 +22,10 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 
-from planners.clustering import divide_cluster
-from planners.geometry import compass_search, minimize_1d
-from planners.moves import (
+from planners.collect.reach import Point2, Region, make_region
+from planners.core.clustering import divide_cluster
+from planners.core.geometry import compass_search, minimize_1d
+from planners.core.moves import (
     deadline,
     fine_descent,
     iterated_search,
@@ -33,11 +34,10 @@ from planners.moves import (
     relocate_nearest,
     swap,
 )
-from planners.plan import Plan, RoverLeg, Stop
-from planners.problem import CollectProblem, PlanningError, Vec3, refuse_obstacles
-from planners.reach import Point2, Region, make_region
-from planners.search import merge_neighbours, reorder, split_loop
-from planners.timing import RANGE_MARGIN, carrier_hop, carrier_step, leg_time, retime
+from planners.core.plan import Plan, RoverLeg, Stop
+from planners.core.problem import CollectProblem, PlanningError, Vec3, refuse_obstacles
+from planners.core.search import merge_neighbours, reorder, split_loop
+from planners.core.timing import RANGE_MARGIN, carrier_hop, carrier_step, leg_time, retime
 
 
 class CollectInstance:
@@ -365,7 +365,7 @@ def polish(builder: _PathBuilder, route: _Route,
 def _stop_cost(route: _Route, k: int) -> Callable[[float, float], float]:
     """Makespan of ``route`` with stop k moved to (x, y), the others kept, or inf outside I_β:
     the hops into k, k + 1 and k + 2 are re-timed, later stops by ``_Route.end_from``. The compass
-    search calls it thousands of times: the hops are ``planners.timing.carrier_step``."""
+    search calls it thousands of times: the hops are ``planners.core.timing.carrier_step``."""
     b = route.b
     inst, c, rover, load = b.inst, b.carrier, b.rover, b.load
     members = route.clusters[k]
@@ -472,7 +472,7 @@ def lee_route(problem: CollectProblem, improve: bool = True, fine_upto: int = 12
     stop = deadline(problem.budget_ms, t0) if improve else None
     if not improve:
         best = finish(route)
-    else:  # group and order moves (planners.moves), scored on the quick placement ...
+    else:  # group and order moves (planners.core.moves), scored on the quick placement ...
         keep = next(k for upto, k in QD_KEEP if len(problem.rovers) <= upto)
 
         def nearness(rover: int, cluster: Sequence[int]) -> float:
@@ -493,7 +493,7 @@ def lee_route(problem: CollectProblem, improve: bool = True, fine_upto: int = 12
                                max_fails=ILS_PATIENCE * len(problem.rovers))
     route = best
     if len(problem.rovers) == 2:
-        from planners.collection_two import two_rover_route  # the ch. 5.3 optimum, where it applies
+        from planners.collect.two import two_rover_route  # the ch. 5.3 optimum, where it applies
 
         two = two_rover_route(builder)
         if two.makespan < route.makespan:

@@ -13,13 +13,20 @@ import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
-from planners.clustering import divide_cluster
-from planners.geometry import compass_search, enclosing_ball, find_root, minimize_1d
-from planners.moves import deadline, fine_descent, iterated_search, merge, quick_descent, relocate_nearest
-from planners.plan import Plan, RoverLeg, Stop
-from planners.problem import DeployProblem, PlanningError, Vec3, refuse_obstacles
-from planners.search import merge_neighbours, reorder, split_loop, swap_neighbours
-from planners.timing import RANGE_MARGIN, carrier_hop, carrier_step, leg_time, retime
+from planners.core.clustering import divide_cluster
+from planners.core.geometry import compass_search, enclosing_ball, find_root, minimize_1d
+from planners.core.moves import (
+    deadline,
+    fine_descent,
+    iterated_search,
+    merge,
+    quick_descent,
+    relocate_nearest,
+)
+from planners.core.plan import Plan, RoverLeg, Stop
+from planners.core.problem import DeployProblem, PlanningError, Vec3, refuse_obstacles
+from planners.core.search import merge_neighbours, reorder, split_loop, swap_neighbours
+from planners.core.timing import RANGE_MARGIN, carrier_hop, carrier_step, leg_time, retime
 
 Point2 = tuple[float, float]
 
@@ -29,7 +36,7 @@ class ClusterGeometry:
     """Where a cluster can be served from.
 
     ``center`` is the ground point whose farthest task is nearest (a power-weighted enclosing
-    circle, see planners.geometry), ``reach`` that farthest 3D distance, ``slack`` the radius
+    circle, see planners.core.geometry), ``reach`` that farthest 3D distance, ``slack`` the radius
     of the disc around ``center`` from every point of which all tasks are within d_deploy
     (the disc of eq. 4.23: (Δd)² + z² = (d_deploy − π)² in the chapter's sphere form).
     """
@@ -398,7 +405,7 @@ def lee_clusters(problem: DeployProblem, improve: bool = True,
         best = finish(route)
         return best.clusters, best.positions, best.makespan
     stop = deadline(problem.budget_ms, t0)
-    # group and order moves (planners.moves), scored on the quick placement ...
+    # group and order moves (planners.core.moves), scored on the quick placement ...
     def nearness(task: int, cluster: Sequence[int]) -> float:
         c, p = inst.geometry(cluster).center, inst.pts[task]
         return (p[0] - c[0]) ** 2 + (p[1] - c[1]) ** 2
@@ -441,7 +448,7 @@ def _stop_cost(builder: _PathBuilder, r: _Route, k: int) -> Callable[[float, flo
     """Makespan of route ``r`` with stop k moved to (x, y), the others kept, or inf where a task of
     stop k is out of reach: only the legs into k and k + 1 and the turn at k + 1 change; later
     stops shift in time by the same amount. The polish calls it
-    thousands of times: the hops are ``planners.timing.carrier_step``."""
+    thousands of times: the hops are ``planners.core.timing.carrier_step``."""
     b, pos, unload, d2max = builder, r.positions, builder.unload, builder.inst.d ** 2
     c = b.carrier
     w = c.turn_rate
@@ -567,7 +574,7 @@ def plan_lee(problem: DeployProblem) -> Plan:
     clusters, positions, _ = lee_clusters(problem, t0=t0)
     plan = build_plan(problem, "lee", clusters, positions)
     if len(problem.tasks) == 2:  # where it applies, the two-task optimum of ch. 4.3 (jointly placed stops)
-        from planners.two_task import plan_two_tasks
+        from planners.deploy.two_task import plan_two_tasks
 
         two = plan_two_tasks(problem)
         if two.makespan < plan.makespan:

@@ -16,10 +16,10 @@ import math
 
 from scipy.optimize import minimize
 
-from planners.collection import _PathBuilder, _Route, polish
-from planners.reach import Point2, Region
-from planners.timing import carrier_hop
-from planners.two_task import apollonius_circle
+from planners.collect.lee import _PathBuilder, _Route, polish
+from planners.collect.reach import Point2, Region
+from planners.core.timing import carrier_hop
+from planners.deploy.two_task import apollonius_circle
 
 
 def apollonius_guess(start: Point2, first: Point2, other: Point2, v_c: float, v_r: float) -> Point2 | None:

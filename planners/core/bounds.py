@@ -7,9 +7,9 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from planners.approach import lifted_tasks
-from planners.problem import DeployProblem, Motion
-from planners.timing import leg_time
+from planners.core.approach import lifted_tasks
+from planners.core.problem import DeployProblem, Motion
+from planners.core.timing import leg_time
 
 _GRID = 48
 
@@ -20,7 +20,7 @@ def deploy_lower_bound(problem: DeployProblem) -> float:
     1. Per task (``_task_bound``): the earliest any rover can reach one task.
     2. Stops (``_stops_bound``): the carrier's unloading and driving that any plan needs.
     """
-    if problem.takeoff_height > 0.0:  # flights start above the stop (planners.approach)
+    if problem.takeoff_height > 0.0:  # flights start above the stop (planners.core.approach)
         problem = lifted_tasks(problem)
     return max(_task_bound(problem), _stops_bound(problem))
 

@@ -27,11 +27,11 @@ import warnings
 import numpy as np
 from scipy.optimize import minimize
 
-from planners.collection import _PathBuilder, _Route, build_collect_plan, lee_route, polish
-from planners.plan import Plan
-from planners.problem import CollectProblem, refuse_obstacles
-from planners.reach import Point2, Region
-from planners.timing import carrier_hop, leg_time
+from planners.collect.lee import _PathBuilder, _Route, build_collect_plan, lee_route, polish
+from planners.collect.reach import Point2, Region
+from planners.core.plan import Plan
+from planners.core.problem import CollectProblem, refuse_obstacles
+from planners.core.timing import carrier_hop, leg_time
 
 
 def convex_place(builder: _PathBuilder, region: Region, prev: Point2, t: float, heading: float,

@@ -20,13 +20,13 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from planners.clustering import divide_cluster
-from planners.deploy import ClusterGeometry, max_range_point
-from planners.geometry import enclosing_ball
-from planners.plan import Plan, RoverLeg, Stop
-from planners.problem import DeployProblem, PlanningError, Point2, RoadmapParams, Vec3
-from planners.roadmap import Roadmap, Workspace, densify, disc_region, global_prm, local_prm
-from planners.timing import RANGE_MARGIN, carrier_leg, leg_time, retime
+from planners.core.clustering import divide_cluster
+from planners.core.geometry import enclosing_ball
+from planners.core.plan import Plan, RoverLeg, Stop
+from planners.core.problem import DeployProblem, PlanningError, Point2, RoadmapParams, Vec3
+from planners.core.timing import RANGE_MARGIN, carrier_leg, leg_time, retime
+from planners.deploy.lee import ClusterGeometry, max_range_point
+from planners.roadmap.graph import Roadmap, Workspace, densify, disc_region, global_prm, local_prm
 
 
 class GraphWorld:

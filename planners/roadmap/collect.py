@@ -23,11 +23,11 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from planners.deploy_graph import GraphWorld, _ground_path, _xy
-from planners.geometry import enclosing_ball
-from planners.plan import Plan, RoverLeg, Stop
-from planners.problem import CollectProblem, PlanningError
-from planners.timing import RANGE_MARGIN, carrier_leg, leg_time, retime
+from planners.core.geometry import enclosing_ball
+from planners.core.plan import Plan, RoverLeg, Stop
+from planners.core.problem import CollectProblem, PlanningError
+from planners.core.timing import RANGE_MARGIN, carrier_leg, leg_time, retime
+from planners.roadmap.deploy import GraphWorld, _ground_path, _xy
 
 
 class _Collect:
