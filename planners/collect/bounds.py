@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 
-from planners.collect.lee import CollectInstance
+from planners.collect.instance import CollectInstance
 from planners.core.approach import lifted
 from planners.core.bounds import separated_stops_bound
 from planners.core.problem import CollectProblem

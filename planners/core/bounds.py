@@ -62,7 +62,7 @@ def separated_stops_bound(xy: np.ndarray, reach: np.ndarray, start: Sequence[flo
     w[0, 1:] = np.maximum(np.linalg.norm(pts - origin, axis=1) - r, 0.0)
     w[1:, 1:] = np.maximum(np.linalg.norm(pts[:, None] - pts[None], axis=2) - r[:, None] - r[None, :], 0.0)
     w = np.maximum(w, w.T)
-    return leg_time(_mst_length(w), carrier) + k * per_stop
+    return leg_time(mst_length(w), carrier) + k * per_stop
 
 
 def _task_bound(problem: DeployProblem) -> float:
@@ -100,7 +100,7 @@ def _task_bound(problem: DeployProblem) -> float:
     return best
 
 
-def _mst_length(w: np.ndarray) -> float:
+def mst_length(w: np.ndarray) -> float:
     """Total weight of a minimum spanning tree of a complete graph (Prim, dense)."""
     n = len(w)
     if n <= 1:

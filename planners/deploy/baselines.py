@@ -11,7 +11,7 @@ import numpy as np
 from planners.core.plan import Plan
 from planners.core.problem import DeployProblem, PlanningError, refuse_obstacles
 from planners.core.routing import two_opt_route  # noqa: F401  (re-exported for collection)
-from planners.deploy.lee import build_plan
+from planners.deploy.build import build_plan
 
 
 def plan_greedy2opt(problem: DeployProblem) -> Plan:

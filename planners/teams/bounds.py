@@ -7,8 +7,7 @@ import math
 import numpy as np
 
 from planners.collect.bounds import collect_lower_bound
-from planners.core.bounds import _mst_length as mst_length
-from planners.core.bounds import deploy_lower_bound
+from planners.core.bounds import deploy_lower_bound, mst_length
 from planners.core.problem import CollectProblem, DeployProblem
 from planners.core.timing import leg_time
 from planners.teams.clusters import ground_reach
