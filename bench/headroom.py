@@ -22,7 +22,11 @@ from types import ModuleType
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from planners import collection, deploy  # noqa: E402
+from planners.collect import lee as collection  # noqa: E402
+from planners.collect.polish import polish  # noqa: E402
+from planners.deploy import lee as deploy  # noqa: E402
+from planners.deploy.cluster import DeployInstance  # noqa: E402
+from planners.deploy.path import PathBuilder, Route  # noqa: E402
 
 
 def _bench(name: str) -> ModuleType:
@@ -37,9 +41,9 @@ def deploy_headroom(n: int, seed: int) -> float:
     rng = random.Random(1000 * n + seed)
     problem = _bench("scaling").random_deploy(rng, n, 200.0, rng.uniform(5.0, 20.0))
     clusters, positions, quick = deploy.lee_clusters(problem)
-    inst = deploy._Instance(problem)
-    builder = deploy._PathBuilder(inst)
-    route = deploy._Route(builder, clusters, [inst.geometry(c) for c in clusters], list(positions))
+    inst = DeployInstance(problem)
+    builder = PathBuilder(inst)
+    route = Route(builder, clusters, [inst.geometry(c) for c in clusters], list(positions))
     joint = deploy._polish(builder, route, sweeps=200, tol=1e-4)
     return max(route.makespan - joint.makespan, 0.0) / route.makespan * 100
 
@@ -47,7 +51,7 @@ def deploy_headroom(n: int, seed: int) -> float:
 def collect_headroom(n: int, seed: int) -> float:
     problem = _bench("scaling_collect").random_problem(n, 1000 * n + seed, 200.0, ranges=(5.0, 20.0))
     builder, route = collection.lee_route(problem)
-    joint = collection.polish(builder, route, sweeps=20, level=2)
+    joint = polish(builder, route, sweeps=20, level=2)
     joint = collection.compass(builder, joint, sweeps=200, tol=1e-4)
     return max(route.makespan - joint.makespan, 0.0) / route.makespan * 100
 

@@ -34,7 +34,7 @@ sys.path.insert(0, str(ROOT))
 
 from bench.scaling import random_deploy  # noqa: E402
 from planners import COLLECT_PLANNERS, DEPLOY_PLANNERS  # noqa: E402
-from planners.problem import CollectProblem, CollectRover, DeployProblem  # noqa: E402
+from planners.core.problem import CollectProblem, CollectRover, DeployProblem  # noqa: E402
 from planners.teams import TeamsProblem, plan_teams, plan_teams_nearest, teams_lower_bound  # noqa: E402
 
 SIZE = 300.0

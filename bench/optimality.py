@@ -1,4 +1,4 @@
-"""Optimality gap of the planners against the exact reference (``planners.exact``) on tiny instances.
+"""Optimality gap of the planners against the exact reference (``planners.core.exact``) on tiny instances.
 
 For n = 2..5 tasks (rovers) and a few seeded random instances each, the gap of ``lee`` is
 (T_lee − T_ref) / T_ref, T_ref the best of every ordered partition placed by constrained
@@ -21,11 +21,11 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from planners.collection import plan_collect_lee  # noqa: E402
-from planners.deploy import plan_lee  # noqa: E402
-from planners.exact import exact_plan  # noqa: E402
-from planners.plan import Plan  # noqa: E402
-from planners.problem import CarrierSpec, CollectProblem, CollectRover, DeployProblem, Motion, Task  # noqa: E402
+from planners.collect.lee import plan_collect_lee  # noqa: E402
+from planners.core.exact import exact_plan  # noqa: E402
+from planners.core.plan import Plan  # noqa: E402
+from planners.core.problem import CarrierSpec, CollectProblem, CollectRover, DeployProblem, Motion, Task  # noqa: E402
+from planners.deploy.lee import plan_lee  # noqa: E402
 
 
 def deploy_instance(n: int, seed: int) -> DeployProblem:

@@ -15,7 +15,7 @@ sys.path.insert(0, str(ROOT))
 
 from fleetctl.mission import load_mission  # noqa: E402
 from planners import DEPLOY_PLANNERS, deploy_lower_bound  # noqa: E402
-from planners.timing import dissertation_model  # noqa: E402  (the paper tables use the text's time model)
+from planners.core.timing import dissertation_model  # noqa: E402  (the paper tables use the text's time model)
 
 # file → (what the dissertation reports: makespan s, carrier distance m), None where not given
 REPORTED = {

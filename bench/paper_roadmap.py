@@ -17,9 +17,9 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from fleetctl.mission import load_mission  # noqa: E402
-from planners.collect_graph import plan_collect_lee_graph  # noqa: E402
-from planners.deploy_graph import plan_lee_graph  # noqa: E402
-from planners.timing import dissertation_model  # noqa: E402  (the paper tables use the text's time model)
+from planners.core.timing import dissertation_model  # noqa: E402  (the paper tables use the text's time model)
+from planners.roadmap.collect import plan_collect_lee_graph  # noqa: E402
+from planners.roadmap.deploy import plan_lee_graph  # noqa: E402
 
 # file: reported global nodes/edges, after-local nodes/edges, makespan with / without local PRM
 PAPER = {

@@ -23,7 +23,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from planners import DEPLOY_PLANNERS  # noqa: E402
-from planners.problem import CarrierSpec, DeployProblem, Motion, Task  # noqa: E402
+from planners.core.problem import CarrierSpec, DeployProblem, Motion, Task  # noqa: E402
 
 
 def _pos(rng: random.Random, mean: float, sd: float) -> float:

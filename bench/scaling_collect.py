@@ -22,7 +22,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from planners import COLLECT_PLANNERS  # noqa: E402
-from planners.problem import CarrierSpec, CollectProblem, CollectRover, Motion  # noqa: E402
+from planners.core.problem import CarrierSpec, CollectProblem, CollectRover, Motion  # noqa: E402
 
 SIZES = (10, 20, 50, 100, 200, 500, 1000)
 CONVEX_UPTO = 200  # lee-convex beyond this takes more than ~10 s per run

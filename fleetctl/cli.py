@@ -15,12 +15,12 @@ from fleetctl.mission import Mission, MissionError, load_mission
 from fleetctl.mission.limits import MAX_BUDGET_MS
 from fleetctl.mission.outliers import far_task_warnings
 from fleetctl.mission.teams import several_teams
-from planners.problem import CollectProblem
+from planners.core.problem import CollectProblem
 
 if TYPE_CHECKING:
     from fleetctl.mavlink.fleet import Fleet
     from fleetctl.run.runner import RunOutcome
-    from planners.problem import DeployProblem
+    from planners.core.problem import DeployProblem
 
 log = logging.getLogger("fleetctl")
 
@@ -152,7 +152,7 @@ def _print_summary(mission: Mission, plan: object, bound: float | None) -> None:
     from rich.console import Console
     from rich.table import Table
 
-    from planners.plan import Plan
+    from planners.core.plan import Plan
 
     assert isinstance(plan, Plan)
     console = Console()

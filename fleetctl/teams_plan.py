@@ -8,7 +8,7 @@ from typing import Any
 
 from fleetctl.mission import Mission
 from fleetctl.mission.teams import teams_problem
-from planners.plan import Plan
+from planners.core.plan import Plan
 from planners.teams import TeamsPlan, plan_teams, teams_lower_bound
 
 

@@ -11,11 +11,11 @@ import importlib
 from collections.abc import Callable
 from typing import Any
 
-from planners.approach import WithApproach, WithTakeoff
-from planners.bounds import deploy_lower_bound
-from planners.collection_bounds import collect_lower_bound
-from planners.plan import Plan
-from planners.problem import CollectProblem, DeployProblem, PlanningError
+from planners.collect.bounds import collect_lower_bound
+from planners.core.approach import WithApproach, WithTakeoff
+from planners.core.bounds import deploy_lower_bound
+from planners.core.plan import Plan
+from planners.core.problem import CollectProblem, DeployProblem, PlanningError
 
 
 class LazyPlanner:
@@ -38,20 +38,20 @@ class LazyPlanner:
 
 
 DEPLOY_PLANNERS: dict[str, Callable[[DeployProblem], Plan]] = {
-    "lee": WithTakeoff(LazyPlanner("planners.deploy", "plan_lee")),
-    "greedy2opt": WithTakeoff(LazyPlanner("planners.baselines", "plan_greedy2opt")),
-    "direct": WithTakeoff(LazyPlanner("planners.baselines", "plan_direct")),
-    "two-task": WithTakeoff(LazyPlanner("planners.two_task", "plan_two_tasks")),
-    "lee-graph": WithTakeoff(LazyPlanner("planners.deploy_graph", "plan_lee_graph")),  # shapely, SciPy
+    "lee": WithTakeoff(LazyPlanner("planners.deploy.lee", "plan_lee")),
+    "greedy2opt": WithTakeoff(LazyPlanner("planners.deploy.baselines", "plan_greedy2opt")),
+    "direct": WithTakeoff(LazyPlanner("planners.deploy.baselines", "plan_direct")),
+    "two-task": WithTakeoff(LazyPlanner("planners.deploy.two_task", "plan_two_tasks")),
+    "lee-graph": WithTakeoff(LazyPlanner("planners.roadmap.deploy", "plan_lee_graph")),  # shapely, SciPy
 }
 
 COLLECT_PLANNERS: dict[str, Callable[[CollectProblem], Plan]] = {
-    "lee": WithApproach(LazyPlanner("planners.collection", "plan_collect_lee")),
-    "lee-convex": WithApproach(LazyPlanner("planners.collection_convex", "plan_collect_lee_convex")),  # SciPy
-    "visit-all": WithApproach(LazyPlanner("planners.collection_baselines", "plan_collect_visit_all")),
-    "gather": WithApproach(LazyPlanner("planners.collection_baselines", "plan_collect_gather")),
+    "lee": WithApproach(LazyPlanner("planners.collect.lee", "plan_collect_lee")),
+    "lee-convex": WithApproach(LazyPlanner("planners.collect.convex", "plan_collect_lee_convex")),  # SciPy
+    "visit-all": WithApproach(LazyPlanner("planners.collect.baselines", "plan_collect_visit_all")),
+    "gather": WithApproach(LazyPlanner("planners.collect.baselines", "plan_collect_gather")),
     # shapely, SciPy
-    "lee-graph": WithApproach(LazyPlanner("planners.collect_graph", "plan_collect_lee_graph")),
+    "lee-graph": WithApproach(LazyPlanner("planners.roadmap.collect", "plan_collect_lee_graph")),
 }
 
 __all__ = ["COLLECT_PLANNERS", "DEPLOY_PLANNERS", "LazyPlanner", "Plan", "PlanningError",

@@ -1,6 +1,6 @@
 """An independent check of plan JSON against DESIGN.md's time model.
 
-Written from the contract's text, not from planners/timing.py, so that a mistake in the time
+Written from the contract's text, not from planners/core/timing.py, so that a mistake in the time
 model itself shows up as a disagreement. Used by the planner tests.
 """
 

@@ -18,7 +18,7 @@ import fleetctl
 from fleetctl.cli import main
 from fleetctl.mission import MissionError, load_mission
 from fleetctl.mission.outliers import far_task_warnings, far_tasks
-from planners.problem import Task
+from planners.core.problem import Task
 
 ROOT = Path(__file__).resolve().parents[1]
 RECON = yaml.safe_load((ROOT / "missions" / "recon.yaml").read_text())

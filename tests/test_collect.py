@@ -16,11 +16,11 @@ from hypothesis import strategies as st
 
 from fleetctl.mission import load_mission
 from planners import COLLECT_PLANNERS, collect_lower_bound
-from planners.collection_two import apollonius_guess
-from planners.plan import Plan
-from planners.problem import CarrierSpec, CollectProblem, CollectRover, Motion, PlanningError
-from planners.reach import make_region
-from planners.timing import path_length, retime
+from planners.collect.reach import make_region
+from planners.collect.two import apollonius_guess
+from planners.core.plan import Plan
+from planners.core.problem import CarrierSpec, CollectProblem, CollectRover, Motion, PlanningError
+from planners.core.timing import path_length, retime
 
 ROOT = Path(__file__).resolve().parent.parent
 SCENARIOS = sorted((ROOT / "missions" / "paper").glob("collect_*.yaml")) + [ROOT / "missions" / "recon.yaml"]
@@ -236,8 +236,8 @@ def test_scenario_files_plan_with_every_planner(path: Path) -> None:
 
 
 def test_flights_end_at_the_approach_point_and_keep_their_times():
-    from planners.approach import lifted
-    from planners.timing import path_length
+    from planners.core.approach import lifted
+    from planners.core.timing import path_length
 
     rovers = (CollectRover("a", (30.0, 5.0, 8.0), 40.0), CollectRover("b", (60.0, -10.0, 0.0), 40.0))
     base = CollectProblem(CarrierSpec(10.0, 5.0, None, 0.0, 2.0), Motion(2.0), (0.0, 0.0, 0.0), 0.0, rovers)

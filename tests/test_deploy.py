@@ -8,8 +8,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from planners import DEPLOY_PLANNERS, PlanningError, deploy_lower_bound
-from planners.problem import CarrierSpec, DeployProblem, Motion, Task
-from planners.two_task import apollonius_circle, apollonius_point, plan_two_tasks
+from planners.core.problem import CarrierSpec, DeployProblem, Motion, Task
+from planners.deploy.two_task import apollonius_circle, apollonius_point, plan_two_tasks
 from tests.plan_checker import check_plan
 
 
@@ -155,9 +155,9 @@ def test_lower_bound_regression_zero_length_tree_edges():
 
 
 def test_mst_length():
-    from planners.bounds import _mst_length
+    from planners.core.bounds import mst_length
 
     w = [[0, 0, 5, 9], [0, 0, 4, 8], [5, 4, 0, 1], [9, 8, 1, 0]]
     import numpy as np
 
-    assert _mst_length(np.array(w, dtype=float)) == 5.0
+    assert mst_length(np.array(w, dtype=float)) == 5.0

@@ -7,8 +7,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.optimize import minimize
 
-from planners.clustering import divide_cluster
-from planners.geometry import enclosing_ball, minimize_1d
+from planners.core.clustering import divide_cluster
+from planners.core.geometry import enclosing_ball, minimize_1d
 
 coord = st.floats(-100, 100, allow_nan=False, allow_infinity=False)
 

@@ -20,7 +20,7 @@ from fleetctl.mission.flight import (
     default_land_time,
     default_takeoff_time,
 )
-from planners.problem import CarrierSpec, CollectProblem, DeployProblem, Motion, Task
+from planners.core.problem import CarrierSpec, CollectProblem, DeployProblem, Motion, Task
 
 MISSIONS = Path(__file__).resolve().parent.parent / "missions"
 ORIGIN = {"lat": 47.397742, "lon": 8.545594, "alt": 488.0}

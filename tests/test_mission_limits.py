@@ -282,11 +282,11 @@ def test_pure_python_parser_fallback_has_the_same_limits(monkeypatch: pytest.Mon
 
 
 def test_planner_refuses_a_dense_roadmap_it_was_not_protected_from() -> None:
-    """planners.roadmap's own guard: edges counted before they are built (pure maths, no loader)."""
+    """planners.roadmap.graph's own guard: edges counted before they are built (pure maths, no loader)."""
     import numpy as np
 
-    from planners.problem import PlanningError
-    from planners.roadmap import MAX_EDGES, Roadmap, Workspace
+    from planners.core.problem import PlanningError
+    from planners.roadmap.graph import MAX_EDGES, Roadmap, Workspace
 
     ws = Workspace([], ((0.0, 0.0), (10.0, 10.0)))
     pts = np.random.default_rng(0).uniform(0, 10, size=(600, 2))

@@ -1,4 +1,4 @@
-"""``lee`` against the exact reference (planners.exact) on tiny instances (n ≤ 3).
+"""``lee`` against the exact reference (planners.core.exact) on tiny instances (n ≤ 3).
 
 The reference tries every ordered partition of the tasks (rovers) into stops and places the
 stops by constrained optimisation on the exact time model. Tolerance: ``lee`` may be at most
@@ -13,7 +13,7 @@ import pytest
 
 from bench.optimality import collect_instance, deploy_instance  # the bench's instances, seed for seed
 from planners import COLLECT_PLANNERS, DEPLOY_PLANNERS
-from planners.exact import exact_plan, ordered_partitions
+from planners.core.exact import exact_plan, ordered_partitions
 
 GAP_TOL = 0.012
 

@@ -13,9 +13,7 @@ from shapely.geometry import LineString, Point, Polygon
 from fleetctl.cli import main
 from fleetctl.mission import Mission, load_mission
 from planners import COLLECT_PLANNERS, DEPLOY_PLANNERS
-from planners.collect_graph import plan_collect_lee_graph
-from planners.deploy_graph import plan_lee_graph
-from planners.problem import (
+from planners.core.problem import (
     CarrierSpec,
     CollectProblem,
     CollectRover,
@@ -24,7 +22,9 @@ from planners.problem import (
     PlanningError,
     Task,
 )
-from planners.roadmap import Roadmap, Workspace
+from planners.roadmap.collect import plan_collect_lee_graph
+from planners.roadmap.deploy import plan_lee_graph
+from planners.roadmap.graph import Roadmap, Workspace
 from tests.plan_checker import check_plan
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -18,10 +18,10 @@ from fleetctl.cli import main
 from fleetctl.mission import load_mission
 from fleetctl.mission.teams import mission_teams, several_teams, teams_problem
 from planners import COLLECT_PLANNERS, DEPLOY_PLANNERS
-from planners.plan import Plan
-from planners.problem import CarrierSpec, CollectProblem, CollectRover, DeployProblem, Motion, Task
+from planners.core.plan import Plan
+from planners.core.problem import CarrierSpec, CollectProblem, CollectRover, DeployProblem, Motion, Task
+from planners.core.timing import path_length, retime
 from planners.teams import TeamsPlan, TeamsProblem, plan_teams, plan_teams_nearest, teams_lower_bound
-from planners.timing import path_length, retime
 from tests.plan_checker import check_plan
 from tests.test_mission import BASE, error, load
 
@@ -212,7 +212,7 @@ def test_roadmap_teams_avoid_obstacles(tmp_path: Path) -> None:
 
 
 def test_too_few_rovers_on_the_decks_is_refused() -> None:
-    from planners.problem import PlanningError
+    from planners.core.problem import PlanningError
 
     problem = deploy_teams(1, 6, 2, spare=0)
     short = TeamsProblem(problem.carriers, (replace(problem.problems[0], rovers=("r1",)),

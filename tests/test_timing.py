@@ -4,9 +4,9 @@ import math
 
 import pytest
 
-from planners.plan import Plan, RoverLeg, Stop
-from planners.problem import CarrierSpec, Motion
-from planners.timing import (
+from planners.core.plan import Plan, RoverLeg, Stop
+from planners.core.problem import CarrierSpec, Motion
+from planners.core.timing import (
     carrier_leg,
     collect_schedule,
     deploy_schedule,
@@ -94,7 +94,7 @@ def test_retime_fills_a_plan():
 def test_carrier_hop_agrees_with_carrier_leg():
     import random
 
-    from planners.timing import carrier_hop
+    from planners.core.timing import carrier_hop
 
     rng = random.Random(3)
     for _ in range(500):
@@ -109,8 +109,8 @@ def test_carrier_hop_agrees_with_carrier_leg():
 
 
 def test_fixed_time_is_added_to_every_rover_flight_and_not_to_the_carrier():
-    from planners.problem import CarrierSpec, Motion
-    from planners.timing import carrier_leg, leg_time, travel_time
+    from planners.core.problem import CarrierSpec, Motion
+    from planners.core.timing import carrier_leg, leg_time, travel_time
 
     rover = Motion(2.0, 1.0, fixed_time=1.5)
     for length in (0.0, 0.5, 4.0, 30.0):
@@ -122,8 +122,8 @@ def test_fixed_time_is_added_to_every_rover_flight_and_not_to_the_carrier():
 
 def test_dissertation_model_drops_the_fixed_time_and_shifts_a_deployment_by_it():
     from planners import DEPLOY_PLANNERS
-    from planners.problem import CarrierSpec, DeployProblem, Motion, Task
-    from planners.timing import dissertation_model
+    from planners.core.problem import CarrierSpec, DeployProblem, Motion, Task
+    from planners.core.timing import dissertation_model
 
     tasks = tuple(Task(f"t{i}", (10.0 * i, 5.0 * (i % 3), 2.0)) for i in range(6))
     p = DeployProblem(CarrierSpec(10.0, 5.0, 1.0, 2.0, 2.0), Motion(2.0, None, fixed_time=3.0), 15.0,
@@ -141,8 +141,8 @@ def test_dissertation_model_drops_the_fixed_time_and_shifts_a_deployment_by_it()
 
 @pytest.mark.parametrize("accel", [None, 0.5, 3.0])
 def test_remaining_leg_time_matches_the_leg_from_rest_and_a_simulated_profile(accel):
-    from planners.problem import Motion
-    from planners.timing import remaining_leg_time, travel_time
+    from planners.core.problem import Motion
+    from planners.core.timing import remaining_leg_time, travel_time
 
     m = Motion(4.0, accel)
     for d in (0.5, 3.0, 40.0):
@@ -160,8 +160,8 @@ def test_remaining_leg_time_matches_the_leg_from_rest_and_a_simulated_profile(ac
 
 
 def test_vertex_stops_drive_a_polyline_as_rest_to_rest_segments_with_turns():
-    from planners.problem import CarrierSpec
-    from planners.timing import carrier_hop, carrier_leg
+    from planners.core.problem import CarrierSpec
+    from planners.core.timing import carrier_hop, carrier_leg
 
     path = [(0.0, 0.0, 0.0), (30.0, 0.0, 0.0), (30.0, 40.0, 0.0), (0.0, 40.0, 0.0)]
     one = CarrierSpec(10.0, 5.0, 1.0)

@@ -63,7 +63,7 @@ from fleetctl.mission.limits import FAR_FACTOR, MIN_EXTENT
 if TYPE_CHECKING:
     from fleetctl.mission import Mission
     from fleetctl.run.state import FleetState
-    from planners.problem import Task
+    from planners.core.problem import Task
 
 log = logging.getLogger(__name__)
 

@@ -44,7 +44,7 @@ from fleetctl.geo import Origin, geodetic_to_local, local_to_geodetic
 from fleetctl.mavlink.autopilots import Autopilot
 from fleetctl.mavlink.link import MissionItem
 from fleetctl.mission.flight import GROUND_HEIGHT, MEET_HEIGHT, TAKEOFF_HEIGHT
-from planners.plan import Plan
+from planners.core.plan import Plan
 
 if TYPE_CHECKING:
     from fleetctl.mavlink.fleet import Fleet
@@ -103,7 +103,7 @@ def compile_plan(
     plan: Plan, origin: Origin | None, *, carrier_id: str = "carrier", autopilot: AutopilotSpec = None,
     home_height: float = 0.0, meet_height: float = MEET_HEIGHT, takeoff_height: float = TAKEOFF_HEIGHT,
 ) -> CompiledPlan:
-    """Turn a deployment or collection :class:`~planners.plan.Plan` into mission items.
+    """Turn a deployment or collection :class:`~planners.core.plan.Plan` into mission items.
 
     ``autopilot``: one :class:`~fleetctl.autopilot.Autopilot` for all vehicles or a mapping
     vehicle id -> autopilot (e.g. ``{vid: v.autopilot for vid, v in fleet.vehicles.items()}``);

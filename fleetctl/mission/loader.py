@@ -73,7 +73,7 @@ from fleetctl.mission.model import (
     TlsConfig,
 )
 from fleetctl.mission.yaml_safe import YamlError, read_yaml
-from planners.problem import (
+from planners.core.problem import (
     CollectRover,
     RoadmapParams,
     Task,

@@ -10,7 +10,7 @@ from typing import Any
 
 from fleetctl.geo import Origin, compass_to_math
 from fleetctl.mission.flight import GROUND_HEIGHT, MEET_HEIGHT, TAKEOFF_HEIGHT
-from planners.problem import (
+from planners.core.problem import (
     CarrierSpec,
     CollectProblem,
     CollectRover,
@@ -260,7 +260,7 @@ class Mission:
 
         ``dataclasses.replace(problem, **mission.environment())`` gives any problem built from
         live state the mission's obstacles. Roadmap parameters left out of the file take the
-        dissertation's values (planners.problem.RoadmapParams).
+        dissertation's values (planners.core.problem.RoadmapParams).
         """
         rc = self.planner.roadmap
         given = {} if rc is None else {k: v for k, v in vars(rc).items() if v is not None}

@@ -15,7 +15,7 @@ from collections.abc import Sequence
 
 from fleetctl.mission.limits import OUTLIER_FACTOR, OUTLIER_MIN_DISTANCE
 from fleetctl.mission.model import Mission
-from planners.problem import Task
+from planners.core.problem import Task
 
 MIN_TASKS = 3  # with fewer there are no "others" to compare with
 

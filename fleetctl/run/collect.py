@@ -47,8 +47,8 @@ from fleetctl.run.parts import PhaseParts
 from fleetctl.run.results import PhaseResult
 from fleetctl.run.state import DECK_RADIUS
 from fleetctl.run.supervisor import SupervisorEvent
-from planners.plan import Plan, Stop
-from planners.problem import CollectProblem, CollectRover, Vec3
+from planners.core.plan import Plan, Stop
+from planners.core.problem import CollectProblem, CollectRover, Vec3
 
 log = logging.getLogger(__name__)
 

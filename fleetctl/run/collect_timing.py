@@ -9,7 +9,7 @@ task when it is in the air) and is released at
 so that it is above stop ``k`` when the carrier gets there; ``flight_i`` is its planned flight
 (the plan's rover arrival: take-off when it starts on the ground, plus travel), ``ETA_k`` is
 the carrier's arrival at ``k`` predicted from live telemetry (:class:`RoundClock`): the rest of
-its current leg from its position and speed (``planners.timing.remaining_leg_time``), then per
+its current leg from its position and speed (``planners.core.timing.remaining_leg_time``), then per
 stop ``depart = max(arrive, latest rover there) + land_time + load_time`` and the planned legs
 between stops. A late carrier moves every ETA, and the rovers not yet released follow it.
 
@@ -25,9 +25,9 @@ import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 
-from planners.plan import Plan
-from planners.problem import CarrierSpec, Vec3
-from planners.timing import path_length, remaining_leg_time, turn_time
+from planners.core.plan import Plan
+from planners.core.problem import CarrierSpec, Vec3
+from planners.core.timing import path_length, remaining_leg_time, turn_time
 
 RELEASE_LEAD = 1.0  # mission s: a rover is released this much early (its commands take time)
 TURN_TOLERANCE = 0.05  # rad: a carrier at rest pointing within this of its leg does not turn

@@ -29,8 +29,8 @@ from fleetctl.run.parts import PhaseParts
 from fleetctl.run.results import PhaseResult
 from fleetctl.run.supervisor import SupervisorEvent, validate_task_change
 from fleetctl.run.task_board import TaskBoard
-from planners.plan import Plan, RoverLeg
-from planners.problem import Task, Vec3
+from planners.core.plan import Plan, RoverLeg
+from planners.core.problem import Task, Vec3
 
 
 @dataclass(frozen=True)

@@ -30,8 +30,8 @@ from fleetctl.run.results import PhaseResult
 from fleetctl.run.state import FleetState
 from fleetctl.run.supervisor import Supervisor, SupervisorEvent
 from fleetctl.run.task_board import TaskBoard
-from planners.plan import Plan
-from planners.problem import Task
+from planners.core.plan import Plan
+from planners.core.problem import Task
 
 log = logging.getLogger(__name__)
 

@@ -14,8 +14,8 @@ from fleetctl.mission.flight import MEET_HEIGHT
 from fleetctl.run.context import ExecutionError, RunContext
 from fleetctl.run.kinds import Ev
 from fleetctl.run.safety import check_plan
-from planners.plan import Plan
-from planners.problem import PlanningError
+from planners.core.plan import Plan
+from planners.core.problem import PlanningError
 
 COLLECT_MEET_HEIGHT = MEET_HEIGHT  # m above the carrier's stop where a returning rover waits for the carrier
 REPLAN_BUDGET_MS = 50.0  # a replan (every plan of a phase after its first) improves for at most this long

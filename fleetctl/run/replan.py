@@ -18,7 +18,7 @@ from fleetctl.run.kinds import Ev
 if TYPE_CHECKING:
     from fleetctl.run.state import FleetState
     from fleetctl.run.supervisor import SupervisorEvent
-    from planners.plan import Plan
+    from planners.core.plan import Plan
 
 
 class _Recorder(Protocol):

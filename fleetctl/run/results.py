@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from planners.plan import Plan
+from planners.core.plan import Plan
 
 
 @dataclass

@@ -35,7 +35,7 @@ from fleetctl.run.results import PhaseResult
 from fleetctl.run.sim import mission_uses_sim
 from fleetctl.run.state import FleetState, on_deck
 from fleetctl.run.task_board import TaskBoard, TaskStatus
-from planners.problem import Task
+from planners.core.problem import Task
 
 PHASES = ("deploy", "dwell", "collect")
 Disarm = Callable[[Vehicle], Awaitable[None]]

@@ -37,7 +37,7 @@ from fleetctl.run.sim import mission_uses_sim, sim_mission_dict
 from fleetctl.run.state import FleetState
 from fleetctl.run.summary import RunFacts, build_summary
 from fleetctl.views.view import View
-from planners.plan import Plan
+from planners.core.plan import Plan
 
 log = logging.getLogger(__name__)
 

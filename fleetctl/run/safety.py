@@ -131,7 +131,7 @@ async def download_fence(v: Vehicle) -> list[MissionItem]:
 
 
 def plan_violations(plan: Any, fence: GeofenceConfig) -> list[str]:
-    """Where a plan (:class:`planners.plan.Plan`) leaves the geofence: carrier stops and paths,
+    """Where a plan (:class:`planners.core.plan.Plan`) leaves the geofence: carrier stops and paths,
     rover paths (also through an exclusion zone, or above ``alt_max``)."""
     inc = Polygon(fence.polygon).buffer(1e-6)
     exc = [(j, Polygon(p)) for j, p in enumerate(fence.exclusions)]

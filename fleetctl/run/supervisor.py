@@ -36,7 +36,7 @@ from fleetctl.mavlink.vehicle import VehicleEvent
 from fleetctl.mission import Mission, MissionError, load_mission
 from fleetctl.mission.limits import MAX_FILE_BYTES
 from fleetctl.run.state import FleetState
-from planners.problem import Task, Vec3
+from planners.core.problem import Task, Vec3
 
 log = logging.getLogger(__name__)
 

@@ -15,7 +15,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from enum import StrEnum
 
-from planners.problem import Task
+from planners.core.problem import Task
 
 
 class TaskStatus(StrEnum):

@@ -1,6 +1,6 @@
 """Time to go, for the views: per rover (to its task, or to touch-down on the carrier), for the
 carrier (to the stop it drives to) and for the mission, from the plan being flown and the time
-model (:mod:`planners.timing`).
+model (:mod:`planners.core.timing`).
 
 A rover in the air has ``leg_time(rest of its path)`` to go (the rover motion of the mission); a
 rover waiting on the deck, or a view without the mission's rover motion (``watch``), goes by the
@@ -15,7 +15,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
-from planners.timing import leg_time
+from planners.core.timing import leg_time
 
 if TYPE_CHECKING:
     from fleetctl.run.state import FleetState, VehicleState

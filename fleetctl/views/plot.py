@@ -13,7 +13,7 @@ from matplotlib.patches import Circle  # noqa: E402
 from matplotlib.patches import Polygon as PolygonPatch  # noqa: E402
 
 from fleetctl.mission import Mission  # noqa: E402
-from planners.plan import Plan  # noqa: E402
+from planners.core.plan import Plan  # noqa: E402
 
 
 def plot_plan(mission: Mission, plan: Plan, out: str | Path, lower_bound: float | None = None) -> Path:

@@ -14,7 +14,7 @@ from matplotlib.axes import Axes  # noqa: E402
 from matplotlib.patches import Polygon as PolygonPatch  # noqa: E402
 
 from fleetctl.mission import Mission  # noqa: E402
-from planners.plan import Plan  # noqa: E402
+from planners.core.plan import Plan  # noqa: E402
 from planners.teams import TeamsPlan  # noqa: E402
 
 

@@ -14,8 +14,8 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 
-from planners.plan import Plan
-from planners.problem import PlanningError
+from planners.core.plan import Plan
+from planners.core.problem import PlanningError
 from planners.teams.baseline import nearest_assignment
 from planners.teams.clusters import item_clusters
 from planners.teams.construction import construct

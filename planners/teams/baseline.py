@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from planners.problem import PlanningError
+from planners.core.problem import PlanningError
 from planners.teams.problem import TeamsProblem
 
 

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from planners.problem import DeployProblem
+from planners.core.problem import DeployProblem
 from planners.teams.problem import TeamsProblem
 
 

@@ -15,9 +15,9 @@ import math
 
 import numpy as np
 
-from planners.problem import PlanningError
+from planners.core.problem import PlanningError
+from planners.core.timing import leg_time
 from planners.teams.problem import TeamsProblem
-from planners.timing import leg_time
 
 Point = tuple[float, float]
 

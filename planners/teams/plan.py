@@ -9,7 +9,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any, Literal
 
-from planners.plan import PLAN_SCHEMA, Plan
+from planners.core.plan import PLAN_SCHEMA, Plan
 
 
 @dataclass

@@ -12,7 +12,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from typing import Generic, Literal, TypeVar
 
-from planners.problem import CollectProblem, CollectRover, DeployProblem, PlanningError, Task, Vec3
+from planners.core.problem import CollectProblem, CollectRover, DeployProblem, PlanningError, Task, Vec3
 
 P = TypeVar("P", DeployProblem, CollectProblem)
 

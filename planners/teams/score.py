@@ -1,6 +1,6 @@
 """Each team's plan for a share of the pool, by the team planner, cached by (team, share).
 
-Every time quoted comes from the team planner's plan, which ``planners.timing`` times: the
+Every time quoted comes from the team planner's plan, which ``planners.core.timing`` times: the
 allocation search never estimates what it scores.
 """
 
@@ -10,8 +10,8 @@ import math
 from collections.abc import Callable, Iterable
 from typing import Generic
 
-from planners.plan import Plan
-from planners.problem import PlanningError
+from planners.core.plan import Plan
+from planners.core.problem import PlanningError
 from planners.teams.problem import P, TeamsProblem
 
 Share = frozenset[int]

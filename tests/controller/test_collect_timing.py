@@ -14,8 +14,8 @@ from fleetctl.run.collect_timing import (
     release_delay,
 )
 from planners import COLLECT_PLANNERS
-from planners.problem import CarrierSpec, CollectProblem, CollectRover, Motion
-from planners.timing import remaining_leg_time
+from planners.core.problem import CarrierSpec, CollectProblem, CollectRover, Motion
+from planners.core.timing import remaining_leg_time
 
 CARRIER = CarrierSpec(10.0, 5.0, None, 0.0, 2.0, takeoff_time=1.5, land_time=3.5)
 ROVER = Motion(2.0)

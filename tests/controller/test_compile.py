@@ -88,7 +88,7 @@ def test_collect_items(recon) -> None:
 
 def test_collect_from_the_ground_takes_off_first() -> None:
     from fleetctl.geo import Origin
-    from planners.plan import Plan, RoverLeg, Stop
+    from planners.core.plan import Plan, RoverLeg, Stop
 
     origin = Origin(47.397742, 8.545594, 488.0)
     stop = Stop((10.0, 0.0, 0.0), [(0.0, 0.0, 0.0), (10.0, 0.0, 0.0)],

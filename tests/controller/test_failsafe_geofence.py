@@ -32,7 +32,7 @@ from fleetctl.run.safety import (
     upload_fence,
 )
 from fleetctl.run.sim import sim_mission_dict
-from planners.plan import Plan, RoverLeg, Stop
+from planners.core.plan import Plan, RoverLeg, Stop
 from sitl import FleetConfig, SimFleet
 from sitl.flavour import Mode
 

@@ -34,7 +34,7 @@ from fleetctl.run.executor import Executor
 from fleetctl.run.runner import execute
 from fleetctl.run.sim import sim_mission_dict
 from fleetctl.run.state import Event, FleetState
-from planners.problem import Task
+from planners.core.problem import Task
 from sitl import Fault, FleetConfig, SimFleet
 
 SPEEDUP = 20.0

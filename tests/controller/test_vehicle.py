@@ -12,7 +12,7 @@ from ctl_helpers import mission_dict, mission_from, sim_fleet
 from fleetctl.mavlink.compile import compile_for_fleet
 from fleetctl.mavlink.fleet import Fleet, connect_fleet
 from fleetctl.mavlink.vehicle import CommandRejected, VehicleEvent
-from planners.plan import Plan, RoverLeg, Stop
+from planners.core.plan import Plan, RoverLeg, Stop
 from sitl import Fault, SimFleet
 
 

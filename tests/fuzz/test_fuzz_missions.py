@@ -95,7 +95,7 @@ def test_fuzz_in_process(tmp_path: Path) -> None:
 
 def test_forced_roadmap_planner_on_a_huge_open_mission_is_a_message(tmp_path: Path) -> None:
     """The loader checks the roadmap only when the mission uses it; ``--planner lee-graph`` on a
-    wide open-space mission is refused by the planner's own node cap (planners.roadmap.MAX_NODES)."""
+    wide open-space mission is refused by the planner's own node cap (planners.roadmap.graph.MAX_NODES)."""
     import contextlib
     import io
 

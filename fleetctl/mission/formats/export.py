@@ -32,7 +32,7 @@ if TYPE_CHECKING:
     from fleetctl.mavlink.compile import CompiledPlan
     from fleetctl.mavlink.link import MissionItem
     from fleetctl.mission.model import Mission
-    from planners.plan import Plan
+    from planners.core.plan import Plan
 
 MAV_TYPE_QUADROTOR = 2  # the rovers (small UAVs) when no HEARTBEAT told otherwise
 MAV_TYPE_GROUND_ROVER = 10  # the carrier, as the simulated fleet's

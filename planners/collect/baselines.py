@@ -17,11 +17,12 @@ import time
 
 import numpy as np
 
-from planners.collection import CollectInstance, build_collect_plan
-from planners.plan import Plan
-from planners.problem import CollectProblem, refuse_obstacles
-from planners.reach import Point2
-from planners.routing import two_opt_route
+from planners.collect.instance import CollectInstance
+from planners.collect.lee import build_collect_plan
+from planners.collect.reach import Point2
+from planners.core.plan import Plan
+from planners.core.problem import CollectProblem, refuse_obstacles
+from planners.core.routing import two_opt_route
 
 
 def _visit(problem: CollectProblem, planner: str, landing: list[Point2], t0: float) -> Plan:

@@ -21,8 +21,8 @@ import math
 from collections.abc import Callable
 from typing import Any
 
-from planners.plan import Plan
-from planners.problem import CollectProblem, DeployProblem, Task, Vec3
+from planners.core.plan import Plan
+from planners.core.problem import CollectProblem, DeployProblem, Task, Vec3
 
 
 def lifted(problem: CollectProblem) -> CollectProblem:

@@ -27,14 +27,16 @@ import warnings
 import numpy as np
 from scipy.optimize import minimize
 
-from planners.collection import _PathBuilder, _Route, build_collect_plan, lee_route, polish
-from planners.plan import Plan
-from planners.problem import CollectProblem, refuse_obstacles
-from planners.reach import Point2, Region
-from planners.timing import carrier_hop, leg_time
+from planners.collect.lee import build_collect_plan, lee_route
+from planners.collect.path import PathBuilder, Route
+from planners.collect.polish import polish
+from planners.collect.reach import Point2, Region
+from planners.core.plan import Plan
+from planners.core.problem import CollectProblem, refuse_obstacles
+from planners.core.timing import carrier_hop, leg_time
 
 
-def convex_place(builder: _PathBuilder, region: Region, prev: Point2, t: float, heading: float,
+def convex_place(builder: PathBuilder, region: Region, prev: Point2, t: float, heading: float,
                  nxt: Point2 | None, start: Point2) -> Point2:
     """Solve the epigraph program above for one stop, starting from ``start`` (a point of I_β)."""
     c, r = builder.carrier, builder.rover
@@ -66,7 +68,7 @@ def convex_place(builder: _PathBuilder, region: Region, prev: Point2, t: float, 
     return q if region.contains(q) else region.project(q)
 
 
-def lee_convex_route(problem: CollectProblem) -> tuple[_PathBuilder, _Route]:
+def lee_convex_route(problem: CollectProblem) -> tuple[PathBuilder, Route]:
     """Algorithm 5.1–5.2 with fast placement, then every stop re-solved as the program above."""
     builder, route = lee_route(problem)
 

@@ -123,7 +123,7 @@ class DeployProblem:
     bounds: tuple[Point2, Point2] | None = None
     roadmap: RoadmapParams = field(default_factory=RoadmapParams)
     seed: int = 0
-    # height above the stop where a launched rover's line to its task starts (planners.approach);
+    # height above the stop where a launched rover's line to its task starts (planners.core.approach);
     # 0 = from the deck, the dissertation's model
     takeoff_height: float = 0.0
     # Anytime planning (open-space ``lee``): None = the quick plan; a number = after it, improve
@@ -161,7 +161,7 @@ class CollectProblem:
     roadmap: RoadmapParams = field(default_factory=RoadmapParams)
     seed: int = 0
     # height above the stop where a rover's flight ends and its landing (land_time) begins
-    # (planners.approach); 0 = on the deck, the dissertation's model
+    # (planners.core.approach); 0 = on the deck, the dissertation's model
     approach_height: float = 0.0
     # Anytime planning (open-space ``lee``): None = the quick plan; a number = after it, improve
     # the plan (iterated local search, seeded by ``seed``) for about this many milliseconds of

@@ -17,11 +17,11 @@ from __future__ import annotations
 import math
 import time
 
-from planners.deploy import build_plan
-from planners.geometry import enclosing_ball, find_root, minimize_1d
-from planners.plan import Plan
-from planners.problem import DeployProblem, PlanningError, refuse_obstacles
-from planners.timing import RANGE_MARGIN, carrier_hop, leg_time
+from planners.core.geometry import enclosing_ball, find_root, minimize_1d
+from planners.core.plan import Plan
+from planners.core.problem import DeployProblem, PlanningError, refuse_obstacles
+from planners.core.timing import RANGE_MARGIN, carrier_hop, leg_time
+from planners.deploy.build import build_plan
 
 Point2 = tuple[float, float]
 

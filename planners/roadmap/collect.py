@@ -23,11 +23,11 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from planners.deploy_graph import GraphWorld, _ground_path, _xy
-from planners.geometry import enclosing_ball
-from planners.plan import Plan, RoverLeg, Stop
-from planners.problem import CollectProblem, PlanningError
-from planners.timing import RANGE_MARGIN, carrier_leg, leg_time, retime
+from planners.core.geometry import enclosing_ball
+from planners.core.plan import Plan, RoverLeg, Stop
+from planners.core.problem import CollectProblem, PlanningError
+from planners.core.timing import RANGE_MARGIN, carrier_leg, leg_time, retime
+from planners.roadmap.world import GraphWorld, ground_path, node_xy
 
 
 class _Collect:
@@ -70,7 +70,7 @@ class _Collect:
                                and math.dist(tx[i, :2], tx[nearest, :2]) < w.rho[i] + w.rho[nearest]]
             nxt = self._next(mem, [i for i in remaining if i not in mem])
             while True:
-                cands, _ = w.candidates(mem, _xy(w.rm, self.prev), None if nxt is None else
+                cands, _ = w.candidates(mem, node_xy(w.rm, self.prev), None if nxt is None else
                                         (float(tx[nxt, 0]), float(tx[nxt, 1])))
                 if len(cands):
                     break
@@ -88,7 +88,7 @@ class _Collect:
                 d_next = w.rm.shortest(w.node(nxt))[0]
                 score = score + np.array([leg_time(d_next[c], cr.motion) for c in cands])
             node = int(cands[int(np.argmin(score))])
-            path = _ground_path(w.rm.smoothed_path(self.prev, node))
+            path = ground_path(w.rm.smoothed_path(self.prev, node))
             dt, self.heading = carrier_leg(path, self.heading, cr)
             self.eta = max(self.eta + dt, self.arrivals(mem, node)) + cr.collect_stop_time
             self.stops.append((node, mem))
@@ -116,8 +116,8 @@ def plan_collect_lee_graph(problem: CollectProblem, local_prm: bool = True) -> P
     stops: list[Stop] = []
     prev = 0
     for node, mem in order:
-        here = _xy(rm, node)
-        carrier_path = _ground_path(rm.smoothed_path(prev, node))
+        here = node_xy(rm, node)
+        carrier_path = ground_path(rm.smoothed_path(prev, node))
         if prev == 0:
             carrier_path[0] = problem.start
         legs = []

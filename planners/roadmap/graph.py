@@ -28,7 +28,7 @@ from scipy.spatial import cKDTree
 from shapely import STRtree
 from shapely.geometry import Polygon
 
-from planners.problem import PlanningError, Point2, Polygon2, RoadmapParams
+from planners.core.problem import PlanningError, Point2, Polygon2, RoadmapParams
 
 Bounds = tuple[Point2, Point2]
 

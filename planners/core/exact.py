@@ -1,7 +1,7 @@
 """An exact reference for tiny deployment and collection problems (n ≤ 5), for tests and benchmarks.
 
 Every ordered partition of the tasks (rovers) into stops is tried; for each, the stops' ground
-positions are placed by constrained optimisation on the exact time model (``planners.timing``):
+positions are placed by constrained optimisation on the exact time model (``planners.core.timing``):
 SLSQP on the epigraph form (minimise T with T ≥ every rover's arrival, resp. η_k ≥ η_{k−1} + hop
 and η_k ≥ a rover's landing, and every flight within its range) from several starts, then a
 compass search on the exact, non-smooth makespan that only keeps feasible improvements. It is a
@@ -23,9 +23,9 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import minimize
 
-from planners.geometry import enclosing_ball
-from planners.problem import CollectProblem, DeployProblem
-from planners.timing import RANGE_MARGIN, carrier_hop, leg_time
+from planners.core.geometry import enclosing_ball
+from planners.core.problem import CollectProblem, DeployProblem
+from planners.core.timing import RANGE_MARGIN, carrier_hop, leg_time
 
 Point2 = tuple[float, float]
 _SLSQP_SHRINK = 1e-4  # m: SLSQP works this far inside each reach disc (its constraints are soft)

@@ -8,10 +8,10 @@ import time
 
 import numpy as np
 
-from planners.deploy import build_plan
-from planners.plan import Plan
-from planners.problem import DeployProblem, PlanningError, refuse_obstacles
-from planners.routing import two_opt_route  # noqa: F401  (re-exported for collection)
+from planners.core.plan import Plan
+from planners.core.problem import DeployProblem, PlanningError, refuse_obstacles
+from planners.core.routing import two_opt_route  # noqa: F401  (re-exported for collection)
+from planners.deploy.build import build_plan
 
 
 def plan_greedy2opt(problem: DeployProblem) -> Plan:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
-from planners.timing import dist
+from planners.core.timing import dist
 
 _TIE = 1e-9
 

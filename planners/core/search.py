@@ -15,7 +15,7 @@ from typing import Any, Protocol, TypeVar
 
 import numpy as np
 
-from planners.routing import two_opt_route
+from planners.core.routing import two_opt_route
 
 Point2 = tuple[float, float]
 R = TypeVar("R", bound="ClusterRoute")

@@ -7,9 +7,9 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from planners.approach import lifted_tasks
-from planners.problem import DeployProblem, Motion
-from planners.timing import leg_time
+from planners.core.approach import lifted_tasks
+from planners.core.problem import DeployProblem, Motion
+from planners.core.timing import leg_time
 
 _GRID = 48
 
@@ -20,7 +20,7 @@ def deploy_lower_bound(problem: DeployProblem) -> float:
     1. Per task (``_task_bound``): the earliest any rover can reach one task.
     2. Stops (``_stops_bound``): the carrier's unloading and driving that any plan needs.
     """
-    if problem.takeoff_height > 0.0:  # flights start above the stop (planners.approach)
+    if problem.takeoff_height > 0.0:  # flights start above the stop (planners.core.approach)
         problem = lifted_tasks(problem)
     return max(_task_bound(problem), _stops_bound(problem))
 
@@ -62,7 +62,7 @@ def separated_stops_bound(xy: np.ndarray, reach: np.ndarray, start: Sequence[flo
     w[0, 1:] = np.maximum(np.linalg.norm(pts - origin, axis=1) - r, 0.0)
     w[1:, 1:] = np.maximum(np.linalg.norm(pts[:, None] - pts[None], axis=2) - r[:, None] - r[None, :], 0.0)
     w = np.maximum(w, w.T)
-    return leg_time(_mst_length(w), carrier) + k * per_stop
+    return leg_time(mst_length(w), carrier) + k * per_stop
 
 
 def _task_bound(problem: DeployProblem) -> float:
@@ -100,7 +100,7 @@ def _task_bound(problem: DeployProblem) -> float:
     return best
 
 
-def _mst_length(w: np.ndarray) -> float:
+def mst_length(w: np.ndarray) -> float:
     """Total weight of a minimum spanning tree of a complete graph (Prim, dense)."""
     n = len(w)
     if n <= 1:

@@ -11,8 +11,8 @@ import math
 from collections.abc import Sequence
 from typing import TypeVar
 
-from planners.plan import Plan
-from planners.problem import CarrierSpec, CollectProblem, DeployProblem, Motion, Vec3
+from planners.core.plan import Plan
+from planners.core.problem import CarrierSpec, CollectProblem, DeployProblem, Motion, Vec3
 
 P = TypeVar("P", DeployProblem, CollectProblem)
 

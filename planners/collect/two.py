@@ -14,12 +14,11 @@ from __future__ import annotations
 
 import math
 
-from scipy.optimize import minimize
-
-from planners.collection import _PathBuilder, _Route, polish
-from planners.reach import Point2, Region
-from planners.timing import carrier_hop
-from planners.two_task import apollonius_circle
+from planners.collect.path import PathBuilder, Route
+from planners.collect.polish import polish
+from planners.collect.reach import Point2, Region
+from planners.core.timing import carrier_hop
+from planners.deploy.two_task import apollonius_circle
 
 
 def apollonius_guess(start: Point2, first: Point2, other: Point2, v_c: float, v_r: float) -> Point2 | None:
@@ -43,11 +42,13 @@ def apollonius_guess(start: Point2, first: Point2, other: Point2, v_c: float, v_
     return (cx + (fx - cx) / off * rad, cy + (fy - cy) / off * rad)  # the circle's point nearest the line
 
 
-def two_rover_route(builder: _PathBuilder) -> _Route:
+def two_rover_route(builder: PathBuilder) -> Route:
     """The best of: both rovers at one stop; RV1 then RV2; RV2 then RV1 (ch. 5.3)."""
+    from scipy.optimize import minimize  # SciPy on demand: only two-rover collections need it
+
     inst = builder.inst
     c, r = builder.carrier, builder.rover
-    routes: list[_Route] = []
+    routes: list[Route] = []
     if inst.fits([0, 1]):
         routes.append(polish(builder, builder.route([[0, 1]], level=2), level=2))
     for a, b in ((0, 1), (1, 0)):
@@ -55,12 +56,12 @@ def two_rover_route(builder: _PathBuilder) -> _Route:
         region_b = inst.region([b])
 
         def makespan_at(p: Point2, a: int = a, b: int = b, disc_a: Region = disc_a,
-                        region_b: Region = region_b) -> tuple[float, _Route]:
+                        region_b: Region = region_b) -> tuple[float, Route]:
             q = disc_a.project(p)
             dt, h = carrier_hop(builder.start, q, builder.heading0, c)
             t = max(dt, builder.ready(disc_a, q)) + builder.load
             second = builder.place(region_b, q, t, h, None, level=2)
-            route = _Route(builder, [[a], [b]], [disc_a, region_b], [q, second])
+            route = Route(builder, [[a], [b]], [disc_a, region_b], [q, second])
             return route.makespan, route
 
         guesses: list[Point2] = [inst.pts2[a], disc_a.project(builder.start)]

@@ -26,7 +26,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from planners.geometry import enclosing_ball
+from planners.core.geometry import enclosing_ball
 
 Point2 = tuple[float, float]
 

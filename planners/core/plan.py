@@ -5,7 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any, Literal
 
-from planners.problem import Vec3
+from planners.core.problem import Vec3
 
 PLAN_SCHEMA = "fleetctl.plan/1"
 
@@ -49,7 +49,7 @@ class Plan:
     compute_ms: float = 0.0
     notes: list[str] = field(default_factory=list)
     # The time model's per-stop and per-flight terms the times were computed with (set by
-    # ``planners.timing.retime``; docs/time-model.md): takeoff_time, land_time, rover_fixed_time,
+    # ``planners.core.timing.retime``; docs/time-model.md): takeoff_time, land_time, rover_fixed_time,
     # vertex_stops.
     time_model: dict[str, float | bool] | None = None
     # Roadmap planners (ch. 6) attach their graph for drawing: an object with ``xy`` ((N, 2)

@@ -6,11 +6,11 @@ import math
 
 import numpy as np
 
-from planners.approach import lifted
-from planners.bounds import separated_stops_bound
-from planners.collection import CollectInstance
-from planners.problem import CollectProblem
-from planners.timing import leg_time
+from planners.collect.instance import CollectInstance
+from planners.core.approach import lifted
+from planners.core.bounds import separated_stops_bound
+from planners.core.problem import CollectProblem
+from planners.core.timing import leg_time
 
 _BISECT = 60
 
@@ -24,7 +24,7 @@ def collect_lower_bound(problem: CollectProblem) -> float:
     Reach radii are the exact ones, sqrt(range² − z²), not the planners' RANGE_MARGIN-reduced ones,
     so the bound also holds for plans that use the full range.
     """
-    if problem.approach_height > 0.0:  # flights end above the stop (planners.approach)
+    if problem.approach_height > 0.0:  # flights end above the stop (planners.core.approach)
         problem = lifted(problem)
     CollectInstance(problem)  # the same validation as the planners: infeasible rovers by id
     if not problem.rovers:

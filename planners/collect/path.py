@@ -1,0 +1,223 @@
+"""GET_COLLECT_PATH and CALC_TIME of Algorithm 5.1–5.2 (dissertation ch. 5): the path builder that
+places a stop per cluster of rovers, and the timed route it builds."""
+
+from __future__ import annotations
+
+import math
+
+from planners.collect.instance import CollectInstance
+from planners.collect.reach import Point2, Region
+from planners.core.geometry import minimize_1d
+from planners.core.timing import carrier_hop, leg_time
+
+
+class PathBuilder:
+    """GET_COLLECT_PATH and CALC_TIME of Algorithm 5.1–5.2 for ordered lists of clusters."""
+
+    def __init__(self, inst: CollectInstance) -> None:
+        self.inst = inst
+        p = inst.problem
+        self.carrier, self.rover = p.carrier, p.rover
+        self.load = p.carrier.collect_stop_time
+        self.start: Point2 = (p.start[0], p.start[1])
+        self.heading0 = p.heading
+
+    def ready(self, region: Region, p: Point2) -> float:
+        """g(q_γ) of eq. 5.2: when the cluster's last rover lands at ``p`` (all leave at t = 0)."""
+        return leg_time(region.farthest_flight(p), self.rover)
+
+    def local_time(self, region: Region, p: Point2, prev: Point2, t: float, heading: float,
+                   nxt: Point2 | None) -> float:
+        """η_β of eq. 5.2 at ``p`` plus the hop on to the next stop: what placing q_γβ at p costs."""
+        dt, h = carrier_hop(prev, p, heading, self.carrier)
+        eta = max(t + dt, self.ready(region, p)) + self.load
+        if nxt is not None:
+            eta += carrier_hop(p, nxt, h, self.carrier)[0]
+        return eta
+
+    def place(self, region: Region, prev: Point2, t: float, heading: float, nxt: Point2 | None,
+              level: int = 0) -> Point2:
+        """Collection location of one cluster given the carrier's state after the previous stop.
+
+        Level 0 (the clustering search) scores a few points: the time centre, the point nearest
+        the previous stop and the carrier's line point (eq. 5.13). Levels 1–2 score the chapter's
+        full candidate set (Fig. 5.6: the circles' intersection points, eq. 5.13–5.16) and slide the
+        best toward the time centre and the line point (level 2: toward every candidate); I_β is
+        convex, so every such segment stays inside it.
+        """
+        def cost(p: Point2) -> float:
+            return self.local_time(region, p, prev, t, heading, nxt)
+
+        if level == 0:
+            return min(region.quick_candidates(prev, nxt), key=cost)
+        cands = region.candidates(prev, nxt)
+        vals = [cost(p) for p in cands]
+        j = min(range(len(cands)), key=vals.__getitem__)
+        best, best_v = cands[j], vals[j]
+        targets = cands if level >= 2 else [region.time_center, region.line_point(prev, nxt)]
+        for q in targets:
+            if math.dist(q, best) < 1e-6:
+                continue
+            a = best
+
+            def along(s: float, a: Point2 = a, q: Point2 = q) -> float:
+                return cost((a[0] + s * (q[0] - a[0]), a[1] + s * (q[1] - a[1])))
+
+            s, v = minimize_1d(along, 0.0, 1.0, samples=8 if level >= 2 else 4,
+                               tol=1e-7 if level >= 2 else 1e-4)
+            if v < best_v:
+                best, best_v = (a[0] + s * (q[0] - a[0]), a[1] + s * (q[1] - a[1])), v
+        return best
+
+    def route(self, clusters: list[list[int]], level: int = 0) -> Route:
+        """GET_COLLECT_PATH for every cluster in order, then the route's times (CALC_TIME)."""
+        regions = [self.inst.region(c) for c in clusters]
+        positions: list[Point2] = []
+        prev, t, heading = self.start, 0.0, self.heading0
+        for k, reg in enumerate(regions):
+            nxt = regions[k + 1].center if k + 1 < len(regions) else None  # next stop not known yet
+            pos = self.place(reg, prev, t, heading, nxt, level)
+            dt, heading = carrier_hop(prev, pos, heading, self.carrier)
+            t = max(t + dt, self.ready(reg, pos)) + self.load
+            positions.append(pos)
+            prev = pos
+        return Route(self, clusters, regions, positions)
+
+
+# a scored change: makespan, clusters, stops, first re-placed stop, end of the re-placed stops,
+# the old index of the first kept stop
+Candidate = tuple[float, list[list[int]], list[Point2], int, int, int]
+
+
+class Route:
+    """An ordered cluster list with its stops and the times eq. 5.2 gives them.
+
+    ``hop[j]`` is the carrier's rotation + drive into stop j, ``heading[j]`` its heading on arrival,
+    ``ready[j]`` when stop j's last rover lands, ``eta[j]`` the departure from stop j.
+    """
+
+    def __init__(self, b: PathBuilder, clusters: list[list[int]], regions: list[Region],
+                 positions: list[Point2]) -> None:
+        self.b, self.clusters, self.regions, self.positions = b, clusters, regions, positions
+        self.hop: list[float] = []
+        self.heading: list[float] = []
+        self.ready: list[float] = []
+        prev, h = b.start, b.heading0
+        for reg, pos in zip(regions, positions, strict=True):
+            dt, h = carrier_hop(prev, pos, h, b.carrier)
+            self.hop.append(dt)
+            self.heading.append(h)
+            self.ready.append(b.ready(reg, pos))
+            prev = pos
+        self._times()
+
+    def _times(self) -> None:
+        """``eta`` and the makespan from ``hop`` and ``ready`` (eq. 5.2), and the suffix sums.
+
+        Eq. 5.2 is max-plus linear in a departure time: leaving stop j at t, the route ends at
+        max(t + after[j], late[j]) (after: hops and loads still to come; late: the latest a later
+        cluster's rovers hold the carrier up), so re-timing a local change costs O(1)."""
+        load, n = self.b.load, len(self.hop)
+        self.eta = []
+        t = 0.0
+        for dt, ready in zip(self.hop, self.ready, strict=True):
+            t = max(t + dt, ready) + load
+            self.eta.append(t)
+        self.makespan = t if n else 0.0
+        self.after = [0.0] * n
+        self.late = [-math.inf] * n
+        for j in range(n - 2, -1, -1):
+            self.after[j] = self.after[j + 1] + self.hop[j + 1] + load
+            self.late[j] = max(self.late[j + 1], self.ready[j + 1] + load + self.after[j + 1])
+
+    def moved(self, k: int, q: Point2) -> Route:
+        """This route with stop k moved to ``q``: only the hops whose turn or length changed (into
+        k, k + 1, k + 2 and on while the arrival heading differs) are driven again."""
+        b = self.b
+        r = object.__new__(type(self))
+        r.b, r.clusters, r.regions = b, self.clusters, self.regions
+        r.positions = [*self.positions[:k], q, *self.positions[k + 1:]]
+        r.hop, r.heading, r.ready = self.hop[:], self.heading[:], self.ready[:]
+        r.ready[k] = b.ready(self.regions[k], q)
+        prev, h = (b.start, b.heading0) if k == 0 else (self.positions[k - 1], self.heading[k - 1])
+        for j in range(k, len(r.positions)):
+            if j > k + 1 and h == self.heading[j - 1]:
+                break
+            r.hop[j], h = carrier_hop(prev, r.positions[j], h, b.carrier)
+            r.heading[j] = h
+            prev = r.positions[j]
+        r._times()
+        return r
+
+    def end_from(self, j: int, t: float) -> float:
+        """Makespan when the carrier leaves stop j at ``t`` and later stops keep their places."""
+        return max(t + self.after[j], self.late[j])
+
+    def state_before(self, k: int) -> tuple[Point2, float, float]:
+        """Carrier position, time and heading when it leaves the stop before stop k."""
+        if k == 0:
+            return self.b.start, 0.0, self.b.heading0
+        return self.positions[k - 1], self.eta[k - 1], self.heading[k - 1]
+
+    def _finish(self, m: int, prev: Point2, t: float, h: float) -> float:
+        """Makespan when the carrier leaves ``prev`` at ``t`` with heading ``h`` for old stop m."""
+        b = self.b
+        last = min(m + 2, len(self.positions))
+        for j in range(m, last):  # the heading into m changed, so the rotation at m (into m + 1) too
+            pos = self.positions[j]
+            dt, h = carrier_hop(prev, pos, h, b.carrier)
+            t = max(t + dt, self.ready[j]) + b.load
+            prev = pos
+        return self.end_from(last - 1, t)
+
+    def accept(self, cand: Candidate) -> Route:
+        """The route of a scored change: stops before ``lo`` and from old stop ``m`` on keep their
+        hops and rovers' times; only the changed stops (and the hops whose heading changed) are
+        driven again, so a long route accepts a local change in a few hops."""
+        _, clusters, positions, lo, hi, m = cand
+        b = self.b
+        r = object.__new__(type(self))
+        r.b, r.clusters, r.positions = b, clusters, positions
+        r.regions = [*self.regions[:lo], *(b.inst.region(c) for c in clusters[lo:hi]), *self.regions[m:]]
+        r.hop, r.heading, r.ready = self.hop[:lo], self.heading[:lo], self.ready[:lo]
+        prev, h = (b.start, b.heading0) if lo == 0 else (positions[lo - 1], self.heading[lo - 1])
+        for j in range(lo, len(positions)):
+            o = j - hi + m  # the old index of a kept stop
+            if j > hi and h == self.heading[o - 1]:  # the rest is driven as before
+                r.hop += self.hop[o:]
+                r.heading += self.heading[o:]
+                r.ready += self.ready[o:]
+                break
+            dt, h = carrier_hop(prev, positions[j], h, b.carrier)
+            r.hop.append(dt)
+            r.heading.append(h)
+            r.ready.append(b.ready(r.regions[j], positions[j]) if j < hi else self.ready[o])
+            prev = positions[j]
+        r._times()
+        return r
+
+    def replace(self, i: int, pieces: list[list[int]], count: int = 1) -> Candidate:
+        """Makespan after clusters i..i+count-1 are replaced by ``pieces``: the stop before, the
+        pieces and their stops are placed afresh; later stops keep their places and are re-timed."""
+        b, old = self.b, self.clusters
+        clusters = old[:i] + pieces + old[i + count:]
+        regions = self.regions[:i] + [b.inst.region(p) for p in pieces] + self.regions[i + count:]
+        lo = max(i - 1, 0)
+        hi = min(i + len(pieces), len(clusters))  # new indices lo..hi-1 are placed afresh
+        m = hi - len(pieces) + count  # old index of the first kept stop
+        prev, t, h = self.state_before(lo)
+        positions = self.positions[:lo]
+        for k in range(lo, hi):
+            if k + 1 < hi:
+                nxt: Point2 | None = regions[k + 1].center
+            else:
+                nxt = self.positions[m] if m < len(old) else None
+            pos = b.place(regions[k], prev, t, h, nxt)
+            dt, h = carrier_hop(prev, pos, h, b.carrier)
+            t = max(t + dt, b.ready(regions[k], pos)) + b.load
+            positions.append(pos)
+            prev = pos
+        if m < len(old):
+            t = self._finish(m, prev, t, h)
+            positions = positions + self.positions[m:]
+        return t, clusters, positions, lo, hi, m

@@ -1,0 +1,219 @@
+"""GET_DEPLOY_PATH and CALC_TIME of Algorithm 4.1–4.2 (dissertation ch. 4.4): the path builder
+that places a stop per cluster, and the timed route it builds."""
+
+from __future__ import annotations
+
+import itertools
+from collections.abc import Sequence
+
+from planners.core.geometry import find_root, minimize_1d
+from planners.core.problem import Point2
+from planners.core.timing import carrier_hop, leg_time
+from planners.deploy.cluster import ClusterGeometry, DeployInstance, lerp, max_range_point
+
+
+class PathBuilder:
+    """GET_DEPLOY_PATH and CALC_TIME of Algorithm 4.1–4.2 for ordered lists of clusters."""
+
+    def __init__(self, inst: DeployInstance) -> None:
+        self.inst = inst
+        p = inst.problem
+        self.carrier, self.rover = p.carrier, p.rover
+        self.unload = p.carrier.deploy_stop_time
+        self.start: Point2 = (p.start[0], p.start[1])
+
+    def finish(self, pos: Point2, members: Sequence[int]) -> float:
+        """Rover flight time to the cluster's farthest task from ``pos`` (eq. 4.5)."""
+        return leg_time(self.inst.reach_from(pos, members), self.rover)
+
+    def place(self, clusters: Sequence[Sequence[int]], geos: Sequence[ClusterGeometry], k: int,
+              prev: Point2, t: float, heading: float, worst: float, fine: bool) -> Point2:
+        """Deployment point of cluster k given the carrier's state after the previous stop."""
+        if k < len(clusters) - 2:
+            return max_range_point(prev, geos[k], geos[k + 1].center)
+        return self._best_on_segment(prev, t, heading, worst, clusters, geos, k, fine)
+
+    def _best_on_segment(self, prev: Point2, t: float, heading: float, worst: float,
+                         clusters: Sequence[Sequence[int]], geos: Sequence[ClusterGeometry], k: int,
+                         fine: bool) -> Point2:
+        """The last two clusters (eq. 4.14–4.20): slide the stop along prev → centre so that this
+        cluster's rovers and the next stop's rovers finish as early as possible, never beyond
+        d_deploy. Solved on the exact time model instead of the linearised rotation of eq. 4.16."""
+        center = geos[k].center
+        s_lo = self.inst.feasible_from(prev, center, clusters[k])
+        last = k == len(clusters) - 1
+        nxt = None if last else geos[k + 1].center
+
+        def last_stop(pos: Point2, h: float, t1: float, u: float, nxt: Point2) -> float:
+            q = lerp(pos, nxt, u)
+            dt2, _ = carrier_hop(pos, q, h, self.carrier)
+            return t1 + dt2 + self.unload + self.finish(q, clusters[k + 1])
+
+        def both(s: float, u: float = 1.0) -> tuple[float, float]:
+            """This cluster's last arrival and the next (last) cluster's, with the stop at s."""
+            pos = lerp(prev, center, s)
+            dt, h = carrier_hop(prev, pos, heading, self.carrier)
+            t1 = t + dt + self.unload
+            later = last_stop(pos, h, t1, u, nxt) if nxt is not None else 0.0
+            return t1 + self.finish(pos, clusters[k]), later
+
+        def makespan(s: float, u: float = 1.0) -> float:
+            return max(worst, *both(s, u))
+
+        if not fine and nxt is not None:
+            # Eq. 4.20: both clusters' rovers arrive together. This cluster finishes later as the
+            # stop moves back toward the carrier, the next one earlier: find the crossing.
+            def gap(x: float) -> float:
+                a, b = both(x)
+                return a - b
+
+            cands = [s_lo, 1.0]
+            g_lo, g_hi = gap(s_lo), gap(1.0)
+            if g_lo * g_hi < 0:
+                cands.append(find_root(gap, s_lo, 1.0, xtol=1e-4))
+            return lerp(prev, center, min(cands, key=makespan))
+
+        def best_s(u: float) -> tuple[float, float]:
+            s, best = minimize_1d(lambda x: makespan(x, u), s_lo, 1.0, samples=24 if fine else 6,
+                                  tol=1e-7 if fine else 2e-3)
+            for cand in (s_lo, 1.0):
+                if makespan(cand, u) <= best:
+                    s, best = cand, makespan(cand, u)
+            return s, best
+
+        s, best = best_s(1.0)
+        if fine and nxt is not None:
+            # The last stop may stop short of its centre too: place both by coordinate descent on
+            # (s, u), u the fraction of the way from this stop to the next centre.
+            for _ in range(2):
+                pos = lerp(prev, center, s)
+                u_lo = self.inst.feasible_from(pos, nxt, clusters[k + 1])
+                def along_u(x: float, s: float = s) -> float:
+                    return makespan(s, x)
+
+                u, _ = minimize_1d(along_u, u_lo, 1.0, samples=8, tol=1e-7)
+                s2, best2 = best_s(u)
+                if best2 >= best - 1e-9:
+                    break
+                s, best = s2, best2
+        return lerp(prev, center, s)
+
+    def route(self, clusters: list[list[int]], fine: bool = False) -> Route:
+        """GET_DEPLOY_PATH for every cluster, then the route's times."""
+        geos = [self.inst.geometry(c) for c in clusters]
+        positions: list[Point2] = []
+        prev, t, heading, worst = self.start, 0.0, self.inst.problem.heading, 0.0
+        for k in range(len(clusters)):
+            pos = self.place(clusters, geos, k, prev, t, heading, worst, fine)
+            dt, heading = carrier_hop(prev, pos, heading, self.carrier)
+            t += dt + self.unload
+            worst = max(worst, t + self.finish(pos, clusters[k]))
+            positions.append(pos)
+            prev = pos
+        return Route(self, clusters, geos, positions)
+
+
+# a scored change: makespan, clusters, their geometry, stops, first re-placed stop
+Candidate = tuple[float, list[list[int]], list[ClusterGeometry], list[Point2], int]
+
+
+class Route:
+    """An ordered cluster list with its stops and the times needed to re-time a local change.
+
+    ``arrive[j]`` is the carrier's arrival at stop j, ``heading[j]`` its heading on arrival,
+    ``done[j]`` when stop j's last rover reaches its task, ``tail[j]`` = max(done[j:]).
+    """
+
+    def __init__(self, b: PathBuilder, clusters: list[list[int]], geos: list[ClusterGeometry],
+                 positions: list[Point2], base: Route | None = None, lo: int = 0) -> None:
+        """``base``: a route with the same first ``lo`` stops, whose times are kept."""
+        self.b, self.clusters, self.geos, self.positions = b, clusters, geos, positions
+        if base is None or lo == 0:
+            lo, prev, t, h = 0, b.start, 0.0, b.inst.problem.heading
+            self.arrive: list[float] = []
+            self.heading: list[float] = []
+            self.done: list[float] = []
+        else:
+            self.arrive, self.heading, self.done = base.arrive[:lo], base.heading[:lo], base.done[:lo]
+            prev, t, h = positions[lo - 1], base.arrive[lo - 1] + b.unload, base.heading[lo - 1]
+        for members, pos in zip(clusters[lo:], positions[lo:], strict=True):
+            dt, h = carrier_hop(prev, pos, h, b.carrier)
+            t += dt
+            self.arrive.append(t)
+            self.heading.append(h)
+            t += b.unload
+            self.done.append(t + b.finish(pos, members))
+            prev = pos
+        self.tail = self.done[:]
+        for j in range(len(self.tail) - 2, -1, -1):
+            self.tail[j] = max(self.tail[j], self.tail[j + 1])
+        self.makespan = self.tail[0] if self.tail else 0.0
+        self.head = list(itertools.accumulate(self.done, max))  # head[j] = max(done[:j + 1])
+
+    def moved(self, k: int, q: Point2) -> Route:
+        """This route with stop k moved to ``q``: times before k are kept, the rest re-timed."""
+        b = self.b
+        r = object.__new__(type(self))
+        r.b, r.clusters, r.geos = b, self.clusters, self.geos
+        r.positions = [*self.positions[:k], q, *self.positions[k + 1:]]
+        r.arrive, r.heading, r.done = self.arrive[:k], self.heading[:k], self.done[:k]
+        if k == 0:
+            prev, t, h = b.start, 0.0, b.inst.problem.heading
+        else:
+            prev, t, h = self.positions[k - 1], self.arrive[k - 1] + b.unload, self.heading[k - 1]
+        for j in range(k, len(self.positions)):
+            pos = r.positions[j]
+            dt, h = carrier_hop(prev, pos, h, b.carrier)
+            t += dt
+            r.arrive.append(t)
+            r.heading.append(h)
+            t += b.unload
+            r.done.append(t + b.finish(pos, self.clusters[j]))
+            prev = pos
+        r.tail = r.done[:]
+        for j in range(len(r.tail) - 2, -1, -1):
+            r.tail[j] = max(r.tail[j], r.tail[j + 1])
+        r.makespan = r.tail[0] if r.tail else 0.0
+        r.head = list(itertools.accumulate(r.done, max))
+        return r
+
+    def accept(self, cand: Candidate) -> Route:
+        _, clusters, geos, positions, lo = cand
+        return Route(self.b, clusters, geos, positions, self, lo)
+
+    def replace(self, i: int, pieces: list[list[int]], count: int = 1) -> Candidate:
+        """Makespan after clusters i..i+count-1 are replaced by ``pieces``, recomputing the stops
+        around the change (the one before, the pieces, the one after) and keeping later stops."""
+        b, old = self.b, self.clusters
+        clusters = old[:i] + pieces + old[i + count:]
+        geos = self.geos[:i] + [b.inst.geometry(p) for p in pieces] + self.geos[i + count:]
+        lo = max(i - 1, 0)
+        hi = i + len(pieces) + 1  # first new index kept from the old route (exclusive window end)
+        if hi >= len(clusters) - 2:
+            hi = len(clusters)  # the last two clusters are placed together (eq. 4.20)
+        if lo == 0:
+            prev, t, h, worst = b.start, 0.0, b.inst.problem.heading, 0.0
+        else:
+            prev = self.positions[lo - 1]
+            t, h = self.arrive[lo - 1] + b.unload, self.heading[lo - 1]
+            worst = self.head[lo - 1]
+        positions = self.positions[:lo]
+        for k in range(lo, hi):
+            pos = b.place(clusters, geos, k, prev, t, h, worst, fine=False)
+            dt, h = carrier_hop(prev, pos, h, b.carrier)
+            t += dt + b.unload
+            worst = max(worst, t + b.finish(pos, clusters[k]))
+            positions.append(pos)
+            prev = pos
+        m = hi - len(pieces) + count  # old index of the first kept stop
+        if m < len(old):
+            pos = self.positions[m]
+            dt, h = carrier_hop(prev, pos, h, b.carrier)
+            t += dt + b.unload
+            worst = max(worst, t + b.finish(pos, old[m]))
+            if m + 1 < len(old):
+                dt, _ = carrier_hop(pos, self.positions[m + 1], h, b.carrier)
+                shift = t + dt - self.arrive[m + 1]
+                worst = max(worst, self.tail[m + 1] + shift)
+            positions += self.positions[m:]
+        return worst, clusters, geos, positions, lo
