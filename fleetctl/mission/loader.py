@@ -40,11 +40,9 @@ import math
 import re
 from collections.abc import Callable, Mapping
 from pathlib import Path
-from typing import Any, NoReturn
+from typing import TYPE_CHECKING, Any, NoReturn
 
 import yaml
-from shapely.geometry import Point, Polygon
-from shapely.validation import explain_validity
 
 import fleetctl.mission.formats as formats
 import fleetctl.mission.limits as L
@@ -78,6 +76,9 @@ from planners.core.problem import (
     RoadmapParams,
     Task,
 )
+
+if TYPE_CHECKING:
+    from shapely.geometry import Point, Polygon
 
 log = logging.getLogger(__name__)
 
@@ -592,16 +593,34 @@ def _build_fleet(
 def _polygon(ctx: _Ctx, pts: list[Vec2], path: KeyPath) -> Polygon:
     if len(pts) < 3:
         ctx.fail(path, f"an obstacle polygon needs at least 3 vertices [x, y], got {len(pts)}")
-    poly = Polygon(pts)
+    poly = _shape(pts)
     if poly.convex_hull.area <= 0.0 or not poly.is_valid or poly.area <= 0.0:
         flat = poly.convex_hull.area <= 0.0
-        reason = "zero area: collinear or repeated vertices" if flat else explain_validity(poly)
+        reason = "zero area: collinear or repeated vertices" if flat else _why_invalid(poly)
         ctx.fail(
             path,
             f"invalid polygon ({reason}); list the vertices in order around the outline "
             "without self-crossings",
         )
     return poly
+
+
+def _shape(pts: list[Vec2]) -> Polygon:
+    from shapely.geometry import Polygon  # shapely only for missions with polygons: a fast CLI start
+
+    return Polygon(pts)
+
+
+def _xy_point(x: float, y: float) -> Point:
+    from shapely.geometry import Point
+
+    return Point(x, y)
+
+
+def _why_invalid(poly: Polygon) -> str:
+    from shapely.validation import explain_validity
+
+    return str(explain_validity(poly))
 
 
 def _check_geometry(
@@ -638,7 +657,7 @@ def _check_geometry(
                 "move it or widen the bounds",
             )
         for j, poly in enumerate(polys):
-            if poly.covers(Point(x, y)):
+            if poly.covers(_xy_point(x, y)):
                 ctx.fail(
                     path, f"{what} at ({x:g}, {y:g}) lies inside obstacles[{j}]; move it out of the obstacle"
                 )
@@ -686,17 +705,17 @@ def _geofence(ctx: _Ctx, d: dict[str, Any], tasks: tuple[Task, ...], obstacles: 
                 pts.append((float(x), float(y)))
             else:
                 pts.append((float(v[0]), float(v[1])))
-        poly = Polygon(pts) if len(pts) >= 3 else None
+        poly = _shape(pts) if len(pts) >= 3 else None
         if poly is None or not poly.is_valid or poly.area <= 0.0:
-            why = f"{len(pts)} vertices" if poly is None else explain_validity(poly)
+            why = f"{len(pts)} vertices" if poly is None else _why_invalid(poly)
             ctx.fail(("geofence", "polygon"), f"not a usable polygon ({why}); list at least 3 vertices in "
                      "order around the outline without self-crossings")
-    poly = Polygon(pts)
+    poly = _shape(pts)
     where = ("geofence", "polygon") if g["polygon"] is not None else ("geofence", "from")
     inside = [(what, tuple(p[:2])) for what, p, _ in _carrier_starts(d)]
     inside += [(f"task {t.id!r}", t.position[:2]) for t in tasks]
     for what, (x, y) in inside:
-        if not poly.covers(Point(x, y)):
+        if not poly.covers(_xy_point(x, y)):
             ctx.fail(where, f"{what} at ({x:g}, {y:g}) lies outside the geofence; "
                      "widen the polygon or move it")
     for t in tasks:
