@@ -44,6 +44,7 @@ from planners.problem import CarrierSpec
 log = logging.getLogger(__name__)
 
 TICK = 0.2  # s between two looks at the board
+CARRIER_RELEASE_AFTER = 5.0  # wall s the carrier's link is lost before its unlaunched tasks are given up
 STANDBY_POLL = 1.0  # s: a finished team looks again for handed-over work this often
 CLOSE_TIMEOUT = 2.0  # s for the loop to end on shutdown
 MAX_REJECT_RECORDS = 50  # journal records of ignored coordination messages (then only counted)
@@ -81,6 +82,8 @@ class TeamLink:
         self._peer_seen: dict[str, TeamState] = {}
         self._task: asyncio.Task[None] | None = None
         self._wake = asyncio.Event()
+        self._carrier_lost_since: float | None = None
+        self.released: list[str] = []  # our tasks given up because our carrier was lost
 
     # -- wiring ----------------------------------------------------------------------------------
     @property
@@ -127,7 +130,7 @@ class TeamLink:
     def stats(self) -> dict[str, Any]:
         return {"team": self.team, "session": self.session, "allocation": self.board.alloc_hash,
                 "share": self.shares.get(self.team, []), "handed_over": list(self.delivered),
-                "handovers": self.handovers, "rejected": self.rejected,
+                "handovers": self.handovers, "released": list(self.released), "rejected": self.rejected,
                 "peers": {k: p.state.value for k, p in self.board.peers.items() if k != self.team},
                 "claims_lost": [t for t, c in self.board.mine.items() if c.state == ClaimState.LOST]}
 
@@ -186,6 +189,7 @@ class TeamLink:
     def tick(self) -> None:
         now = time.monotonic()
         self._peer_events()
+        self._carrier_check(now)
         self._handover(now)
         held, lost = self.board.settle(now)
         for task in held:
@@ -224,6 +228,34 @@ class TeamLink:
                      "gone_t": _gone_unix(b.peers[gone].gone_since, now, t)}
             self.handovers.append(entry)
             self.record("team_claim", op="claimed", **entry)
+
+    def carrier_lost(self) -> bool:
+        st = self.state
+        c = st.vehicles.get(st.carrier_id) if st is not None else None
+        return bool(c is not None and c.lost)
+
+    def _carrier_check(self, now: float) -> None:
+        """Our carrier's link lost for CARRIER_RELEASE_AFTER s: give up the tasks no rover of ours
+        flies to yet (out of our deployment, released claims), so that the other teams fly them."""
+        if not self.carrier_lost():
+            self._carrier_lost_since = None
+            return
+        if self._carrier_lost_since is None:
+            self._carrier_lost_since = now
+        if now - self._carrier_lost_since < CARRIER_RELEASE_AFTER or self.executor is None:
+            return
+        b = self.board
+        pooled = [t for t in self.executor.board.with_status(TaskStatus.POOLED)
+                  if t in self.tasks and b.owner(t)[0] == self.team and t not in self.released]
+        if not pooled:
+            return
+        self.executor.submit_task_change(add=[], remove=pooled, source=f"team:{self.team}")
+        t = time.time()
+        for task in pooled:
+            self._publish_claim(b.make_claim(task, b.owner(task)[1] + 1, t, now, released=True))
+        self.released.extend(pooled)
+        self._event("team_release", f"team {self.team}: carrier lost for {CARRIER_RELEASE_AFTER:g} s: gives "
+                    f"up {', '.join(pooled)} to the other teams", None, tasks=pooled)
 
     def _on_held(self, task: str) -> None:
         mc = self.board.mine[task]
@@ -295,6 +327,8 @@ class TeamLink:
                    and (r not in vs or vs[r].state in (VehicleStatus.ON_DECK, VehicleStatus.UNKNOWN)))
 
     def free_for_new(self) -> int:
+        if self.carrier_lost():
+            return 0
         p = self.progress()
         pending = sum(1 for mc in self.board.mine.values() if mc.state == ClaimState.PENDING)
         return max(0, p["free"] - len(p["pooled"]) - pending - len(self._undelivered))

@@ -34,7 +34,7 @@ pytestmark = pytest.mark.skipif(MOSQUITTO is None, reason="mosquitto binary not 
                                 "(scripts/test.sh installs Debian's mosquitto)")
 
 
-def two_team_mission(path: Path, port: int, prefix: str) -> Path:
+def two_team_mission(path: Path, port: int, prefix: str, faults: list[dict[str, Any]] | None = None) -> Path:
     """c1 (6 rovers) near two tasks, c2 (4 rovers) 300 m east with four tasks in a row north."""
     carrier = {"connection": "sim", "heading_deg": 0, "max_speed": 4.0, "accel": 5.0, "turn_rate": None,
                "unload_time": 1.0, "load_time": 1.0}
@@ -53,7 +53,7 @@ def two_team_mission(path: Path, port: int, prefix: str) -> Path:
                   {"id": "t3", "position": [300, 50, 5]}, {"id": "t4", "position": [300, 100, 5]},
                   {"id": "t5", "position": [300, 150, 5]}, {"id": "t6", "position": [300, 200, 5]}],
         "mqtt": {"url": f"mqtt://127.0.0.1:{port}", "topic_prefix": prefix},
-        "sim": {"speedup": 10.0},
+        "sim": {"speedup": 10.0, "faults": faults or []},
         "links": {"heartbeat_timeout": 3.0},
         "planner": {"deploy": "lee", "collect": "lee", "seed": 0},
     }
@@ -192,3 +192,33 @@ async def test_broker_restart_mid_flight(tmp_path: Path) -> None:
     progress = [m for m in sub.messages if m[0] >= back and m[1] == "teams/c2/progress"]
     assert progress and sorted(progress[-1][2]["reached"]) == ["t3", "t4", "t5", "t6"]
     print(f"\nbroker restart: c2 had reached {during} task(s) when the broker went; both teams completed")
+
+
+async def test_team_whose_carrier_is_lost_gives_its_unlaunched_tasks_up(tmp_path: Path) -> None:
+    broker = Broker(tmp_path)
+    broker.start()
+    prefix = "test/carrierlost"
+    # c2's carrier link goes for good after its route started, before its first stop
+    mission = two_team_mission(tmp_path / "two.yaml", broker.port, prefix,
+                               faults=[{"kind": "dropout", "vehicle": "c2", "at": 30.0}])
+    d1, d2 = tmp_path / "runs" / "c1", tmp_path / "runs" / "c2"
+    d1.parent.mkdir()
+    procs = []
+    try:
+        procs = [start_team(mission, "c1", d1), start_team(mission, "c2", d2)]
+        code = await wait_exit(procs[0], WAIT * 1.5)
+        code2 = await wait_exit(procs[1], WAIT)  # its deployment ends: nothing left to fly
+    finally:
+        for p in procs:
+            if p.poll() is None:
+                p.kill()
+        broker.stop()
+    assert code == 0, log_of(d1, "c1")
+    j2 = journal(d2)
+    released = [r for r in j2 if r.get("kind") == "team_release"]
+    assert code2 == 0 and released, log_of(d2, "c2")
+    gave = released[0]["tasks"]
+    assert reached(d2) == [] and sorted(gave) == ["t3", "t4", "t5", "t6"], (reached(d2), gave)
+    claims = [r for r in journal(d1) if r.get("kind") == "team_claim" and r.get("op") == "claimed"]
+    assert sorted(r["task"] for r in claims) == sorted(gave) and {r["epoch"] for r in claims} == {2}
+    assert sorted(reached(d1)) == ["t1", "t2", "t3", "t4", "t5", "t6"]

@@ -10,7 +10,8 @@ rules (docs/mqtt.md#teams):
   allocation gave it (epoch 0: every controller computes the same allocation).
 * **Orphans.** A task is orphaned when its owner's controller is gone (status ``offline`` - the
   last will -, ``failed``, ``interrupted`` or ``done``) for :data:`HANDOVER_GRACE` s and nobody
-  reached it. A task the gone team had a rover flying to is orphaned only when that team's
+  reached it, or when its owner released it (a ``released`` claim: its carrier is lost). A task
+  the gone team had a rover flying to is orphaned only when that team's
   vehicles were an embedded simulator (they died with it): a real rover flies on to its task.
 * **Split.** The orphans, in mission order, each go to the online team (allocation hash equal to
   ours, a free rover on its deck) whose carrier reaches it soonest by the time model
@@ -138,6 +139,11 @@ class TeamsBoard:
         for task in self.tasks:
             team, epoch = self.owner(task)
             p = self.peers[team]
+            best = self.best_claim(task)
+            if best is not None and best.released and task not in done:
+                if team != self.me:
+                    out.append((task, epoch))  # given up by its team (its carrier is lost)
+                continue
             if team == self.me or task in done or team in self.mismatched or not p.state.gone:
                 continue
             if p.gone_since is None or now - p.gone_since < HANDOVER_GRACE:
@@ -179,14 +185,17 @@ class TeamsBoard:
 
     def free_of(self, team: str) -> int:
         """A peer's rovers left for new tasks (from its progress)."""
-        pr = self.peers[team].progress
-        return 0 if pr is None else max(0, pr.free - len(pr.pooled))
+        p = self.peers[team]
+        pr = p.progress
+        return 0 if pr is None or p.carrier_lost else max(0, pr.free - len(pr.pooled))
 
     # -- our own claims ---------------------------------------------------------------------------
-    def make_claim(self, task: str, epoch: int, t: float, now: float, held: bool = False) -> Claim:
-        """Our claim of ``task`` at ``epoch``; ``held``: ours already (the shared allocation's)."""
-        c = Claim(task, self.me, self.session, epoch, round(t, 3))  # as its payload carries it
-        self.mine[task] = MyClaim(c, ClaimState.HELD if held else ClaimState.PENDING, made=now)
+    def make_claim(self, task: str, epoch: int, t: float, now: float, held: bool = False,
+                   released: bool = False) -> Claim:
+        """Our claim of ``task`` at ``epoch``; ``held``: ours already (the shared allocation's);
+        ``released``: we give it up."""
+        c = Claim(task, self.me, self.session, epoch, round(t, 3), released)  # as its payload carries it
+        self.mine[task] = MyClaim(c, ClaimState.HELD if held or released else ClaimState.PENDING, made=now)
         return c
 
     def settle(self, now: float) -> tuple[list[str], list[str]]:

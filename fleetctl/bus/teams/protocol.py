@@ -7,7 +7,8 @@
   with the controller, else ``real``) and ``carrier``;
 * ``P/teams/<team>/progress`` (retained) - ``{"team", "session", "reached", "flying", "pooled",
   "free", "t"}``;
-* ``P/claims/<task>`` (retained) - ``{"task", "team", "session", "epoch", "t"}``: who flies the task;
+* ``P/claims/<task>`` (retained) - ``{"task", "team", "session", "epoch", "t"}`` (and
+  ``"released": true`` when the team gives the task up): who flies the task;
 * ``P/allocation`` (retained) - ``{"hash", "teams": {team: [task, ...]}, "t"}``, for operators.
 
 Every payload is outside input: at most :data:`MAX_PEER_MESSAGE` bytes, nested at most
@@ -64,10 +65,11 @@ class Claim:
     session: str
     epoch: int
     t: float
+    released: bool = False  # the team gives the task up (its carrier is lost): another team may claim it
 
     def payload(self) -> dict[str, Any]:
         return {"task": self.task, "team": self.team, "session": self.session, "epoch": self.epoch,
-                "t": round(self.t, 3)}
+                "t": round(self.t, 3), **({"released": True} if self.released else {})}
 
 
 def claim_key(claim: Claim, order: Sequence[str]) -> tuple[int, int]:
@@ -200,7 +202,10 @@ def parse_claim(task: str, payload: bytes, teams: Sequence[str], tasks: frozense
         raise PeerMessageError("epoch: expected an integer 0..10000")
     team, session = _id(d, "team", teams), _id(d, "session")
     assert team is not None and session is not None
-    return Claim(task, team, session, epoch, _time(d))
+    released = d.get("released", False)
+    if not isinstance(released, bool):
+        raise PeerMessageError("released: expected true or false")
+    return Claim(task, team, session, epoch, _time(d), released)
 
 
 def parse_status(team: str, payload: bytes, teams: Sequence[str]) -> StatusMsg:
