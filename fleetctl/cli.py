@@ -227,9 +227,13 @@ def cmd_resume(args: argparse.Namespace) -> int:
 
 def _one_team(mission: Mission, command: str) -> None:
     if several_teams(mission):
+        ids = ", ".join(t.carrier.id for t in mission.teams)
+        how = (f"fly one team per controller with --team ID ({ids}; docs/teams.md), or plan them all: "
+               "fleetctl plan --mission FILE" if command in ("deploy", "run")
+               else "several teams can only be planned or flown one team per controller for now "
+                    "(fleetctl plan --mission FILE; deploy|run --team ID)")
         raise CliError(f"{mission.path or mission.name}: '{command}' flies one carrier and this mission has "
-                       f"{len(mission.teams)} (carriers:); several teams can only be planned for now: "
-                       "fleetctl plan --mission FILE")
+                       f"{len(mission.teams)} (carriers:); {how}")
 
 
 def _fly(args: argparse.Namespace, mission: Mission, command: str, extra: dict[str, Any]) -> int:

@@ -95,6 +95,19 @@ def test_orphans_need_a_gone_owner_the_grace_and_no_reach() -> None:
     assert b.orphans(20.0) == [("d", 2)]  # at the epoch it held the task
 
 
+def test_a_released_task_is_an_orphan_at_once_and_a_lost_carrier_takes_nothing() -> None:
+    b = board()
+    b.on_status(status("c2", TeamState.ONLINE), 0.0)
+    b.on_progress(progress("c2", pooled={"b"}, free=3))
+    assert b.orphans(0.0) == [] and b.free_of("c2") == 2
+    b.on_claim(Claim("b", "c2", "s-c2", 1, 1.0, released=True), 0.0)
+    assert b.orphans(0.0) == [("b", 1)]  # its team is online, but gave it up
+    b.peers["c2"].carrier_lost = True
+    assert b.free_of("c2") == 0
+    b.on_claim(Claim("b", "c1", "s-c1", 2, 2.0), 0.0)
+    assert b.orphans(0.0) == [] and b.owner("b") == ("c1", 2)
+
+
 def test_split_is_the_same_for_every_survivor_and_respects_decks() -> None:
     views = [board("c1"), board("c2")]
     for b in views:
@@ -350,5 +363,5 @@ async def test_claims_made_while_the_broker_is_away_go_out_when_it_is_back(tmp_p
 
 
 def test_claim_payload_round_trip() -> None:
-    c = Claim("t1", "c2", "abc", 3, 12.5)
-    assert parse_claim("t1", json.dumps(c.payload()).encode(), ("c1", "c2"), frozenset({"t1"})) == c
+    for c in (Claim("t1", "c2", "abc", 3, 12.5), Claim("t1", "c2", "abc", 4, 13.0, released=True)):
+        assert parse_claim("t1", json.dumps(c.payload()).encode(), ("c1", "c2"), frozenset({"t1"})) == c

@@ -222,3 +222,31 @@ async def test_team_whose_carrier_is_lost_gives_its_unlaunched_tasks_up(tmp_path
     claims = [r for r in journal(d1) if r.get("kind") == "team_claim" and r.get("op") == "claimed"]
     assert sorted(r["task"] for r in claims) == sorted(gave) and {r["epoch"] for r in claims} == {2}
     assert sorted(reached(d1)) == ["t1", "t2", "t3", "t4", "t5", "t6"]
+
+
+async def test_team_without_a_bus_flies_its_share_alone(tmp_path: Path) -> None:
+    mission = two_team_mission(tmp_path / "two.yaml", 1, "unused")
+    d = yaml.safe_load(mission.read_text())
+    del d["mqtt"]
+    mission.write_text(yaml.safe_dump(d, sort_keys=False))
+    run = tmp_path / "runs" / "c2"
+    run.parent.mkdir()
+    proc = start_team(mission, "c2", run)
+    assert await wait_exit(proc, WAIT * 1.5) == 0, log_of(run, "c2")
+    log = log_of(run, "c2")
+    assert "--team c2 without an MQTT bus" in log and "no coordination" in log
+    assert sorted(reached(run)) == ["t3", "t4", "t5", "t6"]
+    assert any(r.get("kind") == "team_alone" for r in journal(run))
+
+
+def test_team_option_errors_are_one_line(tmp_path: Path) -> None:
+    mission = two_team_mission(tmp_path / "two.yaml", 1, "unused")
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    for argv, text in ((["deploy", "--team", "zz"], "no carrier 'zz' in the mission (carriers: c1, c2)"),
+                       (["collect", "--team", "c1"], "unrecognized arguments: --team"),
+                       (["deploy"], "fly one team per controller with --team ID (c1, c2")):
+        out = subprocess.run([sys.executable, "-m", "fleetctl.cli", *argv[:1], "--mission", str(mission),
+                              *argv[1:], "--headless"], cwd=ROOT, env=env, capture_output=True, text=True,
+                             timeout=WAIT)
+        assert out.returncode == 2 and text in out.stderr, (argv, out.stderr)
+        assert "Traceback" not in out.stderr
