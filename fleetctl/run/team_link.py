@@ -206,6 +206,9 @@ class TeamLink:
                 continue
             self._peer_seen[team] = p.state
             why = " (last will: its controller vanished)" if p.state == TeamState.OFFLINE else ""
+            if p.state.gone and not p.seen_going:
+                why += (" - not seen online by this controller (an earlier run, or it ended before this "
+                        "one started): its tasks are not handed over")
             self._event("team_peer", f"team {team}: {p.state}{why}", team, state=p.state.value)
 
     def _handover(self, now: float) -> None:
@@ -377,7 +380,7 @@ class TeamLink:
                 continue
             if p.state == TeamState.ONLINE:  # it may still go: stand by
                 return True
-            if p.gone_since is not None and now - p.gone_since < HANDOVER_GRACE + 2 * TICK:
+            if p.seen_going and p.gone_since is not None and now - p.gone_since < HANDOVER_GRACE + 2 * TICK:
                 return True  # gone: its tasks are handed over after the grace
         return False
 

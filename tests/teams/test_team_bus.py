@@ -95,6 +95,15 @@ def test_orphans_need_a_gone_owner_the_grace_and_no_reach() -> None:
     assert b.orphans(20.0) == [("d", 2)]  # at the epoch it held the task
 
 
+def test_a_gone_status_left_by_an_earlier_run_hands_nothing_over() -> None:
+    b = board()
+    b.on_status(status("c3", TeamState.FAILED, session="earlier"), 0.0)  # retained from a former run
+    assert not b.peers["c3"].seen_going and b.orphans(100.0) == []
+    b.on_status(status("c3", TeamState.ONLINE, session="now"), 100.0)
+    b.on_status(status("c3", TeamState.OFFLINE, session="now"), 101.0)
+    assert b.peers["c3"].seen_going and b.orphans(101.0 + HANDOVER_GRACE) == [("c", 0), ("d", 0)]
+
+
 def test_a_released_task_is_an_orphan_at_once_and_a_lost_carrier_takes_nothing() -> None:
     b = board()
     b.on_status(status("c2", TeamState.ONLINE), 0.0)
@@ -113,6 +122,7 @@ def test_split_is_the_same_for_every_survivor_and_respects_decks() -> None:
     for b in views:
         other = "c2" if b.me == "c1" else "c1"
         b.on_status(status(other, TeamState.ONLINE), 0.0)
+        b.on_status(status("c3", TeamState.ONLINE), 0.0)
         b.on_status(status("c3", TeamState.OFFLINE), 0.0)
         b.peers["c1"].carrier_xy, b.peers["c2"].carrier_xy = (0.0, 0.0), (100.0, 0.0)
     targets = {"c": (90.0, 0.0, 5.0), "d": (10.0, 0.0, 5.0)}

@@ -9,8 +9,9 @@ rules (docs/mqtt.md#teams):
   earlier run count for nothing. Without a valid claim the owner is the team the shared
   allocation gave it (epoch 0: every controller computes the same allocation).
 * **Orphans.** A task is orphaned when its owner's controller is gone (status ``offline`` - the
-  last will -, ``failed``, ``interrupted`` or ``done``) for :data:`HANDOVER_GRACE` s and nobody
-  reached it, or when its owner released it (a ``released`` claim: its carrier is lost). A task
+  last will -, ``failed``, ``interrupted`` or ``done``, in a session this controller saw online:
+  a status an earlier run left on the broker hands nothing over) for :data:`HANDOVER_GRACE` s and
+  nobody reached it, or when its owner released it (a ``released`` claim: its carrier is lost). A task
   the gone team had a rover flying to is orphaned only when that team's
   vehicles were an embedded simulator (they died with it): a real rover flies on to its task.
 * **Split.** The orphans, in mission order, each go to the online team (allocation hash equal to
@@ -49,6 +50,12 @@ class Peer:
     heartbeat: float | None = None  # the status's Unix time
     gone_since: float | None = None  # monotonic: when it was first seen gone
     progress: ProgressMsg | None = None
+    online_session: str | None = None  # the last session this controller saw online
+
+    @property
+    def seen_going(self) -> bool:
+        """Gone, in a session this controller saw online (not a status left by an earlier run)."""
+        return self.state.gone and self.session is not None and self.online_session == self.session
 
 
 @dataclass
@@ -95,6 +102,8 @@ class TeamsBoard:
         p.carrier_lost, p.heartbeat = msg.carrier_lost, msg.t
         p.carrier_xy = msg.carrier_enu or p.carrier_xy
         p.allocation = msg.allocation or p.allocation
+        if msg.state == TeamState.ONLINE:
+            p.online_session = p.session
         if msg.state.gone and not was_gone:
             p.gone_since = now
         elif not msg.state.gone:
@@ -144,7 +153,7 @@ class TeamsBoard:
                 if team != self.me:
                     out.append((task, epoch))  # given up by its team (its carrier is lost)
                 continue
-            if team == self.me or task in done or team in self.mismatched or not p.state.gone:
+            if team == self.me or task in done or team in self.mismatched or not p.seen_going:
                 continue
             if p.gone_since is None or now - p.gone_since < HANDOVER_GRACE:
                 continue
