@@ -198,7 +198,7 @@ async def test_team_whose_carrier_is_lost_gives_its_unlaunched_tasks_up(tmp_path
     broker = Broker(tmp_path)
     broker.start()
     prefix = "test/carrierlost"
-    # c2's carrier link goes for good after its route started, before its first stop
+    # c2's carrier link goes for good after its route started (before or after its first stop)
     mission = two_team_mission(tmp_path / "two.yaml", broker.port, prefix,
                                faults=[{"kind": "dropout", "vehicle": "c2", "at": 30.0}])
     d1, d2 = tmp_path / "runs" / "c1", tmp_path / "runs" / "c2"
@@ -207,21 +207,21 @@ async def test_team_whose_carrier_is_lost_gives_its_unlaunched_tasks_up(tmp_path
     try:
         procs = [start_team(mission, "c1", d1), start_team(mission, "c2", d2)]
         code = await wait_exit(procs[0], WAIT * 1.5)
-        code2 = await wait_exit(procs[1], WAIT)  # its deployment ends: nothing left to fly
+        await wait_exit(procs[1], WAIT)  # its deployment ends (failed if its carrier was at a stop)
     finally:
         for p in procs:
             if p.poll() is None:
                 p.kill()
         broker.stop()
     assert code == 0, log_of(d1, "c1")
-    j2 = journal(d2)
-    released = [r for r in j2 if r.get("kind") == "team_release"]
-    assert code2 == 0 and released, log_of(d2, "c2")
-    gave = released[0]["tasks"]
-    assert reached(d2) == [] and sorted(gave) == ["t3", "t4", "t5", "t6"], (reached(d2), gave)
+    released = [r for r in journal(d2) if r.get("kind") == "team_release"]
+    assert released, log_of(d2, "c2")
+    gave, by_c2 = released[0]["tasks"], reached(d2)
+    assert sorted(gave + by_c2) == ["t3", "t4", "t5", "t6"], (gave, by_c2)
     claims = [r for r in journal(d1) if r.get("kind") == "team_claim" and r.get("op") == "claimed"]
     assert sorted(r["task"] for r in claims) == sorted(gave) and {r["epoch"] for r in claims} == {2}
-    assert sorted(reached(d1)) == ["t1", "t2", "t3", "t4", "t5", "t6"]
+    assert not set(by_c2) & set(reached(d1))
+    assert sorted(reached(d1) + by_c2) == ["t1", "t2", "t3", "t4", "t5", "t6"]
 
 
 async def test_team_without_a_bus_flies_its_share_alone(tmp_path: Path) -> None:
