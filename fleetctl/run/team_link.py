@@ -44,6 +44,7 @@ from planners.problem import CarrierSpec
 log = logging.getLogger(__name__)
 
 TICK = 0.2  # s between two looks at the board
+UNCLAIMED_AFTER = 3.0  # s an orphan the split gave another team may stay unclaimed before we claim it
 CARRIER_RELEASE_AFTER = 5.0  # wall s the carrier's link is lost before its unlaunched tasks are given up
 STANDBY_POLL = 1.0  # s: a finished team looks again for handed-over work this often
 CLOSE_TIMEOUT = 2.0  # s for the loop to end on shutdown
@@ -83,6 +84,7 @@ class TeamLink:
         self._task: asyncio.Task[None] | None = None
         self._wake = asyncio.Event()
         self._carrier_lost_since: float | None = None
+        self._orphan_since: dict[str, float] = {}  # task -> when first seen orphaned
         self.released: list[str] = []  # our tasks given up because our carrier was lost
 
     # -- wiring ----------------------------------------------------------------------------------
@@ -218,12 +220,17 @@ class TeamLink:
         if not orphans:
             return
         free = {team: b.free_of(team) for team in b.online_teams() if team != self.team}
-        free[self.team] = self.free_for_new()
+        mine = free[self.team] = self.free_for_new()
         split = b.split(orphans, free)
         t = time.time()
         for task, epoch in orphans:
-            if split.get(task) != self.team:
+            since = self._orphan_since.setdefault(task, now)
+            ours = split.get(task) == self.team
+            if not ours and mine > 0 and now - since >= UNCLAIMED_AFTER:
+                ours = True  # the team the split named has not claimed it: the conflict rule settles it
+            if not ours:
                 continue
+            mine -= 1
             gone, _ = b.owner(task)
             claim = b.make_claim(task, epoch + 1, t, now)
             self._publish_claim(claim)
