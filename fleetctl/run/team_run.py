@@ -12,6 +12,8 @@ flies each handed-over batch as one more deployment round with the rovers left o
 
 from __future__ import annotations
 
+import asyncio
+import contextlib
 import dataclasses
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -115,6 +117,8 @@ class TeamRun(Run):
     async def _finish(self) -> dict[str, Any]:
         if self.link is not None:
             await self.link.close()
+            with contextlib.suppress(OSError):  # the records must never stop the way out
+                await asyncio.to_thread(self.journal.write_json, "team.json", self.link.stats())
         return await super()._finish()
 
 

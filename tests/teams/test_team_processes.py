@@ -147,6 +147,8 @@ async def test_killed_team_is_handed_over(tmp_path: Path) -> None:
     assert sorted(by_c1 + by_c2) == ["t1", "t2", "t3", "t4", "t5", "t6"], (by_c1, by_c2)
     summary = json.loads((d1 / "summary.json").read_text())
     assert summary["result"] == "complete" and set(handed) <= set(summary["tasks_reached"])
+    team = json.loads((d1 / "team.json").read_text())
+    assert sorted(team["handed_over"]) == handed and team["peers"] == {"c2": "offline"}
     claim_s = min(r["claimed_t"] for r in claims) - killed
     held_s = max(r["t"] for r in held) - killed
     print(f"\nhand-over: c2 killed -> c1 claimed {handed} after {claim_s:.2f} s, claims held after "
