@@ -81,7 +81,8 @@ class TeamsBoard:
     claims: dict[str, dict[str, Claim]] = field(default_factory=dict)  # task -> team -> its latest claim
     mine: dict[str, MyClaim] = field(default_factory=dict)
     mismatched: set[str] = field(default_factory=set)  # teams with another allocation (warned once)
-    answered: set[tuple[str, str, float]] = field(default_factory=set)  # worse claims we re-published over
+    # (task, team) -> the t of the worse claim we last published over (one per task and team: bounded)
+    answered: dict[tuple[str, str], float] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         for t in self.order:
@@ -232,11 +233,11 @@ class TeamsBoard:
             if mc.state == ClaimState.LOST:
                 continue
             for team, c in self.claims.get(task, {}).items():
-                key = (task, team, c.t)
-                if (team != self.me and key not in self.answered and c.t >= mc.claim.t
+                if (team != self.me and c.t > self.answered.get((task, team), -1.0) and c.t >= mc.claim.t
                         and claim_key(c, self.order) < claim_key(mc.claim, self.order)):
-                    self.answered.add(key)
+                    self.answered[(task, team)] = c.t
                     out.append(task)
+                    break
         return out
 
 __all__ = ["CLAIM_SETTLE", "HANDOVER_GRACE", "MyClaim", "Peer", "TeamsBoard"]
