@@ -225,11 +225,12 @@ from fleetctl.run.team_run import team_bus_config, team_shares
 async def main():
     full = load_mission(sys.argv[1])
     shares = team_shares(full)
-    own = team_mission(full, "c2", tasks=shares["c2"])
-    bus = FleetBus(team_bus_config(bus_config(full), "c2"), own)
+    team = sys.argv[2]
+    own = team_mission(full, team, tasks=shares[team])
+    bus = FleetBus(team_bus_config(bus_config(full), team), own)
     state = FleetState(own)
     rovers = [u.id for u in own.rovers.units]
-    link = TeamLink(full, "c2", shares, bus_config(full).topic_prefix, "sim", rovers)
+    link = TeamLink(full, team, shares, bus_config(full).topic_prefix, "sim", rovers)
     link.prepare(bus)
     bus.start(state)
     link.start(state, lambda kind, **d: None)
@@ -240,6 +241,12 @@ asyncio.run(main())
 """
 
 
+def start_peer(path: Path, team: str) -> subprocess.Popen[bytes]:
+    """A team link of ``team`` in a process of its own (to be SIGKILLed: its last will)."""
+    return subprocess.Popen([sys.executable, "-c", PEER, str(path), team], cwd=ROOT, stdout=subprocess.PIPE,
+                            env=dict(os.environ, PYTHONPATH=str(ROOT)))
+
+
 @pytestmark_broker
 async def test_a_killed_peer_is_seen_offline_and_its_tasks_are_claimed(tmp_path: Path) -> None:
     broker = Broker(tmp_path)
@@ -247,8 +254,7 @@ async def test_a_killed_peer_is_seen_offline_and_its_tasks_are_claimed(tmp_path:
     path = two_team_mission(tmp_path / "two.yaml", broker.port, "test/will")
     full = load_mission(path)
     shares = team_shares(full)
-    peer = subprocess.Popen([sys.executable, "-c", PEER, str(path)], cwd=ROOT, stdout=subprocess.PIPE,
-                            env=dict(os.environ, PYTHONPATH=str(ROOT)))
+    peer = start_peer(path, "c2")
     try:
         async with running(full, "c1", shares) as c1:
             b = c1.link.board
@@ -370,6 +376,64 @@ async def test_claims_made_while_the_broker_is_away_go_out_when_it_is_back(tmp_p
             assert own["team"] == "c1" and own["epoch"] == 0
         finally:
             broker.stop()
+
+
+def three_team_mission(path: Path, port: int, prefix: str) -> Path:
+    """c3 in the middle with four tasks, two nearer c1 and two nearer c2."""
+    import yaml
+
+    carrier = {"connection": "sim", "heading_deg": 0, "max_speed": 4.0, "accel": 5.0, "turn_rate": None,
+               "unload_time": 1.0, "load_time": 1.0}
+    d = {"name": "threeteams", "origin": {"lat": 47.397742, "lon": 8.545594, "alt": 488.0},
+         "carriers": [{"id": f"c{k + 1}", "sysid": k + 1, "position": [x, 0], **carrier,
+                       "fleet": {"count": 4, "sysid_start": 11 + 10 * k}}
+                      for k, x in enumerate((0, 300, 150))],
+         "rovers": {"max_speed": 5.0, "accel": None, "deploy_range": 15.0, "endurance_range": 600.0,
+                    "reserve": 0.1},
+         "tasks": [{"id": "a1", "position": [0, 30, 5]}, {"id": "b1", "position": [300, 30, 5]},
+                   {"id": "m1", "position": [130, 20, 5]}, {"id": "m2", "position": [140, 50, 5]},
+                   {"id": "m3", "position": [160, 50, 5]}, {"id": "m4", "position": [170, 20, 5]}],
+         "mqtt": {"url": f"mqtt://127.0.0.1:{port}", "topic_prefix": prefix},
+         "planner": {"deploy": "lee", "collect": "lee", "seed": 0}}
+    path.write_text(yaml.safe_dump(d, sort_keys=False), encoding="utf-8")
+    return path
+
+
+@pytestmark_broker
+async def test_two_survivors_split_a_lost_team_without_a_conflict(tmp_path: Path) -> None:
+    broker = Broker(tmp_path)
+    broker.start()
+    path = three_team_mission(tmp_path / "three.yaml", broker.port, "test/three")
+    full = load_mission(path)
+    shares = team_shares(full)
+    assert sorted(shares["c3"]) == ["m1", "m2", "m3", "m4"], shares
+    peer = start_peer(path, "c3")
+    try:
+        async with running(full, "c1", shares) as c1, running(full, "c2", shares) as c2:
+            links = (c1.link, c2.link)
+            await until(lambda: all(ln.board.peers["c3"].state == TeamState.ONLINE
+                                    and ln.board.peers["c3"].progress is not None for ln in links),
+                        "c3 online")
+            peer.send_signal(signal.SIGKILL)
+
+            def held() -> bool:
+                pending = [t for ln in links for t, c in ln.board.mine.items()
+                           if c.state == ClaimState.PENDING]
+                both = sorted(c1.link._undelivered + c2.link._undelivered)
+                return both == sorted(shares["c3"]) and not pending
+
+            await until(held, "c3's tasks held by the survivors")
+            await asyncio.sleep(0.5)
+    finally:
+        peer.kill()
+        peer.wait(10)
+        broker.stop()
+    # the same split in both controllers: each task claimed once, nearest carrier first, no claim lost
+    assert sorted(c1.link._undelivered) == ["m1", "m2"] and sorted(c2.link._undelivered) == ["m3", "m4"]
+    for ln in (c1, c2):
+        assert not [d for d in ln.kinds("team_claim") if d["op"] == "lost"]
+        assert sorted(d["task"] for d in ln.kinds("team_claim") if d["op"] == "claimed") == sorted(
+            ln.link._undelivered)
 
 
 def test_claim_payload_round_trip() -> None:
