@@ -3,8 +3,9 @@
 Topics under the mission's prefix ``P`` (default ``fleetctl/<mission name>``):
 
 * ``P/status`` (retained, QoS 1) - ``{"status": "online" | "done" | "failed" | "interrupted" |
-  "offline", "mission", "phase", "stop", "stops", "planned", "elapsed", "bus", "t"}``; the broker
-  publishes the last will ``{"status": "offline", ...}`` when the controller vanishes;
+  "offline", "mission", "phase", "stop", "stops", "planned", "elapsed", "bus", "carrier", "t"}``
+  plus :attr:`FleetBus.identity` (a team's id and session); the broker publishes the last will
+  ``{"status": "offline", "mission", **identity}`` when the controller vanishes;
 * ``P/plan`` (retained, QoS 1) - the current plan JSON (``fleetctl.plan/1``);
 * ``P/vehicles/<id>/telemetry`` (QoS 0) - one vehicle's state at ``telemetry_hz`` (2 Hz);
 * ``P/events`` (QoS 1) - every journal record as written to ``journal.jsonl``;
@@ -12,6 +13,8 @@ Topics under the mission's prefix ``P`` (default ``fleetctl/<mission name>``):
 * in: ``P/tasks/add`` (``{"tasks": [{"id", "position" | "lat"/"lon"/"alt"}, ...]}``, a list of
   tasks or one task) and ``P/tasks/remove`` (``{"tasks": ["t1", ...]}``, a list of ids or one id),
   validated like the mission file and handed to ``Executor.submit_task_change``.
+* more topics a caller subscribes with :meth:`FleetBus.subscribe` (the team coordination,
+  :mod:`fleetctl.run.team_link`) and publishes with ``publish(..., absolute=True)``.
 
 The bus never holds up flying: publishing only appends to a bounded buffer (oldest dropped and
 counted when full; retained topics keep only their latest value and are never dropped), one
