@@ -318,9 +318,13 @@ class TeamLink:
             share = self.shares.get(self.team, [])
             return {"reached": [], "flying": [], "pooled": share + self._undelivered,
                     "free": len(self.rovers)}
-        return {"reached": board.with_status(TaskStatus.REACHED),
-                "flying": board.with_status(TaskStatus.FLYING),
-                "pooled": board.with_status(TaskStatus.POOLED) + self._queued(), "free": self.free_rovers()}
+        known = self.tasks  # tasks added over P/teams/<team>/tasks/add are the team's own business
+        pooled = board.with_status(TaskStatus.POOLED)
+        extra = sum(1 for t in pooled if t not in known)  # ... but they need rovers of its deck
+        return {"reached": [t for t in board.with_status(TaskStatus.REACHED) if t in known],
+                "flying": [t for t in board.with_status(TaskStatus.FLYING) if t in known],
+                "pooled": [t for t in pooled if t in known] + self._queued(),
+                "free": max(0, self.free_rovers() - extra)}
 
     def _queued(self) -> list[str]:
         """Handed-over tasks given to the deployment that it has not put on its board yet."""
