@@ -358,6 +358,34 @@ async def test_better_claim_takes_a_task_and_a_worse_one_is_answered(tmp_path: P
 
 
 @pytestmark_broker
+async def test_a_team_with_another_allocation_is_reported_and_ignored(tmp_path: Path) -> None:
+    broker = Broker(tmp_path)
+    broker.start()
+    full = load_mission(two_team_mission(tmp_path / "two.yaml", broker.port, "test/mismatch"))
+    shares = team_shares(full)
+    top = Topics("test/mismatch")
+    try:
+        async with running(full, "c1", shares) as c1:
+            await until(lambda: c1.bus.status == "connected", "connected")
+            c2 = {"status": "online", "team": "c2", "session": "S2", "allocation": "another-file"}
+            await publish(broker.port, top.status("c2"), c2, retain=True)
+            await publish(broker.port, top.claim("t1"), {"task": "t1", "team": "c2", "session": "S2",
+                                                         "epoch": 5, "t": time.time()}, retain=True)
+            await until(lambda: "c2" in c1.link.board.claims.get("t1", {}), "c2's claim")
+            b = c1.link.board
+            assert b.mismatched == {"c2"} and b.owner("t1") == ("c1", 0)  # its claim counts for nothing
+            assert b.online_teams() == ["c1"]  # and nothing is handed to it
+            c2["status"] = "offline"
+            await publish(broker.port, top.status("c2"), c2, retain=True)
+            await asyncio.sleep(HANDOVER_GRACE + 0.5)
+            assert b.orphans(time.monotonic()) == [] and not c1.kinds("team_claim")  # nor taken from it
+            events = [e for e in c1.state.events if e.kind == "team_mismatch"]
+            assert len(events) == 1 and "another allocation" in events[0].text
+    finally:
+        broker.stop()
+
+
+@pytestmark_broker
 async def test_claims_made_while_the_broker_is_away_go_out_when_it_is_back(tmp_path: Path) -> None:
     broker = Broker(tmp_path)
     full = load_mission(two_team_mission(tmp_path / "two.yaml", broker.port, "test/away"))
