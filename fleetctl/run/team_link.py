@@ -85,6 +85,8 @@ class TeamLink:
         self._wake = asyncio.Event()
         self._carrier_lost_since: float | None = None
         self._orphan_since: dict[str, float] = {}  # task -> when first seen orphaned
+        self._batches = 0
+        self._sent: dict[str, list[str]] = {}  # source of a handed-over batch -> its tasks
         self.released: list[str] = []  # our tasks given up because our carrier was lost
 
     # -- wiring ----------------------------------------------------------------------------------
@@ -169,6 +171,10 @@ class TeamLink:
         """A run event: progress goes out at once when a task is reached or a rover launched (a
         peer must not hand over a task this team has just reached)."""
         if ev.kind in (Ev.TASK_REACHED, Ev.ROVER_LAUNCHED, Ev.TASKS_CHANGED):
+            self._publish_progress()
+        elif ev.kind == "task_change_rejected" and ev.data.get("source") in self._sent:
+            ids = self._sent.pop(ev.data["source"])  # e.g. no rover left on the deck for them
+            self._give_up(ids, f"its deployment refused them ({ev.data.get('reason')})")
             self._publish_progress()
 
     # -- the loop --------------------------------------------------------------------------------
@@ -260,12 +266,7 @@ class TeamLink:
         if not pooled:
             return
         self.executor.submit_task_change(add=[], remove=pooled, source=f"team:{self.team}")
-        t = time.time()
-        for task in pooled:
-            self._publish_claim(b.make_claim(task, b.owner(task)[1] + 1, t, now, released=True))
-        self.released.extend(pooled)
-        self._event("team_release", f"team {self.team}: carrier lost for {CARRIER_RELEASE_AFTER:g} s: gives "
-                    f"up {', '.join(pooled)} to the other teams", None, tasks=pooled)
+        self._give_up(pooled, f"carrier lost for {CARRIER_RELEASE_AFTER:g} s")
 
     def _on_held(self, task: str) -> None:
         mc = self.board.mine[task]
@@ -285,10 +286,24 @@ class TeamLink:
             return
         tasks = [self.tasks[i] for i in ids]
         self.delivered.extend(ids)
+        self._batches += 1
+        source = f"team:{self.team}#{self._batches}"  # a rejection of this batch names it
+        self._sent[source] = list(ids)
         self._event("team_handover", f"team {self.team}: takes over {', '.join(ids)} (claimed)", None,
                     tasks=ids)
-        self.executor.submit_task_change(add=tasks, remove=[], source=f"team:{self.team}")
+        self.executor.submit_task_change(add=tasks, remove=[], source=source)
         self._wake.set()
+
+    def _give_up(self, ids: list[str], why: str) -> None:
+        """Tasks we hold but cannot fly: released claims, so that another team may take them."""
+        b, now, t = self.board, time.monotonic(), time.time()
+        for task in ids:
+            if task in self.delivered:
+                self.delivered.remove(task)
+            self._publish_claim(b.make_claim(task, b.owner(task)[1] + 1, t, now, released=True))
+        self.released.extend(ids)
+        self._event("team_release", f"team {self.team}: {why}: gives up {', '.join(ids)} to the other teams",
+                    None, tasks=ids)
 
     def _on_lost(self, task: str) -> None:
         best = self.board.best_claim(task)

@@ -25,7 +25,7 @@ from fleetctl.mission.teams import team_mission, team_of
 from fleetctl.run.results import PhaseResult
 from fleetctl.run.runner import Run, RunOptions
 from fleetctl.run.sim import mission_uses_sim
-from fleetctl.run.team_link import TeamLink
+from fleetctl.run.team_link import STANDBY_POLL, TeamLink
 
 
 @dataclass(frozen=True)
@@ -110,9 +110,12 @@ class TeamRun(Run):
             await super()._deploy()
         else:  # the allocation gave this team nothing (yet)
             self.results["deploy"] = PhaseResult("deploy", complete=True)
-        link = self.link
-        while link is not None and await link.wait_for_work():
+        link, ex = self.link, self.executor
+        while link is not None and ex is not None and await link.wait_for_work():
+            before = len(ex.board.entries)
             await super()._deploy()  # one more round on the same task board
+            if len(ex.board.entries) == before:  # the round took nothing (its tasks were refused)
+                await asyncio.sleep(STANDBY_POLL)
 
     async def _finish(self) -> dict[str, Any]:
         if self.link is not None:
