@@ -380,8 +380,8 @@ class Run:
         if r.complete:
             self.state.event(
                 Ev.DEPLOYED,
-                f"deployment complete: {len(r.tasks_reached)} tasks reached in "
-                f"{r.flown:.1f} s (planned {r.planned:.1f} s)",
+                f"deployment complete: {len(r.tasks_reached)} tasks reached in {r.flown or 0.0:.1f} s"
+                + (f" (planned {r.planned:.1f} s)" if r.planned is not None else " (nothing left to plan)"),
             )
         else:  # run: bring back the rovers that did fly
             self.state.event(

@@ -118,7 +118,15 @@ class TeamLink:
         self._task = asyncio.get_running_loop().create_task(self._loop(), name="team link")
 
     def attach_executor(self, executor: Any) -> None:
+        """The deployment to feed; tasks of our share that another team claimed better before it
+        existed (e.g. it took them over while this controller was down) are taken out first."""
         self.executor = executor
+        lost = [t for t, mc in self.board.mine.items()
+                if mc.state == ClaimState.LOST and t in executor.board.entries]
+        if lost:
+            executor.submit_task_change(add=[], remove=lost, source=f"team:{self.team}")
+            self._event("team_claim_lost", f"team {self.team}: {', '.join(lost)} claimed by another team: "
+                        "taken out of this deployment", None, tasks=lost)
         held, self._undelivered = self._undelivered, []
         self._deliver(held)
 

@@ -63,7 +63,7 @@ def two_team_mission(path: Path, port: int, prefix: str, faults: list[dict[str, 
 
 def start_team(mission: Path, team: str, run_dir: Path) -> subprocess.Popen[bytes]:
     env = dict(os.environ, PYTHONPATH=str(ROOT))
-    log = (run_dir.parent / f"{team}.log").open("wb")
+    log = (run_dir.parent / f"{run_dir.name}.log").open("wb")
     return subprocess.Popen([sys.executable, "-m", "fleetctl.cli", "deploy", "--mission", str(mission),
                              "--team", team, "--headless", "--run-dir", str(run_dir)],
                             cwd=ROOT, env=env, stdout=log, stderr=subprocess.STDOUT)
@@ -103,8 +103,8 @@ async def wait_until(pred: Any, what: str) -> None:
         await asyncio.sleep(0.05)
 
 
-def log_of(run_dir: Path, team: str) -> str:
-    return (run_dir.parent / f"{team}.log").read_text(errors="replace")[-3000:]
+def log_of(run_dir: Path, _team: str = "") -> str:
+    return (run_dir.parent / f"{run_dir.name}.log").read_text(errors="replace")[-3000:]
 
 
 async def test_killed_team_is_handed_over(tmp_path: Path) -> None:
@@ -153,6 +153,34 @@ async def test_killed_team_is_handed_over(tmp_path: Path) -> None:
     held_s = max(r["t"] for r in held) - killed
     print(f"\nhand-over: c2 killed -> c1 claimed {handed} after {claim_s:.2f} s, claims held after "
           f"{held_s:.2f} s; c2 reached {by_c2} before it died, c1 reached {by_c1}")
+
+
+async def test_a_restarted_team_leaves_the_tasks_taken_over_from_it(tmp_path: Path) -> None:
+    broker = Broker(tmp_path)
+    broker.start()
+    mission = two_team_mission(tmp_path / "two.yaml", broker.port, "test/restarted")
+    d1, d2, d2b = (tmp_path / "runs" / n for n in ("c1", "c2", "c2-again"))
+    d1.parent.mkdir()
+    procs = []
+    try:
+        procs = [start_team(mission, "c1", d1), start_team(mission, "c2", d2)]
+        await wait_until(lambda: any(r.get("kind") == "carrier_started" for r in journal(d2)), "c2 flying")
+        procs[1].send_signal(signal.SIGKILL)
+        procs[1].wait(10)
+        await wait_until(lambda: any(r.get("kind") == "team_claim" and r.get("op") == "held"
+                                     for r in journal(d1)), "c1 to hold c2's tasks")
+        procs.append(start_team(mission, "c2", d2b))  # the same team's controller, started again
+        codes = [await wait_exit(p, WAIT * 1.5) for p in (procs[0], procs[2])]
+    finally:
+        for p in procs:
+            if p.poll() is None:
+                p.kill()
+        broker.stop()
+    assert codes == [0, 0], (log_of(d1), log_of(d2b))
+    taken = {r["task"] for r in journal(d1) if r.get("kind") == "team_claim" and r.get("op") == "held"}
+    assert taken and taken <= set(reached(d1))
+    assert not taken & set(reached(d2b)), (taken, reached(d2b), log_of(d2b, "c2-again"))
+    assert any(r.get("kind") == "team_claim_lost" for r in journal(d2b)), log_of(d2b, "c2-again")
 
 
 async def test_broker_restart_mid_flight(tmp_path: Path) -> None:
