@@ -87,7 +87,7 @@ class TeamLink:
         self._orphan_since: dict[str, float] = {}  # task -> when first seen orphaned
         self._batches = 0
         self._sent: dict[str, list[str]] = {}  # source of a handed-over batch -> its tasks
-        self.released: list[str] = []  # our tasks given up because our carrier was lost
+        self.released: list[str] = []  # tasks we gave up (our carrier lost, or our deployment refused them)
 
     # -- wiring ----------------------------------------------------------------------------------
     @property
