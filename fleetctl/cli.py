@@ -525,17 +525,15 @@ def _add_controller_commands(sub: argparse._SubParsersAction) -> None:
 
 
 def _sim_config(mission: Mission, speedup: float | None) -> object:
-    from sitl import ConfigError, FleetConfig
-
     if speedup is not None and not speedup > 0:
         raise CliError(f"--speedup must be > 0, got {speedup}")
     from fleetctl.run.context import ExecutionError
-    from fleetctl.run.sim import sim_mission_dict
+    from fleetctl.run.sim import sim_fleet_config
 
-    try:  # the file with its defaults spelled out (rover units), as the controller sees the fleet
-        return FleetConfig.from_mission_dict(sim_mission_dict(mission), speedup=speedup)
-    except (ConfigError, ExecutionError) as e:
-        raise CliError(f"{mission.path or mission.name}: {e}") from None
+    try:  # every carrier and rover of every team, as the controller sees the fleet
+        return sim_fleet_config(mission, speedup=speedup)
+    except ExecutionError as e:
+        raise CliError(str(e)) from None
 
 
 def cmd_sim(args: argparse.Namespace) -> int:
@@ -543,7 +541,6 @@ def cmd_sim(args: argparse.Namespace) -> int:
     from sitl import SimFleet, serve
 
     mission = load_mission(args.mission)
-    _one_team(mission, "sim")
     config = _sim_config(mission, args.speedup)
 
     def ready(fleet: SimFleet) -> None:
@@ -832,15 +829,16 @@ async def _keys_provision(mission: Mission, key: object, timeout: float) -> int:
     sim = None
     endpoints = None
     if mission.carrier.connection == "sim":  # the embedded simulated fleet starts without a key
-        from fleetctl.run.sim import sim_mission_dict
-        from sitl import ConfigError, FleetConfig, SimFleet
+        from fleetctl.run.context import ExecutionError
+        from fleetctl.run.sim import sim_fleet_config
+        from sitl import ConfigError, SimFleet
         from sitl import LinkError as SimLinkError
 
         try:
-            config = FleetConfig.from_mission_dict(sim_mission_dict(mission), signing_from_env=False)
+            config = sim_fleet_config(mission, signing_from_env=False)
             sim = SimFleet(config)
             await sim.start()
-        except (ConfigError, SimLinkError) as e:
+        except (ConfigError, SimLinkError, ExecutionError) as e:
             raise CliError(str(e)) from None
         endpoints = sim.endpoints
     try:

@@ -33,7 +33,7 @@ from fleetctl.run.executor import Executor
 from fleetctl.run.kinds import Ev, Phase, VehicleStatus
 from fleetctl.run.results import PhaseResult
 from fleetctl.run.resume import Resumption
-from fleetctl.run.sim import mission_uses_sim, sim_mission_dict
+from fleetctl.run.sim import mission_uses_sim, sim_fleet_config
 from fleetctl.run.state import FleetState
 from fleetctl.run.summary import RunFacts, build_summary
 from fleetctl.views.view import View
@@ -108,11 +108,7 @@ class Run:
         self.sim_cm: Any = None
         self.sim_config: Any = None
         if self.uses_sim:
-            from sitl import FleetConfig
-
-            self.sim_config = FleetConfig.from_mission_dict(
-                sim_mission_dict(mission, command), speedup=opts.speedup
-            )
+            self.sim_config = sim_fleet_config(mission, command, speedup=opts.speedup)
             self.scale = self.sim_config.speedup
         run_dir = (
             Path(opts.resume.run_dir)
