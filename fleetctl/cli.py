@@ -228,8 +228,8 @@ def cmd_resume(args: argparse.Namespace) -> int:
 def _one_team(mission: Mission, command: str) -> None:
     if several_teams(mission):
         raise CliError(f"{mission.path or mission.name}: '{command}' flies one carrier and this mission has "
-                       f"{len(mission.teams)} (carriers:); several teams can only be planned for now: "
-                       "fleetctl plan --mission FILE")
+                       f"{len(mission.teams)} (carriers:); several teams fly with deploy, collect and run, "
+                       "and 'sim' serves them")
 
 
 def _fly(args: argparse.Namespace, mission: Mission, command: str, extra: dict[str, Any]) -> int:
@@ -239,7 +239,8 @@ def _fly(args: argparse.Namespace, mission: Mission, command: str, extra: dict[s
     from fleetctl.run.runner import EXIT_INTERRUPTED
     from fleetctl.views.dashboard import make_view
 
-    _one_team(mission, command)
+    if "resume" in extra:  # several teams fly deploy/collect/run (docs/teams.md), not resume yet
+        _one_team(mission, "resume")
     if args.speedup is not None and args.speedup <= 0:
         raise CliError(f"--speedup must be > 0, got {args.speedup}")
     if getattr(args, "dwell", None) is not None and args.dwell < 0:

@@ -1,0 +1,105 @@
+"""One team's run: today's :class:`~fleetctl.run.runner.Run` on the team's mission
+(:func:`fleetctl.mission.teams.team_mission`), with what a run of several teams adds: after its
+deployment it may be handed tasks of another team and fly further rounds, and it keeps the
+mission-clock times its tasks were reached and its rovers loaded (the teams' common clock).
+
+Flown alone (``coordinator`` None: one team of a several-carrier mission in its own process,
+e.g. under the MQTT team hand-over) it is exactly a one-team run of its share."""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+from typing import Any, Protocol
+
+from fleetctl.mission import Mission
+from fleetctl.mission.teams import team_mission
+from fleetctl.run.kinds import Ev
+from fleetctl.run.results import PhaseResult
+from fleetctl.run.runner import Run, RunOptions, RunOutcome
+from planners.problem import Task
+
+
+class Coordinator(Protocol):
+    """What a team's run asks the run of every team (:class:`fleetctl.run.teams.coordinator.TeamsRun`)."""
+
+    async def more_work(self, team: str, result: PhaseResult) -> list[Task]: ...
+
+
+class TeamRun(Run):
+    """A team's run (see the module docstring)."""
+
+    def __init__(
+        self,
+        mission: Mission,
+        command: str,
+        opts: RunOptions,
+        team: str,
+        coordinator: Coordinator | None = None,
+        t0: float | None = None,
+    ) -> None:
+        super().__init__(mission, command, opts)
+        if t0 is not None:  # T+ of the run of every team
+            self.state.count_from(t0)
+        self.team = team
+        self.coordinator = coordinator
+        self.started_at: float | None = None  # mission clock: its carrier first started
+        self.reached_at: dict[str, float] = {}  # task -> mission clock
+        self.loaded_at: dict[str, float] = {}  # rover -> mission clock
+        self.collect_started: float | None = None
+        self.rounds = 0  # deployment rounds flown (1 + the rounds for tasks handed to it)
+
+    async def _deploy_rounds(self) -> PhaseResult:
+        assert self.executor is not None
+        while True:
+            r = await self.executor.deploy()
+            self.rounds += 1
+            self._note_reached()
+            extra = [] if self.coordinator is None else await self.coordinator.more_work(self.team, r)
+            if not extra:
+                return r
+            for t in extra:
+                self.executor.board.add(t)
+            self.state.event(
+                Ev.HANDOVER,
+                f"{self.team}: another deployment round for handed-over "
+                f"task(s) {', '.join(t.id for t in extra)}",
+                None,
+                tasks=[t.id for t in extra],
+            )
+
+    def _note_reached(self) -> None:
+        phase = self.executor.deploy_phase if self.executor is not None else None
+        if phase is None or phase.t0 is None:
+            return
+        if self.started_at is None:
+            self.started_at = phase.t0
+        for tid, flown in phase.board.reached().items():
+            self.reached_at.setdefault(tid, phase.t0 + flown)
+
+    async def _collect(self) -> None:
+        try:
+            await super()._collect()
+        finally:
+            phase = self.executor.collect_phase if self.executor is not None else None
+            if phase is not None and phase.t0 is not None:
+                self.collect_started = phase.t0
+                self.loaded_at = {r: phase.t0 + t for r, t in phase.board.loaded_at.items()}
+
+
+async def fly_team(
+    mission: Mission,
+    team_id: str,
+    command: str,
+    *,
+    tasks: Iterable[str] | None = None,
+    rovers: Iterable[str] | None = None,
+    **options: Any,
+) -> RunOutcome:
+    """Fly one team of a several-carrier mission alone (its own simulated fleet for ``connection:
+    sim``, its own links): ``tasks`` its share of the tasks (default: every task), ``rovers`` the
+    rovers it flies or collects (default: its deck). Options as :func:`fleetctl.run.runner.execute`."""
+    own = team_mission(mission, team_id, tasks=tasks, rovers=rovers)
+    return await TeamRun(own, command, RunOptions(**options), team_id).fly()
+
+
+__all__ = ["Coordinator", "TeamRun", "fly_team"]
