@@ -1,0 +1,138 @@
+"""Two teams flown in one controller on the embedded simulated fleet (issue 17, items 3 and 7):
+every task reached once by the team it was shared to, each team's flown stops those of its plan,
+the makespan the latest team's; a collection landing a rover on the other team's carrier; a
+hand-over when a team's carrier is lost mid-deployment; one team flown alone."""
+
+from __future__ import annotations
+
+import asyncio
+import json
+from pathlib import Path
+from typing import Any
+
+from fleetctl.journal import read_journal
+from fleetctl.run.runner import execute
+from fleetctl.run.teams import fly_team
+from sitl import Fault
+from tests.teams.teams_helpers import mission_from, two_teams
+
+SPEEDUP = 20.0
+
+
+def _plan_stops(path: Path) -> list[dict[str, str]]:
+    """Per stop of a plan: task -> the rover planned for it."""
+    plan = json.loads(path.read_text())
+    return [{leg["task"]: leg["rover"] for leg in s["rovers"]} for s in plan["stops"]]
+
+
+def _flown_stops(run_dir: Path) -> list[dict[str, str]]:
+    """Per stop the carrier reached: task -> the rover launched there for it."""
+    stops: list[dict[str, str]] = []
+    for r in read_journal(run_dir / "journal.jsonl"):
+        if r["kind"] == "stop_reached":
+            assert r["stop"] == len(stops) + 1
+            stops.append({})
+        elif r["kind"] == "rover_launched":
+            assert r["stop"] == len(stops)
+            stops[-1][r["task"]] = r["vehicle"]
+    return stops
+
+
+async def test_two_teams_deploy_in_one_controller(tmp_path: Path) -> None:
+    m = mission_from(two_teams(), tmp_path)
+    out = await execute(m, "deploy", run_dir=tmp_path / "run", speedup=SPEEDUP)
+    s = out.summary
+    assert out.exit_code == 0 and s["result"] == "complete", s
+    assert sorted(s["tasks_reached"]) == ["t1", "t2", "t3", "t4"] and s["tasks_unserved"] == []
+    teams = json.loads((tmp_path / "run" / "plan.json").read_text())["teams"]
+    shared: dict[str, set[str]] = {t["carrier"]: {leg["task"] for st in t["stops"] for leg in st["rovers"]}
+                                   for t in teams}
+    assert set().union(*shared.values()) == {"t1", "t2", "t3", "t4"}
+    assert sum(len(v) for v in shared.values()) == 4  # every task to exactly one team
+    reached_by: list[str] = []
+    for team in s["teams"]:
+        cid, dep = team["carrier"], team["deploy"]
+        assert set(dep["tasks_reached"]) == shared[cid] == set(dep["tasks_planned"])
+        reached_by += dep["tasks_reached"]
+        records = Path(dep["records"])
+        own = json.loads((records / "summary.json").read_text())
+        assert own["result"] == "complete" and set(own["tasks_reached"]) == shared[cid]
+        planned = _plan_stops(records / "plan.json")
+        assert _flown_stops(records) == planned and len(planned) > 0  # its stops, in order, as planned
+        reached = [r for r in read_journal(records / "journal.jsonl") if r["kind"] == "task_reached"]
+        assert sorted(r["task"] for r in reached) == sorted(shared[cid])  # once each
+    assert sorted(reached_by) == ["t1", "t2", "t3", "t4"]
+    spans = [t["deploy"]["makespan_planned"] for t in s["teams"]]
+    assert s["makespan_planned"] == max(spans)  # the latest team's
+    flown = [t["deploy"]["makespan_flown"] for t in s["teams"]]
+    assert max(flown) <= s["makespan_flown"] <= max(flown) + 2.0  # from the first carrier's start
+    kinds = [r["kind"] for r in read_journal(tmp_path / "run" / "journal.jsonl")]
+    assert "teams_plan" in kinds and kinds.count("team") == 4 and kinds[-1] == "summary"
+
+
+async def test_two_teams_run_deploy_dwell_collect(tmp_path: Path) -> None:
+    m = mission_from(two_teams(), tmp_path)
+    out = await execute(m, "run", run_dir=tmp_path / "run", speedup=SPEEDUP)
+    s = out.summary
+    assert out.exit_code == 0 and s["result"] == "complete", s
+    assert sorted(s["rovers_loaded"]) == ["r1", "r2", "r3", "r4"]
+    ph = s["phases"]
+    total = ph["deploy"]["flown"] + ph["dwell"]["flown"] + ph["collect"]["flown"]
+    assert s["makespan_flown"] == round(total, 3)
+    assert (tmp_path / "run" / "plan-collect.json").exists()
+
+
+async def test_a_collection_lands_a_rover_on_the_other_teams_carrier(tmp_path: Path) -> None:
+    d = two_teams(tasks=[], collection={"rovers": [{"id": "r1", "position": [82, 18, 5], "range": 40.0},
+                                                   {"id": "r3", "position": [76, 22, 4], "range": 40.0}]})
+    m = mission_from(d, tmp_path)
+    sims: list[Any] = []
+    out = await execute(m, "collect", run_dir=tmp_path / "run", speedup=SPEEDUP, on_sim=sims.append)
+    s = out.summary
+    assert out.exit_code == 0 and s["result"] == "complete", s
+    assert sorted(s["rovers_loaded"]) == ["r1", "r3"]
+    c2 = next(t for t in s["teams"] if t["carrier"] == "c2")
+    assert "r1" in c2["collect"]["rovers_loaded"]  # r1 is c1's rover
+    world = sims[0].world
+    assert world.rovers["r1"].loaded and world.rovers["r1"].carrier.id == "c2"
+    assert sorted(world.loaded_rovers("c2")) == ["r1", "r3", "r4"]
+
+
+async def test_a_lost_carrier_hands_its_tasks_to_the_other_team(tmp_path: Path) -> None:
+    c = two_teams()["carriers"]
+    c[1]["fleet"] = {"count": 4, "sysid_start": 31}  # c2 has rovers to spare
+    tasks = [{"id": "t1", "position": [-10, 90, 5]}, {"id": "t2", "position": [10, 100, 4]},
+             {"id": "t3", "position": [75, 25, 5]}, {"id": "t4", "position": [95, 20, 4]}]
+    m = mission_from(two_teams(carriers=c, tasks=tasks, links={"heartbeat_timeout": 1.0,
+                                                                "reassign_after": 0.5}), tmp_path)
+    watchers: list[asyncio.Task[None]] = []
+
+    def on_sim(sim: Any) -> None:
+        async def fail_c1_when_it_drives() -> None:
+            await sim.wait_for(lambda: sim.world.carriers["c1"].speed > 0.5, timeout=60.0)
+            sim.inject(Fault("dropout", vehicle="c1", at=sim.sim_time))  # for good
+
+        watchers.append(asyncio.create_task(fail_c1_when_it_drives()))
+
+    out = await execute(m, "deploy", run_dir=tmp_path / "run", speedup=10.0, on_sim=on_sim)
+    await asyncio.gather(*watchers)
+    s = out.summary
+    assert s["result"] == "complete", s
+    assert sorted(s["tasks_reached"]) == ["t1", "t2", "t3", "t4"]
+    c1 = next(t for t in s["teams"] if t["carrier"] == "c1")
+    c2 = next(t for t in s["teams"] if t["carrier"] == "c2")
+    assert set(c1["deploy"]["tasks_planned"]) == {"t1", "t2"} and c1["lost"]
+    assert c1["deploy"]["tasks_reached"] == []
+    assert set(c2["deploy"]["tasks_reached"]) == {"t1", "t2", "t3", "t4"}
+    assert [(h["from"], h["to"], sorted(h["tasks"])) for h in s["handovers"]] == [("c1", "c2", ["t1", "t2"])]
+    records = read_journal(tmp_path / "run" / "journal.jsonl")
+    assert [r["to_team"] for r in records if r["kind"] == "handover"] == ["c2"]
+
+
+async def test_one_team_flown_alone(tmp_path: Path) -> None:
+    m = mission_from(two_teams(), tmp_path)
+    out = await fly_team(m, "c2", "deploy", tasks=["t3", "t4"], run_dir=tmp_path / "c2", speedup=SPEEDUP)
+    s = out.summary
+    assert out.exit_code == 0 and sorted(s["tasks_reached"]) == ["t3", "t4"], s
+    assert [r["vehicle"] for r in read_journal(tmp_path / "c2" / "journal.jsonl")
+            if r["kind"] == "connected"] == ["c2", "r3", "r4"]
