@@ -136,3 +136,25 @@ async def test_one_team_flown_alone(tmp_path: Path) -> None:
     assert out.exit_code == 0 and sorted(s["tasks_reached"]) == ["t3", "t4"], s
     assert [r["vehicle"] for r in read_journal(tmp_path / "c2" / "journal.jsonl")
             if r["kind"] == "connected"] == ["c2", "r3", "r4"]
+
+
+async def test_a_team_out_of_rovers_hands_its_unserved_task_over(tmp_path: Path) -> None:
+    c = two_teams()["carriers"]
+    c[1]["fleet"] = {"count": 4, "sysid_start": 31}
+    tasks = [{"id": "t1", "position": [-10, 20, 5]}, {"id": "t2", "position": [10, 30, 4]},
+             {"id": "t3", "position": [75, 70, 5]}, {"id": "t4", "position": [95, 80, 4]}]
+    faults = [{"kind": "refuse_arm", "vehicle": "r1"}]  # c1 has no spare for it
+    m = mission_from(two_teams(carriers=c, tasks=tasks, sim={"speedup": SPEEDUP, "faults": faults}), tmp_path)
+    out = await execute(m, "deploy", run_dir=tmp_path / "run", speedup=SPEEDUP)
+    s = out.summary
+    assert s["result"] == "complete", s
+    assert sorted(s["tasks_reached"]) == ["t1", "t2", "t3", "t4"]
+    (h,) = s["handovers"]
+    assert (h["from"], h["to"], len(h["tasks"])) == ("c1", "c2", 1) and "could not serve" in h["why"]
+    c2 = next(t for t in s["teams"] if t["carrier"] == "c2")
+    assert h["tasks"][0] in c2["deploy"]["tasks_reached"]
+    records = read_journal(Path(c2["deploy"]["records"]) / "journal.jsonl")
+    changes = [r["source"] for r in records if r["kind"] == "tasks_changed"]
+    assert changes == ["team c1"] or c2["deploy"]["rounds"] == 2  # while deploying, or after
+    c1 = next(t for t in s["teams"] if t["carrier"] == "c1")
+    assert h["tasks"][0] not in c1["deploy"]["tasks_reached"] and len(c1["deploy"]["tasks_reached"]) == 1

@@ -33,6 +33,7 @@ from fleetctl.journal import Journal, run_dir_for, write_summary
 from fleetctl.mavlink.fleet import Fleet, connect_fleet
 from fleetctl.mavlink.link import LinkError
 from fleetctl.mission import Mission
+from fleetctl.mission.flight import MEET_HEIGHT
 from fleetctl.mission.formats import copy_data_files
 from fleetctl.mission.teams import mission_teams, team_mission, teams_problem
 from fleetctl.run.context import ExecutionError
@@ -81,6 +82,7 @@ class TeamsRun:
         self.plans: dict[str, TeamsPlan] = {}  # phase -> how the work was shared
         self.handovers = Handovers(self)
         self.views = team_views(opts.view, [t.carrier.id for t in mission_teams(mission)])
+        self.left: dict[str, str] = {}  # run: launched rovers the collection leaves in the field -> why
         self.dwell_planned: float | None = None
         self.dwell_flown: float | None = None
         self.error: str | None = None
@@ -319,7 +321,9 @@ class TeamsRun:
         self.board.set_status(cid, TeamStatus.DONE if outcome.exit_code == EXIT_OK else TeamStatus.FAILED)
 
     async def _rovers_in_the_field(self) -> tuple[CollectRover, ...]:
-        """Every rover a team launched that is not on a deck now: live position and range."""
+        """Every rover a team launched that is not on a deck now: live position and range. One
+        without a position, or without the range to reach the approach height above it, is left
+        in the field (``self.left``, with why)."""
         assert self.fleet is not None
         fleet, rp = self.fleet, self.mission.rovers
         launched = [
@@ -332,6 +336,7 @@ class TeamsRun:
         for rid in dict.fromkeys(launched):
             v = fleet.vehicles[rid]
             if not v.connected or v.lost or v.enu is None:
+                self.left[rid] = "lost: no position to collect it from"
                 continue
             if any(on_deck(v.enu, c, v.on_ground, v.ground_speed) for c in carriers):
                 continue
@@ -339,7 +344,14 @@ class TeamsRun:
                 await v.refresh_battery()
             rng = range_from_percent(v.battery_pct, rp.reserve, rp.endurance_range)
             rng = (1.0 - rp.reserve) * rp.endurance_range if rng is None else rng
-            if rng <= 0:
+            if rng <= 0.0 or rng < abs(max(v.enu[2], 0.0) - MEET_HEIGHT):  # not even to the approach height
+                self.left[rid] = (
+                    f"unreachable: {rng:.1f} m of range left at {v.enu[2]:.1f} m up "
+                    f"(battery {v.battery_pct if v.battery_pct is not None else '?'} %)"
+                )
+                self.journal.write(
+                    Ev.ROVER_UNREACHABLE, vehicle=rid, text=f"{rid}: {self.left[rid]}; not collected"
+                )
                 continue
             out.append(CollectRover(rid, (v.enu[0], v.enu[1], max(v.enu[2], 0.0)), rng))
         return tuple(out)

@@ -24,7 +24,7 @@ def teams_summary(tr: TeamsRun) -> dict[str, Any]:
     to_collect = [r for run in collects.values() for r in run.mission.rovers.ids]
     summaries = {phase: {cid: o.summary for cid, o in outs.items()} for phase, outs in tr.outcomes.items()}
     deploy_ok = cmd == "collect" or (bool(deploys) and not unserved)
-    collect_ok = cmd == "deploy" or set(to_collect) <= set(loaded)
+    collect_ok = cmd == "deploy" or (set(to_collect) <= set(loaded) and not tr.left)
     complete = not tr.interrupted and tr.error is None and deploy_ok and collect_ok
     dep_plan, col_plan = tr.plans.get("deploy"), tr.plans.get("collect")
     dep_flown = _span([r.started_at for r in deploys.values()], [t for _, t in board.reached.values()])
@@ -58,6 +58,7 @@ def teams_summary(tr: TeamsRun) -> dict[str, Any]:
         "rovers_loaded": loaded,
         "rovers_lost": lost,
         "rovers_airborne": airborne,
+        "rovers_unreachable": dict(tr.left),
         "makespan_planned": _round(planned),
         "makespan_flown": _round(flown),
         "replans": sum(int(s.get("replans", 0)) for outs in summaries.values() for s in outs.values()),
