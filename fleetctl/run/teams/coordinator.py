@@ -154,6 +154,10 @@ class TeamsRun:
             teams={cid: list(e.rovers) for cid, e in self.board.teams.items()},
         )
 
+        if self.opts.mqtt is not None or m.mqtt is not None:
+            log.warning("several teams: the MQTT fleet bus is not started (not yet for several carriers)")
+            j.write(Ev.BUS, text="bus: off: a run of several teams does not start the MQTT fleet bus yet")
+
     async def _start_sim(self) -> None:
         if not self.uses_sim:
             return
