@@ -332,6 +332,26 @@ def _print_outcome(command: str, mission: Mission, outcome: RunOutcome) -> None:
              if s.get("makespan_flown") is not None and s.get("makespan_planned") is not None else "")
           + f"; records in {outcome.run_dir}",
           file=sys.stderr if outcome.exit_code else sys.stdout)
+    for team in s.get("teams", []):  # several carriers (docs/teams.md): a line per team
+        print("  " + _team_line(team), file=sys.stderr if outcome.exit_code else sys.stdout)
+
+
+def _team_line(team: dict[str, Any]) -> str:
+    parts = [f"team {team['carrier']}" + (" (carrier lost)" if team.get("lost") else "")]
+    for phase, what in (("deploy", "tasks_reached"), ("collect", "rovers_loaded")):
+        p = team.get(phase)
+        if p is None:
+            continue
+        n = len(p[what])
+        of = (len(p["tasks_planned"]) + len(p["tasks_received"]) if phase == "deploy"
+              else len(p["rovers_planned"]))
+        got = f"{n}/{of} tasks reached" if phase == "deploy" else f"{n}/{of} rovers loaded"
+        if phase == "deploy" and p["tasks_received"]:
+            got += f" ({len(p['tasks_received'])} handed to it)"
+        if p.get("makespan_flown") is not None and p.get("makespan_planned") is not None:
+            got += f" in {p['makespan_flown']:.1f} s (planned {p['makespan_planned']:.1f} s)"
+        parts.append(f"{phase}: {got}")
+    return "; ".join(parts)
 
 
 def _add_fly_commands(sub: argparse._SubParsersAction) -> None:

@@ -45,8 +45,9 @@ async def test_two_teams_deploy_in_one_controller(tmp_path: Path) -> None:
     assert out.exit_code == 0 and s["result"] == "complete", s
     assert sorted(s["tasks_reached"]) == ["t1", "t2", "t3", "t4"] and s["tasks_unserved"] == []
     teams = json.loads((tmp_path / "run" / "plan.json").read_text())["teams"]
-    shared: dict[str, set[str]] = {t["carrier"]: {leg["task"] for st in t["stops"] for leg in st["rovers"]}
-                                   for t in teams}
+    shared: dict[str, set[str]] = {
+        t["carrier"]: {leg["task"] for st in t["stops"] for leg in st["rovers"]} for t in teams
+    }
     assert set().union(*shared.values()) == {"t1", "t2", "t3", "t4"}
     assert sum(len(v) for v in shared.values()) == 4  # every task to exactly one team
     reached_by: list[str] = []
@@ -83,8 +84,15 @@ async def test_two_teams_run_deploy_dwell_collect(tmp_path: Path) -> None:
 
 
 async def test_a_collection_lands_a_rover_on_the_other_teams_carrier(tmp_path: Path) -> None:
-    d = two_teams(tasks=[], collection={"rovers": [{"id": "r1", "position": [82, 18, 5], "range": 40.0},
-                                                   {"id": "r3", "position": [76, 22, 4], "range": 40.0}]})
+    d = two_teams(
+        tasks=[],
+        collection={
+            "rovers": [
+                {"id": "r1", "position": [82, 18, 5], "range": 40.0},
+                {"id": "r3", "position": [76, 22, 4], "range": 40.0},
+            ]
+        },
+    )
     m = mission_from(d, tmp_path)
     sims: list[Any] = []
     out = await execute(m, "collect", run_dir=tmp_path / "run", speedup=SPEEDUP, on_sim=sims.append)
@@ -101,10 +109,15 @@ async def test_a_collection_lands_a_rover_on_the_other_teams_carrier(tmp_path: P
 async def test_a_lost_carrier_hands_its_tasks_to_the_other_team(tmp_path: Path) -> None:
     c = two_teams()["carriers"]
     c[1]["fleet"] = {"count": 4, "sysid_start": 31}  # c2 has rovers to spare
-    tasks = [{"id": "t1", "position": [-10, 90, 5]}, {"id": "t2", "position": [10, 100, 4]},
-             {"id": "t3", "position": [75, 25, 5]}, {"id": "t4", "position": [95, 20, 4]}]
-    m = mission_from(two_teams(carriers=c, tasks=tasks, links={"heartbeat_timeout": 1.0,
-                                                                "reassign_after": 0.5}), tmp_path)
+    tasks = [
+        {"id": "t1", "position": [-10, 90, 5]},
+        {"id": "t2", "position": [10, 100, 4]},
+        {"id": "t3", "position": [75, 25, 5]},
+        {"id": "t4", "position": [95, 20, 4]},
+    ]
+    m = mission_from(
+        two_teams(carriers=c, tasks=tasks, links={"heartbeat_timeout": 1.0, "reassign_after": 0.5}), tmp_path
+    )
     watchers: list[asyncio.Task[None]] = []
 
     def on_sim(sim: Any) -> None:
@@ -134,15 +147,20 @@ async def test_one_team_flown_alone(tmp_path: Path) -> None:
     out = await fly_team(m, "c2", "deploy", tasks=["t3", "t4"], run_dir=tmp_path / "c2", speedup=SPEEDUP)
     s = out.summary
     assert out.exit_code == 0 and sorted(s["tasks_reached"]) == ["t3", "t4"], s
-    assert [r["vehicle"] for r in read_journal(tmp_path / "c2" / "journal.jsonl")
-            if r["kind"] == "connected"] == ["c2", "r3", "r4"]
+    assert [
+        r["vehicle"] for r in read_journal(tmp_path / "c2" / "journal.jsonl") if r["kind"] == "connected"
+    ] == ["c2", "r3", "r4"]
 
 
 async def test_a_team_out_of_rovers_hands_its_unserved_task_over(tmp_path: Path) -> None:
     c = two_teams()["carriers"]
     c[1]["fleet"] = {"count": 4, "sysid_start": 31}
-    tasks = [{"id": "t1", "position": [-10, 20, 5]}, {"id": "t2", "position": [10, 30, 4]},
-             {"id": "t3", "position": [75, 70, 5]}, {"id": "t4", "position": [95, 80, 4]}]
+    tasks = [
+        {"id": "t1", "position": [-10, 20, 5]},
+        {"id": "t2", "position": [10, 30, 4]},
+        {"id": "t3", "position": [75, 70, 5]},
+        {"id": "t4", "position": [95, 80, 4]},
+    ]
     faults = [{"kind": "refuse_arm", "vehicle": "r1"}]  # c1 has no spare for it
     m = mission_from(two_teams(carriers=c, tasks=tasks, sim={"speedup": SPEEDUP, "faults": faults}), tmp_path)
     out = await execute(m, "deploy", run_dir=tmp_path / "run", speedup=SPEEDUP)
@@ -158,3 +176,60 @@ async def test_a_team_out_of_rovers_hands_its_unserved_task_over(tmp_path: Path)
     assert changes == ["team c1"] or c2["deploy"]["rounds"] == 2  # while deploying, or after
     c1 = next(t for t in s["teams"] if t["carrier"] == "c1")
     assert h["tasks"][0] not in c1["deploy"]["tasks_reached"] and len(c1["deploy"]["tasks_reached"]) == 1
+
+
+async def test_an_interrupted_teams_run_holds_every_team(tmp_path: Path) -> None:
+    m = mission_from(two_teams(), tmp_path)
+    sims: list[Any] = []
+    task = asyncio.create_task(
+        execute(m, "deploy", run_dir=tmp_path / "run", speedup=SPEEDUP, on_sim=sims.append)
+    )
+    while not sims:
+        await asyncio.sleep(0.05)
+    sim = sims[0]
+    await sim.wait_for(lambda: any(not r.on_ground for r in sim.world.rovers.values()), timeout=60.0)
+    task.cancel()
+    out = await asyncio.wait_for(task, 60.0)
+    assert out.exit_code == 130 and out.summary["result"] == "interrupted"
+    for cid in ("c1", "c2"):
+        own = json.loads((tmp_path / "run" / "teams" / cid / "deploy" / "summary.json").read_text())
+        assert own["result"] == "interrupted"
+    kinds = [r["kind"] for r in read_journal(tmp_path / "run" / "journal.jsonl")]
+    assert "interrupted" in kinds and kinds[-1] == "summary"
+    holds = [
+        r
+        for cid in ("c1", "c2")
+        for r in read_journal(tmp_path / "run" / "teams" / cid / "deploy" / "journal.jsonl")
+        if r["kind"] == "hold"
+    ]
+    assert holds  # the airborne rovers were told to hold
+
+
+def test_fleetctl_deploy_flies_two_teams_headless(tmp_path: Path, capsys: Any) -> None:
+    from fleetctl.cli import main
+    from tests.teams.teams_helpers import write_mission
+
+    path = write_mission(two_teams(), tmp_path / "two.yaml")
+    rc = main(["deploy", "--mission", str(path), "--headless", "--speedup", "20", "--runs", str(tmp_path)])
+    out = capsys.readouterr().out
+    assert rc == 0, out
+    assert "deploy complete: 4/4 tasks reached" in out
+    for cid in ("c1", "c2"):
+        assert f"] {cid} task_reached" in out  # every event line names its team
+        assert f"  team {cid}; deploy: 2/2 tasks reached in" in out
+
+
+def test_team_views() -> None:
+    import io
+
+    from fleetctl.run.teams.views import SharedView, team_views
+    from fleetctl.views.dashboard import HeadlessView, LiveView
+    from fleetctl.views.view import Views
+
+    heads = team_views(HeadlessView(io.StringIO()), ["c1", "c22"])
+    assert [v.prefix for v in heads.values()] == ["c1  ", "c22 "]  # type: ignore[union-attr]
+    live = team_views(LiveView(), ["c1", "c2"])
+    assert [(type(v), v.shown) for v in live.values()] == [(SharedView, True), (SharedView, False)]  # type: ignore[union-attr]
+    both = team_views(Views(HeadlessView(io.StringIO()), LiveView()), ["c1", "c2"])
+    assert all(isinstance(v, Views) for v in both.values())
+    assert team_views(None, ["c1"]) == {"c1": None}

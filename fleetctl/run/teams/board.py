@@ -34,7 +34,7 @@ CAN_RECEIVE = (TeamStatus.DEPLOYING, TeamStatus.SETTLING)  # may be handed tasks
 class Handover:
     tasks: list[str]
     from_team: str
-    to_team: str
+    to_team: str | None  # None: no team could take them
     why: str
     t: float  # mission clock
 
@@ -60,6 +60,7 @@ class TeamsBoard:
     owner: dict[str, str] = field(default_factory=dict)  # task -> the team that owns it now
     reached: dict[str, tuple[str, float]] = field(default_factory=dict)  # task -> (team, mission clock)
     handovers: list[Handover] = field(default_factory=list)
+    gave_up: dict[str, set[str]] = field(default_factory=dict)  # task -> teams that handed it over
     changed: asyncio.Event = field(default_factory=asyncio.Event)  # set on every change
 
     def allocate(self, team: str, tasks: list[str]) -> None:
@@ -80,6 +81,7 @@ class TeamsBoard:
     def hand_over(self, tasks: list[Task], from_team: str, to_team: str, why: str, t: float) -> Handover:
         for task in tasks:
             self.owner[task.id] = to_team
+            self.gave_up.setdefault(task.id, set()).add(from_team)
         self.teams[to_team].received.extend(tasks)
         h = Handover([task.id for task in tasks], from_team, to_team, why, t)
         self.handovers.append(h)

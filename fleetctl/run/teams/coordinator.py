@@ -81,7 +81,7 @@ class TeamsRun:
         self.outcomes: dict[str, dict[str, RunOutcome]] = {}  # phase -> team -> its outcome
         self.plans: dict[str, TeamsPlan] = {}  # phase -> how the work was shared
         self.handovers = Handovers(self)
-        self.views = team_views(opts.view, [t.carrier.id for t in mission_teams(mission)])
+        self.views: dict[str, Any] = {}  # team -> its view of the phase flying (fleetctl.run.teams.views)
         self.left: dict[str, str] = {}  # run: launched rovers the collection leaves in the field -> why
         self.dwell_planned: float | None = None
         self.dwell_flown: float | None = None
@@ -197,6 +197,7 @@ class TeamsRun:
     # ============================================================================== deployment
     async def _deploy(self) -> None:
         plan = await self._share("deploy", self.live_mission())
+        self.views = team_views(self.opts.view, list(self.board.teams))
         for team in plan.teams:
             self.board.allocate(team.carrier, [leg.task for leg in team.plan.legs() if leg.task is not None])
         runs = {
@@ -309,6 +310,7 @@ class TeamsRun:
             return
         plan = await self._share("collect", live)
         shares = {t.carrier: [leg.rover for leg in t.plan.legs()] for t in plan.teams}
+        self.views = team_views(self.opts.view, [cid for cid, rovers in shares.items() if rovers])
         keep = self.command == "collect"  # a scenario's collection section (its batteries are pinned)
         runs = {}
         for cid, rovers in shares.items():
@@ -449,7 +451,13 @@ class TeamsRun:
 
         async def one(cid: str, run: TeamRun) -> None:
             self.journal.write(Ev.TEAM, team=cid, phase=phase, status="started", run_dir=str(run.journal.dir))
-            outcome = await run.fly()
+            try:
+                outcome = await run.fly()
+            except Exception as exc:  # noqa: BLE001 - a fault in one team's run must not stop the others
+                log.exception("team %s: its run failed", cid)
+                outcome = RunOutcome(
+                    EXIT_FAILED, {"result": "incomplete"}, run.journal.dir, f"{cid}: {exc!r}"
+                )
             outcomes[cid] = outcome
             self.journal.write(
                 Ev.TEAM,
@@ -464,6 +472,9 @@ class TeamsRun:
         tasks = [asyncio.create_task(one(cid, run), name=f"team {cid} {phase}") for cid, run in runs.items()]
         try:
             await asyncio.gather(*tasks)
+        except asyncio.CancelledError:  # gather cancelled every team's run: each holds and writes its records
+            await asyncio.wait(tasks, timeout=60.0)
+            raise
         except BaseException:
             for t in tasks:
                 t.cancel()

@@ -19,7 +19,7 @@ from typing import TYPE_CHECKING
 from fleetctl.run.kinds import Ev
 from fleetctl.run.launch import rover_on_deck
 from fleetctl.run.task_board import TaskStatus
-from fleetctl.run.teams.board import TeamStatus
+from fleetctl.run.teams.board import Handover, TeamStatus
 from fleetctl.run.teams.team_run import TeamRun
 from planners.problem import Task
 from planners.teams import TeamsProblem, plan_teams
@@ -62,14 +62,16 @@ class Handovers:
 
     async def _place(self, tasks: list[Task], from_team: str, why: str) -> None:
         tm, board = self.teams, self.teams.board
+        refused = {cid for t in tasks for cid in board.gave_up.get(t.id, ())}  # no task goes back
         free = {
             cid: self._free_rovers(cid)
             for cid, e in board.teams.items()
-            if cid != from_team and e.can_receive
+            if cid != from_team and cid not in refused and e.can_receive
         }
         free = {cid: rovers for cid, rovers in free.items() if rovers}
         room = sum(len(r) for r in free.values())
         if not free:
+            board.handovers.append(Handover([t.id for t in tasks], from_team, None, why, tm.clock()))
             tm.journal.write(
                 Ev.HANDOVER,
                 tasks=[t.id for t in tasks],
@@ -99,6 +101,7 @@ class Handovers:
                 run.executor.submit_task_change(add=share, remove=[], source=f"team {from_team}")
         if len(take) < len(tasks):
             rest = [t.id for t in tasks[len(take) :]]
+            board.handovers.append(Handover(rest, from_team, None, why, tm.clock()))
             tm.journal.write(
                 Ev.HANDOVER,
                 tasks=rest,
@@ -114,8 +117,11 @@ class Handovers:
         ex = run.executor if run is not None else None
         if ex is None or run is None or run.fleet is None or run.fleet.carrier.lost:
             return []
-        b = ex.board
-        deck = [rid for rid, v in run.fleet.rovers.items() if b.available(rid) and rover_on_deck(ex.ctx, v)]
+        b, rovers = ex.board, run.fleet.rovers
+        # the deck as its deployment found it (a driving carrier's deck is not told from telemetry)
+        phase = ex.deploy_phase
+        deck = phase.deck if phase is not None else [r for r, v in rovers.items() if rover_on_deck(ex.ctx, v)]
+        deck = [rid for rid in deck if rid in rovers and b.available(rid) and not rovers[rid].lost]
         waiting = [t for t in self.teams.board.teams[cid].received if t.id not in b.entries]
         return deck[len(b.pooled()) + len(waiting) :]
 
