@@ -227,9 +227,9 @@ def cmd_resume(args: argparse.Namespace) -> int:
 
 def _one_team(mission: Mission, command: str) -> None:
     if several_teams(mission):
-        raise CliError(f"{mission.path or mission.name}: '{command}' flies one carrier and this mission has "
-                       f"{len(mission.teams)} (carriers:); several teams fly with deploy, collect and run, "
-                       "and 'sim' serves them")
+        raise CliError(f"{mission.path or mission.name}: '{command}' supports one carrier and this mission "
+                       f"has {len(mission.teams)} (carriers:); several teams fly with deploy, collect and "
+                       "run, and 'sim' serves them (docs/teams.md)")
 
 
 def _fly(args: argparse.Namespace, mission: Mission, command: str, extra: dict[str, Any]) -> int:

@@ -383,7 +383,7 @@ def test_status_of_several_teams_is_refused(capsys: pytest.CaptureFixture[str]) 
     # deploy, collect, run and sim fly or serve every team (tests/teams); status does not yet
     assert main(["status", "--mission", str(TWO)]) == 2
     err = capsys.readouterr().err
-    assert err.count("\n") == 1 and "'status' flies one carrier" in err
+    assert err.count("\n") == 1 and "'status' supports one carrier" in err
 
 
 def test_a_planner_that_cannot_serve_the_shares_is_one_line() -> None:
