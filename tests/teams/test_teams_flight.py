@@ -116,7 +116,7 @@ async def test_a_lost_carrier_hands_its_tasks_to_the_other_team(tmp_path: Path) 
         {"id": "t4", "position": [95, 20, 4]},
     ]
     m = mission_from(
-        two_teams(carriers=c, tasks=tasks, links={"heartbeat_timeout": 1.0, "reassign_after": 0.5}), tmp_path
+        two_teams(carriers=c, tasks=tasks, links={"heartbeat_timeout": 2.0, "reassign_after": 1.0}), tmp_path
     )
     watchers: list[asyncio.Task[None]] = []
 
@@ -233,3 +233,38 @@ def test_team_views() -> None:
     both = team_views(Views(HeadlessView(io.StringIO()), LiveView()), ["c1", "c2"])
     assert all(isinstance(v, Views) for v in both.values())
     assert team_views(None, ["c1"]) == {"c1": None}
+
+
+async def test_a_team_lost_with_a_rover_in_flight_is_stopped_and_its_tasks_served(tmp_path: Path) -> None:
+    c = two_teams()["carriers"]
+    c[1]["position"] = [300, 0]  # far: c1's two stops are c1's
+    c[1]["fleet"] = {"count": 4, "sysid_start": 31}
+    tasks = [
+        {"id": "t1", "position": [-10, 20, 5]},
+        {"id": "t2", "position": [-20, 110, 4]},
+        {"id": "t3", "position": [300, 25, 5]},
+        {"id": "t4", "position": [320, 20, 4]},
+    ]
+    links = {"heartbeat_timeout": 2.0, "reassign_after": 1.0}
+    m = mission_from(two_teams(carriers=c, tasks=tasks, links=links), tmp_path)
+    watchers: list[asyncio.Task[None]] = []
+
+    def on_sim(sim: Any) -> None:
+        async def fail_c1_once_a_rover_flies() -> None:
+            c1_rovers = [sim.world.rovers[r] for r in ("r1", "r2")]
+            await sim.wait_for(lambda: any(not r.on_ground for r in c1_rovers), timeout=60.0)
+            sim.inject(Fault("dropout", vehicle="c1", at=sim.sim_time))
+
+        watchers.append(asyncio.create_task(fail_c1_once_a_rover_flies()))
+
+    out = await execute(m, "deploy", run_dir=tmp_path / "run", speedup=10.0, on_sim=on_sim)
+    await asyncio.gather(*watchers)
+    s = out.summary
+    c1 = next(t for t in s["teams"] if t["carrier"] == "c1")
+    assert sorted(c1["deploy"]["tasks_planned"]) == ["t1", "t2"] and c1["lost"], s
+    assert c1["deploy"]["result"] == "interrupted"  # stopped once c2 was done: its rover in the air holds
+    assert sorted(s["tasks_reached"]) == ["t1", "t2", "t3", "t4"] and s["result"] == "complete", s
+    handed = sorted(t for h in s["handovers"] if (h["from"], h["to"]) == ("c1", "c2") for t in h["tasks"])
+    assert handed == ["t1", "t2"] and c1["deploy"]["tasks_reached"] == []
+    kinds = [(r["kind"], r.get("status")) for r in read_journal(tmp_path / "run" / "journal.jsonl")]
+    assert ("team", "stopped") in kinds

@@ -48,10 +48,11 @@ class TeamEntry:
     received: list[Task] = field(default_factory=list)  # handed to it, in order
     lost_since: float | None = None  # wall clock: its carrier's link went down
     lost: bool = False  # its carrier was lost for too long: it takes no more tasks
+    finished: bool = False  # its deployment is over (no further round)
 
     @property
     def can_receive(self) -> bool:
-        return self.status in CAN_RECEIVE and not self.lost
+        return self.status in CAN_RECEIVE and not self.lost and not self.finished
 
 
 @dataclass
@@ -82,15 +83,18 @@ class TeamsBoard:
         for task in tasks:
             self.owner[task.id] = to_team
             self.gave_up.setdefault(task.id, set()).add(from_team)
-        self.teams[to_team].received.extend(tasks)
+        receiver = self.teams[to_team]
+        receiver.received.extend(tasks)
+        if receiver.status == TeamStatus.SETTLING:  # it flies them in a further round
+            receiver.status = TeamStatus.DEPLOYING
         h = Handover([task.id for task in tasks], from_team, to_team, why, t)
         self.handovers.append(h)
         self.touch()
         return h
 
     def settled(self) -> bool:
-        """No team can hand tasks over any more (every one is past deploying)."""
-        return not any(e.status in ACTIVE for e in self.teams.values())
+        """Every team whose carrier is not lost is past deploying (a lost one is not waited for)."""
+        return not any(e.status in ACTIVE and not e.lost for e in self.teams.values())
 
     def unserved(self) -> list[str]:
         return [t for t in self.owner if t not in self.reached]

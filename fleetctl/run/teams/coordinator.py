@@ -43,7 +43,7 @@ from fleetctl.run.results import PhaseResult
 from fleetctl.run.runner import EXIT_FAILED, EXIT_INTERRUPTED, EXIT_OK, RunOptions, RunOutcome
 from fleetctl.run.sim import mission_uses_sim, sim_fleet_config
 from fleetctl.run.state import on_deck
-from fleetctl.run.teams.board import TeamEntry, TeamsBoard, TeamStatus
+from fleetctl.run.teams.board import ACTIVE, TeamEntry, TeamsBoard, TeamStatus
 from fleetctl.run.teams.handover import Handovers
 from fleetctl.run.teams.summary import teams_summary
 from fleetctl.run.teams.team_run import TeamRun
@@ -78,6 +78,8 @@ class TeamsRun:
         self.clock, self.scale = self._clock()
         self.fleet: Fleet | None = None
         self.runs: dict[str, dict[str, TeamRun]] = {}  # phase -> team -> its run
+        self.flying: dict[str, asyncio.Task[RunOutcome]] = {}  # team -> its run of the phase flying
+        self._stopped: set[str] = set()  # lost teams whose run was stopped
         self.outcomes: dict[str, dict[str, RunOutcome]] = {}  # phase -> team -> its outcome
         self.plans: dict[str, TeamsPlan] = {}  # phase -> how the work was shared
         self.handovers = Handovers(self)
@@ -252,7 +254,9 @@ class TeamsRun:
                 self.board.set_status(team, TeamStatus.DEPLOYING)
                 return extra
             if self.board.settled():
-                return []
+                if not self._stop_lost_teams():  # a lost team's run ends first: it may hand tasks over
+                    entry.finished = True
+                    return []
             self.board.changed.clear()
             with contextlib.suppress(TimeoutError):
                 await asyncio.wait_for(self.board.changed.wait(), 1.0)
@@ -275,6 +279,32 @@ class TeamsRun:
                 if now - entry.lost_since >= after:
                     entry.lost = True
                     await self.handovers.carrier_lost(cid, run, after)
+            self._stop_lost_teams()
+
+    def _stop_lost_teams(self) -> bool:
+        """A team whose carrier is lost is not waited for once every other team has finished
+        deploying: its run stops (its airborne rovers hold where they are, to be collected by the
+        others) and the tasks it had not reached go to the teams that can take them. True while
+        such a run is still ending."""
+        if not self.board.settled():
+            return False
+        ending = False
+        for cid, entry in self.board.teams.items():
+            flying = self.flying.get(cid)
+            if not (entry.lost and entry.status in ACTIVE):
+                continue
+            ending = True
+            if flying is not None and not flying.done() and cid not in self._stopped:
+                self._stopped.add(cid)
+                self.journal.write(
+                    Ev.TEAM,
+                    team=cid,
+                    phase="deploy",
+                    status="stopped",
+                    text=f"{cid}: carrier lost and every other team done: its run stops",
+                )
+                flying.cancel()
+        return ending
 
     def _note_reached(self, cid: str, run: TeamRun) -> None:
         for tid, t in run.reached_at.items():
@@ -451,8 +481,15 @@ class TeamsRun:
 
         async def one(cid: str, run: TeamRun) -> None:
             self.journal.write(Ev.TEAM, team=cid, phase=phase, status="started", run_dir=str(run.journal.dir))
+            flying = self.flying[cid] = asyncio.create_task(run.fly(), name=f"team {cid} {phase} run")
             try:
-                outcome = await run.fly()
+                outcome = await flying
+            except asyncio.CancelledError:
+                task = asyncio.current_task()
+                if task is not None and task.cancelling():
+                    flying.cancel()  # the run of every team is cancelled: so is this team's
+                    raise
+                outcome = RunOutcome(EXIT_INTERRUPTED, {"result": "interrupted"}, run.journal.dir, None)
             except Exception as exc:  # noqa: BLE001 - a fault in one team's run must not stop the others
                 log.exception("team %s: its run failed", cid)
                 outcome = RunOutcome(

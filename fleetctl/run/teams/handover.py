@@ -86,6 +86,7 @@ class Handovers:
         for cid, share in shares.items():
             if not share:
                 continue
+            deploying = board.teams[cid].status == TeamStatus.DEPLOYING  # else: a further round
             board.hand_over(share, from_team, cid, why, tm.clock())
             ids = [t.id for t in share]
             tm.journal.write(
@@ -97,7 +98,7 @@ class Handovers:
                 text=f"{', '.join(ids)}: {from_team} -> {cid} ({why})",
             )
             run = tm.runs["deploy"][cid]
-            if board.teams[cid].status == TeamStatus.DEPLOYING and run.executor is not None:
+            if deploying and run.executor is not None:
                 run.executor.submit_task_change(add=share, remove=[], source=f"team {from_team}")
         if len(take) < len(tasks):
             rest = [t.id for t in tasks[len(take) :]]
