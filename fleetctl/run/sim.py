@@ -105,8 +105,11 @@ def sim_mission_dict(mission: Mission, command: str = "deploy") -> dict[str, Any
     rover units spelled out (the file may leave them to defaults). For ``collect`` the rovers
     named in the mission's ``collection`` section start in the field at their positions (the
     others on the deck); without that section a collection on the simulator is refused."""
+    if len(mission_teams(mission)) > 1:
+        raise ExecutionError(f"{mission.path or mission.name}: several carriers: build the simulated fleet "
+                             "with sim_fleet_config (every team)")
     d = copy.deepcopy(mission.raw)
-    if "carriers" in d:  # one team written as 'carriers: [...]' (several teams do not fly yet)
+    if "carriers" in d:  # one team written as 'carriers: [...]'
         d["carrier"] = {k: v for k, v in d.pop("carriers")[0].items() if k not in ("fleet", "units")}
     if mission.origin is None:
         raise ExecutionError(

@@ -20,7 +20,12 @@ from planners.problem import Task
 
 
 class Coordinator(Protocol):
-    """What a team's run asks the run of every team (:class:`fleetctl.run.teams.coordinator.TeamsRun`)."""
+    """What a team's run asks the run of every team (:class:`fleetctl.run.teams.coordinator.TeamsRun`).
+
+    ``more_work`` is awaited after each deployment round with its result (``tasks_unserved``: what
+    the team could not serve); it returns the tasks handed to the team (one more round), or ``[]``
+    when its deployment is over. Tasks handed while the team deploys may instead go in as a task
+    change: ``run.executor.submit_task_change(add=..., remove=[], source="team <from>")``."""
 
     async def more_work(self, team: str, result: PhaseResult) -> list[Task]: ...
 
@@ -93,13 +98,16 @@ async def fly_team(
     *,
     tasks: Iterable[str] | None = None,
     rovers: Iterable[str] | None = None,
+    coordinator: Coordinator | None = None,
     **options: Any,
 ) -> RunOutcome:
     """Fly one team of a several-carrier mission alone (its own simulated fleet for ``connection:
     sim``, its own links): ``tasks`` its share of the tasks (default: every task), ``rovers`` the
-    rovers it flies or collects (default: its deck). Options as :func:`fleetctl.run.runner.execute`."""
+    rovers it flies or collects (default: its deck). ``coordinator`` (e.g. one speaking to the other
+    teams' controllers) is asked after each deployment round for tasks handed to it. Options as
+    :func:`fleetctl.run.runner.execute`."""
     own = team_mission(mission, team_id, tasks=tasks, rovers=rovers)
-    return await TeamRun(own, command, RunOptions(**options), team_id).fly()
+    return await TeamRun(own, command, RunOptions(**options), team_id, coordinator).fly()
 
 
 __all__ = ["Coordinator", "TeamRun", "fly_team"]
