@@ -65,6 +65,8 @@ async def test_two_teams_deploy_in_one_controller(tmp_path: Path) -> None:
     assert sorted(reached_by) == ["t1", "t2", "t3", "t4"]
     spans = [t["deploy"]["makespan_planned"] for t in s["teams"]]
     assert s["makespan_planned"] == max(spans)  # the latest team's
+    allocated = [t["deploy"]["makespan_allocated"] for t in s["teams"]]
+    assert s["makespan_allocated"] == max(allocated) == round(max(t["makespan"] for t in teams), 3)
     flown = [t["deploy"]["makespan_flown"] for t in s["teams"]]
     assert max(flown) <= s["makespan_flown"] <= max(flown) + 2.0  # from the first carrier's start
     kinds = [r["kind"] for r in read_journal(tmp_path / "run" / "journal.jsonl")]

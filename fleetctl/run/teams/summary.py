@@ -30,14 +30,13 @@ def teams_summary(tr: TeamsRun) -> dict[str, Any]:
     dep_flown = _span([r.started_at for r in deploys.values()], [t for _, t in board.reached.values()])
     col_flown = _span(
         [r.collect_started for r in collects.values()],
-        [t for r in collects.values() for t in r.loaded_at.values()],
+        [t for r in collects.values() if (t := r.collect_ended) is not None],
     )
-    planned, flown = _makespans(
-        tr,
-        dep_plan.makespan if dep_plan else None,
-        col_plan.makespan if col_plan else None,
-        dep_flown,
-        col_flown,
+    dep_planned = _latest([r.first_planned for r in deploys.values()])
+    col_planned = _latest([_planned(r, "collect") for r in collects.values()])
+    planned, flown = _makespans(tr, dep_planned, col_planned, dep_flown, col_flown)
+    allocated, _ = _makespans(
+        tr, dep_plan.makespan if dep_plan else None, col_plan.makespan if col_plan else None, None, None
     )
     airborne: dict[str, Any] = {}
     lost: list[str] = []
@@ -60,6 +59,7 @@ def teams_summary(tr: TeamsRun) -> dict[str, Any]:
         "rovers_airborne": airborne,
         "rovers_unreachable": dict(tr.left),
         "makespan_planned": _round(planned),
+        "makespan_allocated": _round(allocated),
         "makespan_flown": _round(flown),
         "replans": sum(int(s.get("replans", 0)) for outs in summaries.values() for s in outs.values()),
         "teams": [_team(tr, cid, deploys.get(cid), collects.get(cid)) for cid in board.teams],
@@ -71,9 +71,9 @@ def teams_summary(tr: TeamsRun) -> dict[str, Any]:
     }
     if cmd == "run":
         out["phases"] = {
-            "deploy": {"planned": dep_plan.makespan if dep_plan else None, "flown": dep_flown},
+            "deploy": {"planned": dep_planned, "flown": dep_flown},
             "dwell": {"planned": tr.dwell_planned, "flown": tr.dwell_flown},
-            "collect": {"planned": col_plan.makespan if col_plan else None, "flown": col_flown},
+            "collect": {"planned": col_planned, "flown": col_flown},
         }
     if tr.error is not None:
         out["error"] = tr.error
@@ -91,7 +91,8 @@ def _team(tr: TeamsRun, cid: str, dep: TeamRun | None, col: TeamRun | None) -> d
             "tasks_received": [t.id for t in e.received],
             "tasks_reached": mine,
             "rounds": dep.rounds,
-            "makespan_planned": _round(dep_plan.team(cid).makespan) if dep_plan else None,
+            "makespan_planned": _round(dep.first_planned),
+            "makespan_allocated": _round(dep_plan.team(cid).makespan) if dep_plan else None,
             "makespan_flown": _round(_span([dep.started_at], [board.reached[t][1] for t in mine])),
             "result": tr.outcomes.get("deploy", {}).get(cid).summary["result"]  # type: ignore[union-attr]
             if cid in tr.outcomes.get("deploy", {})
@@ -102,11 +103,24 @@ def _team(tr: TeamsRun, cid: str, dep: TeamRun | None, col: TeamRun | None) -> d
         out["collect"] = {
             "rovers_planned": list(col.mission.rovers.ids),
             "rovers_loaded": list(col.loaded_at),
-            "makespan_planned": _round(col_plan.team(cid).makespan) if col_plan else None,
-            "makespan_flown": _round(_span([col.collect_started], list(col.loaded_at.values()))),
+            "makespan_planned": _round(_planned(col, "collect")),
+            "makespan_allocated": _round(col_plan.team(cid).makespan) if col_plan else None,
+            "makespan_flown": _round(
+                _span([col.collect_started], [col.collect_ended] if col.collect_ended else [])
+            ),
             "records": str(col.journal.dir),
         }
     return out
+
+
+def _latest(spans: list[float | None]) -> float | None:
+    given = [x for x in spans if x is not None]
+    return max(given) if given else None
+
+
+def _planned(run: TeamRun, phase: str) -> float | None:
+    r = run.results.get(phase)
+    return None if r is None else r.planned
 
 
 def _span(starts: list[float | None], ends: list[float]) -> float | None:

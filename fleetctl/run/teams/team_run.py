@@ -51,6 +51,8 @@ class TeamRun(Run):
         self.reached_at: dict[str, float] = {}  # task -> mission clock
         self.loaded_at: dict[str, float] = {}  # rover -> mission clock
         self.collect_started: float | None = None
+        self.collect_ended: float | None = None
+        self.first_planned: float | None = None  # its first deployment plan's makespan
         self.rounds = 0  # deployment rounds flown (1 + the rounds for tasks handed to it)
 
     async def _deploy_rounds(self) -> PhaseResult:
@@ -58,6 +60,8 @@ class TeamRun(Run):
         while True:
             r = await self.executor.deploy()
             self.rounds += 1
+            if self.rounds == 1:
+                self.first_planned = r.planned
             self._note_reached()
             extra = [] if self.coordinator is None else await self.coordinator.more_work(self.team, r)
             if not extra:
@@ -89,6 +93,8 @@ class TeamRun(Run):
             if phase is not None and phase.t0 is not None:
                 self.collect_started = phase.t0
                 self.loaded_at = {r: phase.t0 + t for r, t in phase.board.loaded_at.items()}
+                if phase.result.flown is not None:  # the one-team measure: up to the last load
+                    self.collect_ended = phase.t0 + phase.result.flown
 
 
 async def fly_team(
