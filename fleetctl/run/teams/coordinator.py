@@ -171,8 +171,20 @@ class TeamsRun:
         self.clock = lambda: float(sim.sim_time)
         self.endpoints = dict(sim.endpoints)
         self.journal.write(Ev.SIM_STARTED, endpoints=self.endpoints, speedup=self.scale)
+        self._hold_scenario_batteries()
         if self.opts.on_sim is not None:
             self.opts.on_sim(sim)
+
+    def _hold_scenario_batteries(self) -> None:
+        """``collect`` on the simulated fleet: each rover of the ``collection:`` section has its
+        ``range`` left when the collection starts; the simulator holds it there while the fleet
+        connects and the work is shared (each team's run then lets it drain after its own
+        connect, as a one-carrier collection does)."""
+        if self.sim is None or self.command != "collect" or not self.mission.collection:
+            return
+        rp = self.mission.rovers
+        for cr in self.mission.collection:
+            self.sim.pin_battery(cr.id, min(1.0, rp.reserve + cr.range / rp.endurance_range))
 
     async def _connect(self) -> None:
         """Every vehicle of every team on one set of links (each team flies a view of it)."""

@@ -21,10 +21,18 @@ def teams_summary(tr: TeamsRun) -> dict[str, Any]:
     reached = [t for t in order if t in board.reached] if cmd != "collect" else []
     unserved = [t for t in order if t not in board.reached] if cmd != "collect" else []
     loaded = [r for run in collects.values() for r in run.loaded_at]
-    to_collect = [r for run in collects.values() for r in run.mission.rovers.ids]
+    unreachable = dict(tr.left) | {
+        r: f"{cid}: out of reach (its range left)"
+        for cid, run in collects.items()
+        if "collect" in run.results
+        for r in run.results["collect"].rovers_unreachable
+    }
     summaries = {phase: {cid: o.summary for cid, o in outs.items()} for phase, outs in tr.outcomes.items()}
     deploy_ok = cmd == "collect" or (bool(deploys) and not unserved)
-    collect_ok = cmd == "deploy" or (set(to_collect) <= set(loaded) and not tr.left)
+    # as one team counts it: every rover loaded but those out of reach (and those lost before it began)
+    collect_ok = cmd == "deploy" or all(
+        "collect" in r.results and r.results["collect"].complete for r in collects.values()
+    )
     complete = not tr.interrupted and tr.error is None and deploy_ok and collect_ok
     dep_plan, col_plan = tr.plans.get("deploy"), tr.plans.get("collect")
     dep_flown = _span([r.started_at for r in deploys.values()], [t for _, t in board.reached.values()])
@@ -57,7 +65,7 @@ def teams_summary(tr: TeamsRun) -> dict[str, Any]:
         "rovers_loaded": loaded,
         "rovers_lost": lost,
         "rovers_airborne": airborne,
-        "rovers_unreachable": dict(tr.left),
+        "rovers_unreachable": unreachable,
         "makespan_planned": _round(planned),
         "makespan_allocated": _round(allocated),
         "makespan_flown": _round(flown),

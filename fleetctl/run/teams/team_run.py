@@ -8,6 +8,8 @@ e.g. under the MQTT team hand-over) it is exactly a one-team run of its share.""
 
 from __future__ import annotations
 
+import asyncio
+import contextlib
 from collections.abc import Iterable
 from typing import Any, Protocol
 
@@ -17,6 +19,8 @@ from fleetctl.run.kinds import Ev
 from fleetctl.run.results import PhaseResult
 from fleetctl.run.runner import Run, RunOptions, RunOutcome
 from planners.problem import Task
+
+PLAN_WAIT = 120.0  # wall s a collection scenario's batteries are held at most, waiting for the first plan
 
 
 class Coordinator(Protocol):
@@ -54,6 +58,7 @@ class TeamRun(Run):
         self.collect_ended: float | None = None
         self.first_planned: float | None = None  # its first deployment plan's makespan
         self.rounds = 0  # deployment rounds flown (1 + the rounds for tasks handed to it)
+        self._release: asyncio.Task[None] | None = None  # lets a collection scenario's batteries drain
 
     async def _deploy_rounds(self) -> PhaseResult:
         assert self.executor is not None
@@ -84,6 +89,39 @@ class TeamRun(Run):
             self.started_at = phase.t0
         for tid, flown in phase.board.reached().items():
             self.reached_at.setdefault(tid, phase.t0 + flown)
+
+    def _scenario_batteries(self, hold: bool) -> None:
+        """A ``collection:`` scenario on the simulated fleet: the batteries are held at the
+        scenario's ranges until the team's first collection plan is made (sharing and planning
+        several teams takes seconds of wall time, minutes of hover at a high speedup), then
+        drain."""
+        if hold or self.sim is None or self.command != "collect" or not self.mission.collection:
+            super()._scenario_batteries(hold)
+            return
+        self._release = asyncio.create_task(self._release_after_plan(), name=f"team {self.team}: batteries")
+
+    async def _release_after_plan(self) -> None:
+        try:
+            async with asyncio.timeout(PLAN_WAIT):
+                while not self._planned_collection():
+                    await asyncio.sleep(0.02)
+        except TimeoutError:
+            pass
+        finally:
+            for cr in self.mission.collection or ():
+                self.sim.pin_battery(cr.id, None)
+
+    def _planned_collection(self) -> bool:
+        phase = self.executor.collect_phase if self.executor is not None else None
+        return phase is not None and phase.plan is not None
+
+    async def _finish(self) -> dict[str, Any]:
+        release, self._release = self._release, None
+        if release is not None:  # lets the batteries drain if the collection never got to a plan
+            release.cancel()
+            with contextlib.suppress(asyncio.CancelledError):
+                await release
+        return await super()._finish()
 
     async def _collect(self) -> None:
         try:
