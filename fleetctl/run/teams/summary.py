@@ -35,11 +35,9 @@ def teams_summary(tr: TeamsRun) -> dict[str, Any]:
     )
     complete = not tr.interrupted and tr.error is None and deploy_ok and collect_ok
     dep_plan, col_plan = tr.plans.get("deploy"), tr.plans.get("collect")
-    dep_flown = _span([r.started_at for r in deploys.values()], [t for _, t in board.reached.values()])
-    col_flown = _span(
-        [r.collect_started for r in collects.values()],
-        [t for r in collects.values() if (t := r.collect_ended) is not None],
-    )
+    # the mission's makespan is the latest team's (each from its own carrier's start)
+    dep_flown = _latest([_deploy_flown(tr, cid, r) for cid, r in deploys.items()])
+    col_flown = _latest([_collect_flown(r) for r in collects.values()])
     dep_planned = _latest([r.first_planned for r in deploys.values()])
     col_planned = _latest([_planned(r, "collect") for r in collects.values()])
     planned, flown = _makespans(tr, dep_planned, col_planned, dep_flown, col_flown)
@@ -101,7 +99,7 @@ def _team(tr: TeamsRun, cid: str, dep: TeamRun | None, col: TeamRun | None) -> d
             "rounds": dep.rounds,
             "makespan_planned": _round(dep.first_planned),
             "makespan_allocated": _round(dep_plan.team(cid).makespan) if dep_plan else None,
-            "makespan_flown": _round(_span([dep.started_at], [board.reached[t][1] for t in mine])),
+            "makespan_flown": _round(_deploy_flown(tr, cid, dep)),
             "result": tr.outcomes.get("deploy", {}).get(cid).summary["result"]  # type: ignore[union-attr]
             if cid in tr.outcomes.get("deploy", {})
             else None,
@@ -113,9 +111,7 @@ def _team(tr: TeamsRun, cid: str, dep: TeamRun | None, col: TeamRun | None) -> d
             "rovers_loaded": list(col.loaded_at),
             "makespan_planned": _round(_planned(col, "collect")),
             "makespan_allocated": _round(col_plan.team(cid).makespan) if col_plan else None,
-            "makespan_flown": _round(
-                _span([col.collect_started], [col.collect_ended] if col.collect_ended else [])
-            ),
+            "makespan_flown": _round(_collect_flown(col)),
             "records": str(col.journal.dir),
         }
     return out
@@ -129,6 +125,19 @@ def _latest(spans: list[float | None]) -> float | None:
 def _planned(run: TeamRun, phase: str) -> float | None:
     r = run.results.get(phase)
     return None if r is None else r.planned
+
+
+def _deploy_flown(tr: TeamsRun, cid: str, run: TeamRun) -> float | None:
+    """From the team's carrier's start to the last task it reached (handed-over ones included)."""
+    return _span([run.started_at], [t for team, t in tr.board.reached.values() if team == cid])
+
+
+def _collect_flown(run: TeamRun) -> float | None:
+    return (
+        None
+        if run.collect_ended is None or run.collect_started is None
+        else (run.collect_ended - run.collect_started)
+    )
 
 
 def _span(starts: list[float | None], ends: list[float]) -> float | None:
