@@ -270,3 +270,36 @@ async def test_a_team_lost_with_a_rover_in_flight_is_stopped_and_its_tasks_serve
     assert handed == ["t1", "t2"] and c1["deploy"]["tasks_reached"] == []
     kinds = [(r["kind"], r.get("status")) for r in read_journal(tmp_path / "run" / "journal.jsonl")]
     assert ("team", "stopped") in kinds
+
+
+async def test_the_web_map_shows_a_two_team_run(tmp_path: Path) -> None:
+    import io
+
+    import aiohttp
+
+    from fleetctl.views.dashboard import HeadlessView
+    from fleetctl.views.view import Views
+    from fleetctl.views.web import WebMapView
+
+    m = mission_from(two_teams(), tmp_path)
+    web = WebMapView("127.0.0.1", 0, origin=m.origin)
+    out_lines = io.StringIO()
+    docs: list[dict[str, Any]] = []
+
+    async def look() -> None:
+        await asyncio.wait_for(web.ready.wait(), 60.0)
+        async with aiohttp.ClientSession() as session:
+            for _ in range(200):
+                async with session.get(web.server.url + "state") as resp:
+                    docs.append(await resp.json())
+                if docs[-1].get("plan", {}).get("kind") == "deploy":
+                    return
+                await asyncio.sleep(0.05)
+
+    looker = asyncio.create_task(look())
+    view = Views(HeadlessView(out_lines), web)
+    out = await execute(m, "deploy", run_dir=tmp_path / "run", speedup=SPEEDUP, view=view)
+    await asyncio.wait_for(looker, 10.0)
+    assert out.exit_code == 0 and web.error is None
+    assert docs and docs[-1]["plan"]["kind"] == "deploy"  # the first team's plan on the map
+    assert "c1 task_reached" in out_lines.getvalue() and "c2 task_reached" in out_lines.getvalue()
