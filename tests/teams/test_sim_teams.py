@@ -3,6 +3,7 @@ served, each rover on its own carrier's deck and link (MAVLink heartbeats over r
 
 from __future__ import annotations
 
+import dataclasses
 import re
 import signal
 import subprocess
@@ -10,9 +11,14 @@ import sys
 import time
 from pathlib import Path
 
+import pytest
 from pymavlink import mavutil
 
-from fleetctl.run.sim import sim_fleet_config
+from fleetctl.mission import load_mission
+from fleetctl.mission.teams import several_teams
+from fleetctl.run.context import ExecutionError
+from fleetctl.run.sim import sim_fleet_config, sim_mission_dict
+from sitl import FleetConfig
 from tests.teams.teams_helpers import mission_from, two_teams, write_mission
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -22,7 +28,11 @@ def test_the_sim_config_holds_every_team(tmp_path: Path) -> None:
     cfg = sim_fleet_config(mission_from(two_teams(), tmp_path))
     assert [c.id for c in cfg.carriers] == ["c1", "c2"]
     assert {r.id: (r.sysid, r.carrier) for r in cfg.rovers} == {
-        "r1": (11, "c1"), "r2": (12, "c1"), "r3": (31, "c2"), "r4": (32, "c2")}
+        "r1": (11, "c1"),
+        "r2": (12, "c1"),
+        "r3": (31, "c2"),
+        "r4": (32, "c2"),
+    }
     assert cfg.carriers[1].position == (80.0, 0.0, 0.0)
 
 
@@ -69,3 +79,33 @@ def test_fleetctl_sim_serves_every_carrier_and_rover(tmp_path: Path) -> None:
         proc.send_signal(signal.SIGINT)
         out, err = proc.communicate(timeout=20)
     assert proc.returncode == 0, err
+
+
+def test_one_team_missions_get_the_simulated_fleet_they_had() -> None:
+    # the typed configuration (every team) is the one the mission-dict reading gave one team
+    compared = 0
+    for path in sorted((ROOT / "missions").glob("**/*.yaml")):
+        m = load_mission(path)
+        if several_teams(m):
+            with pytest.raises(ExecutionError, match="sim_fleet_config"):
+                sim_mission_dict(m)
+            continue
+        for command in ("deploy", "collect"):
+            try:
+                old = FleetConfig.from_mission_dict(sim_mission_dict(m, command))
+            except ExecutionError:  # collect without a collection: section
+                with pytest.raises(ExecutionError):
+                    sim_fleet_config(m, command)
+                continue
+            # None meant "max_speed" (climb) and "the climb rate" (land) there; spelled out here
+            old.rovers = [
+                dataclasses.replace(
+                    r,
+                    climb_rate=r.climb_rate or r.max_speed,
+                    land_speed=r.land_speed or r.climb_rate or r.max_speed,
+                )
+                for r in old.rovers
+            ]
+            assert sim_fleet_config(m, command) == old, (path, command)
+            compared += 1
+    assert compared >= 10
