@@ -33,18 +33,16 @@ from fleetctl.journal import Journal, run_dir_for, write_summary
 from fleetctl.mavlink.fleet import Fleet, connect_fleet
 from fleetctl.mavlink.link import LinkError
 from fleetctl.mission import Mission
-from fleetctl.mission.flight import MEET_HEIGHT
 from fleetctl.mission.formats import copy_data_files
 from fleetctl.mission.teams import mission_teams, team_mission, teams_problem
 from fleetctl.run.context import ExecutionError
-from fleetctl.run.energy import range_from_percent
 from fleetctl.run.kinds import Ev
 from fleetctl.run.results import PhaseResult
 from fleetctl.run.runner import EXIT_FAILED, EXIT_INTERRUPTED, EXIT_OK, RunOptions, RunOutcome
 from fleetctl.run.sim import mission_uses_sim, sim_fleet_config
-from fleetctl.run.state import on_deck
 from fleetctl.run.teams.board import ACTIVE, TeamEntry, TeamsBoard, TeamStatus
 from fleetctl.run.teams.handover import Handovers
+from fleetctl.run.teams.live import live_mission, rovers_in_the_field
 from fleetctl.run.teams.summary import teams_summary
 from fleetctl.run.teams.team_run import TeamRun
 from fleetctl.run.teams.views import team_views
@@ -369,56 +367,26 @@ class TeamsRun:
         self.board.set_status(cid, TeamStatus.DONE if outcome.exit_code == EXIT_OK else TeamStatus.FAILED)
 
     async def _rovers_in_the_field(self) -> tuple[CollectRover, ...]:
-        """Every rover a team launched that is not on a deck now: live position and range. One
-        without a position, or without the range to reach the approach height above it, is left
-        in the field (``self.left``, with why)."""
+        """Every rover a team launched that is not on a deck now (``self.left``: those that
+        cannot be collected, with why)."""
         assert self.fleet is not None
-        fleet, rp = self.fleet, self.mission.rovers
         launched = [
             r
             for run in self.runs.get("deploy", {}).values()
             for r in (run.results["deploy"].launched if "deploy" in run.results else [])
         ]
-        carriers = [fleet.vehicles[cid].enu for cid in self.board.teams]
-        out = []
-        for rid in dict.fromkeys(launched):
-            v = fleet.vehicles[rid]
-            if not v.connected or v.lost or v.enu is None:
-                self.left[rid] = "lost: no position to collect it from"
-                continue
-            if any(on_deck(v.enu, c, v.on_ground, v.ground_speed) for c in carriers):
-                continue
-            with contextlib.suppress(LinkError, TimeoutError):
-                await v.refresh_battery()
-            rng = range_from_percent(v.battery_pct, rp.reserve, rp.endurance_range)
-            rng = (1.0 - rp.reserve) * rp.endurance_range if rng is None else rng
-            if rng <= 0.0 or rng < abs(max(v.enu[2], 0.0) - MEET_HEIGHT):  # not even to the approach height
-                self.left[rid] = (
-                    f"unreachable: {rng:.1f} m of range left at {v.enu[2]:.1f} m up "
-                    f"(battery {v.battery_pct if v.battery_pct is not None else '?'} %)"
-                )
-                self.journal.write(
-                    Ev.ROVER_UNREACHABLE, vehicle=rid, text=f"{rid}: {self.left[rid]}; not collected"
-                )
-                continue
-            out.append(CollectRover(rid, (v.enu[0], v.enu[1], max(v.enu[2], 0.0)), rng))
-        return tuple(out)
+        before = set(self.left)
+        crs = await rovers_in_the_field(self.mission, self.fleet, launched, self.left)
+        for rid in self.left.keys() - before:
+            self.journal.write(
+                Ev.ROVER_UNREACHABLE, vehicle=rid, text=f"{rid}: {self.left[rid]}; not collected"
+            )
+        return crs
 
     # ============================================================================== the teams' runs
     def live_mission(self) -> Mission:
-        """The mission with every carrier where its telemetry puts it now (the allocation plans
-        from there)."""
-        m, fleet = self.mission, self.fleet
-        teams = []
-        for t in mission_teams(m):
-            v = fleet.vehicles.get(t.carrier.id) if fleet is not None else None
-            c = t.carrier
-            if v is not None and v.enu is not None:
-                c = dataclasses.replace(c, position=(v.enu[0], v.enu[1]))
-            if v is not None and v.heading_deg is not None:
-                c = dataclasses.replace(c, heading_deg=v.heading_deg)
-            teams.append(dataclasses.replace(t, carrier=c))
-        return dataclasses.replace(m, teams=tuple(teams), carrier=teams[0].carrier)
+        """The mission with every carrier where its telemetry puts it now (the sharing plans from there)."""
+        return live_mission(self.mission, self.fleet)
 
     def _team_mission(self, cid: str, tasks: list[str]) -> Mission:
         return dataclasses.replace(team_mission(self.mission, cid, tasks=tasks), mqtt=None)
