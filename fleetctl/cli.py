@@ -227,13 +227,10 @@ def cmd_resume(args: argparse.Namespace) -> int:
 
 def _one_team(mission: Mission, command: str) -> None:
     if several_teams(mission):
-        ids = ", ".join(t.carrier.id for t in mission.teams)
-        how = (f"fly one team per controller with --team ID ({ids}; docs/teams.md), or plan them all: "
-               "fleetctl plan --mission FILE" if command in ("deploy", "run")
-               else "several teams can only be planned or flown one team per controller for now "
-                    "(fleetctl plan --mission FILE; deploy|run --team ID)")
-        raise CliError(f"{mission.path or mission.name}: '{command}' flies one carrier and this mission has "
-                       f"{len(mission.teams)} (carriers:); {how}")
+        raise CliError(f"{mission.path or mission.name}: '{command}' supports one carrier and this mission "
+                       f"has {len(mission.teams)} (carriers:); several teams fly with deploy, collect and "
+                       "run (every team in one controller, or one per controller with --team ID), and "
+                       "'sim' serves them (docs/teams.md)")
 
 
 def _fly(args: argparse.Namespace, mission: Mission, command: str, extra: dict[str, Any]) -> int:
@@ -244,8 +241,8 @@ def _fly(args: argparse.Namespace, mission: Mission, command: str, extra: dict[s
     from fleetctl.views.dashboard import make_view
 
     team = getattr(args, "team", None)
-    if team is None:
-        _one_team(mission, command)
+    if "resume" in extra:  # several teams fly deploy/collect/run (docs/teams.md), not resume yet
+        _one_team(mission, "resume")
     if args.speedup is not None and args.speedup <= 0:
         raise CliError(f"--speedup must be > 0, got {args.speedup}")
     if getattr(args, "dwell", None) is not None and args.dwell < 0:
@@ -370,6 +367,26 @@ def _print_outcome(command: str, mission: Mission, outcome: RunOutcome) -> None:
              if s.get("makespan_flown") is not None and s.get("makespan_planned") is not None else "")
           + f"; records in {outcome.run_dir}",
           file=sys.stderr if outcome.exit_code else sys.stdout)
+    for team in s.get("teams", []):  # several carriers (docs/teams.md): a line per team
+        print("  " + _team_line(team), file=sys.stderr if outcome.exit_code else sys.stdout)
+
+
+def _team_line(team: dict[str, Any]) -> str:
+    parts = [f"team {team['carrier']}" + (" (carrier lost)" if team.get("lost") else "")]
+    for phase, what in (("deploy", "tasks_reached"), ("collect", "rovers_loaded")):
+        p = team.get(phase)
+        if p is None:
+            continue
+        n = len(p[what])
+        of = (len(p["tasks_planned"]) + len(p["tasks_received"]) if phase == "deploy"
+              else len(p["rovers_planned"]))
+        got = f"{n}/{of} tasks reached" if phase == "deploy" else f"{n}/{of} rovers loaded"
+        if phase == "deploy" and p["tasks_received"]:
+            got += f" ({len(p['tasks_received'])} handed to it)"
+        if p.get("makespan_flown") is not None and p.get("makespan_planned") is not None:
+            got += f" in {p['makespan_flown']:.1f} s (planned {p['makespan_planned']:.1f} s)"
+        parts.append(f"{phase}: {got}")
+    return "; ".join(parts)
 
 
 def _add_fly_commands(sub: argparse._SubParsersAction) -> None:
@@ -569,17 +586,15 @@ def _add_controller_commands(sub: argparse._SubParsersAction) -> None:
 
 
 def _sim_config(mission: Mission, speedup: float | None) -> object:
-    from sitl import ConfigError, FleetConfig
-
     if speedup is not None and not speedup > 0:
         raise CliError(f"--speedup must be > 0, got {speedup}")
     from fleetctl.run.context import ExecutionError
-    from fleetctl.run.sim import sim_mission_dict
+    from fleetctl.run.sim import sim_fleet_config
 
-    try:  # the file with its defaults spelled out (rover units), as the controller sees the fleet
-        return FleetConfig.from_mission_dict(sim_mission_dict(mission), speedup=speedup)
-    except (ConfigError, ExecutionError) as e:
-        raise CliError(f"{mission.path or mission.name}: {e}") from None
+    try:  # every carrier and rover of every team, as the controller sees the fleet
+        return sim_fleet_config(mission, speedup=speedup)
+    except ExecutionError as e:
+        raise CliError(str(e)) from None
 
 
 def cmd_sim(args: argparse.Namespace) -> int:
@@ -587,7 +602,6 @@ def cmd_sim(args: argparse.Namespace) -> int:
     from sitl import SimFleet, serve
 
     mission = load_mission(args.mission)
-    _one_team(mission, "sim")
     config = _sim_config(mission, args.speedup)
 
     def ready(fleet: SimFleet) -> None:
@@ -876,15 +890,16 @@ async def _keys_provision(mission: Mission, key: object, timeout: float) -> int:
     sim = None
     endpoints = None
     if mission.carrier.connection == "sim":  # the embedded simulated fleet starts without a key
-        from fleetctl.run.sim import sim_mission_dict
-        from sitl import ConfigError, FleetConfig, SimFleet
+        from fleetctl.run.context import ExecutionError
+        from fleetctl.run.sim import sim_fleet_config
+        from sitl import ConfigError, SimFleet
         from sitl import LinkError as SimLinkError
 
         try:
-            config = FleetConfig.from_mission_dict(sim_mission_dict(mission), signing_from_env=False)
+            config = sim_fleet_config(mission, signing_from_env=False)
             sim = SimFleet(config)
             await sim.start()
-        except (ConfigError, SimLinkError) as e:
+        except (ConfigError, SimLinkError, ExecutionError) as e:
             raise CliError(str(e)) from None
         endpoints = sim.endpoints
     try:

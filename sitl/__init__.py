@@ -1,4 +1,4 @@
-"""sitl - a simulated marsupial fleet (one carrier, many rovers) speaking real MAVLink 2 over UDP.
+"""sitl - a simulated marsupial fleet (one or several carriers, many rovers) speaking real MAVLink 2 over UDP.
 
 Public API (sitl depends on neither the controller nor the planners)::
 
@@ -9,7 +9,7 @@ Public API (sitl depends on neither the controller nor the planners)::
         fleet.endpoints            # {vehicle_id: "udp://127.0.0.1:PORT" | the udpin:// URL}
         fleet.sim_time             # simulated seconds
         fleet.rover("r1").position # ENU metres; .loaded, .battery (0..1), .on_ground, .flown
-        fleet.body("carrier").position, fleet.world.loaded_rovers()
+        fleet.body("carrier").position, fleet.world.loaded_rovers()  # on any deck, or loaded_rovers("c2")
         fleet.vehicle("r1").armed, .mode (sitl.Mode), .mission, .current, .finished, .statustexts
         fleet.snapshot()           # plain dict of every vehicle's state
         fleet.inject(Fault("dropout", vehicle="r3", at=20.0, until=45.0))
@@ -25,7 +25,9 @@ Public API (sitl depends on neither the controller nor the planners)::
 
 Connection URLs are the controller's side (``sim``, ``udp://``/``udpout://`` = the controller
 sends, the fleet binds; ``udpin://`` = the controller listens, the fleet sends there). Rovers
-without their own connection share the carrier's endpoint (told apart by system id).
+without their own connection share their carrier's endpoint (told apart by system id).
+Several carriers: ``FleetConfig.more_carriers`` holds the others and ``VehicleSpec.carrier`` names the
+deck a rover starts on; a rover touching down by any stopped carrier is loaded on that one.
 Physics and fault times are simulated seconds; telemetry rates, protocol timeouts and latency
 are wall seconds.
 """

@@ -46,6 +46,7 @@ class VehicleSpec:
     endurance_range: float | None = None  # rover only, metres of flight on a full battery; None = no drain
     frame: str = "multirotor"  # carrier: "ground" | "multirotor"; rovers are multirotors
     compid: int = 1
+    carrier: str | None = None  # rover only: the carrier it starts on, whose link it shares (None: the first)
 
     def __post_init__(self) -> None:
         where = f"vehicle {self.id!r}"
@@ -67,8 +68,9 @@ class FleetConfig:
     """Everything the simulated fleet needs. Time values are simulated seconds unless noted."""
 
     origin: tuple[float, float, float]  # lat, lon (degrees), alt (m AMSL) of the ENU origin
-    carrier: VehicleSpec
+    carrier: VehicleSpec  # the first carrier (the only one of a one-carrier fleet)
     rovers: list[VehicleSpec] = field(default_factory=list)
+    more_carriers: list[VehicleSpec] = field(default_factory=list)  # several carriers: the others
     speedup: float = 1.0  # simulated seconds per wall second
     seed: int = 0
     faults: list[Fault] = field(default_factory=list)
@@ -88,8 +90,13 @@ class FleetConfig:
             raise ConfigError("signing_key: a MAVLink signing key is 32 bytes")
         if self.autopilot not in AUTOPILOTS:
             raise ConfigError(f"sim.autopilot: use one of {AUTOPILOTS}, got {self.autopilot!r}")
-        if self.carrier.role != "carrier":
-            raise ConfigError("carrier: its role must be 'carrier'")
+        for c in self.carriers:
+            if c.role != "carrier":
+                raise ConfigError(f"carrier {c.id!r}: its role must be 'carrier'")
+        carrier_ids = {c.id for c in self.carriers}
+        for r in self.rovers:
+            if r.carrier is not None and r.carrier not in carrier_ids:
+                raise ConfigError(f"rover {r.id!r}: no carrier {r.carrier!r} in the fleet")
         seen_ids: set[str] = set()
         seen_sysids: set[int] = set()
         for v in self.vehicles:
@@ -104,8 +111,17 @@ class FleetConfig:
                 raise ConfigError(f"sim.faults: vehicle {f.vehicle!r} is not in the fleet")
 
     @property
+    def carriers(self) -> list[VehicleSpec]:
+        """Every carrier, the first one first."""
+        return [self.carrier, *self.more_carriers]
+
+    @property
     def vehicles(self) -> list[VehicleSpec]:
-        return [self.carrier, *self.rovers]
+        return [*self.carriers, *self.rovers]
+
+    def home_of(self, rover: VehicleSpec) -> VehicleSpec:
+        """The carrier ``rover`` starts on and whose link it shares."""
+        return next((c for c in self.carriers if c.id == rover.carrier), self.carrier)
 
     @classmethod
     def from_mission_dict(
@@ -133,6 +149,9 @@ class FleetConfig:
         """
         if not isinstance(d, Mapping):
             raise ConfigError("mission: expected a mapping at the top level")
+        if "carriers" in d:
+            raise ConfigError("carriers: a mission with several carriers is served by "
+                              "'fleetctl sim --mission FILE' (its loader builds the fleet)")
         lat, lon, alt = _origin(d)
         carrier = _carrier(_mapping(d.get("carrier"), "carrier"))
         rovers = _rovers(_mapping(d.get("rovers"), "rovers"), carrier)

@@ -16,7 +16,7 @@ import time
 from collections.abc import Awaitable, Callable
 from typing import Any
 
-from .config import FleetConfig
+from .config import FleetConfig, VehicleSpec
 from .endpoint import LinkSpec, UdpEndpoint, parse_connection
 from .faults import Fault, FaultBook
 from .flavour import Flavour
@@ -38,7 +38,7 @@ class SimFleet:
 
     def __init__(self, config: FleetConfig) -> None:
         self.config = config
-        self.world = World(config.carrier, config.rovers)
+        self.world = World(config.carrier, config.rovers, config.more_carriers)
         self.frame = LocalFrame(*config.origin)
         self.faults = FaultBook(config.faults)
         self.vehicles: dict[str, SimVehicle] = {}
@@ -68,16 +68,18 @@ class SimFleet:
         return lambda: self.faults.drain_factor(vid, self.world.time)
 
     def _group_links(self) -> list[tuple[LinkSpec, list[str]]]:
-        """Vehicles on the same URL share one endpoint; rovers without a connection share the
+        """Vehicles on the same URL share one endpoint; rovers without a connection share their
         carrier's; each ``sim`` connection gets its own free port."""
-        carrier = self.config.carrier
-        carrier_key = carrier.connection if carrier.connection not in (None, "sim") else f"sim#{carrier.id}"
+
+        def carrier_key(c: VehicleSpec) -> str:
+            return c.connection if c.connection not in (None, "sim") else f"sim#{c.id}"
+
         groups: dict[str, list[str]] = {}
         for spec in self.config.vehicles:
             if spec.role == "carrier":
-                key = carrier_key
+                key = carrier_key(spec)
             elif spec.connection is None:
-                key = carrier_key
+                key = carrier_key(self.config.home_of(spec))
             elif spec.connection == "sim":
                 key = f"sim#{spec.id}"
             else:

@@ -1,4 +1,4 @@
-"""The simulated world: one carrier and its rovers, kinematics, battery, loading and unloading.
+"""The simulated world: the carriers and their rovers, kinematics, battery, loading and unloading.
 
 Pure Python, no I/O, no MAVLink: advance it with ``World.step(dt)``. ENU metres, z up, ground
 at z = 0, the carrier's deck at z = 0 too. Motion model (matches the planners' time model):
@@ -14,8 +14,9 @@ at z = 0, the carrier's deck at z = 0 too. Motion model (matches the planners' t
   endurance_range`` of its battery per step, i.e. ``endurance_range`` metres at cruise speed on a
   full battery, as a multirotor does; on the ground or the deck it uses none. An empty rover in
   the air lands where it is.
-* a rover loaded on the carrier moves with it; any flight command detaches it; touching down
-  within ``LOAD_RADIUS`` (horizontal) of the stopped carrier loads it again.
+* a rover loaded on a carrier moves with it; any flight command detaches it; touching down
+  within ``LOAD_RADIUS`` (horizontal) of a stopped carrier loads it on that carrier (with several
+  carriers: any of them, not only the one it started on).
 """
 
 from __future__ import annotations
@@ -158,9 +159,10 @@ class Carrier(Body):
 class Rover(Body):
     """A small multirotor that rides on the carrier, flies and lands."""
 
-    def __init__(self, spec: VehicleSpec, carrier: Carrier) -> None:
+    def __init__(self, spec: VehicleSpec, carrier: Carrier, decks: list[Carrier] | None = None) -> None:
         super().__init__(spec, spec.position or carrier.position)
-        self.carrier = carrier
+        self.carrier = carrier  # the carrier it rides on (or last rode on)
+        self.decks = decks if decks is not None else [carrier]  # every carrier it may land on
         if spec.position is None:
             self.phase = Phase.LOADED
         else:
@@ -352,8 +354,9 @@ class Rover(Body):
         self.landing = False
         self._land_xy = None
         self.target = None
-        cx, cy, _ = self.carrier.position
-        if self.carrier.stopped and math.hypot(self._pos[0] - cx, self._pos[1] - cy) <= LOAD_RADIUS:
+        deck = self._deck_below()
+        if deck is not None:
+            self.carrier = deck
             self.phase = Phase.LOADED
             self.events.append("loaded")
         else:
@@ -362,26 +365,47 @@ class Rover(Body):
         self.events.append("touchdown")
 
 
+    def _deck_below(self) -> Carrier | None:
+        """The nearest stopped carrier within LOAD_RADIUS of the touch-down point, if any."""
+        x, y = self._pos[0], self._pos[1]
+        near = [(math.hypot(x - c.position[0], y - c.position[1]), k) for k, c in enumerate(self.decks)
+                if c.stopped]
+        d, k = min(near, default=(math.inf, -1))
+        return self.decks[k] if d <= LOAD_RADIUS else None
+
+
 AnyBody = Carrier | Rover  # a Body is always one of the two
 
 
 class World:
-    """The carrier and its rovers, advanced together in fixed steps."""
+    """The carriers and their rovers, advanced together in fixed steps. ``carrier`` is the first
+    carrier (the only one of a one-carrier world); ``more_carriers`` the others. A rover starts on
+    the deck of the carrier its spec names (``VehicleSpec.carrier``; None = the first)."""
 
-    def __init__(self, carrier: VehicleSpec, rovers: list[VehicleSpec]) -> None:
+    def __init__(self, carrier: VehicleSpec, rovers: list[VehicleSpec],
+                 more_carriers: list[VehicleSpec] | None = None) -> None:
         self.time = 0.0
         self.carrier = Carrier(carrier)
-        self.rovers: dict[str, Rover] = {r.id: Rover(r, self.carrier) for r in rovers}
-        self.bodies: dict[str, AnyBody] = {carrier.id: self.carrier, **self.rovers}
+        self.carriers: dict[str, Carrier] = {carrier.id: self.carrier}
+        for spec in more_carriers or []:
+            self.carriers[spec.id] = Carrier(spec)
+        decks = list(self.carriers.values())
+        self.rovers: dict[str, Rover] = {
+            r.id: Rover(r, self.carriers.get(r.carrier or carrier.id, self.carrier), decks) for r in rovers
+        }
+        self.bodies: dict[str, AnyBody] = {**self.carriers, **self.rovers}
 
     def body(self, vehicle_id: str) -> AnyBody:
         return self.bodies[vehicle_id]
 
-    def loaded_rovers(self) -> list[str]:
-        return [r.id for r in self.rovers.values() if r.loaded]
+    def loaded_rovers(self, carrier: str | None = None) -> list[str]:
+        """The rovers on a deck (``carrier``'s, or any carrier's)."""
+        return [r.id for r in self.rovers.values()
+                if r.loaded and (carrier is None or r.carrier.id == carrier)]
 
     def step(self, dt: float) -> None:
-        self.carrier.step(dt)
+        for c in self.carriers.values():
+            c.step(dt)
         for r in self.rovers.values():
             if r.phase is Phase.AIR:
                 r.step(dt)

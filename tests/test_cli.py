@@ -105,11 +105,12 @@ def test_help_explains():
 
 @pytest.mark.parametrize("mission", sorted((ROOT / "missions").glob("**/*.yaml")), ids=lambda p: p.name)
 def test_every_mission_file_configures_the_simulated_fleet(mission):
-    # What `fleetctl sim` and the embedded fleet of deploy/run start from.
-    from fleetctl.run.sim import sim_mission_dict
-    from sitl import FleetConfig
+    # What `fleetctl sim` and the embedded fleet of deploy/run start from (every carrier of every team).
+    from fleetctl.mission.teams import mission_teams
+    from fleetctl.run.sim import sim_fleet_config
 
     m = load_mission(mission)
-    cfg = FleetConfig.from_mission_dict(sim_mission_dict(m))
-    assert cfg.carrier.sysid == m.carrier.sysid
+    cfg = sim_fleet_config(m)
+    teams = mission_teams(m)
+    assert [(c.id, c.sysid) for c in cfg.carriers] == [(t.carrier.id, t.carrier.sysid) for t in teams]
     assert [(r.id, r.sysid) for r in cfg.rovers] == [(u.id, u.sysid) for u in m.rovers.units]

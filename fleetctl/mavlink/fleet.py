@@ -35,13 +35,14 @@ class Fleet:
     """The mission's vehicles on their links. Close it (or use ``async with``) to close the links."""
 
     def __init__(self, carrier_id: str, vehicles: dict[str, Vehicle], links: dict[str, Link],
-                 urls: dict[str, str], errors: dict[str, str]) -> None:
+                 urls: dict[str, str], errors: dict[str, str], other_carriers: tuple[str, ...] = ()) -> None:
         self.carrier_id = carrier_id
         self.vehicles = vehicles  # id -> Vehicle (carrier first, then rovers in mission order)
         self.links = links  # url -> open Link
         self.urls = urls  # id -> url
         self.errors = errors  # id -> why it is not connected (link errors, no heartbeat)
         self.left_out: dict[str, str] = {}  # rover id -> why it does not fly (failed preflight)
+        self.other_carriers = other_carriers  # several teams: the carriers after the first (no rovers)
 
     @property
     def carrier(self) -> Vehicle:
@@ -50,7 +51,20 @@ class Fleet:
     @property
     def rovers(self) -> dict[str, Vehicle]:
         """The rovers that fly: every rover of the mission but those :meth:`leave_out` removed."""
-        return {k: v for k, v in self.vehicles.items() if k != self.carrier_id and k not in self.left_out}
+        return {k: v for k, v in self.vehicles.items()
+                if k != self.carrier_id and k not in self.left_out and k not in self.other_carriers}
+
+    def team(self, carrier_id: str, rover_ids: tuple[str, ...] | list[str]) -> FleetView:
+        """One team's part of this fleet: that carrier and those rovers, on the same vehicle proxies
+        and links (a view: closing it closes nothing; the whole fleet owns them)."""
+        ids = [carrier_id, *rover_ids]
+        unknown = [vid for vid in ids if vid not in self.vehicles]
+        if unknown:
+            raise KeyError(f"no vehicle {unknown[0]!r} in the fleet")
+        urls = {vid: self.urls[vid] for vid in ids}
+        links = {url: self.links[url] for url in dict.fromkeys(urls.values()) if url in self.links}
+        errors = {vid: why for vid, why in self.errors.items() if vid in urls}
+        return FleetView(carrier_id, {vid: self.vehicles[vid] for vid in ids}, links, urls, errors)
 
     def leave_out(self, rover_id: str, why: str) -> None:
         """Keep a (connected) rover out of the run: it stays in ``vehicles`` but not in ``rovers``."""
@@ -124,6 +138,14 @@ class Fleet:
         await self.close()
 
 
+class FleetView(Fleet):
+    """A team's vehicles of a larger :class:`Fleet` (:meth:`Fleet.team`): ``close`` leaves the
+    shared vehicles and links open."""
+
+    async def close(self) -> None:
+        return None
+
+
 def _all_of(removers: list[Callable[[], None]]) -> Callable[[], None]:
     def remove() -> None:
         for r in removers:
@@ -137,11 +159,13 @@ def fleet_urls(mission: Mission, endpoints: Mapping[str, str] | None = None) -> 
     mission's connection; a rover without one shares the carrier's. ``sim`` without endpoints is
     an error (start the simulated fleet and pass its endpoints)."""
     eps = dict(endpoints or {})
-    c = mission.carrier
-    carrier_url = eps.get(c.id, c.connection)
-    urls = {c.id: carrier_url}
+    urls: dict[str, str] = {}
+    home: dict[str, str] = {}  # rover -> its carrier's url
+    for c, rovers in _teams(mission):
+        urls[c.id] = eps.get(c.id, c.connection)
+        home.update(dict.fromkeys(rovers, urls[c.id]))
     for u in mission.rovers.units:
-        urls[u.id] = eps.get(u.id) or u.connection or carrier_url
+        urls[u.id] = eps.get(u.id) or u.connection or home.get(u.id, urls[mission.carrier.id])
     sim = [vid for vid, url in urls.items() if url == "sim"]
     if sim:
         raise LinkError(f"connection 'sim' of {', '.join(sim)}: start the simulated fleet "
@@ -173,7 +197,8 @@ async def connect_fleet(
     urls = fleet_urls(mission, endpoints)
     origin = mission.origin
     hb_timeout = mission.links.heartbeat_timeout
-    sysids = {mission.carrier.id: mission.carrier.sysid} | {u.id: u.sysid for u in mission.rovers.units}
+    carriers = [c for c, _ in _teams(mission)]
+    sysids = {c.id: c.sysid for c in carriers} | {u.id: u.sysid for u in mission.rovers.units}
     links: dict[str, Link] = {}
     errors: dict[str, str] = {}
     key = signing_key
@@ -197,12 +222,12 @@ async def connect_fleet(
                     errors[vid] = str(exc).removeprefix(f"connection {url!r}: ")
     # a vehicle whose link failed to open keeps a proxy on the unopened link: it is reported, never heard
     # plausibility bound: a rover rides the carrier, so it may move at the faster of the two speeds
-    speeds = {mission.carrier.id: mission.carrier.max_speed}
-    rover_speed = max(mission.rovers.max_speed, mission.carrier.max_speed)
+    speeds = {c.id: c.max_speed for c in carriers}
+    rover_speed = max(mission.rovers.max_speed, *(c.max_speed for c in carriers))
     vehicles = {vid: Vehicle(all_links[url], sysids[vid], name=vid, origin=origin,
                              heartbeat_timeout=hb_timeout, max_speed=speeds.get(vid, rover_speed))
                 for vid, url in urls.items()}
-    fleet = Fleet(mission.carrier.id, vehicles, links, urls, errors)
+    fleet = Fleet(mission.carrier.id, vehicles, links, urls, errors, tuple(c.id for c in carriers[1:]))
 
     async def first_heartbeat(vid: str, v: Vehicle) -> None:
         if vid in errors:
@@ -224,4 +249,11 @@ async def connect_fleet(
 
 
 
-__all__ = ["CONNECT_HINT", "Fleet", "FleetConnectError", "Tap", "connect_fleet", "fleet_urls"]
+def _teams(mission: Mission) -> list[tuple[Any, tuple[str, ...]]]:
+    """(carrier, its rover ids) of every team (one team: the carrier and every rover)."""
+    if mission.teams:
+        return [(t.carrier, t.rovers) for t in mission.teams]
+    return [(mission.carrier, tuple(u.id for u in mission.rovers.units))]
+
+
+__all__ = ["CONNECT_HINT", "Fleet", "FleetConnectError", "FleetView", "Tap", "connect_fleet", "fleet_urls"]

@@ -60,8 +60,11 @@ def team_mission(mission: Mission, team_id: str, tasks: Iterable[str] | None = N
     collection = (None if mission.collection is None
                   else tuple(r for r in mission.collection if r.id in ids))
     units = tuple(by_id[r] for r in ids)
+    ours = {team_id} | set(ids)  # a simulator of this team alone knows only its own vehicles' faults
+    faults = tuple(f for f in mission.sim.faults if f.vehicle in ours or f.vehicle is None)
+    sim = replace(mission.sim, faults=faults)
     return replace(mission, carrier=team.carrier, rovers=replace(mission.rovers, units=units),
-                   tasks=own_tasks, collection=collection, teams=(),
+                   tasks=own_tasks, collection=collection, teams=(), sim=sim,
                    raw=_one_team_raw(mission.raw, team_id, units))
 
 

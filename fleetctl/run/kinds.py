@@ -54,6 +54,10 @@ class Ev(StrEnum):
     SUMMARY = "summary"
     BUS = "bus"
     WEB_FAILED = "web_failed"  # the web map (--web) could not listen; the run flies on without it
+    # several teams (fleetctl.run.teams, docs/teams.md)
+    TEAMS_PLAN = "teams_plan"  # how the tasks (or rovers to collect) were shared between the teams
+    TEAM = "team"  # a team's run started or ended (its records: RUN/teams/<carrier>/<phase>/)
+    HANDOVER = "handover"  # tasks handed from one team to another
     # planning and commands
     PLAN = "plan"
     REPLAN = "replan"

@@ -27,13 +27,14 @@ from fleetctl.mavlink.link import LinkError
 from fleetctl.mavlink.vehicle import CommandRejected, Vehicle
 from fleetctl.mission import Mission
 from fleetctl.mission.formats import copy_data_files
+from fleetctl.mission.teams import several_teams
 from fleetctl.run.admission import Admission, admit
 from fleetctl.run.context import ExecutionError
 from fleetctl.run.executor import Executor
 from fleetctl.run.kinds import Ev, Phase, VehicleStatus
 from fleetctl.run.results import PhaseResult
 from fleetctl.run.resume import Resumption
-from fleetctl.run.sim import mission_uses_sim, sim_mission_dict
+from fleetctl.run.sim import mission_uses_sim, sim_fleet_config
 from fleetctl.run.state import FleetState
 from fleetctl.run.summary import RunFacts, build_summary
 from fleetctl.views.view import View
@@ -78,6 +79,7 @@ class RunOptions:
     require_all: bool = False  # refuse a fleet with a rover that does not answer
     force: bool = False  # fly although another controller seems to be in charge
     confirm: Callable[[list[str]], bool] | None = None  # asked before arming (real vehicles)
+    fleet: Fleet | None = None  # an already connected fleet (a team's view of a teams run); not closed
 
 
 async def execute(mission: Mission, command: str, **options: Any) -> RunOutcome:
@@ -91,7 +93,14 @@ async def execute(mission: Mission, command: str, **options: Any) -> RunOutcome:
     ``mqtt:`` section); ``run_dir`` - the records folder; ``on_run_dir`` - told it first."""
     if command not in COMMANDS:
         raise ValueError(f"unknown command {command!r}")
-    return await Run(mission, command, RunOptions(**options)).fly()
+    opts = RunOptions(**options)
+    if several_teams(mission):  # every team at once (fleetctl.run.teams, docs/teams.md)
+        from fleetctl.run.teams import TeamsRun
+
+        if opts.resume is not None:
+            raise ExecutionError("resume flies one carrier; a run of several teams cannot be resumed yet")
+        return await TeamsRun(mission, command, opts).fly()
+    return await Run(mission, command, opts).fly()
 
 
 class Run:
@@ -108,11 +117,7 @@ class Run:
         self.sim_cm: Any = None
         self.sim_config: Any = None
         if self.uses_sim:
-            from sitl import FleetConfig
-
-            self.sim_config = FleetConfig.from_mission_dict(
-                sim_mission_dict(mission, command), speedup=opts.speedup
-            )
+            self.sim_config = sim_fleet_config(mission, command, speedup=opts.speedup)
             self.scale = self.sim_config.speedup
         run_dir = (
             Path(opts.resume.run_dir)
@@ -254,15 +259,8 @@ class Run:
         if view is not None:
             view.start(st, None)
         self._opened = time.monotonic()
-        try:
-            fleet = await connect_fleet(
-                self.mission, self.endpoints, timeout=self.opts.connect_timeout, tap=self.journal.tlog,
-                require_all=False,
-            )
-        except LinkError as exc:
-            raise ExecutionError(f"cannot open the link: {exc}") from None
+        fleet = self.opts.fleet if self.opts.fleet is not None else await self._open_fleet()
         self.fleet = fleet
-        fleet.on_route_conflict(self._route_conflict)
         self._refresher = asyncio.create_task(self._refresh(fleet), name="state refresh")
         adm = self._admission()
         self.missing = await admit(fleet, self.mission, self.command, adm)
@@ -308,6 +306,17 @@ class Run:
         )
         if self.bus is not None:
             self.bus.attach_executor(self.executor)
+
+    async def _open_fleet(self) -> Fleet:
+        try:
+            fleet = await connect_fleet(
+                self.mission, self.endpoints, timeout=self.opts.connect_timeout, tap=self.journal.tlog,
+                require_all=False,
+            )
+        except LinkError as exc:
+            raise ExecutionError(f"cannot open the link: {exc}") from None
+        fleet.on_route_conflict(self._route_conflict)
+        return fleet
 
     async def _refresh(self, fleet: Fleet) -> None:
         while True:
@@ -370,9 +379,7 @@ class Run:
                 await self._collect()
 
     async def _deploy(self) -> None:
-        assert self.executor is not None
-        resume = self.opts.resume
-        r = await self.executor.deploy(resume.deploy if resume is not None else None)
+        r = await self._deploy_rounds()
         self.results["deploy"] = r
         reasons = ", ".join(f"{t} ({r.unserved_reasons.get(t, '?')})" for t in r.tasks_unserved)
         if not r.complete and (self.command == "deploy" or not r.launched):
@@ -388,6 +395,12 @@ class Run:
                 Ev.DEPLOY_INCOMPLETE,
                 f"deployment incomplete: not reached: {reasons}; collecting the rovers in the field",
             )
+
+    async def _deploy_rounds(self) -> PhaseResult:
+        """The deployment phase (a team of several may fly further rounds: fleetctl.run.teams)."""
+        assert self.executor is not None
+        resume = self.opts.resume
+        return await self.executor.deploy(resume.deploy if resume is not None else None)
 
     async def _dwell(self) -> None:
         assert self.executor is not None
@@ -479,7 +492,7 @@ class Run:
         if self.opts.view is not None:
             with contextlib.suppress(Exception):
                 await self.opts.view.stop()
-        if self.fleet is not None:
+        if self.fleet is not None and self.opts.fleet is None:  # a fleet given is its owner's to close
             with contextlib.suppress(Exception):
                 await self.fleet.close()
         if self.bus is not None:

@@ -139,6 +139,10 @@ class FleetState:
         self._clock = clock
         self._clock_t0 = clock() - t
 
+    def count_from(self, t0: float) -> None:
+        """T+ counts from mission clock ``t0`` (a team's run: from the start of the run of every team)."""
+        self._clock_t0 = t0
+
     @property
     def mission_time(self) -> float:
         """Mission seconds since the run started (``T+``): simulated seconds on the embedded sim."""

@@ -240,10 +240,12 @@ class LiveView(View):
 
 
 class HeadlessView(View):
-    """One line per event on ``out`` (stdout by default)."""
+    """One line per event on ``out`` (stdout by default); ``prefix`` goes before the event kind
+    (a run of several teams: the team's carrier)."""
 
-    def __init__(self, out: IO[str] | None = None) -> None:
+    def __init__(self, out: IO[str] | None = None, prefix: str = "") -> None:
         self.out = out or sys.stdout
+        self.prefix = prefix
         self._unlisten: Any = None
 
     def start(self, state: FleetState, fleet: Fleet | None) -> None:
@@ -253,7 +255,7 @@ class HeadlessView(View):
             self._unlisten = state.add_listener(self._print)
 
     def _print(self, ev: Event) -> None:
-        self.out.write(f"[{tplus(ev.mission_time):>10}] {ev.kind:<16} {ev.text}\n")
+        self.out.write(f"[{tplus(ev.mission_time):>10}] {self.prefix}{ev.kind:<16} {ev.text}\n")
         self.out.flush()
 
     async def stop(self) -> None:

@@ -1,0 +1,519 @@
+"""``deploy``, ``collect`` and ``run`` of a mission with several carriers, in one controller.
+
+:class:`TeamsRun` starts one simulated fleet serving every carrier (``connection: sim``), opens
+the links of every vehicle once, shares the work between the teams with ``planners.teams`` (from
+the carriers' live poses) and flies one :class:`~fleetctl.run.teams.team_run.TeamRun` per team
+concurrently, each a one-team run of its share on its own view of the fleet, with its own
+records in ``RUN/teams/<carrier>/<phase>/``. ``run`` deploys every team, dwells, then shares the
+collection out again from the rovers' live positions and batteries: a rover may land on another
+team's carrier.
+
+Cross-team replanning (:class:`~fleetctl.run.teams.handover.Handovers`): a team whose carrier
+stays lost longer than ``links.reassign_after`` hands its unlaunched tasks over, and a team
+that ends its deployment with tasks unserved (no usable rover left, timeouts) or whose run
+fails hands those; the receiving teams are chosen by planning the handed tasks over the teams
+that can still take them (the time model), and get them as a task change while they deploy or
+as a further deployment round once they finished. The run's own records (``RUN/journal.jsonl``,
+``RUN/traffic.tlog`` with every link, ``RUN/plan.json``, ``RUN/summary.json``) combine the teams.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import dataclasses
+import logging
+import threading
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+from fleetctl.journal import Journal, run_dir_for, write_summary
+from fleetctl.mavlink.fleet import Fleet, connect_fleet
+from fleetctl.mavlink.link import LinkError
+from fleetctl.mission import Mission
+from fleetctl.mission.formats import copy_data_files
+from fleetctl.mission.teams import mission_teams, team_mission, teams_problem
+from fleetctl.run.context import ExecutionError
+from fleetctl.run.kinds import Ev
+from fleetctl.run.results import PhaseResult
+from fleetctl.run.runner import EXIT_FAILED, EXIT_INTERRUPTED, EXIT_OK, RunOptions, RunOutcome
+from fleetctl.run.sim import mission_uses_sim, sim_fleet_config
+from fleetctl.run.teams.board import ACTIVE, TeamEntry, TeamsBoard, TeamStatus
+from fleetctl.run.teams.handover import Handovers
+from fleetctl.run.teams.live import live_mission, rovers_in_the_field
+from fleetctl.run.teams.summary import teams_summary
+from fleetctl.run.teams.team_run import TeamRun
+from fleetctl.run.teams.views import team_views
+from planners.core.problem import CollectRover, Task
+from planners.teams import TeamsPlan, plan_teams
+
+log = logging.getLogger(__name__)
+
+WATCH_EVERY = 0.2  # wall s between looks at the carriers' links while the teams deploy
+CLOCK_STEP = 0.05  # wall s between looks at the mission clock while dwelling
+
+
+class TeamsRun:
+    """A run of several teams (see the module docstring)."""
+
+    def __init__(self, mission: Mission, command: str, opts: RunOptions) -> None:
+        self.mission = mission
+        self.command = command
+        self.opts = opts
+        run_dir = Path(opts.run_dir) if opts.run_dir is not None else run_dir_for(mission.name, opts.runs_dir)
+        run_dir.mkdir(parents=True, exist_ok=True)
+        self.journal = Journal(run_dir)
+        self.board = TeamsBoard(
+            {t.carrier.id: TeamEntry(t.carrier.id, t.rovers) for t in mission_teams(mission)}
+        )
+        self.sim: Any = opts.sim
+        self.sim_cm: Any = None
+        self.endpoints = dict(opts.sim.endpoints) if opts.sim is not None else opts.endpoints
+        self.uses_sim = opts.sim is None and self.endpoints is None and mission_uses_sim(mission)
+        self.sim_config = sim_fleet_config(mission, command, speedup=opts.speedup) if self.uses_sim else None
+        self.clock, self.scale = self._clock()
+        self.fleet: Fleet | None = None
+        self.runs: dict[str, dict[str, TeamRun]] = {}  # phase -> team -> its run
+        self.flying: dict[str, asyncio.Task[RunOutcome]] = {}  # team -> its run of the phase flying
+        self._stopped: set[str] = set()  # lost teams whose run was stopped
+        self.outcomes: dict[str, dict[str, RunOutcome]] = {}  # phase -> team -> its outcome
+        self.plans: dict[str, TeamsPlan] = {}  # phase -> how the work was shared
+        self.handovers = Handovers(self)
+        self.views: dict[str, Any] = {}  # team -> its view of the phase flying (fleetctl.run.teams.views)
+        self.left: dict[str, str] = {}  # run: launched rovers the collection leaves in the field -> why
+        self.dwell_planned: float | None = None
+        self.dwell_flown: float | None = None
+        self.error: str | None = None
+        self.interrupted = False
+        self.t0 = 0.0  # mission clock when the run of every team started (T+ = 0)
+        self._confirm_lock = threading.Lock()
+
+    def _clock(self) -> tuple[Callable[[], float], float]:
+        if self.sim is not None:
+            sim = self.sim
+            return (lambda: float(sim.sim_time)), float(sim.speedup)
+        if self.sim_config is not None:
+            return time.monotonic, float(self.sim_config.speedup)  # until the simulator runs
+        if self.opts.clock_speedup is not None:
+            scale = float(self.opts.clock_speedup)
+            return (lambda: time.monotonic() * scale), scale
+        return time.monotonic, 1.0
+
+    # ============================================================================== the run
+    async def fly(self) -> RunOutcome:
+        if self.opts.on_run_dir is not None:
+            self.opts.on_run_dir(self.journal.dir)
+        self.journal.start()
+        await self._begin_records()
+        try:
+            await self._start_sim()
+            self.t0 = self.clock()
+            await self._connect()
+            if self.command in ("deploy", "run"):
+                await self._deploy()
+            if self.command == "run":
+                await self._dwell()
+            if self.command in ("collect", "run"):
+                await self._collect()
+        except ExecutionError as exc:
+            self.error = str(exc)
+            self.journal.write(Ev.ERROR, text=self.error)
+        except asyncio.CancelledError:
+            task = asyncio.current_task()
+            if task is not None:
+                task.uncancel()
+            self.interrupted = True
+            self.journal.write(Ev.INTERRUPTED, text="interrupted: every team holds its airborne rovers")
+        finally:
+            summary = await self._finish()
+        code = (
+            EXIT_INTERRUPTED
+            if self.interrupted
+            else (EXIT_OK if summary["result"] == "complete" else EXIT_FAILED)
+        )
+        return RunOutcome(code, summary, self.journal.dir, self.error)
+
+    async def _begin_records(self) -> None:
+        m, j = self.mission, self.journal
+        if m.path is not None:
+            with contextlib.suppress(OSError):
+                await asyncio.to_thread(j.save_mission, m.path)
+                await asyncio.to_thread(copy_data_files, m, j.dir)
+        await j.commit(
+            Ev.RUN,
+            mission=m.name,
+            command=self.command,
+            file=str(m.path or ""),
+            sim=self.uses_sim,
+            speedup=self.scale,
+            planner=self.opts.planner,
+            dwell=self.opts.dwell,
+            unix_t0=time.time(),
+            teams={cid: list(e.rovers) for cid, e in self.board.teams.items()},
+        )
+
+        if self.opts.mqtt is not None or m.mqtt is not None:
+            log.warning("several teams: the MQTT fleet bus is not started (not yet for several carriers)")
+            j.write(Ev.BUS, text="bus: off: a run of several teams does not start the MQTT fleet bus yet")
+
+    async def _start_sim(self) -> None:
+        if not self.uses_sim:
+            return
+        from sitl import SimFleet
+
+        assert self.sim_config is not None
+        self.sim_cm = SimFleet(self.sim_config)
+        self.sim = sim = await self.sim_cm.__aenter__()
+        self.clock = lambda: float(sim.sim_time)
+        self.endpoints = dict(sim.endpoints)
+        self.journal.write(Ev.SIM_STARTED, endpoints=self.endpoints, speedup=self.scale)
+        self._hold_scenario_batteries()
+        if self.opts.on_sim is not None:
+            self.opts.on_sim(sim)
+
+    def _hold_scenario_batteries(self) -> None:
+        """``collect`` on the simulated fleet: each rover of the ``collection:`` section has its
+        ``range`` left when the collection starts; the simulator holds it there while the fleet
+        connects and the work is shared (each team's run then lets it drain after its own
+        connect, as a one-carrier collection does)."""
+        if self.sim is None or self.command != "collect" or not self.mission.collection:
+            return
+        rp = self.mission.rovers
+        for cr in self.mission.collection:
+            self.sim.pin_battery(cr.id, min(1.0, rp.reserve + cr.range / rp.endurance_range))
+
+    async def _connect(self) -> None:
+        """Every vehicle of every team on one set of links (each team flies a view of it)."""
+        try:
+            fleet = await connect_fleet(
+                self.mission,
+                self.endpoints,
+                timeout=self.opts.connect_timeout,
+                tap=self.journal.tlog,
+                require_all=False,
+            )
+        except LinkError as exc:
+            raise ExecutionError(f"cannot open the link: {exc}") from None
+        self.fleet = fleet
+
+        def conflict(vid: str | None, sysid: int, old: Any, new: Any) -> None:
+            self.journal.write(Ev.ROUTE_CONFLICT, vehicle=vid, sysid=sysid, old=str(old), new=str(new))
+
+        fleet.on_route_conflict(conflict)
+        for vid, v in fleet.vehicles.items():
+            if v.connected:
+                self.journal.write(Ev.CONNECTED, vehicle=vid, url=fleet.urls.get(vid), sysid=v.sysid)
+
+    # ============================================================================== deployment
+    async def _deploy(self) -> None:
+        plan = await self._share("deploy", self.live_mission())
+        self.views = team_views(self.opts.view, list(self.board.teams))
+        for team in plan.teams:
+            self.board.allocate(team.carrier, [leg.task for leg in team.plan.legs() if leg.task is not None])
+        runs = {
+            cid: TeamRun(
+                self._team_mission(cid, tasks=e.tasks),
+                "deploy",
+                self._team_opts(cid, "deploy"),
+                cid,
+                self,
+                self.t0,
+            )
+            for cid, e in self.board.teams.items()
+        }
+        self.runs["deploy"] = runs
+        for cid in runs:
+            self.board.set_status(cid, TeamStatus.DEPLOYING)
+        watch = asyncio.create_task(self._watch_carriers(), name="teams: carrier watch")
+        try:
+            await self._fly_all("deploy", runs, self._deploy_ended)
+        finally:
+            watch.cancel()
+            with contextlib.suppress(asyncio.CancelledError):
+                await watch
+
+    async def _deploy_ended(self, cid: str, run: TeamRun, outcome: RunOutcome) -> None:
+        """A team's deployment run is over: what it reached counts; what it owns and did not reach
+        goes to teams that can still take it."""
+        self._note_reached(cid, run)
+        left = self.board.owned_unreached(cid)
+        if left and self.board.teams[cid].status != TeamStatus.SETTLING:
+            why = outcome.error or "its run ended"
+            await self.handovers.place(self._task_objects(run, left), cid, f"{cid}: {why}")
+        self.board.set_status(cid, TeamStatus.FAILED if self.board.owned_unreached(cid) else TeamStatus.DONE)
+
+    async def more_work(self, team: str, result: PhaseResult) -> list[Task]:
+        """Asked by a team's run after each deployment round: hand its unserved tasks over, then
+        wait until it is handed tasks (returned: one more round) or no team can hand any over
+        (``[]``: its deployment is over)."""
+        entry, run = self.board.teams[team], self.runs["deploy"][team]
+        self._note_reached(team, run)
+        self.board.set_status(team, TeamStatus.SETTLING)
+        mine = [t for t in result.tasks_unserved if self.board.owner.get(t) == team]
+        if mine:
+            reasons = "; ".join(f"{t}: {result.unserved_reasons.get(t, 'not reached')}" for t in mine)
+            await self.handovers.place(
+                self._task_objects(run, mine), team, f"{team} could not serve them ({reasons})"
+            )
+        while True:
+            board = run.executor.board if run.executor is not None else None
+            extra = [t for t in entry.received if board is not None and t.id not in board.entries]
+            if extra and not entry.lost:
+                self.board.set_status(team, TeamStatus.DEPLOYING)
+                return extra
+            if self.board.settled():
+                if not self._stop_lost_teams():  # a lost team's run ends first: it may hand tasks over
+                    entry.finished = True
+                    return []
+            self.board.changed.clear()
+            with contextlib.suppress(TimeoutError):
+                await asyncio.wait_for(self.board.changed.wait(), 1.0)
+
+    async def _watch_carriers(self) -> None:
+        """A deploying team whose carrier stays lost longer than ``links.reassign_after`` hands its
+        unlaunched tasks to the other teams."""
+        after = self.mission.links.reassign_after
+        while True:
+            await asyncio.sleep(WATCH_EVERY)
+            for cid, entry in self.board.teams.items():
+                run = self.runs.get("deploy", {}).get(cid)
+                if run is None or run.fleet is None or entry.lost or entry.status != TeamStatus.DEPLOYING:
+                    continue
+                if not run.fleet.carrier.lost:
+                    entry.lost_since = None
+                    continue
+                now = time.monotonic()
+                entry.lost_since = entry.lost_since or now
+                if now - entry.lost_since >= after:
+                    entry.lost = True
+                    await self.handovers.carrier_lost(cid, run, after)
+            self._stop_lost_teams()
+
+    def _stop_lost_teams(self) -> bool:
+        """A team whose carrier is lost is not waited for once every other team has finished
+        deploying: its run stops (its airborne rovers hold where they are, to be collected by the
+        others) and the tasks it had not reached go to the teams that can take them. True while
+        such a run is still ending."""
+        if not self.board.settled():
+            return False
+        ending = False
+        for cid, entry in self.board.teams.items():
+            flying = self.flying.get(cid)
+            if not (entry.lost and entry.status in ACTIVE):
+                continue
+            ending = True
+            if flying is not None and not flying.done() and cid not in self._stopped:
+                self._stopped.add(cid)
+                self.journal.write(
+                    Ev.TEAM,
+                    team=cid,
+                    phase="deploy",
+                    status="stopped",
+                    text=f"{cid}: carrier lost and every other team done: its run stops",
+                )
+                flying.cancel()
+        return ending
+
+    def _note_reached(self, cid: str, run: TeamRun) -> None:
+        for tid, t in run.reached_at.items():
+            if self.board.owner.get(tid) == cid:
+                self.board.reached.setdefault(tid, (cid, t))
+        self.board.touch()
+
+    @staticmethod
+    def _task_objects(run: TeamRun, ids: list[str]) -> list[Task]:
+        entries = run.executor.board.entries if run.executor is not None else {}
+        by_id = {t.id: t for t in run.mission.tasks}
+        return [entries[t].task if t in entries else by_id[t] for t in ids if t in entries or t in by_id]
+
+    # ============================================================================== dwell
+    async def _dwell(self) -> None:
+        wait = self.mission.dwell if self.opts.dwell is None else self.opts.dwell
+        self.dwell_planned = wait
+        self.journal.write(Ev.DWELL, text=f"every team dwells {wait:g} s on task")
+        t0 = self.clock()
+        async with asyncio.timeout(wait / max(self.scale, 1e-9) + 60.0):
+            while self.clock() - t0 < wait:
+                await asyncio.sleep(CLOCK_STEP)
+        self.dwell_flown = self.clock() - t0
+
+    # ============================================================================== collection
+    async def _collect(self) -> None:
+        if self.command == "collect":
+            live = self.live_mission()
+        else:
+            live = dataclasses.replace(self.live_mission(), collection=await self._rovers_in_the_field())
+        if not live.collection:
+            self.journal.write(Ev.NOTHING_TO_COLLECT, text="no rover in the field to collect")
+            return
+        plan = await self._share("collect", live)
+        shares = {t.carrier: [leg.rover for leg in t.plan.legs()] for t in plan.teams}
+        self.views = team_views(self.opts.view, [cid for cid, rovers in shares.items() if rovers])
+        keep = self.command == "collect"  # a scenario's collection section (its batteries are pinned)
+        runs = {}
+        for cid, rovers in shares.items():
+            if not rovers:
+                continue
+            own = team_mission(live, cid, tasks=(), rovers=rovers)
+            own = dataclasses.replace(own, mqtt=None, collection=own.collection if keep else None)
+            runs[cid] = TeamRun(own, "collect", self._team_opts(cid, "collect", rovers), cid, None, self.t0)
+            self.board.set_status(cid, TeamStatus.COLLECTING)
+        self.runs["collect"] = runs
+        await self._fly_all("collect", runs, self._collect_ended)
+
+    async def _collect_ended(self, cid: str, run: TeamRun, outcome: RunOutcome) -> None:
+        self.board.set_status(cid, TeamStatus.DONE if outcome.exit_code == EXIT_OK else TeamStatus.FAILED)
+
+    async def _rovers_in_the_field(self) -> tuple[CollectRover, ...]:
+        """Every rover a team launched that is not on a deck now (``self.left``: those that
+        cannot be collected, with why)."""
+        assert self.fleet is not None
+        launched = [
+            r
+            for run in self.runs.get("deploy", {}).values()
+            for r in (run.results["deploy"].launched if "deploy" in run.results else [])
+        ]
+        before = set(self.left)
+        crs = await rovers_in_the_field(self.mission, self.fleet, launched, self.left)
+        for rid in self.left.keys() - before:
+            self.journal.write(
+                Ev.ROVER_UNREACHABLE, vehicle=rid, text=f"{rid}: {self.left[rid]}; not collected"
+            )
+        return crs
+
+    # ============================================================================== the teams' runs
+    def live_mission(self) -> Mission:
+        """The mission with every carrier where its telemetry puts it now (the sharing plans from there)."""
+        return live_mission(self.mission, self.fleet)
+
+    def _team_mission(self, cid: str, tasks: list[str]) -> Mission:
+        return dataclasses.replace(team_mission(self.mission, cid, tasks=tasks), mqtt=None)
+
+    def _team_opts(self, cid: str, phase: str, rovers: list[str] | None = None) -> RunOptions:
+        o = self.opts
+        assert self.fleet is not None
+        ids = tuple(rovers) if rovers is not None else self.board.teams[cid].rovers
+        return RunOptions(
+            speedup=o.speedup,
+            planner=o.planner,
+            dwell=o.dwell,
+            run_dir=self.journal.dir / "teams" / cid / phase,
+            view=self.views[cid],
+            connect_timeout=o.connect_timeout,
+            endpoints=self.endpoints,
+            sim=self.sim,
+            clock_speedup=o.clock_speedup if self.sim is None else None,
+            require_all=o.require_all,
+            force=o.force,
+            confirm=self._confirm(),
+            fleet=self.fleet.team(cid, ids),
+        )
+
+    def _confirm(self) -> Callable[[list[str]], bool] | None:
+        ask = self.opts.confirm
+        if ask is None:
+            return None
+
+        def one_at_a_time(lines: list[str]) -> bool:  # the teams ask in turn on the one terminal
+            with self._confirm_lock:
+                return ask(lines)
+
+        return one_at_a_time
+
+    async def _share(self, phase: str, mission: Mission) -> TeamsPlan:
+        from planners import COLLECT_PLANNERS, DEPLOY_PLANNERS
+
+        name = self.opts.planner or mission.planner_for(phase)
+        planner = (DEPLOY_PLANNERS if phase == "deploy" else COLLECT_PLANNERS)[name]
+        problem = teams_problem(mission, phase)
+        try:
+            plan = await asyncio.to_thread(plan_teams, problem, planner, name)
+        except Exception as exc:  # noqa: BLE001 - a PlanningError or a planner's ValueError
+            raise ExecutionError(f"cannot share the {phase} between the teams: {exc}") from None
+        self.plans[phase] = plan
+        await asyncio.to_thread(
+            self.journal.write_json,
+            "plan.json" if phase == "deploy" or self.command == "collect" else "plan-collect.json",
+            plan.to_json(),
+        )
+        shares = {
+            t.carrier: [leg.task if phase == "deploy" else leg.rover for leg in t.plan.legs()]
+            for t in plan.teams
+        }
+        self.journal.write(
+            Ev.TEAMS_PLAN,
+            phase=phase,
+            makespan=plan.makespan,
+            allocation=plan.allocation,
+            shares=shares,
+            makespans={t.carrier: t.plan.makespan for t in plan.teams},
+        )
+        return plan
+
+    async def _fly_all(
+        self, phase: str, runs: dict[str, TeamRun], ended: Callable[[str, TeamRun, RunOutcome], Any]
+    ) -> None:
+        """Fly every team's run concurrently; a cancellation reaches every one (each holds its
+        airborne rovers and writes its records) before it goes on."""
+        outcomes = self.outcomes.setdefault(phase, {})
+
+        async def one(cid: str, run: TeamRun) -> None:
+            self.journal.write(Ev.TEAM, team=cid, phase=phase, status="started", run_dir=str(run.journal.dir))
+            flying = self.flying[cid] = asyncio.create_task(run.fly(), name=f"team {cid} {phase} run")
+            try:
+                outcome = await flying
+            except asyncio.CancelledError:
+                task = asyncio.current_task()
+                if task is not None and task.cancelling():
+                    flying.cancel()  # the run of every team is cancelled: so is this team's
+                    raise
+                outcome = RunOutcome(EXIT_INTERRUPTED, {"result": "interrupted"}, run.journal.dir, None)
+            except Exception as exc:  # noqa: BLE001 - a fault in one team's run must not stop the others
+                log.exception("team %s: its run failed", cid)
+                outcome = RunOutcome(
+                    EXIT_FAILED, {"result": "incomplete"}, run.journal.dir, f"{cid}: {exc!r}"
+                )
+            outcomes[cid] = outcome
+            self.journal.write(
+                Ev.TEAM,
+                team=cid,
+                phase=phase,
+                status="ended",
+                result=outcome.summary["result"],
+                error=outcome.error,
+            )
+            await ended(cid, run, outcome)
+
+        tasks = [asyncio.create_task(one(cid, run), name=f"team {cid} {phase}") for cid, run in runs.items()]
+        try:
+            await asyncio.gather(*tasks)
+        except asyncio.CancelledError:  # gather cancelled every team's run: each holds and writes its records
+            await asyncio.wait(tasks, timeout=60.0)
+            raise
+        except BaseException:
+            for t in tasks:
+                t.cancel()
+            await asyncio.wait(tasks, timeout=60.0)
+            raise
+
+    # ============================================================================== the way out
+    async def _finish(self) -> dict[str, Any]:
+        summary = teams_summary(self)
+        self.journal.write(Ev.SUMMARY, **summary)
+        write_summary(summary, self.journal.summary_path, self.opts.summary_path)
+        if self.opts.view is not None:
+            with contextlib.suppress(Exception):
+                await self.opts.view.stop()
+        if self.fleet is not None:
+            with contextlib.suppress(Exception):
+                await self.fleet.close()
+        await self.journal.aclose()
+        if self.sim_cm is not None:
+            with contextlib.suppress(Exception):
+                await self.sim_cm.__aexit__(None, None, None)
+        return summary
+
+
+__all__ = ["TeamsRun"]

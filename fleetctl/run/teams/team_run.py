@@ -1,0 +1,157 @@
+"""One team's run: today's :class:`~fleetctl.run.runner.Run` on the team's mission
+(:func:`fleetctl.mission.teams.team_mission`), with what a run of several teams adds: after its
+deployment it may be handed tasks of another team and fly further rounds, and it keeps the
+mission-clock times its tasks were reached and its rovers loaded (the teams' common clock).
+
+Flown alone (``coordinator`` None: one team of a several-carrier mission in its own process,
+e.g. under the MQTT team hand-over) it is exactly a one-team run of its share."""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+from collections.abc import Iterable
+from typing import Any, Protocol
+
+from fleetctl.mission import Mission
+from fleetctl.mission.teams import team_mission
+from fleetctl.run.kinds import Ev
+from fleetctl.run.results import PhaseResult
+from fleetctl.run.runner import Run, RunOptions, RunOutcome
+from planners.core.problem import Task
+
+PLAN_WAIT = 120.0  # wall s a collection scenario's batteries are held at most, waiting for the first plan
+
+
+class Coordinator(Protocol):
+    """What a team's run asks the run of every team (:class:`fleetctl.run.teams.coordinator.TeamsRun`).
+
+    ``more_work`` is awaited after each deployment round with its result (``tasks_unserved``: what
+    the team could not serve); it returns the tasks handed to the team (one more round), or ``[]``
+    when its deployment is over. Tasks handed while the team deploys may instead go in as a task
+    change: ``run.executor.submit_task_change(add=..., remove=[], source="team <from>")``."""
+
+    async def more_work(self, team: str, result: PhaseResult) -> list[Task]: ...
+
+
+class TeamRun(Run):
+    """A team's run (see the module docstring)."""
+
+    def __init__(
+        self,
+        mission: Mission,
+        command: str,
+        opts: RunOptions,
+        team: str,
+        coordinator: Coordinator | None = None,
+        t0: float | None = None,
+    ) -> None:
+        super().__init__(mission, command, opts)
+        if t0 is not None:  # T+ of the run of every team
+            self.state.count_from(t0)
+        self.team = team
+        self.coordinator = coordinator
+        self.started_at: float | None = None  # mission clock: its carrier first started
+        self.reached_at: dict[str, float] = {}  # task -> mission clock
+        self.loaded_at: dict[str, float] = {}  # rover -> mission clock
+        self.collect_started: float | None = None
+        self.collect_ended: float | None = None
+        self.first_planned: float | None = None  # its first deployment plan's makespan
+        self.rounds = 0  # deployment rounds flown (1 + the rounds for tasks handed to it)
+        self._release: asyncio.Task[None] | None = None  # lets a collection scenario's batteries drain
+
+    async def _deploy_rounds(self) -> PhaseResult:
+        assert self.executor is not None
+        while True:
+            r = await self.executor.deploy()
+            self.rounds += 1
+            if self.rounds == 1:
+                self.first_planned = r.planned
+            self._note_reached()
+            extra = [] if self.coordinator is None else await self.coordinator.more_work(self.team, r)
+            if not extra:
+                return r
+            for t in extra:
+                self.executor.board.add(t)
+            self.state.event(
+                Ev.HANDOVER,
+                f"{self.team}: another deployment round for handed-over "
+                f"task(s) {', '.join(t.id for t in extra)}",
+                None,
+                tasks=[t.id for t in extra],
+            )
+
+    def _note_reached(self) -> None:
+        phase = self.executor.deploy_phase if self.executor is not None else None
+        if phase is None or phase.t0 is None:
+            return
+        if self.started_at is None:
+            self.started_at = phase.t0
+        for tid, flown in phase.board.reached().items():
+            self.reached_at.setdefault(tid, phase.t0 + flown)
+
+    def _scenario_batteries(self, hold: bool) -> None:
+        """A ``collection:`` scenario on the simulated fleet: the batteries are held at the
+        scenario's ranges until the team's first collection plan is made (sharing and planning
+        several teams takes seconds of wall time, minutes of hover at a high speedup), then
+        drain."""
+        if hold or self.sim is None or self.command != "collect" or not self.mission.collection:
+            super()._scenario_batteries(hold)
+            return
+        self._release = asyncio.create_task(self._release_after_plan(), name=f"team {self.team}: batteries")
+
+    async def _release_after_plan(self) -> None:
+        try:
+            async with asyncio.timeout(PLAN_WAIT):
+                while not self._planned_collection():
+                    await asyncio.sleep(0.02)
+        except TimeoutError:
+            pass
+        finally:
+            for cr in self.mission.collection or ():
+                self.sim.pin_battery(cr.id, None)
+
+    def _planned_collection(self) -> bool:
+        phase = self.executor.collect_phase if self.executor is not None else None
+        return phase is not None and phase.plan is not None
+
+    async def _finish(self) -> dict[str, Any]:
+        release, self._release = self._release, None
+        if release is not None:  # lets the batteries drain if the collection never got to a plan
+            release.cancel()
+            with contextlib.suppress(asyncio.CancelledError):
+                await release
+        return await super()._finish()
+
+    async def _collect(self) -> None:
+        try:
+            await super()._collect()
+        finally:
+            phase = self.executor.collect_phase if self.executor is not None else None
+            if phase is not None and phase.t0 is not None:
+                self.collect_started = phase.t0
+                self.loaded_at = {r: phase.t0 + t for r, t in phase.board.loaded_at.items()}
+                if phase.result.flown is not None:  # the one-team measure: up to the last load
+                    self.collect_ended = phase.t0 + phase.result.flown
+
+
+async def fly_team(
+    mission: Mission,
+    team_id: str,
+    command: str,
+    *,
+    tasks: Iterable[str] | None = None,
+    rovers: Iterable[str] | None = None,
+    coordinator: Coordinator | None = None,
+    **options: Any,
+) -> RunOutcome:
+    """Fly one team of a several-carrier mission alone (its own simulated fleet for ``connection:
+    sim``, its own links): ``tasks`` its share of the tasks (default: every task), ``rovers`` the
+    rovers it flies or collects (default: its deck). ``coordinator`` (e.g. one speaking to the other
+    teams' controllers) is asked after each deployment round for tasks handed to it. Options as
+    :func:`fleetctl.run.runner.execute`."""
+    own = team_mission(mission, team_id, tasks=tasks, rovers=rovers)
+    return await TeamRun(own, command, RunOptions(**options), team_id, coordinator).fly()
+
+
+__all__ = ["Coordinator", "TeamRun", "fly_team"]
