@@ -28,13 +28,14 @@ class CollectInstance:
         self.radii = np.sqrt(np.maximum(np.maximum(rng - RANGE_MARGIN, 0.0) ** 2 - self.heights2, 0.0))
         self.pts2: list[Point2] = [(float(x), float(y)) for x, y in self.ground.tolist()]
         self.rad: list[float] = self.radii.tolist()
+        self._lists = (self.pts2, self.rad, self.heights2.tolist())
         self._regions: dict[tuple[int, ...], Region] = {}
 
     def region(self, members: Sequence[int]) -> Region:
         key = tuple(sorted(members))
         reg = self._regions.get(key)
         if reg is None:
-            reg = make_region(key, self.ground, self.radii, self.heights2)
+            reg = make_region(key, self.ground, self.radii, self.heights2, self._lists)
             self._regions[key] = reg
         return reg
 

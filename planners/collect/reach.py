@@ -101,7 +101,7 @@ class Region:
         positions with weights z² (ch. 3.4); when that point lies outside I_β, its projection.
         """
         if self._time_center is None:
-            ball = enclosing_ball(self.centers.tolist(), self.heights2.tolist())
+            ball = enclosing_ball([(x, y) for x, y, _ in self.rows], [z2 for _, _, z2 in self.rows])
             c = (float(ball.center[0]), float(ball.center[1]))
             self._time_center = c if self.contains(c) else self.project(c)
         return self._time_center
@@ -348,21 +348,37 @@ def disc_vertices(discs: Sequence[tuple[float, float, float]]) -> list[Point2]:
     return out
 
 
+DiscLists = tuple[Sequence[Sequence[float]], Sequence[float], Sequence[float]]  # ground xy, ρ, z²
+
+
 def make_region(members: Sequence[int], ground: np.ndarray, radii: np.ndarray,
-                heights2: np.ndarray) -> Region:
+                heights2: np.ndarray, lists: DiscLists | None = None) -> Region:
     """I_β of ``members`` with its power centre (the feasibility test of Algorithm 5.1).
 
     The power centre minimises max_i |c − g_i|² − ρ_i²; shifting every weight by W = max ρ² keeps
     them non-negative for the enclosing-ball routine without moving the minimiser. I_β is
-    non-empty exactly when the minimum is ≤ 0, and then the centre lies in I_β.
+    non-empty exactly when the minimum is ≤ 0, and then the centre lies in I_β. ``lists``: the
+    same ground positions, radii and z² as Python lists (a collection's instance keeps them), so
+    that the cluster's discs are read without numpy.
     """
-    idx = np.asarray(members, dtype=int)
+    key = tuple(members)
+    idx = list(key)
     c, r, z2 = ground[idx], radii[idx], heights2[idx]
+    if lists is None:
+        pts, rad, h2 = c.tolist(), r.tolist(), z2.tolist()
+    else:
+        pts, rad, h2 = [lists[0][i] for i in idx], [lists[1][i] for i in idx], [lists[2][i] for i in idx]
+    discs = [(float(x), float(y), float(q)) for (x, y), q in zip(pts, rad, strict=True)]
+    rows = [(float(x), float(y), float(w)) for (x, y), w in zip(pts, h2, strict=True)]
     if len(idx) == 1:
-        p = (float(c[0, 0]), float(c[0, 1]))
-        return Region(tuple(members), c, r, z2, p, float(r[0]), True)
-    r2 = r * r
-    ball = enclosing_ball(c.tolist(), np.maximum(float(np.max(r2)) - r2, 0.0).tolist())
-    p = (float(ball.center[0]), float(ball.center[1]))
-    depth = float(np.min(r - np.hypot(c[:, 0] - p[0], c[:, 1] - p[1])))
-    return Region(tuple(members), c, r, z2, p, depth, depth >= -INSIDE_TOL)
+        reg = Region(key, c, r, z2, (discs[0][0], discs[0][1]), discs[0][2], True)
+    else:
+        r2 = [q * q for _, _, q in discs]
+        top = max(r2)
+        ball = enclosing_ball([(x, y) for x, y, _ in discs], [max(top - q, 0.0) for q in r2])
+        p = (float(ball.center[0]), float(ball.center[1]))
+        depth = min(q - math.hypot(x - p[0], y - p[1]) for x, y, q in discs)
+        reg = Region(key, c, r, z2, p, depth, depth >= -INSIDE_TOL)
+    reg._discs, reg._rows = discs, rows
+    return reg
+
