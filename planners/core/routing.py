@@ -8,25 +8,49 @@ from collections import deque
 import numpy as np
 
 
-def two_opt_route(points: np.ndarray, start: np.ndarray, initial: list[int] | None = None) -> list[int]:
+def two_opt_route(points: np.ndarray, start: np.ndarray, initial: list[int] | None = None,
+                  long_tours: bool = False) -> list[int]:
     """Open tour from ``start`` through every point: nearest neighbour (or ``initial``), then 2-opt
-    to a local optimum. Returns the visiting order as indices into ``points``."""
+    to a local optimum. Returns the visiting order as indices into ``points``.
+
+    The 2-opt is exhaustive (every reversal; the baselines of ch. 4.6.2 / 5.5.2). With
+    ``long_tours``, tours of more than ``SMALL_TOUR`` points use the neighbour-list 2-opt instead
+    (``_two_opt_neighbours``: near-linear, the planners' re-sequencing of long routes)."""
     n = len(points)
     if n == 0:
         return []
     nodes = np.vstack([start[None, :], points])
-    if n > SMALL_TOUR:
+    if long_tours and n > SMALL_TOUR:
         return _two_opt_neighbours(nodes, initial)
     dmat = np.linalg.norm(nodes[:, None, :] - nodes[None, :, :], axis=2)
     if initial is not None:
         route = [0] + [i + 1 for i in initial]
     else:
         route = nearest_neighbour(dmat)
-    return _two_opt_small(dmat.tolist(), route)
+    if n <= SMALL_TOUR:
+        return _two_opt_small(dmat.tolist(), route)
+    # 2-opt on the open path: reverse route[i..j]; the start stays first, the end is free.
+    path = np.array(route)
+    improved = True
+    while improved:
+        improved = False
+        for i in range(1, n):
+            a, b = path[i - 1], path[i]
+            js = np.arange(i + 1, n + 1)
+            c = path[js]
+            d_next = np.append(dmat[c[:-1], path[js[:-1] + 1]], 0.0)  # edge after j (none at the end)
+            after = np.append(dmat[b, path[js[:-1] + 1]], 0.0)
+            gain = dmat[a, b] + d_next - dmat[a, c] - after
+            k = int(np.argmax(gain))
+            if gain[k] > 1e-9:
+                j = int(js[k])
+                path[i: j + 1] = path[i: j + 1][::-1].copy()
+                improved = True
+    return [int(v) - 1 for v in path[1:]]
 
 
-SMALL_TOUR = 80  # points: up to this many, the full distance matrix and the exhaustive 2-opt
-NEIGHBOURS = 10  # candidate new edges per node of the long tours' 2-opt
+SMALL_TOUR = 80  # points: up to this many, the 2-opt in plain Python over the distance matrix
+NEIGHBOURS = 10  # candidate new edges per node of the long tours' neighbour-list 2-opt
 
 
 def nearest_neighbour(dmat: np.ndarray) -> list[int]:
