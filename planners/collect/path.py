@@ -3,8 +3,9 @@ places a stop per cluster of rovers, and the timed route it builds."""
 
 from __future__ import annotations
 
-import itertools
 import math
+
+import numpy as np
 
 from planners.collect.instance import CollectInstance
 from planners.collect.reach import Point2, Region
@@ -122,19 +123,16 @@ class Route:
         eta_j = S_j + max(0, v_0 … v_j) and, S the total, after_j = S − S_j, late_j = S + max(v_j+1 …):
         prefix sums and running maxima, no Python loop over the stops."""
         load = self.b.load
-        total = list(itertools.accumulate(h + load for h in self.hop))
-        v = [r + load - s for r, s in zip(self.ready, total, strict=True)]
-        held = itertools.islice(itertools.accumulate(v, max, initial=0.0), 1, None)
-        self.eta = [s + u for s, u in zip(total, held, strict=True)]
-        if not total:
-            self.makespan, self.after, self.late = 0.0, [], []
+        total = np.cumsum(np.array(self.hop) + load)
+        if not len(total):
+            self.eta, self.makespan, self.after, self.late = [], 0.0, [], []
             return
+        v = np.array(self.ready) + load - total
+        self.eta = (total + np.maximum(np.maximum.accumulate(v), 0.0)).tolist()
         self.makespan = self.eta[-1]
-        end = total[-1]
-        self.after = [end - s for s in total]
-        later = list(itertools.accumulate(reversed(v), max))
-        later.reverse()
-        self.late = [end + x for x in later[1:]]
+        end = float(total[-1])
+        self.after = (end - total).tolist()
+        self.late = (end + np.maximum.accumulate(v[::-1])[::-1][1:]).tolist()
         self.late.append(-math.inf)
 
     def moved(self, k: int, q: Point2) -> Route:

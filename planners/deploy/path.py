@@ -3,8 +3,9 @@ that places a stop per cluster, and the timed route it builds."""
 
 from __future__ import annotations
 
-import itertools
 from collections.abc import Sequence
+
+import numpy as np
 
 from planners.core.geometry import find_root, minimize_1d
 from planners.core.problem import Point2
@@ -145,13 +146,16 @@ class Route:
         self._times()
 
     def _times(self) -> None:
+        """The times from the hops and flights: a cumulative sum and running maxima (numpy, the
+        same sums in the same order as a loop over the stops)."""
         unload = self.b.unload
-        depart = list(itertools.accumulate(h + unload for h in self.hop))
-        self.arrive = [d - unload for d in depart]
-        self.done = [d + f for d, f in zip(depart, self.fly, strict=True)]
-        self.tail = list(itertools.accumulate(reversed(self.done), max))[::-1]
+        depart = np.cumsum(np.array(self.hop) + unload)
+        done = depart + np.array(self.fly)
+        self.arrive = (depart - unload).tolist()
+        self.done = done.tolist()
+        self.tail = np.maximum.accumulate(done[::-1])[::-1].tolist()
         self.makespan = self.tail[0] if self.tail else 0.0
-        self.head = list(itertools.accumulate(self.done, max))
+        self.head = np.maximum.accumulate(done).tolist()
 
     def _redrive(self, r: Route, lo: int, hi: int, m: int) -> None:
         """Fill ``r``'s hops, headings and flights: kept before ``lo``, new for the stops lo..hi-1,
