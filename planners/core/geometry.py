@@ -254,16 +254,19 @@ def compass_search(f: Callable[[float, float], float], x: float, y: float, best:
     """Minimise ``f(x, y)`` from (x, y), whose value is ``best``, by a compass search: 8 directions,
     first improvement (the last successful direction tried first), halving the step down to
     ``tol``. Returns the point and its value; ``f`` may return inf where a point is infeasible."""
-    first = 0
+    first, back = 0, -1
     while step > tol:
         for i in range(8):
             j = (first + i) & 7
+            if j == back:  # the point just left: its value is the previous best, no improvement
+                continue
             dx, dy = COMPASS[j]
             cx, cy = x + step * dx, y + step * dy
             t = f(cx, cy)
             if t < best - 1e-9:
-                best, x, y, first = t, cx, cy, j
+                best, x, y, first, back = t, cx, cy, j, (j + 4) & 7
                 break
         else:
             step /= 2
+            back = -1
     return x, y, best
