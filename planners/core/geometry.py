@@ -87,6 +87,8 @@ def enclosing_ball(points: Sequence[Sequence[float]], weights: Sequence[float] |
     """
     if not points:
         raise ValueError("enclosing_ball of no points")
+    if len(points) > 1 and len(points[0]) == 2:
+        return _enclosing_circle(points, weights, seed)
     pts = [tuple(map(float, p)) for p in points]
     ws = [0.0] * len(pts) if weights is None else [float(w) for w in weights]
     dim = len(pts[0])
@@ -116,6 +118,17 @@ def enclosing_ball(points: Sequence[Sequence[float]], weights: Sequence[float] |
     if dim == 2:
         return _welzl_2d(pts, ws, eps)
     return solve([], len(pts), 0)
+
+
+def _enclosing_circle(points: Sequence[Sequence[float]], weights: Sequence[float] | None, seed: int) -> Ball:
+    """``enclosing_ball`` of two or more points in the plane: the same visiting order, tolerance
+    and loops (``_welzl_2d``), with the coordinates read in one pass (the planners' hot path)."""
+    order = _shuffled(len(points), seed)
+    xs = [float(points[i][0]) for i in order]
+    ys = [float(points[i][1]) for i in order]
+    ws = [0.0] * len(xs) if weights is None else [float(weights[i]) for i in order]
+    scale = max(1.0, max(max(xs), max(ys)), -min(min(xs), min(ys)), math.sqrt(max(ws)))
+    return _welzl_2d(list(zip(xs, ys, strict=True)), ws, _REL_EPS * scale)
 
 
 @functools.lru_cache(maxsize=4096)
