@@ -177,9 +177,10 @@ def _same_times(a, b, names: tuple[str, ...]) -> None:
     assert a.makespan == pytest.approx(b.makespan, abs=1e-9)
 
 
+@pytest.mark.parametrize("n", [12, 40])  # routes summed in Python and with numpy (NUMPY_FROM)
 @pytest.mark.parametrize("seed", range(4))
-def test_deploy_route_moved_and_accept_equal_a_route_timed_afresh(seed: int) -> None:
-    problem = _deploy(seed)
+def test_deploy_route_moved_and_accept_equal_a_route_timed_afresh(seed: int, n: int) -> None:
+    problem = _deploy(seed, n)
     inst = DeployInstance(problem)
     b = DeployBuilder(inst)
     clusters = [[i] for i in range(len(problem.tasks))]
@@ -226,9 +227,10 @@ def _sequential_collect_times(route) -> tuple[list[float], list[float], list[flo
     return eta, after, late
 
 
+@pytest.mark.parametrize("n", [12, 40])  # routes summed in Python and with numpy (NUMPY_FROM)
 @pytest.mark.parametrize("seed", range(4))
-def test_collect_route_prefix_sum_times_equal_the_recursion(seed: int) -> None:
-    problem = _collect(seed)
+def test_collect_route_prefix_sum_times_equal_the_recursion(seed: int, n: int) -> None:
+    problem = _collect(seed, n)
     b = CollectBuilder(CollectInstance(problem))
     rng = random.Random(seed)
     route = b.route([[i] for i in range(len(problem.rovers))])

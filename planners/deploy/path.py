@@ -3,6 +3,7 @@ that places a stop per cluster, and the timed route it builds."""
 
 from __future__ import annotations
 
+import itertools
 from collections.abc import Sequence
 
 import numpy as np
@@ -114,6 +115,8 @@ class PathBuilder:
         return Route(self, clusters, geos, positions)
 
 
+NUMPY_FROM = 24  # stops: from this many on, a route's times are summed with numpy
+
 # a scored change: makespan, clusters, their geometry, stops, first re-placed stop, end of the
 # re-placed stops, the old index of the first kept stop
 Candidate = tuple[float, list[list[int]], list[ClusterGeometry], list[Point2], int, int, int]
@@ -149,13 +152,20 @@ class Route:
         """The times from the hops and flights: a cumulative sum and running maxima (numpy, the
         same sums in the same order as a loop over the stops)."""
         unload = self.b.unload
-        depart = np.cumsum(np.array(self.hop) + unload)
-        done = depart + np.array(self.fly)
-        self.arrive = (depart - unload).tolist()
-        self.done = done.tolist()
-        self.tail = np.maximum.accumulate(done[::-1])[::-1].tolist()
+        if len(self.hop) < NUMPY_FROM:  # short routes: plain Python is faster than numpy's calls
+            departs = list(itertools.accumulate(h + unload for h in self.hop))
+            self.arrive = [d - unload for d in departs]
+            self.done = [d + f for d, f in zip(departs, self.fly, strict=True)]
+            self.tail = list(itertools.accumulate(reversed(self.done), max))[::-1]
+            self.head = list(itertools.accumulate(self.done, max))
+        else:
+            depart = np.cumsum(np.array(self.hop) + unload)
+            done = depart + np.array(self.fly)
+            self.arrive = (depart - unload).tolist()
+            self.done = done.tolist()
+            self.tail = np.maximum.accumulate(done[::-1])[::-1].tolist()
+            self.head = np.maximum.accumulate(done).tolist()
         self.makespan = self.tail[0] if self.tail else 0.0
-        self.head = np.maximum.accumulate(done).tolist()
 
     def _redrive(self, r: Route, lo: int, hi: int, m: int) -> None:
         """Fill ``r``'s hops, headings and flights: kept before ``lo``, new for the stops lo..hi-1,
