@@ -39,7 +39,7 @@ from fleetctl.mission import Mission
 from fleetctl.mission.teams import mission_teams, team_of
 from fleetctl.run.kinds import Ev, VehicleStatus
 from fleetctl.run.task_board import TaskStatus
-from planners.problem import CarrierSpec
+from planners.core.problem import CarrierSpec
 
 log = logging.getLogger(__name__)
 

@@ -137,7 +137,7 @@ def test_split_is_the_same_for_every_survivor_and_respects_decks() -> None:
 
 
 def _spec() -> Any:
-    from planners.problem import CarrierSpec
+    from planners.core.problem import CarrierSpec
 
     return CarrierSpec(max_speed=5.0, accel=None, turn_rate=None, unload_time=1.0, load_time=1.0)
 

@@ -29,8 +29,8 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
 from fleetctl.bus.teams.protocol import Claim, ClaimState, ProgressMsg, StatusMsg, TeamState, claim_key
-from planners.problem import CarrierSpec
-from planners.timing import carrier_step
+from planners.core.problem import CarrierSpec
+from planners.core.timing import carrier_step
 
 HANDOVER_GRACE = 2.0  # s a team is gone before its tasks are handed over (a reconnecting peer comes back)
 CLAIM_SETTLE = 0.3  # s a claim must stand, back from the broker, before its team flies the task
