@@ -3,6 +3,7 @@ and cluster regions, and the check that every rover can be collected at all."""
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 
 import numpy as np
@@ -26,13 +27,15 @@ class CollectInstance:
         # Reach radius on the ground, kept RANGE_MARGIN inside the range (timing.RANGE_MARGIN).
         self.radii = np.sqrt(np.maximum(np.maximum(rng - RANGE_MARGIN, 0.0) ** 2 - self.heights2, 0.0))
         self.pts2: list[Point2] = [(float(x), float(y)) for x, y in self.ground.tolist()]
+        self.rad: list[float] = self.radii.tolist()
+        self._lists = (self.pts2, self.rad, self.heights2.tolist())
         self._regions: dict[tuple[int, ...], Region] = {}
 
     def region(self, members: Sequence[int]) -> Region:
         key = tuple(sorted(members))
         reg = self._regions.get(key)
         if reg is None:
-            reg = make_region(key, self.ground, self.radii, self.heights2)
+            reg = make_region(key, self.ground, self.radii, self.heights2, self._lists)
             self._regions[key] = reg
         return reg
 
@@ -43,11 +46,13 @@ class CollectInstance:
         if reg is not None:
             return reg.feasible
         if len(members) > 1:  # cheap necessary test: the last rover's disc meets every other disc
+            pts, rad = self.pts2, self.rad
             last = members[-1]
-            idx = np.asarray(members[:-1])
-            gap = np.hypot(*(self.ground[idx] - self.ground[last]).T) - self.radii[idx] - self.radii[last]
-            if gap.max() > 1e-9:
-                return False
+            (lx, ly), lr = pts[last], rad[last] + 1e-9
+            for i in members[:-1]:
+                x, y = pts[i]
+                if math.hypot(x - lx, y - ly) - rad[i] > lr:
+                    return False
         return self.region(key).feasible
 
 

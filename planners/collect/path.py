@@ -3,7 +3,10 @@ places a stop per cluster of rovers, and the timed route it builds."""
 
 from __future__ import annotations
 
+import itertools
 import math
+
+import numpy as np
 
 from planners.collect.instance import CollectInstance
 from planners.collect.reach import Point2, Region
@@ -84,6 +87,8 @@ class PathBuilder:
         return Route(self, clusters, regions, positions)
 
 
+NUMPY_FROM = 24  # stops: from this many on, a route's times are summed with numpy
+
 # a scored change: makespan, clusters, stops, first re-placed stop, end of the re-placed stops,
 # the old index of the first kept stop
 Candidate = tuple[float, list[list[int]], list[Point2], int, int, int]
@@ -116,19 +121,32 @@ class Route:
 
         Eq. 5.2 is max-plus linear in a departure time: leaving stop j at t, the route ends at
         max(t + after[j], late[j]) (after: hops and loads still to come; late: the latest a later
-        cluster's rovers hold the carrier up), so re-timing a local change costs O(1)."""
-        load, n = self.b.load, len(self.hop)
-        self.eta = []
-        t = 0.0
-        for dt, ready in zip(self.hop, self.ready, strict=True):
-            t = max(t + dt, ready) + load
-            self.eta.append(t)
-        self.makespan = t if n else 0.0
-        self.after = [0.0] * n
-        self.late = [-math.inf] * n
-        for j in range(n - 2, -1, -1):
-            self.after[j] = self.after[j + 1] + self.hop[j + 1] + load
-            self.late[j] = max(self.late[j + 1], self.ready[j + 1] + load + self.after[j + 1])
+        cluster's rovers hold the carrier up), so re-timing a local change costs O(1).
+        With S_j the hops and loads up to stop j and v_j = ready_j + load − S_j, the departures are
+        eta_j = S_j + max(0, v_0 … v_j) and, S the total, after_j = S − S_j, late_j = S + max(v_j+1 …):
+        prefix sums and running maxima, no Python loop over the stops."""
+        load = self.b.load
+        if not self.hop:
+            self.eta, self.makespan, self.after, self.late = [], 0.0, [], []
+            return
+        if len(self.hop) < NUMPY_FROM:  # short routes: plain Python is faster than numpy's calls
+            sums = list(itertools.accumulate(h + load for h in self.hop))
+            v = [r + load - s for r, s in zip(self.ready, sums, strict=True)]
+            held = itertools.islice(itertools.accumulate(v, max, initial=0.0), 1, None)
+            self.eta = [s + u for s, u in zip(sums, held, strict=True)]
+            end = sums[-1]
+            self.after = [end - s for s in sums]
+            later = list(itertools.accumulate(reversed(v), max))[::-1]
+            self.late = [end + x for x in later[1:]]
+        else:
+            total = np.cumsum(np.array(self.hop) + load)
+            w = np.array(self.ready) + load - total
+            self.eta = (total + np.maximum(np.maximum.accumulate(w), 0.0)).tolist()
+            end = float(total[-1])
+            self.after = (end - total).tolist()
+            self.late = (end + np.maximum.accumulate(w[::-1])[::-1][1:]).tolist()
+        self.makespan = self.eta[-1]
+        self.late.append(-math.inf)
 
     def moved(self, k: int, q: Point2) -> Route:
         """This route with stop k moved to ``q``: only the hops whose turn or length changed (into

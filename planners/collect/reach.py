@@ -63,7 +63,10 @@ class Region:
 
     def contains(self, p: Sequence[float], tol: float = INSIDE_TOL) -> bool:
         x, y = p[0], p[1]
-        return all((x - cx) ** 2 + (y - cy) ** 2 <= (r + tol) ** 2 for cx, cy, r in self.discs)
+        for cx, cy, r in self.discs:
+            if (x - cx) ** 2 + (y - cy) ** 2 > (r + tol) ** 2:
+                return False
+        return True
 
     @property
     def discs(self) -> list[tuple[float, float, float]]:
@@ -87,7 +90,7 @@ class Region:
     def vertices(self) -> np.ndarray:
         """Intersection points of the cluster's circles that lie in I_β (Fig. 5.6, GET_INTERPTS)."""
         if self._vertices is None:
-            self._vertices = circle_vertices(self.centers, self.radii)
+            self._vertices = np.array(self.vertex_list, dtype=float).reshape(-1, 2)
         return self._vertices
 
     @property
@@ -98,15 +101,16 @@ class Region:
         positions with weights z² (ch. 3.4); when that point lies outside I_β, its projection.
         """
         if self._time_center is None:
-            ball = enclosing_ball(self.centers.tolist(), self.heights2.tolist())
+            ball = enclosing_ball([(x, y) for x, y, _ in self.rows], [z2 for _, _, z2 in self.rows])
             c = (float(ball.center[0]), float(ball.center[1]))
             self._time_center = c if self.contains(c) else self.project(c)
         return self._time_center
 
     @property
     def vertex_list(self) -> list[Point2]:
+        """``vertices`` as a list (computed in plain Python: clusters are small)."""
         if self._vertex_list is None:
-            self._vertex_list = [(float(x), float(y)) for x, y in self.vertices.tolist()]
+            self._vertex_list = disc_vertices(self.discs)
         return self._vertex_list
 
     def project(self, p: Sequence[float]) -> Point2:
@@ -122,29 +126,69 @@ class Region:
         return got
 
     def _project(self, x: float, y: float) -> Point2:
-        if self.contains((x, y)):
-            return (x, y)
+        """I_β lies inside every disc, so the distance to I_β is at least the largest distance to
+        one disc, and a disc's nearest point that lies in I_β is I_β's nearest point: only the
+        discs ``p`` violates most can give it (O(k)); otherwise the nearest point is a vertex."""
         discs = self.discs
         if len(discs) == 1:
             cx, cy, r = discs[0]
             n = math.hypot(x - cx, y - cy)
-            return (cx + (x - cx) * r / n, cy + (y - cy) * r / n)
-        best, best_d = self.center, math.inf  # numerically empty region: the power centre
-        for cx, cy, r in discs:
-            n = math.hypot(x - cx, y - cy)
             if n <= r:
-                continue
+                return (x, y)
+            return (cx + (x - cx) * r / n, cy + (y - cy) * r / n)
+        out = []
+        for disc in discs:
+            cx, cy, r = disc
+            n = math.hypot(x - cx, y - cy)
+            if n > r + INSIDE_TOL:
+                out.append((n - r, n, disc))
+        if not out:
+            return (x, y)
+        out.sort(key=lambda o: -o[0])
+        worst = out[0][0]
+        for d, n, (cx, cy, r) in out:
+            if d < worst - 1e-9:
+                break
             q = (cx + (x - cx) * r / n, cy + (y - cy) * r / n)
-            d = n - r
-            if d < best_d and self.contains(q):
-                best, best_d = q, d
-        if best_d < math.inf:  # a disc's nearest point inside I_β is I_β's nearest point
-            return best
+            if self.contains(q):
+                return q
+        got = self._vertex_projection(x, y, out[0][2])
+        if got is not None:
+            return got
+        best, best_d = self.center, math.inf  # numerically empty region: the power centre
         for q in self.vertex_list:
             d = math.hypot(q[0] - x, q[1] - y)
             if d < best_d:
                 best, best_d = q, d
         return best
+
+    def _vertex_projection(self, x: float, y: float, disc: tuple[float, float, float]) -> Point2 | None:
+        """The nearest point of I_β to (x, y) when it is a vertex on the circle ``disc`` (the one
+        (x, y) violates most): the nearest such vertex, if the optimality condition holds there
+        (x − v lies in the cone of the two active circles' outward normals); else None, and the
+        caller scans every vertex. O(k²) only through the inside test, no vertex list built."""
+        xm, ym, rm = disc
+        best: Point2 | None = None
+        best_d, other = math.inf, disc
+        for d2 in self.discs:
+            if d2 is disc:
+                continue
+            for q in _pair_points(disc, d2):
+                d = math.hypot(q[0] - x, q[1] - y)
+                if d < best_d and self.contains(q):
+                    best, best_d, other = q, d, d2
+        if best is None:
+            return None
+        vx, vy = best
+        a1x, a1y = vx - xm, vy - ym
+        a2x, a2y = vx - other[0], vy - other[1]
+        det = a1x * a2y - a1y * a2x
+        if abs(det) < 1e-12 * max(1.0, math.hypot(a1x, a1y) * math.hypot(a2x, a2y)):
+            return None
+        px, py = x - vx, y - vy
+        lam1 = (px * a2y - py * a2x) / det
+        lam2 = (a1x * py - a1y * px) / det
+        return best if lam1 >= -1e-9 and lam2 >= -1e-9 else None
 
     def clip_segment(self, a: Point2, b: Point2) -> tuple[float, float] | None:
         """Parameters [s0, s1] ⊂ [0, 1] of the part of segment a → b inside I_β, or None."""
@@ -240,7 +284,7 @@ class Region:
         if nxt is not None:
             pts.append(self.project(nxt))
             pts += self.nearest_to_segment(prev, nxt)
-        pts += [(float(x), float(y)) for x, y in self.vertices.tolist()]
+        pts += self.vertex_list
         return pts
 
 
@@ -259,41 +303,82 @@ def _inside_all(pts: np.ndarray, centers: np.ndarray, radii: np.ndarray,
 
 def circle_vertices(centers: np.ndarray, radii: np.ndarray) -> np.ndarray:
     """Pairwise intersection points of the circles (g_i, ρ_i) that lie inside every disc."""
-    k = len(radii)
-    if k < 2:
-        return np.empty((0, 2))
-    i, j = np.triu_indices(k, 1)
-    d = centers[j] - centers[i]
-    dist = np.hypot(d[:, 0], d[:, 1])
-    ri, rj = radii[i], radii[j]
-    ok = (dist > 1e-12) & (dist <= ri + rj + INSIDE_TOL) & (dist >= np.abs(ri - rj) - INSIDE_TOL)
-    if not ok.any():
-        return np.empty((0, 2))
-    d, dist, ri, rj, ci = d[ok], dist[ok], ri[ok], rj[ok], centers[i[ok]]
+    discs = [(float(x), float(y), float(r))
+             for (x, y), r in zip(centers.tolist(), radii.tolist(), strict=True)]
+    return np.array(disc_vertices(discs), dtype=float).reshape(-1, 2)
+
+
+def _pair_points(d1: tuple[float, float, float], d2: tuple[float, float, float]) -> tuple[Point2, ...]:
+    """The two intersection points of two circles (x, y, ρ), or () when they do not cross."""
+    xi, yi, ri = d1
+    xj, yj, rj = d2
+    dx, dy = xj - xi, yj - yi
+    dist = math.hypot(dx, dy)
+    if not (dist > 1e-12 and dist <= ri + rj + INSIDE_TOL and dist >= abs(ri - rj) - INSIDE_TOL):
+        return ()
     a = (ri * ri - rj * rj + dist * dist) / (2.0 * dist)
-    h = np.sqrt(np.maximum(ri * ri - a * a, 0.0))
-    u = d / dist[:, None]
-    base = ci + a[:, None] * u
-    perp = np.stack([-u[:, 1], u[:, 0]], axis=1) * h[:, None]
-    pts = np.vstack([base + perp, base - perp])
-    return pts[_inside_all(pts, centers, radii)]
+    h = math.sqrt(max(ri * ri - a * a, 0.0))
+    ux, uy = dx / dist, dy / dist
+    bx, by = xi + a * ux, yi + a * uy
+    px, py = -uy * h, ux * h
+    return (bx + px, by + py), (bx - px, by - py)
+
+
+def disc_vertices(discs: Sequence[tuple[float, float, float]]) -> list[Point2]:
+    """``circle_vertices`` of discs (x, y, ρ) in plain Python, the same arithmetic: every pair's two
+    intersection points (all pairs' first points, then all pairs' second points) that lie inside
+    every disc. For the few discs of a cluster this is several times faster than numpy."""
+    plus: list[Point2] = []
+    minus: list[Point2] = []
+    k = len(discs)
+    for i in range(k):
+        for j in range(i + 1, k):
+            pts = _pair_points(discs[i], discs[j])
+            if pts:
+                plus.append(pts[0])
+                minus.append(pts[1])
+    out = []
+    for q in plus + minus:
+        x, y = q
+        for cx, cy, r in discs:
+            if math.hypot(x - cx, y - cy) > r + INSIDE_TOL:
+                break
+        else:
+            out.append(q)
+    return out
+
+
+DiscLists = tuple[Sequence[Sequence[float]], Sequence[float], Sequence[float]]  # ground xy, ρ, z²
 
 
 def make_region(members: Sequence[int], ground: np.ndarray, radii: np.ndarray,
-                heights2: np.ndarray) -> Region:
+                heights2: np.ndarray, lists: DiscLists | None = None) -> Region:
     """I_β of ``members`` with its power centre (the feasibility test of Algorithm 5.1).
 
     The power centre minimises max_i |c − g_i|² − ρ_i²; shifting every weight by W = max ρ² keeps
     them non-negative for the enclosing-ball routine without moving the minimiser. I_β is
-    non-empty exactly when the minimum is ≤ 0, and then the centre lies in I_β.
+    non-empty exactly when the minimum is ≤ 0, and then the centre lies in I_β. ``lists``: the
+    same ground positions, radii and z² as Python lists (a collection's instance keeps them), so
+    that the cluster's discs are read without numpy.
     """
-    idx = np.asarray(members, dtype=int)
+    key = tuple(members)
+    idx = list(key)
     c, r, z2 = ground[idx], radii[idx], heights2[idx]
+    if lists is None:
+        pts, rad, h2 = c.tolist(), r.tolist(), z2.tolist()
+    else:
+        pts, rad, h2 = [lists[0][i] for i in idx], [lists[1][i] for i in idx], [lists[2][i] for i in idx]
+    discs = [(float(x), float(y), float(q)) for (x, y), q in zip(pts, rad, strict=True)]
+    rows = [(float(x), float(y), float(w)) for (x, y), w in zip(pts, h2, strict=True)]
     if len(idx) == 1:
-        p = (float(c[0, 0]), float(c[0, 1]))
-        return Region(tuple(members), c, r, z2, p, float(r[0]), True)
-    r2 = r * r
-    ball = enclosing_ball(c.tolist(), np.maximum(float(np.max(r2)) - r2, 0.0).tolist())
-    p = (float(ball.center[0]), float(ball.center[1]))
-    depth = float(np.min(r - np.hypot(c[:, 0] - p[0], c[:, 1] - p[1])))
-    return Region(tuple(members), c, r, z2, p, depth, depth >= -INSIDE_TOL)
+        reg = Region(key, c, r, z2, (discs[0][0], discs[0][1]), discs[0][2], True)
+    else:
+        r2 = [q * q for _, _, q in discs]
+        top = max(r2)
+        ball = enclosing_ball([(x, y) for x, y, _ in discs], [max(top - q, 0.0) for q in r2])
+        p = (float(ball.center[0]), float(ball.center[1]))
+        depth = min(q - math.hypot(x - p[0], y - p[1]) for x, y, q in discs)
+        reg = Region(key, c, r, z2, p, depth, depth >= -INSIDE_TOL)
+    reg._discs, reg._rows = discs, rows
+    return reg
+

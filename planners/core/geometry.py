@@ -87,6 +87,8 @@ def enclosing_ball(points: Sequence[Sequence[float]], weights: Sequence[float] |
     """
     if not points:
         raise ValueError("enclosing_ball of no points")
+    if len(points) > 1 and len(points[0]) == 2:
+        return _enclosing_circle(points, weights, seed)
     pts = [tuple(map(float, p)) for p in points]
     ws = [0.0] * len(pts) if weights is None else [float(w) for w in weights]
     dim = len(pts[0])
@@ -116,6 +118,17 @@ def enclosing_ball(points: Sequence[Sequence[float]], weights: Sequence[float] |
     if dim == 2:
         return _welzl_2d(pts, ws, eps)
     return solve([], len(pts), 0)
+
+
+def _enclosing_circle(points: Sequence[Sequence[float]], weights: Sequence[float] | None, seed: int) -> Ball:
+    """``enclosing_ball`` of two or more points in the plane: the same visiting order, tolerance
+    and loops (``_welzl_2d``), with the coordinates read in one pass (the planners' hot path)."""
+    order = _shuffled(len(points), seed)
+    xs = [float(points[i][0]) for i in order]
+    ys = [float(points[i][1]) for i in order]
+    ws = [0.0] * len(xs) if weights is None else [float(weights[i]) for i in order]
+    scale = max(1.0, max(max(xs), max(ys)), -min(min(xs), min(ys)), math.sqrt(max(ws)))
+    return _welzl_2d(list(zip(xs, ys, strict=True)), ws, _REL_EPS * scale)
 
 
 @functools.lru_cache(maxsize=4096)
@@ -254,16 +267,19 @@ def compass_search(f: Callable[[float, float], float], x: float, y: float, best:
     """Minimise ``f(x, y)`` from (x, y), whose value is ``best``, by a compass search: 8 directions,
     first improvement (the last successful direction tried first), halving the step down to
     ``tol``. Returns the point and its value; ``f`` may return inf where a point is infeasible."""
-    first = 0
+    first, back = 0, -1
     while step > tol:
         for i in range(8):
             j = (first + i) & 7
+            if j == back:  # the point just left: its value is the previous best, no improvement
+                continue
             dx, dy = COMPASS[j]
             cx, cy = x + step * dx, y + step * dy
             t = f(cx, cy)
             if t < best - 1e-9:
-                best, x, y, first = t, cx, cy, j
+                best, x, y, first, back = t, cx, cy, j, (j + 4) & 7
                 break
         else:
             step /= 2
+            back = -1
     return x, y, best

@@ -2,22 +2,32 @@
 
 from __future__ import annotations
 
+import math
+from collections import deque
+
 import numpy as np
 
 
-def two_opt_route(points: np.ndarray, start: np.ndarray, initial: list[int] | None = None) -> list[int]:
+def two_opt_route(points: np.ndarray, start: np.ndarray, initial: list[int] | None = None,
+                  long_tours: bool = False) -> list[int]:
     """Open tour from ``start`` through every point: nearest neighbour (or ``initial``), then 2-opt
-    to a local optimum. Returns the visiting order as indices into ``points``."""
+    to a local optimum. Returns the visiting order as indices into ``points``.
+
+    The 2-opt is exhaustive (every reversal; the baselines of ch. 4.6.2 / 5.5.2). With
+    ``long_tours``, tours of more than ``SMALL_TOUR`` points use the neighbour-list 2-opt instead
+    (``_two_opt_neighbours``: near-linear, the planners' re-sequencing of long routes)."""
     n = len(points)
     if n == 0:
         return []
     nodes = np.vstack([start[None, :], points])
+    if long_tours and n > SMALL_TOUR:
+        return _two_opt_neighbours(nodes, initial)
     dmat = np.linalg.norm(nodes[:, None, :] - nodes[None, :, :], axis=2)
     if initial is not None:
         route = [0] + [i + 1 for i in initial]
     else:
         route = nearest_neighbour(dmat)
-    if n <= 80:
+    if n <= SMALL_TOUR:
         return _two_opt_small(dmat.tolist(), route)
     # 2-opt on the open path: reverse route[i..j]; the start stays first, the end is free.
     path = np.array(route)
@@ -37,6 +47,10 @@ def two_opt_route(points: np.ndarray, start: np.ndarray, initial: list[int] | No
                 path[i: j + 1] = path[i: j + 1][::-1].copy()
                 improved = True
     return [int(v) - 1 for v in path[1:]]
+
+
+SMALL_TOUR = 80  # points: up to this many, the 2-opt in plain Python over the distance matrix
+NEIGHBOURS = 10  # candidate new edges per node of the long tours' neighbour-list 2-opt
 
 
 def nearest_neighbour(dmat: np.ndarray) -> list[int]:
@@ -76,4 +90,103 @@ def _two_opt_small(d: list[list[float]], route: list[int]) -> list[int]:
                     a, b = path[i - 1], path[i]
                     dab, da, db = d[a][b], d[a], d[b]
                     improved = True
+    return [v - 1 for v in path[1:]]
+
+
+def _nearest_neighbour_tree(xy: np.ndarray, near: list[list[int]]) -> list[int]:
+    """Greedy open tour from node 0 (``nearest_neighbour``) with the k-nearest lists ``near``;
+    when every listed neighbour is visited, the nearest unvisited node by a scan of those left."""
+    n = len(xy)
+    left = np.ones(n, dtype=bool)
+    left[0] = False
+    route = [0]
+    cur = 0
+    for _ in range(n - 1):
+        nxt = next((y for y in near[cur] if left[y]), -1)
+        if nxt < 0:
+            rest = np.flatnonzero(left)
+            gap = xy[rest] - xy[cur]
+            nxt = int(rest[np.argmin(np.einsum("ij,ij->i", gap, gap))])
+        route.append(nxt)
+        left[nxt] = False
+        cur = nxt
+    return route
+
+
+def _two_opt_neighbours(nodes: np.ndarray, initial: list[int] | None, k: int = NEIGHBOURS) -> list[int]:
+    """2-opt on a long open path (node 0 first, the end free) with neighbour lists and don't-look
+    bits: an improving reversal adds an edge shorter than one it removes, so only new edges from
+    a node to its ``k`` nearest are tried, from both ends of the removed edge; a node whose edges
+    did not change is not looked at again (until a last sweep finds none). O(n·k) per sweep instead
+    of O(n²); the neighbours
+    come from a k-d tree (scipy.spatial.cKDTree), the first tour from the nearest neighbours."""
+    from scipy.spatial import cKDTree  # on demand: only long tours need it
+
+    n = len(nodes) - 1
+    k = min(k, n)
+    near = cKDTree(nodes).query(nodes, k + 1)[1].tolist()  # (includes the node itself)
+    path = [0] + [i + 1 for i in initial] if initial is not None else _nearest_neighbour_tree(nodes, near)
+    xy = nodes.tolist()
+    pos = [0] * (n + 1)
+    for i, v in enumerate(path):
+        pos[v] = i
+
+    def d(a: int, b: int) -> float:
+        p, q = xy[a], xy[b]
+        return math.hypot(p[0] - q[0], p[1] - q[1])
+
+    def gain(i: int, j: int) -> float:
+        """Shortening when path[i..j] is reversed (1 <= i < j <= n)."""
+        a, b, c = path[i - 1], path[i], path[j]
+        g = d(a, b) - d(a, c)
+        if j < n:
+            e = path[j + 1]
+            g += d(c, e) - d(b, e)
+        return g
+
+    def improve(x: int) -> tuple[int, int] | None:
+        u = pos[x]
+        nx = path[u + 1] if u < n else None
+        px = path[u - 1] if u > 0 else None
+        d_next = d(x, nx) if nx is not None else 0.0
+        d_prev = d(x, px) if px is not None else 0.0
+        for y in near[x]:
+            if y == x:
+                continue
+            w = pos[y]
+            dxy = d(x, y)
+            if dxy < d_next:  # new edge x–y instead of x → next(x)
+                ij = (u + 1, w) if w > u + 1 else (w + 1, u) if w < u else None
+                if ij is not None and gain(*ij) > 1e-9:
+                    return ij
+            if dxy < d_prev:  # new edge y–x instead of prev(x) → x
+                ij = (w, u - 1) if 1 <= w < u - 1 else (u, w - 1) if w > u + 1 else None
+                if ij is not None and gain(*ij) > 1e-9:
+                    return ij
+            if nx is None and w < u - 1 and gain(w + 1, u) > 1e-9:  # x last: y–x, the path's end reversed
+                return w + 1, u
+        return None
+
+    queue = deque(path[1:])
+    queued = [True] * (n + 1)
+    queued[0] = False
+    while queue:
+        x = queue.popleft()
+        queued[x] = False
+        ij = improve(x)
+        if ij is None:
+            if not queue:  # a reversal flips the segment inside it, which changes its nodes' moves:
+                queue.extend(v for v in path[1:] if improve(v) is not None)  # sweep once more
+                for v in queue:
+                    queued[v] = True
+            continue
+        i, j = ij
+        ends = [path[i - 1], path[i], path[j]] + ([path[j + 1]] if j < n else [])
+        path[i:j + 1] = path[i:j + 1][::-1]
+        for t in range(i, j + 1):
+            pos[path[t]] = t
+        for v in ends:
+            if v and not queued[v]:
+                queued[v] = True
+                queue.append(v)
     return [v - 1 for v in path[1:]]

@@ -99,7 +99,7 @@ def reorder(route: R, anchors: Sequence[Point2], start: Point2, rebuild: Callabl
     pts = np.array(anchors, dtype=float)
     best = route
     for initial in (list(range(len(pts))), None):
-        order = two_opt_route(pts, np.array(start, dtype=float), initial)
+        order = two_opt_route(pts, np.array(start, dtype=float), initial, long_tours=True)
         if order == list(range(len(pts))):
             continue
         cand = rebuild([route.clusters[i] for i in order])

@@ -6,6 +6,8 @@ from __future__ import annotations
 import itertools
 from collections.abc import Sequence
 
+import numpy as np
+
 from planners.core.geometry import find_root, minimize_1d
 from planners.core.problem import Point2
 from planners.core.timing import carrier_hop, leg_time
@@ -113,73 +115,99 @@ class PathBuilder:
         return Route(self, clusters, geos, positions)
 
 
-# a scored change: makespan, clusters, their geometry, stops, first re-placed stop
-Candidate = tuple[float, list[list[int]], list[ClusterGeometry], list[Point2], int]
+NUMPY_FROM = 24  # stops: from this many on, a route's times are summed with numpy
+
+# a scored change: makespan, clusters, their geometry, stops, first re-placed stop, end of the
+# re-placed stops, the old index of the first kept stop
+Candidate = tuple[float, list[list[int]], list[ClusterGeometry], list[Point2], int, int, int]
 
 
 class Route:
     """An ordered cluster list with its stops and the times needed to re-time a local change.
 
-    ``arrive[j]`` is the carrier's arrival at stop j, ``heading[j]`` its heading on arrival,
-    ``done[j]`` when stop j's last rover reaches its task, ``tail[j]`` = max(done[j:]).
+    ``hop[j]`` is the carrier's rotation + drive into stop j, ``heading[j]`` its heading on
+    arrival, ``fly[j]`` the flight of stop j's farthest rover; from them (``_times``):
+    ``arrive[j]`` the carrier's arrival at stop j, ``done[j]`` when stop j's last rover reaches its
+    task, ``tail[j]`` = max(done[j:]), ``head[j]`` = max(done[:j + 1]). A local change drives only
+    the hops whose length or turn changed; later stops keep their hops and flights and shift in
+    time, so re-timing costs a few hops plus C-speed prefix sums.
     """
 
     def __init__(self, b: PathBuilder, clusters: list[list[int]], geos: list[ClusterGeometry],
-                 positions: list[Point2], base: Route | None = None, lo: int = 0) -> None:
-        """``base``: a route with the same first ``lo`` stops, whose times are kept."""
+                 positions: list[Point2]) -> None:
         self.b, self.clusters, self.geos, self.positions = b, clusters, geos, positions
-        if base is None or lo == 0:
-            lo, prev, t, h = 0, b.start, 0.0, b.inst.problem.heading
-            self.arrive: list[float] = []
-            self.heading: list[float] = []
-            self.done: list[float] = []
-        else:
-            self.arrive, self.heading, self.done = base.arrive[:lo], base.heading[:lo], base.done[:lo]
-            prev, t, h = positions[lo - 1], base.arrive[lo - 1] + b.unload, base.heading[lo - 1]
-        for members, pos in zip(clusters[lo:], positions[lo:], strict=True):
+        self.hop: list[float] = []
+        self.heading: list[float] = []
+        self.fly: list[float] = []
+        prev, h = b.start, b.inst.problem.heading
+        for members, pos in zip(clusters, positions, strict=True):
             dt, h = carrier_hop(prev, pos, h, b.carrier)
-            t += dt
-            self.arrive.append(t)
+            self.hop.append(dt)
             self.heading.append(h)
-            t += b.unload
-            self.done.append(t + b.finish(pos, members))
+            self.fly.append(b.finish(pos, members))
             prev = pos
-        self.tail = self.done[:]
-        for j in range(len(self.tail) - 2, -1, -1):
-            self.tail[j] = max(self.tail[j], self.tail[j + 1])
-        self.makespan = self.tail[0] if self.tail else 0.0
-        self.head = list(itertools.accumulate(self.done, max))  # head[j] = max(done[:j + 1])
+        self._times()
 
-    def moved(self, k: int, q: Point2) -> Route:
-        """This route with stop k moved to ``q``: times before k are kept, the rest re-timed."""
-        b = self.b
-        r = object.__new__(type(self))
-        r.b, r.clusters, r.geos = b, self.clusters, self.geos
-        r.positions = [*self.positions[:k], q, *self.positions[k + 1:]]
-        r.arrive, r.heading, r.done = self.arrive[:k], self.heading[:k], self.done[:k]
-        if k == 0:
-            prev, t, h = b.start, 0.0, b.inst.problem.heading
+    def _times(self) -> None:
+        """The times from the hops and flights: a cumulative sum and running maxima (numpy, the
+        same sums in the same order as a loop over the stops)."""
+        unload = self.b.unload
+        if len(self.hop) < NUMPY_FROM:  # short routes: plain Python is faster than numpy's calls
+            departs = list(itertools.accumulate(h + unload for h in self.hop))
+            self.arrive = [d - unload for d in departs]
+            self.done = [d + f for d, f in zip(departs, self.fly, strict=True)]
+            self.tail = list(itertools.accumulate(reversed(self.done), max))[::-1]
+            self.head = list(itertools.accumulate(self.done, max))
         else:
-            prev, t, h = self.positions[k - 1], self.arrive[k - 1] + b.unload, self.heading[k - 1]
-        for j in range(k, len(self.positions)):
+            depart = np.cumsum(np.array(self.hop) + unload)
+            done = depart + np.array(self.fly)
+            self.arrive = (depart - unload).tolist()
+            self.done = done.tolist()
+            self.tail = np.maximum.accumulate(done[::-1])[::-1].tolist()
+            self.head = np.maximum.accumulate(done).tolist()
+        self.makespan = self.tail[0] if self.tail else 0.0
+
+    def _redrive(self, r: Route, lo: int, hi: int, m: int) -> None:
+        """Fill ``r``'s hops, headings and flights: kept before ``lo``, new for the stops lo..hi-1,
+        and from ``hi`` on the old stops from ``m`` on, driven again while their turn changed."""
+        b = self.b
+        r.hop, r.heading, r.fly = self.hop[:lo], self.heading[:lo], self.fly[:lo]
+        if lo == 0:
+            prev, h = b.start, b.inst.problem.heading
+        else:
+            prev, h = r.positions[lo - 1], self.heading[lo - 1]
+        for j in range(lo, len(r.positions)):
+            o = j - hi + m  # the old index of a kept stop
+            if j > hi and h == self.heading[o - 1]:  # the rest is driven as before
+                r.hop += self.hop[o:]
+                r.heading += self.heading[o:]
+                r.fly += self.fly[o:]
+                break
             pos = r.positions[j]
             dt, h = carrier_hop(prev, pos, h, b.carrier)
-            t += dt
-            r.arrive.append(t)
+            r.hop.append(dt)
             r.heading.append(h)
-            t += b.unload
-            r.done.append(t + b.finish(pos, self.clusters[j]))
+            r.fly.append(b.finish(pos, r.clusters[j]) if j < hi else self.fly[o])
             prev = pos
-        r.tail = r.done[:]
-        for j in range(len(r.tail) - 2, -1, -1):
-            r.tail[j] = max(r.tail[j], r.tail[j + 1])
-        r.makespan = r.tail[0] if r.tail else 0.0
-        r.head = list(itertools.accumulate(r.done, max))
+        r._times()
+
+    def moved(self, k: int, q: Point2) -> Route:
+        """This route with stop k moved to ``q``: only the hops into k, k + 1 and k + 2 (its turn)
+        are driven again; the other stops keep their hops and flights."""
+        r = object.__new__(type(self))
+        r.b, r.clusters, r.geos = self.b, self.clusters, self.geos
+        r.positions = [*self.positions[:k], q, *self.positions[k + 1:]]
+        self._redrive(r, k, k + 1, k + 1)
         return r
 
     def accept(self, cand: Candidate) -> Route:
-        _, clusters, geos, positions, lo = cand
-        return Route(self.b, clusters, geos, positions, self, lo)
+        """The route of a scored change (``replace``): stops before ``lo`` and from old stop ``m``
+        on keep their hops and flights; only the changed stops and the turns after them are driven."""
+        _, clusters, geos, positions, lo, hi, m = cand
+        r = object.__new__(type(self))
+        r.b, r.clusters, r.geos, r.positions = self.b, clusters, geos, positions
+        self._redrive(r, lo, hi, m)
+        return r
 
     def replace(self, i: int, pieces: list[list[int]], count: int = 1) -> Candidate:
         """Makespan after clusters i..i+count-1 are replaced by ``pieces``, recomputing the stops
@@ -216,4 +244,4 @@ class Route:
                 shift = t + dt - self.arrive[m + 1]
                 worst = max(worst, self.tail[m + 1] + shift)
             positions += self.positions[m:]
-        return worst, clusters, geos, positions, lo
+        return worst, clusters, geos, positions, lo, hi, m

@@ -1,0 +1,248 @@
+"""The planners' fast data structures against brute force (issue 15, item 4): the long tours'
+neighbour-list 2-opt and its k-d tree nearest neighbour tour, the reach regions' vertices and
+projections, and the routes' incremental re-timing (deployment and collection) against a
+route timed from scratch."""
+
+from __future__ import annotations
+
+import math
+import random
+
+import numpy as np
+import pytest
+
+from planners.collect.instance import CollectInstance
+from planners.collect.path import PathBuilder as CollectBuilder
+from planners.collect.path import Route as CollectRoute
+from planners.collect.reach import disc_vertices, make_region
+from planners.core.problem import CarrierSpec, CollectProblem, CollectRover, DeployProblem, Motion, Task
+from planners.core.routing import (
+    _nearest_neighbour_tree,
+    _two_opt_neighbours,
+    nearest_neighbour,
+    two_opt_route,
+)
+from planners.deploy.cluster import DeployInstance
+from planners.deploy.path import PathBuilder as DeployBuilder
+from planners.deploy.path import Route as DeployRoute
+
+CARRIER = CarrierSpec(max_speed=12.0, accel=4.0, turn_rate=2.5, unload_time=2.0, load_time=3.0)
+ROVER = Motion(3.0)
+
+
+# ------------------------------------------------------------------ tours
+
+def _length(nodes: np.ndarray, path: list[int]) -> float:
+    return float(sum(np.hypot(*(nodes[a] - nodes[b])) for a, b in zip(path, path[1:], strict=False)))
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_tree_nearest_neighbour_tour_equals_the_matrix_one(seed: int) -> None:
+    from scipy.spatial import cKDTree
+
+    rng = np.random.default_rng(seed)
+    nodes = rng.uniform(0, 300, (int(rng.integers(2, 250)), 2))
+    dmat = np.hypot(nodes[:, None, 0] - nodes[None, :, 0], nodes[:, None, 1] - nodes[None, :, 1])
+    near = cKDTree(nodes).query(nodes, min(6, len(nodes)))[1].tolist()
+    assert _nearest_neighbour_tree(nodes, near) == nearest_neighbour(dmat)
+
+
+def _reversal_gain(nodes: np.ndarray, path: list[int], i: int, j: int) -> float:
+    d = lambda a, b: math.dist(nodes[a], nodes[b])  # noqa: E731
+    g = d(path[i - 1], path[i]) - d(path[i - 1], path[j])
+    if j + 1 < len(path):
+        g += d(path[j], path[j + 1]) - d(path[i], path[j + 1])
+    return g
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_neighbour_two_opt_is_a_local_optimum_of_its_neighbourhood(seed: int) -> None:
+    """A permutation that starts at the start, no longer than its first tour, and no reversal
+    that adds an edge to one of a node's k nearest shortens it (checked by brute force)."""
+    rng = np.random.default_rng(seed)
+    n = 120
+    pts, start = rng.uniform(0, 300, (n, 2)), rng.uniform(0, 300, 2)
+    nodes = np.vstack([start[None], pts])
+    initial = [int(x) for x in rng.permutation(n)]
+    order = _two_opt_neighbours(nodes, initial, k=8)
+    assert sorted(order) == list(range(n))
+    path = [0] + [v + 1 for v in order]
+    assert _length(nodes, path) <= _length(nodes, [0] + [v + 1 for v in initial]) + 1e-9
+    dmat = np.hypot(nodes[:, None, 0] - nodes[None, :, 0], nodes[:, None, 1] - nodes[None, :, 1])
+    near = [set(np.argsort(row)[:9].tolist()) for row in dmat]
+    for i in range(1, n + 1):
+        for j in range(i + 1, n + 1):
+            a, b, c = path[i - 1], path[i], path[j]
+            e = path[j + 1] if j < n else None
+            # a shorter new edge at an end of a removed one, to a listed neighbour of that end
+            seen = (c in near[a] and dmat[a, c] < dmat[a, b]) or (
+                a in near[c] and (e is None or dmat[a, c] < dmat[c, e]))
+            if e is not None:
+                seen = seen or (e in near[b] and dmat[b, e] < dmat[a, b]) or (
+                    b in near[e] and dmat[b, e] < dmat[c, e])
+            if seen:
+                assert _reversal_gain(nodes, path, i, j) <= 1e-6
+
+
+def test_long_tours_are_as_short_as_the_exhaustive_two_opt_within_a_few_percent() -> None:
+    rng = np.random.default_rng(7)
+    ratios = []
+    for _ in range(3):
+        pts, start = rng.uniform(0, 300, (150, 2)), rng.uniform(0, 300, 2)
+        nodes = np.vstack([start[None], pts])
+        fast = two_opt_route(pts, start, long_tours=True)
+        from planners.core.routing import _two_opt_small
+
+        dmat = np.hypot(nodes[:, None, 0] - nodes[None, :, 0], nodes[:, None, 1] - nodes[None, :, 1])
+        full = _two_opt_small(dmat.tolist(), nearest_neighbour(dmat))
+        ratios.append(_length(nodes, [0] + [v + 1 for v in fast])
+                      / _length(nodes, [0] + [v + 1 for v in full]))
+    assert max(ratios) < 1.05
+
+
+# ------------------------------------------------------------------ reach regions
+
+def _brute_vertices(discs: list[tuple[float, float, float]]) -> list[tuple[float, float]]:
+    out = []
+    for a in range(len(discs)):
+        for b in range(a + 1, len(discs)):
+            (x1, y1, r1), (x2, y2, r2) = discs[a], discs[b]
+            d = math.hypot(x2 - x1, y2 - y1)
+            if d < 1e-12 or d > r1 + r2 or d < abs(r1 - r2):
+                continue
+            along = (r1 * r1 - r2 * r2 + d * d) / (2 * d)
+            h = math.sqrt(max(r1 * r1 - along * along, 0.0))
+            for s in (1, -1):
+                q = (x1 + along * (x2 - x1) / d - s * h * (y2 - y1) / d,
+                     y1 + along * (y2 - y1) / d + s * h * (x2 - x1) / d)
+                if all(math.hypot(q[0] - x, q[1] - y) <= r + 1e-9 for x, y, r in discs):
+                    out.append(q)
+    return out
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_disc_vertices_equal_brute_force(seed: int) -> None:
+    rng = random.Random(seed)
+    for _ in range(200):
+        k = rng.randint(1, 9)
+        discs = [(rng.uniform(0, 15), rng.uniform(0, 15), rng.uniform(4, 18)) for _ in range(k)]
+        got, want = sorted(disc_vertices(discs)), sorted(_brute_vertices(discs))
+        assert len(got) == len(want)
+        assert all(math.dist(p, q) < 1e-9 for p, q in zip(got, want, strict=True))
+
+
+def _brute_projection(reg, p: tuple[float, float]) -> tuple[float, float]:
+    """Nearest point of I_β: p itself, a disc's nearest point inside I_β, or the nearest vertex."""
+    if reg.contains(p):
+        return p
+    cands = []
+    for cx, cy, r in reg.discs:
+        n = math.hypot(p[0] - cx, p[1] - cy)
+        q = (cx + (p[0] - cx) * r / n, cy + (p[1] - cy) * r / n)
+        if reg.contains(q):
+            cands.append(q)
+    cands += _brute_vertices(reg.discs)
+    return min(cands, key=lambda q: math.dist(q, p))
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_region_projection_equals_brute_force(seed: int) -> None:
+    rng = np.random.default_rng(seed)
+    checked = 0
+    for _ in range(300):
+        k = int(rng.integers(1, 10))
+        g, r, z2 = rng.uniform(0, 15, (k, 2)), rng.uniform(5, 20, k), rng.uniform(0, 4, k)
+        reg = make_region(tuple(range(k)), g, r, z2)
+        if not reg.feasible:
+            continue
+        for _ in range(5):
+            p = (float(rng.uniform(-40, 55)), float(rng.uniform(-40, 55)))
+            assert math.dist(reg.project(p), _brute_projection(reg, p)) < 1e-7
+            checked += 1
+    assert checked > 500
+
+
+# ------------------------------------------------------------------ incremental route times
+
+def _deploy(seed: int, n: int = 40) -> DeployProblem:
+    rng = random.Random(seed)
+    tasks = tuple(Task(f"t{i}", (rng.uniform(0, 150), rng.uniform(0, 150), rng.uniform(0, 3)))
+                  for i in range(n))
+    return DeployProblem(CARRIER, ROVER, 12.0, (0.0, 0.0, 0.0), 0.3, tasks)
+
+
+def _same_times(a, b, names: tuple[str, ...]) -> None:
+    for name in names:
+        assert getattr(a, name) == pytest.approx(getattr(b, name), abs=1e-9), name
+    assert a.makespan == pytest.approx(b.makespan, abs=1e-9)
+
+
+@pytest.mark.parametrize("n", [12, 40])  # routes summed in Python and with numpy (NUMPY_FROM)
+@pytest.mark.parametrize("seed", range(4))
+def test_deploy_route_moved_and_accept_equal_a_route_timed_afresh(seed: int, n: int) -> None:
+    problem = _deploy(seed, n)
+    inst = DeployInstance(problem)
+    b = DeployBuilder(inst)
+    clusters = [[i] for i in range(len(problem.tasks))]
+    route = b.route(clusters)
+    rng = random.Random(seed)
+    names = ("arrive", "heading", "done", "tail", "head")
+    for _ in range(30):
+        k = rng.randrange(len(route.clusters))
+        x, y = route.positions[k]
+        q = (x + rng.uniform(-2, 2), y + rng.uniform(-2, 2))
+        if rng.random() < 0.2:  # a hop of length zero keeps the heading
+            q = route.positions[k - 1] if k else b.start
+        moved = route.moved(k, q)
+        _same_times(moved, DeployRoute(b, moved.clusters, moved.geos, moved.positions), names)
+        i = rng.randrange(len(route.clusters) - 1)
+        union = route.clusters[i] + route.clusters[i + 1]
+        if inst.fits(union):
+            cand = route.replace(i, [union], count=2)
+        else:
+            cand = route.replace(i, [route.clusters[i + 1], route.clusters[i]], count=2)
+        new = route.accept(cand)
+        _same_times(new, DeployRoute(b, new.clusters, new.geos, new.positions), names)
+        route = new
+
+
+def _collect(seed: int, n: int = 40) -> CollectProblem:
+    rng = random.Random(seed)
+    rovers = tuple(CollectRover(f"r{i}", (rng.uniform(0, 150), rng.uniform(0, 150), rng.uniform(0, 3)),
+                                rng.uniform(6, 20)) for i in range(n))
+    return CollectProblem(CARRIER, ROVER, (0.0, 0.0, 0.0), 0.3, rovers)
+
+
+def _sequential_collect_times(route) -> tuple[list[float], list[float], list[float]]:
+    """Eq. 5.2 step by step: departures, the hops and loads still to come, the latest hold-up."""
+    load, n = route.b.load, len(route.hop)
+    eta, t = [], 0.0
+    for dt, ready in zip(route.hop, route.ready, strict=True):
+        t = max(t + dt, ready) + load
+        eta.append(t)
+    after, late = [0.0] * n, [-math.inf] * n
+    for j in range(n - 2, -1, -1):
+        after[j] = after[j + 1] + route.hop[j + 1] + load
+        late[j] = max(late[j + 1], route.ready[j + 1] + load + after[j + 1])
+    return eta, after, late
+
+
+@pytest.mark.parametrize("n", [12, 40])  # routes summed in Python and with numpy (NUMPY_FROM)
+@pytest.mark.parametrize("seed", range(4))
+def test_collect_route_prefix_sum_times_equal_the_recursion(seed: int, n: int) -> None:
+    problem = _collect(seed, n)
+    b = CollectBuilder(CollectInstance(problem))
+    rng = random.Random(seed)
+    route = b.route([[i] for i in range(len(problem.rovers))])
+    for _ in range(20):
+        eta, after, late = _sequential_collect_times(route)
+        assert route.eta == pytest.approx(eta, abs=1e-9)
+        assert route.after == pytest.approx(after, abs=1e-9)
+        assert route.late[:-1] == pytest.approx(late[:-1], abs=1e-9) and route.late[-1] == -math.inf
+        assert route.makespan == pytest.approx(eta[-1], abs=1e-9)
+        k = rng.randrange(len(route.clusters))
+        x, y = route.positions[k]
+        cand = route.moved(k, route.regions[k].project((x + rng.uniform(-3, 3), y + rng.uniform(-3, 3))))
+        fresh = CollectRoute(b, cand.clusters, cand.regions, cand.positions)
+        assert cand.makespan == pytest.approx(fresh.makespan, abs=1e-9)
+        route = cand
