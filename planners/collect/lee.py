@@ -22,7 +22,7 @@ from collections.abc import Callable, Sequence
 
 from planners.collect.instance import CollectInstance
 from planners.collect.path import PathBuilder, Route
-from planners.collect.polish import polish
+from planners.collect.polish import polish, smooth
 from planners.collect.reach import Point2
 from planners.collect.two import two_rover_route
 from planners.core.clustering import divide_cluster
@@ -195,14 +195,14 @@ def lee_route(problem: CollectProblem, improve: bool = True, fine_upto: int = 12
         if small and moved is not route:  # (large routes: the moves' route alone is placed finely)
             today = finish(route)
             best = today if today.makespan < best.makespan else best
-        if len(problem.rovers) <= FINE_MOVES_UPTO or stop is not None:  # ... and on the final stops
-            best = fine_descent(best, inst.fits, builder.route, finish,
-                                stop if len(problem.rovers) > FINE_MOVES_UPTO else None,
-                                slack=0.15 if stop is None else math.inf)
+        n = len(problem.rovers)
+        if n <= FINE_MOVES_UPTO or stop is not None:  # ... and on the final stops
+            best = fine_descent(best, inst.fits, builder.route, finish, stop if n > FINE_MOVES_UPTO else None,
+                                slack=0.15 if stop is None and n > EVERY_FINE_UPTO else math.inf)
     if stop is not None:  # anytime: iterated local search until the budget
         best = iterated_search(best, inst.fits, builder.route, finish, random.Random(problem.seed), stop,
                                max_fails=ILS_PATIENCE * len(problem.rovers))
-    route = best
+    route = smooth(builder, best) if len(problem.rovers) <= SMOOTH_UPTO else best
     if len(problem.rovers) == 2:
         two = two_rover_route(builder)  # the ch. 5.3 optimum, where it applies
         if two.makespan < route.makespan:
@@ -211,6 +211,8 @@ def lee_route(problem: CollectProblem, improve: bool = True, fine_upto: int = 12
 
 
 FINE_MOVES_UPTO = 8  # rovers: up to this many, every move is also scored on fine, polished stops
+EVERY_FINE_UPTO = 5  # up to this many, the fine descent places every change finely (no slack)
+SMOOTH_UPTO = 8  # rovers: up to this many, the final stops are re-placed on the smoothed makespan
 # (up to n rovers, k): the rovers of a cluster nearest its neighbour that the quick descent offers to it
 QD_KEEP = ((200, 4), (math.inf, 2))
 MOVE_ROVERS_UPTO = 200  # rovers: beyond, the loop does not hand rovers over (the quick descent does)

@@ -1,12 +1,15 @@
-"""Re-placing a collection route's stops once both neighbours are known (dissertation ch. 5.5.1)."""
+"""Re-placing a collection route's stops once both neighbours are known (dissertation ch. 5.5.1),
+and on the smoothed makespan for short routes."""
 
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 
 from planners.collect.path import PathBuilder, Route
 from planners.collect.reach import Point2, Region
+from planners.core.smooth import smooth_compass, smooth_max
+from planners.core.timing import carrier_hop
 
 
 def polish(builder: PathBuilder, route: Route,
@@ -31,3 +34,30 @@ def polish(builder: PathBuilder, route: Route,
         if not improved:
             break
     return route
+
+
+def smooth(builder: PathBuilder, route: Route, tol: float = 1e-3) -> Route:
+    """Re-place every stop of a short route on the smoothed eq. 5.2 (``planners.core.smooth``):
+    the carrier arriving just as a cluster's last rover lands is a kink the stop-by-stop compass
+    search cannot leave (the stop before must move too). Keeps the faster of the two routes."""
+    if not route.clusters:
+        return route
+    regions, load, carrier = route.regions, builder.load, builder.carrier
+
+    def cost(pos: Sequence[Point2], tau: float) -> float:
+        prev, h, t = builder.start, builder.heading0, 0.0
+        for reg, q in zip(regions, pos, strict=True):
+            if not reg.contains(q, 0.0):
+                return math.inf
+            dt, h = carrier_hop(prev, q, h, carrier)
+            t = smooth_max(t + dt, builder.ready(reg, q), tau) + load
+            prev = q
+        return t
+
+    def exact(pos: Sequence[Point2]) -> float:
+        return cost(pos, 0.0)
+
+    step = max(min(float(min(builder.inst.radii[i] for i in c)) for c in route.clusters) / 4, 0.05)
+    pos = smooth_compass(cost, exact, route.positions, step, tol)
+    cand = Route(builder, route.clusters, regions, pos)
+    return cand if cand.makespan < route.makespan - 1e-9 else route

@@ -240,6 +240,15 @@ class _Model:
         return best, best_pos
 
 
+def place_partition(problem: DeployProblem | CollectProblem, clusters: Sequence[Sequence[int]],
+                    positions: Sequence[Point2]) -> float:
+    """The makespan of one ordered partition placed from ``positions`` (SLSQP + compass search,
+    as ``exact_plan`` places its best partitions); inf when the start is not feasible."""
+    m = _Model(problem)
+    t, _ = m.place([list(c) for c in clusters], [list(positions)])
+    return t
+
+
 def exact_plan(problem: DeployProblem | CollectProblem, seed: int = 0, starts: int = 2,
                keep: float = 0.05, hint: tuple[Sequence[Sequence[int]], Sequence[Point2]] | None = None
                ) -> ExactResult:

@@ -81,6 +81,22 @@ def split_off(clusters: Clusters, fits: Fits, start: int = 0) -> Iterator[Change
             yield k, [rest, [r]], 1
 
 
+def split(clusters: Clusters, fits: Fits, start: int = 0) -> Iterator[Change]:
+    """Serve one cluster from two stops, divided every way into parts of two or more (clusters of
+    up to ``SPLIT_UPTO`` members; ``split_off`` gives the parts of one), in both orders: a straight
+    cut (Algorithm 3.1) misses divisions such as two far rovers and two near ones."""
+    for k in range(start, len(clusters)):
+        c = list(clusters[k])
+        if not 4 <= len(c) <= SPLIT_UPTO:
+            continue
+        for mask in range(1, 1 << (len(c) - 1)):  # the last member stays in the second part
+            a = [x for j, x in enumerate(c) if mask >> j & 1]
+            b = [x for j, x in enumerate(c) if not mask >> j & 1]
+            if len(a) >= 2 and len(b) >= 2:
+                yield k, [a, b], 1
+                yield k, [b, a], 1
+
+
 def merge(clusters: Clusters, fits: Fits, start: int = 0) -> Iterator[Change]:
     """Serve two consecutive clusters from one stop."""
     for k in range(start, len(clusters) - 1):
@@ -116,6 +132,8 @@ def reverse(clusters: Clusters, fits: Fits, start: int = 0) -> Iterator[Change]:
 
 
 MOVES: tuple[Move, ...] = (swap, relocate, split_off, merge, exchange, shift, reverse)
+SMALL_MOVES: tuple[Move, ...] = (*MOVES, split)  # routes of up to SMALL items, and the fine descent
+SPLIT_UPTO = 6  # members: ``split`` divides clusters up to this size (2^(k−1) divisions)
 CHEAP_MOVES: tuple[Move, ...] = (swap, relocate, merge)  # linear in the route's length
 LARGE = 30  # tasks (rovers): beyond this the quick plan uses CHEAP_MOVES
 SMALL = 8  # tasks (rovers): up to this many, the moves sweep until none helps (else SMALL_ROUNDS sweeps)
@@ -183,7 +201,8 @@ def quick_descent(route: R, fits: Fits, stop: Callable[[], bool] | None = None,
                             stop=stop)
     size = sum(len(c) for c in route.clusters)  # type: ignore[attr-defined,misc]
     rounds = 20 if size <= SMALL or stop is not None else SMALL_ROUNDS
-    return local_search(route, fits, _quick_score, _accept, _makespan, rounds=rounds, stop=stop)
+    moves = SMALL_MOVES if size <= SMALL else MOVES
+    return local_search(route, fits, _quick_score, _accept, _makespan, moves=moves, rounds=rounds, stop=stop)
 
 
 def fine_descent(route: R, fits: Fits, rebuild: Callable[[list[list[int]]], R], finish: Callable[[R], R],
@@ -197,7 +216,8 @@ def fine_descent(route: R, fits: Fits, rebuild: Callable[[list[list[int]]], R], 
             return math.inf, None
         cand = finish(quick)
         return _makespan(cand), cand
-    return local_search(route, fits, score, lambda r, cand: cand, _makespan, stop=stop)
+    moves = SMALL_MOVES if sum(len(c) for c in route.clusters) <= SMALL else MOVES  # type: ignore[attr-defined,misc]
+    return local_search(route, fits, score, lambda r, cand: cand, _makespan, moves=moves, stop=stop)
 
 
 def perturb(clusters: Clusters, fits: Fits, rng: Any, strength: int = 2, window: int = 6) -> list[list[int]]:

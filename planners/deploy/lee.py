@@ -28,6 +28,7 @@ from planners.core.timing import carrier_hop, carrier_step, leg_time
 from planners.deploy.build import build_plan
 from planners.deploy.cluster import DeployInstance, max_range_point
 from planners.deploy.path import PathBuilder, Route
+from planners.deploy.polish import smooth
 from planners.deploy.two_task import plan_two_tasks
 
 
@@ -94,10 +95,12 @@ def lee_clusters(problem: DeployProblem, improve: bool = True,
     if n <= FINE_MOVES_UPTO or stop is not None:  # ... and on the final placement
         best = fine_descent(best, inst.fits_quick, builder.route, finish,
                                 stop if n > FINE_MOVES_UPTO else None,
-                                slack=0.15 if stop is None else math.inf)
+                                slack=0.15 if stop is None and n > EVERY_FINE_UPTO else math.inf)
     if stop is not None:  # anytime: iterated local search until the budget
         best = iterated_search(best, inst.fits_quick, builder.route, finish,
                                random.Random(problem.seed), stop, max_fails=ILS_PATIENCE * n)
+    if n <= SMOOTH_UPTO:
+        best = smooth(builder, best)
     return best.clusters, best.positions, best.makespan
 
 
@@ -108,6 +111,8 @@ def _fresh(builder: PathBuilder, r: Route) -> Route:
 
 
 FINE_MOVES_UPTO = 8  # tasks: up to this many, every move is also scored on fine, polished stops
+EVERY_FINE_UPTO = 5  # up to this many, the fine descent places every change finely (no slack)
+SMOOTH_UPTO = 8  # tasks: up to this many, the final stops are re-placed on the smoothed makespan
 # (up to n tasks, k): the tasks of a cluster nearest its neighbour that the quick descent offers to it
 # (big clusters of big problems: each offer costs an enclosing circle)
 QD_KEEP = ((60, 3), (300, 1), (math.inf, 0))
