@@ -13,7 +13,8 @@ import pytest
 
 from bench.optimality import collect_instance, deploy_instance  # the bench's instances, seed for seed
 from planners import COLLECT_PLANNERS, DEPLOY_PLANNERS
-from planners.core.exact import exact_plan, ordered_partitions
+from planners.core.exact import exact_plan
+from planners.core.partitions import ordered_partitions
 
 GAP_TOL = 0.012
 

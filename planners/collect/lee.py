@@ -36,6 +36,7 @@ from planners.core.moves import (
     relocate_nearest,
     swap,
 )
+from planners.core.partitions import best_partition
 from planners.core.plan import Plan, RoverLeg, Stop
 from planners.core.problem import CollectProblem, Vec3, refuse_obstacles
 from planners.core.search import merge_neighbours, reorder, split_loop
@@ -195,12 +196,18 @@ def lee_route(problem: CollectProblem, improve: bool = True, fine_upto: int = 12
         if small and moved is not route:  # (large routes: the moves' route alone is placed finely)
             today = finish(route)
             best = today if today.makespan < best.makespan else best
+        if len(problem.rovers) <= EXHAUSTIVE_UPTO:  # tiny: every ordered partition too
+            every = best_partition(len(problem.rovers), inst.fits, builder.route, finish, EXHAUSTIVE_KEEP)
+            best = every if every is not None and every.makespan < best.makespan else best
         n = len(problem.rovers)
         if n <= FINE_MOVES_UPTO or stop is not None:  # ... and on the final stops
             best = fine_descent(best, inst.fits, builder.route, finish, stop if n > FINE_MOVES_UPTO else None,
                                 slack=0.15 if stop is None and n > EVERY_FINE_UPTO else math.inf)
     if stop is not None:  # anytime: iterated local search until the budget
-        best = iterated_search(best, inst.fits, builder.route, finish, random.Random(problem.seed), stop,
+        def finest(r: Route) -> Route:  # short routes: each kick's route on the smoothed makespan too
+            return smooth(builder, finish(r)) if len(problem.rovers) <= SMOOTH_UPTO else finish(r)
+
+        best = iterated_search(best, inst.fits, builder.route, finest, random.Random(problem.seed), stop,
                                max_fails=ILS_PATIENCE * len(problem.rovers))
     route = smooth(builder, best) if len(problem.rovers) <= SMOOTH_UPTO else best
     if len(problem.rovers) == 2:
@@ -211,6 +218,8 @@ def lee_route(problem: CollectProblem, improve: bool = True, fine_upto: int = 12
 
 
 FINE_MOVES_UPTO = 8  # rovers: up to this many, every move is also scored on fine, polished stops
+EXHAUSTIVE_UPTO = 5  # up to this many, every ordered partition is scored on the quick placement ...
+EXHAUSTIVE_KEEP = 6  # ... and this many of the fastest placed finely
 EVERY_FINE_UPTO = 5  # up to this many, the fine descent places every change finely (no slack)
 SMOOTH_UPTO = 8  # rovers: up to this many, the final stops are re-placed on the smoothed makespan
 # (up to n rovers, k): the rovers of a cluster nearest its neighbour that the quick descent offers to it

@@ -7,9 +7,9 @@ import math
 from collections.abc import Callable, Sequence
 
 from planners.collect.path import PathBuilder, Route
-from planners.collect.reach import Point2, Region
+from planners.collect.reach import INSIDE_TOL, Point2, Region
 from planners.core.smooth import smooth_compass, smooth_max
-from planners.core.timing import carrier_hop
+from planners.core.timing import carrier_hop, leg_time
 
 
 def polish(builder: PathBuilder, route: Route,
@@ -39,18 +39,27 @@ def polish(builder: PathBuilder, route: Route,
 def smooth(builder: PathBuilder, route: Route, tol: float = 1e-3) -> Route:
     """Re-place every stop of a short route on the smoothed eq. 5.2 (``planners.core.smooth``):
     the carrier arriving just as a cluster's last rover lands is a kink the stop-by-stop compass
-    search cannot leave (the stop before must move too). Keeps the faster of the two routes."""
+    search cannot leave (the stop before must move too). Searched from the route's stops and from
+    the clusters' time centres; keeps the faster route."""
     if not route.clusters:
         return route
     regions, load, carrier = route.regions, builder.load, builder.carrier
 
+    inst = builder.inst
+    rows = [[(*inst.pts2[i], (float(inst.radii[i]) + INSIDE_TOL) ** 2, float(inst.heights2[i])) for i in c]
+            for c in route.clusters]  # (stops on a disc's rim are inside up to rounding)
+
     def cost(pos: Sequence[Point2], tau: float) -> float:
         prev, h, t = builder.start, builder.heading0, 0.0
-        for reg, q in zip(regions, pos, strict=True):
-            if not reg.contains(q, 0.0):
-                return math.inf
+        for members, q in zip(rows, pos, strict=True):
+            far = 0.0
+            for gx, gy, r2, z2 in members:  # outside a reach disc: inf (as the compass search's cost)
+                e = (q[0] - gx) ** 2 + (q[1] - gy) ** 2
+                if e > r2:
+                    return math.inf
+                far = max(far, e + z2)
             dt, h = carrier_hop(prev, q, h, carrier)
-            t = smooth_max(t + dt, builder.ready(reg, q), tau) + load
+            t = smooth_max(t + dt, leg_time(math.sqrt(far), builder.rover), tau) + load
             prev = q
         return t
 
@@ -58,6 +67,7 @@ def smooth(builder: PathBuilder, route: Route, tol: float = 1e-3) -> Route:
         return cost(pos, 0.0)
 
     step = max(min(float(min(builder.inst.radii[i] for i in c)) for c in route.clusters) / 4, 0.05)
-    pos = smooth_compass(cost, exact, route.positions, step, tol)
+    starts = [route.positions, [reg.time_center for reg in regions]]  # and the clusters' time centres
+    pos = smooth_compass(cost, exact, starts, step, tol)
     cand = Route(builder, route.clusters, regions, pos)
     return cand if cand.makespan < route.makespan - 1e-9 else route

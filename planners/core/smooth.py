@@ -33,33 +33,37 @@ def smooth_max(a: float, b: float, tau: float) -> float:
 
 
 def smooth_compass(cost: Callable[[Sequence[Point2], float], float],
-                   exact: Callable[[Sequence[Point2]], float], positions: Sequence[Point2],
+                   exact: Callable[[Sequence[Point2]], float], starts: Sequence[Sequence[Point2]],
                    step: float, tol: float = 1e-3, taus: Sequence[float] = TAUS) -> list[Point2]:
-    """Minimise ``cost(positions, τ)`` (inf where a stop cannot serve its cluster) by a compass
-    search over one stop at a time (8 directions, first improvement, halving the step to ``tol``)
-    for each τ of ``taus`` (relative to the exact makespan of the start); returns the positions of
-    the stage whose ``exact`` makespan is lowest (the start's when none is lower)."""
-    pos = list(positions)
-    best_pos, best = list(pos), exact(pos)
-    scale = best
-    for stage, rel in enumerate(taus):
-        tau = rel * scale
-        cur = cost(pos, tau)
-        s = step if stage == 0 else step / 4
-        while s > tol:
-            improved = False
-            for k in range(len(pos)):
-                x, y = pos[k]
-                for dx, dy in COMPASS:
-                    pos[k] = (x + s * dx, y + s * dy)
-                    c = cost(pos, tau)
-                    if c < cur - 1e-12:
-                        cur, improved = c, True
-                        break
-                    pos[k] = (x, y)
-            if not improved:
-                s /= 2
-        t = exact(pos)
-        if t < best - 1e-9:
-            best, best_pos = t, list(pos)
+    """Minimise ``cost(positions, τ)`` (inf where a stop cannot serve its cluster) from each of
+    ``starts`` by a compass search over one stop at a time (8 directions, first improvement,
+    halving the step to ``tol``) for each τ of ``taus`` (relative to the exact makespan of the
+    first start); returns the positions of the stage whose ``exact`` makespan is lowest (the first
+    start when none is lower)."""
+    best_pos = list(starts[0])
+    best = scale = exact(best_pos)
+    for start in starts:
+        pos = list(start)
+        for stage, rel in enumerate(taus):
+            tau = rel * scale
+            cur = cost(pos, tau)
+            if cur == math.inf:
+                break
+            s = step if stage == 0 else step / 4
+            while s > tol:
+                improved = False
+                for k in range(len(pos)):
+                    x, y = pos[k]
+                    for dx, dy in COMPASS:
+                        pos[k] = (x + s * dx, y + s * dy)
+                        c = cost(pos, tau)
+                        if c < cur - 1e-12:
+                            cur, improved = c, True
+                            break
+                        pos[k] = (x, y)
+                if not improved:
+                    s /= 2
+            t = exact(pos)
+            if t < best - 1e-9:
+                best, best_pos = t, list(pos)
     return best_pos

@@ -21,6 +21,7 @@ from planners.core.moves import (
     quick_descent,
     relocate_nearest,
 )
+from planners.core.partitions import best_partition
 from planners.core.plan import Plan
 from planners.core.problem import DeployProblem, PlanningError, Point2, refuse_obstacles
 from planners.core.search import merge_neighbours, reorder, split_loop, swap_neighbours
@@ -92,12 +93,18 @@ def lee_clusters(problem: DeployProblem, improve: bool = True,
     if small and moved is not route:  # today's plan too (large: the moves' route alone is polished)
         today = finish(route)
         best = today if today.makespan < best.makespan else best
+    if n <= EXHAUSTIVE_UPTO:  # tiny: every ordered partition too
+        every = best_partition(n, inst.fits_quick, builder.route, finish, EXHAUSTIVE_KEEP)
+        best = every if every is not None and every.makespan < best.makespan else best
     if n <= FINE_MOVES_UPTO or stop is not None:  # ... and on the final placement
         best = fine_descent(best, inst.fits_quick, builder.route, finish,
                                 stop if n > FINE_MOVES_UPTO else None,
                                 slack=0.15 if stop is None and n > EVERY_FINE_UPTO else math.inf)
     if stop is not None:  # anytime: iterated local search until the budget
-        best = iterated_search(best, inst.fits_quick, builder.route, finish,
+        def finest(r: Route) -> Route:  # short routes: each kick's route on the smoothed makespan too
+            return smooth(builder, finish(r)) if n <= SMOOTH_UPTO else finish(r)
+
+        best = iterated_search(best, inst.fits_quick, builder.route, finest,
                                random.Random(problem.seed), stop, max_fails=ILS_PATIENCE * n)
     if n <= SMOOTH_UPTO:
         best = smooth(builder, best)
@@ -111,6 +118,8 @@ def _fresh(builder: PathBuilder, r: Route) -> Route:
 
 
 FINE_MOVES_UPTO = 8  # tasks: up to this many, every move is also scored on fine, polished stops
+EXHAUSTIVE_UPTO = 5  # up to this many, every ordered partition is scored on the quick placement ...
+EXHAUSTIVE_KEEP = 6  # ... and this many of the fastest placed finely
 EVERY_FINE_UPTO = 5  # up to this many, the fine descent places every change finely (no slack)
 SMOOTH_UPTO = 8  # tasks: up to this many, the final stops are re-placed on the smoothed makespan
 # (up to n tasks, k): the tasks of a cluster nearest its neighbour that the quick descent offers to it

@@ -7,34 +7,40 @@ from collections.abc import Sequence
 
 from planners.core.problem import Point2
 from planners.core.smooth import smooth_compass, smooth_max
-from planners.core.timing import carrier_hop
+from planners.core.timing import carrier_hop, leg_time
 from planners.deploy.path import PathBuilder, Route
 
 
 def smooth(builder: PathBuilder, route: Route, tol: float = 1e-3) -> Route:
     """Every stop of ``route`` re-placed on the smoothed makespan (the latest last arrival): where
-    two stops' rovers arrive last together, one stop moving alone cannot help. Keeps the faster
-    of the two routes."""
+    two stops' rovers arrive last together, one stop moving alone cannot help. Searched from the
+    route's stops and from the clusters' centres; keeps the faster route."""
     if not route.clusters:
         return route
     inst, unload, carrier = builder.inst, builder.unload, builder.carrier
     clusters, d = route.clusters, inst.d
 
+    rows = [[(inst.pts[i][0], inst.pts[i][1], inst.pts[i][2] ** 2) for i in c] for c in clusters]
+    d2 = (d + 1e-9) ** 2  # (a stop at the range's rim is inside up to rounding)
+
     def cost(pos: Sequence[Point2], tau: float) -> float:
         prev, h, t, worst = builder.start, inst.problem.heading, 0.0, -math.inf
-        for members, q in zip(clusters, pos, strict=True):
-            reach = inst.reach_from(q, members)
-            if reach > d:
+        for members, q in zip(rows, pos, strict=True):
+            far = 0.0
+            for tx, ty, z2 in members:
+                far = max(far, (tx - q[0]) ** 2 + (ty - q[1]) ** 2 + z2)
+            if far > d2:  # a task out of reach (as the polish's cost)
                 return math.inf
             dt, h = carrier_hop(prev, q, h, carrier)
             t += dt + unload
-            worst = smooth_max(worst, t + builder.finish(q, members), tau)
+            worst = smooth_max(worst, t + leg_time(math.sqrt(far), builder.rover), tau)
             prev = q
         return worst
 
     def exact(pos: Sequence[Point2]) -> float:
         return cost(pos, 0.0)
 
-    pos = smooth_compass(cost, exact, route.positions, max(d / 4, 0.05), tol)
+    starts = [route.positions, [g.center for g in route.geos]]  # and the clusters' centres
+    pos = smooth_compass(cost, exact, starts, max(d / 4, 0.05), tol)
     cand = Route(builder, clusters, route.geos, pos)
     return cand if cand.makespan < route.makespan - 1e-9 else route
