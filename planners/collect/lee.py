@@ -181,6 +181,9 @@ def lee_route(problem: CollectProblem, improve: bool = True, fine_upto: int = 12
         r = polish(builder, r, sweeps=2 if small else 1, level=2 if small else 1)
         return compass(builder, r, tol=1e-3 if small else COARSE_TOL)
 
+    def smoothed(r: Route) -> Route:  # short routes: also on the smoothed makespan
+        return smooth(builder, finish(r)) if len(problem.rovers) <= SMOOTH_UPTO else finish(r)
+
     stop = deadline(problem.budget_ms, t0) if improve else None
     if not improve:
         best = finish(route)
@@ -204,10 +207,7 @@ def lee_route(problem: CollectProblem, improve: bool = True, fine_upto: int = 12
             best = fine_descent(best, inst.fits, builder.route, finish, stop if n > FINE_MOVES_UPTO else None,
                                 slack=0.15 if stop is None and n > EVERY_FINE_UPTO else math.inf)
     if stop is not None:  # anytime: iterated local search until the budget
-        def finest(r: Route) -> Route:  # short routes: each kick's route on the smoothed makespan too
-            return smooth(builder, finish(r)) if len(problem.rovers) <= SMOOTH_UPTO else finish(r)
-
-        best = iterated_search(best, inst.fits, builder.route, finest, random.Random(problem.seed), stop,
+        best = iterated_search(best, inst.fits, builder.route, smoothed, random.Random(problem.seed), stop,
                                max_fails=ILS_PATIENCE * len(problem.rovers))
     route = smooth(builder, best) if len(problem.rovers) <= SMOOTH_UPTO else best
     if len(problem.rovers) == 2:

@@ -39,8 +39,8 @@ def polish(builder: PathBuilder, route: Route,
 def smooth(builder: PathBuilder, route: Route, tol: float = 1e-3) -> Route:
     """Re-place every stop of a short route on the smoothed eq. 5.2 (``planners.core.smooth``):
     the carrier arriving just as a cluster's last rover lands is a kink the stop-by-stop compass
-    search cannot leave (the stop before must move too). Searched from the route's stops and from
-    the clusters' time centres; keeps the faster route."""
+    search cannot leave (the stop before must move too). Searched from the route's stops, the
+    clusters' time centres and each stop nearest the next cluster's; keeps the faster route."""
     if not route.clusters:
         return route
     regions, load, carrier = route.regions, builder.load, builder.carrier
@@ -67,7 +67,9 @@ def smooth(builder: PathBuilder, route: Route, tol: float = 1e-3) -> Route:
         return cost(pos, 0.0)
 
     step = max(min(float(min(builder.inst.radii[i] for i in c)) for c in route.clusters) / 4, 0.05)
-    starts = [route.positions, [reg.time_center for reg in regions]]  # and the clusters' time centres
+    centres = [reg.time_center for reg in regions]
+    forward = [reg.project(nxt) for reg, nxt in zip(regions, [*centres[1:], centres[-1]], strict=True)]
+    starts = [route.positions, centres, forward]  # forward: each stop as near the next cluster as it can
     pos = smooth_compass(cost, exact, starts, step, tol)
     cand = Route(builder, route.clusters, regions, pos)
     return cand if cand.makespan < route.makespan - 1e-9 else route

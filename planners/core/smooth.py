@@ -22,6 +22,7 @@ from planners.core.geometry import COMPASS
 Point2 = tuple[float, float]
 # stages of τ, relative to the makespan; the last (0) is the exact makespan
 TAUS = (0.03, 0.008, 0.002, 0.0)
+COARSE = 8  # the smoothed stages' last step, in multiples of the exact stage's
 
 
 def smooth_max(a: float, b: float, tau: float) -> float:
@@ -50,7 +51,8 @@ def smooth_compass(cost: Callable[[Sequence[Point2], float], float],
             if cur == math.inf:
                 break
             s = step if stage == 0 else step / 4
-            while s > tol:
+            last = tol if stage + 1 == len(taus) else tol * COARSE  # the smoothed stages stop coarser
+            while s > last:
                 improved = False
                 for k in range(len(pos)):
                     x, y = pos[k]

@@ -78,6 +78,9 @@ def lee_clusters(problem: DeployProblem, improve: bool = True,
         sweeps = 3 if small else 2 if n <= 60 else 1
         return _polish(builder, r, sweeps, 1e-3 if small else COARSE_TOL) if improve else r
 
+    def smoothed(r: Route) -> Route:  # short routes: also on the smoothed makespan
+        return smooth(builder, finish(r)) if n <= SMOOTH_UPTO else finish(r)
+
     if not improve:
         best = finish(route)
         return best.clusters, best.positions, best.makespan
@@ -101,10 +104,7 @@ def lee_clusters(problem: DeployProblem, improve: bool = True,
                                 stop if n > FINE_MOVES_UPTO else None,
                                 slack=0.15 if stop is None and n > EVERY_FINE_UPTO else math.inf)
     if stop is not None:  # anytime: iterated local search until the budget
-        def finest(r: Route) -> Route:  # short routes: each kick's route on the smoothed makespan too
-            return smooth(builder, finish(r)) if n <= SMOOTH_UPTO else finish(r)
-
-        best = iterated_search(best, inst.fits_quick, builder.route, finest,
+        best = iterated_search(best, inst.fits_quick, builder.route, smoothed,
                                random.Random(problem.seed), stop, max_fails=ILS_PATIENCE * n)
     if n <= SMOOTH_UPTO:
         best = smooth(builder, best)

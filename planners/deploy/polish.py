@@ -14,7 +14,7 @@ from planners.deploy.path import PathBuilder, Route
 def smooth(builder: PathBuilder, route: Route, tol: float = 1e-3) -> Route:
     """Every stop of ``route`` re-placed on the smoothed makespan (the latest last arrival): where
     two stops' rovers arrive last together, one stop moving alone cannot help. Searched from the
-    route's stops and from the clusters' centres; keeps the faster route."""
+    route's stops, the clusters' centres and ``_forward``; keeps the faster route."""
     if not route.clusters:
         return route
     inst, unload, carrier = builder.inst, builder.unload, builder.carrier
@@ -40,7 +40,25 @@ def smooth(builder: PathBuilder, route: Route, tol: float = 1e-3) -> Route:
     def exact(pos: Sequence[Point2]) -> float:
         return cost(pos, 0.0)
 
-    starts = [route.positions, [g.center for g in route.geos]]  # and the clusters' centres
+    centres = [g.center for g in route.geos]
+    starts = [route.positions, centres, _forward(route)]
     pos = smooth_compass(cost, exact, starts, max(d / 4, 0.05), tol)
     cand = Route(builder, clusters, route.geos, pos)
     return cand if cand.makespan < route.makespan - 1e-9 else route
+
+
+def _forward(route: Route) -> list[Point2]:
+    """Every stop as far toward the next cluster's centre as its rovers' range allows (the last at
+    its centre): a start in the other basin from the chapter's stops, which lean toward the
+    previous stop."""
+    out: list[Point2] = []
+    geos = route.geos
+    for k, g in enumerate(geos):
+        if k + 1 == len(geos):
+            out.append(g.center)
+            continue
+        (cx, cy), (tx, ty) = g.center, geos[k + 1].center
+        off = math.hypot(tx - cx, ty - cy)
+        s = min(g.slack, off) / off if off > 0 else 0.0
+        out.append((cx + s * (tx - cx), cy + s * (ty - cy)))
+    return out
