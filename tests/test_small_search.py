@@ -5,7 +5,10 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import pytest
+
 from bench.optimality import collect_instance, deploy_instance
+from planners import COLLECT_PLANNERS
 from planners.collect.instance import CollectInstance
 from planners.collect.lee import compass
 from planners.collect.path import PathBuilder as CollectBuilder
@@ -18,6 +21,8 @@ from planners.deploy.cluster import DeployInstance
 from planners.deploy.lee import _fresh, _polish
 from planners.deploy.path import PathBuilder as DeployBuilder
 from planners.deploy.polish import smooth as deploy_smooth
+from tests.test_collect import check_plan as check_collect
+from tests.test_deploy import check
 
 
 def test_split_gives_every_division_into_two_parts_of_two_or_more_in_both_orders() -> None:
@@ -87,3 +92,11 @@ def test_smoothed_deployment_starts_in_the_other_basin() -> None:
         for i in members:
             t = problem.tasks[i].position
             assert math.dist(t, (q[0], q[1], 0.0)) <= problem.deploy_range - RANGE_MARGIN + 1e-6
+
+
+@pytest.mark.parametrize("n,seed", [(4, 2), (4, 17), (5, 0), (5, 6)])
+def test_small_plans_pass_the_independent_checks(n: int, seed: int) -> None:
+    # smoothed stops may sit on a reach disc's rim: the plans still keep every range with its margin
+    check(deploy_instance(n, seed), "lee")
+    problem = collect_instance(n, seed)
+    check_collect(problem, COLLECT_PLANNERS["lee"](problem))
