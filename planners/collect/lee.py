@@ -34,6 +34,7 @@ from planners.core.moves import (
     merge,
     quick_descent,
     relocate_nearest,
+    remembered,
     swap,
 )
 from planners.core.partitions import best_partition
@@ -180,6 +181,8 @@ def lee_route(problem: CollectProblem, improve: bool = True, fine_upto: int = 12
             r = fresh if fresh.makespan <= r.makespan else r
         r = polish(builder, r, sweeps=2 if small else 1, level=2 if small else 1)
         return compass(builder, r, tol=1e-3 if small else COARSE_TOL)
+
+    finish = remembered(finish)
 
     def smoothed(r: Route) -> Route:  # short routes: also on the smoothed makespan
         return smooth(builder, finish(r)) if len(problem.rovers) <= SMOOTH_UPTO else finish(r)

@@ -205,6 +205,20 @@ def quick_descent(route: R, fits: Fits, stop: Callable[[], bool] | None = None,
     return local_search(route, fits, _quick_score, _accept, _makespan, moves=moves, rounds=rounds, stop=stop)
 
 
+def remembered(finish: Callable[[R], R]) -> Callable[[R], R]:
+    """``finish`` remembering its result per route (clusters and stops): the exhaustive search,
+    the fine descent's sweeps and the iterated search place the same quick routes again."""
+    seen: dict[tuple, R] = {}
+
+    def cached(r: R) -> R:
+        key = (tuple(map(tuple, r.clusters)), tuple(r.positions))  # type: ignore[attr-defined]
+        got = seen.get(key)
+        if got is None:
+            got = seen[key] = finish(r)
+        return got
+    return cached
+
+
 def fine_descent(route: R, fits: Fits, rebuild: Callable[[list[list[int]]], R], finish: Callable[[R], R],
                  stop: Callable[[], bool] | None = None, slack: float = 0.15) -> R:
     """``local_search`` with every change scored on the final placement: ``finish(rebuild(clusters))``.

@@ -20,6 +20,7 @@ from planners.core.moves import (
     merge,
     quick_descent,
     relocate_nearest,
+    remembered,
 )
 from planners.core.partitions import best_partition
 from planners.core.plan import Plan
@@ -77,6 +78,8 @@ def lee_clusters(problem: DeployProblem, improve: bool = True,
         r = _fresh(builder, r)
         sweeps = 3 if small else 2 if n <= 60 else 1
         return _polish(builder, r, sweeps, 1e-3 if small else COARSE_TOL) if improve else r
+
+    finish = remembered(finish)
 
     def smoothed(r: Route) -> Route:  # short routes: also on the smoothed makespan
         return smooth(builder, finish(r)) if n <= SMOOTH_UPTO else finish(r)
