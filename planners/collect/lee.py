@@ -175,14 +175,14 @@ def lee_route(problem: CollectProblem, improve: bool = True, fine_upto: int = 12
         route = better
     small = len(problem.rovers) <= fine_upto
 
-    def finish(r: Route) -> Route:
+    def place_finely(r: Route) -> Route:
         if small:  # place every stop afresh, finely, and keep the faster
             fresh = builder.route(r.clusters, 2)
             r = fresh if fresh.makespan <= r.makespan else r
         r = polish(builder, r, sweeps=2 if small else 1, level=2 if small else 1)
         return compass(builder, r, tol=1e-3 if small else COARSE_TOL)
 
-    finish = remembered(finish)
+    finish = remembered(place_finely)
 
     def smoothed(r: Route) -> Route:  # short routes: also on the smoothed makespan
         return smooth(builder, finish(r)) if len(problem.rovers) <= SMOOTH_UPTO else finish(r)

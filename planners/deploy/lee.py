@@ -74,12 +74,12 @@ def lee_clusters(problem: DeployProblem, improve: bool = True,
     # keep whichever of the two routes is faster; then polish every stop (routes of any length).
     small = n <= FINE_UPTO
 
-    def finish(r: Route) -> Route:
+    def place_finely(r: Route) -> Route:
         r = _fresh(builder, r)
         sweeps = 3 if small else 2 if n <= 60 else 1
         return _polish(builder, r, sweeps, 1e-3 if small else COARSE_TOL) if improve else r
 
-    finish = remembered(finish)
+    finish = remembered(place_finely)
 
     def smoothed(r: Route) -> Route:  # short routes: also on the smoothed makespan
         return smooth(builder, finish(r)) if n <= SMOOTH_UPTO else finish(r)
