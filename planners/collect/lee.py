@@ -28,6 +28,7 @@ from planners.collect.two import two_rover_route
 from planners.core.clustering import divide_cluster
 from planners.core.geometry import compass_search
 from planners.core.moves import (
+    SMOOTH_MOVES,
     deadline,
     fine_descent,
     iterated_search,
@@ -184,6 +185,7 @@ def lee_route(problem: CollectProblem, improve: bool = True, fine_upto: int = 12
 
     finish = remembered(place_finely)
 
+    @remembered
     def smoothed(r: Route) -> Route:  # short routes: also on the smoothed makespan
         return smooth(builder, finish(r)) if len(problem.rovers) <= SMOOTH_UPTO else finish(r)
 
@@ -209,6 +211,9 @@ def lee_route(problem: CollectProblem, improve: bool = True, fine_upto: int = 12
         if n <= FINE_MOVES_UPTO or stop is not None:  # ... and on the final stops
             best = fine_descent(best, inst.fits, builder.route, finish, stop if n > FINE_MOVES_UPTO else None,
                                 slack=0.15 if stop is None and n > EVERY_FINE_UPTO else math.inf)
+    if stop is not None and len(problem.rovers) <= SMOOTH_UPTO:  # a budget: the moves on smoothed stops first
+        best = fine_descent(best, inst.fits, builder.route, smoothed, stop, slack=math.inf,
+                            moves=SMOOTH_MOVES)
     if stop is not None:  # anytime: iterated local search until the budget
         best = iterated_search(best, inst.fits, builder.route, smoothed, random.Random(problem.seed), stop,
                                max_fails=ILS_PATIENCE * len(problem.rovers))

@@ -133,6 +133,8 @@ def reverse(clusters: Clusters, fits: Fits, start: int = 0) -> Iterator[Change]:
 
 MOVES: tuple[Move, ...] = (swap, relocate, split_off, merge, exchange, shift, reverse)
 SMALL_MOVES: tuple[Move, ...] = (*MOVES, split)  # routes of up to SMALL items, and the fine descent
+# the smoothed descent of a budget: one task (rover) moved first, the slowest moves to score
+SMOOTH_MOVES: tuple[Move, ...] = (split_off, relocate, exchange, swap, merge, split, shift, reverse)
 SPLIT_UPTO = 6  # members: ``split`` divides clusters up to this size (2^(k−1) divisions)
 CHEAP_MOVES: tuple[Move, ...] = (swap, relocate, merge)  # linear in the route's length
 LARGE = 30  # tasks (rovers): beyond this the quick plan uses CHEAP_MOVES
@@ -220,7 +222,8 @@ def remembered(finish: Callable[[R], R]) -> Callable[[R], R]:
 
 
 def fine_descent(route: R, fits: Fits, rebuild: Callable[[list[list[int]]], R], finish: Callable[[R], R],
-                 stop: Callable[[], bool] | None = None, slack: float = 0.15) -> R:
+                 stop: Callable[[], bool] | None = None, slack: float = 0.15,
+                 moves: Sequence[Move] | None = None) -> R:
     """``local_search`` with every change scored on the final placement: ``finish(rebuild(clusters))``.
     Changes whose quick route ``rebuild(clusters)`` is more than ``slack`` slower than the route
     are not placed finely (the fine placement rarely gains more)."""
@@ -230,7 +233,8 @@ def fine_descent(route: R, fits: Fits, rebuild: Callable[[list[list[int]]], R], 
             return math.inf, None
         cand = finish(quick)
         return _makespan(cand), cand
-    moves = SMALL_MOVES if sum(len(c) for c in route.clusters) <= SMALL else MOVES  # type: ignore[attr-defined,misc]
+    if moves is None:
+        moves = SMALL_MOVES if sum(len(c) for c in route.clusters) <= SMALL else MOVES  # type: ignore[attr-defined,misc]
     return local_search(route, fits, score, lambda r, cand: cand, _makespan, moves=moves, stop=stop)
 
 

@@ -14,6 +14,7 @@ from collections.abc import Callable, Sequence
 from planners.core.clustering import divide_cluster
 from planners.core.geometry import compass_search
 from planners.core.moves import (
+    SMOOTH_MOVES,
     deadline,
     fine_descent,
     iterated_search,
@@ -81,6 +82,7 @@ def lee_clusters(problem: DeployProblem, improve: bool = True,
 
     finish = remembered(place_finely)
 
+    @remembered
     def smoothed(r: Route) -> Route:  # short routes: also on the smoothed makespan
         return smooth(builder, finish(r)) if n <= SMOOTH_UPTO else finish(r)
 
@@ -106,6 +108,9 @@ def lee_clusters(problem: DeployProblem, improve: bool = True,
         best = fine_descent(best, inst.fits_quick, builder.route, finish,
                                 stop if n > FINE_MOVES_UPTO else None,
                                 slack=0.15 if stop is None and n > EVERY_FINE_UPTO else math.inf)
+    if stop is not None and n <= SMOOTH_UPTO:  # a budget: the moves scored on the smoothed stops first
+        best = fine_descent(best, inst.fits_quick, builder.route, smoothed, stop, slack=math.inf,
+                            moves=SMOOTH_MOVES)
     if stop is not None:  # anytime: iterated local search until the budget
         best = iterated_search(best, inst.fits_quick, builder.route, smoothed,
                                random.Random(problem.seed), stop, max_fails=ILS_PATIENCE * n)
