@@ -39,7 +39,7 @@ from planners.core.moves import (
     swap,
 )
 from planners.core.partitions import best_partition
-from planners.core.plan import Plan, RoverLeg, Stop
+from planners.core.plan import SNAP, Plan, RoverLeg, Stop
 from planners.core.problem import CollectProblem, Vec3, refuse_obstacles
 from planners.core.search import merge_neighbours, reorder, split_loop
 from planners.core.timing import carrier_step, leg_time, retime
@@ -211,6 +211,7 @@ def lee_route(problem: CollectProblem, improve: bool = True, fine_upto: int = 12
         if n <= FINE_MOVES_UPTO or stop is not None:  # ... and on the final stops
             best = fine_descent(best, inst.fits, builder.route, finish, stop if n > FINE_MOVES_UPTO else None,
                                 slack=0.15 if stop is None and n > EVERY_FINE_UPTO else math.inf)
+    quick = best
     if stop is not None and len(problem.rovers) <= SMOOTH_UPTO:  # a budget: the moves on smoothed stops first
         best = fine_descent(best, inst.fits, builder.route, smoothed, stop, slack=math.inf,
                             moves=SMOOTH_MOVES)
@@ -218,6 +219,10 @@ def lee_route(problem: CollectProblem, improve: bool = True, fine_upto: int = 12
         best = iterated_search(best, inst.fits, builder.route, smoothed, random.Random(problem.seed), stop,
                                max_fails=ILS_PATIENCE * len(problem.rovers))
     route = smooth(builder, best) if len(problem.rovers) <= SMOOTH_UPTO else best
+    if len(problem.rovers) <= SMOOTH_UPTO:  # timed as the plan will fly (its builder snaps and pulls
+        # stops into reach: a nudged stop on top of the previous one has an arbitrary heading)
+        route = min((route, quick),
+                    key=lambda r: build_collect_plan(problem, "lee", r.clusters, r.positions).makespan)
     if len(problem.rovers) == 2:
         two = two_rover_route(builder)  # the ch. 5.3 optimum, where it applies
         if two.makespan < route.makespan:
@@ -282,7 +287,7 @@ def _snap(problem: CollectProblem, members: Sequence[int], prev: Vec3, here: Vec
     """A stop a hair's breadth (< 1 cm) from the previous one is put exactly on it when every rover
     can still reach it: a hop of micrometres has an arbitrary heading once the plan's coordinates
     are rounded for JSON, and turning to it would cost real time."""
-    if 0.0 < math.dist(prev[:2], here[:2]) < 1e-2:
+    if 0.0 < math.dist(prev[:2], here[:2]) < SNAP:
         snapped: Vec3 = (prev[0], prev[1], 0.0)
         if all(math.dist(problem.rovers[i].position, snapped) <= problem.rovers[i].range - 1e-5
                for i in members):

@@ -8,6 +8,7 @@ from collections.abc import Callable, Sequence
 
 from planners.collect.path import PathBuilder, Route
 from planners.collect.reach import INSIDE_TOL, Point2, Region
+from planners.core.plan import SNAP
 from planners.core.smooth import smooth_compass, smooth_max
 from planners.core.timing import carrier_hop, leg_time
 
@@ -36,6 +37,9 @@ def polish(builder: PathBuilder, route: Route,
     return route
 
 
+SNAP2 = SNAP * SNAP
+
+
 def smooth(builder: PathBuilder, route: Route, tol: float = 1e-3) -> Route:
     """Re-place every stop of a short route on the smoothed eq. 5.2 (``planners.core.smooth``):
     the carrier arriving just as a cluster's last rover lands is a kink the stop-by-stop compass
@@ -58,6 +62,9 @@ def smooth(builder: PathBuilder, route: Route, tol: float = 1e-3) -> Route:
                 if e > r2:
                     return math.inf
                 far = max(far, e + z2)
+            hop2 = (q[0] - prev[0]) ** 2 + (q[1] - prev[1]) ** 2
+            if 0.0 < hop2 < SNAP2:  # the plan would put this stop on the previous one (and lose its turn)
+                return math.inf
             dt, h = carrier_hop(prev, q, h, carrier)
             t = smooth_max(t + dt, leg_time(math.sqrt(far), builder.rover), tau) + load
             prev = q
@@ -73,3 +80,4 @@ def smooth(builder: PathBuilder, route: Route, tol: float = 1e-3) -> Route:
     pos = smooth_compass(cost, exact, starts, step, tol)
     cand = Route(builder, route.clusters, regions, pos)
     return cand if cand.makespan < route.makespan - 1e-9 else route
+

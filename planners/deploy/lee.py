@@ -108,14 +108,16 @@ def lee_clusters(problem: DeployProblem, improve: bool = True,
         best = fine_descent(best, inst.fits_quick, builder.route, finish,
                                 stop if n > FINE_MOVES_UPTO else None,
                                 slack=0.15 if stop is None and n > EVERY_FINE_UPTO else math.inf)
+    quick = best
     if stop is not None and n <= SMOOTH_UPTO:  # a budget: the moves scored on the smoothed stops first
         best = fine_descent(best, inst.fits_quick, builder.route, smoothed, stop, slack=math.inf,
                             moves=SMOOTH_MOVES)
     if stop is not None:  # anytime: iterated local search until the budget
         best = iterated_search(best, inst.fits_quick, builder.route, smoothed,
                                random.Random(problem.seed), stop, max_fails=ILS_PATIENCE * n)
-    if n <= SMOOTH_UPTO:
-        best = smooth(builder, best)
+    if n <= SMOOTH_UPTO:  # timed as the plan will fly (build_plan snaps a stop millimetres on)
+        best = min((smooth(builder, best), quick),
+                   key=lambda r: build_plan(problem, "lee", r.clusters, r.positions).makespan)
     return best.clusters, best.positions, best.makespan
 
 

@@ -5,10 +5,13 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 
+from planners.core.plan import SNAP
 from planners.core.problem import Point2
 from planners.core.smooth import smooth_compass, smooth_max
 from planners.core.timing import carrier_hop, leg_time
 from planners.deploy.path import PathBuilder, Route
+
+SNAP2 = SNAP * SNAP
 
 
 def smooth(builder: PathBuilder, route: Route, tol: float = 1e-3) -> Route:
@@ -30,6 +33,9 @@ def smooth(builder: PathBuilder, route: Route, tol: float = 1e-3) -> Route:
             for tx, ty, z2 in members:
                 far = max(far, (tx - q[0]) ** 2 + (ty - q[1]) ** 2 + z2)
             if far > d2:  # a task out of reach (as the polish's cost)
+                return math.inf
+            hop2 = (q[0] - prev[0]) ** 2 + (q[1] - prev[1]) ** 2
+            if 0.0 < hop2 < SNAP2:  # the plan would put this stop on the previous one (and lose its turn)
                 return math.inf
             dt, h = carrier_hop(prev, q, h, carrier)
             t += dt + unload
@@ -62,3 +68,4 @@ def _forward(route: Route) -> list[Point2]:
         s = min(g.slack, off) / off if off > 0 else 0.0
         out.append((cx + s * (tx - cx), cy + s * (ty - cy)))
     return out
+
