@@ -221,8 +221,8 @@ def lee_route(problem: CollectProblem, improve: bool = True, fine_upto: int = 12
     route = smooth(builder, best) if len(problem.rovers) <= SMOOTH_UPTO else best
     if len(problem.rovers) <= SMOOTH_UPTO:  # timed as the plan will fly (its builder snaps and pulls
         # stops into reach: a nudged stop on top of the previous one has an arbitrary heading)
-        route = min((route, quick),
-                    key=lambda r: build_collect_plan(problem, "lee", r.clusters, r.positions).makespan)
+        cands = (route, smooth(builder, quick), quick) if stop is not None else (route, quick)
+        route = min(cands, key=lambda r: build_collect_plan(problem, "lee", r.clusters, r.positions).makespan)
     if len(problem.rovers) == 2:
         two = two_rover_route(builder)  # the ch. 5.3 optimum, where it applies
         if two.makespan < route.makespan:

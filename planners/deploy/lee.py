@@ -116,8 +116,9 @@ def lee_clusters(problem: DeployProblem, improve: bool = True,
         best = iterated_search(best, inst.fits_quick, builder.route, smoothed,
                                random.Random(problem.seed), stop, max_fails=ILS_PATIENCE * n)
     if n <= SMOOTH_UPTO:  # timed as the plan will fly (build_plan snaps a stop millimetres on)
-        best = min((smooth(builder, best), quick),
-                   key=lambda r: build_plan(problem, "lee", r.clusters, r.positions).makespan)
+        cands = (smooth(builder, best), smooth(builder, quick), quick) if stop is not None else (
+            smooth(builder, best), quick)
+        best = min(cands, key=lambda r: build_plan(problem, "lee", r.clusters, r.positions).makespan)
     return best.clusters, best.positions, best.makespan
 
 
