@@ -227,9 +227,13 @@ def cmd_resume(args: argparse.Namespace) -> int:
 
 def _one_team(mission: Mission, command: str) -> None:
     if several_teams(mission):
+        ids = ", ".join(t.carrier.id for t in mission.teams)
+        how = (f"fly one team per controller with --team ID ({ids}; docs/teams.md), or plan them all: "
+               "fleetctl plan --mission FILE" if command in ("deploy", "run")
+               else "several teams can only be planned or flown one team per controller for now "
+                    "(fleetctl plan --mission FILE; deploy|run --team ID)")
         raise CliError(f"{mission.path or mission.name}: '{command}' flies one carrier and this mission has "
-                       f"{len(mission.teams)} (carriers:); several teams can only be planned for now: "
-                       "fleetctl plan --mission FILE")
+                       f"{len(mission.teams)} (carriers:); {how}")
 
 
 def _fly(args: argparse.Namespace, mission: Mission, command: str, extra: dict[str, Any]) -> int:
@@ -239,7 +243,9 @@ def _fly(args: argparse.Namespace, mission: Mission, command: str, extra: dict[s
     from fleetctl.run.runner import EXIT_INTERRUPTED
     from fleetctl.views.dashboard import make_view
 
-    _one_team(mission, command)
+    team = getattr(args, "team", None)
+    if team is None:
+        _one_team(mission, command)
     if args.speedup is not None and args.speedup <= 0:
         raise CliError(f"--speedup must be > 0, got {args.speedup}")
     if getattr(args, "dwell", None) is not None and args.dwell < 0:
@@ -248,6 +254,9 @@ def _fly(args: argparse.Namespace, mission: Mission, command: str, extra: dict[s
         planner = dataclasses.replace(mission.planner, budget_ms=args.budget_ms)
         mission = dataclasses.replace(mission, planner=planner)
     mqtt = _bus_config(mission, args)
+    spec = None
+    if team is not None:
+        mission, spec, mqtt = _team(mission, team, args, mqtt)
     view = _with_web(args, make_view(True if args.headless else None, latlon=args.latlon), mission.origin)
 
     def announce(run_dir: object) -> None:
@@ -256,7 +265,7 @@ def _fly(args: argparse.Namespace, mission: Mission, command: str, extra: dict[s
     options = dict(speedup=args.speedup, planner=args.planner, dwell=getattr(args, "dwell", None),
                    summary_path=args.summary, view=view, connect_timeout=args.timeout, mqtt=mqtt,
                    on_run_dir=announce, require_all=args.require_all, force=args.force,
-                   confirm=_arming_confirmation(args, mission, command), **extra)
+                   confirm=_arming_confirmation(args, mission, command), team_spec=spec, **extra)
     try:
         outcome, terminated = asyncio.run(_with_sigterm(mission, command, options))
     except ExecutionError as e:  # raised before anything flew (e.g. collect on a sim mission)
@@ -265,6 +274,30 @@ def _fly(args: argparse.Namespace, mission: Mission, command: str, extra: dict[s
     if terminated and outcome.exit_code == EXIT_INTERRUPTED:
         return EXIT_TERMINATED
     return outcome.exit_code
+
+
+def _team(mission: Mission, team: str, args: argparse.Namespace, mqtt: Any) -> tuple[Mission, Any, Any]:
+    """``--team ID``: the team's own mission, the coordination spec, the team's bus settings."""
+    from fleetctl.run.team_run import prepare_team
+    from planners import PlanningError
+
+    try:
+        own, spec, config = prepare_team(mission, team, args.planner, mqtt)
+    except MissionError as e:
+        raise CliError(str(e)) from None
+    except KeyError as e:
+        raise CliError(f"unknown deploy planner {e}") from None
+    except PlanningError as e:
+        where = mission.path or mission.name
+        raise CliError(f"{where}: cannot share the tasks between the teams: {e}") from None
+    share = ", ".join(spec.shares.get(team, [])) or "none"
+    if config is None:
+        print(f"fleetctl: warning: --team {team} without an MQTT bus (--mqtt URL or the mission's mqtt: "
+              f"section): flying team {team}'s share ({share}) with no coordination; if it fails its "
+              "tasks are not handed over to the other teams", file=sys.stderr)
+    else:
+        print(f"team {team}: share {share}; coordinating on {config.url} under {spec.prefix}", flush=True)
+    return own, spec, config
 
 
 def _arming_confirmation(args: argparse.Namespace, mission: Mission,
@@ -310,8 +343,14 @@ async def _with_sigterm(mission: Mission, command: str, options: dict[str, Any])
 
     with contextlib.suppress(NotImplementedError):  # platforms without signal handlers
         loop.add_signal_handler(signal.SIGTERM, on_term)
+    spec = options.pop("team_spec", None)
     try:
-        outcome = await execute(mission, command, **options)
+        if spec is not None:  # --team: one team of several (fleetctl.run.team_run)
+            from fleetctl.run.team_run import execute_team
+
+            outcome = await execute_team(mission, command, spec, **options)
+        else:
+            outcome = await execute(mission, command, **options)
     finally:
         with contextlib.suppress(NotImplementedError):
             loop.remove_signal_handler(signal.SIGTERM)
@@ -361,6 +400,11 @@ def _add_fly_commands(sub: argparse._SubParsersAction) -> None:
         if name == "run":
             p.add_argument("--dwell", type=float, metavar="S",
                            help="seconds on task before collection (default: the mission's dwell)")
+        if name != "collect":
+            p.add_argument("--team", metavar="ID",
+                           help="a mission with several carriers: fly only the team of carrier ID (its "
+                                "share of the tasks), coordinating with the other teams' controllers over "
+                                "the MQTT bus (docs/teams.md); without a bus it flies its share alone")
         p.add_argument("--runs", default="runs", metavar="DIR",
                        help="where run folders go (default: runs; each run gets runs/<mission>-<timestamp>)")
         p.add_argument("--run-dir", metavar="DIR",

@@ -383,7 +383,9 @@ def test_export_of_several_teams_is_refused(tmp_path: Path, capsys: pytest.Captu
 def test_flying_several_teams_is_refused(command: str, capsys: pytest.CaptureFixture[str]) -> None:
     assert main([command, "--mission", str(TWO)]) == 2
     err = capsys.readouterr().err
-    assert err.count("\n") == 1 and "several teams can only be planned for now" in err
+    assert err.count("\n") == 1
+    flyable = command in ("deploy", "run")
+    assert ("--team ID (c1, c2" if flyable else "several teams can only be planned") in err
 
 
 def test_a_planner_that_cannot_serve_the_shares_is_one_line() -> None:
@@ -413,3 +415,23 @@ def test_team_mission_is_one_team_of_the_file() -> None:
     assert both.rovers.ids == ("r1", "r9") and {r.id for r in both.collection or ()} == {"r1", "r9"}
     with pytest.raises(MissionError, match="no carrier 'c3'"):
         team_mission(m, "c3")
+
+
+def test_team_mission_keeps_its_own_vehicles_sim_faults(tmp_path: Path) -> None:
+    import yaml
+
+    from fleetctl.mission import load_mission
+    from fleetctl.mission.teams import team_mission
+    from fleetctl.run.sim import sim_mission_dict
+    from sitl import FleetConfig
+
+    d = yaml.safe_load(TWO.read_text())
+    d["sim"]["faults"] = [{"kind": "dropout", "vehicle": "c2", "at": 5},
+                          {"kind": "dropout", "vehicle": "r1", "at": 9}, {"kind": "packet_loss", "rate": 0.1}]
+    path = tmp_path / "faults.yaml"
+    path.write_text(yaml.safe_dump(d), encoding="utf-8")
+    m = load_mission(path)
+    for team, kept in (("c1", ["r1", None]), ("c2", ["c2", None])):
+        own = team_mission(m, team)
+        assert [f.get("vehicle") for f in own.raw["sim"]["faults"]] == kept
+        FleetConfig.from_mission_dict(sim_mission_dict(own, "deploy"))  # that team's simulator starts

@@ -3,8 +3,9 @@
 Topics under the mission's prefix ``P`` (default ``fleetctl/<mission name>``):
 
 * ``P/status`` (retained, QoS 1) - ``{"status": "online" | "done" | "failed" | "interrupted" |
-  "offline", "mission", "phase", "stop", "stops", "planned", "elapsed", "bus", "t"}``; the broker
-  publishes the last will ``{"status": "offline", ...}`` when the controller vanishes;
+  "offline", "mission", "phase", "stop", "stops", "planned", "elapsed", "bus", "carrier", "t"}``
+  plus :attr:`FleetBus.identity` (a team's id and session); the broker publishes the last will
+  ``{"status": "offline", "mission", **identity}`` when the controller vanishes;
 * ``P/plan`` (retained, QoS 1) - the current plan JSON (``fleetctl.plan/1``);
 * ``P/vehicles/<id>/telemetry`` (QoS 0) - one vehicle's state at ``telemetry_hz`` (2 Hz);
 * ``P/events`` (QoS 1) - every journal record as written to ``journal.jsonl``;
@@ -12,6 +13,8 @@ Topics under the mission's prefix ``P`` (default ``fleetctl/<mission name>``):
 * in: ``P/tasks/add`` (``{"tasks": [{"id", "position" | "lat"/"lon"/"alt"}, ...]}``, a list of
   tasks or one task) and ``P/tasks/remove`` (``{"tasks": ["t1", ...]}``, a list of ids or one id),
   validated like the mission file and handed to ``Executor.submit_task_change``.
+* more topics a caller subscribes with :meth:`FleetBus.subscribe` (the team coordination,
+  :mod:`fleetctl.run.team_link`) and publishes with ``publish(..., absolute=True)``.
 
 The bus never holds up flying: publishing only appends to a bounded buffer (oldest dropped and
 counted when full; retained topics keep only their latest value and are never dropped), one
@@ -121,14 +124,18 @@ class FleetBus:
         self.rejected = 0  # task messages answered on P/errors
         self.failed: str | None = None  # why the bus task stopped (it should never)
         self._pending: deque[tuple[list[Task], list[str], str]] = deque()  # before an executor exists
+        self.identity: dict[str, Any] = {}  # fields of every status, the last will too (a team's id, session)
+        self._handlers: list[tuple[str, Callable[[str, bytes], None]]] = []  # extra subscriptions
 
     # -- outgoing ---------------------------------------------------------------------------------
     def topic(self, suffix: str) -> str:
         return f"{self.prefix}/{suffix}"
 
-    def publish(self, suffix: str, payload: Any, *, retain: bool = False, qos: int = 0) -> None:
-        """Queue a message (never waits). Retained topics keep only their latest payload."""
-        topic = self.topic(suffix)
+    def publish(self, suffix: str, payload: Any, *, retain: bool = False, qos: int = 0,
+                absolute: bool = False) -> None:
+        """Queue a message (never waits). Retained topics keep only their latest payload;
+        ``absolute``: ``suffix`` is the whole topic (not under the prefix)."""
+        topic = suffix if absolute else self.topic(suffix)
         data = payload if isinstance(payload, bytes) else _dumps(payload)
         if retain:
             self._retained[topic] = data
@@ -158,11 +165,21 @@ class FleetBus:
     def status_payload(self, status: str | None = None) -> dict[str, Any]:
         st = self.state
         out: dict[str, Any] = {"status": status or self._final or "online", "mission": self.mission.name,
-                               "t": round(time.time(), 3), "rejected": self.rejected}
+                               **self.identity, "t": round(time.time(), 3), "rejected": self.rejected}
         if st is not None:
             out.update(phase=st.phase, stop=st.stop_index, stops=st.stop_count, planned=st.planned,
                        elapsed=round(st.elapsed, 2))
+            c = st.vehicles.get(st.carrier_id)
+            if c is not None:
+                out["carrier"] = {"id": c.id, "state": c.state, "lost": c.lost,
+                                  "enu": [round(x, 2) for x in c.enu] if c.enu is not None else None}
         return out
+
+    def subscribe(self, topic_filter: str, handler: Callable[[str, bytes], None]) -> None:
+        """Also subscribe to ``topic_filter`` (a whole topic, wildcards allowed; QoS 1, again on
+        every reconnect) and hand each message's topic and payload (at most MAX_MESSAGE + 1 bytes)
+        to ``handler``, in its own error boundary. Call before :meth:`start`."""
+        self._handlers.append((topic_filter, handler))
 
     def status_line(self) -> str:
         """``bus: connected`` / ``bus: reconnecting (12 dropped)`` for the live view."""
@@ -294,7 +311,8 @@ class FleetBus:
     async def _run(self) -> None:
         ctx = await asyncio.to_thread(self.config.ssl_context)
         delay = BACKOFF_MIN
-        will = aiomqtt.Will(self.topic("status"), _dumps({"status": "offline", "mission": self.mission.name}),
+        will = aiomqtt.Will(self.topic("status"),
+                            _dumps({"status": "offline", "mission": self.mission.name, **self.identity}),
                             qos=1, retain=True)
         while True:
             client = aiomqtt.Client(identifier=self.config.client_id, will=will,
@@ -313,8 +331,8 @@ class FleetBus:
             delay = BACKOFF_MIN
             try:
                 self._dirty = list(self._retained)  # the broker may have lost them
-                await client.subscribe([(self.topic("tasks/add"), 1), (self.topic("tasks/remove"), 1)],
-                                       timeout=PUBLISH_TIMEOUT)
+                await client.subscribe([(self.topic("tasks/add"), 1), (self.topic("tasks/remove"), 1)]
+                                       + [(f, 1) for f, _ in self._handlers], timeout=PUBLISH_TIMEOUT)
                 self._set_status("connected")
                 async with asyncio.TaskGroup() as tg:
                     tg.create_task(self._send(client))
@@ -364,7 +382,11 @@ class FleetBus:
                 raw = msg.payload
                 payload = (bytes(raw) if isinstance(raw, bytes | bytearray)
                            else str(raw).encode()[:MAX_MESSAGE + 1])
-                self.handle_task_message(topic, payload)
+                handler = next((h for f, h in self._handlers if msg.topic.matches(f)), None)
+                if handler is not None:
+                    handler(topic, payload[:MAX_MESSAGE + 1])
+                else:
+                    self.handle_task_message(topic, payload)
             except Exception:  # noqa: BLE001 - handle_task_message answers everything; this is a last guard
                 log.exception("bus: a message could not be handled")
 
@@ -542,10 +564,11 @@ class FleetBus:
 
 
 def start_bus(mission: Mission, config: BusConfig | None, journal: Any, state: FleetState,
-              view: Any = None) -> FleetBus | None:
+              view: Any = None, prepare: Callable[[FleetBus], None] | None = None) -> FleetBus | None:
     """Start the bus of a run (``config``, else the mission's ``mqtt:`` section; None when off):
     every journal record goes out on ``events``, telemetry from ``state``, the status line into
-    ``view``. A bad setting is reported as an event and the mission flies without the bus."""
+    ``view``; ``prepare`` is called with the bus before it starts (identity, subscriptions). A bad
+    setting is reported as an event and the mission flies without the bus."""
     if config is None:
         try:
             config = bus_config(mission)
@@ -555,6 +578,8 @@ def start_bus(mission: Mission, config: BusConfig | None, journal: Any, state: F
     if config is None:
         return None
     bus = FleetBus(config, mission)
+    if prepare is not None:
+        prepare(bus)
     journal.add_observer(bus.on_record)
     bus.show_in(view)
     bus.start(state, journal.write)

@@ -73,6 +73,11 @@ def _one_team_raw(raw: dict[str, Any], team_id: str, units: tuple[RoverUnit, ...
     rovers = {k: v for k, v in dict(d.get("rovers") or {}).items() if k not in ("fleet", "units")}
     rovers["units"] = [_unit_raw(u) for u in units]
     d["rovers"] = rovers
+    sim = d.get("sim")
+    if isinstance(sim, dict) and isinstance(sim.get("faults"), list):  # this team's vehicles' faults only
+        ours = {team_id} | {u.id for u in units}
+        sim["faults"] = [f for f in sim["faults"] if not isinstance(f, dict) or f.get("vehicle") in ours
+                         or f.get("vehicle") is None]
     return d
 
 

@@ -149,14 +149,17 @@ class Run:
         return time.monotonic, 1.0
 
     # ============================================================================== the run
-    async def fly(self) -> RunOutcome:
+    def _start_bus(self) -> Any:
         from fleetctl.bus.client import start_bus
 
+        return start_bus(self.mission, self.opts.mqtt, self.journal, self.state, self.opts.view)
+
+    async def fly(self) -> RunOutcome:
         if self.opts.on_run_dir is not None:
             self.opts.on_run_dir(self.journal.dir)
         self.state.add_listener(self.journal.on_event)
         self.journal.start()
-        self.bus = start_bus(self.mission, self.opts.mqtt, self.journal, self.state, self.opts.view)
+        self.bus = self._start_bus()
         await self._begin_records()
         try:
             await self._warm_planners()
@@ -377,8 +380,8 @@ class Run:
         if r.complete:
             self.state.event(
                 Ev.DEPLOYED,
-                f"deployment complete: {len(r.tasks_reached)} tasks reached in "
-                f"{r.flown:.1f} s (planned {r.planned:.1f} s)",
+                f"deployment complete: {len(r.tasks_reached)} tasks reached in {r.flown or 0.0:.1f} s"
+                + (f" (planned {r.planned:.1f} s)" if r.planned is not None else " (nothing left to plan)"),
             )
         else:  # run: bring back the rovers that did fly
             self.state.event(
