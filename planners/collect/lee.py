@@ -22,21 +22,24 @@ from collections.abc import Callable, Sequence
 
 from planners.collect.instance import CollectInstance
 from planners.collect.path import PathBuilder, Route
-from planners.collect.polish import polish
+from planners.collect.polish import polish, smooth
 from planners.collect.reach import Point2
 from planners.collect.two import two_rover_route
 from planners.core.clustering import divide_cluster
 from planners.core.geometry import compass_search
 from planners.core.moves import (
+    SMOOTH_MOVES,
     deadline,
     fine_descent,
     iterated_search,
     merge,
     quick_descent,
     relocate_nearest,
+    remembered,
     swap,
 )
-from planners.core.plan import Plan, RoverLeg, Stop
+from planners.core.partitions import best_partition
+from planners.core.plan import SNAP, Plan, RoverLeg, Stop
 from planners.core.problem import CollectProblem, Vec3, refuse_obstacles
 from planners.core.search import merge_neighbours, reorder, split_loop
 from planners.core.timing import carrier_step, leg_time, retime
@@ -173,12 +176,18 @@ def lee_route(problem: CollectProblem, improve: bool = True, fine_upto: int = 12
         route = better
     small = len(problem.rovers) <= fine_upto
 
-    def finish(r: Route) -> Route:
+    def place_finely(r: Route) -> Route:
         if small:  # place every stop afresh, finely, and keep the faster
             fresh = builder.route(r.clusters, 2)
             r = fresh if fresh.makespan <= r.makespan else r
         r = polish(builder, r, sweeps=2 if small else 1, level=2 if small else 1)
         return compass(builder, r, tol=1e-3 if small else COARSE_TOL)
+
+    finish = remembered(place_finely)
+
+    @remembered
+    def smoothed(r: Route) -> Route:  # short routes: also on the smoothed makespan
+        return smooth(builder, finish(r)) if len(problem.rovers) <= SMOOTH_UPTO else finish(r)
 
     stop = deadline(problem.budget_ms, t0) if improve else None
     if not improve:
@@ -195,14 +204,25 @@ def lee_route(problem: CollectProblem, improve: bool = True, fine_upto: int = 12
         if small and moved is not route:  # (large routes: the moves' route alone is placed finely)
             today = finish(route)
             best = today if today.makespan < best.makespan else best
-        if len(problem.rovers) <= FINE_MOVES_UPTO or stop is not None:  # ... and on the final stops
-            best = fine_descent(best, inst.fits, builder.route, finish,
-                                stop if len(problem.rovers) > FINE_MOVES_UPTO else None,
-                                slack=0.15 if stop is None else math.inf)
+        if len(problem.rovers) <= EXHAUSTIVE_UPTO:  # tiny: every ordered partition too
+            every = best_partition(len(problem.rovers), inst.fits, builder.route, finish, EXHAUSTIVE_KEEP)
+            best = every if every is not None and every.makespan < best.makespan else best
+        n = len(problem.rovers)
+        if n <= FINE_MOVES_UPTO or stop is not None:  # ... and on the final stops
+            best = fine_descent(best, inst.fits, builder.route, finish, stop if n > FINE_MOVES_UPTO else None,
+                                slack=0.15 if stop is None and n > EVERY_FINE_UPTO else math.inf)
+    quick = best
+    if stop is not None and len(problem.rovers) <= SMOOTH_UPTO:  # a budget: the moves on smoothed stops first
+        best = fine_descent(best, inst.fits, builder.route, smoothed, stop, slack=math.inf,
+                            moves=SMOOTH_MOVES)
     if stop is not None:  # anytime: iterated local search until the budget
-        best = iterated_search(best, inst.fits, builder.route, finish, random.Random(problem.seed), stop,
+        best = iterated_search(best, inst.fits, builder.route, smoothed, random.Random(problem.seed), stop,
                                max_fails=ILS_PATIENCE * len(problem.rovers))
-    route = best
+    route = smooth(builder, best) if len(problem.rovers) <= SMOOTH_UPTO else best
+    if len(problem.rovers) <= SMOOTH_UPTO:  # timed as the plan will fly (its builder snaps and pulls
+        # stops into reach: a nudged stop on top of the previous one has an arbitrary heading)
+        cands = (route, smooth(builder, quick), quick) if stop is not None else (route, quick)
+        route = min(cands, key=lambda r: build_collect_plan(problem, "lee", r.clusters, r.positions).makespan)
     if len(problem.rovers) == 2:
         two = two_rover_route(builder)  # the ch. 5.3 optimum, where it applies
         if two.makespan < route.makespan:
@@ -211,6 +231,10 @@ def lee_route(problem: CollectProblem, improve: bool = True, fine_upto: int = 12
 
 
 FINE_MOVES_UPTO = 8  # rovers: up to this many, every move is also scored on fine, polished stops
+EXHAUSTIVE_UPTO = 5  # up to this many, every ordered partition is scored on the quick placement ...
+EXHAUSTIVE_KEEP = 6  # ... and this many of the fastest placed finely
+EVERY_FINE_UPTO = 5  # up to this many, the fine descent places every change finely (no slack)
+SMOOTH_UPTO = 8  # rovers: up to this many, the final stops are re-placed on the smoothed makespan
 # (up to n rovers, k): the rovers of a cluster nearest its neighbour that the quick descent offers to it
 QD_KEEP = ((200, 4), (math.inf, 2))
 MOVE_ROVERS_UPTO = 200  # rovers: beyond, the loop does not hand rovers over (the quick descent does)
@@ -263,7 +287,7 @@ def _snap(problem: CollectProblem, members: Sequence[int], prev: Vec3, here: Vec
     """A stop a hair's breadth (< 1 cm) from the previous one is put exactly on it when every rover
     can still reach it: a hop of micrometres has an arbitrary heading once the plan's coordinates
     are rounded for JSON, and turning to it would cost real time."""
-    if 0.0 < math.dist(prev[:2], here[:2]) < 1e-2:
+    if 0.0 < math.dist(prev[:2], here[:2]) < SNAP:
         snapped: Vec3 = (prev[0], prev[1], 0.0)
         if all(math.dist(problem.rovers[i].position, snapped) <= problem.rovers[i].range - 1e-5
                for i in members):

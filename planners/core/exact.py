@@ -14,40 +14,21 @@ in ``planners`` imports it; tests and ``bench/optimality.py`` do.
 
 from __future__ import annotations
 
-import itertools
 import math
 import random
-from collections.abc import Iterator, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 from scipy.optimize import minimize
 
 from planners.core.geometry import enclosing_ball
+from planners.core.partitions import ordered_partitions
 from planners.core.problem import CollectProblem, DeployProblem
 from planners.core.timing import RANGE_MARGIN, carrier_hop, leg_time
 
 Point2 = tuple[float, float]
 _SLSQP_SHRINK = 1e-4  # m: SLSQP works this far inside each reach disc (its constraints are soft)
-
-
-def set_partitions(items: Sequence[int]) -> Iterator[list[list[int]]]:
-    """Every partition of ``items`` into non-empty blocks (each once)."""
-    if not items:
-        yield []
-        return
-    first, rest = items[0], items[1:]
-    for part in set_partitions(rest):
-        yield [[first], *part]
-        for j in range(len(part)):
-            yield [*part[:j], [first, *part[j]], *part[j + 1:]]
-
-
-def ordered_partitions(n: int) -> Iterator[list[list[int]]]:
-    """Every ordered partition of 0..n-1 into stops (the Fubini number of them: 1, 3, 13, 75, 541)."""
-    for part in set_partitions(list(range(n))):
-        for perm in itertools.permutations(part):
-            yield [list(b) for b in perm]
 
 
 @dataclass
@@ -238,6 +219,15 @@ class _Model:
                 if t < best:
                     best, best_pos = t, pos
         return best, best_pos
+
+
+def place_partition(problem: DeployProblem | CollectProblem, clusters: Sequence[Sequence[int]],
+                    positions: Sequence[Point2]) -> float:
+    """The makespan of one ordered partition placed from ``positions`` (SLSQP + compass search,
+    as ``exact_plan`` places its best partitions); inf when the start is not feasible."""
+    m = _Model(problem)
+    t, _ = m.place([list(c) for c in clusters], [list(positions)])
+    return t
 
 
 def exact_plan(problem: DeployProblem | CollectProblem, seed: int = 0, starts: int = 2,

@@ -81,6 +81,22 @@ def split_off(clusters: Clusters, fits: Fits, start: int = 0) -> Iterator[Change
             yield k, [rest, [r]], 1
 
 
+def split(clusters: Clusters, fits: Fits, start: int = 0) -> Iterator[Change]:
+    """Serve one cluster from two stops, divided every way into parts of two or more (clusters of
+    up to ``SPLIT_UPTO`` members; ``split_off`` gives the parts of one), in both orders: a straight
+    cut (Algorithm 3.1) misses divisions such as two far rovers and two near ones."""
+    for k in range(start, len(clusters)):
+        c = list(clusters[k])
+        if not 4 <= len(c) <= SPLIT_UPTO:
+            continue
+        for mask in range(1, 1 << (len(c) - 1)):  # the last member stays in the second part
+            a = [x for j, x in enumerate(c) if mask >> j & 1]
+            b = [x for j, x in enumerate(c) if not mask >> j & 1]
+            if len(a) >= 2 and len(b) >= 2:
+                yield k, [a, b], 1
+                yield k, [b, a], 1
+
+
 def merge(clusters: Clusters, fits: Fits, start: int = 0) -> Iterator[Change]:
     """Serve two consecutive clusters from one stop."""
     for k in range(start, len(clusters) - 1):
@@ -116,6 +132,10 @@ def reverse(clusters: Clusters, fits: Fits, start: int = 0) -> Iterator[Change]:
 
 
 MOVES: tuple[Move, ...] = (swap, relocate, split_off, merge, exchange, shift, reverse)
+SMALL_MOVES: tuple[Move, ...] = (*MOVES, split)  # routes of up to SMALL items, and the fine descent
+# the smoothed descent of a budget: one task (rover) moved first, the slowest moves to score
+SMOOTH_MOVES: tuple[Move, ...] = (split_off, relocate, exchange, swap, merge, split, shift, reverse)
+SPLIT_UPTO = 6  # members: ``split`` divides clusters up to this size (2^(k−1) divisions)
 CHEAP_MOVES: tuple[Move, ...] = (swap, relocate, merge)  # linear in the route's length
 LARGE = 30  # tasks (rovers): beyond this the quick plan uses CHEAP_MOVES
 SMALL = 8  # tasks (rovers): up to this many, the moves sweep until none helps (else SMALL_ROUNDS sweeps)
@@ -183,11 +203,27 @@ def quick_descent(route: R, fits: Fits, stop: Callable[[], bool] | None = None,
                             stop=stop)
     size = sum(len(c) for c in route.clusters)  # type: ignore[attr-defined,misc]
     rounds = 20 if size <= SMALL or stop is not None else SMALL_ROUNDS
-    return local_search(route, fits, _quick_score, _accept, _makespan, rounds=rounds, stop=stop)
+    moves = SMALL_MOVES if size <= SMALL else MOVES
+    return local_search(route, fits, _quick_score, _accept, _makespan, moves=moves, rounds=rounds, stop=stop)
+
+
+def remembered(finish: Callable[[R], R]) -> Callable[[R], R]:
+    """``finish`` remembering its result per route (clusters and stops): the exhaustive search,
+    the fine descent's sweeps and the iterated search place the same quick routes again."""
+    seen: dict[tuple, R] = {}
+
+    def cached(r: R) -> R:
+        key = (tuple(map(tuple, r.clusters)), tuple(r.positions))  # type: ignore[attr-defined]
+        got = seen.get(key)
+        if got is None:
+            got = seen[key] = finish(r)
+        return got
+    return cached
 
 
 def fine_descent(route: R, fits: Fits, rebuild: Callable[[list[list[int]]], R], finish: Callable[[R], R],
-                 stop: Callable[[], bool] | None = None, slack: float = 0.15) -> R:
+                 stop: Callable[[], bool] | None = None, slack: float = 0.15,
+                 moves: Sequence[Move] | None = None) -> R:
     """``local_search`` with every change scored on the final placement: ``finish(rebuild(clusters))``.
     Changes whose quick route ``rebuild(clusters)`` is more than ``slack`` slower than the route
     are not placed finely (the fine placement rarely gains more)."""
@@ -197,7 +233,9 @@ def fine_descent(route: R, fits: Fits, rebuild: Callable[[list[list[int]]], R], 
             return math.inf, None
         cand = finish(quick)
         return _makespan(cand), cand
-    return local_search(route, fits, score, lambda r, cand: cand, _makespan, stop=stop)
+    if moves is None:
+        moves = SMALL_MOVES if sum(len(c) for c in route.clusters) <= SMALL else MOVES  # type: ignore[attr-defined,misc]
+    return local_search(route, fits, score, lambda r, cand: cand, _makespan, moves=moves, stop=stop)
 
 
 def perturb(clusters: Clusters, fits: Fits, rng: Any, strength: int = 2, window: int = 6) -> list[list[int]]:

@@ -9,6 +9,10 @@ from planners.core.problem import Vec3
 
 PLAN_SCHEMA = "fleetctl.plan/1"
 
+# m: builders put a stop closer than this to the previous one on it (when its rovers reach): a hop of
+# millimetres has an arbitrary heading once coordinates are rounded for JSON, and turning costs time
+SNAP = 1e-2
+
 
 @dataclass
 class RoverLeg:

@@ -6,11 +6,9 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 
-from planners.core.plan import Plan, RoverLeg, Stop
+from planners.core.plan import SNAP, Plan, RoverLeg, Stop
 from planners.core.problem import DeployProblem, Point2, Vec3
 from planners.core.timing import RANGE_MARGIN, retime
-
-SNAP = 1e-2  # m: a stop closer than this to the previous one is put on it (when its rovers reach)
 
 
 def build_plan(problem: DeployProblem, planner: str, clusters: Sequence[Sequence[int]],

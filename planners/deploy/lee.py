@@ -14,13 +14,16 @@ from collections.abc import Callable, Sequence
 from planners.core.clustering import divide_cluster
 from planners.core.geometry import compass_search
 from planners.core.moves import (
+    SMOOTH_MOVES,
     deadline,
     fine_descent,
     iterated_search,
     merge,
     quick_descent,
     relocate_nearest,
+    remembered,
 )
+from planners.core.partitions import best_partition
 from planners.core.plan import Plan
 from planners.core.problem import DeployProblem, PlanningError, Point2, refuse_obstacles
 from planners.core.search import merge_neighbours, reorder, split_loop, swap_neighbours
@@ -28,6 +31,7 @@ from planners.core.timing import carrier_hop, carrier_step, leg_time
 from planners.deploy.build import build_plan
 from planners.deploy.cluster import DeployInstance, max_range_point
 from planners.deploy.path import PathBuilder, Route
+from planners.deploy.polish import smooth
 from planners.deploy.two_task import plan_two_tasks
 
 
@@ -71,10 +75,16 @@ def lee_clusters(problem: DeployProblem, improve: bool = True,
     # keep whichever of the two routes is faster; then polish every stop (routes of any length).
     small = n <= FINE_UPTO
 
-    def finish(r: Route) -> Route:
+    def place_finely(r: Route) -> Route:
         r = _fresh(builder, r)
         sweeps = 3 if small else 2 if n <= 60 else 1
         return _polish(builder, r, sweeps, 1e-3 if small else COARSE_TOL) if improve else r
+
+    finish = remembered(place_finely)
+
+    @remembered
+    def smoothed(r: Route) -> Route:  # short routes: also on the smoothed makespan
+        return smooth(builder, finish(r)) if n <= SMOOTH_UPTO else finish(r)
 
     if not improve:
         best = finish(route)
@@ -91,13 +101,24 @@ def lee_clusters(problem: DeployProblem, improve: bool = True,
     if small and moved is not route:  # today's plan too (large: the moves' route alone is polished)
         today = finish(route)
         best = today if today.makespan < best.makespan else best
+    if n <= EXHAUSTIVE_UPTO:  # tiny: every ordered partition too
+        every = best_partition(n, inst.fits_quick, builder.route, finish, EXHAUSTIVE_KEEP)
+        best = every if every is not None and every.makespan < best.makespan else best
     if n <= FINE_MOVES_UPTO or stop is not None:  # ... and on the final placement
         best = fine_descent(best, inst.fits_quick, builder.route, finish,
                                 stop if n > FINE_MOVES_UPTO else None,
-                                slack=0.15 if stop is None else math.inf)
+                                slack=0.15 if stop is None and n > EVERY_FINE_UPTO else math.inf)
+    quick = best
+    if stop is not None and n <= SMOOTH_UPTO:  # a budget: the moves scored on the smoothed stops first
+        best = fine_descent(best, inst.fits_quick, builder.route, smoothed, stop, slack=math.inf,
+                            moves=SMOOTH_MOVES)
     if stop is not None:  # anytime: iterated local search until the budget
-        best = iterated_search(best, inst.fits_quick, builder.route, finish,
+        best = iterated_search(best, inst.fits_quick, builder.route, smoothed,
                                random.Random(problem.seed), stop, max_fails=ILS_PATIENCE * n)
+    if n <= SMOOTH_UPTO:  # timed as the plan will fly (build_plan snaps a stop millimetres on)
+        cands = (smooth(builder, best), smooth(builder, quick), quick) if stop is not None else (
+            smooth(builder, best), quick)
+        best = min(cands, key=lambda r: build_plan(problem, "lee", r.clusters, r.positions).makespan)
     return best.clusters, best.positions, best.makespan
 
 
@@ -108,6 +129,10 @@ def _fresh(builder: PathBuilder, r: Route) -> Route:
 
 
 FINE_MOVES_UPTO = 8  # tasks: up to this many, every move is also scored on fine, polished stops
+EXHAUSTIVE_UPTO = 5  # up to this many, every ordered partition is scored on the quick placement ...
+EXHAUSTIVE_KEEP = 6  # ... and this many of the fastest placed finely
+EVERY_FINE_UPTO = 5  # up to this many, the fine descent places every change finely (no slack)
+SMOOTH_UPTO = 8  # tasks: up to this many, the final stops are re-placed on the smoothed makespan
 # (up to n tasks, k): the tasks of a cluster nearest its neighbour that the quick descent offers to it
 # (big clusters of big problems: each offer costs an enclosing circle)
 QD_KEEP = ((60, 3), (300, 1), (math.inf, 0))
