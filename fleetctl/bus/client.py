@@ -14,7 +14,7 @@ Topics under the mission's prefix ``P`` (default ``fleetctl/<mission name>``):
   tasks or one task) and ``P/tasks/remove`` (``{"tasks": ["t1", ...]}``, a list of ids or one id),
   validated like the mission file and handed to ``Executor.submit_task_change``.
 * more topics a caller subscribes with :meth:`FleetBus.subscribe` (the team coordination,
-  :mod:`fleetctl.run.team_link`) and publishes with ``publish(..., absolute=True)``.
+  :mod:`fleetctl.run.teams.link`) and publishes with ``publish(..., absolute=True)``.
 
 The bus never holds up flying: publishing only appends to a bounded buffer (oldest dropped and
 counted when full; retained topics keep only their latest value and are never dropped), one
