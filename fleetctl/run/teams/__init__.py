@@ -9,7 +9,9 @@
   :class:`TeamsRun` (further deployment rounds for handed-over tasks, mission-clock times), and
   :func:`fly_team` to fly one team's share alone;
 * ``board`` (who owns what, each team's state), ``handover`` (re-sharing tasks a team cannot
-  fly), ``live`` (the carriers' live poses, the rovers in the field), ``summary``, ``views``.
+  fly), ``live`` (the carriers' live poses, the rovers in the field), ``summary``, ``views``,
+  ``bus`` (the MQTT buses: each team under ``P/teams/<carrier>`` as a ``--team`` controller
+  publishes, the run under ``P``).
 
 **One controller per team** (``deploy|run --team ID``, coordinating over MQTT, docs/mqtt.md#teams):
 
