@@ -245,6 +245,10 @@ class FleetBus:
         run per phase): telemetry and status from ``state`` from now on, task records to ``record``
         (started with :meth:`start` first)."""
         self.state, self.record, self.executor = state, record, None
+        if self.status in ("connected", "reconnecting", "failed"):  # the new run's records: where it stands
+            text = self._status_text("connected" if self.connects else "connecting")
+            state.event("bus_" + self.status, text, None, url=self.config.url, dropped=self.dropped,
+                        error=self.last_error)
         if not any(t.get_name() == "mqtt telemetry" and not t.done() for t in self._tasks):
             tel = asyncio.get_running_loop().create_task(self._telemetry(), name="mqtt telemetry")
             tel.add_done_callback(self._on_run_done)

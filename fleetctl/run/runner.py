@@ -160,8 +160,8 @@ class Run:
 
         bus = self.opts.bus
         if bus is not None:  # its owner's bus (a team of a teams run): publish this run on it
-            bus.follow(self.state, self.journal.write)
             self.journal.add_observer(bus.on_record)
+            bus.follow(self.state, self.journal.write)
             bus.show_in(self.opts.view)
             return bus
         return start_bus(self.mission, self.opts.mqtt, self.journal, self.state, self.opts.view)

@@ -139,3 +139,22 @@ async def test_a_broker_that_is_down_changes_nothing_in_a_teams_run(tmp_path: Pa
     assert s["mqtt"]["state"] == "reconnecting" and s["mqtt"]["connects"] == 0
     kinds = [r["kind"] for r in read_journal(tmp_path / "run" / "journal.jsonl")]
     assert "bus_reconnecting" in kinds
+
+
+async def test_an_interrupted_teams_run_says_so_and_closes_every_bus(broker: Broker, tmp_path: Path) -> None:
+    m = mission_from(two_teams(mqtt={"url": broker.url, "topic_prefix": PREFIX}), tmp_path)
+    async with Subscriber(broker.port, PREFIX) as sub:
+        task = asyncio.create_task(execute(m, "deploy", run_dir=tmp_path / "run", speedup=SPEEDUP))
+        await sub.wait_for(lambda: "rover_launched" in _kinds(sub, "teams/c2/events"), "c2 launched a rover")
+        task.cancel()
+        out = await asyncio.wait_for(task, WAIT)
+        assert out.exit_code == 130 and out.summary["result"] == "interrupted"
+        for topic in ("status", "teams/c1/status", "teams/c2/status"):
+            await sub.wait_for(lambda t=topic: any(s.get("status") == "interrupted"  # type: ignore[misc]
+                                                   for s in _dicts(sub, t)), f"{topic} interrupted")
+    left = [t.get_name() for t in asyncio.all_tasks() if t.get_name().startswith("mqtt")]
+    assert left == []  # every bus task of the run ended with it
+    for team in ("c1", "c2"):  # each team's records say where its bus stood when its run began
+        records = tmp_path / "run" / "teams" / team / "deploy"
+        own = [r["kind"] for r in read_journal(records / "journal.jsonl")]
+        assert "bus_connected" in own
