@@ -275,7 +275,7 @@ def _fly(args: argparse.Namespace, mission: Mission, command: str, extra: dict[s
 
 def _team(mission: Mission, team: str, args: argparse.Namespace, mqtt: Any) -> tuple[Mission, Any, Any]:
     """``--team ID``: the team's own mission, the coordination spec, the team's bus settings."""
-    from fleetctl.run.team_run import prepare_team
+    from fleetctl.run.teams.own_controller import prepare_team
     from planners import PlanningError
 
     try:
@@ -342,8 +342,8 @@ async def _with_sigterm(mission: Mission, command: str, options: dict[str, Any])
         loop.add_signal_handler(signal.SIGTERM, on_term)
     spec = options.pop("team_spec", None)
     try:
-        if spec is not None:  # --team: one team of several (fleetctl.run.team_run)
-            from fleetctl.run.team_run import execute_team
+        if spec is not None:  # --team: one team of several (fleetctl.run.teams.own_controller)
+            from fleetctl.run.teams.own_controller import execute_team
 
             outcome = await execute_team(mission, command, spec, **options)
         else:

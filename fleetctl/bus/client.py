@@ -14,7 +14,7 @@ Topics under the mission's prefix ``P`` (default ``fleetctl/<mission name>``):
   tasks or one task) and ``P/tasks/remove`` (``{"tasks": ["t1", ...]}``, a list of ids or one id),
   validated like the mission file and handed to ``Executor.submit_task_change``.
 * more topics a caller subscribes with :meth:`FleetBus.subscribe` (the team coordination,
-  :mod:`fleetctl.run.team_link`) and publishes with ``publish(..., absolute=True)``.
+  :mod:`fleetctl.run.teams.link`) and publishes with ``publish(..., absolute=True)``.
 
 The bus never holds up flying: publishing only appends to a bounded buffer (oldest dropped and
 counted when full; retained topics keep only their latest value and are never dropped), one
@@ -126,6 +126,7 @@ class FleetBus:
         self._pending: deque[tuple[list[Task], list[str], str]] = deque()  # before an executor exists
         self.identity: dict[str, Any] = {}  # fields of every status, the last will too (a team's id, session)
         self._handlers: list[tuple[str, Callable[[str, bytes], None]]] = []  # extra subscriptions
+        self.refuse_tasks: str | None = None  # why every task message is refused (None: they are handled)
 
     # -- outgoing ---------------------------------------------------------------------------------
     def topic(self, suffix: str) -> str:
@@ -238,6 +239,32 @@ class FleetBus:
             tel = loop.create_task(self._telemetry(), name="mqtt telemetry")
             tel.add_done_callback(self._on_run_done)
             self._tasks.append(tel)
+
+    def follow(self, state: FleetState, record: Callable[..., None]) -> None:
+        """A bus that outlives the runs publishing on it (a team's in a run of several teams, one
+        run per phase): telemetry and status from ``state`` from now on, task records to ``record``
+        (started with :meth:`start` first)."""
+        self.state, self.record, self.executor = state, record, None
+        if self.status in ("connected", "reconnecting", "failed"):  # the new run's records: where it stands
+            text = self._status_text("connected" if self.connects else "connecting")
+            state.event("bus_" + self.status, text, None, url=self.config.url, dropped=self.dropped,
+                        error=self.last_error)
+        if not any(t.get_name() == "mqtt telemetry" and not t.done() for t in self._tasks):
+            tel = asyncio.get_running_loop().create_task(self._telemetry(), name="mqtt telemetry")
+            tel.add_done_callback(self._on_run_done)
+            self._tasks.append(tel)
+
+    async def unfollow(self) -> None:
+        """The run :meth:`follow` followed has ended: its last telemetry goes out and telemetry stops
+        (the bus goes on, its status stays the last one) until the next :meth:`follow`."""
+        self._publish_telemetry()
+        self.executor = None
+        tel = [t for t in self._tasks if t.get_name() == "mqtt telemetry"]
+        for t in tel:
+            t.cancel()
+            with contextlib.suppress(asyncio.CancelledError, Exception):
+                await t
+            self._tasks.remove(t)
 
     def attach_executor(self, executor: Any) -> None:
         """Task messages go to ``executor.submit_task_change`` from now on; changes queued before
@@ -429,6 +456,8 @@ class FleetBus:
         op = topic.rsplit("/", 1)[-1]
         if len(payload) > MAX_MESSAGE:
             raise TaskMessageError(f"message of {len(payload)} bytes is larger than {MAX_MESSAGE}")
+        if self.refuse_tasks is not None:
+            raise TaskMessageError(self.refuse_tasks)
         if not self.config.accept_task_changes:
             raise TaskMessageError(
                 "task changes over MQTT are off for this mission; to allow them set "

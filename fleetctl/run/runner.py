@@ -80,6 +80,7 @@ class RunOptions:
     force: bool = False  # fly although another controller seems to be in charge
     confirm: Callable[[list[str]], bool] | None = None  # asked before arming (real vehicles)
     fleet: Fleet | None = None  # an already connected fleet (a team's view of a teams run); not closed
+    bus: Any = None  # an already started FleetBus (a team's in a teams run): followed, not closed
 
 
 async def execute(mission: Mission, command: str, **options: Any) -> RunOutcome:
@@ -157,6 +158,12 @@ class Run:
     def _start_bus(self) -> Any:
         from fleetctl.bus.client import start_bus
 
+        bus = self.opts.bus
+        if bus is not None:  # its owner's bus (a team of a teams run): publish this run on it
+            self.journal.add_observer(bus.on_record)
+            bus.follow(self.state, self.journal.write)
+            bus.show_in(self.opts.view)
+            return bus
         return start_bus(self.mission, self.opts.mqtt, self.journal, self.state, self.opts.view)
 
     async def fly(self) -> RunOutcome:
@@ -497,7 +504,10 @@ class Run:
                 await self.fleet.close()
         if self.bus is not None:
             with contextlib.suppress(Exception):
-                await self.bus.aclose(self.state.phase)
+                if self.opts.bus is None:
+                    await self.bus.aclose(self.state.phase)
+                else:  # its owner closes it
+                    await self.bus.unfollow()
         await self.journal.aclose()
         if self.sim_cm is not None:
             with contextlib.suppress(Exception):

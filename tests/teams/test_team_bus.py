@@ -1,4 +1,4 @@
-"""The team coordination protocol (fleetctl.bus.teams, fleetctl.run.team_link).
+"""The team coordination protocol (fleetctl.bus.teams, fleetctl.run.teams.link).
 
 The board's rules without I/O (conflict rule, stale sessions, orphans, a deterministic split),
 then team links on a real mosquitto: a peer process that is SIGKILLed is seen offline through its
@@ -38,8 +38,8 @@ from fleetctl.bus.teams.protocol import (
 from fleetctl.mission import Mission, load_mission
 from fleetctl.mission.teams import team_mission
 from fleetctl.run.state import FleetState
-from fleetctl.run.team_link import TeamLink
-from fleetctl.run.team_run import team_bus_config, team_shares
+from fleetctl.run.teams.link import TeamLink
+from fleetctl.run.teams.own_controller import team_bus_config, team_shares
 from tests.teams.test_team_processes import ROOT, two_team_mission
 from tests.test_bus import MOSQUITTO, Broker
 
@@ -219,8 +219,8 @@ from fleetctl.bus.client import FleetBus, bus_config
 from fleetctl.mission import load_mission
 from fleetctl.mission.teams import team_mission
 from fleetctl.run.state import FleetState
-from fleetctl.run.team_link import TeamLink
-from fleetctl.run.team_run import team_bus_config, team_shares
+from fleetctl.run.teams.link import TeamLink
+from fleetctl.run.teams.own_controller import team_bus_config, team_shares
 
 async def main():
     full = load_mission(sys.argv[1])

@@ -2,5 +2,5 @@
 
 ``protocol`` - the topics, the payloads and their validation; ``board`` - what one controller
 knows of every team and task claim, and the hand-over rules (pure, no I/O); the asyncio side is
-:mod:`fleetctl.run.team_link`.
+:mod:`fleetctl.run.teams.link`.
 """

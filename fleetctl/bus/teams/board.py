@@ -1,6 +1,6 @@
 """What one team's controller knows of every team and every task claim, and the hand-over rules.
 
-Pure state, no I/O (:mod:`fleetctl.run.team_link` feeds it from the bus and acts on it). The
+Pure state, no I/O (:mod:`fleetctl.run.teams.link` feeds it from the bus and acts on it). The
 rules (docs/mqtt.md#teams):
 
 * **Owner.** A task's owner is the team of its best *valid* claim (:func:`~.protocol.claim_key`:

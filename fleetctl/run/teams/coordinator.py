@@ -15,6 +15,8 @@ fails hands those; the receiving teams are chosen by planning the handed tasks o
 that can still take them (the time model), and get them as a task change while they deploy or
 as a further deployment round once they finished. The run's own records (``RUN/journal.jsonl``,
 ``RUN/traffic.tlog`` with every link, ``RUN/plan.json``, ``RUN/summary.json``) combine the teams.
+With an MQTT bus every team publishes under ``P/teams/<carrier>`` and the run under ``P``
+(:mod:`fleetctl.run.teams.bus`).
 """
 
 from __future__ import annotations
@@ -41,6 +43,7 @@ from fleetctl.run.results import PhaseResult
 from fleetctl.run.runner import EXIT_FAILED, EXIT_INTERRUPTED, EXIT_OK, RunOptions, RunOutcome
 from fleetctl.run.sim import mission_uses_sim, sim_fleet_config
 from fleetctl.run.teams.board import ACTIVE, TeamEntry, TeamsBoard, TeamStatus
+from fleetctl.run.teams.bus import TeamsBuses
 from fleetctl.run.teams.handover import Handovers
 from fleetctl.run.teams.live import live_mission, rovers_in_the_field
 from fleetctl.run.teams.summary import teams_summary
@@ -89,6 +92,8 @@ class TeamsRun:
         self.interrupted = False
         self.t0 = 0.0  # mission clock when the run of every team started (T+ = 0)
         self._confirm_lock = threading.Lock()
+        self.buses = TeamsBuses.configure(mission, opts.mqtt, self.journal.write,
+                                          "sim" if self.uses_sim else "real")
 
     def _clock(self) -> tuple[Callable[[], float], float]:
         if self.sim is not None:
@@ -154,9 +159,8 @@ class TeamsRun:
             teams={cid: list(e.rovers) for cid, e in self.board.teams.items()},
         )
 
-        if self.opts.mqtt is not None or m.mqtt is not None:
-            log.warning("several teams: the MQTT fleet bus is not started (not yet for several carriers)")
-            j.write(Ev.BUS, text="bus: off: a run of several teams does not start the MQTT fleet bus yet")
+        j.add_observer(self.buses.on_record)
+        self.buses.start(list(self.board.teams))
 
     async def _start_sim(self) -> None:
         if not self.uses_sim:
@@ -409,6 +413,7 @@ class TeamsRun:
             force=o.force,
             confirm=self._confirm(),
             fleet=self.fleet.team(cid, ids),
+            bus=self.buses.of(cid),
         )
 
     def _confirm(self) -> Callable[[list[str]], bool] | None:
@@ -442,6 +447,7 @@ class TeamsRun:
             t.carrier: [leg.task if phase == "deploy" else leg.rover for leg in t.plan.legs()]
             for t in plan.teams
         }
+        self.buses.start_teams({k: [x for x in v if x is not None] for k, v in shares.items()})  # first only
         self.journal.write(
             Ev.TEAMS_PLAN,
             phase=phase,
@@ -499,10 +505,24 @@ class TeamsRun:
             raise
 
     # ============================================================================== the way out
+    def _bus_finals(self, summary: dict[str, Any]) -> tuple[str, dict[str, str]]:
+        """The final status of the run's bus and of each team's (``done``, ``failed``, ``interrupted``)."""
+        if self.interrupted:
+            return "interrupted", {}
+        err = self.error is not None
+        failed = {cid for cid, e in self.board.teams.items()
+                  if e.status == TeamStatus.FAILED or (err and e.status != TeamStatus.DONE)}
+        teams = {cid: "failed" if cid in failed else "done" for cid in self.board.teams}
+        return ("done" if summary["result"] == "complete" else "failed"), teams
+
     async def _finish(self) -> dict[str, Any]:
         summary = teams_summary(self)
+        mqtt = self.buses.stats()
+        if mqtt is not None:
+            summary["mqtt"] = mqtt
         self.journal.write(Ev.SUMMARY, **summary)
         write_summary(summary, self.journal.summary_path, self.opts.summary_path)
+        await self.buses.aclose(*self._bus_finals(summary))
         if self.opts.view is not None:
             with contextlib.suppress(Exception):
                 await self.opts.view.stop()

@@ -3,8 +3,9 @@
 deployment it may be handed tasks of another team and fly further rounds, and it keeps the
 mission-clock times its tasks were reached and its rovers loaded (the teams' common clock).
 
-Flown alone (``coordinator`` None: one team of a several-carrier mission in its own process,
-e.g. under the MQTT team hand-over) it is exactly a one-team run of its share."""
+Flown alone (:func:`fly_team`, ``coordinator`` None) it is exactly a one-team run of its share.
+(The ``--team`` controller, one controller per team coordinating over MQTT, is another class:
+:class:`fleetctl.run.teams.own_controller.TeamControllerRun`.)"""
 
 from __future__ import annotations
 

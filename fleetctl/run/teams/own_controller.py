@@ -1,13 +1,17 @@
 """``deploy|run --team ID``: one team of a several-carrier mission, one controller per team.
 
+(Not to be confused with :class:`fleetctl.run.teams.team_run.TeamRun`: one team's run *inside*
+the controller that flies every team, :class:`~fleetctl.run.teams.coordinator.TeamsRun`.)
+
 Every controller computes the same allocation of the tasks to the teams (:func:`team_shares`:
 the mission's deploy planner, its seed, the quick plan only, so the same file gives the same
-shares everywhere) and flies its own share with the ordinary :class:`~fleetctl.run.runner.Run`
-of :func:`~fleetctl.mission.teams.team_mission` (its carrier, the rovers on its deck; the
-embedded simulator of ``connection: sim`` runs that team only). With a bus, a
-:class:`~fleetctl.run.team_link.TeamLink` coordinates it with the other teams' controllers;
-when its own share is done the team stands by while another team may still hand tasks over, and
-flies each handed-over batch as one more deployment round with the rovers left on its deck.
+shares everywhere) and flies its own share with :class:`TeamControllerRun`, an ordinary
+:class:`~fleetctl.run.runner.Run` of :func:`~fleetctl.mission.teams.team_mission` (its carrier,
+the rovers on its deck; the embedded simulator of ``connection: sim`` runs that team only). With
+a bus, a :class:`~fleetctl.run.teams.link.TeamLink` coordinates it with the other teams'
+controllers; when its own share is done the team stands by while another team may still hand
+tasks over, and flies each handed-over batch as one more deployment round with the rovers left
+on its deck.
 """
 
 from __future__ import annotations
@@ -25,7 +29,7 @@ from fleetctl.mission.teams import team_mission, team_of
 from fleetctl.run.results import PhaseResult
 from fleetctl.run.runner import Run, RunOptions
 from fleetctl.run.sim import mission_uses_sim
-from fleetctl.run.team_link import STANDBY_POLL, TeamLink
+from fleetctl.run.teams.link import STANDBY_POLL, TeamLink
 
 
 @dataclass(frozen=True)
@@ -69,7 +73,7 @@ def prepare_team(mission: Mission, team: str, planner: str | None,
     return own, spec, team_bus_config(config, team)
 
 
-class TeamRun(Run):
+class TeamControllerRun(Run):
     """A :class:`Run` of one team's share with a :class:`TeamLink` (see the module docstring)."""
 
     def __init__(self, mission: Mission, command: str, opts: RunOptions, spec: TeamSpec) -> None:
@@ -128,7 +132,7 @@ class TeamRun(Run):
 async def execute_team(mission: Mission, command: str, spec: TeamSpec, **options: Any) -> Any:
     """:func:`fleetctl.run.runner.execute` for one team (``mission``: the team's own, from
     :func:`prepare_team`)."""
-    return await TeamRun(mission, command, RunOptions(**options), spec).fly()
+    return await TeamControllerRun(mission, command, RunOptions(**options), spec).fly()
 
 
-__all__ = ["TeamRun", "TeamSpec", "execute_team", "prepare_team", "team_bus_config", "team_shares"]
+__all__ = ["TeamControllerRun", "TeamSpec", "execute_team", "prepare_team", "team_bus_config", "team_shares"]
