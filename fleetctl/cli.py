@@ -338,7 +338,9 @@ async def _with_sigterm(mission: Mission, command: str, options: dict[str, Any])
         if task is not None:
             task.cancel()
 
-    with contextlib.suppress(NotImplementedError):  # platforms without signal handlers
+    # asyncio raises NotImplementedError where the platform has no Unix signals (Windows); there
+    # Ctrl-C still ends the run through KeyboardInterrupt, so no SIGTERM handler is the right outcome
+    with contextlib.suppress(NotImplementedError):
         loop.add_signal_handler(signal.SIGTERM, on_term)
     spec = options.pop("team_spec", None)
     try:
@@ -349,7 +351,7 @@ async def _with_sigterm(mission: Mission, command: str, options: dict[str, Any])
         else:
             outcome = await execute(mission, command, **options)
     finally:
-        with contextlib.suppress(NotImplementedError):
+        with contextlib.suppress(NotImplementedError):  # (no handler was installed: see above)
             loop.remove_signal_handler(signal.SIGTERM)
     return outcome, bool(got)
 

@@ -311,6 +311,8 @@ async def run_forever(
     loop = asyncio.get_running_loop()
     installed = []
     for sig in (signal.SIGTERM, signal.SIGINT):
+        # no Unix signals on this platform (NotImplementedError) or not the main thread (RuntimeError,
+        # ValueError): the fleet then stops through ``stop`` or cancellation only, as documented
         with contextlib.suppress(NotImplementedError, RuntimeError, ValueError):
             loop.add_signal_handler(sig, stop.set)
             installed.append(sig)
