@@ -104,6 +104,18 @@ async def execute(mission: Mission, command: str, **options: Any) -> RunOutcome:
     return await Run(mission, command, opts).fly()
 
 
+async def begin_run_records(j: Journal, m: Mission, command: str, sim: bool, speedup: float,
+                            opts: RunOptions, **extra: Any) -> None:
+    """A new run's first records: the mission file and the data files it names copied into the run
+    folder (for resume), then the ``run`` record (``extra``: more of its fields)."""
+    if m.path is not None:
+        with contextlib.suppress(OSError):
+            await asyncio.to_thread(j.save_mission, m.path)
+            await asyncio.to_thread(copy_data_files, m, j.dir)  # tasks/obstacles {file}: for resume
+    await j.commit(Ev.RUN, mission=m.name, command=command, file=str(m.path or ""), sim=sim,
+                   speedup=speedup, planner=opts.planner, dwell=opts.dwell, unix_t0=time.time(), **extra)
+
+
 class Run:
     """One run of a command (see the module docstring)."""
 
@@ -196,21 +208,7 @@ class Run:
         m, j = self.mission, self.journal
         if self.opts.resume is not None:  # the journal goes on; 'resumed' follows the reconciliation
             return
-        if m.path is not None:
-            with contextlib.suppress(OSError):
-                await asyncio.to_thread(j.save_mission, m.path)
-                await asyncio.to_thread(copy_data_files, m, j.dir)  # tasks/obstacles {file}: for resume
-        await j.commit(
-            Ev.RUN,
-            mission=m.name,
-            command=self.command,
-            file=str(m.path or ""),
-            sim=self.uses_sim,
-            speedup=self.scale,
-            planner=self.opts.planner,
-            dwell=self.opts.dwell,
-            unix_t0=time.time(),
-        )
+        await begin_run_records(j, m, self.command, self.uses_sim, self.scale, self.opts)
 
     async def _start_sim(self) -> None:
         if not self.uses_sim:

@@ -35,12 +35,18 @@ from fleetctl.journal import Journal, run_dir_for, write_summary
 from fleetctl.mavlink.fleet import Fleet, connect_fleet
 from fleetctl.mavlink.link import LinkError
 from fleetctl.mission import Mission
-from fleetctl.mission.formats import copy_data_files
 from fleetctl.mission.teams import mission_teams, team_mission, teams_problem
 from fleetctl.run.context import ExecutionError
 from fleetctl.run.kinds import Ev
 from fleetctl.run.results import PhaseResult
-from fleetctl.run.runner import EXIT_FAILED, EXIT_INTERRUPTED, EXIT_OK, RunOptions, RunOutcome
+from fleetctl.run.runner import (
+    EXIT_FAILED,
+    EXIT_INTERRUPTED,
+    EXIT_OK,
+    RunOptions,
+    RunOutcome,
+    begin_run_records,
+)
 from fleetctl.run.sim import mission_uses_sim, sim_fleet_config
 from fleetctl.run.teams.board import ACTIVE, TeamEntry, TeamsBoard, TeamStatus
 from fleetctl.run.teams.bus import TeamsBuses
@@ -141,25 +147,10 @@ class TeamsRun:
         return RunOutcome(code, summary, self.journal.dir, self.error)
 
     async def _begin_records(self) -> None:
-        m, j = self.mission, self.journal
-        if m.path is not None:
-            with contextlib.suppress(OSError):
-                await asyncio.to_thread(j.save_mission, m.path)
-                await asyncio.to_thread(copy_data_files, m, j.dir)
-        await j.commit(
-            Ev.RUN,
-            mission=m.name,
-            command=self.command,
-            file=str(m.path or ""),
-            sim=self.uses_sim,
-            speedup=self.scale,
-            planner=self.opts.planner,
-            dwell=self.opts.dwell,
-            unix_t0=time.time(),
-            teams={cid: list(e.rovers) for cid, e in self.board.teams.items()},
-        )
-
-        j.add_observer(self.buses.on_record)
+        teams = {cid: list(e.rovers) for cid, e in self.board.teams.items()}
+        await begin_run_records(self.journal, self.mission, self.command, self.uses_sim, self.scale,
+                                self.opts, teams=teams)
+        self.journal.add_observer(self.buses.on_record)
         self.buses.start(list(self.board.teams))
 
     async def _start_sim(self) -> None:
