@@ -151,6 +151,8 @@ def screened(builder: PathBuilder, best: Route, smoothed: Callable[[Route], Rout
     placement (level 1; the quick placement can tie dozens of partitions on one slow rover), the
     ``SCREEN_KEEP`` fastest placed finely and on the smoothed makespan while the budget lasts."""
     inst = builder.inst
+    if stop():
+        return best
     ranked = ranked_partitions(len(inst.pts2), inst.fits, lambda c: builder.route(c, 1), SCREEN_KEEP)
     for r in ranked:
         if stop():
