@@ -209,6 +209,9 @@ def lee_route(problem: CollectProblem, improve: bool = True, fine_upto: int = 12
         return smooth(builder, finish(r)) if len(problem.rovers) <= SMOOTH_UPTO else finish(r)
 
     stop = deadline(problem.budget_ms, t0) if improve else None
+    early = None  # a budget: tiny problems first screen every partition on finer stops (while it lasts)
+    if stop is not None and len(problem.rovers) <= EXHAUSTIVE_UPTO:
+        early = screened(builder, route, smoothed, stop)
     if not improve:
         best = finish(route)
     else:  # group and order moves (planners.core.moves), scored on the quick placement ...
@@ -226,13 +229,12 @@ def lee_route(problem: CollectProblem, improve: bool = True, fine_upto: int = 12
         if len(problem.rovers) <= EXHAUSTIVE_UPTO:  # tiny: every ordered partition too
             every = best_partition(len(problem.rovers), inst.fits, builder.route, finish, EXHAUSTIVE_KEEP)
             best = every if every is not None and every.makespan < best.makespan else best
+            best = early if early is not None and early.makespan < best.makespan else best
         n = len(problem.rovers)
         if n <= FINE_MOVES_UPTO or stop is not None:  # ... and on the final stops
             best = fine_descent(best, inst.fits, builder.route, finish, stop if n > FINE_MOVES_UPTO else None,
                                 slack=0.15 if stop is None and n > EVERY_FINE_UPTO else math.inf)
     quick = best
-    if stop is not None and len(problem.rovers) <= EXHAUSTIVE_UPTO:  # a budget: a finer screen first
-        best = screened(builder, best, smoothed, stop)
     if stop is not None and len(problem.rovers) <= SMOOTH_UPTO:  # a budget: the moves on smoothed stops first
         best = fine_descent(best, inst.fits, builder.route, smoothed, stop, slack=math.inf,
                             moves=SMOOTH_MOVES)
