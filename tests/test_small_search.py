@@ -9,12 +9,13 @@ import pytest
 
 from bench.optimality import collect_instance, deploy_instance
 from planners import COLLECT_PLANNERS
+from planners.collect import lee as collect_lee
 from planners.collect.instance import CollectInstance
-from planners.collect.lee import compass
+from planners.collect.lee import build_collect_plan, compass, lee_route, place_finely
 from planners.collect.path import PathBuilder as CollectBuilder
 from planners.collect.polish import polish, smooth
 from planners.core.moves import split
-from planners.core.partitions import best_partition, ordered_partitions
+from planners.core.partitions import best_partition, ordered_partitions, ranked_partitions
 from planners.core.smooth import smooth_max
 from planners.core.timing import RANGE_MARGIN
 from planners.deploy.cluster import DeployInstance
@@ -62,6 +63,34 @@ def test_best_partition_finds_the_fastest_of_every_ordered_partition() -> None:
     assert best is not None and best.makespan == 2.0
     assert sorted(sorted(c) for c in best.clusters) == [[0, 1], [2, 3]]
     assert best_partition(3, lambda c: False, rebuild, finish, keep=3) is None
+
+
+def test_ranked_partitions_keeps_the_fastest_in_order() -> None:
+    def rebuild(clusters: list[list[int]]) -> _Scored:
+        return _Scored(clusters, len(clusters) + 0.1 * clusters[0][0] + 0.01 * clusters[-1][-1])
+
+    every = sorted(rebuild(c).makespan for c in ordered_partitions(4))
+    ranked = ranked_partitions(4, lambda c: True, rebuild, keep=5)
+    assert [r.makespan for r in ranked] == every[:5]
+    assert len(ranked_partitions(3, lambda c: len(c) == 1, rebuild, keep=50)) == 6  # singletons only: 3!
+
+
+def test_a_budget_screens_every_partition_on_the_finer_placement() -> None:
+    # the quick placement ties dozens of partitions on one slow rover and ranks the best one
+    # (r1 | r5 | r2 | r3 r4, two stops 3 cm apart) 100th of 541; the quick plan stays at 4.171 s
+    problem = collect_instance(5, 6)
+    builder, quick = lee_route(problem)
+    screened = collect_lee.screened(builder, quick, lambda r: smooth(builder, place_finely(builder, r, True)),
+                                    lambda: False)
+    assert quick.makespan > 4.17
+    assert screened.makespan < 4.128 * 1.005  # the exact reference: 4.128 s (this screen alone: 4.1455)
+    assert sorted(map(sorted, screened.clusters)) == [[0], [1], [2, 3], [4]]
+    plan = build_collect_plan(problem, "lee", screened.clusters, screened.positions)
+    check_collect(problem, plan)
+    assert abs(plan.makespan - screened.makespan) < 1e-6
+    stopped = collect_lee.screened(builder, quick, lambda r: smooth(builder, place_finely(builder, r, True)),
+                                   lambda: True)
+    assert stopped is quick  # out of budget: the route it was given
 
 
 def test_smoothed_placement_leaves_the_kink_the_compass_search_stops_at() -> None:

@@ -38,7 +38,7 @@ from planners.core.moves import (
     remembered,
     swap,
 )
-from planners.core.partitions import best_partition
+from planners.core.partitions import best_partition, ranked_partitions
 from planners.core.plan import SNAP, Plan, RoverLeg, Stop
 from planners.core.problem import CollectProblem, Vec3, refuse_obstacles
 from planners.core.search import merge_neighbours, reorder, split_loop
@@ -135,6 +135,33 @@ def compass(builder: PathBuilder, route: Route, sweeps: int = 2, tol: float = 1e
     return route
 
 
+def place_finely(builder: PathBuilder, r: Route, small: bool) -> Route:
+    """The final placement of a route's stops: (small routes: afresh, finely, if faster) the polish
+    of each stop with both neighbours known, then the compass search on eq. 5.2."""
+    if small:
+        fresh = builder.route(r.clusters, 2)
+        r = fresh if fresh.makespan <= r.makespan else r
+    r = polish(builder, r, sweeps=2 if small else 1, level=2 if small else 1)
+    return compass(builder, r, tol=1e-3 if small else COARSE_TOL)
+
+
+def screened(builder: PathBuilder, best: Route, smoothed: Callable[[Route], Route],
+              stop: Callable[[], bool]) -> Route:
+    """Tiny problems with a budget: every ordered partition ranked on the chapter's candidate
+    placement (level 1; the quick placement can tie dozens of partitions on one slow rover), the
+    ``SCREEN_KEEP`` fastest placed finely and on the smoothed makespan while the budget lasts."""
+    inst = builder.inst
+    if stop():
+        return best
+    ranked = ranked_partitions(len(inst.pts2), inst.fits, lambda c: builder.route(c, 1), SCREEN_KEEP)
+    for r in ranked:
+        if stop():
+            break
+        cand = smoothed(r)
+        best = cand if cand.makespan < best.makespan else best
+    return best
+
+
 def _initial_clusters(builder: PathBuilder) -> list[list[int]]:
     """Algorithm 5.1, initial clustering: divide until every cluster has a common region."""
     inst = builder.inst
@@ -175,21 +202,16 @@ def lee_route(problem: CollectProblem, improve: bool = True, fine_upto: int = 12
             break
         route = better
     small = len(problem.rovers) <= fine_upto
-
-    def place_finely(r: Route) -> Route:
-        if small:  # place every stop afresh, finely, and keep the faster
-            fresh = builder.route(r.clusters, 2)
-            r = fresh if fresh.makespan <= r.makespan else r
-        r = polish(builder, r, sweeps=2 if small else 1, level=2 if small else 1)
-        return compass(builder, r, tol=1e-3 if small else COARSE_TOL)
-
-    finish = remembered(place_finely)
+    finish = remembered(lambda r: place_finely(builder, r, small))
 
     @remembered
     def smoothed(r: Route) -> Route:  # short routes: also on the smoothed makespan
         return smooth(builder, finish(r)) if len(problem.rovers) <= SMOOTH_UPTO else finish(r)
 
     stop = deadline(problem.budget_ms, t0) if improve else None
+    early = None  # a budget: tiny problems first screen every partition on finer stops (while it lasts)
+    if stop is not None and len(problem.rovers) <= EXHAUSTIVE_UPTO:
+        early = screened(builder, route, smoothed, stop)
     if not improve:
         best = finish(route)
     else:  # group and order moves (planners.core.moves), scored on the quick placement ...
@@ -207,6 +229,7 @@ def lee_route(problem: CollectProblem, improve: bool = True, fine_upto: int = 12
         if len(problem.rovers) <= EXHAUSTIVE_UPTO:  # tiny: every ordered partition too
             every = best_partition(len(problem.rovers), inst.fits, builder.route, finish, EXHAUSTIVE_KEEP)
             best = every if every is not None and every.makespan < best.makespan else best
+            best = early if early is not None and early.makespan < best.makespan else best
         n = len(problem.rovers)
         if n <= FINE_MOVES_UPTO or stop is not None:  # ... and on the final stops
             best = fine_descent(best, inst.fits, builder.route, finish, stop if n > FINE_MOVES_UPTO else None,
@@ -233,6 +256,7 @@ def lee_route(problem: CollectProblem, improve: bool = True, fine_upto: int = 12
 FINE_MOVES_UPTO = 8  # rovers: up to this many, every move is also scored on fine, polished stops
 EXHAUSTIVE_UPTO = 5  # up to this many, every ordered partition is scored on the quick placement ...
 EXHAUSTIVE_KEEP = 6  # ... and this many of the fastest placed finely
+SCREEN_KEEP = 3  # with a budget: the partitions fastest on level-1 stops, re-placed on the smoothed makespan
 EVERY_FINE_UPTO = 5  # up to this many, the fine descent places every change finely (no slack)
 SMOOTH_UPTO = 8  # rovers: up to this many, the final stops are re-placed on the smoothed makespan
 # (up to n rovers, k): the rovers of a cluster nearest its neighbour that the quick descent offers to it

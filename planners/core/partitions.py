@@ -38,11 +38,10 @@ def ordered_partitions(n: int) -> Iterator[list[list[int]]]:
             yield [list(b) for b in perm]
 
 
-def best_partition(n: int, fits: Callable[[Sequence[int]], bool], rebuild: Callable[[list[list[int]]], R],
-                   finish: Callable[[R], R], keep: int) -> R | None:
-    """Every ordered partition of n items whose clusters ``fits``, each scored on its quick route
-    ``rebuild(clusters)``; the ``keep`` fastest are placed finely (``finish``) and the fastest
-    of those returned (None when no partition fits)."""
+def ranked_partitions(n: int, fits: Callable[[Sequence[int]], bool], rebuild: Callable[[list[list[int]]], R],
+                      keep: int) -> list[R]:
+    """The routes ``rebuild(clusters)`` of the ``keep`` fastest ordered partitions of n items whose
+    clusters ``fits``, fastest first (ties in enumeration order)."""
     feasible: dict[tuple[int, ...], bool] = {}
 
     def ok(c: list[int]) -> bool:
@@ -57,8 +56,16 @@ def best_partition(n: int, fits: Callable[[Sequence[int]], bool], rebuild: Calla
             r = rebuild(clusters)
             scored.append((r.makespan, i, r))
     scored.sort(key=lambda s: (s[0], s[1]))
+    return [r for _, _, r in scored[:keep]]
+
+
+def best_partition(n: int, fits: Callable[[Sequence[int]], bool], rebuild: Callable[[list[list[int]]], R],
+                   finish: Callable[[R], R], keep: int) -> R | None:
+    """Every ordered partition of n items whose clusters ``fits``, each scored on its quick route
+    ``rebuild(clusters)``; the ``keep`` fastest are placed finely (``finish``) and the fastest
+    of those returned (None when no partition fits)."""
     best: R | None = None
-    for _, _, r in scored[:keep]:
+    for r in ranked_partitions(n, fits, rebuild, keep):
         cand = finish(r)
         if best is None or cand.makespan < best.makespan:
             best = cand
