@@ -104,15 +104,22 @@ class PathBuilder:
         """GET_DEPLOY_PATH for every cluster, then the route's times."""
         geos = [self.inst.geometry(c) for c in clusters]
         positions: list[Point2] = []
+        hops: list[float] = []
+        headings: list[float] = []
+        flies: list[float] = []
         prev, t, heading, worst = self.start, 0.0, self.inst.problem.heading, 0.0
         for k in range(len(clusters)):
             pos = self.place(clusters, geos, k, prev, t, heading, worst, fine)
             dt, heading = carrier_hop(prev, pos, heading, self.carrier)
+            fly = self.finish(pos, clusters[k])
             t += dt + self.unload
-            worst = max(worst, t + self.finish(pos, clusters[k]))
+            worst = max(worst, t + fly)
             positions.append(pos)
+            hops.append(dt)
+            headings.append(heading)
+            flies.append(fly)
             prev = pos
-        return Route(self, clusters, geos, positions)
+        return Route.timed(self, clusters, geos, positions, hops, headings, flies)
 
 
 NUMPY_FROM = 24  # stops: from this many on, a route's times are summed with numpy
@@ -147,6 +154,17 @@ class Route:
             self.fly.append(b.finish(pos, members))
             prev = pos
         self._times()
+
+    @classmethod
+    def timed(cls, b: PathBuilder, clusters: list[list[int]], geos: list[ClusterGeometry],
+              positions: list[Point2], hop: list[float], heading: list[float], fly: list[float]) -> Route:
+        """The route of ``positions`` whose hops, headings and flights the caller drove already
+        (the same numbers ``__init__`` computes, in the same order)."""
+        r = object.__new__(cls)
+        r.b, r.clusters, r.geos, r.positions = b, clusters, geos, positions
+        r.hop, r.heading, r.fly = hop, heading, fly
+        r._times()
+        return r
 
     def _times(self) -> None:
         """The times from the hops and flights: a cumulative sum and running maxima (numpy, the
@@ -238,7 +256,7 @@ class Route:
             pos = self.positions[m]
             dt, h = carrier_hop(prev, pos, h, b.carrier)
             t += dt + b.unload
-            worst = max(worst, t + b.finish(pos, old[m]))
+            worst = max(worst, t + self.fly[m])  # the kept stop's flight: b.finish(pos, old[m])
             if m + 1 < len(old):
                 dt, _ = carrier_hop(pos, self.positions[m + 1], h, b.carrier)
                 shift = t + dt - self.arrive[m + 1]
