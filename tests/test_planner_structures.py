@@ -25,7 +25,7 @@ from planners.core.routing import (
     two_opt_route,
 )
 from planners.deploy.cluster import DeployInstance
-from planners.deploy.lee import _polish_long
+from planners.deploy.lee import _polish_long, lee_clusters
 from planners.deploy.path import PathBuilder as DeployBuilder
 from planners.deploy.path import Route as DeployRoute
 from planners.deploy.stops import StopClass, search_class, stop_cost
@@ -181,11 +181,11 @@ def test_region_projection_equals_brute_force(seed: int) -> None:
 
 # ------------------------------------------------------------------ incremental route times
 
-def _deploy(seed: int, n: int = 40) -> DeployProblem:
+def _deploy(seed: int, n: int = 40, d: float = 12.0) -> DeployProblem:
     rng = random.Random(seed)
     tasks = tuple(Task(f"t{i}", (rng.uniform(0, 150), rng.uniform(0, 150), rng.uniform(0, 3)))
                   for i in range(n))
-    return DeployProblem(CARRIER, ROVER, 12.0, (0.0, 0.0, 0.0), 0.3, tasks)
+    return DeployProblem(CARRIER, ROVER, d, (0.0, 0.0, 0.0), 0.3, tasks)
 
 
 def _same_times(a, b, names: tuple[str, ...]) -> None:
@@ -258,6 +258,79 @@ def test_a_class_of_stops_scored_at_once_equals_each_stop_scored_alone(seed: int
     assert polished.makespan <= route.makespan
     assert polished.makespan == pytest.approx(
         DeployRoute(b, polished.clusters, polished.geos, polished.positions).makespan, abs=1e-9)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_the_screen_bounds_every_change_from_below_and_tightly(seed: int) -> None:
+    """Route.screen (numpy, many changes at once) against Route.replace (exact, one change): a
+    lower bound within 2 MARGIN of the exact makespan, or −inf where it does not score; for
+    swaps, divisions in both orders and merges along the whole route."""
+    from planners.core.clustering import divide_cluster
+    from planners.deploy.screen import MARGIN
+
+    problem = _deploy(seed, 70)
+    inst = DeployInstance(problem)
+    b = DeployBuilder(inst)
+    rng = random.Random(seed)
+    clusters: list[list[int]] = []
+    for i in range(len(problem.tasks)):  # clusters of one to three tasks, where they fit
+        if clusters and len(clusters[-1]) < 3 and rng.random() < 0.5 and inst.fits([*clusters[-1], i]):
+            clusters[-1].append(i)
+        else:
+            clusters.append([i])
+    route = b.route(clusters)
+    changes = []
+    for k in range(len(route.clusters) - 1):
+        changes.append((k, [route.clusters[k + 1], route.clusters[k]], 2))
+        union = route.clusters[k] + route.clusters[k + 1]
+        if inst.fits(union):
+            changes.append((k, [union], 2))
+        if len(route.clusters[k]) > 1:
+            near, far = divide_cluster(route.clusters[k], inst.pts, (0.0, 0.0, 0.0))
+            changes += [(k, [near, far], 1), (k, [far, near], 1)]
+    bounds = route.screen(changes)
+    scored = 0
+    for change, bound in zip(changes, bounds, strict=True):
+        exact = route.replace(*change)[0]
+        assert bound <= exact
+        if math.isfinite(bound):
+            assert exact - bound <= 2 * MARGIN
+            scored += 1
+    assert scored > 0.8 * len(changes) - 12  # all but the changes at the start and the end
+
+
+class _Unscreened(DeployRoute):
+    screen = None  # type: ignore[assignment]  # the cluster search scores every change exactly
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_the_screened_split_loop_keeps_the_same_divisions(seed: int) -> None:
+    """split_loop with the screen (bounds first, exact scores only where a division might be
+    kept) ends on the same route as split_loop scoring every division exactly."""
+    from planners.core.clustering import divide_cluster
+    from planners.core.search import split_loop
+
+    problem = _deploy(seed, 80, 25.0)
+    inst = DeployInstance(problem)
+    b = DeployBuilder(inst)
+    clusters: list[list[int]] = []
+    for c in lee_clusters(problem, improve=False)[0]:  # neighbours merged where one stop serves both
+        if clusters and len(clusters[-1]) < 6 and inst.fits(clusters[-1] + c):
+            clusters[-1] = clusters[-1] + c
+        else:
+            clusters.append(c)
+
+    def divide(route: DeployRoute, idx: int) -> tuple[list[int], list[int]]:
+        prev = b.start if idx == 0 else route.positions[idx - 1]
+        return divide_cluster(route.clusters[idx], inst.pts, (*prev, 0.0))
+
+    plain = b.route(clusters)
+    bare = _Unscreened(b, plain.clusters, plain.geos, plain.positions)
+    for ties in (True, False):
+        fast, slow = split_loop(plain, divide, set(), ties), split_loop(bare, divide, set(), ties)
+        assert type(slow) is _Unscreened
+        assert fast.clusters == slow.clusters and fast.positions == slow.positions
+        assert fast.makespan == slow.makespan
 
 
 def _collect(seed: int, n: int = 40) -> CollectProblem:

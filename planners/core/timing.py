@@ -161,11 +161,14 @@ def carrier_step(dx: float, dy: float, heading: float, carrier: CarrierSpec) -> 
 
 
 def travel_times(length: np.ndarray, motion: Motion) -> np.ndarray:
-    """:func:`travel_time` of every element of ``length`` (numpy, lengths >= 0; the same formula)."""
+    """:func:`travel_time` of every element of ``length`` (numpy, lengths >= 0): the same profile,
+    written without branches as 2·sqrt(min(L, v²/a)/a) + max(L − v²/a, 0)/v (equal to eq. 4.2's
+    two branches up to rounding)."""
     v, a = motion.max_speed, motion.accel
     if a is None:
         return length / v
-    return np.where(length >= v * v / a, length / v + v / a, 2.0 * np.sqrt(length / a))
+    ramp = v * v / a
+    return 2.0 * np.sqrt(np.minimum(length, ramp) / a) + np.maximum(length - ramp, 0.0) / v
 
 
 def leg_times(length: np.ndarray, motion: Motion) -> np.ndarray:
@@ -183,10 +186,11 @@ def carrier_steps(dx: np.ndarray, dy: np.ndarray, heading: np.ndarray | float,
     still = d2 <= 1e-18
     if still.any():  # no drive: no turn, the heading is kept
         h = np.where(still, heading, h)
+        t = np.where(still, 0.0, t)
     if carrier.turn_rate is not None:
         turn = (h - heading) % _TAU
         t = t + np.minimum(turn, _TAU - turn) / carrier.turn_rate
-    return (np.where(still, 0.0, t) if still.any() else t), h
+    return t, h
 
 
 def deploy_schedule(

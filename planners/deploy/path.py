@@ -12,6 +12,7 @@ from planners.core.geometry import find_root, minimize_1d
 from planners.core.problem import Point2
 from planners.core.timing import carrier_hop, leg_time
 from planners.deploy.cluster import ClusterGeometry, DeployInstance, lerp, max_range_point
+from planners.deploy.screen import screen
 
 
 class PathBuilder:
@@ -226,6 +227,11 @@ class Route:
         r.b, r.clusters, r.geos, r.positions = self.b, clusters, geos, positions
         self._redrive(r, lo, hi, m)
         return r
+
+    def screen(self, changes: Sequence[tuple[int, list[list[int]], int]]) -> np.ndarray:
+        """A lower bound of ``replace(*change)[0]`` for every change, all at once with numpy
+        (−inf where it does not know; ``planners.deploy.screen``)."""
+        return screen(self, changes)
 
     def replace(self, i: int, pieces: list[list[int]], count: int = 1) -> Candidate:
         """Makespan after clusters i..i+count-1 are replaced by ``pieces``, recomputing the stops
