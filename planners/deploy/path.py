@@ -52,13 +52,19 @@ class PathBuilder:
             dt2, _ = carrier_hop(pos, q, h, self.carrier)
             return t1 + dt2 + self.unload + self.finish(q, clusters[k + 1])
 
+        seen: dict[tuple[float, float], tuple[float, float]] = {}  # the searches revisit their ends
+
         def both(s: float, u: float = 1.0) -> tuple[float, float]:
             """This cluster's last arrival and the next (last) cluster's, with the stop at s."""
+            got = seen.get((s, u))
+            if got is not None:
+                return got
             pos = lerp(prev, center, s)
             dt, h = carrier_hop(prev, pos, heading, self.carrier)
             t1 = t + dt + self.unload
             later = last_stop(pos, h, t1, u, nxt) if nxt is not None else 0.0
-            return t1 + self.finish(pos, clusters[k]), later
+            got = seen[(s, u)] = (t1 + self.finish(pos, clusters[k]), later)
+            return got
 
         def makespan(s: float, u: float = 1.0) -> float:
             return max(worst, *both(s, u))
