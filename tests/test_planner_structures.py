@@ -304,11 +304,17 @@ class _Unscreened(DeployRoute):
 
 
 @pytest.mark.parametrize("seed", range(6))
-def test_the_screened_split_loop_keeps_the_same_divisions(seed: int) -> None:
+def test_the_screened_split_loop_keeps_the_same_divisions(seed: int, monkeypatch: pytest.MonkeyPatch) -> None:
     """split_loop with the screen (bounds first, exact scores only where a division might be
     kept) ends on the same route as split_loop scoring every division exactly."""
+    from planners.core import search
     from planners.core.clustering import divide_cluster
     from planners.core.search import split_loop
+
+    monkeypatch.setattr(search, "SCREEN_FROM", 0)  # these routes are short: screen them too
+    screened = []
+    real = DeployRoute.screen
+    monkeypatch.setattr(DeployRoute, "screen", lambda r, ch: screened.append(len(ch)) or real(r, ch))
 
     problem = _deploy(seed, 80, 25.0)
     inst = DeployInstance(problem)
@@ -331,6 +337,7 @@ def test_the_screened_split_loop_keeps_the_same_divisions(seed: int) -> None:
         assert type(slow) is _Unscreened
         assert fast.clusters == slow.clusters and fast.positions == slow.positions
         assert fast.makespan == slow.makespan
+    assert sum(screened) > 20
 
 
 def _collect(seed: int, n: int = 40) -> CollectProblem:

@@ -32,6 +32,7 @@ class ClusterRoute(Protocol):
 
 
 SCREEN_AHEAD = 256  # clusters whose divisions are screened at once (again after every division kept)
+SCREEN_FROM = 40  # clusters: shorter routes score every division exactly (numpy's calls cost more)
 
 
 def split_loop(route: R, divide: Callable[[R, int], tuple[list[int], list[int]]],
@@ -85,10 +86,11 @@ def _screen_divisions(route: R, divide: Callable[[R, int], tuple[list[int], list
                       start: int) -> dict[int, tuple[float, tuple[list[int], list[int]]]]:
     """The division of the clusters from ``start`` on (``SCREEN_AHEAD`` of them) that
     ``split_loop`` would try, and a lower bound of its better order's makespan (the route's
-    ``screen``; without one, only the cluster at ``start``, bound −inf)."""
+    ``screen``; without one or on a route shorter than ``SCREEN_FROM``, only the cluster at
+    ``start``, bound −inf)."""
     todo = [j for j in range(start, min(start + SCREEN_AHEAD, len(route.clusters)))
             if len(route.clusters[j]) > 1 and (j == start or _key(route, j) not in tried)]
-    screen = getattr(route, "screen", None)
+    screen = getattr(route, "screen", None) if len(route.clusters) >= SCREEN_FROM else None
     parts = {j: divide(route, j) for j in (todo if screen is not None else todo[:1])}
     if screen is None:
         return {j: (-np.inf, d) for j, d in parts.items()}
