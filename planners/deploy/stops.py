@@ -91,33 +91,24 @@ def stop_cost(builder: PathBuilder, r: Route, k: int) -> Callable[[float, float]
 class StopClass:
     """Stops of ``route`` that do not share a hop (k + 2 < len for each): their fixed data as
     arrays (one row per stop) and ``cost(x, y)``, the route's makespan with each row's stop moved
-    to the row's points (````stop_cost```` for many stops and points at once)."""
+    to the row's points (``stop_cost`` for many stops and points at once)."""
 
     def __init__(self, builder: PathBuilder, route: Route, ks: Sequence[int]) -> None:
         b, r = builder, route
         self.b, self.ks = b, list(ks)
-        pts, unload = b.inst.pts, b.unload
+        unload = b.unload
         width = max(len(r.clusters[k]) for k in ks)
-        rows = [[pts[i] for i in r.clusters[k]] for k in ks]
-        rows = [m + [m[0]] * (width - len(m)) for m in rows]  # padded with a repeated task
-        self.tx = np.array([[p[0] for p in m] for m in rows])[:, :, None]
-        self.ty = np.array([[p[1] for p in m] for m in rows])[:, :, None]
-        self.z2 = np.array([[p[2] * p[2] for p in m] for m in rows])[:, :, None]
-        prev = [b.start if k == 0 else r.positions[k - 1] for k in ks]
-        self.px = np.array([p[0] for p in prev])[:, None]
-        self.py = np.array([p[1] for p in prev])[:, None]
-        self.h0 = np.array([b.inst.problem.heading if k == 0 else r.heading[k - 1] for k in ks])[:, None]
-        self.t0 = np.array([0.0 if k == 0 else r.arrive[k - 1] + unload for k in ks])[:, None]
-        self.head = np.array([r.head[k - 1] if k else 0.0 for k in ks])[:, None]
-        col = lambda v: np.array(v, dtype=float)[:, None]  # noqa: E731
-        self.nx = col([r.positions[k + 1][0] for k in ks])
-        self.ny = col([r.positions[k + 1][1] for k in ks])
-        self.done1 = col([r.done[k + 1] for k in ks])
-        self.arrive1 = col([r.arrive[k + 1] for k in ks])
-        self.tail2 = col([r.tail[k + 2] for k in ks])
-        self.arrive2 = col([r.arrive[k + 2] for k in ks])
-        qx = col([r.positions[k + 2][0] for k in ks]) - self.nx
-        qy = col([r.positions[k + 2][1] for k in ks]) - self.ny
+        rows = [j for k in ks for m in (r.clusters[k],) for j in (*m, *(m[0],) * (width - len(m)))]
+        task = b.inst.xyz[np.array(rows)].reshape(len(ks), width, 3, 1)  # padded with a repeated task
+        self.tx, self.ty, self.z2 = task[:, :, 0], task[:, :, 1], task[:, :, 2] ** 2
+        fixed = np.array([(*(b.start if k == 0 else r.positions[k - 1]),
+                           b.inst.problem.heading if k == 0 else r.heading[k - 1],
+                           0.0 if k == 0 else r.arrive[k - 1] + unload, r.head[k - 1] if k else 0.0,
+                           *r.positions[k + 1], r.done[k + 1], r.arrive[k + 1], r.tail[k + 2],
+                           r.arrive[k + 2], *r.positions[k + 2]) for k in ks], dtype=float).T[:, :, None]
+        (self.px, self.py, self.h0, self.t0, self.head, self.nx, self.ny, self.done1, self.arrive1,
+         self.tail2, self.arrive2, qx, qy) = fixed
+        qx, qy = qx - self.nx, qy - self.ny
         self.moving12 = qx * qx + qy * qy > 1e-18  # the hop k + 1 → k + 2 has a direction
         self.h12 = np.arctan2(qy, qx)
         self.hop12 = np.where(self.moving12, travel_times(np.sqrt(qx * qx + qy * qy), b.carrier.motion), 0.0)
@@ -163,12 +154,12 @@ def search_class(builder: PathBuilder, route: Route, ks: Sequence[int], tol: flo
     for k in ks:
         prev = builder.start if k == 0 else route.positions[k - 1]
         jumps.append((route.geos[k].center, max_range_point(prev, route.geos[k], route.positions[k + 1])))
-    for j in range(2):  # the jumps, in the scalar polish's order
-        jx = np.array([p[j][0] for p in jumps])[:, None]
-        jy = np.array([p[j][1] for p in jumps])[:, None]
-        t = sc.cost(jx, jy)[:, 0]
-        ok = t < best - 1e-9
-        x, y, best = np.where(ok, jx[:, 0], x), np.where(ok, jy[:, 0], y), np.where(ok, t, best)
+    jx = np.array([[p[0] for p in two] for two in jumps])
+    jy = np.array([[p[1] for p in two] for two in jumps])
+    t = sc.cost(jx, jy)  # both jumps at once, taken in the scalar polish's order
+    for j in range(2):
+        ok = t[:, j] < best - 1e-9
+        x, y, best = np.where(ok, jx[:, j], x), np.where(ok, jy[:, j], y), np.where(ok, t[:, j], best)
     step = np.full(m, max(builder.inst.d / 4, 0.05))
     live = step > tol
     rows = np.arange(m)
