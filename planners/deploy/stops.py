@@ -22,7 +22,7 @@ from planners.core.timing import carrier_hop, carrier_step, carrier_steps, leg_t
 from planners.deploy.cluster import max_range_point
 from planners.deploy.path import PathBuilder, Route
 
-HANDOFF = 3  # stops: when no more of the class are still moving, each finishes on its own
+HANDOFF = 6  # stops: when no more of the class are still moving, each finishes on its own
 _TAU = 2.0 * np.pi
 _DX = np.array([d[0] for d in COMPASS])
 _DY = np.array([d[1] for d in COMPASS])
