@@ -88,12 +88,12 @@ def _screen_divisions(route: R, divide: Callable[[R, int], tuple[list[int], list
     ``split_loop`` would try, and a lower bound of its better order's makespan (the route's
     ``screen``; without one or on a route shorter than ``SCREEN_FROM``, only the cluster at
     ``start``, bound −inf)."""
+    screen = getattr(route, "screen", None) if len(route.clusters) >= SCREEN_FROM else None
+    if screen is None:
+        return {start: (-np.inf, divide(route, start))}
     todo = [j for j in range(start, min(start + SCREEN_AHEAD, len(route.clusters)))
             if len(route.clusters[j]) > 1 and (j == start or _key(route, j) not in tried)]
-    screen = getattr(route, "screen", None) if len(route.clusters) >= SCREEN_FROM else None
-    parts = {j: divide(route, j) for j in (todo if screen is not None else todo[:1])}
-    if screen is None:
-        return {j: (-np.inf, d) for j, d in parts.items()}
+    parts = {j: divide(route, j) for j in todo}
     changes = [(j, [a, b] if order == 0 else [b, a], 1) for j, (a, b) in parts.items() for order in (0, 1)]
     bounds = screen(changes)
     return {j: (float(min(bounds[2 * t], bounds[2 * t + 1])), d) for t, (j, d) in enumerate(parts.items())}
