@@ -79,8 +79,9 @@ def lee_clusters(problem: DeployProblem, improve: bool = True,
         r = _fresh(builder, r)
         if not improve:
             return r
-        if n >= BATCH_FROM:
-            return _polish_long(builder, r, COARSE_TOL)
+        if n >= BATCH_FROM:  # one sweep: long routes with numpy, short ones stop by stop
+            return _polish_long(builder, r, COARSE_TOL) if len(r.clusters) >= BATCH_STOPS else (
+                _polish(builder, r, 1, COARSE_TOL))
         return _polish(builder, r, 3 if small else 2, 1e-3 if small else COARSE_TOL)
 
     finish = remembered(place_finely)
@@ -211,7 +212,8 @@ def _polish_long(builder: PathBuilder, route: Route, tol: float) -> Route:
 
 
 BATCH_STRIDE = 3  # stops: moving stop k changes the hops k, k + 1 and the turn at k + 1
-BATCH_FROM = 61  # tasks: from this many on, the final polish searches a class of stops at once
+BATCH_FROM = 61  # tasks: from this many on, the final polish sweeps once ...
+BATCH_STOPS = 40  # ... and a route of this many stops has a class of stops searched at once
 
 
 def plan_lee(problem: DeployProblem) -> Plan:
