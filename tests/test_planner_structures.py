@@ -19,12 +19,16 @@ from planners.core.problem import CarrierSpec, CollectProblem, CollectRover, Dep
 from planners.core.routing import (
     _nearest_neighbour_tree,
     _two_opt_neighbours,
+    _two_opt_rows,
+    _two_opt_small,
     nearest_neighbour,
     two_opt_route,
 )
 from planners.deploy.cluster import DeployInstance
+from planners.deploy.lee import _polish_long, lee_clusters
 from planners.deploy.path import PathBuilder as DeployBuilder
 from planners.deploy.path import Route as DeployRoute
+from planners.deploy.stops import StopClass, search_class, stop_cost
 
 CARRIER = CarrierSpec(max_speed=12.0, accel=4.0, turn_rate=2.5, unload_time=2.0, load_time=3.0)
 ROVER = Motion(3.0)
@@ -84,6 +88,21 @@ def test_neighbour_two_opt_is_a_local_optimum_of_its_neighbourhood(seed: int) ->
                 assert _reversal_gain(nodes, path, i, j) <= 1e-6
 
 
+@pytest.mark.parametrize("seed", range(8))
+def test_matrix_two_opt_makes_the_plain_loops_tour(seed: int) -> None:
+    """The numpy 2-opt (gains by rows) returns exactly the plain loop's tour: from random and
+    nearest-neighbour tours, on points in general position and on a grid (equal distances)."""
+    rng = np.random.default_rng(seed)
+    for trial in range(12):
+        m = int(rng.integers(2, 90))
+        nodes = rng.uniform(0, 300, (m + 1, 2))
+        if trial % 3 == 0:
+            nodes = np.round(nodes / 50) * 50
+        dmat = np.hypot(nodes[:, None, 0] - nodes[None, :, 0], nodes[:, None, 1] - nodes[None, :, 1])
+        route = nearest_neighbour(dmat) if trial % 2 else [0, *(int(v) + 1 for v in rng.permutation(m))]
+        assert _two_opt_rows(dmat, route) == _two_opt_small(dmat.tolist(), route)
+
+
 def test_long_tours_are_as_short_as_the_exhaustive_two_opt_within_a_few_percent() -> None:
     rng = np.random.default_rng(7)
     ratios = []
@@ -91,8 +110,6 @@ def test_long_tours_are_as_short_as_the_exhaustive_two_opt_within_a_few_percent(
         pts, start = rng.uniform(0, 300, (150, 2)), rng.uniform(0, 300, 2)
         nodes = np.vstack([start[None], pts])
         fast = two_opt_route(pts, start, long_tours=True)
-        from planners.core.routing import _two_opt_small
-
         dmat = np.hypot(nodes[:, None, 0] - nodes[None, :, 0], nodes[:, None, 1] - nodes[None, :, 1])
         full = _two_opt_small(dmat.tolist(), nearest_neighbour(dmat))
         ratios.append(_length(nodes, [0] + [v + 1 for v in fast])
@@ -164,11 +181,11 @@ def test_region_projection_equals_brute_force(seed: int) -> None:
 
 # ------------------------------------------------------------------ incremental route times
 
-def _deploy(seed: int, n: int = 40) -> DeployProblem:
+def _deploy(seed: int, n: int = 40, d: float = 12.0) -> DeployProblem:
     rng = random.Random(seed)
     tasks = tuple(Task(f"t{i}", (rng.uniform(0, 150), rng.uniform(0, 150), rng.uniform(0, 3)))
                   for i in range(n))
-    return DeployProblem(CARRIER, ROVER, 12.0, (0.0, 0.0, 0.0), 0.3, tasks)
+    return DeployProblem(CARRIER, ROVER, d, (0.0, 0.0, 0.0), 0.3, tasks)
 
 
 def _same_times(a, b, names: tuple[str, ...]) -> None:
@@ -204,6 +221,123 @@ def test_deploy_route_moved_and_accept_equal_a_route_timed_afresh(seed: int, n: 
         new = route.accept(cand)
         _same_times(new, DeployRoute(b, new.clusters, new.geos, new.positions), names)
         route = new
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_a_class_of_stops_scored_at_once_equals_each_stop_scored_alone(seed: int) -> None:
+    """StopClass.cost (numpy, every third stop at once) gives stop_cost's makespan (the scalar
+    cost, itself checked against a route re-timed from scratch), inf out of reach included; the
+    class's search keeps every task in range, and the long routes' polish never slows a route."""
+    problem = _deploy(seed, 60)
+    b = DeployBuilder(DeployInstance(problem))
+    clusters = [[i] for i in range(len(problem.tasks))]
+    route = b.route([clusters[i] + clusters[i + 1] if b.inst.fits(clusters[i] + clusters[i + 1])
+                     else clusters[i] for i in range(0, len(clusters), 2)])
+    rng = np.random.default_rng(seed)
+    n = len(route.clusters)
+    for c in range(3):
+        ks = list(range(c, n - 2, 3))
+        sc = StopClass(b, route, ks)
+        px = np.array([route.positions[k][0] for k in ks])[:, None] + rng.uniform(-3, 3, (len(ks), 5))
+        py = np.array([route.positions[k][1] for k in ks])[:, None] + rng.uniform(-3, 3, (len(ks), 5))
+        got = sc.cost(px, py)
+        for i, k in enumerate(ks):
+            cost = stop_cost(b, route, k)
+            for j in range(5):
+                want = cost(float(px[i, j]), float(py[i, j]))
+                assert got[i, j] == (pytest.approx(want, abs=1e-9) if math.isfinite(want) else want)
+        for k in ks[:3]:  # the scalar cost against a route re-timed from scratch
+            q = (route.positions[k][0] + 0.5, route.positions[k][1] - 0.25)
+            if math.isfinite(stop_cost(b, route, k)(*q)):
+                moved = route.moved(k, q)
+                assert stop_cost(b, route, k)(*q) == pytest.approx(moved.makespan, abs=1e-9)
+        new = search_class(b, route, ks, 0.05)
+        for k, q in new.items():
+            assert b.inst.reach_from(q, route.clusters[k]) <= b.inst.d + 1e-9
+    polished = _polish_long(b, route, 0.05)
+    assert polished.makespan <= route.makespan
+    assert polished.makespan == pytest.approx(
+        DeployRoute(b, polished.clusters, polished.geos, polished.positions).makespan, abs=1e-9)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_the_screen_bounds_every_change_from_below_and_tightly(seed: int) -> None:
+    """Route.screen (numpy, many changes at once) against Route.replace (exact, one change): a
+    lower bound within 2 MARGIN of the exact makespan, or −inf where it does not score; for
+    swaps, divisions in both orders and merges along the whole route."""
+    from planners.core.clustering import divide_cluster
+    from planners.deploy.screen import MARGIN
+
+    problem = _deploy(seed, 70)
+    inst = DeployInstance(problem)
+    b = DeployBuilder(inst)
+    rng = random.Random(seed)
+    clusters: list[list[int]] = []
+    for i in range(len(problem.tasks)):  # clusters of one to three tasks, where they fit
+        if clusters and len(clusters[-1]) < 3 and rng.random() < 0.5 and inst.fits([*clusters[-1], i]):
+            clusters[-1].append(i)
+        else:
+            clusters.append([i])
+    route = b.route(clusters)
+    changes = []
+    for k in range(len(route.clusters) - 1):
+        changes.append((k, [route.clusters[k + 1], route.clusters[k]], 2))
+        union = route.clusters[k] + route.clusters[k + 1]
+        if inst.fits(union):
+            changes.append((k, [union], 2))
+        if len(route.clusters[k]) > 1:
+            near, far = divide_cluster(route.clusters[k], inst.pts, (0.0, 0.0, 0.0))
+            changes += [(k, [near, far], 1), (k, [far, near], 1)]
+    bounds = route.screen(changes)
+    scored = 0
+    for change, bound in zip(changes, bounds, strict=True):
+        exact = route.replace(*change)[0]
+        assert bound <= exact
+        if math.isfinite(bound):
+            assert exact - bound <= 2 * MARGIN
+            scored += 1
+    assert scored > 0.8 * len(changes) - 12  # all but the changes at the start and the end
+
+
+class _Unscreened(DeployRoute):
+    screen = None  # type: ignore[assignment]  # the cluster search scores every change exactly
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_the_screened_split_loop_keeps_the_same_divisions(seed: int, monkeypatch: pytest.MonkeyPatch) -> None:
+    """split_loop with the screen (bounds first, exact scores only where a division might be
+    kept) ends on the same route as split_loop scoring every division exactly."""
+    from planners.core import search
+    from planners.core.clustering import divide_cluster
+    from planners.core.search import split_loop
+
+    monkeypatch.setattr(search, "SCREEN_FROM", 0)  # these routes are short: screen them too
+    screened = []
+    real = DeployRoute.screen
+    monkeypatch.setattr(DeployRoute, "screen", lambda r, ch: screened.append(len(ch)) or real(r, ch))
+
+    problem = _deploy(seed, 80, 25.0)
+    inst = DeployInstance(problem)
+    b = DeployBuilder(inst)
+    clusters: list[list[int]] = []
+    for c in lee_clusters(problem, improve=False)[0]:  # neighbours merged where one stop serves both
+        if clusters and len(clusters[-1]) < 6 and inst.fits(clusters[-1] + c):
+            clusters[-1] = clusters[-1] + c
+        else:
+            clusters.append(c)
+
+    def divide(route: DeployRoute, idx: int) -> tuple[list[int], list[int]]:
+        prev = b.start if idx == 0 else route.positions[idx - 1]
+        return divide_cluster(route.clusters[idx], inst.pts, (*prev, 0.0))
+
+    plain = b.route(clusters)
+    bare = _Unscreened(b, plain.clusters, plain.geos, plain.positions)
+    for ties in (True, False):
+        fast, slow = split_loop(plain, divide, set(), ties), split_loop(bare, divide, set(), ties)
+        assert type(slow) is _Unscreened
+        assert fast.clusters == slow.clusters and fast.positions == slow.positions
+        assert fast.makespan == slow.makespan
+    assert sum(screened) > 20
 
 
 def _collect(seed: int, n: int = 40) -> CollectProblem:

@@ -176,3 +176,29 @@ def test_vertex_stops_drive_a_polyline_as_rest_to_rest_segments_with_turns():
     # two π/2 turns at 1 rad/s and two extra accelerations (v/a = 2 s each) over one 110 m leg
     assert t_stops == pytest.approx(t_one + math.pi + 2 * 2.0)
     assert carrier_leg(path[:2], 0.0, stops) == carrier_leg(path[:2], 0.0, one)  # a straight leg
+
+
+def test_numpy_forms_agree_with_carrier_step_and_leg_time():
+    """carrier_steps / travel_times / leg_times (the planners' batch scoring) give carrier_step's
+    and leg_time's numbers, zero-length hops (heading kept, no turn) included."""
+    import random
+
+    import numpy as np
+
+    from planners.core.timing import carrier_step, carrier_steps, leg_time, leg_times
+
+    rng = random.Random(5)
+    for _ in range(60):
+        c = CarrierSpec(rng.uniform(1, 20), rng.choice([None, rng.uniform(0.5, 10)]),
+                        rng.choice([None, rng.uniform(0.2, 4)]))
+        m = Motion(rng.uniform(1, 5), rng.choice([None, rng.uniform(0.5, 5)]), rng.uniform(0, 3))
+        dx = np.array([rng.uniform(-60, 60) if rng.random() > 0.1 else 0.0 for _ in range(40)])
+        dy = np.array([rng.uniform(-60, 60) if x else 0.0 for x in dx])
+        h0 = np.array([rng.uniform(-7, 7) for _ in range(40)])
+        t, h = carrier_steps(dx, dy, h0, c)
+        lengths = np.hypot(dx, dy)
+        legs = leg_times(lengths, m)
+        for i in range(40):
+            t1, h1 = carrier_step(float(dx[i]), float(dy[i]), float(h0[i]), c)
+            assert t[i] == pytest.approx(t1, rel=1e-12, abs=1e-12) and h[i] == pytest.approx(h1, abs=1e-12)
+            assert legs[i] == pytest.approx(leg_time(float(lengths[i]), m), rel=1e-12, abs=1e-12)

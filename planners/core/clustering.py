@@ -2,9 +2,8 @@
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
-
-from planners.core.timing import dist
 
 _TIE = 1e-9
 
@@ -23,18 +22,22 @@ def divide_cluster(
     """
     if len(members) < 2:
         raise ValueError("a cluster of one task cannot be divided")
+    dist = math.dist  # (timing.dist, without the call through it: the divider runs thousands of times)
     first = points[members[0]]
     a = max(members, key=lambda i: dist(points[i], first))  # first maximum = Algorithm 3.1's strict '>'
-    d_a = {i: dist(points[i], points[a]) for i in members}
-    far = max(d_a.values())
-    ties = [i for i in members if d_a[i] >= far - _TIE * max(1.0, far)]
+    pa = points[a]
+    d_a = [dist(points[i], pa) for i in members]
+    far = max(d_a)
+    ties = [i for i, d in zip(members, d_a, strict=True) if d >= far - _TIE * max(1.0, far)]
     b = min(ties, key=lambda i: dist(points[i], prev_point)) if len(ties) > 1 else ties[0]
     if dist(points[a], prev_point) > dist(points[b], prev_point):
         a, b = b, a
+    pa, pb = points[a], points[b]
     near: list[int] = []
     far_part: list[int] = []
     for i in members:
-        (near if dist(points[i], points[a]) <= dist(points[i], points[b]) else far_part).append(i)
+        p = points[i]
+        (near if dist(p, pa) <= dist(p, pb) else far_part).append(i)
     if not far_part:  # all tasks coincide with A: split off one so the divider always divides
         far_part.append(near.pop())
     return near, far_part

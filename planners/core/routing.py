@@ -28,7 +28,7 @@ def two_opt_route(points: np.ndarray, start: np.ndarray, initial: list[int] | No
     else:
         route = nearest_neighbour(dmat)
     if n <= SMALL_TOUR:
-        return _two_opt_small(dmat.tolist(), route)
+        return _two_opt_rows(dmat, route) if n >= ROWS_FROM else _two_opt_small(dmat.tolist(), route)
     # 2-opt on the open path: reverse route[i..j]; the start stays first, the end is free.
     path = np.array(route)
     improved = True
@@ -50,6 +50,7 @@ def two_opt_route(points: np.ndarray, start: np.ndarray, initial: list[int] | No
 
 
 SMALL_TOUR = 80  # points: up to this many, the 2-opt in plain Python over the distance matrix
+ROWS_FROM = 24  # points: from this many on, the small tours' 2-opt scores whole rows with numpy
 NEIGHBOURS = 10  # candidate new edges per node of the long tours' neighbour-list 2-opt
 
 
@@ -91,6 +92,50 @@ def _two_opt_small(d: list[list[float]], route: list[int]) -> list[int]:
                     dab, da, db = d[a][b], d[a], d[b]
                     improved = True
     return [v - 1 for v in path[1:]]
+
+
+def _two_opt_rows(dmat: np.ndarray, route: list[int]) -> list[int]:
+    """``_two_opt_small`` with its gains held in a matrix (row i, column j: reversing path[i..j]),
+    scanned in the same order (row by row, first improvement) and computed with the same
+    floating-point operations, so it makes the same reversals and returns the same tour. A
+    reversal of path[i..j] changes only rows i..j + 1 ahead of the scan; every sweep starts from
+    the whole matrix again."""
+    n = len(route) - 1
+    if n < 2:
+        return [v - 1 for v in route[1:]]
+    path = np.array(route)
+    ahead = ~np.tri(n + 1, n + 1, 0, dtype=bool)  # j > i
+    ahead[0] = False  # the start stays first
+    gain = np.full((n + 1, n + 1), -np.inf)
+    flat = gain.ravel()
+    edge = np.zeros(n + 1)  # edge[j] = d(path[j], path[j + 1]); none after the end
+    after = np.zeros((n + 1, n + 1))  # after[i, j] = d(path[i], path[j + 1]); 0 at j = n
+
+    def score(lo: int, hi: int) -> None:  # rows lo..hi-1 of the current path
+        edge[:n] = dmat[path[:-1], path[1:]]
+        sub = dmat[path[lo - 1:hi]][:, path]
+        e = after[:hi - lo]
+        e[:, :n] = sub[1:, 1:]
+        # the plain loop's dab + d[c][e] - da[c] - db[e], term by term in the same order
+        rows = edge[lo - 1:hi - 1, None] + edge[None, :] - sub[:-1] - e
+        gain[lo:hi] = np.where(ahead[lo:hi], rows, -np.inf)
+
+    score(1, n + 1)
+    improved, at = False, 0
+    while True:
+        hit = np.flatnonzero(flat[at:] > 1e-9)
+        if hit.size == 0:
+            if not improved:
+                break
+            improved, at = False, 0
+            score(1, n + 1)
+            continue
+        k = at + int(hit[0])
+        i, j = divmod(k, n + 1)
+        path[i:j + 1] = path[i:j + 1][::-1].copy()
+        score(i, min(j + 2, n + 1))
+        improved, at = True, k + 1
+    return [int(v) - 1 for v in path[1:]]
 
 
 def _nearest_neighbour_tree(xy: np.ndarray, near: list[list[int]]) -> list[int]:

@@ -31,37 +31,72 @@ class ClusterRoute(Protocol):
     def accept(self: R, candidate: tuple[Any, ...]) -> R: ...
 
 
+SCREEN_AHEAD = 256  # clusters whose divisions are screened at once (again after every division kept)
+SCREEN_FROM = 40  # clusters: shorter routes score every division exactly (numpy's calls cost more)
+
+
 def split_loop(route: R, divide: Callable[[R, int], tuple[list[int], list[int]]],
                tried: set[tuple] | None = None, accept_ties: bool = True) -> R:
     """DIVIDE_CLUSTER / SWAP_CLUSTERS / MERGE_CLUSTERS of Algorithms 4.2 and 5.2.
 
     ``tried`` remembers divisions merged back (with the neighbouring clusters) so that later rounds
     of the improvement search do not evaluate them again. ``accept_ties`` keeps a division that is
-    exactly as fast (Algorithm 4.2's T_cand ≤ T_min).
+    exactly as fast (Algorithm 4.2's T_cand ≤ T_min). A route with ``screen`` (lower bounds of
+    many changes at once) has its divisions screened first: one whose bound shows it cannot be
+    kept is merged back without being scored (the same result, fewer exact scores).
     """
     tried = set() if tried is None else tried
+    screened: dict[int, tuple[float, tuple[list[int], list[int]]]] = {}  # for the current route
     idx = 0
     while idx < len(route.clusters):
         members = route.clusters[idx]
         if len(members) == 1:  # a cluster of one cannot be divided
             idx += 1
             continue
-        key = (tuple(route.clusters[idx - 1]) if idx else (), tuple(members),
-               tuple(route.clusters[idx + 1]) if idx + 1 < len(route.clusters) else ())
+        key = _key(route, idx)
         if key in tried:
             idx += 1
             continue
-        near, far = divide(route, idx)
+        if idx not in screened:
+            screened = _screen_divisions(route, divide, tried, idx)
+        bound, (near, far) = screened[idx]
+        if bound > route.makespan or (not accept_ties and bound >= route.makespan - 1e-9):
+            tried.add(key)
+            idx += 1
+            continue
         cand = route.replace(idx, [near, far])
         swapped = route.replace(idx, [far, near])
         if swapped[0] < cand[0]:
             cand = swapped
         if cand[0] < route.makespan - 1e-9 or (accept_ties and cand[0] <= route.makespan):
             route = route.accept(cand)
+            screened = {}
         else:
             tried.add(key)
             idx += 1
     return route
+
+
+def _key(route: ClusterRoute, idx: int) -> tuple:
+    return (tuple(route.clusters[idx - 1]) if idx else (), tuple(route.clusters[idx]),
+            tuple(route.clusters[idx + 1]) if idx + 1 < len(route.clusters) else ())
+
+
+def _screen_divisions(route: R, divide: Callable[[R, int], tuple[list[int], list[int]]], tried: set[tuple],
+                      start: int) -> dict[int, tuple[float, tuple[list[int], list[int]]]]:
+    """The division of the clusters from ``start`` on (``SCREEN_AHEAD`` of them) that
+    ``split_loop`` would try, and a lower bound of its better order's makespan (the route's
+    ``screen``; without one or on a route shorter than ``SCREEN_FROM``, only the cluster at
+    ``start``, bound −inf)."""
+    screen = getattr(route, "screen", None) if len(route.clusters) >= SCREEN_FROM else None
+    if screen is None:
+        return {start: (-np.inf, divide(route, start))}
+    todo = [j for j in range(start, min(start + SCREEN_AHEAD, len(route.clusters)))
+            if len(route.clusters[j]) > 1 and (j == start or _key(route, j) not in tried)]
+    parts = {j: divide(route, j) for j in todo}
+    changes = [(j, [a, b] if order == 0 else [b, a], 1) for j, (a, b) in parts.items() for order in (0, 1)]
+    bounds = screen(changes)
+    return {j: (float(min(bounds[2 * t], bounds[2 * t + 1])), d) for t, (j, d) in enumerate(parts.items())}
 
 
 def merge_neighbours(route: R, fits: Callable[[Sequence[int]], bool]) -> R:

@@ -11,6 +11,8 @@ import math
 from collections.abc import Sequence
 from typing import TypeVar
 
+import numpy as np
+
 from planners.core.plan import Plan
 from planners.core.problem import CarrierSpec, CollectProblem, DeployProblem, Motion, Vec3
 
@@ -155,6 +157,39 @@ def carrier_step(dx: float, dy: float, heading: float, carrier: CarrierSpec) -> 
     if carrier.turn_rate is not None:
         turn = (h - heading) % _TAU
         t += min(turn, _TAU - turn) / carrier.turn_rate
+    return t, h
+
+
+def travel_times(length: np.ndarray, motion: Motion) -> np.ndarray:
+    """:func:`travel_time` of every element of ``length`` (numpy, lengths >= 0): the same profile,
+    written without branches as 2·sqrt(min(L, v²/a)/a) + max(L − v²/a, 0)/v (equal to eq. 4.2's
+    two branches up to rounding)."""
+    v, a = motion.max_speed, motion.accel
+    if a is None:
+        return length / v
+    ramp = v * v / a
+    return 2.0 * np.sqrt(np.minimum(length, ramp) / a) + np.maximum(length - ramp, 0.0) / v
+
+
+def leg_times(length: np.ndarray, motion: Motion) -> np.ndarray:
+    """:func:`leg_time` of every element of ``length`` (numpy)."""
+    return motion.fixed_time + travel_times(length, motion)
+
+
+def carrier_steps(dx: np.ndarray, dy: np.ndarray, heading: np.ndarray | float,
+                  carrier: CarrierSpec) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`carrier_step` of every element (numpy, broadcast): times and headings after them,
+    for planners that score many candidate stops at once."""
+    d2 = dx * dx + dy * dy
+    h = np.arctan2(dy, dx)
+    t = travel_times(np.sqrt(d2), carrier.motion)
+    still = d2 <= 1e-18
+    if still.any():  # no drive: no turn, the heading is kept
+        h = np.where(still, heading, h)
+        t = np.where(still, 0.0, t)
+    if carrier.turn_rate is not None:
+        turn = (h - heading) % _TAU
+        t = t + np.minimum(turn, _TAU - turn) / carrier.turn_rate
     return t, h
 
 

@@ -7,6 +7,8 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
+import numpy as np
+
 from planners.core.geometry import enclosing_ball
 from planners.core.problem import DeployProblem, PlanningError, Point2, Vec3
 from planners.core.timing import RANGE_MARGIN
@@ -34,6 +36,7 @@ class DeployInstance:
     def __init__(self, problem: DeployProblem) -> None:
         self.problem = problem
         self.pts: list[Vec3] = [t.position for t in problem.tasks]
+        self.xyz = np.array(self.pts, dtype=float).reshape(-1, 3)  # the same, for numpy scoring
         self.range = problem.deploy_range
         self.d = max(problem.deploy_range - RANGE_MARGIN, 0.0)  # planned flights stay inside this
         self._geo: dict[tuple[int, ...], ClusterGeometry] = {}

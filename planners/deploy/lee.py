@@ -9,7 +9,7 @@ from __future__ import annotations
 import math
 import random
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 
 from planners.core.clustering import divide_cluster
 from planners.core.geometry import compass_search
@@ -27,11 +27,11 @@ from planners.core.partitions import best_partition
 from planners.core.plan import Plan
 from planners.core.problem import DeployProblem, PlanningError, Point2, refuse_obstacles
 from planners.core.search import merge_neighbours, reorder, split_loop, swap_neighbours
-from planners.core.timing import carrier_hop, carrier_step, leg_time
 from planners.deploy.build import build_plan
 from planners.deploy.cluster import DeployInstance, max_range_point
 from planners.deploy.path import PathBuilder, Route
 from planners.deploy.polish import smooth
+from planners.deploy.stops import search_class, stop_cost
 from planners.deploy.two_task import plan_two_tasks
 
 
@@ -77,8 +77,12 @@ def lee_clusters(problem: DeployProblem, improve: bool = True,
 
     def place_finely(r: Route) -> Route:
         r = _fresh(builder, r)
-        sweeps = 3 if small else 2 if n <= 60 else 1
-        return _polish(builder, r, sweeps, 1e-3 if small else COARSE_TOL) if improve else r
+        if not improve:
+            return r
+        if n >= BATCH_FROM:  # one sweep: long routes with numpy, short ones stop by stop
+            return _polish_long(builder, r, COARSE_TOL) if len(r.clusters) >= BATCH_STOPS else (
+                _polish(builder, r, 1, COARSE_TOL))
+        return _polish(builder, r, 3 if small else 2, 1e-3 if small else COARSE_TOL)
 
     finish = remembered(place_finely)
 
@@ -141,68 +145,6 @@ COARSE_TOL = 5e-2  # m: the polish's last step on larger problems (5 cm of carri
 ILS_PATIENCE = 20  # kicks per task without a new best before the anytime search gives up
 
 
-_TAU = 2.0 * math.pi
-
-
-def _stop_cost(builder: PathBuilder, r: Route, k: int) -> Callable[[float, float], float]:
-    """Makespan of route ``r`` with stop k moved to (x, y), the others kept, or inf where a task of
-    stop k is out of reach: only the legs into k and k + 1 and the turn at k + 1 change; later
-    stops shift in time by the same amount. The polish calls it
-    thousands of times: the hops are ``planners.core.timing.carrier_step``."""
-    b, pos, unload, d2max = builder, r.positions, builder.unload, builder.inst.d ** 2
-    c = b.carrier
-    w = c.turn_rate
-    rover = b.rover
-    rows = [b.inst.pts[i] for i in r.clusters[k]]
-    rows2 = [(x, y, z * z) for x, y, z in rows]
-    if k == 0:
-        (px, py), t0, h0 = b.start, 0.0, b.inst.problem.heading
-    else:
-        (px, py), t0, h0 = pos[k - 1], r.arrive[k - 1] + unload, r.heading[k - 1]
-    head = r.head[k - 1] if k else 0.0  # stops before k are not affected
-    n = len(pos)
-    nx1 = ny1 = 0.0
-    done1 = arrive1 = 0.0
-    if k + 1 < n:
-        (nx1, ny1), done1, arrive1 = pos[k + 1], r.done[k + 1], r.arrive[k + 1]
-    # the hop k + 1 → k + 2 keeps its length; only the turn at k + 1 depends on stop k
-    h12: float | None = None
-    hop12 = tail2 = arrive2 = 0.0
-    if k + 2 < n:
-        qx, qy = pos[k + 2]
-        if (qx - nx1) ** 2 + (qy - ny1) ** 2 > 1e-18:
-            h12 = math.atan2(qy - ny1, qx - nx1)
-            hop12 = carrier_hop(pos[k + 1], pos[k + 2], h12, c)[0]  # travel only (no turn)
-        tail2, arrive2 = r.tail[k + 2], r.arrive[k + 2]
-
-    def cost(x: float, y: float) -> float:
-        far = 0.0
-        for tx, ty, z2 in rows2:
-            e = (tx - x) ** 2 + (ty - y) ** 2 + z2
-            if e > far:
-                far = e
-        if far > d2max:
-            return math.inf
-        dt, h = carrier_step(x - px, y - py, h0, c)
-        t = t0 + dt + unload
-        worst = max(head, t + leg_time(math.sqrt(far), rover))
-        if k + 1 < n:
-            dt, h = carrier_step(nx1 - x, ny1 - y, h, c)
-            t1 = t + dt  # new arrival at k + 1
-            worst = max(worst, done1 + (t1 - arrive1))
-            if k + 2 < n:
-                dt = hop12
-                if h12 is not None and w is not None:
-                    turn = (h12 - h) % _TAU
-                    dt += min(turn, _TAU - turn) / w
-                elif h12 is None:
-                    dt = 0.0
-                worst = max(worst, tail2 + (t1 + unload + dt - arrive2))
-        return worst
-
-    return cost
-
-
 def _polish(builder: PathBuilder, route: Route, sweeps: int = 3, tol: float = 1e-3) -> Route:
     """Improvement beyond the dissertation: move each stop on its own, with every other stop fixed,
     wherever the whole route gets faster and the stop still serves its cluster within d_deploy
@@ -210,32 +152,68 @@ def _polish(builder: PathBuilder, route: Route, sweeps: int = 3, tol: float = 1e
     place early stops for the shortest drive and the last two by eq. 4.20; this trades the two
     against each other across the whole route. After the first sweep only stops with a moved
     neighbour (two either side) are searched again."""
-    inst = builder.inst
     todo = set(range(len(route.clusters)))
     for _ in range(sweeps):
         before = route.makespan
         moved: set[int] = set()
         for k in sorted(todo):
-            cost = _stop_cost(builder, route, k)
-            best = route.makespan
-            x, y = route.positions[k]
-            # a jump first: the compass search cannot leave a stop where moving a little costs a
-            # turn (e.g. a stop on the start); try the cluster's centre and its point nearest the
-            # carrier's line to the next stop
-            prev = builder.start if k == 0 else route.positions[k - 1]
-            nxt = route.positions[k + 1] if k + 1 < len(route.positions) else route.geos[k].center
-            for cand in (route.geos[k].center, max_range_point(prev, route.geos[k], nxt)):
-                t = cost(*cand)
-                if t < best - 1e-9:
-                    best, (x, y) = t, cand
-            x, y, best = compass_search(cost, x, y, best, max(inst.d / 4, 0.05), tol)
-            if (x, y) != route.positions[k]:
-                route = route.moved(k, (x, y))
+            was = route.positions[k]
+            route = _polish_stop(builder, route, k, tol)
+            if route.positions[k] != was:
                 moved.add(k)
         if route.makespan >= before - 1e-6:
             break
         todo = {j for k in moved for j in range(k - 2, k + 3) if 0 <= j < len(route.clusters)}
     return route
+
+
+def _polish_stop(builder: PathBuilder, route: Route, k: int, tol: float) -> Route:
+    """``route`` with stop k searched (``_polish``), every other stop fixed."""
+    cost = stop_cost(builder, route, k)
+    best = route.makespan
+    x, y = route.positions[k]
+    # a jump first: the compass search cannot leave a stop where moving a little costs a
+    # turn (e.g. a stop on the start); try the cluster's centre and its point nearest the
+    # carrier's line to the next stop
+    prev = builder.start if k == 0 else route.positions[k - 1]
+    nxt = route.positions[k + 1] if k + 1 < len(route.positions) else route.geos[k].center
+    for cand in (route.geos[k].center, max_range_point(prev, route.geos[k], nxt)):
+        t = cost(*cand)
+        if t < best - 1e-9:
+            best, (x, y) = t, cand
+    x, y, best = compass_search(cost, x, y, best, max(builder.inst.d / 4, 0.05), tol)
+    return route.moved(k, (x, y)) if (x, y) != route.positions[k] else route
+
+
+def _polish_long(builder: PathBuilder, route: Route, tol: float) -> Route:
+    """One sweep of ``_polish`` for long routes, with numpy: every third stop at once
+    (``planners.deploy.batch``: stops three apart share no hop), the three classes in turn, each
+    class's moves kept when the route re-timed exactly is faster (else one at a time, each on
+    the exact cost); then the last two stops one at a time."""
+    n = len(route.clusters)
+    for c in range(BATCH_STRIDE):
+        ks = list(range(c, n - 2, BATCH_STRIDE))
+        new = search_class(builder, route, ks, tol) if ks else {}
+        if not new:
+            continue
+        positions = list(route.positions)
+        for k, q in new.items():
+            positions[k] = q
+        cand = Route(builder, route.clusters, route.geos, positions)
+        if cand.makespan < route.makespan - 1e-9:
+            route = cand
+            continue
+        for k, q in new.items():
+            if stop_cost(builder, route, k)(*q) < route.makespan - 1e-9:
+                route = route.moved(k, q)
+    for k in range(max(n - 2, 0), n):
+        route = _polish_stop(builder, route, k, tol)
+    return route
+
+
+BATCH_STRIDE = 3  # stops: moving stop k changes the hops k, k + 1 and the turn at k + 1
+BATCH_FROM = 61  # tasks: from this many on, the final polish sweeps once ...
+BATCH_STOPS = 40  # ... and a route of this many stops has a class of stops searched at once
 
 
 def plan_lee(problem: DeployProblem) -> Plan:

@@ -12,6 +12,7 @@ from planners.core.geometry import find_root, minimize_1d
 from planners.core.problem import Point2
 from planners.core.timing import carrier_hop, leg_time
 from planners.deploy.cluster import ClusterGeometry, DeployInstance, lerp, max_range_point
+from planners.deploy.screen import screen
 
 
 class PathBuilder:
@@ -51,13 +52,19 @@ class PathBuilder:
             dt2, _ = carrier_hop(pos, q, h, self.carrier)
             return t1 + dt2 + self.unload + self.finish(q, clusters[k + 1])
 
+        seen: dict[tuple[float, float], tuple[float, float]] = {}  # the searches revisit their ends
+
         def both(s: float, u: float = 1.0) -> tuple[float, float]:
             """This cluster's last arrival and the next (last) cluster's, with the stop at s."""
+            got = seen.get((s, u))
+            if got is not None:
+                return got
             pos = lerp(prev, center, s)
             dt, h = carrier_hop(prev, pos, heading, self.carrier)
             t1 = t + dt + self.unload
             later = last_stop(pos, h, t1, u, nxt) if nxt is not None else 0.0
-            return t1 + self.finish(pos, clusters[k]), later
+            got = seen[(s, u)] = (t1 + self.finish(pos, clusters[k]), later)
+            return got
 
         def makespan(s: float, u: float = 1.0) -> float:
             return max(worst, *both(s, u))
@@ -104,15 +111,22 @@ class PathBuilder:
         """GET_DEPLOY_PATH for every cluster, then the route's times."""
         geos = [self.inst.geometry(c) for c in clusters]
         positions: list[Point2] = []
+        hops: list[float] = []
+        headings: list[float] = []
+        flies: list[float] = []
         prev, t, heading, worst = self.start, 0.0, self.inst.problem.heading, 0.0
         for k in range(len(clusters)):
             pos = self.place(clusters, geos, k, prev, t, heading, worst, fine)
             dt, heading = carrier_hop(prev, pos, heading, self.carrier)
+            fly = self.finish(pos, clusters[k])
             t += dt + self.unload
-            worst = max(worst, t + self.finish(pos, clusters[k]))
+            worst = max(worst, t + fly)
             positions.append(pos)
+            hops.append(dt)
+            headings.append(heading)
+            flies.append(fly)
             prev = pos
-        return Route(self, clusters, geos, positions)
+        return Route.timed(self, clusters, geos, positions, hops, headings, flies)
 
 
 NUMPY_FROM = 24  # stops: from this many on, a route's times are summed with numpy
@@ -147,6 +161,17 @@ class Route:
             self.fly.append(b.finish(pos, members))
             prev = pos
         self._times()
+
+    @classmethod
+    def timed(cls, b: PathBuilder, clusters: list[list[int]], geos: list[ClusterGeometry],
+              positions: list[Point2], hop: list[float], heading: list[float], fly: list[float]) -> Route:
+        """The route of ``positions`` whose hops, headings and flights the caller drove already
+        (the same numbers ``__init__`` computes, in the same order)."""
+        r = object.__new__(cls)
+        r.b, r.clusters, r.geos, r.positions = b, clusters, geos, positions
+        r.hop, r.heading, r.fly = hop, heading, fly
+        r._times()
+        return r
 
     def _times(self) -> None:
         """The times from the hops and flights: a cumulative sum and running maxima (numpy, the
@@ -209,6 +234,11 @@ class Route:
         self._redrive(r, lo, hi, m)
         return r
 
+    def screen(self, changes: Sequence[tuple[int, list[list[int]], int]]) -> np.ndarray:
+        """A lower bound of ``replace(*change)[0]`` for every change, all at once with numpy
+        (−inf where it does not know; ``planners.deploy.screen``)."""
+        return screen(self, changes)
+
     def replace(self, i: int, pieces: list[list[int]], count: int = 1) -> Candidate:
         """Makespan after clusters i..i+count-1 are replaced by ``pieces``, recomputing the stops
         around the change (the one before, the pieces, the one after) and keeping later stops."""
@@ -238,7 +268,7 @@ class Route:
             pos = self.positions[m]
             dt, h = carrier_hop(prev, pos, h, b.carrier)
             t += dt + b.unload
-            worst = max(worst, t + b.finish(pos, old[m]))
+            worst = max(worst, t + self.fly[m])  # the kept stop's flight: b.finish(pos, old[m])
             if m + 1 < len(old):
                 dt, _ = carrier_hop(pos, self.positions[m + 1], h, b.carrier)
                 shift = t + dt - self.arrive[m + 1]
