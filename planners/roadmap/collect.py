@@ -27,7 +27,10 @@ from planners.core.geometry import enclosing_ball
 from planners.core.plan import Plan, RoverLeg, Stop
 from planners.core.problem import CollectProblem, PlanningError
 from planners.core.timing import RANGE_MARGIN, carrier_leg, leg_time, retime
-from planners.roadmap.world import GraphWorld, ground_path, node_xy
+from planners.roadmap.costs import RoadmapCosts
+from planners.roadmap.route import RouteSpace
+from planners.roadmap.search import improve, refine
+from planners.roadmap.world import GraphWorld, ground_path, node_xy, rover_ground_path
 
 
 class _Collect:
@@ -104,15 +107,31 @@ class _Collect:
         return min(rest, key=lambda i: (math.dist(tx[i, :2], lam), i))
 
 
-def plan_collect_lee_graph(problem: CollectProblem, local_prm: bool = True) -> Plan:
-    """Collection on a probabilistic roadmap with the waiting carrier of ch. 5; ``lee-graph``."""
+def plan_collect_lee_graph(problem: CollectProblem, local_prm: bool = True, search: bool = True) -> Plan:
+    """Collection on a probabilistic roadmap with the waiting carrier of ch. 5; ``lee-graph``. With
+    ``search``, then the moves of the open-space planners on the roadmap
+    (``planners.roadmap.search``), kept when they make the plan faster."""
     t0 = time.perf_counter()
     if not problem.rovers:
         return Plan(kind="collect", planner="lee-graph", start=problem.start, heading=problem.heading,
                     stops=[])
     col = _Collect(problem, local_prm)
     order = col.run()
-    w, rm = col.w, col.w.rm
+    plan = build_collect_graph_plan(problem, col.w, order)
+    if search:
+        costs = RoadmapCosts(col.w, problem.carrier, problem.rover, toward=False)
+        space = RouteSpace(costs, problem.heading, deploy=False)
+        greedy = space.timed([list(m) for _, m in order], [n for n, _ in order], None, 0)
+        best = improve(greedy, problem.budget_ms, problem.seed, t0)
+        plan = refine(best, lambda o: build_collect_graph_plan(problem, col.w, o), plan, local_prm)
+    plan.compute_ms = (time.perf_counter() - t0) * 1e3
+    return plan
+
+
+def build_collect_graph_plan(problem: CollectProblem, w: GraphWorld,
+                             order: Sequence[tuple[int, Sequence[int]]]) -> Plan:
+    """Carrier sub-routes and rover routes on the final roadmap, shortcut, and timed (eq. 5.2)."""
+    rm = w.rm
     stops: list[Stop] = []
     prev = 0
     for node, mem in order:
@@ -123,7 +142,7 @@ def plan_collect_lee_graph(problem: CollectProblem, local_prm: bool = True) -> P
         legs = []
         for i in mem:
             r = problem.rovers[i]
-            ground = rm.smoothed_path(w.node(i), node)
+            ground = rover_ground_path(rm, node, w.node(i), toward=False)
             path = w.climb_path(ground, r.position[2], 0.0)
             path[0] = r.position
             if math.hypot(sum(math.dist(a, b) for a, b in zip(ground, ground[1:], strict=False)),
@@ -135,6 +154,4 @@ def plan_collect_lee_graph(problem: CollectProblem, local_prm: bool = True) -> P
     plan = Plan(kind="collect", planner="lee-graph", start=problem.start, heading=problem.heading,
                 stops=stops)
     plan.roadmap = rm
-    retime(plan, problem.carrier, problem.rover)
-    plan.compute_ms = (time.perf_counter() - t0) * 1e3
-    return plan
+    return retime(plan, problem.carrier, problem.rover)

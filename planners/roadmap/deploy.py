@@ -25,7 +25,10 @@ from planners.core.geometry import enclosing_ball
 from planners.core.plan import Plan, RoverLeg, Stop
 from planners.core.problem import DeployProblem, PlanningError, Point2
 from planners.core.timing import RANGE_MARGIN, carrier_leg, leg_time, retime
-from planners.roadmap.world import GraphWorld, ground_path, node_xy
+from planners.roadmap.costs import RoadmapCosts
+from planners.roadmap.route import RouteSpace
+from planners.roadmap.search import improve, refine
+from planners.roadmap.world import GraphWorld, ground_path, node_xy, rover_ground_path
 
 
 class _Deploy:
@@ -193,8 +196,10 @@ class _Deploy:
         return total, n1, c1, n2, c2
 
 
-def plan_lee_graph(problem: DeployProblem, local_prm: bool = True) -> Plan:
-    """Algorithm 6.3 on a probabilistic roadmap, planner name ``lee-graph``."""
+def plan_lee_graph(problem: DeployProblem, local_prm: bool = True, search: bool = True) -> Plan:
+    """Algorithm 6.3 on a probabilistic roadmap, planner name ``lee-graph``; with ``search``, then
+    the moves of the open-space planners on the roadmap (``planners.roadmap.search``), kept when
+    they make the plan faster."""
     t0 = time.perf_counter()
     if len(problem.rover_ids()) < len(problem.tasks):
         raise PlanningError(f"{len(problem.tasks)} tasks need as many rovers, only "
@@ -205,6 +210,12 @@ def plan_lee_graph(problem: DeployProblem, local_prm: bool = True) -> Plan:
     dep = _Deploy(problem, local_prm)
     order = dep.run()
     plan = build_graph_plan(problem, dep.w, order)
+    if search:
+        costs = RoadmapCosts(dep.w, problem.carrier, problem.rover, toward=True)
+        space = RouteSpace(costs, problem.heading, deploy=True)
+        greedy = space.timed([list(m) for _, m in order], [n for n, _ in order], None, 0)
+        best = improve(greedy, problem.budget_ms, problem.seed, t0)
+        plan = refine(best, lambda o: build_graph_plan(problem, dep.w, o), plan, local_prm)
     plan.compute_ms = (time.perf_counter() - t0) * 1e3
     return plan
 
@@ -223,7 +234,7 @@ def build_graph_plan(problem: DeployProblem, w: GraphWorld,
         legs = []
         for i in mem:
             task = problem.tasks[i]
-            ground = rm.smoothed_path(node, w.node(i))  # GetRoverRoute
+            ground = rover_ground_path(rm, node, w.node(i), toward=True)  # GetRoverRoute
             path = w.climb_path(ground, 0.0, task.position[2])
             path[-1] = task.position
             if math.hypot(_ground_len(ground), task.position[2]) > problem.deploy_range:

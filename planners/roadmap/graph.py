@@ -184,6 +184,22 @@ class Roadmap:
         self._sp.clear()
         return new
 
+    def link(self, new: np.ndarray, to: Sequence[int], radius: float, beyond: float) -> None:
+        """Also link nodes ``new`` (just added with edges up to ``beyond``) to the nodes ``to``
+        between ``beyond`` and ``radius`` away, by collision-free edges."""
+        new, to = np.asarray(new, dtype=np.int64), np.asarray(to, dtype=np.int64)
+        if not len(new) or not len(to):
+            return
+        a, b = np.repeat(new, len(to)), np.tile(to, len(new))
+        d = np.hypot(*(self.xy[a] - self.xy[b]).T)
+        keep = (d > beyond) & (d <= radius) & (a != b)
+        a, b = a[keep], b[keep]
+        ok = self.ws.segments_free(self.xy[a], self.xy[b])
+        self._i = np.concatenate([self._i, a[ok]])
+        self._j = np.concatenate([self._j, b[ok]])
+        self._csr = None
+        self._sp.clear()
+
     def graph(self) -> csr_matrix:
         if self._csr is None:
             w = np.hypot(*(self.xy[self._i] - self.xy[self._j]).T)
@@ -198,7 +214,7 @@ class Roadmap:
         """Path lengths and predecessors from ``source`` to every node (cached until the graph grows)."""
         got = self._sp.get(source)
         if got is None:
-            d, pred = dijkstra(self.graph(), directed=False, indices=source, return_predecessors=True)
+            d, pred = dijkstra(self.graph(), directed=True, indices=source, return_predecessors=True)
             got = (d, pred)
             self._sp[source] = got
         return got
@@ -207,7 +223,7 @@ class Roadmap:
         """(len(sources), N) shortest path lengths, inf beyond ``limit``."""
         if not len(sources):
             return np.zeros((0, self.n_nodes))
-        return np.atleast_2d(dijkstra(self.graph(), directed=False, indices=list(sources), limit=limit))
+        return np.atleast_2d(dijkstra(self.graph(), directed=True, indices=list(sources), limit=limit))
 
     def path(self, source: int, target: int) -> list[int]:
         """Node indices of a shortest path source → target (PlanningError if none)."""

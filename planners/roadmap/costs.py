@@ -1,0 +1,186 @@
+"""Roadmap costs for the search of the graph planners, memoised (dissertation ch. 6 paths, timed
+by ``planners.core.timing``).
+
+The cost of a pair of roadmap nodes is a shortest path, shortcut by Algorithm 6.2: the search
+asks for the same pairs thousands of times, so each pair's ground path is computed once
+(bounded caches, emptied when they fill up and whenever the roadmap grows). Times are the plan's
+own: ``carrier_leg`` over the carrier's shortcut path, ``leg_time`` of √(L² + z²) for a rover
+flying the shortcut ground path L of its node pair (see ``planners.roadmap.deploy``).
+
+Candidate stops are scored first on estimates: the straight line where it is free of obstacles,
+else the roadmap path length (the shortcut path lies between the two).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from planners.core.problem import CarrierSpec, Motion, Vec3
+from planners.core.timing import carrier_leg, leg_time
+from planners.roadmap.graph import MAX_EDGES, MAX_NODES
+from planners.roadmap.world import GraphWorld, ground_path, rover_ground_path
+
+PAIRS = 200_000  # node pairs remembered (their shortcut paths) before the cache starts again
+ROWS = 50_000  # estimate vectors remembered (one per source node and cluster)
+CLUSTERS = 20_000  # candidate sets remembered (one per cluster of targets)
+
+
+class RoadmapCosts:
+    """Memoised paths, times and candidate stops on one ``GraphWorld``'s roadmap.
+
+    ``toward`` is True when rovers fly from the stop to their target (deployment), False when
+    they fly from where they are to the stop (collection): a shortcut path depends on its
+    direction.
+    """
+
+    def __init__(self, w: GraphWorld, carrier: CarrierSpec, rover: Motion, toward: bool) -> None:
+        self.w, self.carrier, self.rover, self.toward = w, carrier, rover, toward
+        self.z = w.targets[:, 2]
+        self.version = 0
+        self._clear()
+
+    def _clear(self) -> None:
+        self._paths: dict[tuple[int, int], list[Vec3]] = {}
+        self._legs: dict[tuple[int, int, float], tuple[float, float]] = {}
+        self._flights: dict[tuple[int, int], float] = {}
+        self._stop_rovers: dict[tuple[tuple[int, ...], int], float] = {}
+        self._carrier_est: dict[tuple[int, tuple[int, ...]], np.ndarray] = {}
+        self._rover_est: dict[int, np.ndarray] = {}
+        self._serving: dict[tuple[int, ...], tuple[np.ndarray, np.ndarray]] = {}
+
+    # ------------------------------------------------------------------ exact (the plan's times)
+
+    def path(self, a: int, b: int) -> list[Vec3]:
+        """The carrier's ground path a → b (shortest roadmap path, shortcut)."""
+        got = self._paths.get((a, b))
+        if got is None:
+            if len(self._paths) >= PAIRS:
+                self._paths.clear()
+            got = self._paths[(a, b)] = ground_path(self.w.rm.smoothed_path(a, b))
+        return got
+
+    def leg(self, a: int, b: int, heading: float) -> tuple[float, float]:
+        """``carrier_leg`` of the path a → b: its time and the heading at b."""
+        if self.carrier.turn_rate is not None:  # the time depends on the heading
+            key = (a, b, heading)
+            got = self._legs.get(key)
+            if got is None:
+                if len(self._legs) >= PAIRS:
+                    self._legs.clear()
+                got = self._legs[key] = carrier_leg(self.path(a, b), heading, self.carrier)
+            return got
+        key = (a, b, 0.0)  # no rotation: one entry per pair; a leg without motion keeps the heading
+        got = self._legs.get(key)
+        if got is None:
+            if len(self._legs) >= PAIRS:
+                self._legs.clear()
+            path = self.path(a, b)
+            t, h = carrier_leg(path, math.nan, self.carrier)
+            got = self._legs[key] = (t, h)
+        return got if not math.isnan(got[1]) else (got[0], heading)
+
+    def flight(self, target: int, node: int) -> float:
+        """Length of target's rover flight to or from ``node``: √(L² + z²) over the shortcut path."""
+        key = (target, node)
+        got = self._flights.get(key)
+        if got is None:
+            if len(self._flights) >= PAIRS:
+                self._flights.clear()
+            pts = rover_ground_path(self.w.rm, node, self.w.node(target), self.toward)
+            ground = sum(math.dist(p, q) for p, q in zip(pts, pts[1:], strict=False))
+            got = self._flights[key] = math.hypot(ground, float(self.z[target]))
+        return got
+
+    def rovers(self, members: Sequence[int], node: int) -> float:
+        """The longest rover flight time of a stop at ``node`` serving ``members``."""
+        key = (tuple(members), node)
+        got = self._stop_rovers.get(key)
+        if got is None:
+            if len(self._stop_rovers) >= PAIRS:
+                self._stop_rovers.clear()
+            got = self._stop_rovers[key] = max(leg_time(self.flight(i, node), self.rover) for i in members)
+        return got
+
+    # ------------------------------------------------------------------ estimates
+
+    def carrier_to(self, source: int, members: Sequence[int]) -> np.ndarray:
+        """Estimated carrier time from ``source`` to each node that serves ``members`` (in the
+        order of ``serving``; rotation left out)."""
+        key = (source, tuple(sorted(members)))
+        got = self._carrier_est.get(key)
+        if got is None:
+            if len(self._carrier_est) >= ROWS:
+                self._carrier_est.clear()
+            nodes = self.serving(members)[0]
+            motion = self.carrier.motion
+            got = np.array([leg_time(float(s), motion) for s in self._lengths(source, nodes)])
+            self._carrier_est[key] = got
+        return got
+
+    def rovers_at(self, target: int) -> np.ndarray:
+        """Estimated flight time of ``target``'s rover for a stop at every node, inf out of its reach
+        (the greedy's test of a stop serving: the roadmap path at most the target's ground radius)."""
+        got = self._rover_est.get(target)
+        if got is None:
+            rho = float(self.w.rho[target])
+            node = self.w.node(target)
+            near = np.flatnonzero(self.w.rm.shortest(node)[0] <= rho)
+            z = float(self.z[target])
+            got = np.full(self.w.rm.n_nodes, math.inf)
+            got[near] = [leg_time(math.hypot(float(s), z), self.rover) for s in self._lengths(node, near)]
+            self._rover_est[target] = got
+        return got
+
+    def _lengths(self, node: int, among: np.ndarray) -> np.ndarray:
+        """From ``node`` to each of ``among``: the straight-line length where that segment is free,
+        else the roadmap path length."""
+        rm = self.w.rm
+        d = rm.shortest(node)[0][among]
+        xy = rm.xy
+        straight = np.hypot(xy[among, 0] - xy[node, 0], xy[among, 1] - xy[node, 1])
+        free = self.w.ws.segments_free(np.repeat(xy[node:node + 1], len(among), axis=0), xy[among])
+        return np.minimum(np.where(free, straight, d), d)
+
+    def serving(self, members: Sequence[int]) -> tuple[np.ndarray, np.ndarray]:
+        """Roadmap nodes from which one stop serves every member (the greedy's rule: each along the
+        roadmap within its ground radius), and the stop's estimated longest rover flight there."""
+        key = tuple(sorted(members))
+        got = self._serving.get(key)
+        if got is None:
+            if len(self._serving) >= CLUSTERS:
+                self._serving.clear()
+            worst = self.rovers_at(key[0])
+            for i in key[1:]:
+                worst = np.maximum(worst, self.rovers_at(i))
+            nodes = np.flatnonzero(np.isfinite(worst))
+            got = self._serving[key] = (nodes, worst[nodes])
+        return got
+
+    def fits(self, members: Sequence[int]) -> bool:
+        return len(self.serving(members)[0]) > 0
+
+    # ------------------------------------------------------------------ growing the roadmap
+
+    def grow(self, points: np.ndarray, radius: float, to: Sequence[int] = (), to_radius: float = 0.0) -> int:
+        """Add collision-free ``points`` as roadmap nodes, linked to every node up to ``radius``
+        away and to the nodes ``to`` up to ``to_radius``, when the roadmap stays within its
+        limits; every remembered cost is dropped. Returns the nodes added."""
+        rm = self.w.rm
+        pts = np.asarray(points, dtype=float).reshape(-1, 2)
+        pts = pts[self.w.ws.points_free(pts) & self.w.ws.inside_bounds(pts)]
+        if not len(pts) or rm.n_nodes + len(pts) > MAX_NODES:
+            return 0
+        near = int(np.sum(cKDTree(np.concatenate([rm.xy, pts])).query_ball_point(
+            pts, radius, return_length=True)))
+        if rm.n_edges + near // 2 + len(pts) * len(to) > MAX_EDGES:  # Roadmap.add's test, before it refuses
+            return 0
+        new = rm.add(pts, radius)
+        if to_radius > radius:
+            rm.link(new, to, to_radius, radius)
+        self.version += 1
+        self._clear()
+        return len(pts)
