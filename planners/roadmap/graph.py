@@ -187,10 +187,10 @@ class Roadmap:
     def link(self, new: np.ndarray, to: Sequence[int], radius: float, beyond: float) -> None:
         """Also link nodes ``new`` (just added with edges up to ``beyond``) to the nodes ``to``
         between ``beyond`` and ``radius`` away, by collision-free edges."""
-        new, to = np.asarray(new, dtype=np.int64), np.asarray(to, dtype=np.int64)
-        if not len(new) or not len(to):
+        src, dst = np.asarray(new, dtype=np.int64), np.asarray(to, dtype=np.int64)
+        if not len(src) or not len(dst):
             return
-        a, b = np.repeat(new, len(to)), np.tile(to, len(new))
+        a, b = np.repeat(src, len(dst)), np.tile(dst, len(src))
         d = np.hypot(*(self.xy[a] - self.xy[b]).T)
         keep = (d > beyond) & (d <= radius) & (a != b)
         a, b = a[keep], b[keep]
