@@ -13,6 +13,7 @@ import pytest
 from shapely.geometry import Point, Polygon
 
 import planners.roadmap.costs as costs_module
+import planners.roadmap.search as search_module
 from fleetctl.mission import load_mission
 from planners.core.moves import MOVES, SMALL_MOVES
 from planners.core.plan import Plan
@@ -129,7 +130,7 @@ def test_collect_route_times_are_the_plans() -> None:
     space = RouteSpace(RoadmapCosts(col.w, problem.carrier, problem.rover, False), problem.heading, False)
     route = space.timed([list(m) for _, m in order], [n for n, _ in order], None, 0)
     assert route.makespan == pytest.approx(build_collect_graph_plan(problem, col.w, order).makespan, abs=1e-9)
-    best = improve(route, None, problem.seed)
+    best = improve(route)
     assert best.makespan <= route.makespan
     assert best.makespan == pytest.approx(build_collect_graph_plan(problem, col.w, best.order()).makespan,
                                           abs=1e-6)
@@ -146,15 +147,15 @@ def test_same_seed_same_searched_plan() -> None:
         assert a == b
 
 
-def test_a_spent_budget_stops_the_search_and_keeps_the_greedy_or_better() -> None:
-    """budget_ms = 0: the deadline has passed when the search starts, so no anytime search runs;
-    the plan is deterministic and no slower than Algorithm 6.3's."""
+def test_a_spent_budget_gives_the_quick_plan() -> None:
+    """budget_ms = 0: the deadline has passed when the search starts, so no anytime search runs:
+    the plan is the quick plan (deterministic), no slower than Algorithm 6.3's."""
     for seed in (1, 4):
         problem, obstacles = deploy_problem(seed, budget_ms=0.0)
         greedy = planned(lambda p: plan_lee_graph(p, search=False), problem)
         if greedy is None:
             continue
-        a, b = plan_lee_graph(problem), plan_lee_graph(problem)
+        a, b = plan_lee_graph(problem), plan_lee_graph(dataclasses.replace(problem, budget_ms=None))
         assert a.makespan <= greedy.makespan + 1e-9
         ja, jb = a.to_json(), b.to_json()
         ja.pop("compute_ms"), jb.pop("compute_ms")
@@ -162,10 +163,21 @@ def test_a_spent_budget_stops_the_search_and_keeps_the_greedy_or_better() -> Non
         check_deploy(a, problem, obstacles)
 
 
-def test_a_budget_runs_the_anytime_search() -> None:
-    problem, obstacles = collect_problem(6, budget_ms=300.0)
+def test_a_budget_runs_the_anytime_search(monkeypatch: pytest.MonkeyPatch) -> None:
+    """With a budget the iterated search runs (until the deadline) and keeps only improvements:
+    never slower than the quick plan."""
+    problem, obstacles = collect_problem(6)
+    quick = plan_collect_lee_graph(problem)
+    problem = dataclasses.replace(problem, budget_ms=quick.compute_ms + 400.0)  # 400 ms beyond the quick plan
+    calls = []
+    real = search_module.iterated_search
+
+    def spy(*args, **kw):  # type: ignore[no-untyped-def]
+        calls.append(args[5])  # its stop(): the budget's deadline
+        return real(*args, **kw)
+    monkeypatch.setattr(search_module, "iterated_search", spy)
     plan = plan_collect_lee_graph(problem)
-    quick = plan_collect_lee_graph(dataclasses.replace(problem, budget_ms=None), search=False)
+    assert calls and calls[0]()  # the deadline has passed by now
     assert plan.makespan <= quick.makespan + 1e-9
     check_collect(plan, problem, obstacles)
 

@@ -29,8 +29,8 @@ from planners.core.problem import CollectProblem, PlanningError
 from planners.core.timing import RANGE_MARGIN, carrier_leg, leg_time, retime
 from planners.roadmap.costs import RoadmapCosts
 from planners.roadmap.route import RouteSpace
-from planners.roadmap.search import improve, refine
-from planners.roadmap.world import GraphWorld, ground_path, node_xy, rover_ground_path
+from planners.roadmap.search import search as search_roadmap
+from planners.roadmap.world import GraphWorld, ground_path, node_xy
 
 
 class _Collect:
@@ -117,32 +117,35 @@ def plan_collect_lee_graph(problem: CollectProblem, local_prm: bool = True, sear
                     stops=[])
     col = _Collect(problem, local_prm)
     order = col.run()
-    plan = build_collect_graph_plan(problem, col.w, order)
+    costs = RoadmapCosts(col.w, problem.carrier, problem.rover, toward=False)
+    plan = build_collect_graph_plan(problem, col.w, order, costs)
     if search:
-        costs = RoadmapCosts(col.w, problem.carrier, problem.rover, toward=False)
         space = RouteSpace(costs, problem.heading, deploy=False)
         greedy = space.timed([list(m) for _, m in order], [n for n, _ in order], None, 0)
-        best = improve(greedy, problem.budget_ms, problem.seed, t0)
-        plan = refine(best, lambda o: build_collect_graph_plan(problem, col.w, o), plan, local_prm)
+        plan = search_roadmap(greedy, lambda o: build_collect_graph_plan(problem, col.w, o, costs), plan,
+                              problem.budget_ms, problem.seed, local_prm, t0)
     plan.compute_ms = (time.perf_counter() - t0) * 1e3
     return plan
 
 
 def build_collect_graph_plan(problem: CollectProblem, w: GraphWorld,
-                             order: Sequence[tuple[int, Sequence[int]]]) -> Plan:
-    """Carrier sub-routes and rover routes on the final roadmap, shortcut, and timed (eq. 5.2)."""
+                             order: Sequence[tuple[int, Sequence[int]]],
+                             costs: RoadmapCosts | None = None) -> Plan:
+    """Carrier sub-routes and rover routes on the final roadmap, shortcut, and timed (eq. 5.2); the
+    paths the search timed (``costs``) when given."""
     rm = w.rm
+    costs = costs or RoadmapCosts(w, problem.carrier, problem.rover, toward=False)
     stops: list[Stop] = []
     prev = 0
     for node, mem in order:
         here = node_xy(rm, node)
-        carrier_path = ground_path(rm.smoothed_path(prev, node))
+        carrier_path = list(costs.path(prev, node))
         if prev == 0:
             carrier_path[0] = problem.start
         legs = []
         for i in mem:
             r = problem.rovers[i]
-            ground = rover_ground_path(rm, node, w.node(i), toward=False)
+            ground = costs.rover_path(i, node)
             path = w.climb_path(ground, r.position[2], 0.0)
             path[0] = r.position
             if math.hypot(sum(math.dist(a, b) for a, b in zip(ground, ground[1:], strict=False)),

@@ -19,7 +19,7 @@ from collections.abc import Sequence
 import numpy as np
 from scipy.spatial import cKDTree
 
-from planners.core.problem import CarrierSpec, Motion, Vec3
+from planners.core.problem import CarrierSpec, Motion, Point2, Vec3
 from planners.core.timing import carrier_leg, leg_time
 from planners.roadmap.graph import MAX_EDGES, MAX_NODES
 from planners.roadmap.world import GraphWorld, ground_path, rover_ground_path
@@ -55,13 +55,21 @@ class RoadmapCosts:
     # ------------------------------------------------------------------ exact (the plan's times)
 
     def path(self, a: int, b: int) -> list[Vec3]:
-        """The carrier's ground path a → b (shortest roadmap path, shortcut)."""
+        """The carrier's ground path a → b: a shortest roadmap path, shortcut (Algorithm 6.2) in
+        the direction driven. The path comes from b's shortest-path tree when that one is at hand
+        and a's is not (the polish tries many nodes between two fixed stops: one tree each side)."""
         got = self._paths.get((a, b))
         if got is None:
             if len(self._paths) >= PAIRS:
                 self._paths.clear()
-            got = self._paths[(a, b)] = ground_path(self.w.rm.smoothed_path(a, b))
+            rm = self.w.rm
+            nodes = rm.path(b, a)[::-1] if rm.has_tree(b) and not rm.has_tree(a) else rm.path(a, b)
+            got = self._paths[(a, b)] = ground_path(rm.shortcut(nodes))
         return got
+
+    def rover_path(self, target: int, node: int) -> list[Point2]:
+        """Target's rover route between its node and a stop at ``node`` (``rover_ground_path``)."""
+        return rover_ground_path(self.w.rm, node, self.w.node(target), self.toward)
 
     def leg(self, a: int, b: int, heading: float) -> tuple[float, float]:
         """``carrier_leg`` of the path a → b: its time and the heading at b."""
@@ -90,7 +98,7 @@ class RoadmapCosts:
         if got is None:
             if len(self._flights) >= PAIRS:
                 self._flights.clear()
-            pts = rover_ground_path(self.w.rm, node, self.w.node(target), self.toward)
+            pts = self.rover_path(target, node)
             ground = sum(math.dist(p, q) for p, q in zip(pts, pts[1:], strict=False))
             got = self._flights[key] = math.hypot(ground, float(self.z[target]))
         return got

@@ -27,8 +27,8 @@ from planners.core.problem import DeployProblem, PlanningError, Point2
 from planners.core.timing import RANGE_MARGIN, carrier_leg, leg_time, retime
 from planners.roadmap.costs import RoadmapCosts
 from planners.roadmap.route import RouteSpace
-from planners.roadmap.search import improve, refine
-from planners.roadmap.world import GraphWorld, ground_path, node_xy, rover_ground_path
+from planners.roadmap.search import search as search_roadmap
+from planners.roadmap.world import GraphWorld, ground_path, node_xy
 
 
 class _Deploy:
@@ -209,32 +209,34 @@ def plan_lee_graph(problem: DeployProblem, local_prm: bool = True, search: bool 
                     stops=[])
     dep = _Deploy(problem, local_prm)
     order = dep.run()
-    plan = build_graph_plan(problem, dep.w, order)
+    costs = RoadmapCosts(dep.w, problem.carrier, problem.rover, toward=True)
+    plan = build_graph_plan(problem, dep.w, order, costs)
     if search:
-        costs = RoadmapCosts(dep.w, problem.carrier, problem.rover, toward=True)
         space = RouteSpace(costs, problem.heading, deploy=True)
         greedy = space.timed([list(m) for _, m in order], [n for n, _ in order], None, 0)
-        best = improve(greedy, problem.budget_ms, problem.seed, t0)
-        plan = refine(best, lambda o: build_graph_plan(problem, dep.w, o), plan, local_prm)
+        plan = search_roadmap(greedy, lambda o: build_graph_plan(problem, dep.w, o, costs), plan,
+                              problem.budget_ms, problem.seed, local_prm, t0)
     plan.compute_ms = (time.perf_counter() - t0) * 1e3
     return plan
 
 
-def build_graph_plan(problem: DeployProblem, w: GraphWorld,
-                     order: Sequence[tuple[int, Sequence[int]]]) -> Plan:
-    """Carrier sub-routes and rover routes on the final roadmap, shortcut, and timed (eq. 6.3)."""
+def build_graph_plan(problem: DeployProblem, w: GraphWorld, order: Sequence[tuple[int, Sequence[int]]],
+                     costs: RoadmapCosts | None = None) -> Plan:
+    """Carrier sub-routes and rover routes on the final roadmap, shortcut, and timed (eq. 6.3); the
+    paths the search timed (``costs``) when given."""
     rm = w.rm
+    costs = costs or RoadmapCosts(w, problem.carrier, problem.rover, toward=True)
     rover_ids = iter(problem.rover_ids())
     stops: list[Stop] = []
     prev = 0
     for node, mem in order:
         here = node_xy(rm, node)
-        carrier_path = ground_path(rm.smoothed_path(prev, node))  # GetSmoothedSubRoute
+        carrier_path = list(costs.path(prev, node))  # GetSmoothedSubRoute
         carrier_path[0] = (problem.start if prev == 0 else carrier_path[0])
         legs = []
         for i in mem:
             task = problem.tasks[i]
-            ground = rover_ground_path(rm, node, w.node(i), toward=True)  # GetRoverRoute
+            ground = costs.rover_path(i, node)  # GetRoverRoute
             path = w.climb_path(ground, 0.0, task.position[2])
             path[-1] = task.position
             if math.hypot(_ground_len(ground), task.position[2]) > problem.deploy_range:

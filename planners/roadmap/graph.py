@@ -88,6 +88,17 @@ class Workspace:
     def segment_free(self, p: Sequence[float], q: Sequence[float]) -> bool:
         return bool(self.segments_free(np.array([p[:2]]), np.array([q[:2]]))[0])
 
+    def fans_free(self, lo: Point2, hi: Point2, ends: np.ndarray) -> bool:
+        """No obstacle touches the convex hull of the rectangle lo..hi and any one of ``ends``: then
+        every segment from a point of the rectangle to one of the ends is collision-free."""
+        if self.tree is None:
+            return True
+        corners = [(lo[0], lo[1]), (hi[0], lo[1]), (hi[0], hi[1]), (lo[0], hi[1])]
+        hulls = shapely.convex_hull(shapely.multipoints([[*corners, (float(e[0]), float(e[1]))]
+                                                         for e in np.asarray(ends).reshape(-1, 2)]))
+        hit, _ = self.tree.query(hulls, predicate="intersects")
+        return len(hit) == 0
+
     def rect_free(self, lo: Point2, hi: Point2) -> bool:
         """No obstacle touches the rectangle lo..hi."""
         if self.tree is None:
@@ -218,6 +229,10 @@ class Roadmap:
             got = (d, pred)
             self._sp[source] = got
         return got
+
+    def has_tree(self, source: int) -> bool:
+        """Whether the shortest paths from ``source`` are at hand (``shortest`` costs nothing)."""
+        return source in self._sp
 
     def distances(self, sources: Sequence[int], limit: float = np.inf) -> np.ndarray:
         """(len(sources), N) shortest path lengths, inf beyond ``limit``."""

@@ -27,9 +27,11 @@ import numpy as np
 from planners.core.problem import Point2
 from planners.core.timing import carrier_leg, leg_time
 from planners.roadmap.costs import RoadmapCosts
+from planners.roadmap.graph import Workspace
 from planners.roadmap.world import node_xy
 
-SHORTLIST = 8  # candidate nodes per stop timed exactly by the polish (the best on estimates)
+SHORTLIST = 8  # candidate nodes per stop timed exactly by the final polish (the best on estimates)
+SEARCH_SHORTLIST = 3  # the same for the polish of every change the search scores
 POLISH_SWEEPS = 3
 
 
@@ -174,13 +176,11 @@ class RouteSpace:
         # around those and the ends, no line needs testing
         lo = np.minimum(ends.min(axis=0), np.max(tx - rho[:, None], axis=0))
         hi = np.maximum(ends.max(axis=0), np.min(tx + rho[:, None], axis=0))
-        clear = w.ws.rect_free((float(lo[0]), float(lo[1])), (float(hi[0]), float(hi[1])))
+        sight = _Sight(w.ws, ends, w.ws.rect_free((float(lo[0]), float(lo[1])), (float(hi[0]), float(hi[1]))))
 
         def cost(x: float, y: float) -> float:
             d = np.hypot(tx[:, 0] - x, tx[:, 1] - y)
-            if np.any(d > rho):
-                return math.inf
-            if not clear and not np.all(w.ws.segments_free(np.repeat([[x, y]], len(ends), axis=0), ends)):
+            if np.any(d > rho) or not sight.clear(x, y):
                 return math.inf
             here = (x, y, 0.0)
             dt, h = carrier_leg([p, here], heading, c)
@@ -229,9 +229,9 @@ class RouteSpace:
         nodes, end = self.scores(members, prev, clock, nxt, tail, ready)
         return int(nodes[int(np.argmin(end))])
 
-    def polish(self, route: RoadmapRoute) -> RoadmapRoute:
+    def polish(self, route: RoadmapRoute, shortlist: int = SHORTLIST) -> RoadmapRoute:
         """Each stop in turn on the serving node that makes the whole route fastest, the others
-        fixed (the ``SHORTLIST`` best nodes on estimates timed exactly), until a sweep gains nothing."""
+        fixed (the ``shortlist`` best nodes on estimates timed exactly), until a sweep gains nothing."""
         for _ in range(POLISH_SWEEPS):
             before = route.makespan
             for k in range(len(route.clusters)):
@@ -241,7 +241,7 @@ class RouteSpace:
                 tail = 0.0 if last else route.tail(k + 1)
                 ready = 0.0 if last else route.done[k + 1]
                 nodes, end = self.scores(route.clusters[k], prev, clock, nxt, tail, ready)
-                short = nodes[np.argsort(end, kind="stable")[:SHORTLIST]]
+                short = nodes[np.argsort(end, kind="stable")[:shortlist]]
                 for node in short:
                     if int(node) == route.nodes[k]:
                         continue
@@ -251,3 +251,24 @@ class RouteSpace:
             if route.makespan >= before - 1e-9:
                 break
         return route
+
+
+class _Sight:
+    """Whether the straight lines from a point to fixed ends are collision-free, for a search that
+    tries many points close together: a box around a point whose fans to every end are free
+    answers for every point in it (``Workspace.fans_free``)."""
+
+    BOX = 0.25  # m: half the side of the box tried around a point
+
+    def __init__(self, ws: Workspace, ends: np.ndarray, everywhere: bool) -> None:
+        self.ws, self.ends, self.everywhere = ws, ends, everywhere
+        self.boxes: list[tuple[float, float, float, float]] = []
+
+    def clear(self, x: float, y: float) -> bool:
+        if self.everywhere or any(x0 <= x <= x1 and y0 <= y <= y1 for x0, y0, x1, y1 in self.boxes):
+            return True
+        h = self.BOX
+        if self.ws.fans_free((x - h, y - h), (x + h, y + h), self.ends):
+            self.boxes.append((x - h, y - h, x + h, y + h))
+            return True
+        return bool(np.all(self.ws.segments_free(np.repeat([[x, y]], len(self.ends), axis=0), self.ends)))

@@ -20,44 +20,60 @@ from planners.core.geometry import compass_search
 from planners.core.moves import deadline, fine_descent, iterated_search, quick_descent, remembered
 from planners.core.plan import Plan
 from planners.core.search import reorder
-from planners.roadmap.route import RoadmapRoute, RouteSpace
+from planners.roadmap.route import SEARCH_SHORTLIST, RoadmapRoute, RouteSpace
 
 FINE_MOVES_UPTO = 8  # targets: up to this many, every move is also scored on polished stops
 ILS_PATIENCE = 20  # kicks per target without a new best before the anytime search gives up
 REFINE_ROUNDS = 8  # rounds of local nodes around the final stops
-RINGS = (1.0, 0.5, 0.25)  # compass points at these fractions of a stop's step, every round
+RINGS = (1.0, 0.4)  # compass points at these fractions of a stop's step, every round
 REFINE_SAMPLES = 8  # random nodes per stop in the first round
 REFINE_TOL = 1e-3  # m: the compass steps stop shrinking here
 REFINE_NODES = 400  # nodes the refinement adds at most
-REFINE_GAIN = 1e-3  # s: after REFINE_PATIENCE rounds in a row that gain less than this, the search stops
+REFINE_GAIN = 1e-2  # s: after REFINE_PATIENCE rounds in a row that gain less than this, the search stops
 REFINE_PATIENCE = 2
 DESCENTS = 6  # alternations of the straight and the turned compass search
 COMPASS = tuple((math.cos(a * math.pi / 8), math.sin(a * math.pi / 8)) for a in range(16))  # directions
 
 
-def improve(route: RoadmapRoute, budget_ms: float | None, seed: int, t0: float | None = None) -> RoadmapRoute:
-    """The moves on ``route`` (the greedy's) until none makes it faster, or until the budget."""
+def search(route: RoadmapRoute, build: Callable[[Sequence[tuple[int, list[int]]]], Plan], greedy: Plan,
+           budget_ms: float | None, seed: int, local: bool, t0: float | None = None) -> Plan:
+    """The search after the greedy: the moves on ``route`` (``improve``), new roadmap nodes near
+    the stops (``refine``); with a budget, then the iterated local search until it is spent and
+    the refinement of what it found. The fastest plan built (``build``), ``greedy`` included."""
+    stop = deadline(budget_ms, t0)
+    plan, route = refine(improve(route, stop), build, greedy, local)
+    if stop is None or stop() or sum(len(c) for c in route.clusters) < 2:
+        return plan
+    space = route.space
+    finish = remembered(lambda r: space.polish(r, SEARCH_SHORTLIST))
+    better = iterated_search(route, space.fits, space.route, finish, random.Random(seed), stop,
+                             max_fails=ILS_PATIENCE * sum(len(c) for c in route.clusters))
+    if better.makespan < route.makespan - 1e-9:
+        plan, _ = refine(better, build, plan, local, stop)
+    return plan
+
+
+def improve(route: RoadmapRoute, stop: Callable[[], bool] | None = None) -> RoadmapRoute:
+    """The moves on ``route`` (the greedy's) until none makes it faster, each change's stops
+    polished (``RouteSpace.polish``); as in the open-space planners, the quick descent always
+    runs to its end and ``stop`` (a budget's deadline) bounds the fine descent of long routes."""
     space = route.space
     n = sum(len(c) for c in route.clusters)
     if n < 2:
         return space.polish(route)
-    stop = deadline(budget_ms, t0)
-    finish = remembered(space.polish)
+    finish = remembered(lambda r: space.polish(r, SEARCH_SHORTLIST))
     best = finish(route)
-    moved = quick_descent(route, space.fits, stop)
+    moved = quick_descent(route, space.fits)
     moved = reorder(moved, moved.positions, space.start, space.route)
     best = _faster(best, finish(moved))
     if n <= FINE_MOVES_UPTO or stop is not None:
         best = fine_descent(best, space.fits, space.route, finish, stop if n > FINE_MOVES_UPTO else None,
                             slack=0.15 if stop is None else math.inf)
-    if stop is not None:
-        best = iterated_search(best, space.fits, space.route, finish, random.Random(seed), stop,
-                               max_fails=ILS_PATIENCE * n)
     return best
 
 
 def refine(route: RoadmapRoute, build: Callable[[Sequence[tuple[int, list[int]]]], Plan], best: Plan,
-           local: bool) -> Plan:
+           local: bool, stop: Callable[[], bool] | None = None) -> tuple[Plan, RoadmapRoute]:
     """New roadmap nodes near the final stops, then the polish, for up to ``REFINE_ROUNDS`` rounds
     while the route gets faster. A stop whose legs and rover flights could run straight gets the
     point a compass search finds on those straight lines (``RouteSpace.straight_cost``, from the
@@ -65,7 +81,8 @@ def refine(route: RoadmapRoute, build: Callable[[Sequence[tuple[int, list[int]]]
     ``REFINE_SAMPLES`` local-PRM samples around it (eq. 6.7, when the planner uses local PRMs) and
     the 16 compass points at ``RINGS`` fractions of its step, the step shrinking while the stop
     stays. Every new node is linked like the roadmap's own and timed on it exactly.
-    Returns the fastest plan built on the way (``build``), ``best`` included."""
+    No round starts after ``stop()``. Returns the fastest plan built on the way (``build``),
+    ``best`` included, and the last route (timed on the grown roadmap)."""
     space = route.space
     costs, w = space.costs, space.costs.w
     best = _faster_plan(best, build(route.order()))
@@ -74,7 +91,7 @@ def refine(route: RoadmapRoute, build: Callable[[Sequence[tuple[int, list[int]]]
     todo = set(range(n))
     added = slow = 0
     for first in range(REFINE_ROUNDS):
-        if not todo or added > REFINE_NODES:
+        if not todo or added > REFINE_NODES or (stop is not None and stop()):
             break
         grown = 0
         for k in sorted(todo):
@@ -98,7 +115,7 @@ def refine(route: RoadmapRoute, build: Callable[[Sequence[tuple[int, list[int]]]
         # again: the stops that moved, their neighbours, and the stops still shrinking a step
         todo = {j for k in moved for j in (k - 1, k, k + 1) if 0 <= j < n}
         todo |= {k for k in range(n) if steps[k] >= REFINE_TOL and not _straight(route, k)}
-    return best
+    return best, route
 
 
 def _straight(route: RoadmapRoute, k: int) -> bool:
