@@ -123,7 +123,7 @@ def plan_collect_lee_graph(problem: CollectProblem, local_prm: bool = True, sear
         space = RouteSpace(costs, problem.heading, deploy=False)
         greedy = space.timed([list(m) for _, m in order], [n for n, _ in order], None, 0)
         plan = search_roadmap(greedy, lambda o: build_collect_graph_plan(problem, col.w, o, costs), plan,
-                              problem.budget_ms, problem.seed, local_prm, t0)
+                              problem.budget_ms, problem.seed, t0)
     plan.compute_ms = (time.perf_counter() - t0) * 1e3
     return plan
 

@@ -215,7 +215,7 @@ def plan_lee_graph(problem: DeployProblem, local_prm: bool = True, search: bool 
         space = RouteSpace(costs, problem.heading, deploy=True)
         greedy = space.timed([list(m) for _, m in order], [n for n, _ in order], None, 0)
         plan = search_roadmap(greedy, lambda o: build_graph_plan(problem, dep.w, o, costs), plan,
-                              problem.budget_ms, problem.seed, local_prm, t0)
+                              problem.budget_ms, problem.seed, t0)
     plan.compute_ms = (time.perf_counter() - t0) * 1e3
     return plan
 
