@@ -139,6 +139,31 @@ def test_collect_route_times_are_the_plans() -> None:
     assert all(move in SMALL_MOVES for move in MOVES)
 
 
+@pytest.mark.parametrize("deploy", [True, False])
+def test_the_polish_bounds_never_exceed_the_time_they_bound(deploy: bool) -> None:
+    """The polish skips a node when a lower bound on the route through it is no faster than the
+    route (``scores(low=True)``, ``bound_through``): the bounds must hold, turns included."""
+    problem, _ = deploy_problem(4, 7) if deploy else collect_problem(4, 7)
+    world = _Deploy(problem, True) if deploy else _Collect(problem, True)
+    order = world.run()
+    space = RouteSpace(RoadmapCosts(world.w, problem.carrier, problem.rover, deploy), problem.heading, deploy)
+    route = space.timed([list(m) for _, m in order], [n for n, _ in order], None, 0)
+    assert problem.carrier.turn_rate is not None
+    checked = 0
+    for k, members in enumerate(route.clusters):
+        prev, clock, _, _ = route.state_before(k)
+        last = k + 1 == len(route.clusters)
+        nxt, tail, ready = (None, 0.0, 0.0) if last else (
+            route.nodes[k + 1], route.tail(k + 1), route.done[k + 1])
+        nodes, low = space.scores(members, prev, clock, nxt, tail, ready, low=True)
+        for j in range(0, len(nodes), max(len(nodes) // 12, 1)):
+            t = route.moved(k, int(nodes[j])).makespan
+            assert low[j] <= t + 1e-9
+            assert space.bound_through(route, k, int(nodes[j]), j) <= t + 1e-9
+            checked += 1
+    assert checked > 8
+
+
 def test_same_seed_same_searched_plan() -> None:
     for problem in (deploy_problem(2)[0], collect_problem(2)[0]):
         fn = plan_lee_graph if isinstance(problem, DeployProblem) else plan_collect_lee_graph

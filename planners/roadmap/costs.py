@@ -50,6 +50,8 @@ class RoadmapCosts:
         self._stop_rovers: dict[tuple[tuple[int, ...], int], float] = {}
         self._carrier_est: dict[tuple[int, tuple[int, ...]], np.ndarray] = {}
         self._rover_est: dict[int, np.ndarray] = {}
+        self._carrier_low: dict[tuple[int, tuple[int, ...]], np.ndarray] = {}
+        self._rovers_low: dict[tuple[int, ...], np.ndarray] = {}
         self._serving: dict[tuple[int, ...], tuple[np.ndarray, np.ndarray]] = {}
 
     # ------------------------------------------------------------------ exact (the plan's times)
@@ -127,6 +129,40 @@ class RoadmapCosts:
             motion = self.carrier.motion
             got = np.array([leg_time(float(s), motion) for s in self._lengths(source, nodes)])
             self._carrier_est[key] = got
+        return got
+
+    def carrier_low(self, source: int, members: Sequence[int]) -> np.ndarray:
+        """A lower bound on the carrier's time from ``source`` to each node serving ``members``
+        (``carrier_to``'s order): the straight line, no rotation (a path is no shorter, and
+        stopping at its vertices no faster)."""
+        key = (source, tuple(sorted(members)))
+        got = self._carrier_low.get(key)
+        if got is None:
+            if len(self._carrier_low) >= ROWS:
+                self._carrier_low.clear()
+            xy = self.w.rm.xy
+            nodes = self.serving(members)[0]
+            straight = np.hypot(xy[nodes, 0] - xy[source, 0], xy[nodes, 1] - xy[source, 1])
+            motion = self.carrier.motion
+            got = self._carrier_low[key] = np.array([leg_time(float(s), motion) for s in straight])
+        return got
+
+    def rovers_low(self, members: Sequence[int]) -> np.ndarray:
+        """A lower bound on the longest rover flight time at each node serving ``members``: every
+        rover on its straight line."""
+        key = tuple(sorted(members))
+        got = self._rovers_low.get(key)
+        if got is None:
+            if len(self._rovers_low) >= CLUSTERS:
+                self._rovers_low.clear()
+            xy = self.w.rm.xy
+            nodes = self.serving(members)[0]
+            got = np.zeros(len(nodes))
+            for i in members:
+                t = self.w.targets[i]
+                flat = np.hypot(xy[nodes, 0] - t[0], xy[nodes, 1] - t[1])
+                got = np.maximum(got, [leg_time(math.hypot(float(s), float(t[2])), self.rover) for s in flat])
+            self._rovers_low[key] = got
         return got
 
     def rovers_at(self, target: int) -> np.ndarray:

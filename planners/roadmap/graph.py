@@ -34,6 +34,7 @@ Bounds = tuple[Point2, Point2]
 
 MAX_NODES = 6000  # a roadmap larger than this is refused (PlanningError) rather than planned for minutes
 MAX_EDGES = 120_000  # the same for edges (a long edge radius makes the roadmap a complete graph)
+SIGHT_PAIRS = 500_000  # node pairs whose line of sight the shortcut remembers
 
 
 def _node_count(value: float, what: str) -> int:
@@ -146,6 +147,7 @@ class Roadmap:
         self._j = np.zeros(0, dtype=np.int64)
         self._csr: csr_matrix | None = None
         self._sp: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+        self._sight: dict[tuple[int, int], bool] = {}
         self.global_nodes = 0
         self.global_edges = 0
         self.add(points, radius)
@@ -252,7 +254,8 @@ class Roadmap:
 
     def shortcut(self, nodes: Sequence[int]) -> list[Point2]:
         """Algorithm 6.2: from each kept vertex jump to the farthest later vertex in plain sight."""
-        pts = self.xy[list(nodes)]
+        idx = [int(v) for v in nodes]
+        pts = self.xy[idx]
         n = len(pts)
         if n <= 2:  # line 2: a sub-route of two nodes is already smooth
             return [(float(p[0]), float(p[1])) for p in pts]
@@ -260,11 +263,32 @@ class Roadmap:
         j = 0
         while j < n - 1:
             ks = np.arange(n - 1, j, -1)  # k = n : -1 : j+1
-            free = self.ws.segments_free(np.repeat(pts[j:j + 1], len(ks), axis=0), pts[ks])
+            free = self.visible(idx[j], [idx[k] for k in ks])
             k = int(ks[int(np.argmax(free))]) if free.any() else j + 1
             kept.append(k)
             j = k
         return [(float(pts[k][0]), float(pts[k][1])) for k in kept]
+
+    def visible(self, a: int, others: Sequence[int]) -> np.ndarray:
+        """Mask of the nodes ``others`` in plain sight of node ``a`` (collision-free segments).
+        Nodes never move, so each pair is tested once (a bounded cache, kept as the roadmap grows)."""
+        out = np.zeros(len(others), dtype=bool)
+        todo = []
+        for m, b in enumerate(others):
+            got = self._sight.get((a, b) if a < b else (b, a))
+            if got is None:
+                todo.append(m)
+            else:
+                out[m] = got
+        if todo:
+            bs = [others[m] for m in todo]
+            free = self.ws.segments_free(np.repeat(self.xy[a:a + 1], len(bs), axis=0), self.xy[bs])
+            if len(self._sight) + len(bs) > SIGHT_PAIRS:
+                self._sight.clear()
+            for m, b, f in zip(todo, bs, free, strict=True):
+                out[m] = f
+                self._sight[(a, b) if a < b else (b, a)] = bool(f)
+        return out
 
     def smoothed_path(self, source: int, target: int) -> list[Point2]:
         """A shortest roadmap path, shortcut (GetSmoothedSubRoute)."""

@@ -63,7 +63,9 @@ def refine(route: RoadmapRoute, build: Callable[[Sequence[tuple[int, list[int]]]
             break
         added += grown
         before, span = route.nodes, route.makespan
-        route = space.polish(space.timed(route.clusters, route.nodes, None, 0))
+        # the polish near the new nodes (the stops proposed for and their neighbours)
+        near = {j for k in todo for j in (k - 1, k, k + 1) if 0 <= j < n}
+        route = space.polish(space.timed(route.clusters, route.nodes, None, 0), stops=near)
         slow = slow + 1 if route.makespan > span - REFINE_GAIN else 0  # (re-timed on the grown roadmap)
         if slow >= REFINE_PATIENCE:
             best = _faster_plan(best, build(route.order()))

@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 
 import numpy as np
 
@@ -206,12 +206,15 @@ class RouteSpace:
         return int(nodes[j]), (self.stop_time + r if self.deploy else self.stop_time), r
 
     def scores(self, members: Sequence[int], prev: int, clock: float, nxt: int | None,
-               tail: float, ready: float) -> tuple[np.ndarray, np.ndarray]:
+               tail: float, ready: float, low: bool = False) -> tuple[np.ndarray, np.ndarray]:
         """Serving nodes and the estimated end of the route through each (the stop before at
         ``prev`` left at ``clock``; the next stop at ``nxt``, ending ``tail`` after its arrival,
-        with its rovers there at ``ready``)."""
-        nodes, rovers = self.costs.serving(members)
-        there = clock + self.costs.carrier_to(prev, members)
+        with its rovers there at ``ready``; the stops after it shifted alike). With ``low``, a
+        lower bound instead: straight lines, and the turn at the next stop all saved."""
+        c = self.costs
+        nodes = c.serving(members)[0]
+        rovers = c.rovers_low(members) if low else c.serving(members)[1]
+        there = clock + (c.carrier_low(prev, members) if low else c.carrier_to(prev, members))
         if self.deploy:
             leave = there + self.stop_time
             end = leave + rovers
@@ -219,9 +222,29 @@ class RouteSpace:
             leave = np.maximum(there, rovers) + self.stop_time
             end = leave
         if nxt is not None:
-            on = leave + self.costs.carrier_to(nxt, members)
+            on = leave + (c.carrier_low(nxt, members) if low else c.carrier_to(nxt, members))
+            if low and c.carrier.turn_rate is not None:
+                on = on - math.pi / c.carrier.turn_rate
             end = np.maximum(end, on + tail) if self.deploy else np.maximum(on, ready) + tail
         return nodes, end
+
+    def bound_through(self, route: RoadmapRoute, k: int, node: int, j: int) -> float:
+        """A lower bound on the makespan of ``route`` with stop k at ``node`` (the j-th node serving
+        its cluster): the leg into it and its rovers exact, the leg on to stop k + 1 straight (as
+        ``scores(low=True)``), the stops after that shifted alike."""
+        c = self.costs
+        prev, clock, heading, _ = route.state_before(k)
+        members = route.clusters[k]
+        dt, _ = c.leg(prev, node, heading)
+        leave, done, _ = self.step(clock + dt, c.rovers(members, node))
+        if k + 1 == len(route.clusters):
+            return done if self.deploy else leave
+        on = leave + float(c.carrier_low(route.nodes[k + 1], members)[j])
+        if c.carrier.turn_rate is not None:
+            on -= math.pi / c.carrier.turn_rate
+        if self.deploy:
+            return max(done, on + route.tail(k + 1))
+        return max(on, route.done[k + 1]) + route.tail(k + 1)
 
     def place(self, members: Sequence[int], prev: int, clock: float, nxt: int | None,
               tail: float, ready: float) -> int:
@@ -229,26 +252,34 @@ class RouteSpace:
         nodes, end = self.scores(members, prev, clock, nxt, tail, ready)
         return int(nodes[int(np.argmin(end))])
 
-    def polish(self, route: RoadmapRoute, shortlist: int = SHORTLIST) -> RoadmapRoute:
-        """Each stop in turn on the serving node that makes the whole route fastest, the others
-        fixed (the ``shortlist`` best nodes on estimates timed exactly), until a sweep gains nothing."""
+    def polish(self, route: RoadmapRoute, shortlist: int = SHORTLIST,
+               stops: Iterable[int] | None = None) -> RoadmapRoute:
+        """Each stop in turn (of ``stops``, default all) on the serving node that makes the whole
+        route fastest, the others fixed (the ``shortlist`` best nodes on estimates timed exactly);
+        then again the stops next to one that moved, until none moves (``POLISH_SWEEPS`` at most)."""
+        n = len(route.clusters)
+        todo = set(range(n) if stops is None else stops)
         for _ in range(POLISH_SWEEPS):
-            before = route.makespan
-            for k in range(len(route.clusters)):
+            moved = set()
+            for k in sorted(todo):
                 prev, clock, _, _ = route.state_before(k)
-                last = k + 1 == len(route.clusters)
+                last = k + 1 == n
                 nxt = None if last else route.nodes[k + 1]
                 tail = 0.0 if last else route.tail(k + 1)
                 ready = 0.0 if last else route.done[k + 1]
                 nodes, end = self.scores(route.clusters[k], prev, clock, nxt, tail, ready)
-                short = nodes[np.argsort(end, kind="stable")[:shortlist]]
-                for node in short:
-                    if int(node) == route.nodes[k]:
-                        continue
-                    cand = route.moved(k, int(node))
+                _, low = self.scores(route.clusters[k], prev, clock, nxt, tail, ready, low=True)
+                for j in np.argsort(end, kind="stable")[:shortlist]:
+                    node = int(nodes[j])
+                    if node == route.nodes[k] or low[j] >= route.makespan - 1e-9 \
+                            or self.bound_through(route, k, node, int(j)) >= route.makespan - 1e-9:
+                        continue  # (a bound: it cannot make the route faster)
+                    cand = route.moved(k, node)
                     if cand.makespan < route.makespan - 1e-9:
                         route = cand
-            if route.makespan >= before - 1e-9:
+                        moved.add(k)
+            todo = {j for k in moved for j in (k - 1, k, k + 1) if 0 <= j < n}
+            if not todo:
                 break
         return route
 
