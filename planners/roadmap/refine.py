@@ -54,8 +54,8 @@ def refine(route: RoadmapRoute, build: Callable[[Sequence[tuple[int, list[int]]]
             break
         grown = 0
         for k in sorted(todo):
-            pts, near = _proposals(route, k, steps[k])
-            if near:  # a dense patch: linked close by, and to the stop's targets like the roadmap's nodes
+            pts, patch = _proposals(route, k, steps[k])
+            if patch:  # a dense patch: linked close by, and to the stop's targets like the roadmap's nodes
                 grown += costs.grow(pts, 3 * steps[k], [w.node(i) for i in route.clusters[k]], w.d_edge)
             else:
                 grown += costs.grow(pts, w.d_edge)
@@ -64,8 +64,8 @@ def refine(route: RoadmapRoute, build: Callable[[Sequence[tuple[int, list[int]]]
         added += grown
         before, span = route.nodes, route.makespan
         # the polish near the new nodes (the stops proposed for and their neighbours)
-        near = {j for k in todo for j in (k - 1, k, k + 1) if 0 <= j < n}
-        route = space.polish(space.timed(route.clusters, route.nodes, None, 0), stops=near)
+        around = {j for k in todo for j in (k - 1, k, k + 1) if 0 <= j < n}
+        route = space.polish(space.timed(route.clusters, route.nodes, None, 0), stops=around)
         slow = slow + 1 if route.makespan > span - REFINE_GAIN else 0  # (re-timed on the grown roadmap)
         if slow >= REFINE_PATIENCE:
             best = _faster_plan(best, build(route.order()))
