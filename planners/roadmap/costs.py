@@ -41,15 +41,18 @@ class RoadmapCosts:
         self.w, self.carrier, self.rover, self.toward = w, carrier, rover, toward
         self.z = w.targets[:, 2]
         self.version = 0
+        self._rover_est: dict[int, np.ndarray] = {}  # per target, one entry per node (see _clear)
         self._clear()
 
     def _clear(self) -> None:
+        """Drop every remembered cost but ``_rover_est``: a node's estimate there is made once
+        (the roadmap only grows: nodes that served a target still do; the rare old node that a
+        new shortcut brings within reach is not offered)."""
         self._paths: dict[tuple[int, int], list[Vec3]] = {}
         self._legs: dict[tuple[int, int, float], tuple[float, float]] = {}
         self._flights: dict[tuple[int, int], float] = {}
         self._stop_rovers: dict[tuple[tuple[int, ...], int], float] = {}
         self._carrier_est: dict[tuple[int, tuple[int, ...]], np.ndarray] = {}
-        self._rover_est: dict[int, np.ndarray] = {}
         self._carrier_low: dict[tuple[int, tuple[int, ...]], np.ndarray] = {}
         self._rovers_low: dict[tuple[int, ...], np.ndarray] = {}
         self._serving: dict[tuple[int, ...], tuple[np.ndarray, np.ndarray]] = {}
@@ -112,7 +115,8 @@ class RoadmapCosts:
         if got is None:
             if len(self._stop_rovers) >= PAIRS:
                 self._stop_rovers.clear()
-            got = self._stop_rovers[key] = max(leg_time(self.flight(i, node), self.rover) for i in members)
+            # the longest flight takes longest (leg_time grows with the length)
+            got = self._stop_rovers[key] = leg_time(max(self.flight(i, node) for i in members), self.rover)
         return got
 
     # ------------------------------------------------------------------ estimates
@@ -169,14 +173,17 @@ class RoadmapCosts:
         """Estimated flight time of ``target``'s rover for a stop at every node, inf out of its reach
         (the greedy's test of a stop serving: the roadmap path at most the target's ground radius)."""
         got = self._rover_est.get(target)
-        if got is None:
+        n = self.w.rm.n_nodes
+        if got is None or len(got) < n:  # none yet, or the roadmap grew: the nodes added since
+            old = 0 if got is None else len(got)
             rho = float(self.w.rho[target])
             node = self.w.node(target)
-            near = np.flatnonzero(self.w.rm.shortest(node)[0] <= rho)
+            near = old + np.flatnonzero(self.w.rm.shortest(node)[0][old:] <= rho)
             z = float(self.z[target])
-            got = np.full(self.w.rm.n_nodes, math.inf)
-            got[near] = [leg_time(math.hypot(float(s), z), self.rover) for s in self._lengths(node, near)]
-            self._rover_est[target] = got
+            more = np.full(n - old, math.inf)
+            lengths = self._lengths(node, near)
+            more[near - old] = [leg_time(math.hypot(float(s), z), self.rover) for s in lengths]
+            got = self._rover_est[target] = more if got is None else np.concatenate([got, more])
         return got
 
     def _lengths(self, node: int, among: np.ndarray) -> np.ndarray:

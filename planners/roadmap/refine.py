@@ -53,8 +53,8 @@ def refine(route: RoadmapRoute, build: Callable[[Sequence[tuple[int, list[int]]]
         if not todo or added > REFINE_NODES or (stop is not None and stop()):
             break
         grown = 0
-        for k in sorted(todo):
-            pts, patch = _proposals(route, k, steps[k])
+        proposed = [(k, *_proposals(route, k, steps[k])) for k in sorted(todo)]  # before the roadmap grows
+        for k, pts, patch in proposed:
             if patch:  # a dense patch: linked close by, and to the stop's targets like the roadmap's nodes
                 grown += costs.grow(pts, 3 * steps[k], [w.node(i) for i in route.clusters[k]], w.d_edge)
             else:

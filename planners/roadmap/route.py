@@ -184,7 +184,7 @@ class RouteSpace:
                 return math.inf
             here = (x, y, 0.0)
             dt, h = carrier_leg([p, here], heading, c)
-            fly = max(leg_time(math.hypot(float(s), float(zi)), rover) for s, zi in zip(d, z, strict=True))
+            fly = leg_time(float(np.max(np.hypot(d, z))), rover)  # (leg_time grows with the length)
             t, done, _ = self.step(clock + dt, fly)
             top = max(worst, done)
             if q is None:
