@@ -24,7 +24,7 @@ from planners.roadmap.route import RoadmapRoute
 REFINE_ROUNDS = 8  # rounds of local nodes around the final stops
 RINGS = (1.0, 0.4)  # compass points at these fractions of a stop's step, every round
 REFINE_TOL = 1e-3  # m: the compass steps stop shrinking here
-REFINE_NODES = 400  # nodes the refinement adds at most
+REFINE_NODES = 600  # nodes the refinement adds at most
 REFINE_GAIN = 1e-2  # s: after REFINE_PATIENCE rounds in a row that gain less than this, the search stops
 REFINE_PATIENCE = 2
 DESCENTS = 6  # alternations of the straight and the turned compass search
@@ -50,11 +50,13 @@ def refine(route: RoadmapRoute, build: Callable[[Sequence[tuple[int, list[int]]]
     todo = set(range(n))
     added = slow = 0
     for _ in range(REFINE_ROUNDS):
-        if not todo or added > REFINE_NODES or (stop is not None and stop()):
+        if not todo or (stop is not None and stop()):
             break
         grown = 0
         proposed = [(k, *_proposals(route, k, steps[k])) for k in sorted(todo)]  # before the roadmap grows
         for k, pts, patch in proposed:
+            if added + grown + len(pts) > REFINE_NODES:
+                continue
             if patch:  # a dense patch: linked close by, and to the stop's targets like the roadmap's nodes
                 grown += costs.grow(pts, 3 * steps[k], [w.node(i) for i in route.clusters[k]], w.d_edge)
             else:
