@@ -30,7 +30,7 @@ from planners.roadmap.costs import RoadmapCosts
 from planners.roadmap.graph import Workspace
 from planners.roadmap.world import node_xy
 
-SHORTLIST = 8  # candidate nodes per stop timed exactly by the final polish (the best on estimates)
+SHORTLIST = 5  # candidate nodes per stop timed exactly by the final polish (the best on estimates)
 SEARCH_SHORTLIST = 3  # the same for the polish of every change the search scores
 POLISH_SWEEPS = 3
 
