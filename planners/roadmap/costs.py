@@ -40,7 +40,6 @@ class RoadmapCosts:
     def __init__(self, w: GraphWorld, carrier: CarrierSpec, rover: Motion, toward: bool) -> None:
         self.w, self.carrier, self.rover, self.toward = w, carrier, rover, toward
         self.z = w.targets[:, 2]
-        self.version = 0
         self._rover_est: dict[int, np.ndarray] = {}  # per target, one entry per node (see _clear)
         self._clear()
 
@@ -232,6 +231,5 @@ class RoadmapCosts:
         new = rm.add(pts, radius)
         if to_radius > radius:
             rm.link(new, to, to_radius, radius)
-        self.version += 1
         self._clear()
         return len(pts)
