@@ -24,6 +24,7 @@ from planners.core.timing import path_length, retime
 from planners.teams import TeamsPlan, TeamsProblem, plan_teams, plan_teams_nearest, teams_lower_bound
 from tests.plan_checker import check_plan
 from tests.test_mission import BASE, error, load
+from tests.test_roadmap import assert_outside
 
 ROOT = Path(__file__).resolve().parents[1]
 TWO = ROOT / "missions" / "two_carriers.yaml"
@@ -207,8 +208,10 @@ def test_roadmap_teams_avoid_obstacles(tmp_path: Path) -> None:
     out = plan_teams(problem, DEPLOY_PLANNERS["lee-graph"], "lee-graph", max_calls=12)
     check_teams(problem, out)
     assert out.baseline_makespan is not None and out.makespan <= out.baseline_makespan + EPS
-    assert any(len(leg.path) > 2 or len(s.carrier_path) > 2 for t in out.teams for s in t.plan.stops
-               for leg in s.rovers)  # polylines around the obstacles
+    obstacles = [p for team in problem.problems for p in team.obstacles]
+    assert obstacles and all(t.plan.planner == "lee-graph" and t.plan.roadmap is not None for t in out.teams)
+    for t in out.teams:  # every carrier and rover segment clear of the obstacles (detours or none)
+        assert_outside(t.plan.to_json(), obstacles)
 
 
 def test_too_few_rovers_on_the_decks_is_refused() -> None:

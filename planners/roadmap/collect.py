@@ -27,6 +27,9 @@ from planners.core.geometry import enclosing_ball
 from planners.core.plan import Plan, RoverLeg, Stop
 from planners.core.problem import CollectProblem, PlanningError
 from planners.core.timing import RANGE_MARGIN, carrier_leg, leg_time, retime
+from planners.roadmap.costs import RoadmapCosts
+from planners.roadmap.route import RouteSpace
+from planners.roadmap.search import search as search_roadmap
 from planners.roadmap.world import GraphWorld, ground_path, node_xy
 
 
@@ -104,26 +107,45 @@ class _Collect:
         return min(rest, key=lambda i: (math.dist(tx[i, :2], lam), i))
 
 
-def plan_collect_lee_graph(problem: CollectProblem, local_prm: bool = True) -> Plan:
-    """Collection on a probabilistic roadmap with the waiting carrier of ch. 5; ``lee-graph``."""
+def plan_collect_lee_graph(problem: CollectProblem, local_prm: bool = True, search: bool = True) -> Plan:
+    """Collection on a probabilistic roadmap with the waiting carrier of ch. 5; ``lee-graph``. With
+    ``search``, then the moves of the open-space planners on the roadmap
+    (``planners.roadmap.search``), kept when they make the plan faster."""
     t0 = time.perf_counter()
     if not problem.rovers:
         return Plan(kind="collect", planner="lee-graph", start=problem.start, heading=problem.heading,
                     stops=[])
     col = _Collect(problem, local_prm)
     order = col.run()
-    w, rm = col.w, col.w.rm
+    costs = RoadmapCosts(col.w, problem.carrier, problem.rover, toward=False)
+    plan = build_collect_graph_plan(problem, col.w, order, costs)
+    if search:
+        space = RouteSpace(costs, problem.heading, deploy=False)
+        greedy = space.timed([list(m) for _, m in order], [n for n, _ in order], None, 0)
+        plan = search_roadmap(greedy, lambda o: build_collect_graph_plan(problem, col.w, o, costs), plan,
+                              problem.budget_ms, problem.seed, t0)
+    plan.compute_ms = (time.perf_counter() - t0) * 1e3
+    return plan
+
+
+def build_collect_graph_plan(problem: CollectProblem, w: GraphWorld,
+                             order: Sequence[tuple[int, Sequence[int]]],
+                             costs: RoadmapCosts | None = None) -> Plan:
+    """Carrier sub-routes and rover routes on the final roadmap, shortcut, and timed (eq. 5.2); the
+    paths the search timed (``costs``) when given."""
+    rm = w.rm
+    costs = costs or RoadmapCosts(w, problem.carrier, problem.rover, toward=False)
     stops: list[Stop] = []
     prev = 0
     for node, mem in order:
         here = node_xy(rm, node)
-        carrier_path = ground_path(rm.smoothed_path(prev, node))
+        carrier_path = list(costs.path(prev, node))
         if prev == 0:
             carrier_path[0] = problem.start
         legs = []
         for i in mem:
             r = problem.rovers[i]
-            ground = rm.smoothed_path(w.node(i), node)
+            ground = costs.rover_path(i, node)
             path = w.climb_path(ground, r.position[2], 0.0)
             path[0] = r.position
             if math.hypot(sum(math.dist(a, b) for a, b in zip(ground, ground[1:], strict=False)),
@@ -135,6 +157,4 @@ def plan_collect_lee_graph(problem: CollectProblem, local_prm: bool = True) -> P
     plan = Plan(kind="collect", planner="lee-graph", start=problem.start, heading=problem.heading,
                 stops=stops)
     plan.roadmap = rm
-    retime(plan, problem.carrier, problem.rover)
-    plan.compute_ms = (time.perf_counter() - t0) * 1e3
-    return plan
+    return retime(plan, problem.carrier, problem.rover)

@@ -25,6 +25,9 @@ from planners.core.geometry import enclosing_ball
 from planners.core.plan import Plan, RoverLeg, Stop
 from planners.core.problem import DeployProblem, PlanningError, Point2
 from planners.core.timing import RANGE_MARGIN, carrier_leg, leg_time, retime
+from planners.roadmap.costs import RoadmapCosts
+from planners.roadmap.route import RouteSpace
+from planners.roadmap.search import search as search_roadmap
 from planners.roadmap.world import GraphWorld, ground_path, node_xy
 
 
@@ -193,8 +196,10 @@ class _Deploy:
         return total, n1, c1, n2, c2
 
 
-def plan_lee_graph(problem: DeployProblem, local_prm: bool = True) -> Plan:
-    """Algorithm 6.3 on a probabilistic roadmap, planner name ``lee-graph``."""
+def plan_lee_graph(problem: DeployProblem, local_prm: bool = True, search: bool = True) -> Plan:
+    """Algorithm 6.3 on a probabilistic roadmap, planner name ``lee-graph``; with ``search``, then
+    the moves of the open-space planners on the roadmap (``planners.roadmap.search``), kept when
+    they make the plan faster."""
     t0 = time.perf_counter()
     if len(problem.rover_ids()) < len(problem.tasks):
         raise PlanningError(f"{len(problem.tasks)} tasks need as many rovers, only "
@@ -204,26 +209,34 @@ def plan_lee_graph(problem: DeployProblem, local_prm: bool = True) -> Plan:
                     stops=[])
     dep = _Deploy(problem, local_prm)
     order = dep.run()
-    plan = build_graph_plan(problem, dep.w, order)
+    costs = RoadmapCosts(dep.w, problem.carrier, problem.rover, toward=True)
+    plan = build_graph_plan(problem, dep.w, order, costs)
+    if search:
+        space = RouteSpace(costs, problem.heading, deploy=True)
+        greedy = space.timed([list(m) for _, m in order], [n for n, _ in order], None, 0)
+        plan = search_roadmap(greedy, lambda o: build_graph_plan(problem, dep.w, o, costs), plan,
+                              problem.budget_ms, problem.seed, t0)
     plan.compute_ms = (time.perf_counter() - t0) * 1e3
     return plan
 
 
-def build_graph_plan(problem: DeployProblem, w: GraphWorld,
-                     order: Sequence[tuple[int, Sequence[int]]]) -> Plan:
-    """Carrier sub-routes and rover routes on the final roadmap, shortcut, and timed (eq. 6.3)."""
+def build_graph_plan(problem: DeployProblem, w: GraphWorld, order: Sequence[tuple[int, Sequence[int]]],
+                     costs: RoadmapCosts | None = None) -> Plan:
+    """Carrier sub-routes and rover routes on the final roadmap, shortcut, and timed (eq. 6.3); the
+    paths the search timed (``costs``) when given."""
     rm = w.rm
+    costs = costs or RoadmapCosts(w, problem.carrier, problem.rover, toward=True)
     rover_ids = iter(problem.rover_ids())
     stops: list[Stop] = []
     prev = 0
     for node, mem in order:
         here = node_xy(rm, node)
-        carrier_path = ground_path(rm.smoothed_path(prev, node))  # GetSmoothedSubRoute
+        carrier_path = list(costs.path(prev, node))  # GetSmoothedSubRoute
         carrier_path[0] = (problem.start if prev == 0 else carrier_path[0])
         legs = []
         for i in mem:
             task = problem.tasks[i]
-            ground = rm.smoothed_path(node, w.node(i))  # GetRoverRoute
+            ground = costs.rover_path(i, node)  # GetRoverRoute
             path = w.climb_path(ground, 0.0, task.position[2])
             path[-1] = task.position
             if math.hypot(_ground_len(ground), task.position[2]) > problem.deploy_range:

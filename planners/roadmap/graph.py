@@ -34,6 +34,7 @@ Bounds = tuple[Point2, Point2]
 
 MAX_NODES = 6000  # a roadmap larger than this is refused (PlanningError) rather than planned for minutes
 MAX_EDGES = 120_000  # the same for edges (a long edge radius makes the roadmap a complete graph)
+SIGHT_PAIRS = 500_000  # node pairs whose line of sight the shortcut remembers
 
 
 def _node_count(value: float, what: str) -> int:
@@ -88,6 +89,17 @@ class Workspace:
     def segment_free(self, p: Sequence[float], q: Sequence[float]) -> bool:
         return bool(self.segments_free(np.array([p[:2]]), np.array([q[:2]]))[0])
 
+    def fans_free(self, lo: Point2, hi: Point2, ends: np.ndarray) -> bool:
+        """No obstacle touches the convex hull of the rectangle lo..hi and any one of ``ends``: then
+        every segment from a point of the rectangle to one of the ends is collision-free."""
+        if self.tree is None:
+            return True
+        corners = [(lo[0], lo[1]), (hi[0], lo[1]), (hi[0], hi[1]), (lo[0], hi[1])]
+        hulls = shapely.convex_hull(shapely.multipoints([[*corners, (float(e[0]), float(e[1]))]
+                                                         for e in np.asarray(ends).reshape(-1, 2)]))
+        hit, _ = self.tree.query(hulls, predicate="intersects")
+        return len(hit) == 0
+
     def rect_free(self, lo: Point2, hi: Point2) -> bool:
         """No obstacle touches the rectangle lo..hi."""
         if self.tree is None:
@@ -135,6 +147,7 @@ class Roadmap:
         self._j = np.zeros(0, dtype=np.int64)
         self._csr: csr_matrix | None = None
         self._sp: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+        self._sight: dict[tuple[int, int], bool] = {}
         self.global_nodes = 0
         self.global_edges = 0
         self.add(points, radius)
@@ -184,6 +197,22 @@ class Roadmap:
         self._sp.clear()
         return new
 
+    def link(self, new: np.ndarray, to: Sequence[int], radius: float, beyond: float) -> None:
+        """Also link nodes ``new`` (just added with edges up to ``beyond``) to the nodes ``to``
+        between ``beyond`` and ``radius`` away, by collision-free edges."""
+        src, dst = np.asarray(new, dtype=np.int64), np.asarray(to, dtype=np.int64)
+        if not len(src) or not len(dst):
+            return
+        a, b = np.repeat(src, len(dst)), np.tile(dst, len(src))
+        d = np.hypot(*(self.xy[a] - self.xy[b]).T)
+        keep = (d > beyond) & (d <= radius) & (a != b)
+        a, b = a[keep], b[keep]
+        ok = self.ws.segments_free(self.xy[a], self.xy[b])
+        self._i = np.concatenate([self._i, a[ok]])
+        self._j = np.concatenate([self._j, b[ok]])
+        self._csr = None
+        self._sp.clear()
+
     def graph(self) -> csr_matrix:
         if self._csr is None:
             w = np.hypot(*(self.xy[self._i] - self.xy[self._j]).T)
@@ -198,16 +227,20 @@ class Roadmap:
         """Path lengths and predecessors from ``source`` to every node (cached until the graph grows)."""
         got = self._sp.get(source)
         if got is None:
-            d, pred = dijkstra(self.graph(), directed=False, indices=source, return_predecessors=True)
+            d, pred = dijkstra(self.graph(), directed=True, indices=source, return_predecessors=True)
             got = (d, pred)
             self._sp[source] = got
         return got
+
+    def has_tree(self, source: int) -> bool:
+        """Whether the shortest paths from ``source`` are at hand (``shortest`` costs nothing)."""
+        return source in self._sp
 
     def distances(self, sources: Sequence[int], limit: float = np.inf) -> np.ndarray:
         """(len(sources), N) shortest path lengths, inf beyond ``limit``."""
         if not len(sources):
             return np.zeros((0, self.n_nodes))
-        return np.atleast_2d(dijkstra(self.graph(), directed=False, indices=list(sources), limit=limit))
+        return np.atleast_2d(dijkstra(self.graph(), directed=True, indices=list(sources), limit=limit))
 
     def path(self, source: int, target: int) -> list[int]:
         """Node indices of a shortest path source → target (PlanningError if none)."""
@@ -221,7 +254,8 @@ class Roadmap:
 
     def shortcut(self, nodes: Sequence[int]) -> list[Point2]:
         """Algorithm 6.2: from each kept vertex jump to the farthest later vertex in plain sight."""
-        pts = self.xy[list(nodes)]
+        idx = [int(v) for v in nodes]
+        pts = self.xy[idx]
         n = len(pts)
         if n <= 2:  # line 2: a sub-route of two nodes is already smooth
             return [(float(p[0]), float(p[1])) for p in pts]
@@ -229,11 +263,32 @@ class Roadmap:
         j = 0
         while j < n - 1:
             ks = np.arange(n - 1, j, -1)  # k = n : -1 : j+1
-            free = self.ws.segments_free(np.repeat(pts[j:j + 1], len(ks), axis=0), pts[ks])
+            free = self.visible(idx[j], [idx[k] for k in ks])
             k = int(ks[int(np.argmax(free))]) if free.any() else j + 1
             kept.append(k)
             j = k
         return [(float(pts[k][0]), float(pts[k][1])) for k in kept]
+
+    def visible(self, a: int, others: Sequence[int]) -> np.ndarray:
+        """Mask of the nodes ``others`` in plain sight of node ``a`` (collision-free segments).
+        Nodes never move, so each pair is tested once (a bounded cache, kept as the roadmap grows)."""
+        out = np.zeros(len(others), dtype=bool)
+        todo = []
+        for m, b in enumerate(others):
+            got = self._sight.get((a, b) if a < b else (b, a))
+            if got is None:
+                todo.append(m)
+            else:
+                out[m] = got
+        if todo:
+            bs = [others[m] for m in todo]
+            free = self.ws.segments_free(np.repeat(self.xy[a:a + 1], len(bs), axis=0), self.xy[bs])
+            if len(self._sight) + len(bs) > SIGHT_PAIRS:
+                self._sight.clear()
+            for m, b, f in zip(todo, bs, free, strict=True):
+                out[m] = f
+                self._sight[(a, b) if a < b else (b, a)] = bool(f)
+        return out
 
     def smoothed_path(self, source: int, target: int) -> list[Point2]:
         """A shortest roadmap path, shortcut (GetSmoothedSubRoute)."""

@@ -149,5 +149,13 @@ def node_xy(rm: Roadmap, node: int) -> Point2:
     return (float(rm.xy[node][0]), float(rm.xy[node][1]))
 
 
+def rover_ground_path(rm: Roadmap, stop: int, target: int, toward: bool) -> list[Point2]:
+    """A rover's ground route between its target's node and a stop: a shortest roadmap path from
+    the target's node (one shortest-path tree per target serves every stop), shortcut by
+    Algorithm 6.2 in the direction it is flown (``toward`` the target: deployment)."""
+    nodes = rm.path(target, stop)
+    return rm.shortcut(nodes[::-1] if toward else nodes)
+
+
 def ground_path(pts: Sequence[Point2]) -> list[Vec3]:
     return [(p[0], p[1], 0.0) for p in pts]
