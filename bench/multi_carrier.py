@@ -33,7 +33,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from bench.scaling import random_deploy  # noqa: E402
-from planners import COLLECT_PLANNERS, DEPLOY_PLANNERS  # noqa: E402
+from planners import COLLECT_PLANNERS, DEPLOY_PLANNERS, SCREEN_PLANNERS  # noqa: E402
 from planners.core.problem import CollectProblem, CollectRover, DeployProblem  # noqa: E402
 from planners.teams import TeamsProblem, plan_teams, plan_teams_nearest, teams_lower_bound  # noqa: E402
 
@@ -72,14 +72,15 @@ def teams(problem: DeployProblem | CollectProblem, starts: list[tuple], m: int) 
     return TeamsProblem(tuple(f"c{k + 1}" for k in range(m)), tuple(probs))
 
 
-def row(n: int, m: int, reps: int, collect: bool, one: dict[int, float]) -> str:
+def row(n: int, m: int, reps: int, collect: bool, one: dict[int, float], screen: bool = True) -> str:
     planner = COLLECT_PLANNERS["lee"] if collect else DEPLOY_PLANNERS["lee"]
+    quick = SCREEN_PLANNERS["collect" if collect else "deploy"]["lee"] if screen else None
     spans, vs_one, vs_near, gaps, cpu, calls = [], [], [], [], [], []
     for s in range(reps):
         problem, starts = instance(1000 * n + s, n, collect)
         tp = teams(problem, starts, m)
         t0 = time.process_time()
-        plan = plan_teams(tp, planner, "lee")
+        plan = plan_teams(tp, planner, "lee", screen=quick)
         cpu.append((time.process_time() - t0) * 1e3)
         near = plan_teams_nearest(tp, planner, "lee").makespan
         bound = teams_lower_bound(tp)
@@ -95,16 +96,16 @@ def row(n: int, m: int, reps: int, collect: bool, one: dict[int, float]) -> str:
             f"{statistics.median(cpu):.0f} | {statistics.mean(calls):.0f} |")
 
 
-def main(reps: int, collect: bool) -> str:
+def main(reps: int, collect: bool, tasks: tuple[int, ...] = TASKS, screen: bool = True) -> str:
     what = "collection" if collect else "deployment"
     lines = [f"### {what} by 1–4 carriers, {reps} instances per row (300 m square, same tasks and rovers)",
              "",
              "| tasks | carriers | makespan s | vs 1 carrier | vs nearest | gap to LB | CPU ms (median) | "
              "team plans |", "|---|---|---|---|---|---|---|---|"]
-    for n in TASKS:
+    for n in tasks:
         one: dict[int, float] = {}
         for m in CARRIERS:
-            lines.append(row(n, m, reps, collect, one))
+            lines.append(row(n, m, reps, collect, one, screen))
             print(lines[-1], file=sys.stderr, flush=True)  # progress
     return "\n".join(lines)
 
@@ -113,5 +114,8 @@ if __name__ == "__main__":
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--reps", type=int, default=5, help="Monte Carlo instances per row")
     ap.add_argument("--collect", action="store_true", help="collection instead of deployment")
+    ap.add_argument("--tasks", default=",".join(map(str, TASKS)), help="comma-separated task counts")
+    ap.add_argument("--no-screen", action="store_true",
+                    help="score candidate shares with lee itself (not its screening form, SCREEN_PLANNERS)")
     args = ap.parse_args()
-    print(main(args.reps, args.collect))
+    print(main(args.reps, args.collect, tuple(int(x) for x in args.tasks.split(",")), not args.no_screen))

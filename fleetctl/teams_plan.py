@@ -9,7 +9,15 @@ from typing import Any
 from fleetctl.mission import Mission
 from fleetctl.mission.teams import teams_problem
 from planners.core.plan import Plan
-from planners.teams import TeamsPlan, plan_teams, teams_lower_bound
+from planners.teams import TeamsPlan, TeamsProblem, plan_teams, teams_lower_bound
+
+
+def share_teams(problem: TeamsProblem, planner: Callable[[Any], Plan], name: str) -> TeamsPlan:
+    """``plan_teams`` with the planner's screening form when it has one (``planners.SCREEN_PLANNERS``):
+    every controller of a mission shares its work this way, so that they all agree."""
+    from planners import SCREEN_PLANNERS
+
+    return plan_teams(problem, planner, name, screen=SCREEN_PLANNERS[problem.kind].get(name))
 
 
 def plan_for_teams(mission: Mission, collect: bool, planner: Callable[[Any], Plan],
@@ -17,7 +25,7 @@ def plan_for_teams(mission: Mission, collect: bool, planner: Callable[[Any], Pla
     """Share the work between the teams and plan each; the plan and its lower bound (a
     PlanningError goes to the caller)."""
     problem = teams_problem(mission, "collect" if collect else "deploy")
-    return plan_teams(problem, planner, name), teams_lower_bound(problem)
+    return share_teams(problem, planner, name), teams_lower_bound(problem)
 
 
 def print_teams_summary(mission: Mission, plan: TeamsPlan, bound: float) -> None:

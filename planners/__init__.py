@@ -54,5 +54,12 @@ COLLECT_PLANNERS: dict[str, Callable[[CollectProblem], Plan]] = {
     "lee-graph": WithApproach(LazyPlanner("planners.roadmap.collect", "plan_collect_lee_graph")),
 }
 
-__all__ = ["COLLECT_PLANNERS", "DEPLOY_PLANNERS", "LazyPlanner", "Plan", "PlanningError",
+# Cheaper forms for screening many candidate problems (the teams allocation's shares): a planner
+# not listed screens with itself.
+SCREEN_PLANNERS: dict[str, dict[str, Callable[[Any], Plan]]] = {
+    "deploy": {"lee": WithTakeoff(LazyPlanner("planners.deploy.lee", "plan_lee_screen"))},
+    "collect": {"lee": WithApproach(LazyPlanner("planners.collect.lee", "plan_collect_lee_screen"))},
+}
+
+__all__ = ["COLLECT_PLANNERS", "DEPLOY_PLANNERS", "SCREEN_PLANNERS", "LazyPlanner", "Plan", "PlanningError",
            "collect_lower_bound", "deploy_lower_bound"]

@@ -17,7 +17,7 @@ from hypothesis import strategies as st
 from fleetctl.cli import main
 from fleetctl.mission import load_mission
 from fleetctl.mission.teams import mission_teams, several_teams, teams_problem
-from planners import COLLECT_PLANNERS, DEPLOY_PLANNERS
+from planners import COLLECT_PLANNERS, DEPLOY_PLANNERS, SCREEN_PLANNERS
 from planners.core.plan import Plan
 from planners.core.problem import CarrierSpec, CollectProblem, CollectRover, DeployProblem, Motion, Task
 from planners.core.timing import path_length, retime
@@ -138,8 +138,8 @@ def check_teams(problem: TeamsProblem, out: TeamsPlan) -> None:
     assert out.makespan == max(t.plan.makespan for t in out.teams)
 
 
-def _search_and_baseline(problem: TeamsProblem, planner: Any) -> None:
-    out = plan_teams(problem, planner, "lee", max_calls=60)
+def _search_and_baseline(problem: TeamsProblem, planner: Any, screen: Any = None) -> None:
+    out = plan_teams(problem, planner, "lee", max_calls=60, screen=screen)
     check_teams(problem, out)
     base = plan_teams_nearest(problem, planner, "lee")
     check_teams(problem, base)
@@ -162,6 +162,43 @@ def test_deploy_allocation_properties(seed: int, n: int, m: int) -> None:
 @given(seed=st.integers(0, 10_000), n=st.integers(1, 12), m=st.integers(1, 3))
 def test_collect_allocation_properties(seed: int, n: int, m: int) -> None:
     _search_and_baseline(collect_teams(seed, n, m), COLLECT_PLANNERS["lee"])
+
+
+@settings(max_examples=6, deadline=None)
+@given(seed=st.integers(0, 10_000), n=st.integers(1, 14), m=st.integers(1, 4), collect=st.booleans())
+def test_screened_allocation_properties(seed: int, n: int, m: int, collect: bool) -> None:
+    kind = "collect" if collect else "deploy"
+    problem: TeamsProblem = (collect_teams(seed, min(n, 12), min(m, 3)) if collect
+                             else deploy_teams(seed, n, m, spare=seed % 3))
+    planner = (COLLECT_PLANNERS if collect else DEPLOY_PLANNERS)["lee"]
+    _search_and_baseline(problem, planner, SCREEN_PLANNERS[kind]["lee"])
+
+
+def test_a_screened_search_flies_the_planner_s_own_plans() -> None:
+    """Candidate shares go to the screening form; the shares found and the baseline's are planned
+    by the planner itself, and those are the plans returned."""
+    problem = deploy_teams(11, 14, 3)
+    calls = {"planner": 0, "screen": 0}
+
+    def counted(name: str, fn: Any) -> Any:
+        def call(p: DeployProblem) -> Plan:
+            calls[name] += 1
+            return fn(p)
+        return call
+
+    out = plan_teams(problem, counted("planner", DEPLOY_PLANNERS["lee"]), "lee",
+                     screen=counted("screen", SCREEN_PLANNERS["deploy"]["lee"]))
+    check_teams(problem, out)
+    assert calls["planner"] <= 2 * problem.n_teams < calls["screen"]
+    index = {t.id: i for i, t in enumerate(problem.problems[0].tasks)}
+    for k, team in enumerate(out.teams):
+        share = sorted(index[str(leg.task)] for leg in team.plan.legs())
+        if share:
+            own = DEPLOY_PLANNERS["lee"](problem.restrict(k, share))
+            assert team.plan.makespan == pytest.approx(own.makespan, abs=EPS)
+    base = plan_teams_nearest(problem, DEPLOY_PLANNERS["lee"], "lee")
+    assert out.baseline_makespan == pytest.approx(base.makespan, abs=EPS)
+    assert out.makespan <= base.makespan + EPS
 
 
 def test_tight_decks_hold_exactly_their_rovers() -> None:

@@ -178,9 +178,11 @@ def _initial_clusters(builder: PathBuilder) -> list[list[int]]:
 
 
 def lee_route(problem: CollectProblem, improve: bool = True, fine_upto: int = 12,
-              t0: float | None = None) -> tuple[PathBuilder, Route]:
+              t0: float | None = None, tiny_search: bool = True) -> tuple[PathBuilder, Route]:
     """Algorithm 5.1–5.2, then (with ``improve``) re-sequencing, merging and handing rovers over
-    while that helps, and a final fine placement of every stop with both neighbours known."""
+    while that helps, and a final fine placement of every stop with both neighbours known.
+    ``tiny_search`` False leaves out the searches of tiny problems (every ordered partition, fine
+    moves, smoothed stops up to 8 rovers): a quick plan for screening many."""
     inst = CollectInstance(problem)
     builder = PathBuilder(inst)
     if not problem.rovers:
@@ -202,15 +204,16 @@ def lee_route(problem: CollectProblem, improve: bool = True, fine_upto: int = 12
             break
         route = better
     small = len(problem.rovers) <= fine_upto
+    gated = len(problem.rovers) if tiny_search else math.inf  # the size the tiny problems' searches go by
     finish = remembered(lambda r: place_finely(builder, r, small))
 
     @remembered
     def smoothed(r: Route) -> Route:  # short routes: also on the smoothed makespan
-        return smooth(builder, finish(r)) if len(problem.rovers) <= SMOOTH_UPTO else finish(r)
+        return smooth(builder, finish(r)) if gated <= SMOOTH_UPTO else finish(r)
 
     stop = deadline(problem.budget_ms, t0) if improve else None
     early = None  # a budget: tiny problems first screen every partition on finer stops (while it lasts)
-    if stop is not None and len(problem.rovers) <= EXHAUSTIVE_UPTO:
+    if stop is not None and gated <= EXHAUSTIVE_UPTO:
         early = screened(builder, route, smoothed, stop)
     if not improve:
         best = finish(route)
@@ -226,23 +229,23 @@ def lee_route(problem: CollectProblem, improve: bool = True, fine_upto: int = 12
         if small and moved is not route:  # (large routes: the moves' route alone is placed finely)
             today = finish(route)
             best = today if today.makespan < best.makespan else best
-        if len(problem.rovers) <= EXHAUSTIVE_UPTO:  # tiny: every ordered partition too
+        if gated <= EXHAUSTIVE_UPTO:  # tiny: every ordered partition too
             every = best_partition(len(problem.rovers), inst.fits, builder.route, finish, EXHAUSTIVE_KEEP)
             best = every if every is not None and every.makespan < best.makespan else best
             best = early if early is not None and early.makespan < best.makespan else best
-        n = len(problem.rovers)
-        if n <= FINE_MOVES_UPTO or stop is not None:  # ... and on the final stops
-            best = fine_descent(best, inst.fits, builder.route, finish, stop if n > FINE_MOVES_UPTO else None,
-                                slack=0.15 if stop is None and n > EVERY_FINE_UPTO else math.inf)
+        if gated <= FINE_MOVES_UPTO or stop is not None:  # ... and on the final stops
+            best = fine_descent(best, inst.fits, builder.route, finish,
+                                stop if gated > FINE_MOVES_UPTO else None,
+                                slack=0.15 if stop is None and gated > EVERY_FINE_UPTO else math.inf)
     quick = best
-    if stop is not None and len(problem.rovers) <= SMOOTH_UPTO:  # a budget: the moves on smoothed stops first
+    if stop is not None and gated <= SMOOTH_UPTO:  # a budget: the moves on smoothed stops first
         best = fine_descent(best, inst.fits, builder.route, smoothed, stop, slack=math.inf,
                             moves=SMOOTH_MOVES)
     if stop is not None:  # anytime: iterated local search until the budget
         best = iterated_search(best, inst.fits, builder.route, smoothed, random.Random(problem.seed), stop,
                                max_fails=ILS_PATIENCE * len(problem.rovers))
-    route = smooth(builder, best) if len(problem.rovers) <= SMOOTH_UPTO else best
-    if len(problem.rovers) <= SMOOTH_UPTO:  # timed as the plan will fly (its builder snaps and pulls
+    route = smooth(builder, best) if gated <= SMOOTH_UPTO else best
+    if gated <= SMOOTH_UPTO:  # timed as the plan will fly (its builder snaps and pulls
         # stops into reach: a nudged stop on top of the previous one has an arbitrary heading)
         cands = (route, smooth(builder, quick), quick) if stop is not None else (route, quick)
         route = min(cands, key=lambda r: build_collect_plan(problem, "lee", r.clusters, r.positions).makespan)
@@ -319,11 +322,16 @@ def _snap(problem: CollectProblem, members: Sequence[int], prev: Vec3, here: Vec
     return here
 
 
-def plan_collect_lee(problem: CollectProblem) -> Plan:
+def plan_collect_lee(problem: CollectProblem, tiny_search: bool = True) -> Plan:
     """The dissertation's collection path generator (ch. 5.4) with the fast meeting points; ``lee``."""
     t0 = time.perf_counter()
     refuse_obstacles(problem, "lee")
-    _, route = lee_route(problem, t0=t0)
+    _, route = lee_route(problem, t0=t0, tiny_search=tiny_search)
     ms = (time.perf_counter() - t0) * 1e3
     return build_collect_plan(problem, "lee", route.clusters, route.positions, ms)
 
+
+def plan_collect_lee_screen(problem: CollectProblem) -> Plan:
+    """``lee`` without the searches of tiny problems (``lee_route``'s ``tiny_search``): the teams
+    allocation screens its candidate shares with it (``planners.SCREEN_PLANNERS``)."""
+    return plan_collect_lee(problem, tiny_search=False)

@@ -35,11 +35,13 @@ from planners.deploy.stops import search_class, stop_cost
 from planners.deploy.two_task import plan_two_tasks
 
 
-def lee_clusters(problem: DeployProblem, improve: bool = True,
-                 t0: float | None = None) -> tuple[list[list[int]], list[Point2], float]:
+def lee_clusters(problem: DeployProblem, improve: bool = True, t0: float | None = None,
+                 tiny_search: bool = True) -> tuple[list[list[int]], list[Point2], float]:
     """Algorithm 4.1–4.2: divide until every cluster fits d_deploy, then the split/swap/merge loop
     that keeps the fastest path; with ``improve``, then re-sequence and merge clusters and run
-    the loop again while that helps. Returns clusters in visiting order, stops and makespan."""
+    the loop again while that helps. Returns clusters in visiting order, stops and makespan.
+    ``tiny_search`` False leaves out the searches of tiny problems (every ordered partition, fine
+    moves, smoothed stops up to 8 tasks): a quick plan for screening many (``plan_lee_screen``)."""
     inst = DeployInstance(problem)
     builder = PathBuilder(inst)
     start = builder.start
@@ -74,6 +76,7 @@ def lee_clusters(problem: DeployProblem, improve: bool = True,
     # The loop re-placed stops only around each change; place every stop afresh, finely, and
     # keep whichever of the two routes is faster; then polish every stop (routes of any length).
     small = n <= FINE_UPTO
+    gated = n if tiny_search else math.inf  # the size the searches of tiny problems go by (without: none)
 
     def place_finely(r: Route) -> Route:
         r = _fresh(builder, r)
@@ -88,7 +91,7 @@ def lee_clusters(problem: DeployProblem, improve: bool = True,
 
     @remembered
     def smoothed(r: Route) -> Route:  # short routes: also on the smoothed makespan
-        return smooth(builder, finish(r)) if n <= SMOOTH_UPTO else finish(r)
+        return smooth(builder, finish(r)) if gated <= SMOOTH_UPTO else finish(r)
 
     if not improve:
         best = finish(route)
@@ -105,21 +108,21 @@ def lee_clusters(problem: DeployProblem, improve: bool = True,
     if small and moved is not route:  # today's plan too (large: the moves' route alone is polished)
         today = finish(route)
         best = today if today.makespan < best.makespan else best
-    if n <= EXHAUSTIVE_UPTO:  # tiny: every ordered partition too
+    if gated <= EXHAUSTIVE_UPTO:  # tiny: every ordered partition too
         every = best_partition(n, inst.fits_quick, builder.route, finish, EXHAUSTIVE_KEEP)
         best = every if every is not None and every.makespan < best.makespan else best
-    if n <= FINE_MOVES_UPTO or stop is not None:  # ... and on the final placement
+    if gated <= FINE_MOVES_UPTO or stop is not None:  # ... and on the final placement
         best = fine_descent(best, inst.fits_quick, builder.route, finish,
-                                stop if n > FINE_MOVES_UPTO else None,
-                                slack=0.15 if stop is None and n > EVERY_FINE_UPTO else math.inf)
+                                stop if gated > FINE_MOVES_UPTO else None,
+                                slack=0.15 if stop is None and gated > EVERY_FINE_UPTO else math.inf)
     quick = best
-    if stop is not None and n <= SMOOTH_UPTO:  # a budget: the moves scored on the smoothed stops first
+    if stop is not None and gated <= SMOOTH_UPTO:  # a budget: the moves scored on the smoothed stops first
         best = fine_descent(best, inst.fits_quick, builder.route, smoothed, stop, slack=math.inf,
                             moves=SMOOTH_MOVES)
     if stop is not None:  # anytime: iterated local search until the budget
         best = iterated_search(best, inst.fits_quick, builder.route, smoothed,
                                random.Random(problem.seed), stop, max_fails=ILS_PATIENCE * n)
-    if n <= SMOOTH_UPTO:  # timed as the plan will fly (build_plan snaps a stop millimetres on)
+    if gated <= SMOOTH_UPTO:  # timed as the plan will fly (build_plan snaps a stop millimetres on)
         cands = (smooth(builder, best), smooth(builder, quick), quick) if stop is not None else (
             smooth(builder, best), quick)
         best = min(cands, key=lambda r: build_plan(problem, "lee", r.clusters, r.positions).makespan)
@@ -216,14 +219,14 @@ BATCH_FROM = 61  # tasks: from this many on, the final polish sweeps once ...
 BATCH_STOPS = 40  # ... and a route of this many stops has a class of stops searched at once
 
 
-def plan_lee(problem: DeployProblem) -> Plan:
+def plan_lee(problem: DeployProblem, tiny_search: bool = True) -> Plan:
     """The dissertation's deployment path generator (ch. 4.4), planner name ``lee``."""
     t0 = time.perf_counter()
     refuse_obstacles(problem, "lee")
     if len(problem.rover_ids()) < len(problem.tasks):
         raise PlanningError(f"{len(problem.tasks)} tasks need as many rovers, only "
                             f"{len(problem.rover_ids())} on the carrier")
-    clusters, positions, _ = lee_clusters(problem, t0=t0)
+    clusters, positions, _ = lee_clusters(problem, t0=t0, tiny_search=tiny_search)
     plan = build_plan(problem, "lee", clusters, positions)
     if len(problem.tasks) == 2:  # where it applies, the two-task optimum of ch. 4.3 (jointly placed stops)
         two = plan_two_tasks(problem)
@@ -239,3 +242,10 @@ def plan_lee(problem: DeployProblem) -> Plan:
                               [(s.position[0], s.position[1]) for s in two.stops])
     plan.compute_ms = (time.perf_counter() - t0) * 1e3
     return plan
+
+
+def plan_lee_screen(problem: DeployProblem) -> Plan:
+    """``lee`` without the searches of tiny problems: tens of times cheaper on a few tasks, within a
+    few per cent; the teams allocation screens its candidate shares with it
+    (``planners.SCREEN_PLANNERS``)."""
+    return plan_lee(problem, tiny_search=False)

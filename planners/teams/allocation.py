@@ -28,20 +28,29 @@ MAX_CALLS = 300  # planner calls the search may spend (each team plan of a share
 
 
 def plan_teams(problem: TeamsProblem[P], planner: Callable[[P], Plan], name: str,
-               max_calls: int = MAX_CALLS) -> TeamsPlan:
-    """The allocation of the module docstring; ``name`` is the team planner's."""
+               max_calls: int = MAX_CALLS, screen: Callable[[P], Plan] | None = None) -> TeamsPlan:
+    """The allocation of the module docstring; ``name`` is the team planner's. With ``screen`` (a
+    cheaper form of ``planner``, ``planners.SCREEN_PLANNERS``) the construction and the search
+    score their candidate shares with it, and ``planner`` plans the shares found and the
+    nearest-carrier baseline's: the better of the two is kept, so never worse than the baseline."""
     t0 = time.perf_counter()
     _check_decks(problem)
-    scorer = TeamScorer(problem, planner)
+    final = TeamScorer(problem, planner)
+    scorer = final if screen is None else TeamScorer(problem, screen)
     groups = item_clusters(problem)
-    nearest = Allocation(scorer, nearest_assignment(problem))
+    near = nearest_assignment(problem)
+    nearest = Allocation(scorer, near)
     built = Allocation(scorer, construct(problem, groups))
-    baseline = nearest.makespan()
     alloc = built if better(built.key(), nearest.key()) else nearest
-    alloc = improve(alloc, groups, max_calls)  # in place
-    out = teams_plan(scorer, alloc, name, "search", t0)
-    out.baseline_makespan = baseline
-    out.notes.append(f"{scorer.calls} team plans computed")
+    alloc = improve(alloc, groups, max_calls)  # in place (``nearest`` too when the search began there)
+    nearest = Allocation(final, near)  # the baseline, planned by the planner itself
+    if screen is not None:  # the shares found, planned by the planner itself; the better of the two
+        alloc = Allocation(final, alloc.team_of)
+        alloc = nearest if better(nearest.key(), alloc.key()) else alloc
+    out = teams_plan(final, alloc, name, "search", t0)
+    out.baseline_makespan = nearest.makespan()
+    out.notes.append(f"{scorer.calls} team plans computed" + (
+        f" (screened by {name}'s quick form, then {final.calls} by {name})" if screen is not None else ""))
     return out
 
 

@@ -55,8 +55,9 @@ from fleetctl.run.teams.live import live_mission, rovers_in_the_field
 from fleetctl.run.teams.summary import teams_summary
 from fleetctl.run.teams.team_run import TeamRun
 from fleetctl.run.teams.views import team_views
+from fleetctl.teams_plan import share_teams
 from planners.core.problem import CollectRover, Task
-from planners.teams import TeamsPlan, plan_teams
+from planners.teams import TeamsPlan
 
 log = logging.getLogger(__name__)
 
@@ -425,7 +426,7 @@ class TeamsRun:
         planner = (DEPLOY_PLANNERS if phase == "deploy" else COLLECT_PLANNERS)[name]
         problem = teams_problem(mission, phase)
         try:
-            plan = await asyncio.to_thread(plan_teams, problem, planner, name)
+            plan = await asyncio.to_thread(share_teams, problem, planner, name)
         except Exception as exc:  # noqa: BLE001 - a PlanningError or a planner's ValueError
             raise ExecutionError(f"cannot share the {phase} between the teams: {exc}") from None
         self.plans[phase] = plan

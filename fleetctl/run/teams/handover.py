@@ -21,8 +21,9 @@ from fleetctl.run.launch import rover_on_deck
 from fleetctl.run.task_board import TaskStatus
 from fleetctl.run.teams.board import Handover, TeamStatus
 from fleetctl.run.teams.team_run import TeamRun
+from fleetctl.teams_plan import share_teams
 from planners.core.problem import Task
-from planners.teams import TeamsProblem, plan_teams
+from planners.teams import TeamsProblem
 
 if TYPE_CHECKING:
     from fleetctl.run.teams.coordinator import TeamsRun
@@ -145,7 +146,7 @@ class Handovers:
             )
         problem = TeamsProblem(tuple(free), tuple(problems))
         try:
-            plan = await asyncio.to_thread(plan_teams, problem, DEPLOY_PLANNERS[name], name)
+            plan = await asyncio.to_thread(share_teams, problem, DEPLOY_PLANNERS[name], name)
         except Exception:  # noqa: BLE001 - cannot plan: the team with the most rovers left takes them
             best = max(free, key=lambda c: len(free[c]))
             return {best: tasks}
