@@ -57,8 +57,11 @@ COLLECT_PLANNERS: dict[str, Callable[[CollectProblem], Plan]] = {
 # Cheaper forms for screening many candidate problems (the teams allocation's shares): a planner
 # not listed screens with itself.
 SCREEN_PLANNERS: dict[str, dict[str, Callable[[Any], Plan]]] = {
-    "deploy": {"lee": WithTakeoff(LazyPlanner("planners.deploy.lee", "plan_lee_screen"))},
-    "collect": {"lee": WithApproach(LazyPlanner("planners.collect.lee", "plan_collect_lee_screen"))},
+    "deploy": {"lee": WithTakeoff(LazyPlanner("planners.deploy.lee", "plan_lee_screen")),
+               "lee-graph": WithTakeoff(LazyPlanner("planners.roadmap.deploy", "plan_lee_graph_screen"))},
+    "collect": {"lee": WithApproach(LazyPlanner("planners.collect.lee", "plan_collect_lee_screen")),
+                "lee-graph": WithApproach(LazyPlanner("planners.roadmap.collect",
+                                                      "plan_collect_lee_graph_screen"))},
 }
 
 __all__ = ["COLLECT_PLANNERS", "DEPLOY_PLANNERS", "SCREEN_PLANNERS", "LazyPlanner", "Plan", "PlanningError",

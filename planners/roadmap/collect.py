@@ -158,3 +158,9 @@ def build_collect_graph_plan(problem: CollectProblem, w: GraphWorld,
                 stops=stops)
     plan.roadmap = rm
     return retime(plan, problem.carrier, problem.rover)
+
+
+def plan_collect_lee_graph_screen(problem: CollectProblem) -> Plan:
+    """Algorithm 6.3 alone (no search): the teams allocation screens its candidate shares with it
+    (``planners.SCREEN_PLANNERS``)."""
+    return plan_collect_lee_graph(problem, search=False)

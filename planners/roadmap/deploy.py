@@ -251,3 +251,9 @@ def build_graph_plan(problem: DeployProblem, w: GraphWorld, order: Sequence[tupl
 
 def _ground_len(pts: Sequence[Point2]) -> float:
     return sum(math.dist(p, q) for p, q in zip(pts, pts[1:], strict=False))
+
+
+def plan_lee_graph_screen(problem: DeployProblem) -> Plan:
+    """Algorithm 6.3 alone (no search): the teams allocation screens its candidate shares with it
+    (``planners.SCREEN_PLANNERS``)."""
+    return plan_lee_graph(problem, search=False)
