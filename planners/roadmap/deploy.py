@@ -26,8 +26,7 @@ from planners.core.plan import Plan, RoverLeg, Stop
 from planners.core.problem import DeployProblem, PlanningError, Point2
 from planners.core.timing import RANGE_MARGIN, carrier_leg, leg_time, retime
 from planners.roadmap.costs import RoadmapCosts
-from planners.roadmap.route import RouteSpace
-from planners.roadmap.search import search as search_roadmap
+from planners.roadmap.search import search_greedy
 from planners.roadmap.world import GraphWorld, ground_path, node_xy
 
 
@@ -212,10 +211,9 @@ def plan_lee_graph(problem: DeployProblem, local_prm: bool = True, search: bool 
     costs = RoadmapCosts(dep.w, problem.carrier, problem.rover, toward=True)
     plan = build_graph_plan(problem, dep.w, order, costs)
     if search:
-        space = RouteSpace(costs, problem.heading, deploy=True)
-        greedy = space.timed([list(m) for _, m in order], [n for n, _ in order], None, 0)
-        plan = search_roadmap(greedy, lambda o: build_graph_plan(problem, dep.w, o, costs), plan,
-                              problem.budget_ms, problem.seed, t0)
+        plan = search_greedy(order, costs, problem.heading, True,
+                             lambda o: build_graph_plan(problem, dep.w, o, costs), plan,
+                             problem.budget_ms, problem.seed, t0)
     plan.compute_ms = (time.perf_counter() - t0) * 1e3
     return plan
 

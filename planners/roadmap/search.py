@@ -17,8 +17,9 @@ from collections.abc import Callable, Sequence
 from planners.core.moves import deadline, fine_descent, iterated_search, quick_descent, remembered
 from planners.core.plan import Plan
 from planners.core.search import reorder
+from planners.roadmap.costs import RoadmapCosts
 from planners.roadmap.refine import refine
-from planners.roadmap.route import SEARCH_SHORTLIST, RoadmapRoute
+from planners.roadmap.route import SEARCH_SHORTLIST, RoadmapRoute, RouteSpace
 
 FINE_MOVES_UPTO = 8  # targets: up to this many, every move is also scored on polished stops
 ILS_PATIENCE = 20  # kicks per target without a new best before the anytime search gives up
@@ -40,6 +41,16 @@ def search(route: RoadmapRoute, build: Callable[[Sequence[tuple[int, list[int]]]
     if better.makespan < route.makespan - 1e-9:
         plan, _ = refine(better, build, plan, stop)
     return plan
+
+
+def search_greedy(order: Sequence[tuple[int, Sequence[int]]], costs: RoadmapCosts, heading: float,
+                  deploy: bool, build: Callable[[Sequence[tuple[int, list[int]]]], Plan], greedy: Plan,
+                  budget_ms: float | None, seed: int, t0: float | None = None) -> Plan:
+    """``search`` from the greedy's stops ``order`` ((node, members) in visiting order) and its
+    plan ``greedy``: what both graph planners run after Algorithm 6.3."""
+    space = RouteSpace(costs, heading, deploy=deploy)
+    route = space.timed([list(m) for _, m in order], [n for n, _ in order], None, 0)
+    return search(route, build, greedy, budget_ms, seed, t0)
 
 
 def improve(route: RoadmapRoute, stop: Callable[[], bool] | None = None) -> RoadmapRoute:
