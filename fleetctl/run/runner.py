@@ -30,15 +30,18 @@ from fleetctl.mission.formats import copy_data_files
 from fleetctl.mission.teams import several_teams
 from fleetctl.run.admission import Admission, admit
 from fleetctl.run.context import ExecutionError
+from fleetctl.run.deploy import ResumedDeploy
 from fleetctl.run.executor import Executor
 from fleetctl.run.kinds import Ev, Phase, VehicleStatus
 from fleetctl.run.results import PhaseResult
 from fleetctl.run.resume import Resumption
+from fleetctl.run.rounds import NO_MORE_WORK, DeployRounds, Unserved, WorkSource
 from fleetctl.run.sim import mission_uses_sim, sim_fleet_config
 from fleetctl.run.state import FleetState
 from fleetctl.run.summary import RunFacts, build_summary
 from fleetctl.views.view import View
 from planners.core.plan import Plan
+from planners.core.problem import Task
 
 log = logging.getLogger(__name__)
 
@@ -144,6 +147,7 @@ class Run:
         self.state = FleetState(mission)
         self.state.mission_clock = self.clock
         self.results: dict[str, PhaseResult] = {}
+        self.deploy_rounds = DeployRounds()
         self.error: str | None = None
         self.interrupted = False
         self.fleet: Fleet | None = None
@@ -384,7 +388,48 @@ class Run:
                 await self._collect()
 
     async def _deploy(self) -> None:
-        r = await self._deploy_rounds()
+        """The deployment: a first round flies the mission's tasks, then one more round per batch
+        the work source hands over (:mod:`fleetctl.run.rounds`; a one-carrier run has none)."""
+        assert self.executor is not None
+        source, resume = self._work_source(), self.opts.resume
+        if self.mission.tasks or source.flies_empty_share:
+            r = await self._deploy_round(source, resume.deploy if resume is not None else None)
+        else:  # a team that was given no task (yet) stands by for handed-over work
+            r = self.results["deploy"] = PhaseResult("deploy", complete=True)
+        while (tasks := await source.next_round(r)) is not None:
+            self._hand_over(source, tasks)
+            r = await self._deploy_round(source, None)
+        if source.unserved is Unserved.HAND_BACK:
+            self._judge_deploy(r)
+
+    def _work_source(self) -> WorkSource:
+        """Who hands this deployment more rounds (a several-carrier team's run: the other teams)."""
+        return NO_MORE_WORK
+
+    async def _deploy_round(self, source: WorkSource, resumed: ResumedDeploy | None) -> PhaseResult:
+        assert self.executor is not None
+        r = await self.executor.deploy(resumed)
+        self.deploy_rounds.count(r)
+        self._round_flown(r)
+        if source.unserved is Unserved.FAIL:
+            self._judge_deploy(r)
+        return r
+
+    def _round_flown(self, result: PhaseResult) -> None:
+        """After each deployment round, before the work source is asked for more (a hook)."""
+
+    def _hand_over(self, source: WorkSource, tasks: list[Task]) -> None:
+        """Tasks the source hands over for one more round go on the board."""
+        assert self.executor is not None
+        for t in tasks:
+            self.executor.board.add(t)
+        if tasks:
+            ids = [t.id for t in tasks]
+            self.state.event(Ev.HANDOVER, f"{source.name}: another deployment round for handed-over "
+                             f"task(s) {', '.join(ids)}", None, tasks=ids)
+
+    def _judge_deploy(self, r: PhaseResult) -> None:
+        """A deployment's result: the run's, an event, and ExecutionError when it cannot go on."""
         self.results["deploy"] = r
         reasons = ", ".join(f"{t} ({r.unserved_reasons.get(t, '?')})" for t in r.tasks_unserved)
         if not r.complete and (self.command == "deploy" or not r.launched):
@@ -400,12 +445,6 @@ class Run:
                 Ev.DEPLOY_INCOMPLETE,
                 f"deployment incomplete: not reached: {reasons}; collecting the rovers in the field",
             )
-
-    async def _deploy_rounds(self) -> PhaseResult:
-        """The deployment phase (a team of several may fly further rounds: fleetctl.run.teams)."""
-        assert self.executor is not None
-        resume = self.opts.resume
-        return await self.executor.deploy(resume.deploy if resume is not None else None)
 
     async def _dwell(self) -> None:
         assert self.executor is not None

@@ -22,6 +22,10 @@
   with the other teams' controllers (presence, claims, hand-over); the protocol and its rules are
   in :mod:`fleetctl.bus.teams`.
 
+Both fly a team's further deployment rounds with the one rounds loop of
+:class:`~fleetctl.run.runner.Run` (:mod:`fleetctl.run.rounds`); ``rounds`` holds where each gets
+them from (``CoordinatorWork``: the run of every team; ``LinkWork``: the link).
+
 Only the one-controller names are imported here; import the ``--team`` modules directly.
 """
 

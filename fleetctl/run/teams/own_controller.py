@@ -26,10 +26,11 @@ from typing import Any
 from fleetctl.bus.config import BusConfig
 from fleetctl.mission import Mission
 from fleetctl.mission.teams import team_mission, team_of
-from fleetctl.run.results import PhaseResult
+from fleetctl.run.rounds import NoMoreWork, WorkSource
 from fleetctl.run.runner import Run, RunOptions
 from fleetctl.run.sim import mission_uses_sim
-from fleetctl.run.teams.link import STANDBY_POLL, TeamLink
+from fleetctl.run.teams.link import TeamLink
+from fleetctl.run.teams.rounds import LinkWork
 
 
 @dataclass(frozen=True)
@@ -109,17 +110,11 @@ class TeamControllerRun(Run):
         if self.link is not None:
             self.link.attach_executor(self.executor)
 
-    async def _deploy(self) -> None:
-        if self.mission.tasks:
-            await super()._deploy()
-        else:  # the allocation gave this team nothing (yet)
-            self.results["deploy"] = PhaseResult("deploy", complete=True)
-        link, ex = self.link, self.executor
-        while link is not None and ex is not None and await link.wait_for_work():
-            before = len(ex.board.entries)
-            await super()._deploy()  # one more round on the same task board
-            if len(ex.board.entries) == before:  # the round took nothing (its tasks were refused)
-                await asyncio.sleep(STANDBY_POLL)
+    def _work_source(self) -> WorkSource:
+        """With a link, the team stands by after its share for tasks the other teams hand over."""
+        if self.link is None or self.executor is None:
+            return NoMoreWork(self.spec.team, flies_empty_share=False)
+        return LinkWork(self.link, self.executor.board)
 
     async def _finish(self) -> dict[str, Any]:
         if self.link is not None:

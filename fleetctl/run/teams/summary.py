@@ -38,7 +38,7 @@ def teams_summary(tr: TeamsRun) -> dict[str, Any]:
     # the mission's makespan is the latest team's (each from its own carrier's start)
     dep_flown = _latest([_deploy_flown(tr, cid, r) for cid, r in deploys.items()])
     col_flown = _latest([_collect_flown(r) for r in collects.values()])
-    dep_planned = _latest([r.first_planned for r in deploys.values()])
+    dep_planned = _latest([r.deploy_rounds.first_planned for r in deploys.values()])
     col_planned = _latest([_planned(r, "collect") for r in collects.values()])
     planned, flown = _makespans(tr, dep_planned, col_planned, dep_flown, col_flown)
     allocated, _ = _makespans(
@@ -96,8 +96,8 @@ def _team(tr: TeamsRun, cid: str, dep: TeamRun | None, col: TeamRun | None) -> d
             "tasks_planned": e.tasks,
             "tasks_received": [t.id for t in e.received],
             "tasks_reached": mine,
-            "rounds": dep.rounds,
-            "makespan_planned": _round(dep.first_planned),
+            "rounds": dep.deploy_rounds.flown,
+            "makespan_planned": _round(dep.deploy_rounds.first_planned),
             "makespan_allocated": _round(dep_plan.team(cid).makespan) if dep_plan else None,
             "makespan_flown": _round(_deploy_flown(tr, cid, dep)),
             "result": tr.outcomes.get("deploy", {}).get(cid).summary["result"]  # type: ignore[union-attr]

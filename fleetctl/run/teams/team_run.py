@@ -12,27 +12,16 @@ from __future__ import annotations
 import asyncio
 import contextlib
 from collections.abc import Iterable
-from typing import Any, Protocol
+from typing import Any
 
 from fleetctl.mission import Mission
 from fleetctl.mission.teams import team_mission
-from fleetctl.run.kinds import Ev
 from fleetctl.run.results import PhaseResult
+from fleetctl.run.rounds import NO_MORE_WORK, WorkSource
 from fleetctl.run.runner import Run, RunOptions, RunOutcome
-from planners.core.problem import Task
+from fleetctl.run.teams.rounds import Coordinator, CoordinatorWork
 
 PLAN_WAIT = 120.0  # wall s a collection scenario's batteries are held at most, waiting for the first plan
-
-
-class Coordinator(Protocol):
-    """What a team's run asks the run of every team (:class:`fleetctl.run.teams.coordinator.TeamsRun`).
-
-    ``more_work`` is awaited after each deployment round with its result (``tasks_unserved``: what
-    the team could not serve); it returns the tasks handed to the team (one more round), or ``[]``
-    when its deployment is over. Tasks handed while the team deploys may instead go in as a task
-    change: ``run.executor.submit_task_change(add=..., remove=[], source="team <from>")``."""
-
-    async def more_work(self, team: str, result: PhaseResult) -> list[Task]: ...
 
 
 class TeamRun(Run):
@@ -57,30 +46,14 @@ class TeamRun(Run):
         self.loaded_at: dict[str, float] = {}  # rover -> mission clock
         self.collect_started: float | None = None
         self.collect_ended: float | None = None
-        self.first_planned: float | None = None  # its first deployment plan's makespan
-        self.rounds = 0  # deployment rounds flown (1 + the rounds for tasks handed to it)
         self._release: asyncio.Task[None] | None = None  # lets a collection scenario's batteries drain
 
-    async def _deploy_rounds(self) -> PhaseResult:
-        assert self.executor is not None
-        while True:
-            r = await self.executor.deploy()
-            self.rounds += 1
-            if self.rounds == 1:
-                self.first_planned = r.planned
-            self._note_reached()
-            extra = [] if self.coordinator is None else await self.coordinator.more_work(self.team, r)
-            if not extra:
-                return r
-            for t in extra:
-                self.executor.board.add(t)
-            self.state.event(
-                Ev.HANDOVER,
-                f"{self.team}: another deployment round for handed-over "
-                f"task(s) {', '.join(t.id for t in extra)}",
-                None,
-                tasks=[t.id for t in extra],
-            )
+    def _work_source(self) -> WorkSource:
+        """After each deployment round the coordinator may hand the team more tasks (one more round)."""
+        return NO_MORE_WORK if self.coordinator is None else CoordinatorWork(self.coordinator, self.team)
+
+    def _round_flown(self, result: PhaseResult) -> None:
+        self._note_reached()
 
     def _note_reached(self) -> None:
         phase = self.executor.deploy_phase if self.executor is not None else None
