@@ -13,6 +13,7 @@ are placed together, or with a hop of almost no length, where a heading is lost)
 
 from __future__ import annotations
 
+import itertools
 from collections import defaultdict
 from collections.abc import Sequence
 from typing import TYPE_CHECKING
@@ -50,20 +51,17 @@ def _window(route: Route, changes: Sequence[Change], p: int, count: int) -> np.n
     b = route.b
     inst, c, unload = b.inst, b.carrier, b.unload
     w = p + 2  # stops placed: i − 1, the pieces, old i + count
-    geos: list[ClusterGeometry] = []  # per change: the w stops' clusters and the next one
-    members: list[Sequence[int]] = []
-    for at, pieces, _ in changes:
-        geos += [route.geos[at - 1], *(inst.geometry(q) for q in pieces), route.geos[at + count],
-                 route.geos[at + count + 1]]
-        members += [route.clusters[at - 1], *pieces, route.clusters[at + count]]
-    cx = np.array([g.center[0] for g in geos]).reshape(len(changes), w + 1)
-    cy = np.array([g.center[1] for g in geos]).reshape(len(changes), w + 1)
-    slack = np.maximum(np.array([g.slack for g in geos]), 0.0).reshape(len(changes), w + 1)
-    width = max(len(m) for m in members)
-    rows = [j for m in members for j in (*m, *(m[0],) * (width - len(m)))]  # padded: a task repeated
-    task = inst.xyz[np.array(rows)].reshape(len(changes), w, width, 3)
-    tx, ty, z2 = task[..., 0], task[..., 1], task[..., 2] ** 2  # (changes, w, width)
     i = np.array([ch[0] for ch in changes])
+    # per change, the w stops' clusters and the next one: centre x, y and slack (the route's own
+    # clusters from its arrays, the pieces' looked up)
+    mine = _geo_rows(route.geos)
+    pieces = _geo_rows([inst.geometry(q) for _, qs, _ in changes for q in qs]).reshape(len(changes), p, 3)
+    geo = np.concatenate([mine[i - 1, None], pieces, mine[i + count, None], mine[i + count + 1, None]],
+                         axis=1)
+    cx, cy, slack = geo[..., 0], geo[..., 1], np.maximum(geo[..., 2], 0.0)
+    members = [m for at, qs, _ in changes for m in (route.clusters[at - 1], *qs, route.clusters[at + count])]
+    task = inst.xyz[_padded(members)].reshape(len(changes), w, -1, 3)
+    tx, ty, z2 = task[..., 0], task[..., 1], task[..., 2] ** 2  # (changes, w, width)
     lo = i - 1
     first = lo == 0
     prev_i = np.maximum(lo - 1, 0)
@@ -94,6 +92,21 @@ def _window(route: Route, changes: Sequence[Change], p: int, count: int) -> np.n
     dt, _ = carrier_steps(pos[m + 1, 0] - pos[m, 0], pos[m + 1, 1] - pos[m, 1], h, c)
     worst = np.maximum(worst, np.array(route.tail)[m + 1] + (t + dt - arrive[m + 1]))
     return np.where(short, -np.inf, worst)
+
+
+def _geo_rows(geos: Sequence[ClusterGeometry]) -> np.ndarray:
+    """(centre x, centre y, slack) of each cluster, one row each."""
+    return np.array([(g.center[0], g.center[1], g.slack) for g in geos], dtype=float).reshape(-1, 3)
+
+
+def _padded(members: Sequence[Sequence[int]]) -> np.ndarray:
+    """The members of every cluster as the rows of a matrix, a short row padded with its last
+    member (a repeated task leaves the farthest one unchanged)."""
+    lens = np.fromiter(map(len, members), dtype=np.intp, count=len(members))
+    flat = np.fromiter(itertools.chain.from_iterable(members), dtype=np.intp, count=int(lens.sum()))
+    starts = np.cumsum(lens) - lens
+    cols = np.minimum(np.arange(int(lens.max()))[None, :], lens[:, None] - 1)
+    return flat[starts[:, None] + cols]
 
 
 def _max_range_point(px: np.ndarray, py: np.ndarray, cx: np.ndarray, cy: np.ndarray, slack: np.ndarray,
