@@ -60,8 +60,6 @@ def _window(route: Route, changes: Sequence[Change], p: int, count: int) -> np.n
                          axis=1)
     cx, cy, slack = geo[..., 0], geo[..., 1], np.maximum(geo[..., 2], 0.0)
     members = [m for at, qs, _ in changes for m in (route.clusters[at - 1], *qs, route.clusters[at + count])]
-    task = inst.xyz[_padded(members)].reshape(len(changes), w, -1, 3)
-    tx, ty, z2 = task[..., 0], task[..., 1], task[..., 2] ** 2  # (changes, w, width)
     lo = i - 1
     first = lo == 0
     prev_i = np.maximum(lo - 1, 0)
@@ -73,16 +71,21 @@ def _window(route: Route, changes: Sequence[Change], p: int, count: int) -> np.n
     h = np.where(first, inst.problem.heading, heading[prev_i])
     worst = np.where(first, 0.0, np.array(route.head)[prev_i])
     short = np.zeros(len(changes), dtype=bool)
+    qxs, qys, ts = [], [], []
     for k in range(w):
         qx, qy = _max_range_point(px, py, cx[:, k], cy[:, k], slack[:, k], cx[:, k + 1], cy[:, k + 1])
         dx, dy = qx - px, qy - py
         short |= dx * dx + dy * dy < SHORT2
         dt, h = carrier_steps(dx, dy, h, c)
         t = t + (dt + unload)
-        ex, ey = tx[:, k] - qx[:, None], ty[:, k] - qy[:, None]
-        far = (ex * ex + ey * ey + z2[:, k]).max(axis=1)
-        worst = np.maximum(worst, t + leg_times(np.sqrt(far), b.rover))
+        qxs.append(qx)
+        qys.append(qy)
+        ts.append(t)
         px, py = qx, qy
+    # every placed stop's farthest task at once: the members in one flat array, (change, stop) order
+    far = _farthest(inst.xyz, members, np.stack(qxs, axis=1).ravel(), np.stack(qys, axis=1).ravel())
+    done = np.stack(ts, axis=1) + leg_times(np.sqrt(far), b.rover).reshape(len(changes), w)
+    worst = np.maximum(worst, done.max(axis=1))
     m = i + count + 1  # the first kept stop (old index)
     dx, dy = pos[m, 0] - px, pos[m, 1] - py
     short |= dx * dx + dy * dy < SHORT2
@@ -99,14 +102,14 @@ def _geo_rows(geos: Sequence[ClusterGeometry]) -> np.ndarray:
     return np.array([(g.center[0], g.center[1], g.slack) for g in geos], dtype=float).reshape(-1, 3)
 
 
-def _padded(members: Sequence[Sequence[int]]) -> np.ndarray:
-    """The members of every cluster as the rows of a matrix, a short row padded with its last
-    member (a repeated task leaves the farthest one unchanged)."""
+def _farthest(xyz: np.ndarray, members: Sequence[Sequence[int]], qx: np.ndarray,
+              qy: np.ndarray) -> np.ndarray:
+    """Per cluster j, the largest squared distance from the ground point (qx[j], qy[j]) to its tasks."""
     lens = np.fromiter(map(len, members), dtype=np.intp, count=len(members))
     flat = np.fromiter(itertools.chain.from_iterable(members), dtype=np.intp, count=int(lens.sum()))
-    starts = np.cumsum(lens) - lens
-    cols = np.minimum(np.arange(int(lens.max()))[None, :], lens[:, None] - 1)
-    return flat[starts[:, None] + cols]
+    task = xyz[flat]
+    ex, ey = task[:, 0] - np.repeat(qx, lens), task[:, 1] - np.repeat(qy, lens)
+    return np.maximum.reduceat(ex * ex + ey * ey + task[:, 2] ** 2, np.cumsum(lens) - lens)
 
 
 def _max_range_point(px: np.ndarray, py: np.ndarray, cx: np.ndarray, cy: np.ndarray, slack: np.ndarray,
