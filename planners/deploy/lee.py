@@ -201,10 +201,7 @@ def _polish_long(builder: PathBuilder, route: Route, tol: float) -> Route:
         new = search_class(builder, route, ks, tol) if ks else {}
         if not new:
             continue
-        positions = list(route.positions)
-        for k, q in new.items():
-            positions[k] = q
-        cand = Route(builder, route.clusters, route.geos, positions)
+        cand = route.with_stops(new)
         if cand.makespan < route.makespan - 1e-9:
             route = cand
             continue
