@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections import deque
 
@@ -177,6 +178,8 @@ def _two_opt_neighbours(nodes: np.ndarray, initial: list[int] | None, k: int = N
         pos[v] = i
     dist = math.dist  # the same as math.hypot of the differences, bit for bit
     near_d = [[dist(xy[x], xy[y]) for y in ys] for x, ys in enumerate(near)]
+    # the nearest of a node's later neighbours: past it, neither of its edges can be shortened
+    rest = [list(itertools.accumulate(ds[::-1], min))[::-1] for ds in near_d]
 
     def gain(i: int, j: int) -> float:
         """Shortening when path[i..j] is reversed (1 <= i < j <= n)."""
@@ -193,7 +196,9 @@ def _two_opt_neighbours(nodes: np.ndarray, initial: list[int] | None, k: int = N
         px = path[u - 1] if u > 0 else None
         d_next = dist(xy[x], xy[nx]) if nx is not None else 0.0
         d_prev = dist(xy[x], xy[px]) if px is not None else 0.0
-        for y, dxy in zip(near[x], near_d[x], strict=True):
+        for y, dxy, lower in zip(near[x], near_d[x], rest[x], strict=True):
+            if lower >= d_next and lower >= d_prev and nx is not None:
+                break
             if y == x:
                 continue
             w = pos[y]
