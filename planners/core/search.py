@@ -33,7 +33,6 @@ class ClusterRoute(Protocol):
 
 SCREEN_AHEAD = 256  # clusters whose divisions are screened at once (again after every division kept)
 SCREEN_FROM = 40  # clusters: shorter routes score every division exactly (numpy's calls cost more)
-SWAP_AHEAD = 32  # swaps screened at once (kept swaps are rare: a longer screen is mostly wasted)
 
 
 def split_loop(route: R, divide: Callable[[R, int], tuple[list[int], list[int]]],
@@ -116,34 +115,14 @@ def merge_neighbours(route: R, fits: Callable[[Sequence[int]], bool]) -> R:
 
 def swap_neighbours(route: R) -> R:
     """Visit consecutive clusters the other way round when that is faster (SWAP_CLUSTERS applied
-    to every neighbouring pair, including the initial division's). A route with ``screen`` has
-    the swaps ahead screened first (``SWAP_AHEAD`` at a time, again after every swap kept): one
-    whose bound shows it cannot be faster is not scored (the same result, fewer exact scores)."""
+    to every neighbouring pair, including the initial division's)."""
     k = 0
-    bounds: dict[int, float] = {}
     while k + 1 < len(route.clusters):
-        if k not in bounds:
-            bounds = _swap_bounds(route, k)
-        if bounds[k] >= route.makespan - 1e-9:
-            k += 1
-            continue
         cand = route.replace(k, [route.clusters[k + 1], route.clusters[k]], count=2)
         if cand[0] < route.makespan - 1e-9:
             route = route.accept(cand)
-            bounds = {}
         k += 1
     return route
-
-
-def _swap_bounds(route: R, start: int) -> dict[int, float]:
-    """A lower bound of the makespan after swapping clusters j and j + 1, for j from ``start`` on
-    (``SWAP_AHEAD`` of them; −inf to the route's end without a screen or on a short route)."""
-    screen = getattr(route, "screen", None) if len(route.clusters) >= SCREEN_FROM else None
-    if screen is None:
-        return dict.fromkeys(range(start, len(route.clusters) - 1), -np.inf)
-    js = range(start, min(start + SWAP_AHEAD, len(route.clusters) - 1))
-    bounds = screen([(j, [route.clusters[j + 1], route.clusters[j]], 2) for j in js])
-    return dict(zip(js, bounds.tolist(), strict=True))
 
 
 def reorder(route: R, anchors: Sequence[Point2], start: Point2, rebuild: Callable[[list[list[int]]], R]) -> R:
