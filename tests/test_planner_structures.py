@@ -223,6 +223,30 @@ def test_deploy_route_moved_and_accept_equal_a_route_timed_afresh(seed: int, n: 
         route = new
 
 
+@pytest.mark.parametrize("n", [12, 40])
+@pytest.mark.parametrize("seed", range(4))
+def test_deploy_route_with_stops_moved_equals_a_route_timed_afresh(seed: int, n: int) -> None:
+    """Route.with_stops (only the hops next to moved stops driven again) gives bit for bit the
+    route that Route() times from scratch, zero-length hops (a heading carried on) included."""
+    problem = _deploy(seed, n)
+    b = DeployBuilder(DeployInstance(problem))
+    route = b.route([[i] for i in range(len(problem.tasks))])
+    rng = random.Random(seed)
+    for _ in range(20):
+        new: dict[int, tuple[float, float]] = {}
+        for k in rng.sample(range(len(route.clusters)), rng.randint(1, 6)):
+            x, y = route.positions[k]
+            new[k] = (x + rng.uniform(-2, 2), y + rng.uniform(-2, 2))
+            if rng.random() < 0.3:  # onto the previous stop (or the start): the heading is kept
+                new[k] = route.positions[k - 1] if k else b.start
+        moved = route.with_stops(new)
+        fresh = DeployRoute(b, moved.clusters, moved.geos, moved.positions)
+        assert moved.positions == [new.get(k, q) for k, q in enumerate(route.positions)]
+        for name in ("hop", "heading", "fly", "arrive", "done", "tail", "head", "makespan"):
+            assert getattr(moved, name) == getattr(fresh, name), name
+        route = moved
+
+
 @pytest.mark.parametrize("seed", range(4))
 def test_a_class_of_stops_scored_at_once_equals_each_stop_scored_alone(seed: int) -> None:
     """StopClass.cost (numpy, every third stop at once) gives stop_cost's makespan (the scalar

@@ -115,20 +115,14 @@ def enclosing_ball(points: Sequence[Sequence[float]], weights: Sequence[float] |
 
     if len(pts) == 1:
         return _ball_on_boundary([pts[0]], [ws[0]])
-    if dim == 2:
-        return _welzl_2d(pts, ws, eps)
     return solve([], len(pts), 0)
 
 
 def _enclosing_circle(points: Sequence[Sequence[float]], weights: Sequence[float] | None, seed: int) -> Ball:
-    """``enclosing_ball`` of two or more points in the plane: the same visiting order, tolerance
-    and loops (``_welzl_2d``), with the coordinates read in one pass (the planners' hot path)."""
-    order = _shuffled(len(points), seed)
-    xs = [float(points[i][0]) for i in order]
-    ys = [float(points[i][1]) for i in order]
-    ws = [0.0] * len(xs) if weights is None else [float(weights[i]) for i in order]
-    scale = max(1.0, max(max(xs), max(ys)), -min(min(xs), min(ys)), math.sqrt(max(ws)))
-    return _welzl_2d(list(zip(xs, ys, strict=True)), ws, _REL_EPS * scale)
+    """``enclosing_ball`` of two or more points in the plane (``enclosing_circle``)."""
+    ws = [0.0] * len(points) if weights is None else weights
+    cx, cy, r = enclosing_circle([p[0] for p in points], [p[1] for p in points], ws, seed)
+    return Ball((cx, cy), r)
 
 
 @functools.lru_cache(maxsize=4096)
@@ -139,54 +133,67 @@ def _shuffled(n: int, seed: int) -> tuple[int, ...]:
     return tuple(order)
 
 
-def _welzl_2d(pts: list[tuple[float, ...]], ws: list[float], eps: float) -> Ball:
-    """The same three nested loops as ``solve`` for the plane, unrolled for speed: balls are
-    (x, y, radius) tuples and the closed forms of ``_ball_2d`` are written out (the planners
-    compute thousands of these per plan)."""
-    xs = [p[0] for p in pts]
-    ys = [p[1] for p in pts]
-    dist = math.dist
-
-    def two(i: int, j: int) -> tuple[float, float, float]:
-        x0, y0, w0 = xs[i], ys[i], ws[i]
-        ux, uy = xs[j] - x0, ys[j] - y0
-        n = ux * ux + uy * uy
-        if n < 1e-24:
-            return _as_tuple(_ball_on_boundary([pts[i], pts[j]], [w0, ws[j]]))
-        lam = (n + ws[j] - w0) / (2.0 * n)
-        c = (x0 + lam * ux, y0 + lam * uy)
-        value = max(dist(c, pts[i]) ** 2 + w0, dist(c, pts[j]) ** 2 + ws[j])
-        return c[0], c[1], math.sqrt(max(value, 0.0))
-
-    def three(i: int, j: int, k: int) -> tuple[float, float, float]:
-        x0, y0, w0 = xs[i], ys[i], ws[i]
-        u1x, u1y = xs[j] - x0, ys[j] - y0
-        u2x, u2y = xs[k] - x0, ys[k] - y0
-        b1 = u1x * u1x + u1y * u1y + ws[j] - w0
-        b2 = u2x * u2x + u2y * u2y + ws[k] - w0
-        det = u1x * u2y - u1y * u2x
-        if abs(det) < 1e-12 * max(1.0, (u1x * u1x + u1y * u1y) * (u2x * u2x + u2y * u2y)) ** 0.5:
-            return _as_tuple(_ball_on_boundary([pts[i], pts[j], pts[k]], [w0, ws[j], ws[k]]))
-        c = (x0 + (b1 * u2y - b2 * u1y) / (2.0 * det), y0 + (u1x * b2 - u2x * b1) / (2.0 * det))
-        value = max(dist(c, pts[i]) ** 2 + w0, dist(c, pts[j]) ** 2 + ws[j], dist(c, pts[k]) ** 2 + ws[k])
-        return c[0], c[1], math.sqrt(max(value, 0.0))
-
-    def one(i: int) -> tuple[float, float, float]:
-        return xs[i], ys[i], math.sqrt(max(ws[i], 0.0))
-
-    cx, cy, r = one(0)
-    for i in range(1, len(pts)):
-        if (cx - xs[i]) ** 2 + (cy - ys[i]) ** 2 + ws[i] <= (r + eps) ** 2:
+def enclosing_circle(xs: Sequence[float], ys: Sequence[float], ws: Sequence[float],
+                     seed: int = 0) -> tuple[float, float, float]:
+    """``enclosing_ball`` of the plane points (xs[i], ys[i]) with power weights ws[i], as
+    (centre x, centre y, radius): the same visiting order, tolerance and arithmetic as the general
+    Welzl loop (``solve``), unrolled for the plane without closures or Ball objects in the loop
+    (the planners compute thousands of these per plan)."""
+    n = len(xs)
+    if n == 1:
+        return float(xs[0]), float(ys[0]), math.sqrt(max(float(ws[0]), 0.0))
+    order = _shuffled(n, seed)
+    x = [float(xs[i]) for i in order]
+    y = [float(ys[i]) for i in order]
+    w = [float(ws[i]) for i in order]
+    eps = _REL_EPS * max(1.0, max(max(x), max(y)), -min(min(x), min(y)), math.sqrt(max(w)))
+    cx, cy, r = x[0], y[0], math.sqrt(max(w[0], 0.0))
+    lim = (r + eps) ** 2
+    for i in range(1, n):
+        if (cx - x[i]) ** 2 + (cy - y[i]) ** 2 + w[i] <= lim:
             continue
-        cx, cy, r = one(i)
+        cx, cy, r = x[i], y[i], math.sqrt(max(w[i], 0.0))
+        lim = (r + eps) ** 2
         for j in range(i):
-            if (cx - xs[j]) ** 2 + (cy - ys[j]) ** 2 + ws[j] <= (r + eps) ** 2:
+            if (cx - x[j]) ** 2 + (cy - y[j]) ** 2 + w[j] <= lim:
                 continue
-            cx, cy, r = two(i, j)
+            cx, cy, r = _circle_two(x, y, w, i, j)
+            lim = (r + eps) ** 2
             for k in range(j):
-                if (cx - xs[k]) ** 2 + (cy - ys[k]) ** 2 + ws[k] > (r + eps) ** 2:
-                    cx, cy, r = three(i, j, k)
-    return Ball((cx, cy), r)
+                if (cx - x[k]) ** 2 + (cy - y[k]) ** 2 + w[k] > lim:
+                    cx, cy, r = _circle_three(x, y, w, i, j, k)
+                    lim = (r + eps) ** 2
+    return cx, cy, r
+
+
+def _circle_two(x: list[float], y: list[float], w: list[float], i: int, j: int) -> tuple[float, float, float]:
+    """The smallest circle with points i and j on its boundary (``_ball_2d`` written out)."""
+    x0, y0, w0 = x[i], y[i], w[i]
+    ux, uy = x[j] - x0, y[j] - y0
+    n = ux * ux + uy * uy
+    if n < 1e-24:
+        return _as_tuple(_ball_on_boundary([(x0, y0), (x[j], y[j])], [w0, w[j]]))
+    lam = (n + w[j] - w0) / (2.0 * n)
+    c = (x0 + lam * ux, y0 + lam * uy)
+    value = max(math.dist(c, (x0, y0)) ** 2 + w0, math.dist(c, (x[j], y[j])) ** 2 + w[j])
+    return c[0], c[1], math.sqrt(max(value, 0.0))
+
+
+def _circle_three(x: list[float], y: list[float], w: list[float], i: int, j: int,
+                  k: int) -> tuple[float, float, float]:
+    """The circle with points i, j and k on its boundary (``_ball_2d`` written out)."""
+    x0, y0, w0 = x[i], y[i], w[i]
+    u1x, u1y = x[j] - x0, y[j] - y0
+    u2x, u2y = x[k] - x0, y[k] - y0
+    b1 = u1x * u1x + u1y * u1y + w[j] - w0
+    b2 = u2x * u2x + u2y * u2y + w[k] - w0
+    det = u1x * u2y - u1y * u2x
+    if abs(det) < 1e-12 * max(1.0, (u1x * u1x + u1y * u1y) * (u2x * u2x + u2y * u2y)) ** 0.5:
+        return _as_tuple(_ball_on_boundary([(x0, y0), (x[j], y[j]), (x[k], y[k])], [w0, w[j], w[k]]))
+    c = (x0 + (b1 * u2y - b2 * u1y) / (2.0 * det), y0 + (u1x * b2 - u2x * b1) / (2.0 * det))
+    value = max(math.dist(c, (x0, y0)) ** 2 + w0, math.dist(c, (x[j], y[j])) ** 2 + w[j],
+                math.dist(c, (x[k], y[k])) ** 2 + w[k])
+    return c[0], c[1], math.sqrt(max(value, 0.0))
 
 
 def _as_tuple(ball: Ball) -> tuple[float, float, float]:

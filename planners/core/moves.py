@@ -43,6 +43,8 @@ def relocate_nearest(near: Callable[[int, Sequence[int]], float], keep: int = 2)
     """``relocate`` with a bounded candidate list: of each cluster only the ``keep`` members
     nearest the neighbouring cluster (``near(item, cluster)``) are handed over (long routes)."""
     def move(clusters: Clusters, fits: Fits, start: int = 0) -> Iterator[Change]:
+        if keep <= 0:  # nothing to hand over (and no members to sort by nearness)
+            return
         for k in range(start, len(clusters) - 1):
             a, b = list(clusters[k]), list(clusters[k + 1])
             if len(a) > 1:

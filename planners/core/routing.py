@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections import deque
 
@@ -175,31 +176,32 @@ def _two_opt_neighbours(nodes: np.ndarray, initial: list[int] | None, k: int = N
     pos = [0] * (n + 1)
     for i, v in enumerate(path):
         pos[v] = i
-
-    def d(a: int, b: int) -> float:
-        p, q = xy[a], xy[b]
-        return math.hypot(p[0] - q[0], p[1] - q[1])
+    dist = math.dist  # the same as math.hypot of the differences, bit for bit
+    near_d = [[dist(xy[x], xy[y]) for y in ys] for x, ys in enumerate(near)]
+    # the nearest of a node's later neighbours: past it, neither of its edges can be shortened
+    rest = [list(itertools.accumulate(ds[::-1], min))[::-1] for ds in near_d]
 
     def gain(i: int, j: int) -> float:
         """Shortening when path[i..j] is reversed (1 <= i < j <= n)."""
-        a, b, c = path[i - 1], path[i], path[j]
-        g = d(a, b) - d(a, c)
+        a, b, c = xy[path[i - 1]], xy[path[i]], xy[path[j]]
+        g = dist(a, b) - dist(a, c)
         if j < n:
-            e = path[j + 1]
-            g += d(c, e) - d(b, e)
+            e = xy[path[j + 1]]
+            g += dist(c, e) - dist(b, e)
         return g
 
     def improve(x: int) -> tuple[int, int] | None:
         u = pos[x]
         nx = path[u + 1] if u < n else None
         px = path[u - 1] if u > 0 else None
-        d_next = d(x, nx) if nx is not None else 0.0
-        d_prev = d(x, px) if px is not None else 0.0
-        for y in near[x]:
+        d_next = dist(xy[x], xy[nx]) if nx is not None else 0.0
+        d_prev = dist(xy[x], xy[px]) if px is not None else 0.0
+        for y, dxy, lower in zip(near[x], near_d[x], rest[x], strict=True):
+            if lower >= d_next and lower >= d_prev and nx is not None:
+                break
             if y == x:
                 continue
             w = pos[y]
-            dxy = d(x, y)
             if dxy < d_next:  # new edge x–y instead of x → next(x)
                 ij = (u + 1, w) if w > u + 1 else (w + 1, u) if w < u else None
                 if ij is not None and gain(*ij) > 1e-9:

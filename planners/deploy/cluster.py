@@ -9,7 +9,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from planners.core.geometry import enclosing_ball
+from planners.core.geometry import enclosing_circle
 from planners.core.problem import DeployProblem, PlanningError, Point2, Vec3
 from planners.core.timing import RANGE_MARGIN
 
@@ -40,6 +40,8 @@ class DeployInstance:
         self.range = problem.deploy_range
         self.d = max(problem.deploy_range - RANGE_MARGIN, 0.0)  # planned flights stay inside this
         self._geo: dict[tuple[int, ...], ClusterGeometry] = {}
+        # per task: the radius of the ground disc from which it is within d_deploy
+        self._disc = [math.sqrt(max(self.d**2 - p[2] ** 2, 0.0)) for p in self.pts]
         for i, p in enumerate(self.pts):
             if p[2] > self.range or p[2] < 0:
                 raise PlanningError(
@@ -51,11 +53,12 @@ class DeployInstance:
         g = self._geo.get(key)
         if g is None:
             pts = [self.pts[i] for i in key]
-            ball = enclosing_ball([(p[0], p[1]) for p in pts], [p[2] ** 2 for p in pts])
-            c = (ball.center[0], ball.center[1])
-            slack = max(0.0, min(math.sqrt(max(self.d**2 - p[2] ** 2, 0.0))
-                                 - math.hypot(p[0] - c[0], p[1] - c[1]) for p in pts))
-            g = ClusterGeometry(key, c, ball.radius, slack)
+            xs, ys = [p[0] for p in pts], [p[1] for p in pts]
+            cx, cy, radius = enclosing_circle(xs, ys, [p[2] ** 2 for p in pts])
+            disc = self._disc
+            slack = max(0.0, min([disc[i] - math.hypot(x - cx, y - cy)
+                                  for i, x, y in zip(key, xs, ys, strict=True)]))
+            g = ClusterGeometry(key, (cx, cy), radius, slack)
             self._geo[key] = g
         return g
 

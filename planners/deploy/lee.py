@@ -11,7 +11,7 @@ import random
 import time
 from collections.abc import Sequence
 
-from planners.core.clustering import divide_cluster
+from planners.core.clustering import Divider, divide_cluster
 from planners.core.geometry import compass_search
 from planners.core.moves import (
     SMOOTH_MOVES,
@@ -59,9 +59,11 @@ def lee_clusters(problem: DeployProblem, improve: bool = True, t0: float | None 
             clusters[idx: idx + 1] = [near, far]
         else:
             idx += 1
+    divider = Divider(inst.pts)  # the rounds of the search divide the same clusters again
+
     def divide(route: Route, idx: int) -> tuple[list[int], list[int]]:
         prev = start if idx == 0 else route.positions[idx - 1]
-        return divide_cluster(route.clusters[idx], inst.pts, (*prev, 0.0))
+        return divider(route.clusters[idx], (*prev, 0.0))
 
     tried: set = set()
     route = split_loop(builder.route(clusters), divide, tried)  # Algorithm 4.2
@@ -199,10 +201,7 @@ def _polish_long(builder: PathBuilder, route: Route, tol: float) -> Route:
         new = search_class(builder, route, ks, tol) if ks else {}
         if not new:
             continue
-        positions = list(route.positions)
-        for k, q in new.items():
-            positions[k] = q
-        cand = Route(builder, route.clusters, route.geos, positions)
+        cand = route.with_stops(new)
         if cand.makespan < route.makespan - 1e-9:
             route = cand
             continue

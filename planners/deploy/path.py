@@ -225,6 +225,27 @@ class Route:
         self._redrive(r, k, k + 1, k + 1)
         return r
 
+    def with_stops(self, new: dict[int, Point2]) -> Route:
+        """This route with each stop k of ``new`` moved to ``new[k]``: the same route as
+        ``Route(b, clusters, geos, positions)``, but only the hops into a moved stop and the one
+        after it (and any later hop whose turn changed) are driven again, only moved stops' flights
+        measured again."""
+        b = self.b
+        r = object.__new__(type(self))
+        r.b, r.clusters, r.geos = b, self.clusters, self.geos
+        r.positions = pos = list(self.positions)
+        for k, q in new.items():
+            pos[k] = q
+        r.hop, r.heading, r.fly = list(self.hop), list(self.heading), list(self.fly)
+        for j in range(min(new, default=len(pos)), len(pos)):
+            h = r.heading[j - 1] if j else b.inst.problem.heading
+            if j in new or j - 1 in new or (j and h != self.heading[j - 1]):
+                r.hop[j], r.heading[j] = carrier_hop(pos[j - 1] if j else b.start, pos[j], h, b.carrier)
+                if j in new:
+                    r.fly[j] = b.finish(pos[j], self.clusters[j])
+        r._times()
+        return r
+
     def accept(self, cand: Candidate) -> Route:
         """The route of a scored change (``replace``): stops before ``lo`` and from old stop ``m``
         on keep their hops and flights; only the changed stops and the turns after them are driven."""

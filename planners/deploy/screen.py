@@ -13,6 +13,7 @@ are placed together, or with a hop of almost no length, where a heading is lost)
 
 from __future__ import annotations
 
+import itertools
 from collections import defaultdict
 from collections.abc import Sequence
 from typing import TYPE_CHECKING
@@ -50,20 +51,15 @@ def _window(route: Route, changes: Sequence[Change], p: int, count: int) -> np.n
     b = route.b
     inst, c, unload = b.inst, b.carrier, b.unload
     w = p + 2  # stops placed: i − 1, the pieces, old i + count
-    geos: list[ClusterGeometry] = []  # per change: the w stops' clusters and the next one
-    members: list[Sequence[int]] = []
-    for at, pieces, _ in changes:
-        geos += [route.geos[at - 1], *(inst.geometry(q) for q in pieces), route.geos[at + count],
-                 route.geos[at + count + 1]]
-        members += [route.clusters[at - 1], *pieces, route.clusters[at + count]]
-    cx = np.array([g.center[0] for g in geos]).reshape(len(changes), w + 1)
-    cy = np.array([g.center[1] for g in geos]).reshape(len(changes), w + 1)
-    slack = np.maximum(np.array([g.slack for g in geos]), 0.0).reshape(len(changes), w + 1)
-    width = max(len(m) for m in members)
-    rows = [j for m in members for j in (*m, *(m[0],) * (width - len(m)))]  # padded: a task repeated
-    task = inst.xyz[np.array(rows)].reshape(len(changes), w, width, 3)
-    tx, ty, z2 = task[..., 0], task[..., 1], task[..., 2] ** 2  # (changes, w, width)
     i = np.array([ch[0] for ch in changes])
+    # per change, the w stops' clusters and the next one: centre x, y and slack (the route's own
+    # clusters from its arrays, the pieces' looked up)
+    mine = _geo_rows(route.geos)
+    pieces = _geo_rows([inst.geometry(q) for _, qs, _ in changes for q in qs]).reshape(len(changes), p, 3)
+    geo = np.concatenate([mine[i - 1, None], pieces, mine[i + count, None], mine[i + count + 1, None]],
+                         axis=1)
+    cx, cy, slack = geo[..., 0], geo[..., 1], np.maximum(geo[..., 2], 0.0)
+    members = [m for at, qs, _ in changes for m in (route.clusters[at - 1], *qs, route.clusters[at + count])]
     lo = i - 1
     first = lo == 0
     prev_i = np.maximum(lo - 1, 0)
@@ -75,16 +71,21 @@ def _window(route: Route, changes: Sequence[Change], p: int, count: int) -> np.n
     h = np.where(first, inst.problem.heading, heading[prev_i])
     worst = np.where(first, 0.0, np.array(route.head)[prev_i])
     short = np.zeros(len(changes), dtype=bool)
+    qxs, qys, ts = [], [], []
     for k in range(w):
         qx, qy = _max_range_point(px, py, cx[:, k], cy[:, k], slack[:, k], cx[:, k + 1], cy[:, k + 1])
         dx, dy = qx - px, qy - py
         short |= dx * dx + dy * dy < SHORT2
         dt, h = carrier_steps(dx, dy, h, c)
         t = t + (dt + unload)
-        ex, ey = tx[:, k] - qx[:, None], ty[:, k] - qy[:, None]
-        far = (ex * ex + ey * ey + z2[:, k]).max(axis=1)
-        worst = np.maximum(worst, t + leg_times(np.sqrt(far), b.rover))
+        qxs.append(qx)
+        qys.append(qy)
+        ts.append(t)
         px, py = qx, qy
+    # every placed stop's farthest task at once: the members in one flat array, (change, stop) order
+    far = _farthest(inst.xyz, members, np.stack(qxs, axis=1).ravel(), np.stack(qys, axis=1).ravel())
+    done = np.stack(ts, axis=1) + leg_times(np.sqrt(far), b.rover).reshape(len(changes), w)
+    worst = np.maximum(worst, done.max(axis=1))
     m = i + count + 1  # the first kept stop (old index)
     dx, dy = pos[m, 0] - px, pos[m, 1] - py
     short |= dx * dx + dy * dy < SHORT2
@@ -94,6 +95,21 @@ def _window(route: Route, changes: Sequence[Change], p: int, count: int) -> np.n
     dt, _ = carrier_steps(pos[m + 1, 0] - pos[m, 0], pos[m + 1, 1] - pos[m, 1], h, c)
     worst = np.maximum(worst, np.array(route.tail)[m + 1] + (t + dt - arrive[m + 1]))
     return np.where(short, -np.inf, worst)
+
+
+def _geo_rows(geos: Sequence[ClusterGeometry]) -> np.ndarray:
+    """(centre x, centre y, slack) of each cluster, one row each."""
+    return np.array([(g.center[0], g.center[1], g.slack) for g in geos], dtype=float).reshape(-1, 3)
+
+
+def _farthest(xyz: np.ndarray, members: Sequence[Sequence[int]], qx: np.ndarray,
+              qy: np.ndarray) -> np.ndarray:
+    """Per cluster j, the largest squared distance from the ground point (qx[j], qy[j]) to its tasks."""
+    lens = np.fromiter(map(len, members), dtype=np.intp, count=len(members))
+    flat = np.fromiter(itertools.chain.from_iterable(members), dtype=np.intp, count=int(lens.sum()))
+    task = xyz[flat]
+    ex, ey = task[:, 0] - np.repeat(qx, lens), task[:, 1] - np.repeat(qy, lens)
+    return np.maximum.reduceat(ex * ex + ey * ey + task[:, 2] ** 2, np.cumsum(lens) - lens)
 
 
 def _max_range_point(px: np.ndarray, py: np.ndarray, cx: np.ndarray, cy: np.ndarray, slack: np.ndarray,
