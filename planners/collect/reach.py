@@ -26,7 +26,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from planners.core.geometry import enclosing_ball
+from planners.core.geometry import EnclosingCircles, enclosing_ball
 
 Point2 = tuple[float, float]
 
@@ -52,6 +52,8 @@ class Region:
     _discs: list[tuple[float, float, float]] | None = field(default=None, repr=False)
     _vertex_list: list[Point2] | None = field(default=None, repr=False)
     _memo: dict[tuple[float, ...], Point2] = field(default_factory=dict, repr=False, compare=False)
+    _time_circles: EnclosingCircles | None = field(default=None, repr=False, compare=False)
+    _near: tuple[tuple[int, ...], ...] = field(default=(), repr=False, compare=False)  # neighbours' members
 
     @property
     def rows(self) -> list[tuple[float, float, float]]:
@@ -99,9 +101,15 @@ class Region:
 
         Without the range constraint it is the power-weighted enclosing circle of the ground
         positions with weights z² (ch. 3.4); when that point lies outside I_β, its projection.
+        The circle comes from ``_time_circles`` when the region has them (a collection's instance
+        shares them between its regions: derived from the neighbouring clusters' ``_near``).
         """
         if self._time_center is None:
-            ball = enclosing_ball([(x, y) for x, y, _ in self.rows], [z2 for _, _, z2 in self.rows])
+            ws = [z2 for _, _, z2 in self.rows]
+            if self._time_circles is not None:
+                ball = self._time_circles.get(self.members, ws, self._near)
+            else:
+                ball = enclosing_ball([(x, y) for x, y, _ in self.rows], ws)
             c = (float(ball.center[0]), float(ball.center[1]))
             self._time_center = c if self.contains(c) else self.project(c)
         return self._time_center
@@ -352,14 +360,18 @@ DiscLists = tuple[Sequence[Sequence[float]], Sequence[float], Sequence[float]]  
 
 
 def make_region(members: Sequence[int], ground: np.ndarray, radii: np.ndarray,
-                heights2: np.ndarray, lists: DiscLists | None = None) -> Region:
+                heights2: np.ndarray, lists: DiscLists | None = None,
+                circles: tuple[EnclosingCircles, EnclosingCircles] | None = None,
+                near: tuple[tuple[int, ...], ...] = ()) -> Region:
     """I_β of ``members`` with its power centre (the feasibility test of Algorithm 5.1).
 
     The power centre minimises max_i |c − g_i|² − ρ_i²; shifting every weight by W = max ρ² keeps
     them non-negative for the enclosing-ball routine without moving the minimiser. I_β is
     non-empty exactly when the minimum is ≤ 0, and then the centre lies in I_β. ``lists``: the
     same ground positions, radii and z² as Python lists (a collection's instance keeps them), so
-    that the cluster's discs are read without numpy.
+    that the cluster's discs are read without numpy. ``circles``: the instance's enclosing circles
+    for the power centre and the time centre (the same balls, derived from those of the clusters
+    ``near``, sorted memberships one member away, when exact); ``members`` must then be sorted.
     """
     key = tuple(members)
     idx = list(key)
@@ -375,10 +387,16 @@ def make_region(members: Sequence[int], ground: np.ndarray, radii: np.ndarray,
     else:
         r2 = [q * q for _, _, q in discs]
         top = max(r2)
-        ball = enclosing_ball([(x, y) for x, y, _ in discs], [max(top - q, 0.0) for q in r2])
+        ws = [max(top - q, 0.0) for q in r2]
+        if circles is not None:
+            ball = circles[0].get(key, ws, near)
+        else:
+            ball = enclosing_ball([(x, y) for x, y, _ in discs], ws)
         p = (float(ball.center[0]), float(ball.center[1]))
         depth = min(q - math.hypot(x - p[0], y - p[1]) for x, y, q in discs)
         reg = Region(key, c, r, z2, p, depth, depth >= -INSIDE_TOL)
     reg._discs, reg._rows = discs, rows
+    if circles is not None:
+        reg._time_circles, reg._near = circles[1], near
     return reg
 

@@ -115,8 +115,6 @@ def enclosing_ball(points: Sequence[Sequence[float]], weights: Sequence[float] |
 
     if len(pts) == 1:
         return _ball_on_boundary([pts[0]], [ws[0]])
-    if dim == 2:
-        return _welzl_2d(pts, ws, eps)
     return solve([], len(pts), 0)
 
 
@@ -127,8 +125,7 @@ def _enclosing_circle(points: Sequence[Sequence[float]], weights: Sequence[float
     xs = [float(points[i][0]) for i in order]
     ys = [float(points[i][1]) for i in order]
     ws = [0.0] * len(xs) if weights is None else [float(weights[i]) for i in order]
-    scale = max(1.0, max(max(xs), max(ys)), -min(min(xs), min(ys)), math.sqrt(max(ws)))
-    return _welzl_2d(list(zip(xs, ys, strict=True)), ws, _REL_EPS * scale)
+    return _welzl_2d(xs, ys, ws)[0]
 
 
 @functools.lru_cache(maxsize=4096)
@@ -139,54 +136,188 @@ def _shuffled(n: int, seed: int) -> tuple[int, ...]:
     return tuple(order)
 
 
-def _welzl_2d(pts: list[tuple[float, ...]], ws: list[float], eps: float) -> Ball:
-    """The same three nested loops as ``solve`` for the plane, unrolled for speed: balls are
-    (x, y, radius) tuples and the closed forms of ``_ball_2d`` are written out (the planners
-    compute thousands of these per plan)."""
-    xs = [p[0] for p in pts]
-    ys = [p[1] for p in pts]
+@functools.lru_cache(maxsize=4096)
+def _visit_rank(n: int, seed: int) -> tuple[int, ...]:
+    """When Welzl's algorithm visits each of ``n`` points: the inverse of ``_shuffled(n, seed)``."""
+    rank = [0] * n
+    for k, i in enumerate(_shuffled(n, seed)):
+        rank[i] = k
+    return tuple(rank)
+
+
+Circle = tuple[float, float, float]  # centre x, y and radius of a circle in the hot loops
+
+
+def _one(xs: list[float], ys: list[float], ws: list[float], i: int) -> Circle:
+    return xs[i], ys[i], math.sqrt(max(ws[i], 0.0))
+
+
+def _two(xs: list[float], ys: list[float], ws: list[float], i: int, j: int) -> Circle:
+    """The smallest circle with points i and j on its boundary (``_ball_2d``'s closed form)."""
+    x0, y0, w0 = xs[i], ys[i], ws[i]
+    ux, uy = xs[j] - x0, ys[j] - y0
+    n = ux * ux + uy * uy
+    if n < 1e-24:
+        return _as_tuple(_ball_on_boundary([(x0, y0), (xs[j], ys[j])], [w0, ws[j]]))
+    lam = (n + ws[j] - w0) / (2.0 * n)
+    c = (x0 + lam * ux, y0 + lam * uy)
+    value = max(math.dist(c, (x0, y0)) ** 2 + w0, math.dist(c, (xs[j], ys[j])) ** 2 + ws[j])
+    return c[0], c[1], math.sqrt(max(value, 0.0))
+
+
+def _three(xs: list[float], ys: list[float], ws: list[float], i: int, j: int, k: int) -> Circle:
+    """The circle with points i, j and k on its boundary (``_ball_2d``'s closed form)."""
+    x0, y0, w0 = xs[i], ys[i], ws[i]
+    u1x, u1y = xs[j] - x0, ys[j] - y0
+    u2x, u2y = xs[k] - x0, ys[k] - y0
+    b1 = u1x * u1x + u1y * u1y + ws[j] - w0
+    b2 = u2x * u2x + u2y * u2y + ws[k] - w0
+    det = u1x * u2y - u1y * u2x
+    if abs(det) < 1e-12 * max(1.0, (u1x * u1x + u1y * u1y) * (u2x * u2x + u2y * u2y)) ** 0.5:
+        return _as_tuple(_ball_on_boundary([(x0, y0), (xs[j], ys[j]), (xs[k], ys[k])], [w0, ws[j], ws[k]]))
+    c = (x0 + (b1 * u2y - b2 * u1y) / (2.0 * det), y0 + (u1x * b2 - u2x * b1) / (2.0 * det))
     dist = math.dist
+    value = max(dist(c, (x0, y0)) ** 2 + w0, dist(c, (xs[j], ys[j])) ** 2 + ws[j],
+                dist(c, (xs[k], ys[k])) ** 2 + ws[k])
+    return c[0], c[1], math.sqrt(max(value, 0.0))
 
-    def two(i: int, j: int) -> tuple[float, float, float]:
-        x0, y0, w0 = xs[i], ys[i], ws[i]
-        ux, uy = xs[j] - x0, ys[j] - y0
-        n = ux * ux + uy * uy
-        if n < 1e-24:
-            return _as_tuple(_ball_on_boundary([pts[i], pts[j]], [w0, ws[j]]))
-        lam = (n + ws[j] - w0) / (2.0 * n)
-        c = (x0 + lam * ux, y0 + lam * uy)
-        value = max(dist(c, pts[i]) ** 2 + w0, dist(c, pts[j]) ** 2 + ws[j])
-        return c[0], c[1], math.sqrt(max(value, 0.0))
 
-    def three(i: int, j: int, k: int) -> tuple[float, float, float]:
-        x0, y0, w0 = xs[i], ys[i], ws[i]
-        u1x, u1y = xs[j] - x0, ys[j] - y0
-        u2x, u2y = xs[k] - x0, ys[k] - y0
-        b1 = u1x * u1x + u1y * u1y + ws[j] - w0
-        b2 = u2x * u2x + u2y * u2y + ws[k] - w0
-        det = u1x * u2y - u1y * u2x
-        if abs(det) < 1e-12 * max(1.0, (u1x * u1x + u1y * u1y) * (u2x * u2x + u2y * u2y)) ** 0.5:
-            return _as_tuple(_ball_on_boundary([pts[i], pts[j], pts[k]], [w0, ws[j], ws[k]]))
-        c = (x0 + (b1 * u2y - b2 * u1y) / (2.0 * det), y0 + (u1x * b2 - u2x * b1) / (2.0 * det))
-        value = max(dist(c, pts[i]) ** 2 + w0, dist(c, pts[j]) ** 2 + ws[j], dist(c, pts[k]) ** 2 + ws[k])
-        return c[0], c[1], math.sqrt(max(value, 0.0))
+def _tolerance(xs: list[float], ys: list[float], ws: list[float]) -> float:
+    """Welzl's inside tolerance: ``_REL_EPS`` times the size of the coordinates and weights."""
+    return _REL_EPS * max(1.0, max(max(xs), max(ys)), -min(min(xs), min(ys)), math.sqrt(max(ws)))
 
-    def one(i: int) -> tuple[float, float, float]:
-        return xs[i], ys[i], math.sqrt(max(ws[i], 0.0))
 
-    cx, cy, r = one(0)
-    for i in range(1, len(pts)):
+def _welzl_2d(xs: list[float], ys: list[float], ws: list[float]) -> tuple[Ball, tuple[int, ...]]:
+    """The same three nested loops as ``solve`` for the plane, over the points in their visiting
+    order, unrolled for speed: balls are (x, y, radius) tuples and the closed forms of ``_ball_2d``
+    are written out (the planners compute thousands of these per plan). Also returns the points
+    the last circle was built on (its support), latest visited first."""
+    eps = _tolerance(xs, ys, ws)
+    cx, cy, r = _one(xs, ys, ws, 0)
+    sup: tuple[int, ...] = (0,)
+    for i in range(1, len(xs)):
         if (cx - xs[i]) ** 2 + (cy - ys[i]) ** 2 + ws[i] <= (r + eps) ** 2:
             continue
-        cx, cy, r = one(i)
+        cx, cy, r = _one(xs, ys, ws, i)
+        sup = (i,)
         for j in range(i):
             if (cx - xs[j]) ** 2 + (cy - ys[j]) ** 2 + ws[j] <= (r + eps) ** 2:
                 continue
-            cx, cy, r = two(i, j)
+            cx, cy, r = _two(xs, ys, ws, i, j)
+            sup = (i, j)
             for k in range(j):
                 if (cx - xs[k]) ** 2 + (cy - ys[k]) ** 2 + ws[k] > (r + eps) ** 2:
-                    cx, cy, r = three(i, j, k)
+                    cx, cy, r = _three(xs, ys, ws, i, j, k)
+                    sup = (i, j, k)
+    return Ball((cx, cy), r), sup
+
+
+def _welzl_through(xs: list[float], ys: list[float], ws: list[float], a: int,
+                   first: Sequence[int]) -> tuple[int, ...]:
+    """The support of the smallest circle of all points with point ``a`` on its boundary (Welzl's
+    two inner loops; the points ``first`` are visited first). That is the enclosing circle when
+    ``a`` lies outside the other points' circle."""
+    eps = _tolerance(xs, ys, ws)
+    rest = [*first, *(q for q in range(len(xs)) if q != a and q not in first)]
+    cx, cy, r = _one(xs, ys, ws, a)
+    sup: tuple[int, ...] = (a,)
+    for jj, j in enumerate(rest):
+        if (cx - xs[j]) ** 2 + (cy - ys[j]) ** 2 + ws[j] <= (r + eps) ** 2:
+            continue
+        cx, cy, r = _two(xs, ys, ws, a, j)
+        sup = (a, j)
+        for k in rest[:jj]:
+            if (cx - xs[k]) ** 2 + (cy - ys[k]) ** 2 + ws[k] > (r + eps) ** 2:
+                cx, cy, r = _three(xs, ys, ws, a, j, k)
+                sup = (a, j, k)
+    return sup
+
+
+def _on_support(xs: list[float], ys: list[float], ws: list[float], sup: Sequence[int]) -> Ball:
+    """The circle ``_welzl_2d`` ends with when it builds its last circle on the points ``sup`` (in
+    visiting order): the same closed form on the same points in the same order, so the same bits."""
+    s = sorted(sup, reverse=True)
+    if len(s) == 1:
+        cx, cy, r = _one(xs, ys, ws, s[0])
+    elif len(s) == 2:
+        cx, cy, r = _two(xs, ys, ws, s[0], s[1])
+    else:
+        cx, cy, r = _three(xs, ys, ws, s[0], s[1], s[2])
     return Ball((cx, cy), r)
+
+
+Members = tuple[int, ...]
+
+
+class EnclosingCircles:
+    """Power-weighted enclosing circles of subsets of one set of points in the plane, remembered
+    by sorted membership; a new subset's circle is derived from a remembered neighbouring subset
+    (the caller names it: one member more, fewer or exchanged) when that is exact (an incremental
+    Welzl's algorithm), else computed afresh.
+
+    A circle is its support's circle (the points on its boundary that hold it: at most three in
+    general position). Adding a point that lies inside it, or removing a point that is not in the
+    support, leaves the circle as it is; adding a point outside puts that point on the new
+    circle's boundary (Welzl's lemma: two loops instead of three). The new circle is then built
+    on its support by ``_on_support``, the closed form Welzl's algorithm ends with on the new
+    subset (it ends on the same support), which gives ``enclosing_ball``'s bits.
+    """
+
+    def __init__(self, points: Sequence[Sequence[float]]) -> None:
+        self._xs = [float(p[0]) for p in points]
+        self._ys = [float(p[1]) for p in points]
+        self._known: dict[Members, tuple[Ball, Members]] = {}  # subset → its circle and support
+
+    def get(self, key: Members, weights: Sequence[float] | None = None, near: Sequence[Members] = ()) -> Ball:
+        """``enclosing_ball`` of the points ``key`` (sorted, distinct indices) with these weights
+        (one per member, in ``key``'s order; zero when None): the same ball, bit for bit. ``near``:
+        subsets (sorted) that may differ from ``key`` by a member, whose circles may be known."""
+        got = self._known.get(key)
+        if got is not None:
+            return got[0]
+        order = _shuffled(len(key), 0)
+        visit = [key[q] for q in order]
+        xs, ys = [self._xs[g] for g in visit], [self._ys[g] for g in visit]
+        ws = [0.0] * len(key) if weights is None else [float(weights[q]) for q in order]
+        found = self._derive(key, xs, ys, ws, near) if near and len(key) > 1 else None
+        if found is None:
+            ball, sup = _welzl_2d(xs, ys, ws)
+            found = ball, tuple(visit[q] for q in sup)
+        self._known[key] = found
+        return found[0]
+
+    def _derive(self, key: Members, xs: list[float], ys: list[float], ws: list[float],
+                near: Sequence[Members]) -> tuple[Ball, Members] | None:
+        """The circle of ``key`` (points in visiting order) from a known neighbour's support, or
+        None when no neighbour gives it."""
+        rank = _visit_rank(len(key), 0)
+        members = set(key)
+        outside: tuple[int, list[int]] | None = None  # an added point outside a neighbour's circle
+        for other in near:
+            entry = self._known.get(other) if -1 <= len(key) - len(other) <= 1 else None
+            if entry is None:
+                continue
+            added = members.difference(other)
+            if len(added) > 1 or len(other) - len(key) + len(added) > 1 or not members.issuperset(entry[1]):
+                continue  # more than one member added or removed, or a support point removed
+            support = entry[1]
+            local = [rank[key.index(g)] for g in support]
+            ball = _on_support(xs, ys, ws, local)
+            if not added:
+                return ball, support
+            a = rank[key.index(added.pop())]
+            (cx, cy), r = ball.center, ball.radius
+            margin = 2 * _REL_EPS * (1.0 + abs(cx) + abs(cy) + r)  # more than Welzl's tolerance
+            power = (cx - xs[a]) ** 2 + (cy - ys[a]) ** 2 + ws[a]
+            if r > margin and power < (r - margin) ** 2:
+                return ball, support
+            if outside is None and power > (r + margin) ** 2:
+                outside = a, local
+        if outside is None:
+            return None
+        sup = _welzl_through(xs, ys, ws, *outside)
+        order = _shuffled(len(key), 0)
+        return _on_support(xs, ys, ws, sup), tuple(key[order[q]] for q in sup)
 
 
 def _as_tuple(ball: Ball) -> tuple[float, float, float]:
