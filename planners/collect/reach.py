@@ -40,16 +40,14 @@ class Region:
     """The common reach region I_β of a cluster (eq. 5.12)."""
 
     members: tuple[int, ...]
-    centers: np.ndarray  # (k, 2) ground positions g_i
-    radii: np.ndarray  # (k,) reach radii ρ_i
-    heights2: np.ndarray  # (k,) z_i²
+    _discs: list[tuple[float, float, float]] = field(repr=False)  # (x, y, ρ): ground position, reach radius
+    _rows: list[tuple[float, float, float]] = field(repr=False)  # (x, y, z²)
     center: Point2  # power centre: in I_β when I_β is non-empty
     depth: float  # min_i (ρ_i − |center − g_i|) ≥ 0 when feasible
     feasible: bool
+    _arrays: tuple[np.ndarray, np.ndarray, np.ndarray] | None = field(default=None, repr=False)
     _vertices: np.ndarray | None = field(default=None, repr=False)
     _time_center: Point2 | None = field(default=None, repr=False)
-    _rows: list[tuple[float, float, float]] | None = field(default=None, repr=False)
-    _discs: list[tuple[float, float, float]] | None = field(default=None, repr=False)
     _vertex_list: list[Point2] | None = field(default=None, repr=False)
     _memo: dict[tuple[float, ...], Point2] = field(default_factory=dict, repr=False, compare=False)
     _time_circles: EnclosingCircles | None = field(default=None, repr=False, compare=False)
@@ -58,10 +56,29 @@ class Region:
     @property
     def rows(self) -> list[tuple[float, float, float]]:
         """(x, y, z²) of every member, for fast pure-Python loops."""
-        if self._rows is None:
-            self._rows = [(float(x), float(y), float(z2))
-                          for (x, y), z2 in zip(self.centers.tolist(), self.heights2.tolist(), strict=True)]
         return self._rows
+
+    def _numpy(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        if self._arrays is None:
+            self._arrays = (np.array([(x, y) for x, y, _ in self._discs], dtype=float).reshape(-1, 2),
+                            np.array([r for _, _, r in self._discs], dtype=float),
+                            np.array([z2 for _, _, z2 in self._rows], dtype=float))
+        return self._arrays
+
+    @property
+    def centers(self) -> np.ndarray:
+        """(k, 2) ground positions g_i (numpy; made when first asked for)."""
+        return self._numpy()[0]
+
+    @property
+    def radii(self) -> np.ndarray:
+        """(k,) reach radii ρ_i."""
+        return self._numpy()[1]
+
+    @property
+    def heights2(self) -> np.ndarray:
+        """(k,) z_i²."""
+        return self._numpy()[2]
 
     def contains(self, p: Sequence[float], tol: float = INSIDE_TOL) -> bool:
         x, y = p[0], p[1]
@@ -73,9 +90,6 @@ class Region:
     @property
     def discs(self) -> list[tuple[float, float, float]]:
         """(x, y, ρ) of every member."""
-        if self._discs is None:
-            self._discs = [(float(x), float(y), float(r))
-                           for (x, y), r in zip(self.centers.tolist(), self.radii.tolist(), strict=True)]
         return self._discs
 
     def farthest_flight(self, p: Sequence[float]) -> float:
@@ -374,16 +388,15 @@ def make_region(members: Sequence[int], ground: np.ndarray, radii: np.ndarray,
     ``near``, sorted memberships one member away, when exact); ``members`` must then be sorted.
     """
     key = tuple(members)
-    idx = list(key)
-    c, r, z2 = ground[idx], radii[idx], heights2[idx]
     if lists is None:
-        pts, rad, h2 = c.tolist(), r.tolist(), z2.tolist()
+        idx = list(key)
+        pts, rad, h2 = ground[idx].tolist(), radii[idx].tolist(), heights2[idx].tolist()
     else:
-        pts, rad, h2 = [lists[0][i] for i in idx], [lists[1][i] for i in idx], [lists[2][i] for i in idx]
+        pts, rad, h2 = [lists[0][i] for i in key], [lists[1][i] for i in key], [lists[2][i] for i in key]
     discs = [(float(x), float(y), float(q)) for (x, y), q in zip(pts, rad, strict=True)]
     rows = [(float(x), float(y), float(w)) for (x, y), w in zip(pts, h2, strict=True)]
-    if len(idx) == 1:
-        reg = Region(key, c, r, z2, (discs[0][0], discs[0][1]), discs[0][2], True)
+    if len(key) == 1:
+        reg = Region(key, discs, rows, (discs[0][0], discs[0][1]), discs[0][2], True)
     else:
         r2 = [q * q for _, _, q in discs]
         top = max(r2)
@@ -394,8 +407,7 @@ def make_region(members: Sequence[int], ground: np.ndarray, radii: np.ndarray,
             ball = enclosing_ball([(x, y) for x, y, _ in discs], ws)
         p = (float(ball.center[0]), float(ball.center[1]))
         depth = min(q - math.hypot(x - p[0], y - p[1]) for x, y, q in discs)
-        reg = Region(key, c, r, z2, p, depth, depth >= -INSIDE_TOL)
-    reg._discs, reg._rows = discs, rows
+        reg = Region(key, discs, rows, p, depth, depth >= -INSIDE_TOL)
     if circles is not None:
         reg._time_circles, reg._near = circles[1], near
     return reg
