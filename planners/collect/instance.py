@@ -34,13 +34,14 @@ class CollectInstance:
         # power and time centres' circles, derived from neighbouring clusters' (core.geometry)
         self._circles = (EnclosingCircles(self.pts2), EnclosingCircles(self.pts2))
 
-    def region(self, members: Sequence[int], near: tuple[tuple[int, ...], ...] = ()) -> Region:
-        """The region of a cluster; ``near``: sorted memberships of clusters one member away (a
-        move's old clusters), whose circles the new region's are derived from when exact."""
+    def region(self, members: Sequence[int], near: Sequence[Sequence[int]] = ()) -> Region:
+        """The region of a cluster; ``near``: clusters that may be one member away (a move's old
+        clusters), whose circles the new region's are derived from when exact."""
         key = tuple(sorted(members))
         reg = self._regions.get(key)
         if reg is None:
-            reg = make_region(key, self.ground, self.radii, self.heights2, self._lists, self._circles, near)
+            hints = tuple(tuple(sorted(c)) for c in near)
+            reg = make_region(key, self.ground, self.radii, self.heights2, self._lists, self._circles, hints)
             self._regions[key] = reg
         return reg
 
@@ -58,8 +59,7 @@ class CollectInstance:
                 x, y = pts[i]
                 if math.hypot(x - lx, y - ly) - rad[i] > lr:
                     return False
-        j = key.index(members[-1])  # the moves test a cluster with one rover added last
-        return self.region(key, (key[:j] + key[j + 1:],)).feasible
+        return self.region(key, (members[:-1],)).feasible  # the moves add a rover last
 
 
 def check_rovers(problem: CollectProblem) -> None:

@@ -9,7 +9,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from planners.core.geometry import EnclosingCircles
+from planners.core.geometry import enclosing_ball
 from planners.core.problem import DeployProblem, PlanningError, Point2, Vec3
 from planners.core.timing import RANGE_MARGIN
 
@@ -40,21 +40,18 @@ class DeployInstance:
         self.range = problem.deploy_range
         self.d = max(problem.deploy_range - RANGE_MARGIN, 0.0)  # planned flights stay inside this
         self._geo: dict[tuple[int, ...], ClusterGeometry] = {}
-        self._circles = EnclosingCircles(self.pts)  # derived from neighbouring clusters' (core.geometry)
         for i, p in enumerate(self.pts):
             if p[2] > self.range or p[2] < 0:
                 raise PlanningError(
                     f"task {problem.tasks[i].id} at height {p[2]:g} m cannot be reached with a "
                     f"deploy range of {problem.deploy_range:g} m")
 
-    def geometry(self, members: Sequence[int], near: tuple[tuple[int, ...], ...] = ()) -> ClusterGeometry:
-        """A cluster's geometry; ``near``: sorted memberships of clusters one task away (a move's old
-        clusters), whose circles the new one is derived from when exact."""
+    def geometry(self, members: Sequence[int]) -> ClusterGeometry:
         key = tuple(sorted(members))
         g = self._geo.get(key)
         if g is None:
             pts = [self.pts[i] for i in key]
-            ball = self._circles.get(key, [p[2] ** 2 for p in pts], near)
+            ball = enclosing_ball([(p[0], p[1]) for p in pts], [p[2] ** 2 for p in pts])
             c = (ball.center[0], ball.center[1])
             slack = max(0.0, min(math.sqrt(max(self.d**2 - p[2] ** 2, 0.0))
                                  - math.hypot(p[0] - c[0], p[1] - c[1]) for p in pts))
@@ -73,9 +70,7 @@ class DeployInstance:
             ys = [self.pts[i][1] for i in members]
             if max(xs) - min(xs) > 2 * self.range or max(ys) - min(ys) > 2 * self.range:
                 return False
-        key = tuple(sorted(members))
-        j = key.index(members[-1])  # the moves test a cluster with one task added last
-        return self.geometry(key, (key[:j] + key[j + 1:],)).reach <= self.range
+        return self.geometry(members).reach <= self.range
 
     def reach_from(self, p: Point2, members: Sequence[int]) -> float:
         """Longest rover flight from ground point ``p`` to the cluster's tasks (eq. 4.5 numerator)."""

@@ -244,8 +244,7 @@ class Route:
         around the change (the one before, the pieces, the one after) and keeping later stops."""
         b, old = self.b, self.clusters
         clusters = old[:i] + pieces + old[i + count:]
-        near = tuple(g.members for g in self.geos[i:i + count])
-        geos = self.geos[:i] + [b.inst.geometry(p, near) for p in pieces] + self.geos[i + count:]
+        geos = self.geos[:i] + [b.inst.geometry(p) for p in pieces] + self.geos[i + count:]
         lo = max(i - 1, 0)
         hi = i + len(pieces) + 1  # first new index kept from the old route (exclusive window end)
         if hi >= len(clusters) - 2:
