@@ -1,14 +1,17 @@
 """Minimum enclosing circle/sphere (ch. 3.4) and the cluster divider (Algorithm 3.1)."""
 
 import math
+import random
 
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.optimize import minimize
 
+from planners.core import geometry
 from planners.core.clustering import divide_cluster
-from planners.core.geometry import enclosing_ball, minimize_1d
+from planners.core.geometry import EnclosingCircles, enclosing_ball, minimize_1d
 
 coord = st.floats(-100, 100, allow_nan=False, allow_infinity=False)
 
@@ -95,3 +98,81 @@ def test_divider_partitions(pts):
     near, far = divide_cluster(range(len(pts)), pts, (0, 0, 0))
     assert near and far
     assert sorted(near + far) == list(range(len(pts)))
+
+
+def _walk(rng, pts, weights, steps, cache, size=(1, 12)):
+    """Random add / remove / exchange steps from a random cluster: yields (key, previous key)."""
+    n = len(pts)
+    cur = tuple(sorted(rng.sample(range(n), min(5, n))))
+    for _ in range(steps):
+        s = set(cur)
+        op = rng.random()
+        if op < 0.35:
+            s.discard(rng.choice(cur))
+        if op > 0.3:
+            s.add(rng.randrange(n))
+        if size[0] <= len(s) <= size[1]:
+            prev, cur = cur, tuple(sorted(s))
+            yield cur, prev
+
+
+@pytest.mark.parametrize("weighted", [False, True])
+def test_incremental_circles_are_welzls_bit_for_bit(weighted, monkeypatch):
+    # Generic points: a circle derived from a neighbouring cluster's is the very ball Welzl's
+    # algorithm computes on the new cluster (the planners' searches are chaotic: any other last
+    # bit would change the plans), and most circles are derived (Welzl runs far fewer times).
+    calls = []
+    welzl = geometry._welzl_2d
+    monkeypatch.setattr(geometry, "_welzl_2d", lambda *a: calls.append(1) or welzl(*a))
+    rng = random.Random(7 + weighted)
+    pts = [(rng.uniform(0, 200), rng.uniform(0, 200)) for _ in range(40)]
+    w = [rng.uniform(0, 400) if weighted else 0.0 for _ in pts]
+    cache = EnclosingCircles(pts)
+    new = fresh = 0
+    for key, prev in _walk(rng, pts, w, 4000, cache):
+        new += key not in cache._known
+        ws = [w[i] for i in key]
+        before = len(calls)
+        got = cache.get(key, ws, (prev,))
+        fresh += len(calls) - before
+        ref = enclosing_ball([pts[i] for i in key], ws)
+        assert (got.center, got.radius) == (ref.center, ref.radius)
+    assert new > 1000 and fresh < 0.6 * new
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.lists(st.tuples(st.integers(0, 4), st.integers(0, 4)), min_size=2, max_size=12),
+       st.lists(st.sampled_from([0.0, 1.0, 4.0]), min_size=12, max_size=12), st.integers(0, 10**6),
+       st.booleans())
+def test_incremental_circles_on_degenerate_points(grid, wlist, seed, weighted):
+    # A 5 x 5 grid: duplicates, collinear and cocircular points. Welzl's algorithm may end on
+    # another support there, so the derived ball must be the same ball up to rounding.
+    pts = [(float(x), float(y)) for x, y in grid]
+    w = wlist[:len(pts)] if weighted else [0.0] * len(pts)
+    rng = random.Random(seed)
+    cache = EnclosingCircles(pts)
+    for key, prev in _walk(rng, pts, w, 30, cache, size=(1, len(pts))):
+        ws = [w[i] for i in key]
+        got = cache.get(key, ws, (prev, key[1:]))
+        ref = enclosing_ball([pts[i] for i in key], ws)
+        assert math.dist(got.center, ref.center) <= 1e-6 and abs(got.radius - ref.radius) <= 1e-6
+        for i in key:
+            assert math.dist(got.center, pts[i]) ** 2 + w[i] <= (got.radius + 1e-6) ** 2
+
+
+def test_incremental_circles_special_cases():
+    pts = [(0.0, 0.0), (4.0, 0.0), (0.0, 4.0), (4.0, 4.0), (2.0, 2.0), (2.0, 2.0), (8.0, 0.0)]
+    cache = EnclosingCircles(pts)
+    square = cache.get((0, 1, 2, 3))  # four cocircular points
+    assert math.dist(square.center, (2.0, 2.0)) < 1e-12 and abs(square.radius - math.sqrt(8)) < 1e-12
+    inner = cache.get((0, 1, 2, 3, 4), near=[(0, 1, 2, 3)])  # an added point inside: unchanged
+    assert (inner.center, inner.radius) == (square.center, square.radius)
+    dup = cache.get((4, 5), near=[(4,)])  # duplicates
+    assert dup.center == (2.0, 2.0) and dup.radius == 0.0
+    line = cache.get((0, 1, 6), near=[(0, 1)])  # collinear, the added point outside
+    assert line.center == (4.0, 0.0) and line.radius == 4.0
+    back = cache.get((0, 6), near=[(0, 1, 6)])  # removed a point off the support
+    assert (back.center, back.radius) == (line.center, line.radius)
+    assert cache.get((1, 6), near=[(0, 1, 6)]).radius == 2.0  # removed a support point
+    heavy = cache.get((0, 1), [100.0, 0.0], near=[(0,)])  # power weights: a heavy point holds it alone
+    assert heavy.center == (0.0, 0.0) and heavy.radius == 10.0

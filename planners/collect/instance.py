@@ -9,6 +9,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from planners.collect.reach import Point2, Region, make_region
+from planners.core.geometry import EnclosingCircles
 from planners.core.problem import CollectProblem, PlanningError
 from planners.core.timing import RANGE_MARGIN
 
@@ -30,12 +31,17 @@ class CollectInstance:
         self.rad: list[float] = self.radii.tolist()
         self._lists = (self.pts2, self.rad, self.heights2.tolist())
         self._regions: dict[tuple[int, ...], Region] = {}
+        # power and time centres' circles, derived from neighbouring clusters' (core.geometry)
+        self._circles = (EnclosingCircles(self.pts2), EnclosingCircles(self.pts2))
 
-    def region(self, members: Sequence[int]) -> Region:
+    def region(self, members: Sequence[int], near: Sequence[Sequence[int]] = ()) -> Region:
+        """The region of a cluster; ``near``: clusters that may be one member away (a move's old
+        clusters), whose circles the new region's are derived from when exact."""
         key = tuple(sorted(members))
         reg = self._regions.get(key)
         if reg is None:
-            reg = make_region(key, self.ground, self.radii, self.heights2, self._lists)
+            hints = tuple(tuple(sorted(c)) for c in near)
+            reg = make_region(key, self.ground, self.radii, self.heights2, self._lists, self._circles, hints)
             self._regions[key] = reg
         return reg
 
@@ -53,7 +59,7 @@ class CollectInstance:
                 x, y = pts[i]
                 if math.hypot(x - lx, y - ly) - rad[i] > lr:
                     return False
-        return self.region(key).feasible
+        return self.region(key, (members[:-1],)).feasible  # the moves add a rover last
 
 
 def check_rovers(problem: CollectProblem) -> None:

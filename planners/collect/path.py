@@ -219,7 +219,8 @@ class Route:
         pieces and their stops are placed afresh; later stops keep their places and are re-timed."""
         b, old = self.b, self.clusters
         clusters = old[:i] + pieces + old[i + count:]
-        regions = self.regions[:i] + [b.inst.region(p) for p in pieces] + self.regions[i + count:]
+        near = old[i:i + count]
+        regions = self.regions[:i] + [b.inst.region(p, near) for p in pieces] + self.regions[i + count:]
         lo = max(i - 1, 0)
         hi = min(i + len(pieces), len(clusters))  # new indices lo..hi-1 are placed afresh
         m = hi - len(pieces) + count  # old index of the first kept stop

@@ -26,7 +26,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from planners.core.geometry import enclosing_ball
+from planners.core.geometry import EnclosingCircles, enclosing_ball
 
 Point2 = tuple[float, float]
 
@@ -40,26 +40,45 @@ class Region:
     """The common reach region I_β of a cluster (eq. 5.12)."""
 
     members: tuple[int, ...]
-    centers: np.ndarray  # (k, 2) ground positions g_i
-    radii: np.ndarray  # (k,) reach radii ρ_i
-    heights2: np.ndarray  # (k,) z_i²
+    _discs: list[tuple[float, float, float]] = field(repr=False)  # (x, y, ρ): ground position, reach radius
+    _rows: list[tuple[float, float, float]] = field(repr=False)  # (x, y, z²)
     center: Point2  # power centre: in I_β when I_β is non-empty
     depth: float  # min_i (ρ_i − |center − g_i|) ≥ 0 when feasible
     feasible: bool
+    _arrays: tuple[np.ndarray, np.ndarray, np.ndarray] | None = field(default=None, repr=False)
     _vertices: np.ndarray | None = field(default=None, repr=False)
     _time_center: Point2 | None = field(default=None, repr=False)
-    _rows: list[tuple[float, float, float]] | None = field(default=None, repr=False)
-    _discs: list[tuple[float, float, float]] | None = field(default=None, repr=False)
     _vertex_list: list[Point2] | None = field(default=None, repr=False)
     _memo: dict[tuple[float, ...], Point2] = field(default_factory=dict, repr=False, compare=False)
+    _time_circles: EnclosingCircles | None = field(default=None, repr=False, compare=False)
+    _near: tuple[tuple[int, ...], ...] = field(default=(), repr=False, compare=False)  # neighbours' members
 
     @property
     def rows(self) -> list[tuple[float, float, float]]:
         """(x, y, z²) of every member, for fast pure-Python loops."""
-        if self._rows is None:
-            self._rows = [(float(x), float(y), float(z2))
-                          for (x, y), z2 in zip(self.centers.tolist(), self.heights2.tolist(), strict=True)]
         return self._rows
+
+    def _numpy(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        if self._arrays is None:
+            self._arrays = (np.array([(x, y) for x, y, _ in self._discs], dtype=float).reshape(-1, 2),
+                            np.array([r for _, _, r in self._discs], dtype=float),
+                            np.array([z2 for _, _, z2 in self._rows], dtype=float))
+        return self._arrays
+
+    @property
+    def centers(self) -> np.ndarray:
+        """(k, 2) ground positions g_i (numpy; made when first asked for)."""
+        return self._numpy()[0]
+
+    @property
+    def radii(self) -> np.ndarray:
+        """(k,) reach radii ρ_i."""
+        return self._numpy()[1]
+
+    @property
+    def heights2(self) -> np.ndarray:
+        """(k,) z_i²."""
+        return self._numpy()[2]
 
     def contains(self, p: Sequence[float], tol: float = INSIDE_TOL) -> bool:
         x, y = p[0], p[1]
@@ -71,9 +90,6 @@ class Region:
     @property
     def discs(self) -> list[tuple[float, float, float]]:
         """(x, y, ρ) of every member."""
-        if self._discs is None:
-            self._discs = [(float(x), float(y), float(r))
-                           for (x, y), r in zip(self.centers.tolist(), self.radii.tolist(), strict=True)]
         return self._discs
 
     def farthest_flight(self, p: Sequence[float]) -> float:
@@ -99,9 +115,15 @@ class Region:
 
         Without the range constraint it is the power-weighted enclosing circle of the ground
         positions with weights z² (ch. 3.4); when that point lies outside I_β, its projection.
+        The circle comes from ``_time_circles`` when the region has them (a collection's instance
+        shares them between its regions: derived from the neighbouring clusters' ``_near``).
         """
         if self._time_center is None:
-            ball = enclosing_ball([(x, y) for x, y, _ in self.rows], [z2 for _, _, z2 in self.rows])
+            ws = [z2 for _, _, z2 in self.rows]
+            if self._time_circles is not None:
+                ball = self._time_circles.get(self.members, ws, self._near)
+            else:
+                ball = enclosing_ball([(x, y) for x, y, _ in self.rows], ws)
             c = (float(ball.center[0]), float(ball.center[1]))
             self._time_center = c if self.contains(c) else self.project(c)
         return self._time_center
@@ -352,33 +374,41 @@ DiscLists = tuple[Sequence[Sequence[float]], Sequence[float], Sequence[float]]  
 
 
 def make_region(members: Sequence[int], ground: np.ndarray, radii: np.ndarray,
-                heights2: np.ndarray, lists: DiscLists | None = None) -> Region:
+                heights2: np.ndarray, lists: DiscLists | None = None,
+                circles: tuple[EnclosingCircles, EnclosingCircles] | None = None,
+                near: tuple[tuple[int, ...], ...] = ()) -> Region:
     """I_β of ``members`` with its power centre (the feasibility test of Algorithm 5.1).
 
     The power centre minimises max_i |c − g_i|² − ρ_i²; shifting every weight by W = max ρ² keeps
     them non-negative for the enclosing-ball routine without moving the minimiser. I_β is
     non-empty exactly when the minimum is ≤ 0, and then the centre lies in I_β. ``lists``: the
     same ground positions, radii and z² as Python lists (a collection's instance keeps them), so
-    that the cluster's discs are read without numpy.
+    that the cluster's discs are read without numpy. ``circles``: the instance's enclosing circles
+    for the power centre and the time centre (the same balls, derived from those of the clusters
+    ``near``, sorted memberships one member away, when exact); ``members`` must then be sorted.
     """
     key = tuple(members)
-    idx = list(key)
-    c, r, z2 = ground[idx], radii[idx], heights2[idx]
     if lists is None:
-        pts, rad, h2 = c.tolist(), r.tolist(), z2.tolist()
+        idx = list(key)
+        pts, rad, h2 = ground[idx].tolist(), radii[idx].tolist(), heights2[idx].tolist()
     else:
-        pts, rad, h2 = [lists[0][i] for i in idx], [lists[1][i] for i in idx], [lists[2][i] for i in idx]
+        pts, rad, h2 = [lists[0][i] for i in key], [lists[1][i] for i in key], [lists[2][i] for i in key]
     discs = [(float(x), float(y), float(q)) for (x, y), q in zip(pts, rad, strict=True)]
     rows = [(float(x), float(y), float(w)) for (x, y), w in zip(pts, h2, strict=True)]
-    if len(idx) == 1:
-        reg = Region(key, c, r, z2, (discs[0][0], discs[0][1]), discs[0][2], True)
+    if len(key) == 1:
+        reg = Region(key, discs, rows, (discs[0][0], discs[0][1]), discs[0][2], True)
     else:
         r2 = [q * q for _, _, q in discs]
         top = max(r2)
-        ball = enclosing_ball([(x, y) for x, y, _ in discs], [max(top - q, 0.0) for q in r2])
+        ws = [max(top - q, 0.0) for q in r2]
+        if circles is not None:
+            ball = circles[0].get(key, ws, near)
+        else:
+            ball = enclosing_ball([(x, y) for x, y, _ in discs], ws)
         p = (float(ball.center[0]), float(ball.center[1]))
         depth = min(q - math.hypot(x - p[0], y - p[1]) for x, y, q in discs)
-        reg = Region(key, c, r, z2, p, depth, depth >= -INSIDE_TOL)
-    reg._discs, reg._rows = discs, rows
+        reg = Region(key, discs, rows, p, depth, depth >= -INSIDE_TOL)
+    if circles is not None:
+        reg._time_circles, reg._near = circles[1], near
     return reg
 

@@ -125,6 +125,20 @@ def _enclosing_circle(points: Sequence[Sequence[float]], weights: Sequence[float
     return Ball((cx, cy), r)
 
 
+def enclosing_circle(xs: Sequence[float], ys: Sequence[float], ws: Sequence[float],
+                     seed: int = 0) -> tuple[float, float, float]:
+    """``enclosing_ball`` of the plane points (xs[i], ys[i]) with power weights ws[i], as
+    (centre x, centre y, radius): the same visiting order, tolerance and arithmetic as the general
+    Welzl loop (``solve``), unrolled for the plane (``_welzl_2d``)."""
+    n = len(xs)
+    if n == 1:
+        return float(xs[0]), float(ys[0]), math.sqrt(max(float(ws[0]), 0.0))
+    order = _shuffled(n, seed)
+    ball, _ = _welzl_2d([float(xs[i]) for i in order], [float(ys[i]) for i in order],
+                        [float(ws[i]) for i in order])
+    return ball.center[0], ball.center[1], ball.radius
+
+
 @functools.lru_cache(maxsize=4096)
 def _shuffled(n: int, seed: int) -> tuple[int, ...]:
     """The visiting order of Welzl's algorithm: ``range(n)`` shuffled by ``random.Random(seed)``."""
@@ -133,67 +147,189 @@ def _shuffled(n: int, seed: int) -> tuple[int, ...]:
     return tuple(order)
 
 
-def enclosing_circle(xs: Sequence[float], ys: Sequence[float], ws: Sequence[float],
-                     seed: int = 0) -> tuple[float, float, float]:
-    """``enclosing_ball`` of the plane points (xs[i], ys[i]) with power weights ws[i], as
-    (centre x, centre y, radius): the same visiting order, tolerance and arithmetic as the general
-    Welzl loop (``solve``), unrolled for the plane without closures or Ball objects in the loop
-    (the planners compute thousands of these per plan)."""
-    n = len(xs)
-    if n == 1:
-        return float(xs[0]), float(ys[0]), math.sqrt(max(float(ws[0]), 0.0))
-    order = _shuffled(n, seed)
-    x = [float(xs[i]) for i in order]
-    y = [float(ys[i]) for i in order]
-    w = [float(ws[i]) for i in order]
-    eps = _REL_EPS * max(1.0, max(max(x), max(y)), -min(min(x), min(y)), math.sqrt(max(w)))
-    cx, cy, r = x[0], y[0], math.sqrt(max(w[0], 0.0))
-    lim = (r + eps) ** 2
-    for i in range(1, n):
-        if (cx - x[i]) ** 2 + (cy - y[i]) ** 2 + w[i] <= lim:
-            continue
-        cx, cy, r = x[i], y[i], math.sqrt(max(w[i], 0.0))
-        lim = (r + eps) ** 2
-        for j in range(i):
-            if (cx - x[j]) ** 2 + (cy - y[j]) ** 2 + w[j] <= lim:
-                continue
-            cx, cy, r = _circle_two(x, y, w, i, j)
-            lim = (r + eps) ** 2
-            for k in range(j):
-                if (cx - x[k]) ** 2 + (cy - y[k]) ** 2 + w[k] > lim:
-                    cx, cy, r = _circle_three(x, y, w, i, j, k)
-                    lim = (r + eps) ** 2
-    return cx, cy, r
+@functools.lru_cache(maxsize=4096)
+def _visit_rank(n: int, seed: int) -> tuple[int, ...]:
+    """When Welzl's algorithm visits each of ``n`` points: the inverse of ``_shuffled(n, seed)``."""
+    rank = [0] * n
+    for k, i in enumerate(_shuffled(n, seed)):
+        rank[i] = k
+    return tuple(rank)
 
 
-def _circle_two(x: list[float], y: list[float], w: list[float], i: int, j: int) -> tuple[float, float, float]:
-    """The smallest circle with points i and j on its boundary (``_ball_2d`` written out)."""
-    x0, y0, w0 = x[i], y[i], w[i]
-    ux, uy = x[j] - x0, y[j] - y0
+Circle = tuple[float, float, float]  # centre x, y and radius of a circle in the hot loops
+
+
+def _one(xs: list[float], ys: list[float], ws: list[float], i: int) -> Circle:
+    return xs[i], ys[i], math.sqrt(max(ws[i], 0.0))
+
+
+def _two(xs: list[float], ys: list[float], ws: list[float], i: int, j: int) -> Circle:
+    """The smallest circle with points i and j on its boundary (``_ball_2d``'s closed form)."""
+    x0, y0, w0 = xs[i], ys[i], ws[i]
+    ux, uy = xs[j] - x0, ys[j] - y0
     n = ux * ux + uy * uy
     if n < 1e-24:
-        return _as_tuple(_ball_on_boundary([(x0, y0), (x[j], y[j])], [w0, w[j]]))
-    lam = (n + w[j] - w0) / (2.0 * n)
+        return _as_tuple(_ball_on_boundary([(x0, y0), (xs[j], ys[j])], [w0, ws[j]]))
+    lam = (n + ws[j] - w0) / (2.0 * n)
     c = (x0 + lam * ux, y0 + lam * uy)
-    value = max(math.dist(c, (x0, y0)) ** 2 + w0, math.dist(c, (x[j], y[j])) ** 2 + w[j])
+    value = max(math.dist(c, (x0, y0)) ** 2 + w0, math.dist(c, (xs[j], ys[j])) ** 2 + ws[j])
     return c[0], c[1], math.sqrt(max(value, 0.0))
 
 
-def _circle_three(x: list[float], y: list[float], w: list[float], i: int, j: int,
-                  k: int) -> tuple[float, float, float]:
-    """The circle with points i, j and k on its boundary (``_ball_2d`` written out)."""
-    x0, y0, w0 = x[i], y[i], w[i]
-    u1x, u1y = x[j] - x0, y[j] - y0
-    u2x, u2y = x[k] - x0, y[k] - y0
-    b1 = u1x * u1x + u1y * u1y + w[j] - w0
-    b2 = u2x * u2x + u2y * u2y + w[k] - w0
+def _three(xs: list[float], ys: list[float], ws: list[float], i: int, j: int, k: int) -> Circle:
+    """The circle with points i, j and k on its boundary (``_ball_2d``'s closed form)."""
+    x0, y0, w0 = xs[i], ys[i], ws[i]
+    u1x, u1y = xs[j] - x0, ys[j] - y0
+    u2x, u2y = xs[k] - x0, ys[k] - y0
+    b1 = u1x * u1x + u1y * u1y + ws[j] - w0
+    b2 = u2x * u2x + u2y * u2y + ws[k] - w0
     det = u1x * u2y - u1y * u2x
     if abs(det) < 1e-12 * max(1.0, (u1x * u1x + u1y * u1y) * (u2x * u2x + u2y * u2y)) ** 0.5:
-        return _as_tuple(_ball_on_boundary([(x0, y0), (x[j], y[j]), (x[k], y[k])], [w0, w[j], w[k]]))
+        return _as_tuple(_ball_on_boundary([(x0, y0), (xs[j], ys[j]), (xs[k], ys[k])], [w0, ws[j], ws[k]]))
     c = (x0 + (b1 * u2y - b2 * u1y) / (2.0 * det), y0 + (u1x * b2 - u2x * b1) / (2.0 * det))
-    value = max(math.dist(c, (x0, y0)) ** 2 + w0, math.dist(c, (x[j], y[j])) ** 2 + w[j],
-                math.dist(c, (x[k], y[k])) ** 2 + w[k])
+    dist = math.dist
+    value = max(dist(c, (x0, y0)) ** 2 + w0, dist(c, (xs[j], ys[j])) ** 2 + ws[j],
+                dist(c, (xs[k], ys[k])) ** 2 + ws[k])
     return c[0], c[1], math.sqrt(max(value, 0.0))
+
+
+def _tolerance(xs: list[float], ys: list[float], ws: list[float]) -> float:
+    """Welzl's inside tolerance: ``_REL_EPS`` times the size of the coordinates and weights."""
+    return _REL_EPS * max(1.0, max(max(xs), max(ys)), -min(min(xs), min(ys)), math.sqrt(max(ws)))
+
+
+def _welzl_2d(xs: list[float], ys: list[float], ws: list[float]) -> tuple[Ball, tuple[int, ...]]:
+    """The same three nested loops as ``solve`` for the plane, over the points in their visiting
+    order, unrolled for speed: balls are (x, y, radius) tuples and the closed forms of ``_ball_2d``
+    are written out (the planners compute thousands of these per plan). Also returns the points
+    the last circle was built on (its support), latest visited first."""
+    eps = _tolerance(xs, ys, ws)
+    cx, cy, r = _one(xs, ys, ws, 0)
+    lim = (r + eps) ** 2  # a point is inside the current circle when its power is at most this
+    sup: tuple[int, ...] = (0,)
+    for i in range(1, len(xs)):
+        if (cx - xs[i]) ** 2 + (cy - ys[i]) ** 2 + ws[i] <= lim:
+            continue
+        cx, cy, r = _one(xs, ys, ws, i)
+        lim, sup = (r + eps) ** 2, (i,)
+        for j in range(i):
+            if (cx - xs[j]) ** 2 + (cy - ys[j]) ** 2 + ws[j] <= lim:
+                continue
+            cx, cy, r = _two(xs, ys, ws, i, j)
+            lim, sup = (r + eps) ** 2, (i, j)
+            for k in range(j):
+                if (cx - xs[k]) ** 2 + (cy - ys[k]) ** 2 + ws[k] > lim:
+                    cx, cy, r = _three(xs, ys, ws, i, j, k)
+                    lim, sup = (r + eps) ** 2, (i, j, k)
+    return Ball((cx, cy), r), sup
+
+
+def _welzl_through(xs: list[float], ys: list[float], ws: list[float], a: int,
+                   first: Sequence[int]) -> tuple[int, ...]:
+    """The support of the smallest circle of all points with point ``a`` on its boundary (Welzl's
+    two inner loops; the points ``first`` are visited first). That is the enclosing circle when
+    ``a`` lies outside the other points' circle."""
+    eps = _tolerance(xs, ys, ws)
+    rest = [*first, *(q for q in range(len(xs)) if q != a and q not in first)]
+    cx, cy, r = _one(xs, ys, ws, a)
+    sup: tuple[int, ...] = (a,)
+    for jj, j in enumerate(rest):
+        if (cx - xs[j]) ** 2 + (cy - ys[j]) ** 2 + ws[j] <= (r + eps) ** 2:
+            continue
+        cx, cy, r = _two(xs, ys, ws, a, j)
+        sup = (a, j)
+        for k in rest[:jj]:
+            if (cx - xs[k]) ** 2 + (cy - ys[k]) ** 2 + ws[k] > (r + eps) ** 2:
+                cx, cy, r = _three(xs, ys, ws, a, j, k)
+                sup = (a, j, k)
+    return sup
+
+
+def _on_support(xs: list[float], ys: list[float], ws: list[float], sup: Sequence[int]) -> Ball:
+    """The circle ``_welzl_2d`` ends with when it builds its last circle on the points ``sup`` (in
+    visiting order): the same closed form on the same points in the same order, so the same bits."""
+    s = sorted(sup, reverse=True)
+    if len(s) == 1:
+        cx, cy, r = _one(xs, ys, ws, s[0])
+    elif len(s) == 2:
+        cx, cy, r = _two(xs, ys, ws, s[0], s[1])
+    else:
+        cx, cy, r = _three(xs, ys, ws, s[0], s[1], s[2])
+    return Ball((cx, cy), r)
+
+
+Members = tuple[int, ...]
+
+
+class EnclosingCircles:
+    """Power-weighted enclosing circles of subsets of one set of points in the plane, remembered
+    by sorted membership; a new subset's circle is derived from a remembered neighbouring subset
+    (the caller names it: one member more, fewer or exchanged) when that is exact (an incremental
+    Welzl's algorithm), else computed afresh.
+
+    A circle is its support's circle (the points on its boundary that hold it: at most three in
+    general position). Adding a point that lies inside it, or removing a point that is not in the
+    support, leaves the circle as it is; adding a point outside puts that point on the new
+    circle's boundary (Welzl's lemma: two loops instead of three). The new circle is then built
+    on its support by ``_on_support``, the closed form Welzl's algorithm ends with on the new
+    subset (it ends on the same support), which gives ``enclosing_ball``'s bits.
+    """
+
+    def __init__(self, points: Sequence[Sequence[float]]) -> None:
+        self._xs = [float(p[0]) for p in points]
+        self._ys = [float(p[1]) for p in points]
+        self._known: dict[Members, tuple[Ball, Members]] = {}  # subset → its circle and support
+
+    def get(self, key: Members, weights: Sequence[float] | None = None, near: Sequence[Members] = ()) -> Ball:
+        """``enclosing_ball`` of the points ``key`` (sorted, distinct indices) with these weights
+        (one per member, in ``key``'s order; zero when None): the same ball, bit for bit. ``near``:
+        subsets (sorted) that may differ from ``key`` by a member, whose circles may be known."""
+        got = self._known.get(key)
+        if got is not None:
+            return got[0]
+        order = _shuffled(len(key), 0)
+        visit = [key[q] for q in order]
+        xs, ys = [self._xs[g] for g in visit], [self._ys[g] for g in visit]
+        ws = [0.0] * len(key) if weights is None else [float(weights[q]) for q in order]
+        found = self._derive(key, xs, ys, ws, near) if near and len(key) > 1 else None
+        if found is None:
+            ball, sup = _welzl_2d(xs, ys, ws)
+            found = ball, tuple(visit[q] for q in sup)
+        self._known[key] = found
+        return found[0]
+
+    def _derive(self, key: Members, xs: list[float], ys: list[float], ws: list[float],
+                near: Sequence[Members]) -> tuple[Ball, Members] | None:
+        """The circle of ``key`` (points in visiting order) from a known neighbour's support, or
+        None when no neighbour gives it."""
+        rank = _visit_rank(len(key), 0)
+        members = set(key)
+        outside: tuple[int, list[int]] | None = None  # an added point outside a neighbour's circle
+        for other in near:
+            entry = self._known.get(other) if -1 <= len(key) - len(other) <= 1 else None
+            if entry is None:
+                continue
+            added = members.difference(other)
+            if len(added) > 1 or len(other) - len(key) + len(added) > 1 or not members.issuperset(entry[1]):
+                continue  # more than one member added or removed, or a support point removed
+            support = entry[1]
+            local = [rank[key.index(g)] for g in support]
+            ball = _on_support(xs, ys, ws, local)
+            if not added:
+                return ball, support
+            a = rank[key.index(added.pop())]
+            (cx, cy), r = ball.center, ball.radius
+            margin = 2 * _REL_EPS * (1.0 + abs(cx) + abs(cy) + r)  # more than Welzl's tolerance
+            power = (cx - xs[a]) ** 2 + (cy - ys[a]) ** 2 + ws[a]
+            if r > margin and power < (r - margin) ** 2:
+                return ball, support
+            if outside is None and power > (r + margin) ** 2:
+                outside = a, local
+        if outside is None:
+            return None
+        sup = _welzl_through(xs, ys, ws, *outside)
+        order = _shuffled(len(key), 0)
+        return _on_support(xs, ys, ws, sup), tuple(key[order[q]] for q in sup)
 
 
 def _as_tuple(ball: Ball) -> tuple[float, float, float]:
