@@ -242,3 +242,27 @@ def test_shortcut_keeps_clear_of_walls() -> None:
     for p, q in zip(path, path[1:], strict=False):
         assert ws.segment_free(p, q)
     assert not ws.segment_free((0, 0), (8, 0))
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_collision_masks_equal_shapely_intersects(seed: int) -> None:
+    """The workspace's tests (tree boxes, then the prepared polygons) give exactly what testing
+    each geometry against every obstacle with shapely's ``intersects`` gives, boundaries included:
+    segments along an edge, through a corner, of zero length, points on an edge."""
+    rng = np.random.default_rng(seed)
+    obstacles = [[(10, 10), (20, 10), (20, 20), (10, 20)], [(30, 5), (40, 15), (30, 25)],
+                 [(5, 30), (25, 30), (25, 32), (5, 32)]]
+    ws = Workspace(obstacles, ((0.0, 0.0), (50.0, 50.0)))
+    polys = [Polygon(p) for p in obstacles]
+    vertices = np.array([v for p in obstacles for v in p], dtype=float)
+    a = np.concatenate([rng.uniform(0, 50, (300, 2)), vertices, [[0.0, 10.0], [15.0, 0.0], [10.0, 5.0]]])
+    b = np.concatenate([a[:300] + rng.normal(0, 8, (300, 2)), vertices,  # zero length at corners
+                        [[50.0, 10.0], [15.0, 10.0], [10.0, 25.0]]])  # along an edge, to it, on it
+    expect = [not any(LineString([p, q] if np.any(p != q) else [p, q + [0, 1e-9]]).intersects(o)
+                      for o in polys) for p, q in zip(a, b, strict=True)]
+    assert ws.segments_free(a, b).tolist() == expect
+    pts = np.concatenate([rng.uniform(0, 50, (300, 2)), vertices, [[15.0, 10.0], [35.0, 10.0]]])
+    assert ws.points_free(pts).tolist() == [not any(Point(p).intersects(o) for o in polys) for p in pts]
+    assert ws.rect_free((0.0, 0.0), (9.9, 9.9)) and not ws.rect_free((0.0, 0.0), (10.0, 10.0))
+    assert ws.fans_free((0.0, 0.0), (1.0, 1.0), np.array([[2.0, 28.0]]))
+    assert not ws.fans_free((0.0, 0.0), (1.0, 1.0), np.array([[2.0, 28.0], [15.0, 15.0]]))
