@@ -404,3 +404,34 @@ def test_collect_route_prefix_sum_times_equal_the_recursion(seed: int, n: int) -
         fresh = CollectRoute(b, cand.clusters, cand.regions, cand.positions)
         assert cand.makespan == pytest.approx(fresh.makespan, abs=1e-9)
         route = cand
+
+
+# ------------------------------------------------------------------ phase trace
+
+@pytest.mark.parametrize("kind", ["deploy", "collect"])
+@pytest.mark.parametrize("seed", range(3))
+def test_the_phase_trace_reports_each_phase_and_changes_nothing(kind: str, seed: int) -> None:
+    """``trace`` (bench/phases.py) hears the dissertation's route first and the returned route last,
+    with a makespan that no phase of a 30-task quick plan makes worse; the plan is the same as
+    without it."""
+    from planners.collect.lee import lee_route
+
+    heard: list[tuple[str, float]] = []
+    if kind == "deploy":
+        problem = _deploy(seed, 30)
+        plain = lee_clusters(problem)
+        traced = lee_clusters(problem, trace=lambda phase, t: heard.append((phase, t)))
+        same, final = plain == traced, traced[2]
+    else:
+        cproblem = _collect(seed, 30)
+        _, route = lee_route(cproblem)
+        _, traced_route = lee_route(cproblem, trace=lambda phase, t: heard.append((phase, t)))
+        same = (route.clusters, route.positions) == (traced_route.clusters, traced_route.positions)
+        final = traced_route.makespan
+    assert same
+    phases = [p for p, _ in heard]
+    assert phases[0] == "dissertation" and phases[-1] == "tiny-problem and budget searches"
+    assert {"reorder", "final placement"} <= set(phases)
+    times = [t for _, t in heard]
+    assert all(b <= a + 1e-9 for a, b in zip(times, times[1:], strict=False)), heard
+    assert times[-1] == final and times[-1] < times[0]

@@ -43,6 +43,7 @@ from planners.core.plan import SNAP, Plan, RoverLeg, Stop
 from planners.core.problem import CollectProblem, Vec3, refuse_obstacles
 from planners.core.search import merge_neighbours, reorder, split_loop
 from planners.core.timing import carrier_step, leg_time, retime
+from planners.core.trace import Trace, untraced
 
 
 def _move_rovers(builder: PathBuilder, route: Route) -> Route:
@@ -178,11 +179,13 @@ def _initial_clusters(builder: PathBuilder) -> list[list[int]]:
 
 
 def lee_route(problem: CollectProblem, improve: bool = True, fine_upto: int = 12,
-              t0: float | None = None, tiny_search: bool = True) -> tuple[PathBuilder, Route]:
+              t0: float | None = None, tiny_search: bool = True,
+              trace: Trace = untraced) -> tuple[PathBuilder, Route]:
     """Algorithm 5.1–5.2, then (with ``improve``) re-sequencing, merging and handing rovers over
     while that helps, and a final fine placement of every stop with both neighbours known.
     ``tiny_search`` False leaves out the searches of tiny problems (every ordered partition, fine
-    moves, smoothed stops up to 8 rovers): a quick plan for screening many."""
+    moves, smoothed stops up to 8 rovers): a quick plan for screening many. ``trace`` is called
+    with each phase's name and the makespan after it (``bench/phases.py``)."""
     inst = CollectInstance(problem)
     builder = PathBuilder(inst)
     if not problem.rovers:
@@ -194,12 +197,14 @@ def lee_route(problem: CollectProblem, improve: bool = True, fine_upto: int = 12
 
     rejected: set[tuple] = set()
     route = split_loop(builder.route(_initial_clusters(builder)), divide, rejected, accept_ties=False)
+    trace("dissertation", route.makespan)
     for _ in range(3 if improve else 0):  # improvement search beyond the dissertation
         better = reorder(route, route.positions, builder.start, builder.route)
+        trace("reorder", min(better.makespan, route.makespan))
         better = merge_neighbours(better, inst.fits)
         if len(problem.rovers) <= MOVE_ROVERS_UPTO:  # (larger: the quick descent's bounded relocate)
             better = _move_rovers(builder, better)
-        better = split_loop(better, divide, rejected, accept_ties=False)
+        trace("merge and move rovers", min(better.makespan, route.makespan))
         if better.makespan >= route.makespan - 1e-9:
             break
         route = better
@@ -217,6 +222,7 @@ def lee_route(problem: CollectProblem, improve: bool = True, fine_upto: int = 12
         early = screened(builder, route, smoothed, stop)
     if not improve:
         best = finish(route)
+        trace("final placement", best.makespan)
     else:  # group and order moves (planners.core.moves), scored on the quick placement ...
         keep = next(k for upto, k in QD_KEEP if len(problem.rovers) <= upto)
 
@@ -225,10 +231,12 @@ def lee_route(problem: CollectProblem, improve: bool = True, fine_upto: int = 12
             return (p[0] - c[0]) ** 2 + (p[1] - c[1]) ** 2
 
         moved = quick_descent(route, inst.fits, cheap=(swap, relocate_nearest(nearness, keep), merge))
+        trace("swap, relocate and merge", moved.makespan)
         best = finish(moved)
         if small and moved is not route:  # (large routes: the moves' route alone is placed finely)
             today = finish(route)
             best = today if today.makespan < best.makespan else best
+        trace("final placement", best.makespan)
         if gated <= EXHAUSTIVE_UPTO:  # tiny: every ordered partition too
             every = best_partition(len(problem.rovers), inst.fits, builder.route, finish, EXHAUSTIVE_KEEP)
             best = every if every is not None and every.makespan < best.makespan else best
@@ -253,6 +261,7 @@ def lee_route(problem: CollectProblem, improve: bool = True, fine_upto: int = 12
         two = two_rover_route(builder)  # the ch. 5.3 optimum, where it applies
         if two.makespan < route.makespan:
             route = compass(builder, two)
+    trace("tiny-problem and budget searches", route.makespan)
     return builder, route
 
 
