@@ -64,7 +64,7 @@ def lee_clusters(problem: DeployProblem, improve: bool = True, t0: float | None 
             clusters[idx: idx + 1] = [near, far]
         else:
             idx += 1
-    divider = Divider(inst.pts)  # the rounds of the search divide the same clusters again
+    divider = Divider(inst.pts)  # the split loop divides the same clusters again after a change
 
     def divide(route: Route, idx: int) -> tuple[list[int], list[int]]:
         prev = start if idx == 0 else route.positions[idx - 1]
