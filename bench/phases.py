@@ -15,18 +15,18 @@ Run: ``python bench/phases.py [--seeds 5] [--sizes 100,1000]`` (prints markdown)
 from __future__ import annotations
 
 import argparse
-import importlib.util
 import random
 import statistics
 import sys
 import time
 from collections.abc import Callable
 from pathlib import Path
-from types import ModuleType
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+from bench.scaling import random_deploy  # noqa: E402
+from bench.scaling_collect import random_problem  # noqa: E402
 from planners.collect import lee as collection  # noqa: E402
 from planners.collect.instance import CollectInstance  # noqa: E402
 from planners.collect.path import PathBuilder as CollectBuilder  # noqa: E402
@@ -35,14 +35,6 @@ from planners.deploy.cluster import DeployInstance  # noqa: E402
 from planners.deploy.path import PathBuilder as DeployBuilder  # noqa: E402
 
 TARGET_MS = {("deploy", 100): 10.0, ("deploy", 1000): 100.0, ("collect", 100): 20.0, ("collect", 1000): 150.0}
-
-
-def _bench(name: str) -> ModuleType:
-    spec = importlib.util.spec_from_file_location(name, ROOT / "bench" / f"{name}.py")
-    assert spec is not None and spec.loader is not None
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
 
 
 class PhaseClock:
@@ -75,7 +67,7 @@ def _min_ms(f: Callable[[], object], reps: int = 3) -> float:
 
 def deploy_run(n: int, seed: int) -> tuple[PhaseClock, float]:
     rng = random.Random(1000 * n + seed)
-    problem = _bench("scaling").random_deploy(rng, n, 200.0, rng.uniform(5.0, 20.0))
+    problem = random_deploy(rng, n, 200.0, rng.uniform(5.0, 20.0))
     deploy.lee_clusters(problem)  # warm (first calls pay for imports and caches)
     clock = PhaseClock()
     clusters, _, _ = deploy.lee_clusters(problem, trace=clock)
@@ -84,7 +76,7 @@ def deploy_run(n: int, seed: int) -> tuple[PhaseClock, float]:
 
 
 def collect_run(n: int, seed: int) -> tuple[PhaseClock, float]:
-    problem = _bench("scaling_collect").random_problem(n, 1000 * n + seed, 200.0, ranges=(5.0, 20.0))
+    problem = random_problem(n, 1000 * n + seed, 200.0, ranges=(5.0, 20.0))
     collection.lee_route(problem)
     clock = PhaseClock()
     _, route = collection.lee_route(problem, trace=clock)
