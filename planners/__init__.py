@@ -11,11 +11,17 @@ import importlib
 from collections.abc import Callable
 from typing import Any
 
-from planners.collect.bounds import collect_lower_bound
 from planners.core.approach import WithApproach, WithTakeoff
 from planners.core.bounds import deploy_lower_bound
 from planners.core.plan import Plan
 from planners.core.problem import CollectProblem, DeployProblem, PlanningError
+
+
+def collect_lower_bound(problem: CollectProblem) -> float:
+    """A lower bound of any collection plan's makespan (``planners.collect.bounds``, imported on
+    first use: it builds reach regions, which a deployment never needs)."""
+    bounds = importlib.import_module("planners.collect.bounds")
+    return float(bounds.collect_lower_bound(problem))
 
 
 class LazyPlanner:

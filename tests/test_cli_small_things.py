@@ -115,3 +115,25 @@ def test_a_closed_stdout_is_no_traceback() -> None:
     err = proc.stderr.read().decode()
     assert proc.wait(60) == 141, err
     assert "Traceback" not in err
+
+
+def test_the_command_line_loads_no_planner_or_heavy_library_before_it_needs_one() -> None:
+    """``fleetctl plan`` starts in about the time Python imports NumPy (issue 15): importing the
+    command line and loading a mission import no planner module, SciPy, shapely, matplotlib, rich,
+    MAVLink, MQTT or asyncio; planning a deployment then loads the deployment planner only."""
+    code = ("import sys, fleetctl.cli\n"
+            "from fleetctl.mission import load_mission\n"
+            f"m = load_mission({str(ROOT / 'missions' / 'recon.yaml')!r})\n"
+            "print(' '.join(sorted(sys.modules)))\n"
+            "import planners\n"
+            "planners.DEPLOY_PLANNERS['lee'](m.deploy_problem())\n"
+            "print(' '.join(sorted(sys.modules)))\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True,
+                         cwd=ROOT).stdout.splitlines()
+    loaded, planned = set(out[0].split()), set(out[1].split())
+    heavy = ("scipy", "shapely", "matplotlib", "rich", "pymavlink", "paho", "aiomqtt", "aiohttp", "asyncio",
+             "planners.deploy", "planners.collect", "planners.roadmap", "planners.teams.allocation")
+    assert not {m for m in loaded if any(m == h or m.startswith(h + ".") for h in heavy)}
+    assert "planners.deploy.lee" in planned
+    unneeded = ("planners.collect", "planners.roadmap", "scipy", "shapely")
+    assert not {m for m in planned if m.startswith(unneeded)}
