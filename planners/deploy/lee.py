@@ -49,38 +49,11 @@ def lee_clusters(problem: DeployProblem, improve: bool = True, t0: float | None 
     ``trace`` is called with each phase's name and the makespan after it (``bench/phases.py``)."""
     inst = DeployInstance(problem)
     builder = PathBuilder(inst)
-    start = builder.start
     n = len(inst.pts)
     if n == 0:
         return [], [], 0.0
 
-    # Initial clustering (Algorithm 4.1): divide until every cluster fits d_deploy.
-    clusters: list[list[int]] = [list(range(n))]
-    idx = 0
-    while idx < len(clusters):
-        if not inst.fits(clusters[idx]):
-            prev = start if idx == 0 else inst.geometry(clusters[idx - 1]).center
-            near, far = divide_cluster(clusters[idx], inst.pts, (*prev, 0.0))
-            clusters[idx: idx + 1] = [near, far]
-        else:
-            idx += 1
-    divider = Divider(inst.pts)  # the split loop divides the same clusters again after a change
-
-    def divide(route: Route, idx: int) -> tuple[list[int], list[int]]:
-        prev = start if idx == 0 else route.positions[idx - 1]
-        return divider(route.clusters[idx], (*prev, 0.0))
-
-    tried: set = set()
-    route = split_loop(builder.route(clusters), divide, tried)  # Algorithm 4.2
-    trace("dissertation", route.makespan)
-    for _ in range(2 if improve else 0):  # improvement search beyond the dissertation
-        better = reorder(route, [g.center for g in route.geos], start, builder.route)
-        trace("reorder", min(better.makespan, route.makespan))
-        better = merge_neighbours(swap_neighbours(better), inst.fits_quick)
-        trace("swap and merge", min(better.makespan, route.makespan))
-        if better.makespan >= route.makespan - 1e-9:
-            break
-        route = better
+    route = _divided(builder, improve, trace)
 
     # The loop re-placed stops only around each change; place every stop afresh, finely, and
     # keep whichever of the two routes is faster; then polish every stop (routes of any length).
@@ -140,6 +113,40 @@ def lee_clusters(problem: DeployProblem, improve: bool = True, t0: float | None 
         best = min(cands, key=lambda r: build_plan(problem, "lee", r.clusters, r.positions).makespan)
     trace("tiny-problem and budget searches", best.makespan)
     return best.clusters, best.positions, best.makespan
+
+
+def _divided(builder: PathBuilder, improve: bool, trace: Trace) -> Route:
+    """Algorithm 4.1 (divide until every cluster fits d_deploy) and 4.2 (the split/swap/merge loop),
+    then with ``improve`` up to two rounds of re-sequencing, swapping and merging while they help."""
+    inst, start, n = builder.inst, builder.start, len(builder.inst.pts)
+    # Initial clustering (Algorithm 4.1): divide until every cluster fits d_deploy.
+    clusters: list[list[int]] = [list(range(n))]
+    idx = 0
+    while idx < len(clusters):
+        if not inst.fits(clusters[idx]):
+            prev = start if idx == 0 else inst.geometry(clusters[idx - 1]).center
+            near, far = divide_cluster(clusters[idx], inst.pts, (*prev, 0.0))
+            clusters[idx: idx + 1] = [near, far]
+        else:
+            idx += 1
+    divider = Divider(inst.pts)  # the split loop divides the same clusters again after a change
+
+    def divide(route: Route, idx: int) -> tuple[list[int], list[int]]:
+        prev = start if idx == 0 else route.positions[idx - 1]
+        return divider(route.clusters[idx], (*prev, 0.0))
+
+    tried: set = set()
+    route = split_loop(builder.route(clusters), divide, tried)  # Algorithm 4.2
+    trace("dissertation", route.makespan)
+    for _ in range(2 if improve else 0):  # improvement search beyond the dissertation
+        better = reorder(route, [g.center for g in route.geos], start, builder.route)
+        trace("reorder", min(better.makespan, route.makespan))
+        better = merge_neighbours(swap_neighbours(better), inst.fits_quick)
+        trace("swap and merge", min(better.makespan, route.makespan))
+        if better.makespan >= route.makespan - 1e-9:
+            break
+        route = better
+    return route
 
 
 def _fresh(builder: PathBuilder, r: Route) -> Route:
