@@ -198,7 +198,8 @@ class FirmwareFleet:
             env[f"PX4_PARAM_{name}"] = f"{val:g}"
         # PX4 sends to 14550 until a client speaks: the ground-station port is that one
         if self.gcs_port != 14550:
-            raise FirmwareError("PX4 SITL sends its ground-station link to UDP port 14550: use gcs_port=14550")
+            raise FirmwareError("PX4 SITL sends its ground-station link to UDP port 14550: "
+                                "use gcs_port=14550")
         inst = self.instance(v.name)
         with contextlib.suppress(FileNotFoundError):
             Path(f"/tmp/px4_lock-{inst}").unlink()
@@ -250,7 +251,8 @@ class FirmwareFleet:
 
 
 @contextlib.contextmanager
-def firmware_fleet(build: Build, vehicles: Sequence[FirmwareVehicle], **kwargs: object) -> Iterator[FirmwareFleet]:
+def firmware_fleet(build: Build, vehicles: Sequence[FirmwareVehicle],
+                   **kwargs: object) -> Iterator[FirmwareFleet]:
     """:class:`FirmwareFleet` as a context manager that also removes its working directory."""
     fleet = FirmwareFleet(build, vehicles, **kwargs)  # type: ignore[arg-type]
     try:
