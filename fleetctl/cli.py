@@ -263,6 +263,8 @@ def _fly(args: argparse.Namespace, mission: Mission, command: str, extra: dict[s
                    summary_path=args.summary, view=view, connect_timeout=args.timeout, mqtt=mqtt,
                    on_run_dir=announce, require_all=args.require_all, force=args.force,
                    confirm=_arming_confirmation(args, mission, command), team_spec=spec, **extra)
+    if args.speedup is not None and mission.carrier.connection != "sim":  # SITL firmware run faster
+        options["clock_speedup"] = args.speedup
     try:
         outcome, terminated = asyncio.run(_with_sigterm(mission, command, options))
     except ExecutionError as e:  # raised before anything flew (e.g. collect on a sim mission)
@@ -411,7 +413,8 @@ def _add_fly_commands(sub: argparse._SubParsersAction) -> None:
                        help="one log line per event instead of the live view (automatic when stdout "
                             "is not a terminal)")
         p.add_argument("--speedup", type=float, metavar="X",
-                       help="simulated seconds per wall second of the embedded sim (default: sim.speedup)")
+                       help="simulated seconds per wall second of the embedded sim (default: sim.speedup); "
+                            "with real links, the vehicles' clock rate (SITL firmware run with --speedup X)")
         p.add_argument("--summary", metavar="OUT.json", help="also write the run summary JSON here")
         p.add_argument("--planner", "-p",
                        help="planner name (default: the mission's planner section); for run "

@@ -33,6 +33,7 @@ ArduPilot (``home_is_item0``): item 0 is a home placeholder (NAV_WAYPOINT at the
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -117,15 +118,16 @@ def compile_plan(
     if plan.kind not in ("deploy", "collect"):
         raise CompileError(f"unknown plan kind {plan.kind!r}")
 
+    def ap_of(vid: str) -> Autopilot | None:
+        return autopilot if autopilot is None or isinstance(autopilot, Autopilot) else autopilot.get(vid)
+
     def home0(vid: str) -> bool:
-        if autopilot is None:
-            return False
-        ap = autopilot if isinstance(autopilot, Autopilot) else autopilot.get(vid)
+        ap = ap_of(vid)
         return bool(ap is not None and ap.home_is_item0)
 
-    def wp(cmd: int, p: Sequence[float], hold: float = 0.0) -> MissionItem:
+    def wp(cmd: int, p: Sequence[float], vid: str) -> MissionItem:
         lat, lon, _alt = local_to_geodetic(p[0], p[1], p[2], origin)
-        return MissionItem(cmd, FRAME, param1=hold, param4=math.nan if cmd != M.MAV_CMD_NAV_LAND else 0.0,
+        return MissionItem(cmd, FRAME, param4=_param4(ap_of(vid), cmd),
                            x=_e7(lat), y=_e7(lon), z=float(p[2]) - home_height)
 
     def home_item(p: Sequence[float]) -> MissionItem:
@@ -137,10 +139,10 @@ def compile_plan(
     stop_items: list[StopItems] = []
     for k, stop in enumerate(plan.stops):
         for v in stop.carrier_path[1:-1]:
-            carrier.append(wp(M.MAV_CMD_NAV_WAYPOINT, _ground(v)))
+            carrier.append(wp(M.MAV_CMD_NAV_WAYPOINT, _ground(v), carrier_id))
         pos = _ground(stop.position)
-        carrier.append(wp(M.MAV_CMD_NAV_WAYPOINT, pos))
-        carrier.append(wp(M.MAV_CMD_NAV_LOITER_UNLIM, pos))
+        carrier.append(wp(M.MAV_CMD_NAV_WAYPOINT, pos, carrier_id))
+        carrier.append(wp(M.MAV_CMD_NAV_LOITER_UNLIM, pos, carrier_id))
         hold = len(carrier) - 1
         stop_items.append(StopItems(k, hold - 1, hold, None, tuple(leg.rover for leg in stop.rovers)))
     stop_items = [StopItems(s.index, s.arrive_seq, s.hold_seq,
@@ -157,11 +159,11 @@ def compile_plan(
                 if home0(leg.rover):
                     items.append(home_item(start))
                 target = leg.end
-                items.append(wp(M.MAV_CMD_NAV_TAKEOFF, (start[0], start[1], takeoff_height)))
+                items.append(wp(M.MAV_CMD_NAV_TAKEOFF, (start[0], start[1], takeoff_height), leg.rover))
                 for v in leg.path[1:]:
-                    items.append(wp(M.MAV_CMD_NAV_WAYPOINT, v))
+                    items.append(wp(M.MAV_CMD_NAV_WAYPOINT, v, leg.rover))
                 target_seq = len(items) - 1
-                items.append(wp(M.MAV_CMD_NAV_LOITER_UNLIM, target))
+                items.append(wp(M.MAV_CMD_NAV_LOITER_UNLIM, target, leg.rover))
             else:
                 start = leg.path[0]
                 if home0(leg.rover):
@@ -169,14 +171,26 @@ def compile_plan(
                 pos = _ground(stop.position)
                 meet_z = max(meet_height, float(leg.end[2]))
                 if float(start[2]) <= GROUND_HEIGHT:
-                    items.append(wp(M.MAV_CMD_NAV_TAKEOFF, (start[0], start[1], takeoff_height)))
+                    items.append(wp(M.MAV_CMD_NAV_TAKEOFF, (start[0], start[1], takeoff_height), leg.rover))
                 for v in leg.path[1:-1]:
-                    items.append(wp(M.MAV_CMD_NAV_WAYPOINT, v))
-                items.append(wp(M.MAV_CMD_NAV_WAYPOINT, (pos[0], pos[1], meet_z)))
+                    items.append(wp(M.MAV_CMD_NAV_WAYPOINT, v, leg.rover))
+                items.append(wp(M.MAV_CMD_NAV_WAYPOINT, (pos[0], pos[1], meet_z), leg.rover))
                 target_seq = len(items) - 1
-                items.append(wp(M.MAV_CMD_NAV_LAND, pos))
+                items.append(wp(M.MAV_CMD_NAV_LAND, pos, leg.rover))
             rovers[leg.rover] = RoverMission(leg.rover, k, tuple(items), target_seq, len(items) - 1, leg.task)
     return CompiledPlan(plan.kind, carrier_id, tuple(carrier), tuple(stop_items), rovers)
+
+
+def with_meeting_hold(rm: RoverMission, autopilot: Autopilot | None) -> tuple[list[MissionItem], int, int]:
+    """A collection rover's items with a NAV_LOITER_UNLIM above its meeting point after
+    ``target_seq``, so that it waits there until the controller sends it down: (items, the hold's
+    index, the landing's index)."""
+    items = list(rm.items)
+    above = items[rm.target_seq]
+    hold = dataclasses.replace(above, command=M.MAV_CMD_NAV_LOITER_UNLIM,
+                               param4=_param4(autopilot, M.MAV_CMD_NAV_LOITER_UNLIM))
+    items.insert(rm.target_seq + 1, hold)
+    return items, rm.target_seq + 1, rm.final_seq + 1
 
 
 def compile_for_fleet(plan: Plan, fleet: Fleet, **kw: float) -> CompiledPlan:
@@ -192,6 +206,13 @@ def item_position(item: MissionItem, origin: Origin, home_height: float = 0.0) -
     return geodetic_to_local(item.lat, item.lon, origin.alt + item.z + home_height, origin)
 
 
+def _param4(autopilot: Autopilot | None, command: int) -> float:
+    """Yaw left to the vehicle (NaN where its firmware takes it); NAV_LAND keeps 0."""
+    if command == M.MAV_CMD_NAV_LAND:
+        return 0.0
+    return math.nan if autopilot is None else autopilot.unset_param4(command)
+
+
 def _ground(p: Sequence[float]) -> tuple[float, float, float]:
     return (float(p[0]), float(p[1]), 0.0)
 
@@ -201,4 +222,4 @@ def _e7(deg: float) -> int:
 
 
 __all__ = ["CompileError", "CompiledPlan", "RoverMission", "StopItems", "compile_for_fleet", "compile_plan",
-           "item_position"]
+           "item_position", "with_meeting_hold"]

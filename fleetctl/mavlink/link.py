@@ -882,14 +882,11 @@ class Link:
                         started = True
                         base = max(item_timeout, 3.0 * (time.monotonic() - t0))
                     it = items[seq]
-                    if m.get_type() == "MISSION_REQUEST":
-                        last = self.mav.mission_item_encode(
-                            sysid, compid, seq, it.frame, it.command, it.current, it.autocontinue, it.param1,
-                            it.param2, it.param3, it.param4, it.x / 1e7, it.y / 1e7, it.z, mission_type)
-                    else:
-                        last = self.mav.mission_item_int_encode(
-                            sysid, compid, seq, it.frame, it.command, it.current, it.autocontinue, it.param1,
-                            it.param2, it.param3, it.param4, it.x, it.y, it.z, mission_type)
+                    # MISSION_ITEM_INT also answers a legacy MISSION_REQUEST: ArduPilot asks that way
+                    # and rejects a float MISSION_ITEM in an _INT frame (MAV_MISSION_INVALID_PARAM4)
+                    last = self.mav.mission_item_int_encode(
+                        sysid, compid, seq, it.frame, it.command, it.current, it.autocontinue, it.param1,
+                        it.param2, it.param3, it.param4, it.x, it.y, it.z, mission_type)
                     self.send(last, sysid)
                     served = max(served, seq + 1)
                     left, wait = retries, base

@@ -529,7 +529,8 @@ class Vehicle:
         return ack
 
     async def arm(self, force: bool = False) -> None:
-        await self.command(M.MAV_CMD_COMPONENT_ARM_DISARM, (1, FORCE_MAGIC if force else 0))
+        """Arm, in the mode the firmware takes off from (ArduCopter: GUIDED)."""
+        await self._require_autopilot().arm(self, FORCE_MAGIC if force else 0.0)
 
     async def disarm(self, force: bool = False) -> None:
         await self.command(M.MAV_CMD_COMPONENT_ARM_DISARM, (0, FORCE_MAGIC if force else 0))
@@ -571,7 +572,13 @@ class Vehicle:
     async def upload_mission(self, items: list[MissionItem]) -> None:
         """Upload ``items`` as given (on ArduPilot item 0 must be home: see :mod:`fleetctl.mavlink.compile`).
         Raises :class:`fleetctl.link.MissionRejected` with the autopilot's MAV_MISSION_RESULT (and its
-        ``reason``: a STATUSTEXT the vehicle sent while refusing, if any)."""
+        ``reason``: a STATUSTEXT the vehicle sent while refusing, if any).
+
+        A vehicle flying a mission is first put in its hold mode (ArduCopter GUIDED, else HOLD):
+        ArduPilot keeps the current index of a mission replaced in AUTO and starts whatever the new
+        mission has there at once. :meth:`start_mission` then sets the first item explicitly."""
+        if self.armed and self.mode == "MISSION" and self.autopilot is not None:
+            await self.set_mode(self.autopilot.upload_hold_mode)
         sent = time.monotonic()
         try:
             await self.link.upload_mission(self.sysid, items, compid=self.compid)

@@ -30,5 +30,9 @@ def default_land_time(land_speed: float) -> float:
     return MEET_HEIGHT / land_speed + LAND_SETTLE
 
 
-__all__ = ["DEFAULT_ENDURANCE", "GROUND_HEIGHT", "LAND_SETTLE", "MEET_HEIGHT", "TAKEOFF_HEIGHT",
-           "TAKEOFF_SETTLE", "default_land_time", "default_takeoff_time"]
+# carrier.firmware_speeds / rovers.firmware_speeds: write the mission's speeds to the autopilot's
+# parameters before flying (set) or leave the autopilot's own (keep) - docs/autopilots.md
+FIRMWARE_SPEEDS = ("set", "keep")
+
+__all__ = ["DEFAULT_ENDURANCE", "FIRMWARE_SPEEDS", "GROUND_HEIGHT", "LAND_SETTLE", "MEET_HEIGHT",
+           "TAKEOFF_HEIGHT", "TAKEOFF_SETTLE", "default_land_time", "default_takeoff_time"]

@@ -48,7 +48,12 @@ import fleetctl.mission.formats as formats
 import fleetctl.mission.limits as L
 from fleetctl.geo import Origin, geodetic_to_local
 from fleetctl.mission.connections import ConnectionSpellingError, normalize_connection
-from fleetctl.mission.flight import DEFAULT_ENDURANCE, default_land_time, default_takeoff_time
+from fleetctl.mission.flight import (
+    DEFAULT_ENDURANCE,
+    FIRMWARE_SPEEDS,
+    default_land_time,
+    default_takeoff_time,
+)
 from fleetctl.mission.model import (
     FAILSAFE_ACTIONS,
     FAULT_KINDS,
@@ -369,6 +374,7 @@ _CARRIER = {
     "turn_rate": (_number(ge=L.MIN_TURN_RATE, le=L.MAX_TURN_RATE, null=True, unit="rad/s"), None),
     "unload_time": (_TIME, 0.0),
     "load_time": (_TIME, 0.0),
+    "firmware_speeds": (_one_of(*FIRMWARE_SPEEDS), None),
 }
 _ENERGY = {
     "initial": (_number(gt=0, le=L.MAX_ENERGY), _REQUIRED),
@@ -395,6 +401,7 @@ _ROVERS = {
     "land_speed": (_number(ge=L.MIN_SPEED, le=L.MAX_SPEED, null=True, unit="m/s"), None),
     "takeoff_time": (_number(ge=0, le=L.MAX_HANDLING_TIME, null=True, unit="s"), None),
     "land_time": (_number(ge=0, le=L.MAX_HANDLING_TIME, null=True, unit="s"), None),
+    "firmware_speeds": (_one_of(*FIRMWARE_SPEEDS), None),
     "fleet": (lambda c, v, p: c.section(v, p, _FLEET), None),
     "units": (_list(lambda c, v, p: c.section(v, p, _UNIT), "units {id, sysid, connection}", L.MAX_ROVERS),
               None),
@@ -801,7 +808,8 @@ def _build(ctx: _Ctx, data: Any, path: Path | None) -> Mission:
         origin=origin,
         carrier=_carrier_config(carrier),
         rovers=RoversConfig(r["max_speed"], r["accel"], deploy_range, endurance, r["reserve"], units, energy,
-                            **_flight_times(r)),
+                            **_flight_times(r), firmware_speeds=_firmware_speeds(r, carrier["connection"]),
+                            handling_given=(r["takeoff_time"] is not None, r["land_time"] is not None)),
         tasks=tasks,
         obstacles=obstacles,
         bounds=bounds,
@@ -971,7 +979,15 @@ def _check_collection(ctx: _Ctx, collection: tuple[CollectRover, ...] | None, ro
 # --- several carriers (docs/teams.md): carriers: [{carrier keys..., fleet | units}] ------------------
 def _carrier_config(c: dict[str, Any]) -> CarrierConfig:
     keys = {k: v for k, v in c.items() if k not in ("fleet", "units")}
+    keys["firmware_speeds"] = _firmware_speeds(c, c["connection"])
     return CarrierConfig(**{**keys, "position": tuple(c["position"])})
+
+
+def _firmware_speeds(section: dict[str, Any], connection: str) -> str:
+    """``firmware_speeds``: as given, else ``set`` on real links and ``keep`` on the simulated
+    fleet (which flies the mission's speeds already)."""
+    given = section.get("firmware_speeds")
+    return str(given) if given is not None else ("keep" if connection == "sim" else "set")
 
 
 def _carrier_starts(d: dict[str, Any]) -> list[tuple[str, Vec2, KeyPath]]:

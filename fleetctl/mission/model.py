@@ -48,6 +48,7 @@ class CarrierConfig:
     turn_rate: float | None
     unload_time: float
     load_time: float
+    firmware_speeds: str = "keep"  # set | keep (docs/autopilots.md)
 
     def spec(self) -> CarrierSpec:
         return CarrierSpec(self.max_speed, self.accel, self.turn_rate, self.unload_time, self.load_time)
@@ -88,6 +89,8 @@ class RoversConfig:
     land_speed: float = 1.0  # m/s (the loader defaults it to climb_rate)
     takeoff_time: float = 0.0  # s, time model: start command -> clear of the deck (fleetctl.mission.flight)
     land_time: float = 0.0  # s, time model: above the stop with the carrier there -> loaded
+    firmware_speeds: str = "keep"  # set | keep: the mission's speeds written to the autopilots
+    handling_given: tuple[bool, bool] = (True, True)  # takeoff_time, land_time given in the file
 
     @property
     def ids(self) -> tuple[str, ...]:

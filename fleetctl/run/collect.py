@@ -24,9 +24,7 @@ from collections.abc import Iterable
 from dataclasses import dataclass, field
 from enum import StrEnum
 
-from pymavlink.dialects.v20 import ardupilotmega as mavlink2
-
-from fleetctl.mavlink.compile import CompiledPlan, StopItems
+from fleetctl.mavlink.compile import CompiledPlan, StopItems, with_meeting_hold
 from fleetctl.mavlink.link import LinkError, MissionItem
 from fleetctl.mavlink.vehicle import CommandRejected, Vehicle
 from fleetctl.mission.flight import GROUND_HEIGHT, MEET_HEIGHT
@@ -358,10 +356,7 @@ class CollectPhase:
         carrier, then the rovers."""
         ctx, st, rovers = self.ctx, self.ctx.state, self.ctx.fleet.rovers
         for rid, rm in rnd.compiled.rovers.items():
-            items = list(rm.items)
-            hold = dataclasses.replace(items[rm.target_seq], command=mavlink2.MAV_CMD_NAV_LOITER_UNLIM)
-            items.insert(rm.target_seq + 1, hold)
-            rnd.hold_seq[rid], rnd.land_seq[rid] = rm.target_seq + 1, rm.final_seq + 1
+            items, rnd.hold_seq[rid], rnd.land_seq[rid] = with_meeting_hold(rm, rovers[rid].autopilot)
             rnd.items[rid] = items
         results = await asyncio.gather(
             *(upload(ctx, rovers[rid], items) for rid, items in rnd.items.items()), return_exceptions=True

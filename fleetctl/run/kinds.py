@@ -110,6 +110,7 @@ class Ev(StrEnum):
     GEOFENCE = "geofence"  # uploaded
     GEOFENCE_WARNING = "geofence_warning"
     GEOFENCE_BREACH = "geofence_breach"
+    FIRMWARE_SPEEDS = "firmware_speeds"  # the mission's speeds written to an autopilot (docs/autopilots.md)
     # the end of a phase or run
     DEPLOYED = "deployed"
     DEPLOY_INCOMPLETE = "deploy_incomplete"

@@ -278,6 +278,8 @@ class Run:
             st.event(Ev.MISSING, f"{fleet.failure_line(vid)}; flying without it", vid,
                      url=fleet.urls.get(vid), reason=why)
         self.left_out = adm.left_out
+        if adm.safety is not None and adm.safety.mission is not None:  # fitted to the firmware
+            self.mission = adm.safety.mission
         for vid, why in self.left_out.items():  # failed preflight: like a missing rover
             st.set_state(vid, VehicleStatus.LOST)
             st.event(Ev.PREFLIGHT_FAILED, f"{vid}: {why}; flying without it", vid, reason=why)

@@ -26,6 +26,8 @@ from fleetctl.mavlink.vehicle import CommandRejected, Vehicle
 from fleetctl.mission import Mission
 from fleetctl.mission.model import GeofenceConfig
 from fleetctl.run.context import ExecutionError
+from fleetctl.run.firmware_speeds import apply_firmware_speeds
+from fleetctl.run.kinds import Ev
 from fleetctl.run.preflight import PreflightRow, check_fleet
 
 M = mavlink2
@@ -190,6 +192,7 @@ class SafetyReport:
     rows: dict[str, PreflightRow] = field(default_factory=dict)
     left_out: dict[str, str] = field(default_factory=dict)  # rover -> why it does not fly
     notes: list[tuple[str, str, str | None]] = field(default_factory=list)  # (kind, text, vehicle)
+    mission: Mission | None = None  # the mission to plan with, when the firmware's handling changed it
 
 
 def prefetch_failsafes(fleet: Fleet) -> asyncio.Task[dict[str, PreflightFailsafe]]:
@@ -236,6 +239,7 @@ async def admit_safety(fleet: Fleet, mission: Mission, command: str, *, resuming
             if vid != fleet.carrier_id and fs.action is not None and "rtl" in fs.action.lower():
                 rep.rows[vid].warnings.append(RTL_WARNING)
                 rep.notes.append(("failsafe_warning", f"{vid}: link loss {fs.action}: {RTL_WARNING}", vid))
+    await _set_speeds(fleet, mission, rep, [vid for vid in vehicles if vid not in rep.left_out], resuming)
     fence = mission.geofence
     if fence is not None and mission.origin is not None:
         for vid, v in vehicles.items():
@@ -253,6 +257,23 @@ async def admit_safety(fleet: Fleet, mission: Mission, command: str, *, resuming
             if fence.action == "rtl" and vid != fleet.carrier_id:
                 rep.notes.append(("geofence_warning", f"{vid}: geofence action rtl: {RTL_WARNING}", vid))
     return rep
+
+
+async def _set_speeds(fleet: Fleet, mission: Mission, rep: SafetyReport, vids: list[str],
+                      resuming: bool) -> None:
+    """``firmware_speeds: set``: the mission's speeds on the autopilots (fleetctl.run.firmware_speeds)."""
+    speeds = await apply_firmware_speeds(fleet, mission, vids)
+    for vid, why in speeds.failed.items():
+        _fail(fleet, rep, vid, f"firmware speeds not set: {why}", resuming)
+    for vid, written in speeds.written.items():
+        text = ", ".join(f"{k} {v:g}" for k, v in written.items()) or "none of its speed parameters found"
+        rep.notes.append((Ev.FIRMWARE_SPEEDS, f"{vid}: speeds set ({text})", vid))
+    if speeds.mission is not None:
+        r = speeds.mission.rovers
+        rep.mission = speeds.mission
+        accel = "-" if r.accel is None else f"{r.accel:.2f} m/s²"
+        rep.notes.append((Ev.FIRMWARE_SPEEDS, f"rovers planned with the firmware's handling: take-off "
+                          f"{r.takeoff_time:.1f} s, touch-down {r.land_time:.1f} s, legs at {accel}", None))
 
 
 def _fail(fleet: Fleet, rep: SafetyReport, vid: str, why: str, resuming: bool) -> None:

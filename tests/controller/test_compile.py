@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from pathlib import Path
 
@@ -10,9 +11,11 @@ from pymavlink.dialects.v20 import ardupilotmega as M
 
 import planners
 from fleetctl.mavlink.autopilots import ArduPilot, Px4
-from fleetctl.mavlink.compile import CompileError, compile_plan, item_position
+from fleetctl.mavlink.compile import CompileError, compile_plan, item_position, with_meeting_hold
+from fleetctl.mavlink.link import MissionItem
 from fleetctl.mission import load_mission
 from fleetctl.mission.flight import TAKEOFF_HEIGHT
+from planners.core.plan import Plan
 
 RECON = Path(__file__).resolve().parents[2] / "missions" / "recon.yaml"
 WP, LOITER, TAKEOFF, LAND = (M.MAV_CMD_NAV_WAYPOINT, M.MAV_CMD_NAV_LOITER_UNLIM, M.MAV_CMD_NAV_TAKEOFF,
@@ -106,13 +109,38 @@ def test_ardupilot_item_0_is_home_and_indices_count_it(recon) -> None:
     assert len(apm.carrier) == len(px4.carrier) + 1
     home = apm.carrier[0]
     assert home.frame == M.MAV_FRAME_GLOBAL and close_to(home, (*plan.start[:2], 0.0), mission.origin)
-    assert all(a.same_as(b) for a, b in zip(apm.carrier[1:], px4.carrier, strict=True))
+    # the same items but for param4 (yaw): ArduPilot takes NaN only on WAYPOINT/LAND/TAKEOFF
+    def yawless(it: MissionItem) -> MissionItem:
+        return dataclasses.replace(it, param4=0.0)
+
+    assert all(yawless(a).same_as(yawless(b)) for a, b in zip(apm.carrier[1:], px4.carrier, strict=True))
     for a, b in zip(apm.stops, px4.stops, strict=True):
         assert (a.arrive_seq, a.hold_seq) == (b.arrive_seq + 1, b.hold_seq + 1)
     for rid, rm in apm.rovers.items():
         assert rm.items[0].frame == M.MAV_FRAME_GLOBAL and rm.target_seq == px4.rovers[rid].target_seq + 1
-        assert list(rm.items[1:]) == list(px4.rovers[rid].items) or all(
-            a.same_as(b) for a, b in zip(rm.items[1:], px4.rovers[rid].items, strict=True))
+        pairs = zip(rm.items[1:], px4.rovers[rid].items, strict=True)
+        assert all(yawless(a).same_as(yawless(b)) for a, b in pairs)
+    nan_ok = {M.MAV_CMD_NAV_WAYPOINT, M.MAV_CMD_NAV_TAKEOFF, M.MAV_CMD_NAV_LAND}
+    every = [*apm.carrier, *(it for rm in apm.rovers.values() for it in rm.items)]
+    assert {it.command for it in every if math.isnan(it.param4)} <= nan_ok
+    assert any(it.command == M.MAV_CMD_NAV_LOITER_UNLIM and it.param4 == 0.0 for it in every)
+    # PX4 keeps NaN (= keep the heading) on the hold
+    assert all(math.isnan(it.param4) for it in px4.carrier if it.command == M.MAV_CMD_NAV_LOITER_UNLIM)
+
+
+def test_a_collection_hold_above_the_meeting_point_is_valid_for_its_firmware(recon) -> None:
+    mission, plan, _ = recon
+    stop = plan.stops[0]
+    leg = stop.rovers[0]
+    cplan = Plan("collect", "x", plan.start, 0.0, [dataclasses.replace(
+        stop, rovers=[dataclasses.replace(leg, path=[(5.0, 5.0, 6.0), (*stop.position[:2], 3.0)])])])
+    for ap, yaw in ((ArduPilot(), 0.0), (Px4(), math.nan)):
+        rm = compile_plan(cplan, mission.origin, autopilot=ap).rovers[leg.rover]
+        items, hold, land = with_meeting_hold(rm, ap)
+        assert items[hold].command == M.MAV_CMD_NAV_LOITER_UNLIM and items[land].command == M.MAV_CMD_NAV_LAND
+        assert (items[hold].x, items[hold].y, items[hold].z) == (items[hold - 1].x, items[hold - 1].y,
+                                                                 items[hold - 1].z)
+        assert items[hold].param4 == yaw or (math.isnan(yaw) and math.isnan(items[hold].param4))
 
 
 def test_home_height_shifts_relative_heights(recon) -> None:

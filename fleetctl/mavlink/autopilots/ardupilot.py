@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 from fleetctl.mavlink.autopilots.base import (
@@ -9,11 +11,13 @@ from fleetctl.mavlink.autopilots.base import (
     Autopilot,
     ModeError,
     Params,
+    SpeedParam,
     Vehicle,
     base_mode_name,
     code,
     seconds,
 )
+from fleetctl.mission.flight import MEET_HEIGHT, TAKEOFF_HEIGHT
 
 M = mavlink2
 # ArduCopter FS_GCS_ENABLE (after FS_GCS_TIMEOUT s; FS_OPTIONS bit 1 = 2: continue a mission in AUTO)
@@ -29,6 +33,26 @@ _ROVER_SET = {"rtl": 1, "hold": 2, "land": 2}  # a ground vehicle stops
 _COPTER_FENCE = {"report": 0, "rtl": 1, "land": 2, "hold": 4}  # FENCE_ACTION (4 = brake or land)
 _ROVER_FENCE = {"report": 0, "rtl": 1, "hold": 2, "land": 2}
 FENCE_TYPE_ALT_MAX, FENCE_TYPE_POLYGON = 1, 4
+# param4 may be NaN ("keep the heading") only on these commands; any other is rejected with
+# MAV_MISSION_INVALID_PARAM4 (ArduPilot's AP_Mission::mavlink_int_to_mission_cmd)
+NAN_PARAM4_OK = frozenset({M.MAV_CMD_NAV_WAYPOINT, M.MAV_CMD_NAV_LAND, M.MAV_CMD_NAV_TAKEOFF,
+                           M.MAV_CMD_NAV_VTOL_TAKEOFF, M.MAV_CMD_NAV_VTOL_LAND})
+COPTER_SPEEDS = (SpeedParam("WPNAV_SPEED", "max_speed", 100.0, 20.0, 2000.0),
+                 SpeedParam("WPNAV_ACCEL", "accel", 100.0, 50.0, 500.0),
+                 SpeedParam("WPNAV_SPEED_UP", "climb_rate", 100.0, 10.0, 1000.0),
+                 SpeedParam("WPNAV_SPEED_DN", "land_speed", 100.0, 10.0, 500.0),
+                 SpeedParam("LAND_SPEED", "land_speed", 100.0, 30.0, 200.0))
+ROVER_SPEEDS = (SpeedParam("WP_SPEED", "max_speed", 1.0, 0.0, 100.0),
+                SpeedParam("CRUISE_SPEED", "max_speed", 1.0, 0.0, 100.0),
+                SpeedParam("WP_ACCEL", "accel", 1.0, 0.0, 10.0),
+                SpeedParam("ATC_ACCEL_MAX", "accel", 1.0, 0.0, 10.0))
+# ArduCopter's handling as measured on SITL (docs/autopilots.md): from MISSION_START to clear of the
+# deck takes the motors' spool-up and the take-off throttle ramp (TKOFF_SLEW_TIME) on top of the
+# climb; a landing ends with the land detector's second and the report of the landed state
+COPTER_TAKEOFF_OVERHEAD = 2.6  # s
+COPTER_LAND_OVERHEAD = 2.0  # s
+COPTER_LEG_OVERHEAD = 1.6  # s a waypoint leg takes beyond S/v + v/a (jerk-limited S-curve, stop at the end)
+LAND_SPEED_RANGE = (0.3, 2.0)  # m/s: LAND_SPEED's range
 
 
 class ArduPilot(Autopilot):
@@ -67,6 +91,38 @@ class ArduPilot(Autopilot):
                 return float(CUSTOM), float(num), 0.0
         raise ModeError(f"ArduPilot has no mode {mode!r}; use one of {', '.join(sorted(generic))}")
 
+    # -- mission items and their replacement ----------------------------------------------------------
+    def unset_param4(self, command: int) -> float:
+        return math.nan if command in NAN_PARAM4_OK else 0.0
+
+    @property
+    def upload_hold_mode(self) -> str:
+        # Copter: GUIDED holds where it is (LOITER would follow the RC sticks); Rover: HOLD
+        return "HOLD" if self.ground else "GUIDED"
+
+    def speed_params(self) -> tuple[SpeedParam, ...]:
+        return ROVER_SPEEDS if self.ground else COPTER_SPEEDS
+
+    def planned_accel(self, speed: float, accel: float | None) -> float | None:
+        if self.ground or accel is None:
+            return accel
+        return speed / (speed / accel + COPTER_LEG_OVERHEAD)
+
+    def handling_times(self, climb_rate: float, land_speed: float) -> tuple[float, float] | None:
+        if self.ground:
+            return None
+        land = min(max(land_speed, LAND_SPEED_RANGE[0]), LAND_SPEED_RANGE[1])
+        return (TAKEOFF_HEIGHT / climb_rate + COPTER_TAKEOFF_OVERHEAD,
+                MEET_HEIGHT / land + COPTER_LAND_OVERHEAD)
+
+    # -- arming, take-off and mission start -----------------------------------------------------------
+    async def arm(self, vehicle: Vehicle, force_param: float = 0.0) -> None:
+        # stock Copter (AUTO_OPTIONS 0) refuses to arm in AUTO and will not take off in AUTO after
+        # arming in another mode; armed in GUIDED, MISSION_START flies the mission
+        if not self.ground and not vehicle.armed and vehicle.mode != "GUIDED":
+            await vehicle.set_mode("GUIDED")
+        await vehicle.command(M.MAV_CMD_COMPONENT_ARM_DISARM, (1, force_param))
+
     async def takeoff(self, vehicle: Vehicle, height: float) -> None:
         if self.ground:
             raise ModeError(f"{vehicle.name}: a ground vehicle cannot take off")
@@ -75,8 +131,13 @@ class ArduPilot(Autopilot):
         await vehicle.command(M.MAV_CMD_NAV_TAKEOFF, (0, 0, 0, 0, 0, 0, height))
 
     async def start_mission(self, vehicle: Vehicle, first: int = 0) -> None:
-        await vehicle.set_mode("MISSION")
-        await vehicle.command(M.MAV_CMD_MISSION_START, (max(first, 0), 0))
+        # item 0 is home; a mission replaced in flight keeps the old current index, so the first
+        # item is set explicitly. MISSION_START with a first/last item is denied: it switches to
+        # AUTO, which resumes at the current item.
+        first = max(first, 1)
+        if vehicle.mission_current != first:
+            await vehicle.set_current(first)
+        await vehicle.command(M.MAV_CMD_MISSION_START, (0, 0))
 
     # -- link loss and geofence -------------------------------------------------------------------
     @property

@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterable, Mapping
+from dataclasses import dataclass
 from typing import Any, Protocol
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
@@ -39,9 +40,14 @@ class Vehicle(Protocol):
 
     name: str
     mode: str | None
+    armed: bool
+    mission_current: int | None
 
     @property
     def home_amsl(self) -> float | None: ...
+
+    @property
+    def on_ground(self) -> bool | None: ...
 
     async def command(self, command: int, params: Iterable[float] = (), *, frame: int | None = None,
                       check: bool = True, timeout: float | None = None) -> Any: ...
@@ -49,6 +55,28 @@ class Vehicle(Protocol):
     async def set_mode(self, mode: str) -> None: ...
 
     async def set_current(self, seq: int) -> None: ...
+
+
+@dataclass(frozen=True)
+class SpeedParam:
+    """A firmware parameter that decides how fast a vehicle flies or drives: ``name`` on the
+    firmware, the mission ``quantity`` it corresponds to (``max_speed``, ``accel``,
+    ``climb_rate``, ``land_speed``) and ``scale``, firmware units per SI unit (100 for cm/s)."""
+
+    name: str
+    quantity: str
+    scale: float = 1.0
+    lo: float | None = None  # the range the firmware flies safely, in its units (values are clamped)
+    hi: float | None = None
+
+    def value(self, si: float) -> float:
+        v = si * self.scale
+        if self.lo is not None:
+            v = max(v, self.lo)
+        if self.hi is not None:
+            v = min(v, self.hi)
+        return v
+
 
 M = mavlink2
 Params = Mapping[str, float | None]  # parameter name -> value read (None = not answered)
@@ -87,7 +115,42 @@ class Autopilot:
         """DO_SET_MODE param1..param3 for a generic mode (or a firmware mode name)."""
         raise ModeError(f"{self.name} autopilot: cannot set mode {mode!r} (custom modes unknown)")
 
+    # -- mission items ---------------------------------------------------------------------------------
+    def unset_param4(self, command: int) -> float:
+        """``param4`` (yaw) of a mission item that leaves the heading to the vehicle: NaN."""
+        return math.nan
+
+    @property
+    def upload_hold_mode(self) -> str:
+        """The mode a vehicle flying a mission is put in before its mission is replaced."""
+        return "HOLD"
+
+    def speed_params(self) -> tuple[SpeedParam, ...]:
+        """The parameters that decide this vehicle's flight times (none known here)."""
+        return ()
+
+    def speed_values(self, quantities: Mapping[str, float | None]) -> dict[str, float]:
+        """Parameter values for the mission's speeds (``max_speed``, ``accel``, ``climb_rate``,
+        ``land_speed`` in SI units; None = not given), clamped to the firmware's safe range."""
+        return {p.name: p.value(q) for p in self.speed_params()
+                if (q := quantities.get(p.quantity)) is not None}
+
+    def planned_accel(self, speed: float, accel: float | None) -> float | None:
+        """The acceleration a leg of this firmware takes in the time model (rest to rest at
+        ``speed``, its parameters set to ``accel``): ``accel`` unless measured otherwise."""
+        return accel
+
+    def handling_times(self, climb_rate: float, land_speed: float) -> tuple[float, float] | None:
+        """The time model's take-off clearance and touch-down (``rovers.takeoff_time``,
+        ``rovers.land_time``, s) as this firmware flies them with these vertical speeds; None =
+        not measured (the mission's defaults stand)."""
+        return None
+
     # -- firmware-specific sequences ------------------------------------------------------------------
+    async def arm(self, vehicle: Vehicle, force_param: float = 0.0) -> None:
+        """Arm (COMPONENT_ARM_DISARM); ``force_param`` is param2 (the force magic or 0)."""
+        await vehicle.command(M.MAV_CMD_COMPONENT_ARM_DISARM, (1, force_param))
+
     async def takeoff(self, vehicle: Vehicle, height: float) -> None:
         """Take off to ``height`` metres above home (the vehicle must be armed)."""
         await vehicle.command(M.MAV_CMD_NAV_TAKEOFF, (0, 0, 0, math.nan, 0, 0, height))
@@ -145,5 +208,5 @@ def code(params: Params, name: str) -> int | None:
     return None if v is None else int(round(v))
 
 
-__all__ = ["CUSTOM", "MODES", "Autopilot", "ModeError", "Params", "Vehicle", "base_mode_name", "code",
-           "seconds"]
+__all__ = ["CUSTOM", "MODES", "Autopilot", "ModeError", "Params", "SpeedParam", "Vehicle", "base_mode_name",
+           "code", "seconds"]
