@@ -168,10 +168,12 @@ class Seen:
     texts: list[str] = field(default_factory=list)
 
 
-def probe(port: int, seconds: float = 3.0, *, sysids: Sequence[int] = ()) -> dict[int, Seen]:
+def probe(port: int, seconds: float = 3.0, *, sysids: Sequence[int] = (),
+          beat: bool = True) -> dict[int, Seen]:
     """Listen on the team's ground-station port (no controller running) for ``seconds``: each
     vehicle's last position (ENU metres from the origin, height above ground), armed state, mode
-    and landed state. Sends a GCS heartbeat so ArduPilot keeps talking to this port."""
+    and landed state. Sends a GCS heartbeat so ArduPilot keeps talking to this port (``beat``;
+    without it, the vehicles' link-loss failsafe sees no ground station)."""
     import socket
 
     from pymavlink.dialects.v20 import ardupilotmega as mavlink2
@@ -186,11 +188,11 @@ def probe(port: int, seconds: float = 3.0, *, sysids: Sequence[int] = ()) -> dic
         sock.bind(("127.0.0.1", port))
         sock.settimeout(0.2)
         end = time.monotonic() + seconds
-        beat = 0.0
+        last_beat = 0.0
         addrs: set[Any] = set()
         while time.monotonic() < end:
-            if time.monotonic() - beat > 0.5:
-                beat = time.monotonic()
+            if beat and time.monotonic() - last_beat > 0.5:
+                last_beat = time.monotonic()
                 hb = mav.heartbeat_encode(mavlink2.MAV_TYPE_GCS, mavlink2.MAV_AUTOPILOT_INVALID,
                                           0, 0, 0).pack(mav)
                 for a in addrs:

@@ -9,16 +9,20 @@ carrier starts, so deployment launches at the carrier's start and collection lan
 
 from __future__ import annotations
 
+import json
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
-from ardupilot_team import TASKS, Team, ardupilot_team, horizontal, probe
+from ardupilot_team import TASKS, Team, ardupilot_team, horizontal, mission_yaml, probe, run_dir_of
+from pymavlink.dialects.v20 import ardupilotmega as M
 
 pytestmark = pytest.mark.firmware
 
 DECK = 1.5  # m: fleetctl's deck radius (fleetctl.run.state.DECK_RADIUS)
 AT_TASK = 2.0  # m from the task, horizontally: a rover "at its task"
-FIDELITY = 0.10  # flown within 10 % of planned
+LAND_MODE = 9  # ArduCopter LAND
 
 
 def assert_at_tasks(team: Team, assignment: dict[str, str]) -> None:
@@ -53,3 +57,52 @@ def test_status_deploy_collect_on_stock_ardupilot(tmp_path: Path) -> None:
         print(f"\nArduPilot deploy flown {deploy['makespan_flown']:.1f} s vs planned "
               f"{deploy['makespan_planned']:.1f} s; collect {collect['makespan_flown']:.1f} s vs "
               f"{collect['makespan_planned']:.1f} s")
+
+
+def test_link_loss_failsafe_is_set_and_lands_the_rovers_at_their_tasks(tmp_path: Path) -> None:
+    extra = {"links": {"failsafe": "land"}}
+    with ardupilot_team(tmp_path, gcs_port=14561, instance_base=10,
+                        mission=mission_yaml(14561, 3, extra=extra)) as team:
+        proc, deploy = team.fly("deploy")
+        assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-2000:] + team.firmware_tail()
+        journal_text = (run_dir_of(proc) / "journal.jsonl").read_text()
+        assert "links.failsafe: land" in journal_text
+        # the controller is gone: no ground-station heartbeat. FS_GCS_TIMEOUT later the copters land
+        seen = probe(team.fleet.gcs_port, 12.0, beat=False)
+        tasks = dict(TASKS)
+        for task, rover in deploy["assignment"].items():
+            s = seen[11 + team.rovers.index(rover)]
+            assert s.custom_mode == LAND_MODE or s.landed_state == M.MAV_LANDED_STATE_ON_GROUND, (rover, s)
+            assert s.enu is not None and horizontal(s.enu, tasks[task]) < AT_TASK, (rover, s.enu)
+            assert any("failsafe" in t.lower() for t in s.texts) or s.custom_mode == LAND_MODE, s.texts
+
+
+def test_a_rover_killed_in_flight_is_replaced_by_a_spare(tmp_path: Path) -> None:
+    extra = {"links": {"reassign_after": 2.0}}
+    with ardupilot_team(tmp_path, n_rovers=4, gcs_port=14562, instance_base=40,
+                        mission=mission_yaml(14562, 4, extra=extra)) as team:
+        out = tmp_path / "deploy.json"
+        argv = [sys.executable, "-m", "fleetctl.cli", "deploy", "--mission", str(team.mission),
+                "--speedup", "4", "--yes", "--headless", "--runs", str(team.runs), "--summary", str(out)]
+        proc = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+        try:
+            assert proc.stdout is not None
+            killed = None
+            lines = []
+            for line in proc.stdout:
+                lines.append(line)
+                if killed is None and "rover_launched" in line:
+                    killed = line.split("rover_launched", 1)[1].split(":", 1)[0].strip()
+                    team.fleet.kill(killed)  # the rover's firmware dies in the air
+            proc.wait(240)
+        finally:
+            if proc.poll() is None:
+                proc.kill()
+        text = "".join(lines)
+        assert killed is not None, text
+        summary = json.loads(out.read_text())
+        assert summary["result"] == "complete", text[-3000:]
+        assert killed in summary["rovers_lost"] and killed not in summary["assignment"].values(), summary
+        assert sorted(summary["tasks_reached"]) == ["t1", "t2", "t3"]
+        assert "r4" in summary["assignment"].values(), summary  # the spare flew the lost rover's task
+        assert_at_tasks(team, summary["assignment"])
