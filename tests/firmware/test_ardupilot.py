@@ -106,3 +106,36 @@ def test_a_rover_killed_in_flight_is_replaced_by_a_spare(tmp_path: Path) -> None
         assert sorted(summary["tasks_reached"]) == ["t1", "t2", "t3"]
         assert "r4" in summary["assignment"].values(), summary  # the spare flew the lost rover's task
         assert_at_tasks(team, summary["assignment"])
+
+
+def test_run_killed_with_sigkill_is_finished_by_resume(tmp_path: Path) -> None:
+    with ardupilot_team(tmp_path, gcs_port=14563, instance_base=50, mission=mission_yaml(14563, 3)) as team:
+        run_dir = tmp_path / "runs" / "killed"
+        argv = [sys.executable, "-m", "fleetctl.cli", "run", "--mission", str(team.mission), "--speedup", "4",
+                "--dwell", "20", "--yes", "--headless", "--run-dir", str(run_dir)]
+        proc = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+        try:
+            assert proc.stdout is not None
+            lines = []
+            for line in proc.stdout:
+                lines.append(line)
+                if "deployed" in line:  # every rover at its task, the dwell begins
+                    proc.kill()  # the controller dies: SIGKILL, no records written on the way out
+                    break
+            proc.wait(30)
+        finally:
+            if proc.poll() is None:
+                proc.kill()
+        assert proc.returncode == -9, "".join(lines)[-3000:]
+        out = tmp_path / "resumed.json"
+        resumed = team.fleetctl("resume", "--run", str(run_dir), "--yes", "--headless", "--speedup", "4",
+                                "--summary", str(out), timeout=300)
+        assert resumed.returncode == 0, resumed.stdout[-3000:] + resumed.stderr[-2000:] + team.firmware_tail()
+        summary = json.loads(out.read_text())
+        assert summary["result"] == "complete" and sorted(summary["rovers_loaded"]) == team.rovers, summary
+        seen = probe(team.fleet.gcs_port, 4.0)
+        carrier = seen[1].enu
+        assert carrier is not None
+        for k, rid in enumerate(team.rovers):
+            s = seen[11 + k]
+            assert s.enu is not None and horizontal(s.enu, carrier) < DECK and s.armed is False, (rid, s.enu)
