@@ -1,0 +1,70 @@
+"""A car-like ground vehicle (ArduRover's default: steering servo on channel 1, throttle on
+channel 3, both 1000..2000 us around 1500), after ArduPilot's own ``SIM_Rover``: the speed
+relaxes towards ``throttle * max_speed`` with ``max_accel`` at a standing start (less a
+little rolling resistance, which brings it to a stop), the turn rate
+is that of a bicycle whose full-lock turning circle is ``turning_circle`` metres across."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+from .body import Body
+from .rigid import GRAVITY, from_yaw, yaw_of
+
+
+@dataclass(frozen=True)
+class GroundParams:
+    max_speed: float = 20.0        # m/s at full throttle (CRUISE_SPEED 5 at CRUISE_THROTTLE 30)
+    max_accel: float = 10.0        # m/s^2 from standstill at full throttle
+    turning_circle: float = 1.8    # m, diameter at full steering
+    max_wheel_turn: float = 35.0   # degrees at full steering
+    rolling: float = 0.5           # m/s^2 of rolling resistance (it comes to a stop)
+    steering_channel: int = 1
+    throttle_channel: int = 3
+
+
+def _servo(pwm: Sequence[int], channel: int) -> float:
+    """A servo output as -1..1 around 1500 us (0 for a channel not driven)."""
+    v = pwm[channel - 1]
+    return 0.0 if v <= 0 else max(-1.0, min(1.0, (v - 1500) / 500.0))
+
+
+@dataclass
+class GroundVehicle:
+    params: GroundParams = field(default_factory=GroundParams)
+    body: Body = field(default_factory=Body)
+    speed: float = 0.0       # forward, m/s
+    yaw_rate: float = 0.0    # rad/s
+
+    def turn_rate(self, steering: float, speed: float) -> float:
+        p = self.params
+        if abs(steering) < 1e-6 or abs(speed) < 1e-6:
+            return 0.0
+        diameter = p.turning_circle * math.sin(math.radians(p.max_wheel_turn)) / math.sin(
+            math.radians(steering * p.max_wheel_turn))
+        return 2.0 * speed / diameter
+
+    def step(self, pwm: Sequence[int], dt: float) -> None:
+        p, b = self.params, self.body
+        throttle = _servo(pwm, p.throttle_channel)
+        steering = _servo(pwm, p.steering_channel)
+        drive = p.max_accel * (throttle - self.speed / p.max_speed)
+        before = self.speed
+        if before == 0.0 and abs(drive) <= p.rolling:
+            accel = 0.0
+        else:
+            accel = drive - math.copysign(p.rolling, before if before != 0.0 else drive)
+        self.speed += accel * dt
+        if before != 0.0 and self.speed * before < 0.0 and abs(drive) <= p.rolling:
+            self.speed, accel = 0.0, -before / dt   # friction stops it, it does not reverse it
+        self.yaw_rate = self.turn_rate(steering, self.speed)
+        yaw = yaw_of(b.attitude) + self.yaw_rate * dt
+        b.attitude = from_yaw(yaw)
+        c, s = math.cos(yaw), math.sin(yaw)
+        b.velocity = (self.speed * c, self.speed * s, 0.0)
+        n, e, _ = b.position
+        b.position = (n + b.velocity[0] * dt, e + b.velocity[1] * dt, 0.0)
+        b.gyro = (0.0, 0.0, self.yaw_rate)
+        b.accel_body = (accel, self.speed * self.yaw_rate, -GRAVITY)
