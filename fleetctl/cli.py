@@ -259,7 +259,12 @@ def _fly(args: argparse.Namespace, mission: Mission, command: str, extra: dict[s
     def announce(run_dir: object) -> None:
         print(f"run folder: {run_dir}", flush=True)
 
-    options = dict(speedup=args.speedup, planner=args.planner, dwell=getattr(args, "dwell", None),
+    from fleetctl.run.sim import mission_uses_sim
+
+    # real links (SITL faster than real time): mission time = wall time x --speedup
+    clock = None if args.speedup is None or mission_uses_sim(mission) else args.speedup
+    options = dict(speedup=args.speedup, clock_speedup=clock, planner=args.planner,
+                   dwell=getattr(args, "dwell", None),
                    summary_path=args.summary, view=view, connect_timeout=args.timeout, mqtt=mqtt,
                    on_run_dir=announce, require_all=args.require_all, force=args.force,
                    confirm=_arming_confirmation(args, mission, command), team_spec=spec, **extra)
@@ -411,7 +416,9 @@ def _add_fly_commands(sub: argparse._SubParsersAction) -> None:
                        help="one log line per event instead of the live view (automatic when stdout "
                             "is not a terminal)")
         p.add_argument("--speedup", type=float, metavar="X",
-                       help="simulated seconds per wall second of the embedded sim (default: sim.speedup)")
+                       help="simulated seconds per wall second of the embedded sim (default: sim.speedup); "
+                            "with real links: the vehicles' clock rate (e.g. PX4_SIM_SPEED_FACTOR), for "
+                            "mission times")
         p.add_argument("--summary", metavar="OUT.json", help="also write the run summary JSON here")
         p.add_argument("--planner", "-p",
                        help="planner name (default: the mission's planner section); for run "
