@@ -828,10 +828,12 @@ class Link:
         raise LinkTimeout(f"system {sysid} did not acknowledge {name} "
                           f"({attempts} attempts, {timeout:g} s each) on {self.url}")
 
-    async def set_message_interval(self, sysid: int, msgid: int, hz: float, *, compid: int = 1) -> CommandAck:
+    async def set_message_interval(self, sysid: int, msgid: int, hz: float, *, compid: int = 1,
+                                   retries: int = COMMAND_RETRIES) -> CommandAck:
         """MAV_CMD_SET_MESSAGE_INTERVAL: stream ``msgid`` at ``hz`` (0 = the default rate, < 0 = off)."""
         interval = 0.0 if hz == 0 else (-1.0 if hz < 0 else 1e6 / hz)
-        return await self.command(sysid, M.MAV_CMD_SET_MESSAGE_INTERVAL, (msgid, interval), compid=compid)
+        return await self.command(sysid, M.MAV_CMD_SET_MESSAGE_INTERVAL, (msgid, interval), compid=compid,
+                                  retries=retries)
 
     # -- mission protocol ------------------------------------------------------------------------------------
     def _mission_match(self, mission_type: int) -> Callable[[Any], bool]:

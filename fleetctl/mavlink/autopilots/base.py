@@ -96,6 +96,14 @@ class Autopilot:
         """Fly the uploaded mission from its current item (or ``first`` if > 0)."""
         await vehicle.command(M.MAV_CMD_MISSION_START, (first, 0))
 
+    # -- telemetry rates ------------------------------------------------------------------------------
+    def stream_rates(self, position_hz: float, status_hz: float) -> dict[str, float]:
+        """Message name -> rate (Hz) asked for at connect with SET_MESSAGE_INTERVAL, in the order
+        sent; a rate < 0 turns a message off (a firmware's high-rate messages fleetctl does not
+        read, which would flood a large fleet's link)."""
+        return {"GLOBAL_POSITION_INT": position_hz, "BATTERY_STATUS": status_hz, "SYS_STATUS": status_hz,
+                "EXTENDED_SYS_STATE": status_hz, "MISSION_CURRENT": status_hz}
+
     # -- link loss and geofence parameters ----------------------------------------------------------
     @property
     def failsafe_param_names(self) -> tuple[str, ...]:
