@@ -27,6 +27,10 @@ Collection rover: ``NAV_TAKEOFF`` to the take-off clearance when its path starts
 the carrier's stop at ``max(meet_height, path end height)`` (``target_seq``), ``NAV_LAND`` on the
 stop (``final_seq``).
 
+A waypoint's ``param2`` (acceptance radius) is the vehicle's ``Autopilot.acceptance_radius``
+(PX4: 1 m; its default NAV_ACC_RAD makes a multicopter's waypoint "reached" 10 m early), else 0
+(the firmware's default).
+
 ArduPilot (``home_is_item0``): item 0 is a home placeholder (NAV_WAYPOINT at the vehicle's start,
 ``MAV_FRAME_GLOBAL``, AMSL); every index above counts it.
 """
@@ -117,15 +121,23 @@ def compile_plan(
     if plan.kind not in ("deploy", "collect"):
         raise CompileError(f"unknown plan kind {plan.kind!r}")
 
-    def home0(vid: str) -> bool:
+    def ap_of(vid: str) -> Autopilot | None:
         if autopilot is None:
-            return False
-        ap = autopilot if isinstance(autopilot, Autopilot) else autopilot.get(vid)
+            return None
+        return autopilot if isinstance(autopilot, Autopilot) else autopilot.get(vid)
+
+    def home0(vid: str) -> bool:
+        ap = ap_of(vid)
         return bool(ap is not None and ap.home_is_item0)
 
-    def wp(cmd: int, p: Sequence[float], hold: float = 0.0) -> MissionItem:
+    def radius(vid: str) -> float:
+        ap = ap_of(vid)
+        return 0.0 if ap is None or ap.acceptance_radius is None else float(ap.acceptance_radius)
+
+    def wp(cmd: int, p: Sequence[float], hold: float = 0.0, accept: float = 0.0) -> MissionItem:
         lat, lon, _alt = local_to_geodetic(p[0], p[1], p[2], origin)
-        return MissionItem(cmd, FRAME, param1=hold, param4=math.nan if cmd != M.MAV_CMD_NAV_LAND else 0.0,
+        return MissionItem(cmd, FRAME, param1=hold, param2=accept if cmd == M.MAV_CMD_NAV_WAYPOINT else 0.0,
+                           param4=math.nan if cmd != M.MAV_CMD_NAV_LAND else 0.0,
                            x=_e7(lat), y=_e7(lon), z=float(p[2]) - home_height)
 
     def home_item(p: Sequence[float]) -> MissionItem:
@@ -134,12 +146,13 @@ def compile_plan(
 
     # -- carrier -----------------------------------------------------------------------------
     carrier: list[MissionItem] = [home_item(plan.start)] if home0(carrier_id) else []
+    c_accept = radius(carrier_id)
     stop_items: list[StopItems] = []
     for k, stop in enumerate(plan.stops):
         for v in stop.carrier_path[1:-1]:
-            carrier.append(wp(M.MAV_CMD_NAV_WAYPOINT, _ground(v)))
+            carrier.append(wp(M.MAV_CMD_NAV_WAYPOINT, _ground(v), accept=c_accept))
         pos = _ground(stop.position)
-        carrier.append(wp(M.MAV_CMD_NAV_WAYPOINT, pos))
+        carrier.append(wp(M.MAV_CMD_NAV_WAYPOINT, pos, accept=c_accept))
         carrier.append(wp(M.MAV_CMD_NAV_LOITER_UNLIM, pos))
         hold = len(carrier) - 1
         stop_items.append(StopItems(k, hold - 1, hold, None, tuple(leg.rover for leg in stop.rovers)))
@@ -152,6 +165,7 @@ def compile_plan(
     for k, stop in enumerate(plan.stops):
         for leg in stop.rovers:
             items: list[MissionItem] = []
+            accept = radius(leg.rover)
             if plan.kind == "deploy":
                 start = _ground(leg.path[0] if leg.path else stop.position)
                 if home0(leg.rover):
@@ -159,7 +173,7 @@ def compile_plan(
                 target = leg.end
                 items.append(wp(M.MAV_CMD_NAV_TAKEOFF, (start[0], start[1], takeoff_height)))
                 for v in leg.path[1:]:
-                    items.append(wp(M.MAV_CMD_NAV_WAYPOINT, v))
+                    items.append(wp(M.MAV_CMD_NAV_WAYPOINT, v, accept=accept))
                 target_seq = len(items) - 1
                 items.append(wp(M.MAV_CMD_NAV_LOITER_UNLIM, target))
             else:
@@ -171,8 +185,8 @@ def compile_plan(
                 if float(start[2]) <= GROUND_HEIGHT:
                     items.append(wp(M.MAV_CMD_NAV_TAKEOFF, (start[0], start[1], takeoff_height)))
                 for v in leg.path[1:-1]:
-                    items.append(wp(M.MAV_CMD_NAV_WAYPOINT, v))
-                items.append(wp(M.MAV_CMD_NAV_WAYPOINT, (pos[0], pos[1], meet_z)))
+                    items.append(wp(M.MAV_CMD_NAV_WAYPOINT, v, accept=accept))
+                items.append(wp(M.MAV_CMD_NAV_WAYPOINT, (pos[0], pos[1], meet_z), accept=accept))
                 target_seq = len(items) - 1
                 items.append(wp(M.MAV_CMD_NAV_LAND, pos))
             rovers[leg.rover] = RoverMission(leg.rover, k, tuple(items), target_seq, len(items) - 1, leg.task)

@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterable, Mapping
+from dataclasses import dataclass
 from typing import Any, Protocol
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
@@ -60,11 +61,28 @@ class ModeError(ValueError):
     """A flight mode this autopilot does not have."""
 
 
+SPEED_QUANTITIES = ("max_speed", "accel", "climb_rate", "land_speed")
+
+
+@dataclass(frozen=True)
+class SpeedParam:
+    """A firmware parameter deciding a mission time quantity: ``quantity`` is one of
+    :data:`SPEED_QUANTITIES` (the mission's ``rovers.*`` for a multicopter, ``carrier.*`` for a
+    ground vehicle), ``scale`` firmware units per SI unit (value = SI x scale, e.g. 100 for cm/s)."""
+
+    name: str
+    quantity: str
+    scale: float
+
+
 class Autopilot:
     """Base class: firmware-independent defaults. Subclasses override the mode tables."""
 
     name = "generic"
     home_is_item0 = False  # True: mission item 0 is home (ArduPilot)
+    # NAV_WAYPOINT param2 written into compiled missions (m), so that "reached" means at the point;
+    # None = 0, the firmware's own default (PX4: NAV_ACC_RAD, 10 m on a multicopter)
+    acceptance_radius: float | None = None
     param_bytewise = False  # integer parameters' bytes in PARAM_VALUE's float (PX4), else cast
 
     def __init__(self, mav_type: int = M.MAV_TYPE_GENERIC) -> None:
@@ -95,6 +113,12 @@ class Autopilot:
     async def start_mission(self, vehicle: Vehicle, first: int = 0) -> None:
         """Fly the uploaded mission from its current item (or ``first`` if > 0)."""
         await vehicle.command(M.MAV_CMD_MISSION_START, (first, 0))
+
+    # -- flight parameters behind the time model ---------------------------------------------------
+    def speed_params(self) -> tuple[SpeedParam, ...]:
+        """The parameters that decide this vehicle's (multicopter or, when :attr:`ground`, ground
+        vehicle's) speeds in a mission; when several share a quantity the first decides it."""
+        return ()
 
     # -- telemetry rates ------------------------------------------------------------------------------
     def stream_rates(self, position_hz: float, status_hz: float) -> dict[str, float]:
@@ -153,5 +177,5 @@ def code(params: Params, name: str) -> int | None:
     return None if v is None else int(round(v))
 
 
-__all__ = ["CUSTOM", "MODES", "Autopilot", "ModeError", "Params", "Vehicle", "base_mode_name", "code",
-           "seconds"]
+__all__ = ["CUSTOM", "MODES", "SPEED_QUANTITIES", "Autopilot", "ModeError", "Params", "SpeedParam", "Vehicle",
+           "base_mode_name", "code", "seconds"]

@@ -11,6 +11,7 @@ from fleetctl.mavlink.autopilots.base import (
     Autopilot,
     ModeError,
     Params,
+    SpeedParam,
     Vehicle,
     base_mode_name,
     code,
@@ -33,6 +34,26 @@ QUIET_STREAMS = ("ATTITUDE", "ATTITUDE_QUATERNION", "ATTITUDE_TARGET", "POSITION
                  "POSITION_TARGET_GLOBAL_INT", "LOCAL_POSITION_NED", "SERVO_OUTPUT_RAW", "VFR_HUD",
                  "ALTITUDE", "SCALED_PRESSURE", "GNSS_INTEGRITY", "OPEN_DRONE_ID_LOCATION",
                  "OPEN_DRONE_ID_SYSTEM", "ESTIMATOR_STATUS", "DISTANCE_SENSOR", "VIBRATION", "CURRENT_MODE")
+# what decides a flight's time (all SI units: scale 1). A multicopter takes off at MPC_TKO_SPEED
+# (after a MPC_TKO_RAMP_T velocity ramp), climbs between waypoints at MPC_Z_V_AUTO_UP, descends at
+# MPC_Z_V_AUTO_DN and lands at MPC_LAND_SPEED below MPC_LAND_ALT2 (5 m); horizontally it cruises at
+# MPC_XY_CRUISE with MPC_ACC_HOR (jerk MPC_JERK_AUTO). A ground rover (10045: Ackermann) drives at
+# RO_SPEED_LIM with RO_ACCEL_LIM / RO_DECEL_LIM. Waypoints count as reached NAV_ACC_RAD early
+# (10 m multicopter, 0.5 m rover; RA_ACC_RAD_MAX on an Ackermann rover) unless param2 is set.
+MC_SPEED_PARAMS = (
+    SpeedParam("MPC_XY_CRUISE", "max_speed", 1.0),
+    SpeedParam("MPC_ACC_HOR", "accel", 1.0),
+    SpeedParam("MPC_TKO_SPEED", "climb_rate", 1.0),
+    SpeedParam("MPC_Z_V_AUTO_UP", "climb_rate", 1.0),
+    SpeedParam("MPC_LAND_SPEED", "land_speed", 1.0),
+    SpeedParam("MPC_Z_V_AUTO_DN", "land_speed", 1.0),
+)
+ROVER_SPEED_PARAMS = (
+    SpeedParam("RO_SPEED_LIM", "max_speed", 1.0),
+    SpeedParam("RO_ACCEL_LIM", "accel", 1.0),
+    SpeedParam("RO_DECEL_LIM", "accel", 1.0),
+)
+WAYPOINT_RADIUS = 1.0  # m: param2 of compiled waypoints ("reached" = at the point, not 10 m early)
 _WORDS = {"none": "no action", "hold": "hold", "rtl": "RTL", "land": "land",
           "terminate": "flight termination", "lockdown": "lockdown (motors off)"}
 
@@ -40,6 +61,7 @@ _WORDS = {"none": "no action", "hold": "hold", "rtl": "RTL", "land": "land",
 class Px4(Autopilot):
     name = "px4"
     param_bytewise = True
+    acceptance_radius = WAYPOINT_RADIUS
     _MAIN = {1: "MANUAL", 2: "ALTCTL", 3: "POSCTL", 4: "AUTO", 5: "ACRO", 6: "OFFBOARD", 7: "STABILIZED",
              8: "RATTITUDE"}
     _AUTO = {1: "READY", 2: "TAKEOFF", 3: "LOITER", 4: "MISSION", 5: "RTL", 6: "LAND", 7: "RTGS",
@@ -87,6 +109,9 @@ class Px4(Autopilot):
         if first > 0:
             await vehicle.set_current(first)
         await vehicle.set_mode("MISSION")
+
+    def speed_params(self) -> tuple[SpeedParam, ...]:
+        return ROVER_SPEED_PARAMS if self.ground else MC_SPEED_PARAMS
 
     # -- telemetry rates ------------------------------------------------------------------------------
     def stream_rates(self, position_hz: float, status_hz: float) -> dict[str, float]:
