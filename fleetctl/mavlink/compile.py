@@ -27,6 +27,10 @@ Collection rover: ``NAV_TAKEOFF`` to the take-off clearance when its path starts
 the carrier's stop at ``max(meet_height, path end height)`` (``target_seq``), ``NAV_LAND`` on the
 stop (``final_seq``).
 
+A waypoint's ``param2`` (acceptance radius) is the vehicle's ``Autopilot.acceptance_radius``
+(PX4: 1 m; its default NAV_ACC_RAD makes a multicopter's waypoint "reached" 10 m early), else 0
+(the firmware's default).
+
 ArduPilot (``home_is_item0``): item 0 is a home placeholder (NAV_WAYPOINT at the vehicle's start,
 ``MAV_FRAME_GLOBAL``, AMSL); every index above counts it.
 """
@@ -127,7 +131,9 @@ def compile_plan(
 
     def wp(cmd: int, p: Sequence[float], vid: str) -> MissionItem:
         lat, lon, _alt = local_to_geodetic(p[0], p[1], p[2], origin)
-        return MissionItem(cmd, FRAME, param4=_param4(ap_of(vid), cmd),
+        ap = ap_of(vid)
+        accept = ap.acceptance_radius if ap is not None and cmd == M.MAV_CMD_NAV_WAYPOINT else None
+        return MissionItem(cmd, FRAME, param2=float(accept or 0.0), param4=_param4(ap, cmd),
                            x=_e7(lat), y=_e7(lon), z=float(p[2]) - home_height)
 
     def home_item(p: Sequence[float]) -> MissionItem:

@@ -32,6 +32,8 @@ Safety (issue 12):
   (``link_id``, a strictly increasing timestamp persisted in ``signing_state``); incoming messages
   that are unsigned (RADIO_STATUS excepted), wrongly signed or replayed are dropped before anything
   sees them and counted in :attr:`Link.rejected`.
+* Messages with source system id 0 (the broadcast address; PX4 sends some) are dropped and
+  counted in :attr:`Link.rx_sysid0`: no vehicle has that id.
 * Routes: once a system id was heard from an address, a message with that system id from another
   address is dropped (it neither moves the route nor reaches a subscriber) unless the old address
   has been silent for ``route_timeout`` seconds; each such conflict is counted
@@ -350,6 +352,7 @@ class Link:
         self.other_gcs: dict[tuple[int, int, int], float] = {}  # other ground stations heard -> when
         self.rx_messages = 0
         self.rx_bad = 0
+        self.rx_sysid0 = 0  # messages with source system id 0 (dropped: not a vehicle)
         self.tx_messages = 0
         self._peers: dict[Any, float] = {}
         self._parsers: dict[Any, Any] = {}
@@ -605,6 +608,12 @@ class Link:
             self.rx_bad += 1
             return
         src = msg.get_srcSystem()
+        if src == 0:
+            # 0 is the broadcast address, never a sender's: PX4 sends some messages (ids outside the
+            # common dialect) with it from every instance. Not a vehicle: no route, no subscriber,
+            # and no route conflict between the vehicles that all send it (issue 25)
+            self.rx_sysid0 += 1
+            return
         if mtype == "HEARTBEAT" and msg.type == M.MAV_TYPE_GCS:  # a ground station, not a vehicle
             if self._taps:
                 self._tap("in", msg.get_msgbuf())
@@ -819,10 +828,12 @@ class Link:
         raise LinkTimeout(f"system {sysid} did not acknowledge {name} "
                           f"({attempts} attempts, {timeout:g} s each) on {self.url}")
 
-    async def set_message_interval(self, sysid: int, msgid: int, hz: float, *, compid: int = 1) -> CommandAck:
+    async def set_message_interval(self, sysid: int, msgid: int, hz: float, *, compid: int = 1,
+                                   retries: int = COMMAND_RETRIES) -> CommandAck:
         """MAV_CMD_SET_MESSAGE_INTERVAL: stream ``msgid`` at ``hz`` (0 = the default rate, < 0 = off)."""
         interval = 0.0 if hz == 0 else (-1.0 if hz < 0 else 1e6 / hz)
-        return await self.command(sysid, M.MAV_CMD_SET_MESSAGE_INTERVAL, (msgid, interval), compid=compid)
+        return await self.command(sysid, M.MAV_CMD_SET_MESSAGE_INTERVAL, (msgid, interval), compid=compid,
+                                  retries=retries)
 
     # -- mission protocol ------------------------------------------------------------------------------------
     def _mission_match(self, mission_type: int) -> Callable[[Any], bool]:

@@ -627,30 +627,45 @@ class Vehicle:
     async def configure_streams(self, position_hz: float = DEFAULT_POSITION_HZ,
                                 battery_hz: float = DEFAULT_BATTERY_HZ) -> dict[str, str]:
         """Ask for GLOBAL_POSITION_INT at ``position_hz`` and battery/state messages at
-        ``battery_hz`` (SET_MESSAGE_INTERVAL). Returns message name -> MAV_RESULT name (or the
-        error); a vehicle that refuses keeps its default streams."""
-        rates = {
-            "GLOBAL_POSITION_INT": position_hz,
-            "BATTERY_STATUS": battery_hz,
-            "SYS_STATUS": battery_hz,
-            "EXTENDED_SYS_STATE": battery_hz,
-            "MISSION_CURRENT": battery_hz,
-        }
+        ``battery_hz`` (SET_MESSAGE_INTERVAL), and turn off the firmware's high-rate messages
+        fleetctl does not read (:meth:`Autopilot.stream_rates`: PX4 streams ~370 messages/s).
+        Returns message name -> MAV_RESULT name (or the error); a vehicle that refuses keeps its
+        default streams."""
+        ap = self.autopilot or Autopilot()
+        rates = ap.stream_rates(position_hz, battery_hz)
 
         async def one(name: str, hz: float) -> str:
-            msgid = getattr(M, f"MAVLINK_MSG_ID_{name}")
+            msgid = _msgid(name)
+            if msgid is None:
+                return "not in the MAVLink dialects"
             try:
-                ack = await self.link.set_message_interval(self.sysid, msgid, hz, compid=self.compid)
+                # turning a stream off is a saving, not a need: one resend at most
+                kw = {"retries": 1} if hz < 0 else {}
+                ack = await self.link.set_message_interval(self.sysid, msgid, hz, compid=self.compid, **kw)
                 return ack.result_name
             except LinkError as exc:
                 return str(exc)
 
         results = await asyncio.gather(*(one(n, hz) for n, hz in rates.items()))
         out = dict(zip(rates, results, strict=True))
-        bad = {k: v for k, v in out.items() if v != "MAV_RESULT_ACCEPTED"}
+        bad = {k: v for k, v in out.items() if v != "MAV_RESULT_ACCEPTED" and rates[k] >= 0}
         if bad:
             log.warning("%s: message intervals not set: %s", self.name, bad)
+        still = [k for k, v in out.items() if v != "MAV_RESULT_ACCEPTED" and rates[k] < 0]
+        if still:
+            log.debug("%s: messages not turned off: %s", self.name, still)
         return out
+
+
+def _msgid(name: str) -> int | None:
+    """A message's id by name: this dialect's, else pymavlink's union of every dialect (e.g.
+    GNSS_INTEGRITY, which PX4 streams)."""
+    msgid = getattr(M, f"MAVLINK_MSG_ID_{name}", None)
+    if msgid is None:
+        from pymavlink.dialects.v20 import all as every
+
+        msgid = getattr(every, f"MAVLINK_MSG_ID_{name}", None)
+    return None if msgid is None else int(msgid)
 
 
 def _distance(lat1: float, lon1: float, alt1: float, lat2: float, lon2: float, alt2: float) -> float:

@@ -103,7 +103,7 @@ def test_collect_from_the_ground_takes_off_first() -> None:
 
 def test_ardupilot_item_0_is_home_and_indices_count_it(recon) -> None:
     mission, plan, _ = recon
-    px4 = compile_plan(plan, mission.origin, autopilot=Px4())
+    px4 = compile_plan(plan, mission.origin, autopilot=None)  # no home item (as PX4, without its param2)
     apm = compile_plan(plan, mission.origin, autopilot={"carrier": ArduPilot(M.MAV_TYPE_GROUND_ROVER),
                                                         **{r: ArduPilot() for r in mission.rovers.ids}})
     assert len(apm.carrier) == len(px4.carrier) + 1

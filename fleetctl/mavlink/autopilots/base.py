@@ -57,11 +57,15 @@ class Vehicle(Protocol):
     async def set_current(self, seq: int) -> None: ...
 
 
+SPEED_QUANTITIES = ("max_speed", "accel", "climb_rate", "land_speed")
+
+
 @dataclass(frozen=True)
 class SpeedParam:
     """A firmware parameter that decides how fast a vehicle flies or drives: ``name`` on the
-    firmware, the mission ``quantity`` it corresponds to (``max_speed``, ``accel``,
-    ``climb_rate``, ``land_speed``) and ``scale``, firmware units per SI unit (100 for cm/s)."""
+    firmware, the mission ``quantity`` it corresponds to (one of :data:`SPEED_QUANTITIES`: the
+    mission's ``rovers.*`` for a multicopter, ``carrier.*`` for a ground vehicle) and ``scale``,
+    firmware units per SI unit (100 for cm/s)."""
 
     name: str
     quantity: str
@@ -93,6 +97,9 @@ class Autopilot:
 
     name = "generic"
     home_is_item0 = False  # True: mission item 0 is home (ArduPilot)
+    # NAV_WAYPOINT param2 written into compiled missions (m), so that "reached" means at the point;
+    # None = 0, the firmware's own default (PX4: NAV_ACC_RAD, 10 m on a multicopter)
+    acceptance_radius: float | None = None
     param_bytewise = False  # integer parameters' bytes in PARAM_VALUE's float (PX4), else cast
 
     def __init__(self, mav_type: int = M.MAV_TYPE_GENERIC) -> None:
@@ -159,6 +166,14 @@ class Autopilot:
         """Fly the uploaded mission from its current item (or ``first`` if > 0)."""
         await vehicle.command(M.MAV_CMD_MISSION_START, (first, 0))
 
+    # -- telemetry rates ------------------------------------------------------------------------------
+    def stream_rates(self, position_hz: float, status_hz: float) -> dict[str, float]:
+        """Message name -> rate (Hz) asked for at connect with SET_MESSAGE_INTERVAL, in the order
+        sent; a rate < 0 turns a message off (a firmware's high-rate messages fleetctl does not
+        read, which would flood a large fleet's link)."""
+        return {"GLOBAL_POSITION_INT": position_hz, "BATTERY_STATUS": status_hz, "SYS_STATUS": status_hz,
+                "EXTENDED_SYS_STATE": status_hz, "MISSION_CURRENT": status_hz}
+
     # -- link loss and geofence parameters ----------------------------------------------------------
     @property
     def failsafe_param_names(self) -> tuple[str, ...]:
@@ -208,5 +223,5 @@ def code(params: Params, name: str) -> int | None:
     return None if v is None else int(round(v))
 
 
-__all__ = ["CUSTOM", "MODES", "Autopilot", "ModeError", "Params", "SpeedParam", "Vehicle", "base_mode_name",
-           "code", "seconds"]
+__all__ = ["CUSTOM", "MODES", "SPEED_QUANTITIES", "Autopilot", "ModeError", "Params", "SpeedParam", "Vehicle",
+           "base_mode_name", "code", "seconds"]

@@ -11,6 +11,7 @@ from fleetctl.mavlink.autopilots.base import (
     Autopilot,
     ModeError,
     Params,
+    SpeedParam,
     Vehicle,
     base_mode_name,
     code,
@@ -25,6 +26,34 @@ DLL_ACTIONS = {0: "none", 1: "hold", 2: "rtl", 3: "land", 5: "terminate", 6: "lo
 GF_ACTIONS = {0: "none", 1: "warning", 2: "hold", 3: "rtl", 4: "terminate", 5: "land"}
 _DLL_SET = {"hold": 1, "rtl": 2, "land": 3}
 _GF_SET = {"report": 1, "hold": 2, "rtl": 3, "land": 5}
+# streamed by PX4 on a ground-station link (mavlink mode Normal) and read by no part of fleetctl:
+# turned off at connect. Measured on SITL (v1.18, SIH): ~370 messages/s per quadcopter, 6 of them at
+# 50 Hz (ATTITUDE, ATTITUDE_QUATERNION, ATTITUDE_TARGET, POSITION_TARGET_LOCAL_NED,
+# LOCAL_POSITION_NED, SERVO_OUTPUT_RAW), plus GLOBAL_POSITION_INT at 50 Hz
+QUIET_STREAMS = ("ATTITUDE", "ATTITUDE_QUATERNION", "ATTITUDE_TARGET", "POSITION_TARGET_LOCAL_NED",
+                 "POSITION_TARGET_GLOBAL_INT", "LOCAL_POSITION_NED", "SERVO_OUTPUT_RAW", "VFR_HUD",
+                 "ALTITUDE", "SCALED_PRESSURE", "GNSS_INTEGRITY", "OPEN_DRONE_ID_LOCATION",
+                 "OPEN_DRONE_ID_SYSTEM", "ESTIMATOR_STATUS", "DISTANCE_SENSOR", "VIBRATION", "CURRENT_MODE")
+# what decides a flight's time (all SI units: scale 1). A multicopter takes off at MPC_TKO_SPEED
+# (after a MPC_TKO_RAMP_T velocity ramp), climbs between waypoints at MPC_Z_V_AUTO_UP, descends at
+# MPC_Z_V_AUTO_DN and lands at MPC_LAND_SPEED below MPC_LAND_ALT2 (5 m); horizontally it cruises at
+# MPC_XY_CRUISE with MPC_ACC_HOR (jerk MPC_JERK_AUTO). A ground rover (10045: Ackermann) drives at
+# RO_SPEED_LIM with RO_ACCEL_LIM / RO_DECEL_LIM. Waypoints count as reached NAV_ACC_RAD early
+# (10 m multicopter, 0.5 m rover; RA_ACC_RAD_MAX on an Ackermann rover) unless param2 is set.
+MC_SPEED_PARAMS = (
+    SpeedParam("MPC_XY_CRUISE", "max_speed", 1.0),
+    SpeedParam("MPC_ACC_HOR", "accel", 1.0),
+    SpeedParam("MPC_TKO_SPEED", "climb_rate", 1.0),
+    SpeedParam("MPC_Z_V_AUTO_UP", "climb_rate", 1.0),
+    SpeedParam("MPC_LAND_SPEED", "land_speed", 1.0),
+    SpeedParam("MPC_Z_V_AUTO_DN", "land_speed", 1.0),
+)
+ROVER_SPEED_PARAMS = (
+    SpeedParam("RO_SPEED_LIM", "max_speed", 1.0),
+    SpeedParam("RO_ACCEL_LIM", "accel", 1.0),
+    SpeedParam("RO_DECEL_LIM", "accel", 1.0),
+)
+WAYPOINT_RADIUS = 1.0  # m: param2 of compiled waypoints ("reached" = at the point, not 10 m early)
 _WORDS = {"none": "no action", "hold": "hold", "rtl": "RTL", "land": "land",
           "terminate": "flight termination", "lockdown": "lockdown (motors off)"}
 
@@ -32,6 +61,7 @@ _WORDS = {"none": "no action", "hold": "hold", "rtl": "RTL", "land": "land",
 class Px4(Autopilot):
     name = "px4"
     param_bytewise = True
+    acceptance_radius = WAYPOINT_RADIUS
     _MAIN = {1: "MANUAL", 2: "ALTCTL", 3: "POSCTL", 4: "AUTO", 5: "ACRO", 6: "OFFBOARD", 7: "STABILIZED",
              8: "RATTITUDE"}
     _AUTO = {1: "READY", 2: "TAKEOFF", 3: "LOITER", 4: "MISSION", 5: "RTL", 6: "LAND", 7: "RTGS",
@@ -79,6 +109,20 @@ class Px4(Autopilot):
         if first > 0:
             await vehicle.set_current(first)
         await vehicle.set_mode("MISSION")
+
+    def speed_params(self) -> tuple[SpeedParam, ...]:
+        return ROVER_SPEED_PARAMS if self.ground else MC_SPEED_PARAMS
+
+    # -- telemetry rates ------------------------------------------------------------------------------
+    def stream_rates(self, position_hz: float, status_hz: float) -> dict[str, float]:
+        """The unused high-rate streams off first, then what fleetctl reads. PX4 streams
+        MISSION_CURRENT (1 Hz) and HOME_POSITION (0.5 Hz) itself and refuses an interval for
+        MISSION_CURRENT; GPS_RAW_INT (5 Hz) is needed only for preflight."""
+        rates: dict[str, float] = dict.fromkeys(QUIET_STREAMS, -1.0)
+        rates.update(super().stream_rates(position_hz, status_hz))
+        del rates["MISSION_CURRENT"]
+        rates["GPS_RAW_INT"] = status_hz
+        return rates
 
     # -- link loss and geofence -------------------------------------------------------------------
     @property
