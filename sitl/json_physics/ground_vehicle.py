@@ -1,6 +1,7 @@
 """A car-like ground vehicle (ArduRover's default: steering servo on channel 1, throttle on
 channel 3, both 1000..2000 us around 1500), after ArduPilot's own ``SIM_Rover``: the speed
-relaxes towards ``throttle * max_speed`` with ``max_accel`` at a standing start, the turn rate
+relaxes towards ``throttle * max_speed`` with ``max_accel`` at a standing start (less a
+little rolling resistance, which brings it to a stop), the turn rate
 is that of a bicycle whose full-lock turning circle is ``turning_circle`` metres across."""
 
 from __future__ import annotations
@@ -19,6 +20,7 @@ class GroundParams:
     max_accel: float = 10.0        # m/s^2 from standstill at full throttle
     turning_circle: float = 1.8    # m, diameter at full steering
     max_wheel_turn: float = 35.0   # degrees at full steering
+    rolling: float = 0.5           # m/s^2 of rolling resistance (it comes to a stop)
     steering_channel: int = 1
     throttle_channel: int = 3
 
@@ -48,10 +50,15 @@ class GroundVehicle:
         p, b = self.params, self.body
         throttle = _servo(pwm, p.throttle_channel)
         steering = _servo(pwm, p.steering_channel)
-        accel = p.max_accel * (throttle - self.speed / p.max_speed)
+        drive = p.max_accel * (throttle - self.speed / p.max_speed)
+        before = self.speed
+        if before == 0.0 and abs(drive) <= p.rolling:
+            accel = 0.0
+        else:
+            accel = drive - math.copysign(p.rolling, before if before != 0.0 else drive)
         self.speed += accel * dt
-        if throttle == 0.0 and abs(self.speed) < 0.01:
-            self.speed = 0.0
+        if before != 0.0 and self.speed * before < 0.0 and abs(drive) <= p.rolling:
+            self.speed, accel = 0.0, -before / dt   # friction stops it, it does not reverse it
         self.yaw_rate = self.turn_rate(steering, self.speed)
         yaw = yaw_of(b.attitude) + self.yaw_rate * dt
         b.attitude = from_yaw(yaw)
