@@ -3,6 +3,7 @@ firmware (ArduCopter, ArduRover) flying on them, a copter riding a carrier's dec
 
 from __future__ import annotations
 
+import argparse
 import math
 import socket
 from collections.abc import Iterator
@@ -196,6 +197,15 @@ def test_server_answers_each_packet_in_lockstep() -> None:
         assert server.stats["q"].packets == 3 and server.stats["q"].repeats == 1
     finally:
         server.stop()
+
+
+def test_command_line_vehicles() -> None:
+    from sitl.json_physics.__main__ import _vehicle
+
+    assert _vehicle("r1=21@carrier") == ("r1", 21, 0.0, 0.0, 0.0, "carrier")
+    assert _vehicle("c=20,10,-5,90") == ("c", 20, 10.0, -5.0, 90.0, None)
+    with pytest.raises(argparse.ArgumentTypeError):
+        _vehicle("r1=21,3")
 
 
 # -- real firmware on this physics ---------------------------------------------------------------
