@@ -359,7 +359,9 @@ class CollectPhase:
         ctx, st, rovers = self.ctx, self.ctx.state, self.ctx.fleet.rovers
         for rid, rm in rnd.compiled.rovers.items():
             items = list(rm.items)
-            hold = dataclasses.replace(items[rm.target_seq], command=mavlink2.MAV_CMD_NAV_LOITER_UNLIM)
+            # the waypoint's acceptance radius (param2) is no loiter parameter: PX4 refuses it there
+            hold = dataclasses.replace(items[rm.target_seq], command=mavlink2.MAV_CMD_NAV_LOITER_UNLIM,
+                                       param2=0.0)
             items.insert(rm.target_seq + 1, hold)
             rnd.hold_seq[rid], rnd.land_seq[rid] = rm.target_seq + 1, rm.final_seq + 1
             rnd.items[rid] = items
