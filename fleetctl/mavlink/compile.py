@@ -193,7 +193,8 @@ def with_meeting_hold(rm: RoverMission, autopilot: Autopilot | None) -> tuple[li
     index, the landing's index)."""
     items = list(rm.items)
     above = items[rm.target_seq]
-    hold = dataclasses.replace(above, command=M.MAV_CMD_NAV_LOITER_UNLIM,
+    # the waypoint's acceptance radius (param2) is no loiter parameter: PX4 refuses it there
+    hold = dataclasses.replace(above, command=M.MAV_CMD_NAV_LOITER_UNLIM, param2=0.0,
                                param4=_param4(autopilot, M.MAV_CMD_NAV_LOITER_UNLIM))
     items.insert(rm.target_seq + 1, hold)
     return items, rm.target_seq + 1, rm.final_seq + 1

@@ -1,0 +1,119 @@
+"""PX4 SITL (SIH) fleet for the firmware tests: a rover carrier (airframe 10045) and quadcopters
+(10040) at the carrier's home, all on one ground-station port ``udpin://127.0.0.1:14550``.
+
+Also runnable by hand: ``FLEETCTL_PX4_DIR=/path/to/px4 python3 -m tests.firmware.px4_fleet OUTDIR``
+starts the fleet, writes ``OUTDIR/mission.yaml`` and runs until interrupted (SIGINT/SIGTERM)."""
+
+from __future__ import annotations
+
+import math
+import os
+import signal
+import socket
+import sys
+import time
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
+from pathlib import Path
+
+from sitl.firmware import FirmwareFleet, FirmwareVehicle, find_px4
+
+HOME = (47.397742, 8.545594, 488.0, 0.0)  # the origin of the mission: lat, lon, AMSL alt, heading
+GCS_PORT = 14550  # PX4 always sends its ground-station link here
+SPEEDUP = 4.0  # PX4_SIM_SPEED_FACTOR (the machine is shared: keep it at most 4)
+SKIP_REASON = "PX4 SITL not found: set FLEETCTL_PX4_DIR"
+# tasks 20-30 m from the carrier, one per rover (east, north, height above ground)
+TASKS = ((20.0, 8.0, 5.0), (-6.0, 24.0, 6.0), (-14.0, -18.0, 4.0))
+
+
+def vehicles(n_rovers: int = 3) -> list[FirmwareVehicle]:
+    out = [FirmwareVehicle("carrier", sysid=1, frame="rover", home=HOME)]
+    out += [FirmwareVehicle(f"r{i + 1}", sysid=11 + i, frame="copter", home=HOME) for i in range(n_rovers)]
+    return out
+
+
+def port_free(port: int = GCS_PORT) -> bool:
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+        try:
+            s.bind(("127.0.0.1", port))
+        except OSError:
+            return False
+    return True
+
+
+@contextmanager
+def px4_fleet(n_rovers: int = 3, speedup: float = SPEEDUP) -> Iterator[FirmwareFleet]:
+    build = find_px4()
+    if build is None:
+        raise RuntimeError(SKIP_REASON)
+    fleet = FirmwareFleet(build, vehicles(n_rovers), gcs_port=GCS_PORT, speedup=speedup)
+    try:
+        with fleet:
+            yield fleet
+    finally:
+        fleet.cleanup()
+
+
+# the time model's terms for PX4 (fitted on SITL: docs in tests/firmware/test_px4.py)
+# takeoff_time: start command -> on the line (arm ~0.5 s, TAKEOFF detected ~2 s, IN_AIR at 1 m 3-5 s,
+# the take-off item done and the turn onto the line): 7.0 s fits the deployments (6.6-7.4 s measured);
+# land_time: above the deck at 3 m -> landing detected: 3.0-3.4 s measured
+PX4_TIMING = {"max_speed": 5.0, "accel": 3.0, "takeoff_time": 7.0, "land_time": 3.3}
+
+
+def mission_yaml(tasks: Sequence[tuple[float, float, float]] = TASKS, *, n_rovers: int = 3,
+                 extra_rovers: str = "", timing: dict[str, float] | None = None) -> str:
+    """A mission for the PX4 fleet: one stop at the carrier's start serves every task."""
+    t = {**PX4_TIMING, **(timing or {})}
+    lat, lon, alt, _ = HOME
+    task_lines = "".join(f"  - {{id: t{i + 1}, position: [{x:g}, {y:g}, {z:g}]}}\n"
+                         for i, (x, y, z) in enumerate(tasks))
+    reach = max(math.hypot(x, y) for x, y, _z in tasks) + 10.0
+    return f"""name: px4-sitl
+origin: {{lat: {lat}, lon: {lon}, alt: {alt}}}
+carrier:
+  id: carrier
+  connection: udpin://127.0.0.1:{GCS_PORT}
+  sysid: 1
+  position: [0, 0]
+  heading_deg: 0
+  max_speed: 0.5
+  accel: 1.0
+  unload_time: 0.0
+  load_time: 0.0
+rovers:                      # PX4 quadcopter (10040) defaults, measured on SITL (tests/firmware/test_px4.py)
+  max_speed: {t['max_speed']:g}               # MPC_XY_CRUISE
+  accel: {t['accel']:g}                   # MPC_ACC_HOR
+  climb_rate: 1.5            # MPC_TKO_SPEED
+  land_speed: 0.7            # MPC_LAND_SPEED
+  takeoff_time: {t['takeoff_time']:g}     # start -> on its line: arming, MPC_TKO_RAMP_T 3 s, 1 m climb
+  land_time: {t['land_time']:g}             # 3 m above the deck -> landing detected
+  deploy_range: {reach:g}
+  endurance_range: 3000.0
+  reserve: 0.1
+  fleet: {{count: {n_rovers}, sysid_start: 11}}
+{extra_rovers}tasks:
+{task_lines}"""
+
+
+def main(argv: list[str]) -> int:
+    out = Path(argv[1] if len(argv) > 1 else "px4-fleet")
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "mission.yaml").write_text(mission_yaml())
+    stop = False
+
+    def on_signal(*_a: object) -> None:
+        nonlocal stop
+        stop = True
+
+    signal.signal(signal.SIGTERM, on_signal)
+    signal.signal(signal.SIGINT, on_signal)
+    with px4_fleet() as fleet:
+        print(f"PX4 fleet up (workdir {fleet.workdir}), pid {os.getpid()}", flush=True)
+        while not stop:
+            time.sleep(0.5)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv))

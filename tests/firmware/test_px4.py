@@ -1,0 +1,138 @@
+"""fleetctl against real PX4 firmware (SITL with SIH physics): a rover carrier (airframe 10045) and
+three quadcopters (10040) at the carrier's home, all on ``udpin://127.0.0.1:14550``, flown with the
+command line as a user would (``--yes --headless --summary``) at PX4_SIM_SPEED_FACTOR 4
+(``--speedup 4`` gives fleetctl the vehicles' clock).
+
+Skipped in one line unless ``FLEETCTL_PX4_DIR`` names a PX4 build (``bin/px4``, ``etc/``).
+
+The mission's rover speeds are PX4's (``Px4.speed_params``: MPC_XY_CRUISE 5 m/s, MPC_TKO_SPEED
+1.5 m/s, MPC_LAND_SPEED 0.7 m/s); ``accel``, ``takeoff_time`` and ``land_time`` are fitted to what
+this build flies (``px4_fleet.PX4_TIMING``). The tests run in file order on one fleet:
+status, deploy (the rovers end at their tasks), collect (they land on the deck)."""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import subprocess
+import sys
+import time
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+from px4_fleet import SKIP_REASON, TASKS, mission_yaml, port_free, px4_fleet
+
+from sitl.firmware import find_px4
+
+if find_px4() is None:
+    pytest.skip(SKIP_REASON, allow_module_level=True)
+
+ROOT = Path(__file__).resolve().parents[2]
+SPEEDUP = 4
+TOLERANCE = 0.10  # flown vs planned makespan
+DECK_M = 2.5  # a rover "on the deck": this near the carrier, horizontally
+TASK_M = 2.0  # a rover "at its task": this near it
+
+
+def cli(*args: str, timeout: float = 90.0) -> subprocess.CompletedProcess[str]:
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    return subprocess.run([sys.executable, "-m", "fleetctl.cli", *args], cwd=ROOT, env=env, text=True,
+                          capture_output=True, timeout=timeout)
+
+
+@pytest.fixture(scope="module")
+def px4(tmp_path_factory: pytest.TempPathFactory) -> Iterator[dict[str, Any]]:
+    if not port_free():
+        pytest.skip("UDP port 14550 (PX4's ground-station port) is in use")
+    d = tmp_path_factory.mktemp("px4")
+    mission = d / "mission.yaml"
+    mission.write_text(mission_yaml())
+    with px4_fleet(speedup=SPEEDUP) as fleet:
+        ctx: dict[str, Any] = {"fleet": fleet, "mission": mission, "dir": d}
+        deadline = time.monotonic() + 40.0
+        while True:  # armable after ~1.3 s at 4x (GPS fix, home, estimator)
+            out = cli("status", "-m", str(mission), "--timeout", "10")
+            if out.returncode == 0 or time.monotonic() > deadline:
+                break
+            time.sleep(1.0)
+        ctx["status"] = out
+        yield ctx
+
+
+def fly(px4: dict[str, Any], command: str, *extra: str) -> tuple[dict[str, Any], str]:
+    summary = px4["dir"] / f"{command}.json"
+    out = cli(command, "-m", str(px4["mission"]), "--yes", "--headless", "--speedup", str(SPEEDUP),
+              "--summary", str(summary), "--runs", str(px4["dir"] / "runs"), *extra, timeout=120.0)
+    assert summary.exists(), out.stdout[-2000:] + out.stderr[-2000:]
+    return json.loads(summary.read_text()), out.stdout + out.stderr
+
+
+def journal(summary: dict[str, Any]) -> list[dict[str, Any]]:
+    return [json.loads(line) for line in Path(summary["journal"]).read_text().splitlines() if line.strip()]
+
+
+def ratio(summary: dict[str, Any]) -> float:
+    return float(summary["makespan_flown"]) / float(summary["makespan_planned"])
+
+
+def test_status_sees_every_vehicle_ready(px4: dict[str, Any]) -> None:
+    out = px4["status"]
+    assert out.returncode == 0, out.stdout[-3000:] + out.stderr[-2000:]
+    assert "all 4 vehicles connected and ready" in out.stdout
+    assert "route" not in out.stderr and "system 0" not in out.stderr  # issue 25: no sysid-0 vehicle
+
+
+def test_deploy_reaches_every_task(px4: dict[str, Any]) -> None:
+    s, log = fly(px4, "deploy", "--planner", "direct")
+    px4["deploy"] = s
+    assert s["result"] == "complete", log[-3000:]
+    assert sorted(s["tasks_reached"]) == ["t1", "t2", "t3"]
+    assert s["link"]["route_conflicts"] == 0
+    tasks = {f"t{i + 1}": p for i, p in enumerate(TASKS)}
+    for rid, r in s["rovers_airborne"].items():  # each ends at its task (1 m acceptance radius)
+        assert math.dist(r["position"], tasks[r["task"]]) < TASK_M, (rid, r)
+    landed = [e for e in journal(s) if e["kind"] == "landed_state" and e.get("state") == "ON_GROUND"
+              and e.get("vehicle") != "carrier"]
+    assert not landed, f"a rover landed during the deployment: {landed}"
+    print(f"deploy: flown {s['makespan_flown']:.1f} s vs planned {s['makespan_planned']:.1f} s "
+          f"({ratio(s) - 1:+.0%})")
+    assert abs(ratio(s) - 1) <= TOLERANCE, s
+
+
+def test_collect_lands_every_rover_on_the_deck(px4: dict[str, Any]) -> None:
+    if px4.get("deploy", {}).get("result") != "complete":
+        pytest.skip("the deployment did not complete")
+    s, log = fly(px4, "collect")
+    assert s["result"] == "complete", log[-3000:]
+    assert sorted(s["rovers_loaded"]) == ["r1", "r2", "r3"]
+    assert s["link"]["route_conflicts"] == 0
+    events = journal(s)
+    deck = [e for e in events if e["kind"] == "stop_reached"][-1]["position"]
+    positions = where_landed(px4)
+    for rid in ("r1", "r2", "r3"):  # on the ground next to the carrier, nowhere else
+        assert math.dist(positions[rid][:2], positions["carrier"][:2]) < DECK_M, (rid, positions, deck)
+    print(f"collect: flown {s['makespan_flown']:.1f} s vs planned {s['makespan_planned']:.1f} s "
+          f"({ratio(s) - 1:+.0%})")
+    assert abs(ratio(s) - 1) <= TOLERANCE, s
+
+
+def where_landed(px4: dict[str, Any]) -> dict[str, tuple[float, float, float]]:
+    """Every vehicle's position (mission frame), read with fleetctl's own link once disarmed."""
+    import asyncio
+
+    from fleetctl.mavlink.fleet import connect_fleet
+    from fleetctl.mission import load_mission
+
+    async def read() -> dict[str, tuple[float, float, float]]:
+        mission = load_mission(px4["mission"])
+        async with await connect_fleet(mission, timeout=10.0) as fleet:
+            for v in fleet.rovers.values():
+                await v.wait_until(lambda v: v.enu is not None and v.on_ground is True and not v.armed,
+                                   20.0, "on the ground, disarmed")
+            await fleet.carrier.wait_until(lambda v: v.enu is not None, 5.0, "a position")
+            return {vid: v.enu for vid, v in fleet.vehicles.items() if v.enu is not None}
+
+    return asyncio.run(read())
