@@ -97,23 +97,25 @@ class Px4Build:
 Build = ArduPilotBuild | Px4Build
 
 
+def _root(env: Mapping[str, str] | None, name: str) -> Path | None:
+    root = (env if env is not None else os.environ).get(name)
+    return Path(root).resolve() if root else None
+
+
 def find_ardupilot(env: Mapping[str, str] | None = None) -> ArduPilotBuild | None:
     """The ArduPilot build named by ``FLEETCTL_ARDUPILOT_DIR``, or None."""
-    root = (env if env is not None else os.environ).get(ARDUPILOT_ENV)
-    if not root:
-        return None
-    build = ArduPilotBuild(Path(root).resolve())
-    ok = all(os.access(build.binary(f), os.X_OK) for f in ("copter", "rover"))
+    root = _root(env, ARDUPILOT_ENV)
+    build = None if root is None else ArduPilotBuild(root)
+    ok = build is not None and all(os.access(build.binary(f), os.X_OK) for f in ("copter", "rover"))
     return build if ok else None
 
 
 def find_px4(env: Mapping[str, str] | None = None) -> Px4Build | None:
     """The PX4 build named by ``FLEETCTL_PX4_DIR``, or None."""
-    root = (env if env is not None else os.environ).get(PX4_ENV)
-    if not root:
-        return None
-    build = Px4Build(Path(root).resolve())
-    return build if os.access(build.binary, os.X_OK) and (build.root / "etc").is_dir() else None
+    root = _root(env, PX4_ENV)
+    build = None if root is None else Px4Build(root)
+    ok = build is not None and os.access(build.binary, os.X_OK) and (build.root / "etc").is_dir()
+    return build if ok else None
 
 
 class FirmwareFleet:

@@ -82,6 +82,15 @@ class RoverMission:
     final_seq: int  # NAV_LOITER_UNLIM at the task (deploy) / NAV_LAND on the stop (collect)
     task: str | None = None  # deploy only
 
+    @property
+    def takeoff_seq(self) -> int:
+        """Index of the NAV_TAKEOFF item (-1 if the mission has none)."""
+        return next((i for i, it in enumerate(self.items) if it.command == M.MAV_CMD_NAV_TAKEOFF), -1)
+
+    def positions(self, origin: Origin, home_height: float = 0.0) -> list[tuple[float, float, float]]:
+        """The mission-frame points the rover flies through (the ArduPilot home placeholder left out)."""
+        return [item_position(it, origin, home_height) for it in self.items if it.frame != M.MAV_FRAME_GLOBAL]
+
 
 @dataclass(frozen=True)
 class CompiledPlan:

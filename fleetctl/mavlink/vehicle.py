@@ -33,6 +33,7 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 from fleetctl.geo import Origin, geodetic_to_local, local_to_geodetic
 from fleetctl.mavlink.autopilots import Autopilot, autopilot_for
+from fleetctl.mavlink.fence import FENCE
 from fleetctl.mavlink.link import (
     CommandAck,
     Link,
@@ -588,6 +589,17 @@ class Vehicle:
             raise
         self.items_reached.clear()
         self.mission_items = list(items)
+
+    async def upload_fence(self, items: list[MissionItem]) -> None:
+        """Upload a FENCE mission (:func:`fleetctl.mavlink.fence.fence_items`)."""
+        await self.link.upload_mission(self.sysid, items, compid=self.compid, mission_type=FENCE)
+
+    async def download_fence(self) -> list[MissionItem]:
+        return await self.link.download_mission(self.sysid, compid=self.compid, mission_type=FENCE)
+
+    async def request_message(self, msgid: int, timeout: float | None = None) -> CommandAck:
+        """Ask for one message now (MAV_CMD_REQUEST_MESSAGE); the ACK, accepted or not."""
+        return await self.command(M.MAV_CMD_REQUEST_MESSAGE, [float(msgid)], check=False, timeout=timeout)
 
     async def download_mission(self) -> list[MissionItem]:
         return await self.link.download_mission(self.sysid, compid=self.compid)

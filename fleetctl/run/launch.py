@@ -12,9 +12,7 @@ from __future__ import annotations
 import contextlib
 from dataclasses import dataclass, field
 
-from pymavlink.dialects.v20 import ardupilotmega as mavlink2
-
-from fleetctl.mavlink.compile import RoverMission, item_position
+from fleetctl.mavlink.compile import RoverMission
 from fleetctl.mavlink.link import LinkError
 from fleetctl.mavlink.vehicle import CommandRejected, Vehicle
 from fleetctl.mission.flight import TAKEOFF_HEIGHT
@@ -39,20 +37,13 @@ def rover_on_deck(ctx: RunContext, v: Vehicle) -> bool:
 
 def takeoff_seq(slot: RoverMission) -> int:
     """Index of the NAV_TAKEOFF item of a compiled rover mission (-1 if it has none)."""
-    return next((i for i, it in enumerate(slot.items) if it.command == mavlink2.MAV_CMD_NAV_TAKEOFF), -1)
+    return slot.takeoff_seq
 
 
 def flight_path(ctx: RunContext, rm: RoverMission, start: Vec3) -> list[Vec3]:
     """Where a rover flying ``rm`` from ``start`` should be (its items' positions)."""
     origin = ctx.fleet.carrier.origin
-    pts: list[Vec3] = [start]
-    if origin is None:
-        return pts
-    for it in rm.items:
-        if it.frame == mavlink2.MAV_FRAME_GLOBAL:  # ArduPilot home placeholder
-            continue
-        pts.append(item_position(it, origin))
-    return pts
+    return [start] if origin is None else [start, *rm.positions(origin)]
 
 
 @dataclass

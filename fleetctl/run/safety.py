@@ -17,8 +17,9 @@ from typing import Any
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 from shapely.geometry import LineString, Point, Polygon
 
-from fleetctl.geo import Origin, local_to_geodetic
+from fleetctl.geo import Origin
 from fleetctl.mavlink.autopilots import ModeError
+from fleetctl.mavlink.fence import fence_items as mavlink_fence_items
 from fleetctl.mavlink.fleet import Fleet
 from fleetctl.mavlink.link import LinkError, MissionItem
 from fleetctl.mavlink.params import ParamError, read_params, set_param
@@ -31,7 +32,6 @@ from fleetctl.run.kinds import Ev
 from fleetctl.run.preflight import PreflightRow, check_fleet
 
 M = mavlink2
-FENCE = M.MAV_MISSION_TYPE_FENCE
 GATHER_TIMEOUT = 3.0  # s to wait for the telemetry preflight checks read
 RTL_WARNING = ("RTL returns a rover to where it armed: a carrier stop the carrier will have left "
                "(set links.failsafe: hold or land to keep rovers near their task)")
@@ -63,7 +63,7 @@ async def gather_telemetry(vehicles: list[Vehicle], timeout: float = GATHER_TIME
                                     (M.MAVLINK_MSG_ID_GPS_RAW_INT, v.gps_fix_type),
                                     (M.MAVLINK_MSG_ID_SYS_STATUS, v.sensors_present)):
                     if have is None:
-                        await v.command(M.MAV_CMD_REQUEST_MESSAGE, [float(msgid)], check=False, timeout=0.5)
+                        await v.request_message(msgid, timeout=0.5)
                 await v.wait_until(_complete, timeout, "preflight telemetry")
 
     await asyncio.gather(*(one(v) for v in vehicles if v.connected and not v.lost))
@@ -105,23 +105,15 @@ async def set_failsafe(v: Vehicle, action: str,
 
 # ------------------------------------------------------------------------------------- geofence
 def fence_items(fence: GeofenceConfig, origin: Origin) -> list[MissionItem]:
-    """The FENCE mission: the inclusion polygon, then one exclusion polygon per obstacle
-    (MAV_CMD_NAV_FENCE_POLYGON_VERTEX_INCLUSION/_EXCLUSION, param1 = the polygon's vertex count)."""
-    items: list[MissionItem] = []
-    zones = [(M.MAV_CMD_NAV_FENCE_POLYGON_VERTEX_INCLUSION, fence.polygon)]
-    zones += [(M.MAV_CMD_NAV_FENCE_POLYGON_VERTEX_EXCLUSION, pts) for pts in fence.exclusions]
-    for command, pts in zones:
-        for x, y in pts:
-            lat, lon, _alt = local_to_geodetic(x, y, 0.0, origin)
-            items.append(MissionItem(command, M.MAV_FRAME_GLOBAL, param1=float(len(pts)),
-                                     x=int(round(lat * 1e7)), y=int(round(lon * 1e7))))
-    return items
+    """The mission's geofence as a FENCE mission (:func:`fleetctl.mavlink.fence.fence_items`):
+    the inclusion polygon, then one exclusion polygon per obstacle."""
+    return mavlink_fence_items(fence.polygon, fence.exclusions, origin)
 
 
 async def upload_fence(v: Vehicle, fence: GeofenceConfig, origin: Origin) -> None:
     """Upload the fence (MAVLink mission protocol, mission_type FENCE), then enable it with its
     height limit and breach action (the autopilot's parameters)."""
-    await v.link.upload_mission(v.sysid, fence_items(fence, origin), compid=v.compid, mission_type=FENCE)
+    await v.upload_fence(fence_items(fence, origin))
     if v.autopilot is None:
         raise ParamError(f"{v.name}: no heartbeat")
     for name, value in v.autopilot.fence_params(fence.alt_max, fence.action).items():
@@ -129,7 +121,7 @@ async def upload_fence(v: Vehicle, fence: GeofenceConfig, origin: Origin) -> Non
 
 
 async def download_fence(v: Vehicle) -> list[MissionItem]:
-    return await v.link.download_mission(v.sysid, compid=v.compid, mission_type=FENCE)
+    return await v.download_fence()
 
 
 def plan_violations(plan: Any, fence: GeofenceConfig) -> list[str]:

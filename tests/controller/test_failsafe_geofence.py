@@ -15,6 +15,7 @@ from ctl_helpers import mission_dict, mission_from, sim_fleet
 from shapely.geometry import LineString, box
 from shapely.ops import unary_union
 
+from fleetctl.mavlink.fence import FENCE
 from fleetctl.mavlink.fleet import connect_fleet
 from fleetctl.mavlink.params import decode, encode, read_param, set_param
 from fleetctl.mavlink.vehicle import Vehicle, VehicleEvent
@@ -22,7 +23,6 @@ from fleetctl.mission.model import GeofenceConfig
 from fleetctl.run.context import ExecutionError
 from fleetctl.run.runner import execute
 from fleetctl.run.safety import (
-    FENCE,
     check_plan,
     download_fence,
     fence_items,
