@@ -673,8 +673,9 @@ async def _status(mission: Mission, timeout: float, speedup: float | None) -> in
             if w:
                 print(f"warning: {row['id']}: {w}")
     if problems:
-        print(f"fleetctl: {len(problems)} vehicle(s) missing or not ready (no heartbeat: {CONNECT_HINT}):",
-              file=sys.stderr)
+        silent = any(not v.connected for v in fleet.vehicles.values())
+        hint = f" (no heartbeat: {CONNECT_HINT})" if silent else ""
+        print(f"fleetctl: {len(problems)} vehicle(s) missing or not ready{hint}:", file=sys.stderr)
         for line in problems:
             print(f"  {line}", file=sys.stderr)
         return EXIT_NOT_READY
@@ -700,7 +701,8 @@ def _status_rows(mission: Mission, fleet: Fleet, link_loss: dict[str, str] | Non
         reasons: list[str] = []
         if not v.connected:
             row["link"] = "no answer"
-            reasons.append(fleet.errors.get(vid, "no heartbeat"))
+            heard = fleet.silence.get(vid)
+            reasons.append(fleet.errors.get(vid, "no heartbeat") + (f"; {heard}" if heard else ""))
         else:
             row["link"] = "lost" if v.lost else f"ok ({v.last_heard_age or 0.0:.1f} s)"
             row["autopilot"] = v.autopilot.name if v.autopilot else "?"

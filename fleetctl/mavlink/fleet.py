@@ -42,6 +42,7 @@ class Fleet:
         self.urls = urls  # id -> url
         self.errors = errors  # id -> why it is not connected (link errors, no heartbeat)
         self.left_out: dict[str, str] = {}  # rover id -> why it does not fly (failed preflight)
+        self.silence: dict[str, str] = {}  # id -> what its link heard instead of its heartbeat
         self.other_carriers = other_carriers  # several teams: the carriers after the first (no rovers)
 
     @property
@@ -64,7 +65,9 @@ class Fleet:
         urls = {vid: self.urls[vid] for vid in ids}
         links = {url: self.links[url] for url in dict.fromkeys(urls.values()) if url in self.links}
         errors = {vid: why for vid, why in self.errors.items() if vid in urls}
-        return FleetView(carrier_id, {vid: self.vehicles[vid] for vid in ids}, links, urls, errors)
+        view = FleetView(carrier_id, {vid: self.vehicles[vid] for vid in ids}, links, urls, errors)
+        view.silence = {vid: why for vid, why in self.silence.items() if vid in urls}
+        return view
 
     def leave_out(self, rover_id: str, why: str) -> None:
         """Keep a (connected) rover out of the run: it stays in ``vehicles`` but not in ``rovers``."""
@@ -74,9 +77,12 @@ class Fleet:
 
     def failure_line(self, vid: str) -> str:
         """One short line on why a vehicle is not connected: ``r3 (sysid 13): no heartbeat within
-        10 s on udp://127.0.0.1:14550``."""
+        10 s on udp://127.0.0.1:14550; no MAVLink traffic at all on this link: …`` (what its link
+        heard instead: :meth:`fleetctl.mavlink.link.Link.why_silent`)."""
         why = self.errors.get(vid, "no heartbeat")
-        return f"{vid} (sysid {self.vehicles[vid].sysid}): {why} on {self.urls[vid]}"
+        heard = self.silence.get(vid)
+        line = f"{vid} (sysid {self.vehicles[vid].sysid}): {why} on {self.urls[vid]}"
+        return f"{line}; {heard}" if heard else line
 
     def missing(self) -> dict[str, str]:
         """id -> URL of every vehicle never heard from."""
@@ -236,6 +242,7 @@ async def connect_fleet(
             await v.wait_heartbeat(timeout)
         except TimeoutError:
             errors[vid] = f"no heartbeat within {timeout:g} s"
+            fleet.silence[vid] = v.link.why_silent(v.sysid, sysids.values())
 
     await asyncio.gather(*(first_heartbeat(vid, v) for vid, v in vehicles.items()))
     missing = fleet.missing()

@@ -373,6 +373,7 @@ class Link:
         self.route_conflicts = 0
         self._conflict_logged: dict[tuple[int, Any], float] = {}
         self.rejected: dict[str, int] = dict.fromkeys(REJECTION_KEYS.values(), 0)
+        self.rejected_from: dict[int, dict[str, int]] = {}  # sysid -> signing rejections of its messages
         self.signer: Signer | None = None
         self._verifier: Verifier | None = None
         if signing_key is not None:
@@ -625,7 +626,11 @@ class Link:
         if verifier is not None:
             verdict = verifier.check(msg.get_msgbuf())
             if verdict != OK:
-                self.rejected[REJECTION_KEYS[verdict]] += 1
+                why = REJECTION_KEYS[verdict]
+                self.rejected[why] += 1
+                if src in self.rejected_from or len(self.rejected_from) < MAX_PEERS:
+                    counts = self.rejected_from.setdefault(src, {})
+                    counts[why] = counts.get(why, 0) + 1
                 return
         now = time.monotonic()
         route = self.routes.get(src)
@@ -685,6 +690,25 @@ class Link:
         if src == self.sysid and comp == self.compid and msg.custom_mode == self.nonce:
             return
         self.other_gcs[(src, comp, msg.custom_mode)] = time.monotonic()
+
+    def why_silent(self, sysid: int, expected: Iterable[int] = ()) -> str:
+        """Why no HEARTBEAT of ``sysid`` was taken on this link, from what the link did hear: its
+        messages refused by signing, other system ids, or no traffic at all."""
+        refused = self.rejected_from.get(sysid)
+        if refused:
+            key = max(refused, key=refused.__getitem__)
+            return _REFUSED_WHY[key].format(n=refused[key])
+        if sysid in self.last_heard:
+            return "its messages arrive, but no HEARTBEAT among them"
+        known = set(expected)
+        others = sorted(s for s in self.last_heard if s not in known and s != sysid)
+        if others:
+            ids = ", ".join(str(s) for s in others[:8])
+            return (f"heard system id(s) {ids}, which the mission does not name, but not {sysid}: "
+                    "check the vehicle's system id")
+        if not self.last_heard and not self.rx_bad and not any(self.rejected.values()):
+            return "no MAVLink traffic at all on this link: check the URL and that the vehicle is powered"
+        return "not heard: check the system id and that the vehicle is powered"
 
     def other_ground_stations(self, within: float = 5.0) -> list[tuple[int, int]]:
         """(sysid, compid) of every other ground station heard on this link in the last ``within`` s."""
@@ -961,6 +985,16 @@ class Link:
             wait = min(wait * 2, max_wait)
         raise LinkTimeout(f"system {sysid}: mission {operation} timed out ({msg.get_type()} unanswered "
                           f"after {retries} retries) on {self.url}")
+
+
+_REFUSED_WHY = {
+    "rejected_unsigned": "heard, but unsigned ({n} messages refused): signing is on; provision its key "
+                         "with 'fleetctl keys provision'",
+    "rejected_bad_signature": "heard, but signed with another key ({n} messages refused): provision the "
+                              "mission's key",
+    "rejected_replay": "heard, but its signing timestamps go back ({n} messages refused: a replay, or "
+                       "the vehicle's clock was reset)",
+}
 
 
 def _deg_e7(deg: float) -> int:

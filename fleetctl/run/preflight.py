@@ -19,6 +19,7 @@ parameters) is :func:`fleetctl.run.safety.gather`.
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass, field
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
@@ -31,6 +32,7 @@ from fleetctl.run.energy import range_from_percent
 M = mavlink2
 CHECKS = ("heartbeat", "gps", "home", "sensors", "battery", "disarmed")
 NOT_REQUIRED = M.MAV_SYS_STATUS_SENSOR_RC_RECEIVER
+PREARM_TEXT_AGE = 60.0  # s: a "PreArm:" STATUSTEXT older than this no longer explains a failing check
 _SENSOR_WORDS = {
     "3D_GYRO": "gyroscope", "3D_ACCEL": "accelerometer", "3D_MAG": "magnetometer",
     "ABSOLUTE_PRESSURE": "barometer", "GPS": "GPS", "AHRS": "attitude estimator",
@@ -85,6 +87,13 @@ def unhealthy_sensors(v: Vehicle) -> list[str]:
     return out
 
 
+def _prearm_text(v: Vehicle, within: float = PREARM_TEXT_AGE) -> str | None:
+    """The vehicle's last "PreArm: …" STATUSTEXT (ArduPilot says there why it cannot arm yet)."""
+    now = time.monotonic()
+    return next((text for ts, _sev, text in reversed(v.statustexts)
+                 if text.startswith("PreArm") and now - ts <= within), None)
+
+
 def needs_deploy_range(mission: Mission, command: str | None) -> bool:
     """Do the rovers need ``deploy_range`` of battery for ``command`` (None = ``fleetctl status``:
     yes when the mission has tasks)?"""
@@ -116,7 +125,9 @@ def check_vehicle(v: Vehicle, mission: Mission, *, carrier: bool, command: str |
     if v.sensors_present is None:
         add(Check("sensors", False, "no SYS_STATUS received (sensor health unknown)"))
     else:
-        add(Check("sensors", not bad, "ok" if not bad else "sensors not healthy: " + ", ".join(bad)))
+        prearm = _prearm_text(v) if bad else None
+        detail = "sensors not healthy: " + ", ".join(bad) + (f" ({prearm})" if prearm else "")
+        add(Check("sensors", not bad, "ok" if not bad else detail))
     in_field = command == "collect"  # rovers wait in the air where the deployment left them
     if carrier or not in_field:  # a rover's range decides whether it is collected, not preflight
         add(_battery(v, mission, carrier, command))
