@@ -40,6 +40,7 @@ Frame = Literal["copter", "rover", "hexa"]
 ARDUPILOT_ENV = "FLEETCTL_ARDUPILOT_DIR"
 PX4_ENV = "FLEETCTL_PX4_DIR"
 PX4_AIRFRAMES = {"copter": 10040, "hexa": 10044, "rover": 10045}
+DISCARD_PORT = 9  # UDP "discard": where an unused SITL serial port sends
 ARDUPILOT_MODELS = {"copter": "+", "hexa": "hexa", "rover": "rover"}
 
 
@@ -52,7 +53,10 @@ class FirmwareVehicle:
     """One firmware vehicle: its name, MAVLink system id, airframe and home (lat, lon, AMSL alt,
     heading in compass degrees). ``params`` are set as defaults at boot (ArduPilot: an extra
     defaults file; PX4: ``PX4_PARAM_*`` variables); ``model`` overrides the physics model
-    (ArduPilot ``--model``, e.g. ``JSON`` for an external physics process)."""
+    (ArduPilot ``--model``, e.g. ``JSON`` for an external physics process). ``gcs_serial`` is
+    the ArduPilot serial port of the ground-station link: 0 (SERIAL0) is the channel ArduPilot
+    trusts like a USB cable and takes unsigned messages on even when signing is set up; 1 is a
+    telemetry radio's port, where signing is enforced."""
 
     name: str
     sysid: int
@@ -60,6 +64,7 @@ class FirmwareVehicle:
     home: tuple[float, float, float, float]
     params: Mapping[str, float] = field(default_factory=dict)
     model: str | None = None
+    gcs_serial: int = 0
 
 
 @dataclass(frozen=True)
@@ -178,16 +183,19 @@ class FirmwareFleet:
 
     def _ardupilot_argv(self, build: ArduPilotBuild, v: FirmwareVehicle, wd: Path) -> list[str]:
         defaults = str(build.defaults(v.frame))
-        if v.params:
+        params = dict(v.params)
+        if v.gcs_serial:
+            params.setdefault(f"SERIAL{v.gcs_serial}_PROTOCOL", 2)  # MAVLink 2
+        if params:
             extra = wd / "fleetctl.parm"
-            extra.write_text("".join(f"{k} {val:g}\n" for k, val in v.params.items()))
+            extra.write_text("".join(f"{k} {val:g}\n" for k, val in params.items()))
             defaults += f",{extra}"
         lat, lon, alt, hdg = v.home
         return [str(build.binary(v.frame)), "-S", "-w", "--model", v.model or ARDUPILOT_MODELS[v.frame],
                 "--speedup", f"{self.speedup:g}", "--instance", str(self.instance(v.name)),
                 "--sysid", str(v.sysid), "--defaults", defaults,
                 "--home", f"{lat:.7f},{lon:.7f},{alt:.2f},{hdg:g}",
-                "--serial0", f"udpclient:127.0.0.1:{self.gcs_port}", "--sim-address=127.0.0.1"]
+                *_serials(v.gcs_serial, self.gcs_port), "--sim-address=127.0.0.1"]
 
     def _px4_argv(self, build: Px4Build, v: FirmwareVehicle, wd: Path) -> tuple[list[str], dict[str, str]]:
         lat, lon, alt, _hdg = v.home
@@ -250,6 +258,16 @@ class FirmwareFleet:
 
     def __exit__(self, *exc: object) -> None:
         self.stop()
+
+
+def _serials(gcs_serial: int, gcs_port: int) -> list[str]:
+    """SITL serial options: the ground-station link on SERIAL``gcs_serial``. SERIAL0 must be given
+    either way (left to its default TCP port, SITL waits for a connection before it starts): when
+    the link is on another port, SERIAL0 sends to the discard port."""
+    out = [f"--serial{gcs_serial}", f"udpclient:127.0.0.1:{gcs_port}"]
+    if gcs_serial != 0:
+        out = ["--serial0", f"udpclient:127.0.0.1:{DISCARD_PORT}", *out]
+    return out
 
 
 @contextlib.contextmanager

@@ -121,13 +121,15 @@ def mission_yaml(gcs_port: int, n_rovers: int, *,
 @contextlib.contextmanager
 def ardupilot_team(tmp_path: Path, *, n_rovers: int = 3, gcs_port: int = 14560, instance_base: int = 0,
                    mission: Mapping[str, Any] | None = None, params: Mapping[str, float] | None = None,
-                   env: Mapping[str, str] | None = None, ready: bool = True) -> Iterator[Team]:
+                   env: Mapping[str, str] | None = None, ready: bool = True,
+                   gcs_serial: int = 0) -> Iterator[Team]:
     """Start the carrier and ``n_rovers`` copters on the carrier's home, write the mission, wait
     until fleetctl's preflight passes (``ready``); stop everything on exit."""
     b = build()
     rovers = [f"r{k + 1}" for k in range(n_rovers)]
-    vehicles = [FirmwareVehicle("carrier", 1, "rover", HOME, params=dict(params or {}))]
-    vehicles += [FirmwareVehicle(r, 11 + k, "copter", HOME, params=dict(params or {}))
+    kw = {"params": dict(params or {}), "gcs_serial": gcs_serial}
+    vehicles = [FirmwareVehicle("carrier", 1, "rover", HOME, **kw)]  # type: ignore[arg-type]
+    vehicles += [FirmwareVehicle(r, 11 + k, "copter", HOME, **kw)  # type: ignore[arg-type]
                  for k, r in enumerate(rovers)]
     path = tmp_path / "mission.yaml"
     path.write_text(yaml.safe_dump(dict(mission or mission_yaml(gcs_port, n_rovers)), sort_keys=False))
@@ -221,6 +223,43 @@ def probe(port: int, seconds: float = 3.0, *, sysids: Sequence[int] = (),
                 elif kind == "STATUSTEXT":
                     s.texts.append(msg.text)
     return seen
+
+
+def param_answered(port: int, sysid: int, key: bytes | None, seconds: float = 3.0) -> bool:
+    """Send PARAM_REQUEST_READ (signed with ``key``, or unsigned) to ``sysid`` through the team's
+    port: does a PARAM_VALUE come back? (A vehicle enforcing signing ignores unsigned requests.)"""
+    import socket
+
+    from pymavlink.dialects.v20 import ardupilotmega as mavlink2
+
+    mav = mavlink2.MAVLink(None, srcSystem=255, srcComponent=190)
+    if key is not None:
+        mav.signing.secret_key = key
+        mav.signing.sign_outgoing = True
+        mav.signing.timestamp = int((time.time() - 1420070400) * 1e5)
+    parser = mavlink2.MAVLink(None)
+    parser.robust_parsing = True
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
+        sock.bind(("127.0.0.1", port))
+        sock.settimeout(0.2)
+        end = time.monotonic() + seconds
+        addr = None
+        sent = 0.0
+        while time.monotonic() < end:
+            if addr is not None and time.monotonic() - sent > 0.5:
+                sent = time.monotonic()
+                sock.sendto(mav.param_request_read_encode(sysid, 1, b"SYSID_THISMAV", -1).pack(mav), addr)
+            try:
+                data, frm = sock.recvfrom(65536)
+            except TimeoutError:
+                continue
+            for msg in parser.parse_buffer(data) or []:
+                if msg.get_srcSystem() != sysid:
+                    continue
+                addr = frm
+                if msg.get_type() == "PARAM_VALUE":
+                    return True
+    return False
 
 
 def horizontal(a: Sequence[float], b: Sequence[float]) -> float:

@@ -12,10 +12,20 @@ from __future__ import annotations
 import json
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import pytest
-from ardupilot_team import TASKS, Team, ardupilot_team, horizontal, mission_yaml, probe, run_dir_of
+from ardupilot_team import (
+    TASKS,
+    Team,
+    ardupilot_team,
+    horizontal,
+    mission_yaml,
+    param_answered,
+    probe,
+    run_dir_of,
+)
 from pymavlink.dialects.v20 import ardupilotmega as M
 
 pytestmark = pytest.mark.firmware
@@ -139,3 +149,29 @@ def test_run_killed_with_sigkill_is_finished_by_resume(tmp_path: Path) -> None:
         for k, rid in enumerate(team.rovers):
             s = seen[11 + k]
             assert s.enu is not None and horizontal(s.enu, carrier) < DECK and s.armed is False, (rid, s.enu)
+
+
+def test_signing_is_provisioned_and_enforced(tmp_path: Path) -> None:
+    key = "5a" * 32
+    extra = {"links": {"signing": {"key_env": "FLEETCTL_FW_KEY"}}}
+    # SERIAL1, a telemetry radio's port: ArduPilot takes unsigned messages on SERIAL0 (USB) always
+    with ardupilot_team(tmp_path, gcs_port=14564, instance_base=56, n_rovers=3, gcs_serial=1,
+                        mission=mission_yaml(14564, 3, extra=extra), env={"FLEETCTL_FW_KEY": key},
+                        ready=False) as team:
+        # not provisioned yet: heartbeats arrive unsigned, and status says so
+        deadline = time.monotonic() + 90
+        while True:
+            status = team.fleetctl("status", "--timeout", "3", timeout=60)
+            if "heard, but unsigned" in status.stderr or time.monotonic() > deadline:
+                break
+        assert "heard, but unsigned" in status.stderr and "keys provision" in status.stderr, status.stderr
+        prov = team.fleetctl("keys", "provision", "--mission", str(team.mission), timeout=120)
+        assert prov.returncode == 0, prov.stdout + prov.stderr
+        team.wait_ready()
+        port, raw = team.fleet.gcs_port, bytes.fromhex(key)
+        assert param_answered(port, 11, raw)  # signed: answered
+        assert not param_answered(port, 11, None)  # unsigned: ignored by the firmware
+        assert not param_answered(port, 11, bytes.fromhex("77" * 32))  # another key: ignored
+        proc, deploy = team.fly("deploy")
+        assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-2000:] + team.firmware_tail()
+        assert deploy["result"] == "complete" and deploy["link"]["rejected_unsigned"] == 0, deploy
