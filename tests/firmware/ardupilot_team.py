@@ -264,3 +264,21 @@ def param_answered(port: int, sysid: int, key: bytes | None, seconds: float = 3.
 
 def horizontal(a: Sequence[float], b: Sequence[float]) -> float:
     return float(((a[0] - b[0]) ** 2 + (a[1] - b[1]) ** 2) ** 0.5)
+
+
+def set_param(port: int, sysid: int, name: str, value: float) -> float:
+    """Set one parameter of ``sysid`` through the team's port (fleetctl's own PARAM_SET with
+    read-back), with no controller running."""
+    import asyncio
+
+    from fleetctl.mavlink.link import Link
+    from fleetctl.mavlink.params import set_param as set_vehicle_param
+    from fleetctl.mavlink.vehicle import Vehicle
+
+    async def go() -> float:
+        async with Link(f"udpin://127.0.0.1:{port}") as link:
+            v = Vehicle(link, sysid, name=f"sys{sysid}")
+            await v.wait_heartbeat(10.0)
+            return await set_vehicle_param(v, name, value)
+
+    return asyncio.run(go())

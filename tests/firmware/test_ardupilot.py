@@ -25,6 +25,7 @@ from ardupilot_team import (
     param_answered,
     probe,
     run_dir_of,
+    set_param,
 )
 from pymavlink.dialects.v20 import ardupilotmega as M
 
@@ -175,3 +176,21 @@ def test_signing_is_provisioned_and_enforced(tmp_path: Path) -> None:
         proc, deploy = team.fly("deploy")
         assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-2000:] + team.firmware_tail()
         assert deploy["result"] == "complete" and deploy["link"]["rejected_unsigned"] == 0, deploy
+
+
+def test_geofence_is_uploaded_and_a_breach_makes_the_firmware_land(tmp_path: Path) -> None:
+    fence = {"polygon": [[-60, -60], [60, -60], [60, 60], [-60, 60]], "alt_max": 15, "action": "land"}
+    with ardupilot_team(tmp_path, gcs_port=14565, instance_base=70, n_rovers=3,
+                        mission=mission_yaml(14565, 3, extra={"geofence": fence})) as team:
+        proc, deploy = team.fly("deploy")
+        assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-2000:] + team.firmware_tail()
+        text = (run_dir_of(proc) / "journal.jsonl").read_text()
+        assert text.count("geofence uploaded (4 vertices") == 4, text[-2000:]
+        # the fence's ceiling drops below the hovering rovers (t1 at 6 m): a breach, the firmware lands
+        rover = deploy["assignment"]["t1"]
+        sysid = 11 + team.rovers.index(rover)
+        assert set_param(team.fleet.gcs_port, sysid, "FENCE_ALT_MAX", 3.0) == 3.0
+        seen = probe(team.fleet.gcs_port, 6.0)[sysid]
+        assert seen.custom_mode == LAND_MODE, seen
+        assert any("fence" in t.lower() for t in seen.texts), seen.texts
+        assert seen.enu is not None and horizontal(seen.enu, dict(TASKS)["t1"]) < AT_TASK  # lands where it is
