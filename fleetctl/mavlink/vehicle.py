@@ -47,6 +47,7 @@ from fleetctl.mavlink.link import (
 log = logging.getLogger(__name__)
 
 M = mavlink2
+HOME_ALT_TOLERANCE = 50.0  # m: a ground vehicle's HOME_POSITION altitude this far off its own is wrong
 FORCE_MAGIC = 21196.0  # MAV_CMD_COMPONENT_ARM_DISARM param2: force (ignore checks)
 DEFAULT_POSITION_HZ = 10.0
 DEFAULT_BATTERY_HZ = 1.0
@@ -226,9 +227,27 @@ class Vehicle:
         return self._enu
 
     @property
+    def ground_vehicle(self) -> bool:
+        return self.autopilot is not None and self.autopilot.ground
+
+    @property
+    def height(self) -> float | None:
+        """Metres above home (GLOBAL_POSITION_INT.relative_alt); 0 for a ground vehicle: ArduRover
+        may set its home from the barometer alone (altitude near 0), and then reports its AMSL
+        altitude as the height above home."""
+        if self.ground_vehicle and self.relative_alt is not None:
+            return 0.0
+        return self.relative_alt
+
+    @property
     def home_amsl(self) -> float | None:
-        """Home altitude AMSL: from HOME_POSITION, else altitude − relative altitude."""
+        """Home altitude AMSL: from HOME_POSITION, else altitude − relative altitude. A ground
+        vehicle's home is where it stands when HOME_POSITION disagrees with its altitude by more
+        than ``HOME_ALT_TOLERANCE`` (the ArduRover quirk above)."""
         if self.home is not None:
+            off = self.alt is not None and abs(self.home[2] - self.alt) > HOME_ALT_TOLERANCE
+            if self.ground_vehicle and off:
+                return self.alt
             return self.home[2]
         if self.alt is not None and self.relative_alt is not None:
             return self.alt - self.relative_alt

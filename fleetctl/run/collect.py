@@ -297,7 +297,7 @@ class CollectPhase:
         """Leave ``rid`` out; in the air it lands where it is while it still has its reserve
         (rather than hover its battery away), to be picked up by hand."""
         v = self.ctx.fleet.rovers[rid]
-        up = v.on_ground is False or (v.relative_alt or 0.0) > GROUND_HEIGHT
+        up = v.on_ground is False or (v.height or 0.0) > GROUND_HEIGHT
         self.board.set(rid, RoverStatus.UNREACHABLE)
         self.ctx.state.event(
             Ev.ROVER_UNREACHABLE,

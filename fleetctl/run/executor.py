@@ -160,7 +160,7 @@ class Executor:
 
 
 def is_airborne(v: Vehicle) -> bool:
-    return v.on_ground is False or (v.relative_alt or 0.0) > AIRBORNE_HEIGHT
+    return v.on_ground is False or (v.height or 0.0) > AIRBORNE_HEIGHT
 
 
 __all__ = ["Executor", "is_airborne"]

@@ -171,7 +171,7 @@ class Launcher:
             # a task on the ground may be left again before a position shows it
             await v.wait_until(
                 lambda v: (
-                    (v.relative_alt or 0.0) > CLEAR_HEIGHT
+                    (v.height or 0.0) > CLEAR_HEIGHT
                     or tk in v.items_reached
                     or (v.mission_current or -1) > tk
                 ),

@@ -184,7 +184,7 @@ def _on_deck(fleet: Fleet, v: Vehicle) -> bool:
 
 
 def _airborne(v: Vehicle) -> bool:
-    return v.on_ground is False or (v.relative_alt or 0.0) > 0.3
+    return v.on_ground is False or (v.height or 0.0) > 0.3
 
 
 # ================================================================================== the folder

@@ -200,7 +200,7 @@ class FleetState:
             s.armed = v.armed
             s.mode = v.mode
             s.enu = v.enu
-            s.alt = v.relative_alt
+            s.alt = v.height
             s.speed = v.ground_speed
             s.battery_pct = v.battery_pct
             s.link_age = v.last_heard_age
