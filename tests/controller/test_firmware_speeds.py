@@ -12,6 +12,7 @@ from pymavlink.dialects.v20 import ardupilotmega as M
 
 from fleetctl.mavlink.autopilots import ArduPilot
 from fleetctl.mavlink.autopilots import ardupilot as apm
+from fleetctl.mavlink.vehicle import HOME_ALT_TOLERANCE
 from fleetctl.mission import MissionError
 from fleetctl.mission.flight import MEET_HEIGHT, TAKEOFF_HEIGHT
 from fleetctl.run.firmware_speeds import fitted_handling, quantities
@@ -64,6 +65,7 @@ def test_docs_autopilots_states_the_measured_constants_and_every_parameter() -> 
     assert f"+ {apm.COPTER_TAKEOFF_OVERHEAD:.1f} s" in text
     assert f"+ {apm.COPTER_LAND_OVERHEAD:.1f} s" in text
     assert f"(v/a + {apm.COPTER_LEG_OVERHEAD:.1f} s)" in text
+    assert f"more than {HOME_ALT_TOLERANCE:g} m off" in text
     documented = set(re.findall(r"\| `([A-Z_]+)`(?:, `([A-Z_]+)`)? \|", text))
     names = {n for pair in documented for n in pair if n}
     for p in (*apm.COPTER_SPEEDS, *apm.ROVER_SPEEDS):
