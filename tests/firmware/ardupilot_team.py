@@ -50,6 +50,12 @@ class Team:
     rovers: list[str]
     env: dict[str, str] = field(default_factory=dict)
 
+    @property
+    def tasks(self) -> dict[str, tuple[float, float, float]]:
+        """The mission's tasks (id -> ENU position)."""
+        m = yaml.safe_load(self.mission.read_text())
+        return {t["id"]: tuple(t["position"]) for t in m["tasks"]}
+
     def fleetctl(self, *args: str, timeout: float = 240.0,
                  check: bool = False) -> subprocess.CompletedProcess[str]:
         """Run ``fleetctl ARGS --mission M`` (``--speedup`` where it applies) and return it."""
@@ -93,6 +99,22 @@ class Team:
                 continue
             out.append(f"--- {v.name}: " + " | ".join(text))
         return "\n".join(out)
+
+
+def random_tasks(seed: int, n: int = 3) -> tuple[tuple[str, tuple[float, float, float]], ...]:
+    """``n`` tasks 15-30 m from the carrier in random directions, 3-10 m up, at least 8 m apart: a
+    mission fleetctl has never seen (the seed is printed by the tests that use it)."""
+    import math
+    import random
+
+    rng = random.Random(seed)
+    out: list[tuple[str, tuple[float, float, float]]] = []
+    while len(out) < n:
+        r, a = rng.uniform(15.0, 30.0), rng.uniform(0.0, 2 * math.pi)
+        p = (round(r * math.cos(a), 1), round(r * math.sin(a), 1), round(rng.uniform(3.0, 10.0), 1))
+        if all(horizontal(p, q) >= 8.0 for _, q in out):
+            out.append((f"t{len(out) + 1}", p))
+    return tuple(out)
 
 
 def mission_yaml(gcs_port: int, n_rovers: int, *,

@@ -10,6 +10,7 @@ carrier starts, so deployment launches at the carrier's start and collection lan
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
 import time
@@ -17,13 +18,13 @@ from pathlib import Path
 
 import pytest
 from ardupilot_team import (
-    TASKS,
     Team,
     ardupilot_team,
     horizontal,
     mission_yaml,
     param_answered,
     probe,
+    random_tasks,
     run_dir_of,
     set_param,
 )
@@ -38,7 +39,7 @@ LAND_MODE = 9  # ArduCopter LAND
 
 def assert_at_tasks(team: Team, assignment: dict[str, str]) -> None:
     seen = probe(team.fleet.gcs_port, 3.0)
-    tasks = dict(TASKS)
+    tasks = team.tasks
     for task, rover in assignment.items():
         s = seen[11 + team.rovers.index(rover)]
         assert s.enu is not None and horizontal(s.enu, tasks[task]) < AT_TASK, (rover, task, s.enu)
@@ -46,13 +47,16 @@ def assert_at_tasks(team: Team, assignment: dict[str, str]) -> None:
 
 
 def test_status_deploy_collect_on_stock_ardupilot(tmp_path: Path) -> None:
-    with ardupilot_team(tmp_path) as team:
+    seed = int(os.environ.get("FLEETCTL_FW_SEED", time.time_ns() % 100_000))
+    print(f"\ntasks of seed {seed} (FLEETCTL_FW_SEED={seed} flies them again)")
+    tasks = random_tasks(seed)
+    with ardupilot_team(tmp_path, mission=mission_yaml(14560, 3, tasks=tasks)) as team:
         status = team.fleetctl("status")
         assert status.returncode == 0 and "all 4 vehicles connected and ready" in status.stdout, status.stdout
 
         proc, deploy = team.fly("deploy")
         assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-2000:] + team.firmware_tail()
-        assert deploy["result"] == "complete" and sorted(deploy["tasks_reached"]) == ["t1", "t2", "t3"]
+        assert deploy["result"] == "complete" and sorted(deploy["tasks_reached"]) == ["t1", "t2", "t3"], tasks
         assert_at_tasks(team, deploy["assignment"])
 
         proc, collect = team.fly("collect")
@@ -80,7 +84,7 @@ def test_link_loss_failsafe_is_set_and_lands_the_rovers_at_their_tasks(tmp_path:
         assert "links.failsafe: land" in journal_text
         # the controller is gone: no ground-station heartbeat. FS_GCS_TIMEOUT later the copters land
         seen = probe(team.fleet.gcs_port, 12.0, beat=False)
-        tasks = dict(TASKS)
+        tasks = team.tasks
         for task, rover in deploy["assignment"].items():
             s = seen[11 + team.rovers.index(rover)]
             assert s.custom_mode == LAND_MODE or s.landed_state == M.MAV_LANDED_STATE_ON_GROUND, (rover, s)
@@ -193,4 +197,4 @@ def test_geofence_is_uploaded_and_a_breach_makes_the_firmware_land(tmp_path: Pat
         seen = probe(team.fleet.gcs_port, 6.0)[sysid]
         assert seen.custom_mode == LAND_MODE, seen
         assert any("fence" in t.lower() for t in seen.texts), seen.texts
-        assert seen.enu is not None and horizontal(seen.enu, dict(TASKS)["t1"]) < AT_TASK  # lands where it is
+        assert seen.enu is not None and horizontal(seen.enu, team.tasks["t1"]) < AT_TASK  # lands where it is
