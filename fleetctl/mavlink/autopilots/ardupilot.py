@@ -48,9 +48,11 @@ ROVER_SPEEDS = (SpeedParam("WP_SPEED", "max_speed", 1.0, 0.0, 100.0),
                 SpeedParam("ATC_ACCEL_MAX", "accel", 1.0, 0.0, 10.0))
 # ArduCopter's handling as measured on SITL (docs/autopilots.md): from MISSION_START to clear of the
 # deck takes the motors' spool-up and the take-off throttle ramp (TKOFF_SLEW_TIME) on top of the
-# climb; a landing ends with the land detector's second and the report of the landed state
+# climb. A rover comes down only once it has settled above its stop (the firmware moves on to the
+# hold after the approach waypoint: ~1.6 s after it is within 2 m), and a landing ends with the land
+# detector's second and the report of the landed state (~2 s)
 COPTER_TAKEOFF_OVERHEAD = 2.6  # s
-COPTER_LAND_OVERHEAD = 2.0  # s
+COPTER_LAND_OVERHEAD = 3.6  # s
 COPTER_LEG_OVERHEAD = 1.6  # s a waypoint leg takes beyond S/v + v/a (jerk-limited S-curve, stop at the end)
 LAND_SPEED_RANGE = (0.3, 2.0)  # m/s: LAND_SPEED's range
 
