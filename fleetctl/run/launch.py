@@ -51,7 +51,7 @@ def flight_path(ctx: RunContext, rm: RoverMission, start: Vec3) -> list[Vec3]:
     for it in rm.items:
         if it.frame == mavlink2.MAV_FRAME_GLOBAL:  # ArduPilot home placeholder
             continue
-        pts.append(item_position(it, origin))
+        pts.append(item_position(it, origin, rm.home_height))
     return pts
 
 
