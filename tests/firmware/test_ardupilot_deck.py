@@ -10,6 +10,7 @@ deck at the carrier's stops and ride along. Skipped with one line without ``FLEE
 from __future__ import annotations
 
 import math
+import threading
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -72,6 +73,41 @@ def plan_stops(summary: dict[str, Any]) -> int:
     return next(len(r["plan"]["stops"]) for r in rows if r.get("kind") == "plan" and "plan" in r)
 
 
+class Rides:
+    """Samples the physics from a thread while a command runs: how far the carrier drove each
+    rover while it sat on the deck, and which rovers boarded (came down on the deck)."""
+
+    def __init__(self, world: JsonWorld, rovers: list[str]) -> None:
+        self.world, self.rovers = world, rovers
+        self.carried = dict.fromkeys(rovers, 0.0)
+        self.boarded: set[str] = set()
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, daemon=True)
+
+    def _run(self) -> None:
+        last = self.world.state("carrier").position
+        aboard = {r: self.world.on_deck(r) == "carrier" for r in self.rovers}
+        while not self._stop.wait(0.1):
+            c = self.world.state("carrier").position
+            step = math.hypot(c[0] - last[0], c[1] - last[1])
+            for r in self.rovers:
+                now = self.world.on_deck(r) == "carrier"
+                if now and aboard[r]:
+                    self.carried[r] += step
+                if now and not aboard[r]:
+                    self.boarded.add(r)
+                aboard[r] = now
+            last = c
+
+    def __enter__(self) -> Rides:
+        self._thread.start()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self._stop.set()
+        self._thread.join(2.0)
+
+
 def sim_time(world: JsonWorld) -> float:
     """The world's clock: the carrier's simulated seconds (the server keeps every firmware on it)."""
     return world.world.vehicles["carrier"].time
@@ -84,23 +120,28 @@ def ne_to_enu(p: tuple[float, float, float]) -> tuple[float, float, float]:
 def test_multi_stop_deploy_and_collect_on_the_deck(tmp_path: Path) -> None:
     with deck_team(tmp_path) as (team, world):
         t0, w0 = sim_time(world), time.monotonic()
-        proc, deploy = team.fly("deploy", timeout=400)
+        with Rides(world, team.rovers) as ride_deploy:
+            proc, deploy = team.fly("deploy", timeout=400)
         t1, w1 = sim_time(world), time.monotonic()
         assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-2000:] + team.firmware_tail()
         assert deploy["result"] == "complete", deploy
         assert sorted(deploy["tasks_reached"]) == sorted(t for t, _ in TASKS)
         assert plan_stops(deploy) >= 2
+        launched_later = [r for t, r in deploy["assignment"].items() if t.startswith("b")]
+        assert all(ride_deploy.carried[r] > 30.0 for r in launched_later), ride_deploy.carried  # via stop 1
         tasks = dict(TASKS)
         for task, rover in deploy["assignment"].items():   # the physics' positions, not the EKF's
             p = ne_to_enu(world.state(rover).position)
             assert world.on_deck(rover) is None and horizontal(p, tasks[task]) < AT_TASK, (rover, task, p)
             assert abs(p[2] - tasks[task][2]) < 0.5, (rover, task, p)   # task height above the ground
 
-        proc, collect = team.fly("collect", timeout=400)
+        with Rides(world, team.rovers) as ride_collect:
+            proc, collect = team.fly("collect", timeout=400)
         t2, w2 = sim_time(world), time.monotonic()
         assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-2000:] + team.firmware_tail()
         assert collect["result"] == "complete" and sorted(collect["rovers_loaded"]) == team.rovers, collect
         assert plan_stops(collect) >= 1
+        assert ride_collect.boarded == set(team.rovers), ride_collect.boarded   # came down on the deck
         seen = probe(team.fleet.gcs_port, 4.0)
         c = world.state("carrier").position
         for k, rid in enumerate(team.rovers):   # on the deck: riding the carrier, landed and disarmed
@@ -112,9 +153,11 @@ def test_multi_stop_deploy_and_collect_on_the_deck(tmp_path: Path) -> None:
             assert s.armed is False and s.landed_state in (None, M.MAV_LANDED_STATE_ON_GROUND), (rid, s)
         rode = {r: round(horizontal(ne_to_enu(world.state(r).position), tasks[t]), 1)
                 for t, r in deploy["assignment"].items()}
+        carried = {r: round(d, 1) for r, d in ride_deploy.carried.items()}
         print(f"\nArduPilot on the json_physics deck: deploy ({plan_stops(deploy)} stops) flown "
               f"{deploy['makespan_flown']:.1f} s vs planned {deploy['makespan_planned']:.1f} s; collect "
               f"({plan_stops(collect)} stops) {collect['makespan_flown']:.1f} s vs "
               f"{collect['makespan_planned']:.1f} s; rovers now this far from their tasks (m): {rode}; "
+              f"carried on the deck (m): deploy {carried}; "
               f"physics clock per command: deploy {t1 - t0:.1f} s in {w1 - w0:.1f} s wall, collect "
               f"{t2 - t1:.1f} s in {w2 - w1:.1f} s wall (--speedup {SPEEDUP:g})")
