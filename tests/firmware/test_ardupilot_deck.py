@@ -4,7 +4,11 @@
 fleetctl's command line flies a deployment with several carrier stops (two groups of tasks 70 m
 apart, ``rovers.deploy_range`` 25 m): the carrier drives with the rovers on its deck, they take off
 from the deck at its stops and reach their tasks; then a collection in which they land back on the
-deck at the carrier's stops and ride along. Skipped with one line without ``FLEETCTL_ARDUPILOT_DIR``.
+deck and stay on it, disarmed. With the rovers' full battery the ``lee`` collection meets all four
+at one stop between the groups (a range short enough to force two stops leaves the rovers that
+wait in the air below their reserve, and fleetctl then lands them where they are), so riding
+along is shown in the deployment (the rovers of stop 2 ride through stop 1). Skipped with one line
+without ``FLEETCTL_ARDUPILOT_DIR``.
 """
 
 from __future__ import annotations
