@@ -3,7 +3,9 @@
 Positions are converted from the plan's ENU frame with :func:`fleetctl.geo.local_to_geodetic` and
 written as ``_INT`` coordinates (degrees·1e7) in ``MAV_FRAME_GLOBAL_RELATIVE_ALT_INT``; ``z`` is
 the height above home, i.e. the plan's height above the origin altitude minus ``home_height``
-(the height of the vehicles' home above the origin altitude; 0 on flat ground).
+(the height of the vehicle's home above the origin altitude: 0 on flat ground, the deck's height
+for a rover whose home is on the carrier's deck; :func:`compile_for_fleet` takes each rover's from
+its HOME_POSITION). A take-off is to the take-off clearance above home (the deck it sits on).
 
 Carrier route (both plan kinds), for each stop k::
 
@@ -81,15 +83,17 @@ class RoverMission:
     target_seq: int  # NAV_WAYPOINT at the task (deploy) / above the meeting point (collect)
     final_seq: int  # NAV_LOITER_UNLIM at the task (deploy) / NAV_LAND on the stop (collect)
     task: str | None = None  # deploy only
+    home_height: float = 0.0  # its home above the origin altitude (item_position's argument)
 
     @property
     def takeoff_seq(self) -> int:
         """Index of the NAV_TAKEOFF item (-1 if the mission has none)."""
         return next((i for i, it in enumerate(self.items) if it.command == M.MAV_CMD_NAV_TAKEOFF), -1)
 
-    def positions(self, origin: Origin, home_height: float = 0.0) -> list[tuple[float, float, float]]:
+    def positions(self, origin: Origin) -> list[tuple[float, float, float]]:
         """The mission-frame points the rover flies through (the ArduPilot home placeholder left out)."""
-        return [item_position(it, origin, home_height) for it in self.items if it.frame != M.MAV_FRAME_GLOBAL]
+        return [item_position(it, origin, self.home_height)
+                for it in self.items if it.frame != M.MAV_FRAME_GLOBAL]
 
 
 @dataclass(frozen=True)
@@ -115,7 +119,8 @@ AutopilotSpec = Autopilot | Mapping[str, Autopilot] | None
 
 def compile_plan(
     plan: Plan, origin: Origin | None, *, carrier_id: str = "carrier", autopilot: AutopilotSpec = None,
-    home_height: float = 0.0, meet_height: float = MEET_HEIGHT, takeoff_height: float = TAKEOFF_HEIGHT,
+    home_height: float | Mapping[str, float] = 0.0, meet_height: float = MEET_HEIGHT,
+    takeoff_height: float = TAKEOFF_HEIGHT,
 ) -> CompiledPlan:
     """Turn a deployment or collection :class:`~planners.core.plan.Plan` into mission items.
 
@@ -123,7 +128,9 @@ def compile_plan(
     vehicle id -> autopilot (e.g. ``{vid: v.autopilot for vid, v in fleet.vehicles.items()}``);
     only ``home_is_item0`` matters here. None = no home item (PX4 / generic).
     ``meet_height``: the safe height (above home) of the approach point above a collection stop;
-    ``takeoff_height``: the take-off clearance before a rover turns onto its line.
+    ``takeoff_height``: the take-off clearance (above home) before a rover turns onto its line;
+    ``home_height``: the vehicles' home above the origin altitude, one for all or per vehicle id
+    (0 for a vehicle not in the mapping).
     """
     if origin is None:
         raise CompileError("the mission has no origin: mission items need WGS84 coordinates; "
@@ -138,19 +145,25 @@ def compile_plan(
         ap = ap_of(vid)
         return bool(ap is not None and ap.home_is_item0)
 
+    def hh(vid: str) -> float:
+        return float(home_height.get(vid, 0.0) if isinstance(home_height, Mapping) else home_height)
+
     def wp(cmd: int, p: Sequence[float], vid: str) -> MissionItem:
         lat, lon, _alt = local_to_geodetic(p[0], p[1], p[2], origin)
         ap = ap_of(vid)
         accept = ap.acceptance_radius if ap is not None and cmd == M.MAV_CMD_NAV_WAYPOINT else None
         return MissionItem(cmd, FRAME, param2=float(accept or 0.0), param4=_param4(ap, cmd),
-                           x=_e7(lat), y=_e7(lon), z=float(p[2]) - home_height)
+                           x=_e7(lat), y=_e7(lon), z=float(p[2]) - hh(vid))
 
-    def home_item(p: Sequence[float]) -> MissionItem:
-        lat, lon, alt = local_to_geodetic(p[0], p[1], home_height, origin)
+    def takeoff(p: Sequence[float], vid: str) -> MissionItem:
+        return wp(M.MAV_CMD_NAV_TAKEOFF, (p[0], p[1], takeoff_height + hh(vid)), vid)
+
+    def home_item(p: Sequence[float], vid: str) -> MissionItem:
+        lat, lon, alt = local_to_geodetic(p[0], p[1], hh(vid), origin)
         return MissionItem(M.MAV_CMD_NAV_WAYPOINT, M.MAV_FRAME_GLOBAL, x=_e7(lat), y=_e7(lon), z=alt)
 
     # -- carrier -----------------------------------------------------------------------------
-    carrier: list[MissionItem] = [home_item(plan.start)] if home0(carrier_id) else []
+    carrier: list[MissionItem] = [home_item(plan.start, carrier_id)] if home0(carrier_id) else []
     stop_items: list[StopItems] = []
     for k, stop in enumerate(plan.stops):
         for v in stop.carrier_path[1:-1]:
@@ -172,9 +185,9 @@ def compile_plan(
             if plan.kind == "deploy":
                 start = _ground(leg.path[0] if leg.path else stop.position)
                 if home0(leg.rover):
-                    items.append(home_item(start))
+                    items.append(home_item(start, leg.rover))
                 target = leg.end
-                items.append(wp(M.MAV_CMD_NAV_TAKEOFF, (start[0], start[1], takeoff_height), leg.rover))
+                items.append(takeoff(start, leg.rover))
                 for v in leg.path[1:]:
                     items.append(wp(M.MAV_CMD_NAV_WAYPOINT, v, leg.rover))
                 target_seq = len(items) - 1
@@ -182,17 +195,18 @@ def compile_plan(
             else:
                 start = leg.path[0]
                 if home0(leg.rover):
-                    items.append(home_item(start))
+                    items.append(home_item(start, leg.rover))
                 pos = _ground(stop.position)
                 meet_z = max(meet_height, float(leg.end[2]))
                 if float(start[2]) <= GROUND_HEIGHT:
-                    items.append(wp(M.MAV_CMD_NAV_TAKEOFF, (start[0], start[1], takeoff_height), leg.rover))
+                    items.append(takeoff(start, leg.rover))
                 for v in leg.path[1:-1]:
                     items.append(wp(M.MAV_CMD_NAV_WAYPOINT, v, leg.rover))
                 items.append(wp(M.MAV_CMD_NAV_WAYPOINT, (pos[0], pos[1], meet_z), leg.rover))
                 target_seq = len(items) - 1
                 items.append(wp(M.MAV_CMD_NAV_LAND, pos, leg.rover))
-            rovers[leg.rover] = RoverMission(leg.rover, k, tuple(items), target_seq, len(items) - 1, leg.task)
+            rovers[leg.rover] = RoverMission(leg.rover, k, tuple(items), target_seq, len(items) - 1, leg.task,
+                                             hh(leg.rover))
     return CompiledPlan(plan.kind, carrier_id, tuple(carrier), tuple(stop_items), rovers)
 
 
@@ -209,10 +223,31 @@ def with_meeting_hold(rm: RoverMission, autopilot: Autopilot | None) -> tuple[li
     return items, rm.target_seq + 1, rm.final_seq + 1
 
 
+HOME_HEIGHT_LIMIT = 20.0  # m: a rover's home further above/below the origin altitude is taken as unknown (0)
+
+
+def home_heights(fleet: Fleet) -> dict[str, float]:
+    """Each rover's home above the origin altitude, from its HOME_POSITION (a rover booted on the
+    carrier's deck: the deck's height); rovers without a home, or one more than
+    :data:`HOME_HEIGHT_LIMIT` off, are left out (0). The carrier's is not needed: its items are
+    on the ground and a ground vehicle ignores their altitude."""
+    origin = fleet.carrier.origin
+    out: dict[str, float] = {}
+    if origin is None:
+        return out
+    for rid, r in fleet.rovers.items():
+        h = r.home_amsl
+        if h is not None and abs(h - origin.alt) <= HOME_HEIGHT_LIMIT:
+            out[rid] = h - origin.alt
+    return out
+
+
 def compile_for_fleet(plan: Plan, fleet: Fleet, **kw: float) -> CompiledPlan:
-    """:func:`compile_plan` with the carrier id, origin and autopilots of a connected fleet."""
+    """:func:`compile_plan` with the carrier id, origin, autopilots and rovers' home heights
+    (:func:`home_heights`) of a connected fleet."""
     aps = {vid: v.autopilot for vid, v in fleet.vehicles.items() if v.autopilot is not None}
-    return compile_plan(plan, fleet.carrier.origin, carrier_id=fleet.carrier_id, autopilot=aps, **kw)
+    return compile_plan(plan, fleet.carrier.origin, carrier_id=fleet.carrier_id, autopilot=aps,
+                        home_height=home_heights(fleet), **kw)
 
 
 def item_position(item: MissionItem, origin: Origin, home_height: float = 0.0) -> tuple[float, float, float]:
@@ -237,5 +272,5 @@ def _e7(deg: float) -> int:
     return int(round(deg * 1e7))
 
 
-__all__ = ["CompileError", "CompiledPlan", "RoverMission", "StopItems", "compile_for_fleet", "compile_plan",
-           "item_position", "with_meeting_hold"]
+__all__ = ["HOME_HEIGHT_LIMIT", "CompileError", "CompiledPlan", "RoverMission", "StopItems",
+           "compile_for_fleet", "compile_plan", "home_heights", "item_position", "with_meeting_hold"]

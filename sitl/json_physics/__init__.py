@@ -16,6 +16,10 @@ UDP port per firmware instance (:mod:`.server`, wire format :mod:`.protocol`)::
         ...                          # fly them over MAVLink at fleet.url
         world.state("r1").position   # NED metres from the origin; world.on_deck("r1") -> "carrier"
 
+All vehicles share one clock: the server holds back a firmware that runs more than 20 ms
+(simulated) ahead of the slowest one, so a copter riding a deck sees its carrier move smoothly
+on its own clock (:mod:`.server`).
+
 The firmware vehicles get ``--model JSON`` and a ``--home`` at their start position (for a copter
 on a deck: the deck's height above the origin). Start the world before the firmware (it answers
 the first servo packet) and use the same ``instance_base`` for both.

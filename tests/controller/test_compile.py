@@ -153,6 +153,22 @@ def test_home_height_shifts_relative_heights(recon) -> None:
                      leg.end) < 0.01
 
 
+def test_a_rover_whose_home_is_on_the_deck_flies_to_the_task_height_and_takes_off_above_it(recon) -> None:
+    """Per-rover home heights (a copter booted on a 0.5 m deck): the task stays at its height
+    above the ground, the take-off clearance is above the deck, other vehicles keep 0."""
+    mission, plan, _ = recon
+    legs = plan.legs()
+    deck, ground = legs[0].rover, legs[1].rover
+    c = compile_plan(plan, mission.origin, home_height={deck: 0.5})
+    rm = c.rovers[deck]
+    assert rm.home_height == 0.5 and c.rovers[ground].home_height == 0.0
+    assert math.dist(item_position(rm.items[-1], mission.origin, rm.home_height), legs[0].end) < 0.01
+    takeoff = next(it for it in rm.items if it.command == TAKEOFF)
+    assert takeoff.z == pytest.approx(TAKEOFF_HEIGHT)  # above home: the deck it sits on
+    flat = compile_plan(plan, mission.origin).rovers[ground]
+    assert c.rovers[ground].items[-1].z == pytest.approx(flat.items[-1].z)
+
+
 def test_no_origin_is_an_error(recon) -> None:
     _, plan, _ = recon
     with pytest.raises(CompileError, match="origin"):

@@ -199,6 +199,42 @@ def test_server_answers_each_packet_in_lockstep() -> None:
         server.stop()
 
 
+def test_server_keeps_the_vehicles_on_one_clock() -> None:
+    """A vehicle ahead of the slowest active one by more than max_skew waits for it; a vehicle
+    silent for active_timeout no longer holds the others."""
+    w = World()
+    w.add_copter("a", 20)
+    w.add_copter("b", 21)
+    server = JsonServer(w, ports={"a": 0, "b": 0}, max_skew=0.01, active_timeout=0.6).start()
+    try:
+        port = {link.name: link.sock.getsockname()[1] for link in server._links}
+        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as a, \
+                socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as b:
+            a.settimeout(0.3)
+            b.settimeout(1.0)
+            b.sendto(encode_servo(400, 0, tuple(IDLE)), ("127.0.0.1", port["b"]))
+            assert b.recv(4096).startswith(b'\n{"timestamp":0.0025,')
+            answered = 0
+            for n in range(10):       # a joins at b's 2.5 ms, may run 10 ms ahead of it (5 steps)
+                a.sendto(encode_servo(400, n, tuple(IDLE)), ("127.0.0.1", port["a"]))
+                try:
+                    a.recv(4096)
+                except TimeoutError:
+                    break
+                answered += 1
+            assert answered == 5 and server.stats["a"].held > 0
+            b.sendto(encode_servo(400, 1, tuple(IDLE)), ("127.0.0.1", port["b"]))
+            b.recv(4096)
+            assert a.recv(4096).startswith(b'\n{"timestamp":0.015')   # b moved on: a's held answer
+            a.settimeout(2.0)          # b falls silent: after active_timeout a runs alone
+            for n in range(6, 40):
+                a.sendto(encode_servo(400, n, tuple(IDLE)), ("127.0.0.1", port["a"]))
+                a.recv(4096)
+        assert w.vehicles["a"].time == pytest.approx(40 / 400)
+    finally:
+        server.stop()
+
+
 def test_command_line_vehicles() -> None:
     from sitl.json_physics.__main__ import _vehicle
 
