@@ -81,27 +81,32 @@ async def apply_firmware_speeds(fleet: Fleet, mission: Mission, vehicles: list[s
 
     await asyncio.gather(*(one(vid) for vid in todo))
     rover_aps = [fleet.vehicles[vid].autopilot for vid in rep.written if vid != fleet.carrier_id]
-    rep.mission = fitted_handling(mission, [ap for ap in rover_aps if ap is not None])
+    carrier_ap = fleet.vehicles[fleet.carrier_id].autopilot if fleet.carrier_id in rep.written else None
+    rep.mission = fitted_handling(mission, [ap for ap in rover_aps if ap is not None], carrier_ap)
     return rep
 
 
-def fitted_handling(mission: Mission, autopilots: list[Autopilot]) -> Mission | None:
+def fitted_handling(mission: Mission, autopilots: list[Autopilot],
+                    carrier: Autopilot | None = None) -> Mission | None:
     """The mission with the rovers' take-off and touch-down times and leg acceleration of their
-    firmware (the slowest of ``autopilots``), the times where the mission file does not give them;
-    None when nothing changes."""
+    firmware (the slowest of ``autopilots``), the times where the mission file does not give them,
+    and the carrier's leg acceleration as its ``carrier`` firmware drives; None when nothing changes."""
+    out = mission
     r = mission.rovers
     fits = [t for ap in autopilots if (t := ap.handling_times(r.climb_rate, r.land_speed)) is not None]
-    if not fits:
-        return None
-    takeoff_given, land_given = r.handling_given
-    takeoff = r.takeoff_time if takeoff_given else max(t for t, _ in fits)
-    land = r.land_time if land_given else max(t for _, t in fits)
-    accels = [a for ap in autopilots if (a := ap.planned_accel(r.max_speed, r.accel)) is not None]
-    accel = min(accels) if accels and r.accel is not None else r.accel
-    if (takeoff, land, accel) == (r.takeoff_time, r.land_time, r.accel):
-        return None
-    fitted = dataclasses.replace(r, takeoff_time=takeoff, land_time=land, accel=accel)
-    return dataclasses.replace(mission, rovers=fitted)
+    if fits:
+        takeoff_given, land_given = r.handling_given
+        takeoff = r.takeoff_time if takeoff_given else max(t for t, _ in fits)
+        land = r.land_time if land_given else max(t for _, t in fits)
+        accels = [a for ap in autopilots if (a := ap.planned_accel(r.max_speed, r.accel)) is not None]
+        accel = min(accels) if accels and r.accel is not None else r.accel
+        fitted = dataclasses.replace(r, takeoff_time=takeoff, land_time=land, accel=accel)
+        out = dataclasses.replace(out, rovers=fitted)
+    c = mission.carrier
+    if carrier is not None:
+        c_accel = carrier.planned_accel(c.max_speed, c.accel)
+        out = dataclasses.replace(out, carrier=dataclasses.replace(c, accel=c_accel))
+    return None if out == mission else out
 
 
 __all__ = ["SpeedsReport", "apply_firmware_speeds", "fitted_handling", "quantities", "write_speeds"]

@@ -264,8 +264,11 @@ async def _set_speeds(fleet: Fleet, mission: Mission, rep: SafetyReport, vids: l
         r = speeds.mission.rovers
         rep.mission = speeds.mission
         accel = "-" if r.accel is None else f"{r.accel:.2f} m/s²"
-        rep.notes.append((Ev.FIRMWARE_SPEEDS, f"rovers planned with the firmware's handling: take-off "
-                          f"{r.takeoff_time:.1f} s, touch-down {r.land_time:.1f} s, legs at {accel}", None))
+        c_accel = speeds.mission.carrier.accel
+        carrier = "" if c_accel is None else f"; carrier legs at {c_accel:.2f} m/s²"
+        text = (f"planned with the firmware's handling: rovers take off in {r.takeoff_time:.1f} s, "
+                f"touch down in {r.land_time:.1f} s, legs at {accel}{carrier}")
+        rep.notes.append((Ev.FIRMWARE_SPEEDS, text, None))
 
 
 def _fail(fleet: Fleet, rep: SafetyReport, vid: str, why: str, resuming: bool) -> None:

@@ -45,6 +45,11 @@ def test_the_plan_takes_the_copters_measured_handling_where_the_file_is_silent(t
     kept = fitted_handling(mission_from(d, tmp_path), [ArduPilot()])
     assert kept is not None and (kept.rovers.takeoff_time, kept.rovers.land_time) == (1.5, 2.5)
     assert fitted_handling(m, []) is None
+    carrier = fitted_handling(m, [], ArduPilot(M.MAV_TYPE_GROUND_ROVER))
+    assert carrier is not None and carrier.rovers == m.rovers and m.carrier.accel is not None
+    c = m.carrier
+    expected = c.max_speed / (c.max_speed / c.accel + apm.ROVER_LEG_OVERHEAD)
+    assert carrier.carrier.accel == pytest.approx(expected)
 
 
 def test_firmware_speeds_default_to_set_on_real_links_and_keep_on_the_sim(tmp_path: Path) -> None:
@@ -65,6 +70,7 @@ def test_docs_autopilots_states_the_measured_constants_and_every_parameter() -> 
     assert f"+ {apm.COPTER_TAKEOFF_OVERHEAD:.1f} s" in text
     assert f"+ {apm.COPTER_LAND_OVERHEAD:.1f} s" in text
     assert f"(v/a + {apm.COPTER_LEG_OVERHEAD:.1f} s)" in text
+    assert f"(v/a + {apm.ROVER_LEG_OVERHEAD:.1f} s)" in text
     assert f"more than {HOME_ALT_TOLERANCE:g} m off" in text
     documented = set(re.findall(r"\| `([A-Z_]+)`(?:, `([A-Z_]+)`)? \|", text))
     names = {n for pair in documented for n in pair if n}

@@ -54,6 +54,9 @@ ROVER_SPEEDS = (SpeedParam("WP_SPEED", "max_speed", 1.0, 0.0, 100.0),
 COPTER_TAKEOFF_OVERHEAD = 2.6  # s
 COPTER_LAND_OVERHEAD = 3.6  # s
 COPTER_LEG_OVERHEAD = 1.6  # s a waypoint leg takes beyond S/v + v/a (jerk-limited S-curve, stop at the end)
+# ArduRover: a leg takes this much beyond S/v + v/a and the turn on the spot the time model charges
+# (it steers onto the new heading while it drives, slows into the waypoint and stops at the hold)
+ROVER_LEG_OVERHEAD = 3.5  # s
 LAND_SPEED_RANGE = (0.3, 2.0)  # m/s: LAND_SPEED's range
 
 
@@ -106,9 +109,9 @@ class ArduPilot(Autopilot):
         return ROVER_SPEEDS if self.ground else COPTER_SPEEDS
 
     def planned_accel(self, speed: float, accel: float | None) -> float | None:
-        if self.ground or accel is None:
+        if accel is None:
             return accel
-        return speed / (speed / accel + COPTER_LEG_OVERHEAD)
+        return speed / (speed / accel + (ROVER_LEG_OVERHEAD if self.ground else COPTER_LEG_OVERHEAD))
 
     def handling_times(self, climb_rate: float, land_speed: float) -> tuple[float, float] | None:
         if self.ground:
