@@ -1,0 +1,75 @@
+"""Flown vs planned on real ArduPilot firmware (SITL): random missions fleetctl has never seen.
+
+For each seed an ArduRover carrier and three ArduCopter rovers (stock parameters, the firmware's
+own physics, the rovers where the carrier starts) are started, ``fleetctl deploy`` then
+``fleetctl collect`` are flown through the command line at the firmware's ``--speedup``, and the
+summaries' ``makespan_planned`` / ``makespan_flown`` (mission seconds) are tabled. Tasks are drawn
+as in ``tests/firmware`` (15-30 m from the carrier, 3-10 m up).
+
+    FLEETCTL_ARDUPILOT_DIR=/path/to/ardupilot python bench/firmware.py [--seeds 1,2,3] [--json OUT]
+
+Prints a markdown table. Each seed takes about 35 s of wall time (boot to armable included).
+Lockstep firmware that falls behind its --speedup on a loaded machine makes flights look longer:
+run it on a quiet machine.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import tempfile
+from pathlib import Path
+from typing import Any
+
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE.parent / "tests" / "firmware"))
+
+from ardupilot_team import ardupilot_team, mission_yaml, random_tasks  # noqa: E402
+
+
+def fly_seed(seed: int, port: int, instance_base: int) -> dict[str, Any]:
+    row: dict[str, Any] = {"seed": seed}
+    with tempfile.TemporaryDirectory() as tmp, ardupilot_team(
+        Path(tmp), gcs_port=port, instance_base=instance_base,
+        mission=mission_yaml(port, 3, tasks=random_tasks(seed))
+    ) as team:
+        for command in ("deploy", "collect"):
+            proc, summary = team.fly(command)
+            row[command] = {"exit": proc.returncode, "result": summary.get("result"),
+                            "planned": summary.get("makespan_planned"),
+                            "flown": summary.get("makespan_flown")}
+    return row
+
+
+def percent(cell: dict[str, Any]) -> str:
+    p, f = cell.get("planned"), cell.get("flown")
+    return "-" if not p or f is None else f"{100.0 * (f - p) / p:+.1f} %"
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--seeds", default="1,2,3", help="comma-separated task seeds (default 1,2,3)")
+    ap.add_argument("--port", type=int, default=14560, help="the ground-station UDP port (default 14560)")
+    ap.add_argument("--instance-base", type=int, default=80,
+                    help="first SITL instance number (each has its own TCP ports; default 80)")
+    ap.add_argument("--json", help="also write the rows here")
+    args = ap.parse_args()
+    rows = []
+    print("| seed | deploy planned s | flown s | flown vs planned | collect planned s | flown s "
+          "| flown vs planned |")
+    print("|---|---|---|---|---|---|---|")
+    for seed in (int(s) for s in args.seeds.split(",")):
+        r = fly_seed(seed, args.port, args.instance_base)
+        rows.append(r)
+        d, c = r["deploy"], r["collect"]
+        nan = float("nan")
+        print(f"| {seed} | {d['planned'] or nan:.1f} | {d['flown'] or nan:.1f} | {percent(d)} | "
+              f"{c['planned'] or nan:.1f} | {c['flown'] or nan:.1f} | {percent(c)} |", flush=True)
+    if args.json:
+        Path(args.json).write_text(json.dumps(rows, indent=1))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
