@@ -78,3 +78,10 @@ def test_docs_autopilots_states_the_measured_constants_and_every_parameter() -> 
         assert p.name in names, p.name
         if p.scale == 100.0:  # cm/s rows state the range set
             assert f"{p.lo:g} – {p.hi:g}" in text, p.name
+
+
+def test_docs_autopilots_states_the_deck_of_the_json_physics() -> None:
+    from sitl.json_physics import Deck
+
+    deck = Deck()
+    assert f"({deck.height:g} m high, {deck.radius:g} m" in DOC.read_text()
