@@ -35,6 +35,7 @@ from fleetctl.run.collect_timing import (
     RoundClock,
     Shortfall,
     energy_shortfalls,
+    handling_range,
     release_delay,
 )
 from fleetctl.run.energy import range_from_percent
@@ -56,6 +57,7 @@ SPEED_SAMPLE = 0.5  # mission s between carrier speed samples (is it speeding up
 RECHECK = 1.0  # mission s between looks at the carrier's ETA while a rover waits for its release
 ENERGY_REPLANS = 3  # plans tried with shrunk ranges before a rover short of energy is left out
 SHRINK_MARGIN = 0.1  # m: a range cut for energy goes this much further
+MIN_RANGE = 0.01  # m: what is left to plan with of a range the handling eats up (then it is short)
 
 
 class RoverStatus(StrEnum):
@@ -259,6 +261,10 @@ class CollectPhase:
         m, ctx = self.ctx.mission, self.ctx
         airborne = {c.id for c in crs if c.position[2] > GROUND_HEIGHT}
         battery = {c.id: c.range for c in crs}
+        r = m.rovers
+        spent = {c.id: handling_range(r.max_speed, r.accel, r.land_time, r.takeoff_time, c.id not in airborne)
+                 for c in crs}  # the planner plans path lengths: the rest of a flight's energy is not in them
+        crs = [dataclasses.replace(c, range=max(c.range - spent[c.id], MIN_RANGE)) for c in crs]
         for attempt in range(ENERGY_REPLANS + len(crs) + 1):
             problem = CollectProblem(m.carrier_spec(), m.rovers.motion(any_on_ground(crs)), start, heading,
                                      tuple(crs), approach_height=MEET_HEIGHT, **m.environment())

@@ -137,6 +137,18 @@ class Shortfall:
     flight: float = 0.0  # m: the length of its planned flight
 
 
+def handling_range(max_speed: float, accel: float | None, land_time: float, takeoff_time: float = 0.0,
+                   on_ground: bool = False) -> float:
+    """Metres of a rover's range that a collection flight spends beyond its path, all at cruise
+    speed: the touch-down (``land_time``), a rest-to-rest leg's acceleration (``v²/a``) and, for a
+    rover on the ground, its release lead and take-off (``takeoff_time``) - what
+    :func:`energy_shortfalls` counts as time in the air. The planner is given the range less this,
+    so a flight it plans can be flown within the battery (waiting for the carrier aside)."""
+    ramp = 0.0 if accel is None else max_speed ** 2 / accel
+    start = RELEASE_LEAD + takeoff_time if on_ground else 0.0
+    return max_speed * (land_time + start) + ramp
+
+
 def energy_shortfalls(plan: Plan, battery: Mapping[str, float], airborne: set[str],
                       carrier: CarrierSpec, max_speed: float) -> list[Shortfall]:
     """Rovers that would be below their reserve on the deck: a rover already in the air burns its
@@ -156,4 +168,5 @@ def energy_shortfalls(plan: Plan, battery: Mapping[str, float], airborne: set[st
     return out
 
 
-__all__ = ["RELEASE_LEAD", "CarrierNow", "RoundClock", "Shortfall", "energy_shortfalls", "release_delay"]
+__all__ = ["RELEASE_LEAD", "CarrierNow", "RoundClock", "Shortfall", "energy_shortfalls", "handling_range",
+           "release_delay"]

@@ -39,6 +39,7 @@ NAN_PARAM4_OK = frozenset({M.MAV_CMD_NAV_WAYPOINT, M.MAV_CMD_NAV_LAND, M.MAV_CMD
                            M.MAV_CMD_NAV_VTOL_TAKEOFF, M.MAV_CMD_NAV_VTOL_LAND})
 COPTER_SPEEDS = (SpeedParam("WPNAV_SPEED", "max_speed", 100.0, 20.0, 2000.0),
                  SpeedParam("WPNAV_ACCEL", "accel", 100.0, 50.0, 500.0),
+                 SpeedParam("WPNAV_ACCEL_Z", "accel", 100.0, 50.0, 500.0),  # the time model's line is 3D
                  SpeedParam("WPNAV_SPEED_UP", "climb_rate", 100.0, 10.0, 1000.0),
                  SpeedParam("WPNAV_SPEED_DN", "land_speed", 100.0, 10.0, 500.0),
                  SpeedParam("LAND_SPEED", "land_speed", 100.0, 30.0, 200.0))
