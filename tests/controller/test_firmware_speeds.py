@@ -25,8 +25,9 @@ def test_copter_parameters_follow_the_mission_within_the_firmware_range(tmp_path
     d["rovers"].update(max_speed=5.0, accel=2.5, climb_rate=3.0, land_speed=4.0)
     m = mission_from(d, tmp_path)
     values = ArduPilot().speed_values(quantities(m, carrier=False))
+    # LAND_SPEED at most 2 m/s
     assert values == {"WPNAV_SPEED": 500.0, "WPNAV_ACCEL": 250.0, "WPNAV_ACCEL_Z": 250.0,
-                      "WPNAV_SPEED_UP": 300.0, "WPNAV_SPEED_DN": 400.0, "LAND_SPEED": 200.0}  # LAND_SPEED at most 2 m/s
+                      "WPNAV_SPEED_UP": 300.0, "WPNAV_SPEED_DN": 400.0, "LAND_SPEED": 200.0}
     rover = ArduPilot(M.MAV_TYPE_GROUND_ROVER).speed_values(quantities(m, carrier=True))
     assert rover["WP_SPEED"] == rover["CRUISE_SPEED"] == m.carrier.max_speed
 
