@@ -57,8 +57,18 @@ SPEED_SAMPLE = 0.5  # mission s between carrier speed samples (is it speeding up
 RECHECK = 1.0  # mission s between looks at the carrier's ETA while a rover waits for its release
 ENERGY_REPLANS = 3  # plans tried with shrunk ranges before a rover short of energy is left out
 SHRINK_MARGIN = 0.1  # m: a range cut for energy goes this much further
+GROUND_SNAP = 1.0  # m: a landed rover reporting less than this is on the ground (altitude estimates drift)
 MIN_RANGE = 0.01  # m: what is left to plan with of a range the handling eats up (then it is short)
 
+
+
+def _surface_height(v: Vehicle, z: float) -> float:
+    """The height a rover's collection flight starts from: 0 (the ground: it takes off first) for a
+    rover that reports being on the ground less than ``GROUND_SNAP`` up - its altitude estimate
+    (barometer, GPS) is that far off on the ground; else its height."""
+    if v.on_ground is True and z < GROUND_SNAP:
+        return 0.0
+    return max(z, 0.0)
 
 class RoverStatus(StrEnum):
     PENDING = "pending"
@@ -218,7 +228,7 @@ class CollectPhase:
                 )
                 continue
             self.board.set(rid, RoverStatus.IN_ROUND)
-            crs.append(CollectRover(rid, (p[0], p[1], max(p[2], 0.0)), rng))
+            crs.append(CollectRover(rid, (p[0], p[1], _surface_height(v, p[2])), rng))
         return crs
 
     def _battery_percent(self, v: Vehicle) -> float | None:

@@ -304,3 +304,27 @@ def set_param(port: int, sysid: int, name: str, value: float) -> float:
             return await set_vehicle_param(v, name, value)
 
     return asyncio.run(go())
+
+
+def land_where_they_are(port: int, sysids: Sequence[int], timeout: float = 60.0) -> None:
+    """Land the given vehicles where they hover (NAV_LAND through fleetctl's own Vehicle) and
+    wait until each reports being on the ground and disarmed: rovers that wait for the collection
+    on the ground (no battery spent waiting)."""
+    import asyncio
+
+    from fleetctl.mavlink.link import Link
+    from fleetctl.mavlink.vehicle import Vehicle
+
+    async def go() -> None:
+        async with Link(f"udpin://127.0.0.1:{port}") as link:
+            vehicles = [Vehicle(link, s, name=f"sys{s}") for s in sysids]
+            for v in vehicles:
+                await v.wait_heartbeat(10.0)
+                await v.configure_streams()
+            await asyncio.gather(*(v.land() for v in vehicles))
+            def down(v: Vehicle) -> bool:
+                return v.on_ground is True and not v.armed
+
+            await asyncio.gather(*(v.wait_until(down, timeout, "landed") for v in vehicles))
+
+    asyncio.run(go())

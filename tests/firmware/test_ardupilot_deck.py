@@ -3,12 +3,11 @@
 
 fleetctl's command line flies a deployment with several carrier stops (two groups of tasks 70 m
 apart, ``rovers.deploy_range`` 25 m): the carrier drives with the rovers on its deck, they take off
-from the deck at its stops and reach their tasks; then a collection in which they land back on the
-deck and stay on it, disarmed. With the rovers' full battery the ``lee`` collection meets all four
-at one stop between the groups (a range short enough to force two stops leaves the rovers that
-wait in the air below their reserve, and fleetctl then lands them where they are), so riding
-along is shown in the deployment (the rovers of stop 2 ride through stop 1). Skipped with one line
-without ``FLEETCTL_ARDUPILOT_DIR``.
+from the deck at its stops and reach their tasks. The rovers then land where they are and wait for
+the collection on the ground; their battery (``endurance_range`` 100 m) cannot fly them from one
+group to a stop at the other, so the collection stops at each group: the rovers picked up first
+ride on the deck to the second stop, and every rover ends on the deck, disarmed. Skipped with one
+line without ``FLEETCTL_ARDUPILOT_DIR``.
 """
 
 from __future__ import annotations
@@ -23,7 +22,17 @@ from typing import Any
 
 import pytest
 import yaml
-from ardupilot_team import ORIGIN, SPEEDUP, Team, build, horizontal, journal, mission_yaml, probe
+from ardupilot_team import (
+    ORIGIN,
+    SPEEDUP,
+    Team,
+    build,
+    horizontal,
+    journal,
+    land_where_they_are,
+    mission_yaml,
+    probe,
+)
 from pymavlink.dialects.v20 import ardupilotmega as M
 
 from sitl.firmware import FirmwareFleet
@@ -46,7 +55,9 @@ SEATS = ((0.5, 0.5), (0.5, -0.5), (-0.5, 0.5), (-0.5, -0.5))
 def deck_mission(n_rovers: int) -> dict[str, Any]:
     return mission_yaml(GCS_PORT, n_rovers, tasks=TASKS, extra={
         "carrier": {"max_speed": 3.0, "accel": 1.0},
-        "rovers": {"deploy_range": 25.0},
+        # a battery that cannot fly from one group to the other and back onto the deck: the
+        # collection needs a stop at each group (the rovers wait for it on the ground)
+        "rovers": {"deploy_range": 25.0, "endurance_range": 100.0},
     })
 
 
@@ -139,13 +150,16 @@ def test_multi_stop_deploy_and_collect_on_the_deck(tmp_path: Path) -> None:
             assert world.on_deck(rover) is None and horizontal(p, tasks[task]) < AT_TASK, (rover, task, p)
             assert abs(p[2] - tasks[task][2]) < 0.5, (rover, task, p)   # task height above the ground
 
+        land_where_they_are(team.fleet.gcs_port, [11 + k for k in range(len(team.rovers))])
         with Rides(world, team.rovers) as ride_collect:
             proc, collect = team.fly("collect", timeout=400)
         t2, w2 = sim_time(world), time.monotonic()
         assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-2000:] + team.firmware_tail()
         assert collect["result"] == "complete" and sorted(collect["rovers_loaded"]) == team.rovers, collect
-        assert plan_stops(collect) >= 1
+        assert plan_stops(collect) >= 2
         assert ride_collect.boarded == set(team.rovers), ride_collect.boarded   # came down on the deck
+        # the rovers picked up at the first stop rode to the next on the deck
+        assert any(d > 20.0 for d in ride_collect.carried.values()), ride_collect.carried
         seen = probe(team.fleet.gcs_port, 4.0)
         c = world.state("carrier").position
         for k, rid in enumerate(team.rovers):   # on the deck: riding the carrier, landed and disarmed
@@ -158,10 +172,11 @@ def test_multi_stop_deploy_and_collect_on_the_deck(tmp_path: Path) -> None:
         rode = {r: round(horizontal(ne_to_enu(world.state(r).position), tasks[t]), 1)
                 for t, r in deploy["assignment"].items()}
         carried = {r: round(d, 1) for r, d in ride_deploy.carried.items()}
+        carried_back = {r: round(d, 1) for r, d in ride_collect.carried.items()}
         print(f"\nArduPilot on the json_physics deck: deploy ({plan_stops(deploy)} stops) flown "
               f"{deploy['makespan_flown']:.1f} s vs planned {deploy['makespan_planned']:.1f} s; collect "
               f"({plan_stops(collect)} stops) {collect['makespan_flown']:.1f} s vs "
               f"{collect['makespan_planned']:.1f} s; rovers now this far from their tasks (m): {rode}; "
-              f"carried on the deck (m): deploy {carried}; "
+              f"carried on the deck (m): deploy {carried}, collect {carried_back}; "
               f"physics clock per command: deploy {t1 - t0:.1f} s in {w1 - w0:.1f} s wall, collect "
               f"{t2 - t1:.1f} s in {w2 - w1:.1f} s wall (--speedup {SPEEDUP:g})")
