@@ -603,14 +603,28 @@ class Vehicle:
 
     async def set_current(self, seq: int) -> None:
         """Make mission item ``seq`` current (MAV_CMD_DO_SET_MISSION_CURRENT; falls back to the
-        MISSION_SET_CURRENT message, confirmed by MISSION_CURRENT, when the command is unsupported)."""
+        MISSION_SET_CURRENT message when the command is unsupported, as on PX4 1.18).
+
+        The message is confirmed by MISSION_CURRENT showing ``seq``, or - when the vehicle already
+        stands within the item's acceptance radius (a carrier's next stop at or next to the one it
+        holds at) and goes straight on to the next item, so that ``seq`` is never reported current -
+        by MISSION_ITEM_REACHED for ``seq`` or MISSION_CURRENT past it (from an item before it)."""
         ack = await self.command(M.MAV_CMD_DO_SET_MISSION_CURRENT, (seq, 0), check=False)
         if ack.result == M.MAV_RESULT_UNSUPPORTED:
+            before = self.mission_current
+            reached = seq in self.items_reached
+
+            def taken(v: Vehicle) -> bool:
+                cur = v.mission_current
+                if cur == seq or (not reached and seq in v.items_reached):
+                    return True
+                return before is not None and cur is not None and before < seq < cur
+
             for _attempt in range(3):
                 msg = self.link.mav.mission_set_current_encode(self.sysid, self.compid, seq)
                 self.link.send(msg, self.sysid)
                 with contextlib.suppress(TimeoutError):
-                    await self.wait_until(lambda v: v.mission_current == seq, 1.5, f"current item {seq}")
+                    await self.wait_until(taken, 1.5, f"current item {seq}")
                     return
             raise TimeoutError(f"{self.name}: MISSION_SET_CURRENT {seq} not confirmed")
         if not ack.accepted:
