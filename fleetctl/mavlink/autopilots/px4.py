@@ -106,7 +106,11 @@ class Px4(Autopilot):
         await vehicle.command(M.MAV_CMD_NAV_TAKEOFF, (nan, 0, 0, nan, nan, nan, home + height))
 
     async def start_mission(self, vehicle: Vehicle, first: int = 0) -> None:
-        if first > 0:
+        # a mission uploaded to a vehicle that is not landed keeps the current index (MISSION_CURRENT
+        # of the old mission, measured on SITL v1.18): a rover hovering at its task on item 2 would
+        # start its way back at item 2 - the landing -, a carrier holding at a stop would start on
+        # the new route's first hold, where a rover stays put. The first item is made current first.
+        if vehicle.mission_current != first:
             await vehicle.set_current(first)
         await vehicle.set_mode("MISSION")
 
