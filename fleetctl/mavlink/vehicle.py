@@ -535,6 +535,17 @@ class Vehicle:
     async def disarm(self, force: bool = False) -> None:
         await self.command(M.MAV_CMD_COMPONENT_ARM_DISARM, (0, FORCE_MAGIC if force else 0))
 
+    async def hold_and_disarm(self, timeout: float = 5.0) -> None:
+        """Stop where it is and disarm: the hold mode (generic ``HOLD``) unless it is in it, then
+        COMPONENT_ARM_DISARM 0, confirmed by a HEARTBEAT without the armed flag within ``timeout``
+        (wall s). A disarmed vehicle is left as it is."""
+        if not self.armed:
+            return
+        if self.mode != "HOLD":
+            await self.set_mode("HOLD")
+        await self.disarm()
+        await self.wait_until(lambda v: not v.armed, timeout, "disarmed")
+
     async def set_mode(self, mode: str) -> None:
         """Switch to a generic mode (HOLD, GUIDED, MISSION, TAKEOFF, LAND, RTL, MANUAL) or a
         firmware mode name, with DO_SET_MODE."""
