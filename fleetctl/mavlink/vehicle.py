@@ -555,6 +555,17 @@ class Vehicle:
     async def disarm(self, force: bool = False) -> None:
         await self.command(M.MAV_CMD_COMPONENT_ARM_DISARM, (0, FORCE_MAGIC if force else 0))
 
+    async def hold_and_disarm(self, timeout: float = 5.0) -> None:
+        """Stop where it is and disarm: the hold mode (generic ``HOLD``) unless it is in it, then
+        COMPONENT_ARM_DISARM 0, confirmed by a HEARTBEAT without the armed flag within ``timeout``
+        (wall s). A disarmed vehicle is left as it is."""
+        if not self.armed:
+            return
+        if self.mode != "HOLD":
+            await self.set_mode("HOLD")
+        await self.disarm()
+        await self.wait_until(lambda v: not v.armed, timeout, "disarmed")
+
     async def set_mode(self, mode: str) -> None:
         """Switch to a generic mode (HOLD, GUIDED, MISSION, TAKEOFF, LAND, RTL, MANUAL) or a
         firmware mode name, with DO_SET_MODE."""
@@ -634,14 +645,28 @@ class Vehicle:
 
     async def set_current(self, seq: int) -> None:
         """Make mission item ``seq`` current (MAV_CMD_DO_SET_MISSION_CURRENT; falls back to the
-        MISSION_SET_CURRENT message, confirmed by MISSION_CURRENT, when the command is unsupported)."""
+        MISSION_SET_CURRENT message when the command is unsupported, as on PX4 1.18).
+
+        The message is confirmed by MISSION_CURRENT showing ``seq``, or - when the vehicle already
+        stands within the item's acceptance radius (a carrier's next stop at or next to the one it
+        holds at) and goes straight on to the next item, so that ``seq`` is never reported current -
+        by MISSION_ITEM_REACHED for ``seq`` or MISSION_CURRENT past it (from an item before it)."""
         ack = await self.command(M.MAV_CMD_DO_SET_MISSION_CURRENT, (seq, 0), check=False)
         if ack.result == M.MAV_RESULT_UNSUPPORTED:
+            before = self.mission_current
+            reached = seq in self.items_reached
+
+            def taken(v: Vehicle) -> bool:
+                cur = v.mission_current
+                if cur == seq or (not reached and seq in v.items_reached):
+                    return True
+                return before is not None and cur is not None and before < seq < cur
+
             for _attempt in range(3):
                 msg = self.link.mav.mission_set_current_encode(self.sysid, self.compid, seq)
                 self.link.send(msg, self.sysid)
                 with contextlib.suppress(TimeoutError):
-                    await self.wait_until(lambda v: v.mission_current == seq, 1.5, f"current item {seq}")
+                    await self.wait_until(taken, 1.5, f"current item {seq}")
                     return
             raise TimeoutError(f"{self.name}: MISSION_SET_CURRENT {seq} not confirmed")
         if not ack.accepted:

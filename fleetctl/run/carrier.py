@@ -98,6 +98,23 @@ class CarrierControl:
             raise ExecutionError(f"the carrier {c.name} could not be released from its stop: {exc}") from None
         self.ctx.record(Ev.CARRIER_RELEASED, stop=stop + 1)
 
+    async def park(self) -> bool:
+        """After a complete collection: the carrier in its hold mode and disarmed (armed, the next
+        run's preflight would refuse it as flown by someone else). Journalled; a carrier that
+        refuses or does not answer is reported, not an error. Returns whether it is disarmed."""
+        c = self.vehicle
+        if c.lost or not c.connected:
+            return False
+        try:
+            await self.ctx.command(c, "hold_and_disarm", c.hold_and_disarm(self.ctx.wall(5.0)))
+        except (CommandRejected, LinkError, TimeoutError) as exc:
+            self.ctx.state.event(Ev.CARRIER_PARKED, f"{c.name}: could not disarm the carrier: {exc}", c.name,
+                                 disarmed=False)
+            return False
+        self.ctx.state.event(Ev.CARRIER_PARKED, f"{c.name}: every rover loaded: carrier in HOLD and disarmed",
+                             c.name, disarmed=True)
+        return True
+
     async def reach_stop(self, k: int, arrive_seq: int, planned_leg: float) -> float:
         """Wait for the carrier to reach stop ``k`` (its mission clock time), waiting out carrier
         link outages on the way."""

@@ -169,7 +169,10 @@ class CollectPhase:
             await self._round(crs)
             last_load = self.result.flown if self.result.flown is not None else last_load
             self.result.flown = None
-        return self._finish(last_load)
+        res = self._finish(last_load)
+        if res.complete and self.t0 is not None and set(res.rovers_loaded) == set(self.board.status):
+            await self.carrier.park()
+        return res
 
     def _start_board(self, rover_ids: Iterable[str] | None) -> None:
         ctx, rovers = self.ctx, self.ctx.fleet.rovers

@@ -70,6 +70,7 @@ class Ev(StrEnum):
     CARRIER_STARTED = "carrier_started"
     STOP_REACHED = "stop_reached"
     CARRIER_RELEASED = "carrier_released"
+    CARRIER_PARKED = "carrier_parked"  # collection complete: the carrier in HOLD and disarmed
     ETA = "eta"  # the live makespan prediction at a stop (mission s of the phase)
     CARRIER_LOST = "carrier_lost"
     CARRIER_BACK = "carrier_back"

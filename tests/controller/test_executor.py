@@ -152,6 +152,10 @@ async def test_recon_run_deploys_then_collects_every_rover(tmp_path: Path) -> No
                  "summary"):
         assert kind in kinds, kind
     assert kinds.count("task_reached") == len(task_ids) and kinds.count("rover_loaded") == len(task_ids)
+    # every rover loaded: the carrier is left in HOLD and disarmed (the next preflight takes it)
+    parked = [r for r in journal(out.run_dir) if r["kind"] == "carrier_parked"]
+    assert len(parked) == 1 and parked[0]["disarmed"] is True, parked
+    assert kinds.index("carrier_parked") > max(i for i, k in enumerate(kinds) if k == "rover_loaded")
 
 
 async def test_deploy_records_tlog_plan_journal_and_summary(tmp_path: Path) -> None:

@@ -86,3 +86,26 @@ def test_docs_autopilots_states_the_deck_of_the_json_physics() -> None:
 
     deck = Deck()
     assert f"({deck.height:g} m high, {deck.radius:g} m" in DOC.read_text()
+
+
+def test_px4_handling_is_planned_and_documented(tmp_path: Path) -> None:
+    from fleetctl.mavlink.autopilots import px4
+
+    d = mission_dict(carrier_connection="udpin://127.0.0.1:14599")
+    d["rovers"].update(max_speed=5.0, accel=3.0, climb_rate=1.5, land_speed=0.7)
+    fitted = fitted_handling(mission_from(d, tmp_path), [px4.Px4(M.MAV_TYPE_QUADROTOR)])
+    assert fitted is not None
+    r = fitted.rovers
+    assert r.takeoff_time == pytest.approx(TAKEOFF_HEIGHT / 1.5 + px4.MC_TAKEOFF_OVERHEAD)
+    assert r.land_time == pytest.approx(MEET_HEIGHT / 0.7 + px4.MC_LAND_OVERHEAD)
+    assert r.accel == pytest.approx(5.0 / (5.0 / 3.0 + px4.MC_LEG_OVERHEAD))
+    assert px4.Px4(M.MAV_TYPE_GROUND_ROVER).handling_times(1.5, 0.7) is None  # a carrier: none
+    text = DOC.read_text()
+    assert f"`TAKEOFF_HEIGHT / climb_rate + {px4.MC_TAKEOFF_OVERHEAD:.1f} s`" in text
+    assert f"`MEET_HEIGHT / land_speed + {px4.MC_LAND_OVERHEAD:.1f} s`" in text
+    assert f"`v / (v/a + {px4.MC_LEG_OVERHEAD:.1f} s)`" in text
+    documented = set(re.findall(r"\| `([A-Z_]+)`(?:, `([A-Z_]+)`)? \|", text))
+    names = {n for pair in documented for n in pair if n}
+    for p in (*px4.MC_SPEED_PARAMS, *px4.ROVER_SPEED_PARAMS):
+        assert p.name in names, p.name
+    assert "| PX4 | v1.18" in text  # the tested firmware table

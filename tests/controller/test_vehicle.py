@@ -163,3 +163,53 @@ async def test_status_text_and_mission_events(sim: SimFleet, fleet: Fleet) -> No
     await r2.wait_until(lambda v: any(t == "Armed" for _, _, t in v.statustexts), 3.0, "status text")
     remove()
     assert any(e.kind == "statustext" and e.data["text"] == "Armed" for e in got)
+
+
+class _Px4SetCurrentLink:
+    """A link to one PX4 1.18 vehicle as it answers a release: MAV_CMD_DO_SET_MISSION_CURRENT is
+    unsupported; MISSION_SET_CURRENT to an item the vehicle already stands on is reached at once and
+    MISSION_CURRENT goes straight to the next item (the set item is never reported current)."""
+
+    def __init__(self) -> None:
+        from pymavlink.dialects.v20 import ardupilotmega as mav
+
+        self.M = mav
+        self.mav = mav.MAVLink(None, srcSystem=255, srcComponent=190)
+        self.url = "fake://px4"
+        self.last_heard: dict[int, float] = {}
+        self.handlers: list = []
+
+    def subscribe(self, handler, *, sysid=None):  # type: ignore[no-untyped-def]
+        self.handlers.append(handler)
+        return lambda: None
+
+    def feed(self, msg) -> None:  # type: ignore[no-untyped-def]
+        for h in self.handlers:
+            h(msg)
+
+    async def command(self, sysid, command, params, **kw):  # type: ignore[no-untyped-def]
+        from fleetctl.mavlink.link import CommandAck
+
+        return CommandAck(sysid, command, self.M.MAV_RESULT_UNSUPPORTED, 1)
+
+    def send(self, msg, sysid=None) -> None:  # type: ignore[no-untyped-def]
+        import asyncio
+
+        assert msg.get_type() == "MISSION_SET_CURRENT"
+        loop = asyncio.get_running_loop()
+        loop.call_soon(self.feed, self.M.MAVLink_mission_item_reached_message(msg.seq))
+        loop.call_soon(self.feed, self.M.MAVLink_mission_current_message(msg.seq + 1, 4, 3, 1))
+
+
+@pytest.mark.parametrize("reports_current", [False, True])
+async def test_release_confirmed_when_px4_passes_the_item_at_once(reports_current: bool) -> None:
+    from fleetctl.mavlink.vehicle import Vehicle
+
+    link = _Px4SetCurrentLink()
+    v = Vehicle(link, 1, name="carrier")  # type: ignore[arg-type]
+    link.feed(link.M.MAVLink_mission_current_message(1, 4, 3, 1))  # holding on the loiter (item 1)
+    if reports_current:  # the classic answer: item 2 current
+        link.send = lambda msg, sysid=None: link.feed(  # type: ignore[method-assign]
+            link.M.MAVLink_mission_current_message(msg.seq, 4, 3, 1))
+    await v.set_current(2)
+    assert v.mission_current == (2 if reports_current else 3)

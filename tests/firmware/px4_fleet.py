@@ -54,21 +54,22 @@ def px4_fleet(n_rovers: int = 3, speedup: float = SPEEDUP) -> Iterator[FirmwareF
         fleet.cleanup()
 
 
-# the time model's terms for PX4 (fitted on SITL: docs in tests/firmware/test_px4.py)
-# takeoff_time: start command -> on the line (arm ~0.5 s, TAKEOFF detected ~2 s, IN_AIR at 1 m 3-5 s,
-# the take-off item done and the turn onto the line): 7.0 s fits the deployments (6.6-7.4 s measured);
-# land_time: above the deck at 3 m -> landing detected: 3.0-3.4 s measured
-PX4_TIMING = {"max_speed": 5.0, "accel": 3.0, "takeoff_time": 7.0, "land_time": 3.3}
+# the mission's rover speeds are PX4's defaults (written with firmware_speeds: set); the take-off and
+# touch-down times and the leg acceleration the plan uses come from Px4.handling_times and
+# Px4.planned_accel (measured: fleetctl/mavlink/autopilots/px4.py)
+PX4_TIMING = {"max_speed": 5.0, "accel": 3.0}
 
 
 def mission_yaml(tasks: Sequence[tuple[float, float, float]] = TASKS, *, n_rovers: int = 3,
-                 extra_rovers: str = "", timing: dict[str, float] | None = None) -> str:
-    """A mission for the PX4 fleet: one stop at the carrier's start serves every task."""
+                 extra_rovers: str = "", timing: dict[str, float] | None = None,
+                 deploy_range: float | None = None, extra: str = "") -> str:
+    """A mission for the PX4 fleet (``deploy_range`` default: every task within reach of the
+    carrier's start; ``extra``: more top-level keys)."""
     t = {**PX4_TIMING, **(timing or {})}
     lat, lon, alt, _ = HOME
     task_lines = "".join(f"  - {{id: t{i + 1}, position: [{x:g}, {y:g}, {z:g}]}}\n"
                          for i, (x, y, z) in enumerate(tasks))
-    reach = max(math.hypot(x, y) for x, y, _z in tasks) + 10.0
+    reach = deploy_range or max(math.hypot(x, y) for x, y, _z in tasks) + 10.0
     return f"""name: px4-sitl
 origin: {{lat: {lat}, lon: {lon}, alt: {alt}}}
 carrier:
@@ -77,7 +78,7 @@ carrier:
   sysid: 1
   position: [0, 0]
   heading_deg: 0
-  max_speed: 0.5
+  max_speed: 1.0             # RO_SPEED_LIM: below 1 m/s the Ackermann rover cannot turn to a stop behind it
   accel: 1.0
   unload_time: 0.0
   load_time: 0.0
@@ -86,13 +87,11 @@ rovers:                      # PX4 quadcopter (10040) defaults, measured on SITL
   accel: {t['accel']:g}                   # MPC_ACC_HOR
   climb_rate: 1.5            # MPC_TKO_SPEED
   land_speed: 0.7            # MPC_LAND_SPEED
-  takeoff_time: {t['takeoff_time']:g}     # start -> on its line: arming, MPC_TKO_RAMP_T 3 s, 1 m climb
-  land_time: {t['land_time']:g}             # 3 m above the deck -> landing detected
   deploy_range: {reach:g}
   endurance_range: 3000.0
   reserve: 0.1
   fleet: {{count: {n_rovers}, sysid_start: 11}}
-{extra_rovers}tasks:
+{extra_rovers}{extra}tasks:
 {task_lines}"""
 
 

@@ -17,6 +17,7 @@ from fleetctl.mavlink.autopilots.base import (
     code,
     seconds,
 )
+from fleetctl.mission.flight import MEET_HEIGHT, TAKEOFF_HEIGHT
 
 M = mavlink2
 
@@ -53,6 +54,19 @@ ROVER_SPEED_PARAMS = (
     SpeedParam("RO_ACCEL_LIM", "accel", 1.0),
     SpeedParam("RO_DECEL_LIM", "accel", 1.0),
 )
+# A quadcopter's handling (10040), measured on SITL v1.18 SIH at speed factor 4 with MPC_TKO_SPEED 1.5,
+# MPC_LAND_SPEED 0.7, MPC_XY_CRUISE 5, MPC_ACC_HOR 3 (tests/firmware, 12 launches, 4 landings):
+# - start (DO_SET_MODE AUTO.MISSION, armed) -> 0.8 m above the deck: 3.7 - 5.8 s, median 5.5 s:
+#   1 m / 1.5 m/s of climb + 4.8 s (take-off detection, the MPC_TKO_RAMP_T 3 s velocity ramp);
+# - clear of the deck -> a task 22 - 25 m away reached (1 m radius): 0.4 - 2.0 s, median 1.3 s,
+#   longer than the trapezoid of v = 5, a = 3 (jerk-limited, stops at the task; a short take-off
+#   leaves more of the climb to the leg: take-off + leg is 12.0 - 14.0 s);
+# - sent down from 2.9 - 3.1 m above the carrier -> the landing item reached: 7.8 - 8.6 s (4
+#   landings); -> loaded (fleetctl's deck check on the telemetry): 9.2 - 11.1 s, mean 10.0 s (3):
+#   3 m / 0.7 m/s + 5.7 s (slow-down near the ground, the land detector, the landed state)
+MC_TAKEOFF_OVERHEAD = 4.8  # s
+MC_LAND_OVERHEAD = 5.7  # s
+MC_LEG_OVERHEAD = 1.3  # s a waypoint leg takes beyond S/v + v/a
 WAYPOINT_RADIUS = 1.0  # m: param2 of compiled waypoints ("reached" = at the point, not 10 m early)
 _WORDS = {"none": "no action", "hold": "hold", "rtl": "RTL", "land": "land",
           "terminate": "flight termination", "lockdown": "lockdown (motors off)"}
@@ -106,12 +120,28 @@ class Px4(Autopilot):
         await vehicle.command(M.MAV_CMD_NAV_TAKEOFF, (nan, 0, 0, nan, nan, nan, home + height))
 
     async def start_mission(self, vehicle: Vehicle, first: int = 0) -> None:
-        if first > 0:
+        # a mission uploaded to a vehicle that is not landed keeps the current index (MISSION_CURRENT
+        # of the old mission, measured on SITL v1.18): a rover hovering at its task on item 2 would
+        # start its way back at item 2 - the landing -, a carrier holding at a stop would start on
+        # the new route's first hold, where a rover stays put. The first item is made current first.
+        if vehicle.mission_current != first:
             await vehicle.set_current(first)
         await vehicle.set_mode("MISSION")
 
     def speed_params(self) -> tuple[SpeedParam, ...]:
         return ROVER_SPEED_PARAMS if self.ground else MC_SPEED_PARAMS
+
+
+    def planned_accel(self, speed: float, accel: float | None) -> float | None:
+        if self.ground or accel is None:
+            return accel
+        return speed / (speed / accel + MC_LEG_OVERHEAD)
+
+    def handling_times(self, climb_rate: float, land_speed: float) -> tuple[float, float] | None:
+        if self.ground:
+            return None
+        return (TAKEOFF_HEIGHT / climb_rate + MC_TAKEOFF_OVERHEAD,
+                MEET_HEIGHT / land_speed + MC_LAND_OVERHEAD)
 
     # -- telemetry rates ------------------------------------------------------------------------------
     def stream_rates(self, position_hz: float, status_hz: float) -> dict[str, float]:
