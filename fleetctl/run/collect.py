@@ -17,6 +17,7 @@ rover that comes back is collected in a further round planned from the live stat
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import dataclasses
 import logging
 import math
@@ -51,6 +52,7 @@ from planners.core.problem import CollectProblem, CollectRover, Vec3
 
 log = logging.getLogger(__name__)
 
+DISARM_WAIT = 4.0  # mission s a rover down on the deck is given to disarm itself before it is told to
 LANDING_TIMEOUT = 10.0  # mission s from the land command to the rover on the deck (at least 3x land_time)
 MAX_POSITION_AGE = 5.0  # mission s: an older carrier position is not moved on by its speed
 SPEED_SAMPLE = 0.5  # mission s between carrier speed samples (is it speeding up?)
@@ -481,6 +483,7 @@ class CollectPhase:
             )
             if v.lost:
                 return
+            await self._disarmed_on_deck(v)
         except (CommandRejected, LinkError, TimeoutError) as exc:
             st.event(Ev.ROVER_FAILED, f"{rid}: not loaded ({exc})", rid)
             return
@@ -490,6 +493,17 @@ class CollectPhase:
         self.supervisor.expect(rid, None)
         st.set_state(rid, VehicleStatus.LOADED)
         st.event(Ev.ROVER_LOADED, f"{rid}: loaded on the carrier at {flown:.1f} s", rid, flown=flown)
+
+    async def _disarmed_on_deck(self, v: Vehicle) -> None:
+        """A rover down on the deck counts as loaded once its motors are off, so the carrier never
+        drives off with a rover armed on it (whose land detector a moving deck may keep from
+        finishing): its autopilot disarms it on its own after the landing (ArduCopter and PX4 about
+        2 s); after ``DISARM_WAIT`` it is told to."""
+        ctx = self.ctx
+        with contextlib.suppress(TimeoutError):
+            await v.wait_until(lambda v: not v.armed or v.lost, ctx.wall(DISARM_WAIT), "disarmed on the deck")
+            return
+        await ctx.command(v, "disarm", v.disarm())
 
     def _down_on_deck(self, rnd: _Round, v: Vehicle) -> bool:
         """``v``'s autopilot reports its landing done (at once; the landed state and positions come

@@ -109,3 +109,10 @@ def test_px4_handling_is_planned_and_documented(tmp_path: Path) -> None:
     for p in (*px4.MC_SPEED_PARAMS, *px4.ROVER_SPEED_PARAMS):
         assert p.name in names, p.name
     assert "| PX4 | v1.18" in text  # the tested firmware table
+
+
+def test_docs_state_how_long_a_landed_rover_is_given_to_disarm() -> None:
+    from fleetctl.run.collect import DISARM_WAIT
+
+    text = (DOC.parent / "mavlink.md").read_text()
+    assert f"after {DISARM_WAIT:g} s it is\ntold to" in text

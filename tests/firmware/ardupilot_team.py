@@ -258,6 +258,7 @@ def param_answered(port: int, sysid: int, key: bytes | None, seconds: float = 3.
     if key is not None:
         mav.signing.secret_key = key
         mav.signing.sign_outgoing = True
+        mav.signing.link_id = 7  # a stream of its own: fleetctl's link 0 may have stamped later times
         mav.signing.timestamp = int((time.time() - 1420070400) * 1e5)
     parser = mavlink2.MAVLink(None)
     parser.robust_parsing = True

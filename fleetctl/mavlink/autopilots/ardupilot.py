@@ -51,9 +51,10 @@ ROVER_SPEEDS = (SpeedParam("WP_SPEED", "max_speed", 1.0, 0.0, 100.0),
 # deck takes the motors' spool-up and the take-off throttle ramp (TKOFF_SLEW_TIME) on top of the
 # climb. A rover comes down only once it has settled above its stop (the firmware moves on to the
 # hold after the approach waypoint: ~1.6 s after it is within 2 m), and a landing ends with the land
-# detector's second and the report of the landed state (~2 s)
+# detector's second and the report of the landed state (~2 s), then the auto-disarm (~1.9 s later)
+# that the controller waits for before the carrier may leave
 COPTER_TAKEOFF_OVERHEAD = 2.6  # s
-COPTER_LAND_OVERHEAD = 3.6  # s
+COPTER_LAND_OVERHEAD = 5.5  # s
 COPTER_LEG_OVERHEAD = 1.6  # s a waypoint leg takes beyond S/v + v/a (jerk-limited S-curve, stop at the end)
 # ArduRover: a leg takes this much beyond S/v + v/a and the turn on the spot the time model charges
 # (it steers onto the new heading while it drives, slows into the waypoint and stops at the hold)
