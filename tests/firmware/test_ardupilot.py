@@ -69,9 +69,17 @@ def test_status_deploy_collect_on_stock_ardupilot(tmp_path: Path) -> None:
             s = seen[11 + k]
             assert s.enu is not None and horizontal(s.enu, carrier) < DECK, (rid, s.enu, carrier)
             assert s.armed is False, rid
+        # the carrier is parked after a complete collection: the team is ready for the next run
+        again = team.fleetctl("status")
+        assert again.returncode == 0, again.stdout[-2000:] + again.stderr[-1500:]
+        proc, run = team.fly("run", "--dwell", "5")
+        assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-2000:] + team.firmware_tail()
+        assert sorted(run["tasks_reached"]) == ["t1", "t2", "t3"], run
+        assert sorted(run["rovers_loaded"]) == team.rovers, run
         print(f"\nArduPilot deploy flown {deploy['makespan_flown']:.1f} s vs planned "
               f"{deploy['makespan_planned']:.1f} s; collect {collect['makespan_flown']:.1f} s vs "
-              f"{collect['makespan_planned']:.1f} s")
+              f"{collect['makespan_planned']:.1f} s; run {run['makespan_flown']:.1f} s vs "
+              f"{run['makespan_planned']:.1f} s")
 
 
 def test_link_loss_failsafe_is_set_and_lands_the_rovers_at_their_tasks(tmp_path: Path) -> None:
