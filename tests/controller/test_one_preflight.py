@@ -5,7 +5,9 @@ uncut lines. Real MAVLink over UDP against the simulated fleet."""
 
 from __future__ import annotations
 
+import asyncio
 import json
+import math
 import os
 import subprocess
 import sys
@@ -17,6 +19,7 @@ from ctl_helpers import mission_dict, mission_from, sim_fleet, write_mission
 from fleetctl.cli import main
 from fleetctl.mavlink.fleet import connect_fleet
 from fleetctl.run.preflight import CHECKS, check_connected, check_fleet
+from fleetctl.run.runner import execute
 from fleetctl.run.safety import gather
 from fleetctl.views.status import json_objects, not_ready_report, plain_lines, status_rows
 
@@ -120,3 +123,25 @@ async def test_a_vehicle_that_does_not_answer_fails_heartbeat_alone_with_the_hin
     assert report[0] == "fleetctl: 1 vehicle(s) not ready (r2 heartbeat):"
     assert report[-1].startswith("  no heartbeat: check the URL")
     assert lines[-1].startswith("r2\trover\t12\t") and "\tno answer\t" in lines[-1]
+
+
+async def test_a_rover_short_of_the_deploy_range_flies_a_task_it_reaches(tmp_path: Path) -> None:
+    # r1 has 20 m of its 40 m deploy range, r2 2 m: less than the 3 m the lowest task needs above
+    # the take-off height (t2 is 4 m high): r2 fails preflight, r1 and r3 fly, r1 within 20 m
+    d = mission_dict(rovers=3, faults=[{"vehicle": "r1", "kind": "low_battery", "level": 0.2},
+                                       {"vehicle": "r2", "kind": "low_battery", "level": 0.11}])
+    d["rovers"]["endurance_range"] = 200.0
+    mission = mission_from(d, tmp_path)
+    out = await asyncio.wait_for(execute(mission, "deploy", runs_dir=tmp_path / "runs"), 120)
+    s = out.summary
+    assert out.exit_code == 0, (out.error, s)
+    assert sorted(s["tasks_reached"]) == ["t1", "t2"] and set(s["assignment"].values()) == {"r1", "r3"}
+    assert s["rovers_lost_reasons"]["r2"] == (
+        "failed preflight: battery 11 % gives 2 m above the reserve, less than the deploy range 40 m "
+        "(needs 30 %): it reaches no task (the nearest needs 3.0 m)")
+    plan = next(json.loads(line)["plan"] for line in (out.run_dir / "journal.jsonl").read_text().splitlines()
+                if json.loads(line).get("kind") == "plan")
+    legs = [leg for stop in plan["stops"] for leg in stop["rovers"]]
+    r1 = next(leg for leg in legs if leg["rover"] == "r1")
+    length = sum(math.dist(p, q) for p, q in zip(r1["path"], r1["path"][1:], strict=False))
+    assert length <= 20.0 + 1e-3, r1
