@@ -139,8 +139,10 @@ async def test_a_rover_short_of_the_deploy_range_flies_a_task_it_reaches(tmp_pat
     assert s["rovers_lost_reasons"]["r2"] == (
         "failed preflight: battery 11 % gives 2 m above the reserve, less than the deploy range 40 m "
         "(needs 30 %): it reaches no task (the nearest needs 3.0 m)")
-    plan = next(json.loads(line)["plan"] for line in (out.run_dir / "journal.jsonl").read_text().splitlines()
-                if json.loads(line).get("kind") == "plan")
+    records = [json.loads(line) for line in (out.run_dir / "journal.jsonl").read_text().splitlines()]
+    warned = [r for r in records if r.get("kind") == "preflight_warning"]
+    assert [r.get("vehicle") for r in warned] == ["r1"] and "planned with 20 m" in warned[0]["text"], warned
+    plan = next(r["plan"] for r in records if r.get("kind") == "plan")
     legs = [leg for stop in plan["stops"] for leg in stop["rovers"]]
     r1 = next(leg for leg in legs if leg["rover"] == "r1")
     length = sum(math.dist(p, q) for p, q in zip(r1["path"], r1["path"][1:], strict=False))
