@@ -3,7 +3,7 @@ the lowest battery any rover reached, and the controller's CPU share with 100 ro
 
 1. Every ``missions/paper/*.yaml`` with tasks gets a deploy row, every one with a ``collection:``
    section a collect row, and ``missions/recon.yaml`` both; each is flown by
-   ``fleetctl.run.runner.execute`` against the in-process simulated fleet (real UDP) at every
+   ``fleetctl.run.flight.execute`` against the in-process simulated fleet (real UDP) at every
    ``--speedup`` given (default 1 and 20). Flown makespan is measured in *simulated* seconds. The
    scenario files have no ``origin`` (the planners work in ENU), so one is added for the MAVLink
    coordinates. The lowest battery is polled from the simulated rovers during the flight (a
@@ -43,7 +43,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from fleetctl.mission import load_mission  # noqa: E402
-from fleetctl.run.runner import execute  # noqa: E402
+from fleetctl.run.flight import execute  # noqa: E402
 from fleetctl.run.sim import sim_mission_dict  # noqa: E402
 from sitl import FleetConfig, SimFleet  # noqa: E402
 

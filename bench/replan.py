@@ -28,7 +28,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from fleetctl.mission import load_mission  # noqa: E402
-from fleetctl.run.runner import execute  # noqa: E402
+from fleetctl.run.flight import execute  # noqa: E402
 from fleetctl.run.sim import sim_mission_dict  # noqa: E402
 from fleetctl.run.state import Event, FleetState  # noqa: E402
 from fleetctl.views.view import View  # noqa: E402

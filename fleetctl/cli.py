@@ -3,11 +3,12 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import dataclasses
 import json
 import logging
 import sys
-from collections.abc import Callable, Sequence
+from collections.abc import AsyncIterator, Callable, Sequence
 from typing import TYPE_CHECKING, Any
 
 from fleetctl import package_version
@@ -18,7 +19,7 @@ from fleetctl.mission.teams import several_teams
 from planners.core.problem import CollectProblem
 
 if TYPE_CHECKING:
-    from fleetctl.run.runner import RunOutcome
+    from fleetctl.run.lifecycle import RunOutcome
     from planners.core.problem import DeployProblem
 
 log = logging.getLogger("fleetctl")
@@ -236,7 +237,7 @@ def _fly(args: argparse.Namespace, mission: Mission, command: str, extra: dict[s
     import asyncio
 
     from fleetctl.run.context import ExecutionError
-    from fleetctl.run.runner import EXIT_INTERRUPTED
+    from fleetctl.run.lifecycle import EXIT_INTERRUPTED
     from fleetctl.views.dashboard import make_view
 
     team = getattr(args, "team", None)
@@ -328,7 +329,7 @@ async def _with_sigterm(mission: Mission, command: str, options: dict[str, Any])
     import contextlib
     import signal
 
-    from fleetctl.run.runner import execute
+    from fleetctl.run.flight import execute
 
     loop = asyncio.get_running_loop()
     task = asyncio.current_task()
@@ -591,37 +592,55 @@ def _add_controller_commands(sub: argparse._SubParsersAction) -> None:
     sim.set_defaults(func=cmd_sim)
 
 
-def _sim_config(mission: Mission, speedup: float | None) -> object:
+def _check_speedup(speedup: float | None) -> None:
     if speedup is not None and not speedup > 0:
         raise CliError(f"--speedup must be > 0, got {speedup}")
-    from fleetctl.run.context import ExecutionError
-    from fleetctl.run.sim import sim_fleet_config
 
-    try:  # every carrier and rover of every team, as the controller sees the fleet
-        return sim_fleet_config(mission, speedup=speedup)
+
+@contextlib.asynccontextmanager
+async def _embedded_fleet(mission: Mission, **options: Any) -> AsyncIterator[Any]:
+    """The mission's embedded simulated fleet for the block (None on real links), as every flying
+    command starts it (:func:`fleetctl.run.sim.embedded_fleet`: every carrier and rover of every
+    team); its errors as a :class:`CliError`."""
+    from fleetctl.run.context import ExecutionError
+    from fleetctl.run.sim import embedded_fleet
+
+    _check_speedup(options.get("speedup"))
+    try:
+        fleet = embedded_fleet(mission, **options)
+        sim = await fleet.__aenter__()
     except ExecutionError as e:
         raise CliError(str(e)) from None
+    try:
+        yield sim
+    finally:
+        await fleet.__aexit__(None, None, None)
 
 
 def cmd_sim(args: argparse.Namespace) -> int:
-    from sitl import LinkError as SimLinkError
-    from sitl import SimFleet, serve
+    import asyncio
+    import signal
 
     mission = load_mission(args.mission)
-    config = _sim_config(mission, args.speedup)
 
-    def ready(fleet: SimFleet) -> None:
-        print(f"simulated fleet {mission.name!r} running at {fleet.speedup:g}x; "
-              "controller-side URLs (Ctrl-C to stop):")
-        sysids = {s.id: s.sysid for s in fleet.config.vehicles}
-        for vid, url in fleet.endpoints.items():
-            print(f"  {vid:<12} sysid {sysids[vid]:<4} {url}")
-        sys.stdout.flush()
+    async def serve() -> None:
+        async with _embedded_fleet(mission, speedup=args.speedup) as fleet:
+            if fleet is None:
+                raise CliError(f"{args.mission}: no vehicle has 'connection: sim': nothing to simulate")
+            print(f"simulated fleet {mission.name!r} running at {fleet.speedup:g}x; "
+                  "controller-side URLs (Ctrl-C to stop):")
+            sysids = {s.id: s.sysid for s in fleet.config.vehicles}
+            for vid, url in fleet.endpoints.items():
+                print(f"  {vid:<12} sysid {sysids[vid]:<4} {url}")
+            sys.stdout.flush()
+            stop = asyncio.Event()
+            loop = asyncio.get_running_loop()
+            for sig in (signal.SIGTERM, signal.SIGINT):
+                loop.add_signal_handler(sig, stop.set)
+            await stop.wait()  # until Ctrl-C / SIGTERM
 
-    try:
-        serve(config, on_ready=ready)  # type: ignore[arg-type]
-    except SimLinkError as e:
-        raise CliError(str(e)) from None
+    with contextlib.suppress(KeyboardInterrupt):
+        asyncio.run(serve())
     print("simulated fleet stopped")
     return 0
 
@@ -630,7 +649,6 @@ def cmd_status(args: argparse.Namespace) -> int:
     import asyncio
 
     mission = load_mission(args.mission)
-    _one_team(mission, "status")
     if not args.timeout > 0:
         raise CliError(f"--timeout must be > 0, got {args.timeout}")
     return asyncio.run(_status(mission, args.timeout, args.speedup, args.json))
@@ -643,19 +661,8 @@ async def _status(mission: Mission, timeout: float, speedup: float | None, as_js
     from fleetctl.run.safety import gather
     from fleetctl.views import status as view
 
-    sim = None
-    endpoints = None
-    if mission.carrier.connection == "sim":
-        from sitl import LinkError as SimLinkError
-        from sitl import SimFleet
-
-        sim = SimFleet(_sim_config(mission, speedup))  # type: ignore[arg-type]
-        try:
-            await sim.start()
-        except SimLinkError as e:
-            raise CliError(str(e)) from None
-        endpoints = sim.endpoints
-    try:
+    async with _embedded_fleet(mission, speedup=speedup) as sim:
+        endpoints = sim.endpoints if sim is not None else None
         try:
             fleet = await connect_fleet(mission, endpoints, timeout=timeout, require_all=False)
         except LinkError as e:
@@ -665,16 +672,13 @@ async def _status(mission: Mission, timeout: float, speedup: float | None, as_js
             rows = check_connected(fleet, mission)  # the checks every flying command runs
             for vid, fs in failsafe.items():
                 rows[vid].link_loss = fs.text
-            _rtl_warnings(fleet.carrier_id, rows, failsafe)
+            _rtl_warnings(fleet.carrier_ids, rows, failsafe)
             if as_json:
                 view.print_json(view.json_objects(mission, fleet, rows))
             else:
                 view.print_table(mission, view.status_rows(mission, fleet, rows))
         finally:
             await fleet.close()
-    finally:
-        if sim is not None:
-            await sim.stop()
     notes = sys.stderr if as_json else sys.stdout
     for vid, pre in rows.items():
         for w in pre.warnings:
@@ -688,11 +692,11 @@ async def _status(mission: Mission, timeout: float, speedup: float | None, as_js
     return 0
 
 
-def _rtl_warnings(carrier_id: str, rows: dict[str, Any], failsafe: dict[str, Any]) -> None:
+def _rtl_warnings(carriers: tuple[str, ...], rows: dict[str, Any], failsafe: dict[str, Any]) -> None:
     from fleetctl.run.safety import RTL_WARNING
 
     for vid, fs in failsafe.items():
-        if vid != carrier_id and fs.action is not None and "rtl" in fs.action.lower():
+        if vid not in carriers and fs.action is not None and "rtl" in fs.action.lower():
             rows[vid].warnings.append(f"link loss {fs.text.removeprefix('link loss: ')}: {RTL_WARNING}")
 
 
@@ -804,7 +808,6 @@ def cmd_keys_provision(args: argparse.Namespace) -> int:
     from fleetctl.mavlink.signing import SigningKey, SigningKeyError
 
     mission = load_mission(args.mission)
-    _one_team(mission, "keys provision")
     if not args.timeout > 0:
         raise CliError(f"--timeout must be > 0, got {args.timeout}")
     if mission.links.signing is None:
@@ -824,30 +827,12 @@ async def _keys_provision(mission: Mission, key: object, timeout: float) -> int:
     from fleetctl.mavlink.signing import SigningKey
 
     assert isinstance(key, SigningKey)
-    sim = None
-    endpoints = None
-    if mission.carrier.connection == "sim":  # the embedded simulated fleet starts without a key
-        from fleetctl.run.context import ExecutionError
-        from fleetctl.run.sim import sim_fleet_config
-        from sitl import ConfigError, SimFleet
-        from sitl import LinkError as SimLinkError
-
+    async with _embedded_fleet(mission, signing_from_env=False) as sim:  # it starts without a key
         try:
-            config = sim_fleet_config(mission, signing_from_env=False)
-            sim = SimFleet(config)
-            await sim.start()
-        except (ConfigError, SimLinkError, ExecutionError) as e:
-            raise CliError(str(e)) from None
-        endpoints = sim.endpoints
-    try:
-        try:
-            urls = fleet_urls(mission, endpoints)
+            urls = fleet_urls(mission, sim.endpoints if sim is not None else None)
         except LinkError as e:
             raise CliError(str(e)) from None
         results = await provision(mission, key, urls, timeout=timeout)
-    finally:
-        if sim is not None:
-            await sim.stop()
     for r in results:
         print(r.line())
     failed = [r for r in results if not r.ok]

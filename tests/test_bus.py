@@ -28,7 +28,8 @@ from ctl_helpers import mission_dict, mission_from  # noqa: E402
 
 from fleetctl.bus.client import FleetBus, bus_config  # noqa: E402
 from fleetctl.mission import Mission  # noqa: E402
-from fleetctl.run.runner import RunOutcome, execute  # noqa: E402
+from fleetctl.run.flight import execute
+from fleetctl.run.lifecycle import RunOutcome  # noqa: E402
 from fleetctl.run.state import FleetState  # noqa: E402
 from fleetctl.views.view import View  # noqa: E402
 

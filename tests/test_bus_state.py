@@ -15,7 +15,7 @@ import pytest
 sys.path.insert(0, str(Path(__file__).resolve().parent / "controller"))
 from ctl_helpers import mission_dict, write_mission  # noqa: E402
 
-from fleetctl.run.runner import execute  # noqa: E402
+from fleetctl.run.flight import execute  # noqa: E402
 from tests.test_bus import MOSQUITTO, PASSWORD, WAIT, Broker, _fly_with, bus_mission, free_tcp_port  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]

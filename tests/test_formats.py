@@ -465,7 +465,7 @@ def test_data_files_are_copied_for_the_run_folder_copy(tmp_path: Path) -> None:
 
 
 async def test_a_run_folder_holds_the_export_and_the_task_file(tmp_path: Path) -> None:
-    from fleetctl.run.runner import execute
+    from fleetctl.run.flight import execute
 
     (tmp_path / "tasks.csv").write_text("id,x,y,z\nt1,20,10,5\nt2,40,-10,4\n")
     f = mission_yaml(tmp_path, {"file": "tasks.csv"}, sim={"speedup": 20.0},

@@ -17,7 +17,7 @@ from shapely.geometry import LineString, Point, Polygon
 
 import planners
 from fleetctl.mission import load_mission
-from fleetctl.run.runner import execute
+from fleetctl.run.flight import execute
 from fleetctl.run.sim import sim_mission_dict
 from sitl import FleetConfig, SimFleet
 

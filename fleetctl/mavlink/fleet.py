@@ -50,6 +50,11 @@ class Fleet:
         return self.vehicles[self.carrier_id]
 
     @property
+    def carrier_ids(self) -> tuple[str, ...]:
+        """Every carrier of the fleet (several teams: the first, then the others)."""
+        return (self.carrier_id, *self.other_carriers)
+
+    @property
     def rovers(self) -> dict[str, Vehicle]:
         """The rovers that fly: every rover of the mission but those :meth:`leave_out` removed."""
         return {k: v for k, v in self.vehicles.items()

@@ -22,6 +22,7 @@ from pymavlink.dialects.v20 import ardupilotmega as M
 
 from fleetctl.mavlink.link import Link, LinkError
 from fleetctl.mavlink.signing import SigningKey
+from fleetctl.mission.teams import mission_teams
 
 if TYPE_CHECKING:
     from fleetctl.mission import Mission
@@ -47,7 +48,8 @@ class ProvisionResult:
 async def provision(mission: Mission, key: SigningKey, urls: Mapping[str, str], *, timeout: float = 5.0,
                     signing_state: str | Path | None | bool = None) -> list[ProvisionResult]:
     """Provision every vehicle in ``urls`` (vehicle id -> URL); one result per vehicle."""
-    sysids = {mission.carrier.id: mission.carrier.sysid} | {u.id: u.sysid for u in mission.rovers.units}
+    sysids = {t.carrier.id: t.carrier.sysid for t in mission_teams(mission)}
+    sysids |= {u.id: u.sysid for u in mission.rovers.units}
     by_url: dict[str, list[str]] = {}
     for vid, url in urls.items():
         by_url.setdefault(url, []).append(vid)

@@ -27,6 +27,7 @@ parameters) is :func:`fleetctl.run.safety.gather`.
 from __future__ import annotations
 
 import time
+from collections.abc import Collection
 from dataclasses import dataclass, field
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
@@ -209,7 +210,7 @@ def check_connected(fleet: Fleet, mission: Mission, *, command: str | None = Non
     """:func:`check_fleet` over every vehicle of ``fleet``, including those that did not answer:
     their one failing check is ``heartbeat``, saying what their link heard
     (:meth:`fleetctl.mavlink.fleet.Fleet.failure_line`)."""
-    rows = check_fleet(fleet.vehicles, fleet.carrier_id, mission, command=command, resuming=resuming)
+    rows = check_fleet(fleet.vehicles, fleet.carrier_ids, mission, command=command, resuming=resuming)
     for vid, v in fleet.vehicles.items():
         if not v.connected:
             why = fleet.errors.get(vid, "no heartbeat")
@@ -218,10 +219,12 @@ def check_connected(fleet: Fleet, mission: Mission, *, command: str | None = Non
     return rows
 
 
-def check_fleet(fleet_vehicles: dict[str, Vehicle], carrier_id: str, mission: Mission, *,
+def check_fleet(fleet_vehicles: dict[str, Vehicle], carriers: str | Collection[str], mission: Mission, *,
                 command: str | None = None, resuming: bool = False) -> dict[str, PreflightRow]:
-    """vehicle id -> its row, for every vehicle given (carrier first as in the fleet)."""
-    return {vid: check_vehicle(v, mission, carrier=vid == carrier_id, command=command, resuming=resuming)
+    """vehicle id -> its row, for every vehicle given (carrier first as in the fleet); ``carriers``:
+    the carrier's id, or every carrier's (several teams)."""
+    ids = {carriers} if isinstance(carriers, str) else set(carriers)
+    return {vid: check_vehicle(v, mission, carrier=vid in ids, command=command, resuming=resuming)
             for vid, v in fleet_vehicles.items()}
 
 

@@ -1,12 +1,14 @@
-"""A whole run of ``deploy``, ``collect`` or ``run``: records, embedded simulated fleet, connect,
-the phases, and the way out.
+"""One team's run of ``deploy``, ``collect`` or ``run``: connect, the phases, and the way out,
+inside the :class:`~fleetctl.run.lifecycle.Session` that owns the records, the clock, the
+simulated fleet and the links.
 
-:func:`execute` is what the command line calls. The run folder (``--run-dir``, default
-``runs/<mission>-<timestamp>/``) holds the write-ahead journal, the ``.tlog``, the plans, the
-summary and a copy of the mission file. Cancelling the run (Ctrl-C, SIGTERM) commands airborne
-rovers to hold, writes the journal and a summary built from what the phases saw, and returns
-:data:`EXIT_INTERRUPTED`. ``fleetctl resume`` (:mod:`fleetctl.run.resume`) runs the same
-:class:`Run` with a :class:`~fleetctl.run.resume.Resumption` of an interrupted one.
+The run folder (``--run-dir``, default ``runs/<mission>-<timestamp>/``) holds the write-ahead
+journal, the ``.tlog``, the plans, the summary and a copy of the mission file. Cancelling the run
+(Ctrl-C, SIGTERM) commands airborne rovers to hold, writes the journal and a summary built from what
+the phases saw, and returns :data:`~fleetctl.run.lifecycle.EXIT_INTERRUPTED`. ``fleetctl resume``
+(:mod:`fleetctl.run.resume`) runs the same :class:`Run` with a
+:class:`~fleetctl.run.resume.Resumption` of an interrupted one. :func:`fleetctl.run.flight.execute`
+is what the command line calls.
 """
 
 from __future__ import annotations
@@ -16,140 +18,41 @@ import contextlib
 import importlib
 import logging
 import time
-from collections.abc import Callable
-from dataclasses import dataclass
-from pathlib import Path
 from typing import Any
 
-from fleetctl.journal import Journal, run_dir_for, write_summary
-from fleetctl.mavlink.fleet import Fleet, connect_fleet
+from fleetctl.mavlink.fleet import Fleet
 from fleetctl.mavlink.link import LinkError
 from fleetctl.mavlink.vehicle import CommandRejected, Vehicle
 from fleetctl.mission import Mission
-from fleetctl.mission.formats import copy_data_files
-from fleetctl.mission.teams import several_teams
 from fleetctl.run.admission import Admission, admit
 from fleetctl.run.context import ExecutionError
 from fleetctl.run.deploy import ResumedDeploy
 from fleetctl.run.executor import Executor
 from fleetctl.run.kinds import Ev, Phase, VehicleStatus
+from fleetctl.run.lifecycle import RunOptions, RunOutcome, Session
 from fleetctl.run.results import PhaseResult
-from fleetctl.run.resume import Resumption
 from fleetctl.run.rounds import NO_MORE_WORK, DeployRounds, Unserved, WorkSource
-from fleetctl.run.sim import mission_uses_sim, sim_fleet_config
 from fleetctl.run.state import FleetState
 from fleetctl.run.summary import RunFacts, build_summary
-from fleetctl.views.view import View
 from planners.core.plan import Plan
 from planners.core.problem import Task
 
 log = logging.getLogger(__name__)
-
-EXIT_OK = 0
-EXIT_FAILED = 1
-EXIT_INTERRUPTED = 130
-COMMANDS = ("deploy", "collect", "run")
-ROUTE_CONFLICT_EVERY = 10.0  # s between route conflict events from one source
-
-
-@dataclass
-class RunOutcome:
-    exit_code: int  # 0 complete, 1 not complete / failed, 130 interrupted
-    summary: dict[str, Any]
-    run_dir: Path | None = None
-    error: str | None = None
-
-
-@dataclass
-class RunOptions:
-    """How to fly (the command line's shared options; see :func:`execute`)."""
-
-    speedup: float | None = None
-    planner: str | None = None
-    dwell: float | None = None
-    summary_path: str | Path | None = None
-    runs_dir: str | Path = "runs"
-    run_dir: str | Path | None = None
-    view: View | None = None
-    connect_timeout: float = 10.0
-    endpoints: dict[str, str] | None = None
-    on_sim: Callable[[Any], None] | None = None
-    on_run_dir: Callable[[Path], None] | None = None
-    sim: Any = None
-    clock_speedup: float | None = None
-    mqtt: Any = None
-    resume: Resumption | None = None
-    require_all: bool = False  # refuse a fleet with a rover that does not answer
-    force: bool = False  # fly although another controller seems to be in charge
-    confirm: Callable[[list[str]], bool] | None = None  # asked before arming (real vehicles)
-    fleet: Fleet | None = None  # an already connected fleet (a team's view of a teams run); not closed
-    bus: Any = None  # an already started FleetBus (a team's in a teams run): followed, not closed
-
-
-async def execute(mission: Mission, command: str, **options: Any) -> RunOutcome:
-    """Fly ``command`` (``deploy`` | ``collect`` | ``run``) of ``mission`` end to end: start the
-    embedded simulator for ``connection: sim``, connect, fly, and write the records.
-
-    Options (:class:`RunOptions`): ``sim`` - an already running ``sitl.SimFleet`` to fly against
-    (tests, benchmarks); ``on_sim`` - called with the embedded simulator once it runs;
-    ``clock_speedup`` - vehicles that run that much faster than the wall clock elsewhere (mission
-    time = wall x it); ``mqtt`` - a :class:`fleetctl.bus.config.BusConfig` (default: the mission's
-    ``mqtt:`` section); ``run_dir`` - the records folder; ``on_run_dir`` - told it first."""
-    if command not in COMMANDS:
-        raise ValueError(f"unknown command {command!r}")
-    opts = RunOptions(**options)
-    if several_teams(mission):  # every team at once (fleetctl.run.teams, docs/teams.md)
-        from fleetctl.run.teams import TeamsRun
-
-        if opts.resume is not None:
-            raise ExecutionError("resume flies one carrier; a run of several teams cannot be resumed yet")
-        return await TeamsRun(mission, command, opts).fly()
-    return await Run(mission, command, opts).fly()
-
-
-async def begin_run_records(j: Journal, m: Mission, command: str, sim: bool, speedup: float,
-                            opts: RunOptions, **extra: Any) -> None:
-    """A new run's first records: the mission file and the data files it names copied into the run
-    folder (for resume), then the ``run`` record (``extra``: more of its fields)."""
-    if m.path is not None:
-        with contextlib.suppress(OSError):
-            await asyncio.to_thread(j.save_mission, m.path)
-            await asyncio.to_thread(copy_data_files, m, j.dir)  # tasks/obstacles {file}: for resume
-    await j.commit(Ev.RUN, mission=m.name, command=command, file=str(m.path or ""), sim=sim,
-                   speedup=speedup, planner=opts.planner, dwell=opts.dwell, unix_t0=time.time(), **extra)
 
 
 class Run:
     """One run of a command (see the module docstring)."""
 
     def __init__(self, mission: Mission, command: str, opts: RunOptions) -> None:
+        self.session = Session(mission, command, opts)
         self.mission = mission
         self.command = command
         self.opts = opts
-        self.sim: Any = opts.sim
-        self.endpoints = dict(opts.sim.endpoints) if opts.sim is not None else opts.endpoints
-        self.uses_sim = opts.sim is None and self.endpoints is None and mission_uses_sim(mission)
-        self.clock, self.scale = self._clock()
-        self.sim_cm: Any = None
-        self.sim_config: Any = None
-        if self.uses_sim:
-            self.sim_config = sim_fleet_config(mission, command, speedup=opts.speedup)
-            self.scale = self.sim_config.speedup
-        run_dir = (
-            Path(opts.resume.run_dir)
-            if opts.resume is not None
-            else Path(opts.run_dir)
-            if opts.run_dir is not None
-            else run_dir_for(mission.name, opts.runs_dir)
-        )
-        run_dir.mkdir(parents=True, exist_ok=True)
-        self.journal = Journal(run_dir)
+        self.journal = self.session.journal
         self.state = FleetState(mission)
-        self.state.mission_clock = self.clock
+        self.state.mission_clock = lambda: self.session.clock()
         self.results: dict[str, PhaseResult] = {}
         self.deploy_rounds = DeployRounds()
-        self.error: str | None = None
-        self.interrupted = False
         self.fleet: Fleet | None = None
         self.executor: Executor | None = None
         self.bus: Any = None
@@ -158,17 +61,32 @@ class Run:
         self.missing: dict[str, str] = {}  # rovers that did not answer at connect -> why
         self.left_out: dict[str, str] = {}  # rovers that failed preflight -> why
         self._opened = 0.0
-        self._conflicts: dict[tuple[int, str], float] = {}  # route conflicts journalled -> when
         self._refresher: asyncio.Task[None] | None = None
 
-    def _clock(self) -> tuple[Callable[[], float], float]:
-        if self.opts.sim is not None:
-            ext = self.opts.sim
-            return (lambda: float(ext.sim_time)), float(ext.speedup)
-        if self.opts.clock_speedup is not None:
-            scale = float(self.opts.clock_speedup)
-            return (lambda: time.monotonic() * scale), scale
-        return time.monotonic, 1.0
+    @property
+    def clock(self) -> Any:
+        """The mission clock (the session's)."""
+        return self.session.clock
+
+    @property
+    def scale(self) -> float:
+        return self.session.scale
+
+    @property
+    def sim(self) -> Any:
+        return self.session.sim
+
+    @property
+    def error(self) -> str | None:
+        return self.session.error
+
+    @error.setter
+    def error(self, value: str | None) -> None:
+        self.session.error = value
+
+    @property
+    def interrupted(self) -> bool:
+        return self.session.interrupted
 
     # ============================================================================== the run
     def _start_bus(self) -> Any:
@@ -183,15 +101,13 @@ class Run:
         return start_bus(self.mission, self.opts.mqtt, self.journal, self.state, self.opts.view)
 
     async def fly(self) -> RunOutcome:
-        if self.opts.on_run_dir is not None:
-            self.opts.on_run_dir(self.journal.dir)
+        self.session.open_records()
         self.state.add_listener(self.journal.on_event)
-        self.journal.start()
         self.bus = self._start_bus()
-        await self._begin_records()
+        await self.session.begin_records()
         try:
             await self._warm_planners()
-            await self._start_sim()
+            await self.session.start_sim()
             self._scenario_batteries(hold=True)
             await self._connect()
             await self._phases()
@@ -204,30 +120,7 @@ class Run:
             await self._interrupted()
         finally:
             summary = await self._finish()
-        result = summary["result"]
-        code = EXIT_INTERRUPTED if self.interrupted else (EXIT_OK if result == "complete" else EXIT_FAILED)
-        return RunOutcome(code, summary, self.journal.dir, self.error)
-
-    async def _begin_records(self) -> None:
-        m, j = self.mission, self.journal
-        if self.opts.resume is not None:  # the journal goes on; 'resumed' follows the reconciliation
-            return
-        await begin_run_records(j, m, self.command, self.uses_sim, self.scale, self.opts)
-
-    async def _start_sim(self) -> None:
-        if not self.uses_sim:
-            return
-        from sitl import SimFleet
-
-        self.sim_cm = SimFleet(self.sim_config)
-        self.sim = await self.sim_cm.__aenter__()
-        sim = self.sim
-        self.clock = lambda: float(sim.sim_time)
-        self.state.mission_clock = self.clock
-        self.endpoints = dict(sim.endpoints)
-        self.journal.write(Ev.SIM_STARTED, endpoints=self.endpoints, speedup=self.scale)
-        if self.opts.on_sim is not None:
-            self.opts.on_sim(sim)
+        return self.session.outcome(summary)
 
     async def _warm_planners(self) -> None:
         """Import the mission's planners (and the SciPy/shapely they need) before the fleet runs:
@@ -268,8 +161,7 @@ class Run:
         if view is not None:
             view.start(st, None)
         self._opened = time.monotonic()
-        fleet = self.opts.fleet if self.opts.fleet is not None else await self._open_fleet()
-        self.fleet = fleet
+        fleet = self.fleet = await self.session.connect(self.state.event)
         self._refresher = asyncio.create_task(self._refresh(fleet), name="state refresh")
         adm = self._admission()
         self.missing = await admit(fleet, self.mission, self.command, adm)
@@ -318,31 +210,10 @@ class Run:
         if self.bus is not None:
             self.bus.attach_executor(self.executor)
 
-    async def _open_fleet(self) -> Fleet:
-        try:
-            fleet = await connect_fleet(
-                self.mission, self.endpoints, timeout=self.opts.connect_timeout, tap=self.journal.tlog,
-                require_all=False,
-            )
-        except LinkError as exc:
-            raise ExecutionError(f"cannot open the link: {exc}") from None
-        fleet.on_route_conflict(self._route_conflict)
-        return fleet
-
     async def _refresh(self, fleet: Fleet) -> None:
         while True:
             self.state.refresh(fleet)
             await asyncio.sleep(0.1)
-
-    def _route_conflict(self, vid: str | None, sysid: int, old: Any, new: Any) -> None:
-        """Journal a known system id heard from a new address (once per source and 10 s)."""
-        key, now = (sysid, str(new)), time.monotonic()
-        if now - self._conflicts.get(key, -1e9) < ROUTE_CONFLICT_EVERY:
-            return
-        self._conflicts[key] = now
-        self.state.event(Ev.ROUTE_CONFLICT, f"{vid or sysid}: a message with its system id came from {new} "
-                         f"while it is heard at {old}: ignored (spoofing, or a second radio path)", vid,
-                         sysid=sysid, old=str(old), new=str(new))
 
     async def _disarm(self, v: Vehicle) -> None:
         await self.journal.commit(Ev.COMMAND, vehicle=v.name, command="disarm")
@@ -483,10 +354,7 @@ class Run:
 
     # ============================================================================== the way out
     async def _interrupted(self) -> None:
-        task = asyncio.current_task()
-        if task is not None:
-            task.uncancel()
-        self.interrupted = True
+        self.session.was_interrupted()
         self.state.phase = Phase.INTERRUPTED
         self.state.event(Ev.INTERRUPTED, "interrupted: holding airborne rovers")
         if self.executor is not None:
@@ -529,42 +397,19 @@ class Run:
                 mqtt=self.bus.stats() if self.bus is not None else None,
             )
         )
-        self.journal.write(Ev.SUMMARY, **summary)
-        write_summary(summary, self.journal.summary_path, self.opts.summary_path)
-        await self._close_all()
+        self.session.write_summary(summary)
+        await self.session.close(self.bus, self._close_bus)
         return summary
 
-    async def _close_all(self) -> None:
-        if self.opts.view is not None:
-            with contextlib.suppress(Exception):
-                await self.opts.view.stop()
-        if self.fleet is not None and self.opts.fleet is None:  # a fleet given is its owner's to close
-            with contextlib.suppress(Exception):
-                await self.fleet.close()
-        if self.bus is not None:
-            with contextlib.suppress(Exception):
-                if self.opts.bus is None:
-                    await self.bus.aclose(self.state.phase)
-                else:  # its owner closes it
-                    await self.bus.unfollow()
-        await self.journal.aclose()
-        if self.sim_cm is not None:
-            with contextlib.suppress(Exception):
-                await self.sim_cm.__aexit__(None, None, None)
+    async def _close_bus(self, bus: Any) -> None:
+        if self.opts.bus is None:
+            await bus.aclose(self.state.phase)
+        else:  # its owner closes it
+            await bus.unfollow()
 
 
 def _phases_of(command: str) -> list[str]:
     return {"deploy": ["deploy"], "collect": ["collect"], "run": ["deploy", "dwell", "collect"]}[command]
 
 
-__all__ = [
-    "COMMANDS",
-    "EXIT_FAILED",
-    "EXIT_INTERRUPTED",
-    "EXIT_OK",
-    "Run",
-    "RunOptions",
-    "RunOutcome",
-    "execute",
-    "mission_uses_sim",
-]
+__all__ = ["Run"]

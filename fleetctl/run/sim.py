@@ -1,10 +1,13 @@
 """The embedded simulated fleet of a run: its typed configuration, built from the typed mission
-(:func:`sim_fleet_config`: every carrier and rover of every team), and the mission dict older
-callers start ``sitl`` from (:func:`sim_mission_dict`, one team)."""
+(:func:`sim_fleet_config`: every carrier and rover of every team), the one way every command starts
+and stops it (:func:`embedded_fleet`: the runs, ``status``, ``keys provision`` and ``sim``), and the
+mission dict older callers start ``sitl`` from (:func:`sim_mission_dict`, one team)."""
 
 from __future__ import annotations
 
 import copy
+from collections.abc import AsyncIterator
+from contextlib import asynccontextmanager
 from typing import TYPE_CHECKING, Any
 
 from fleetctl.mission import Mission
@@ -13,7 +16,7 @@ from fleetctl.mission.teams import mission_teams
 from fleetctl.run.context import ExecutionError
 
 if TYPE_CHECKING:
-    from sitl import FleetConfig, VehicleSpec
+    from sitl import FleetConfig, SimFleet, VehicleSpec
 
 
 def sim_fleet_config(mission: Mission, command: str = "deploy", *, speedup: float | None = None,
@@ -145,8 +148,35 @@ def sim_mission_dict(mission: Mission, command: str = "deploy") -> dict[str, Any
     return d
 
 
+@asynccontextmanager
+async def embedded_fleet(mission: Mission, command: str = "deploy", *, speedup: float | None = None,
+                         signing_from_env: bool = True, config: FleetConfig | None = None
+                         ) -> AsyncIterator[SimFleet | None]:
+    """``async with embedded_fleet(mission) as sim:`` - the simulated fleet of a ``connection: sim``
+    mission running for the block (``None`` for a mission flown on real links), stopped after it.
+    ``config``: one already built by :func:`sim_fleet_config`. Its errors (a bad configuration, a
+    port in use) are :class:`ExecutionError`."""
+    if config is None and not mission_uses_sim(mission):
+        yield None
+        return
+    from sitl import ConfigError, SimFleet
+    from sitl import LinkError as SimLinkError
+
+    if config is None:
+        config = sim_fleet_config(mission, command, speedup=speedup, signing_from_env=signing_from_env)
+    try:
+        sim = SimFleet(config)
+        await sim.start()
+    except (ConfigError, SimLinkError, OSError) as exc:
+        raise ExecutionError(f"the simulated fleet cannot start: {exc}") from None
+    try:
+        yield sim
+    finally:
+        await sim.stop()
+
+
 def mission_uses_sim(mission: Mission) -> bool:
     return mission.carrier.connection == "sim" or any(u.connection == "sim" for u in mission.rovers.units)
 
 
-__all__ = ["mission_uses_sim", "sim_fleet_config", "sim_mission_dict"]
+__all__ = ["embedded_fleet", "mission_uses_sim", "sim_fleet_config", "sim_mission_dict"]

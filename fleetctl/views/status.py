@@ -37,6 +37,13 @@ def on_deck(v: Vehicle, carrier: Vehicle) -> bool | None:
     return bool(v.on_ground and (e * e + n * n) ** 0.5 <= DECK_RADIUS)
 
 
+def on_a_deck(v: Vehicle, fleet: Fleet) -> bool | None:
+    """Is rover ``v`` on the deck of any carrier of ``fleet`` (several teams: a rover may stand on
+    another team's carrier)? None when not known for any of them."""
+    seen = [on_deck(v, fleet.vehicles[c]) for c in fleet.carrier_ids if c in fleet.vehicles]
+    return True if any(seen) else (None if None in seen else False)
+
+
 def status_rows(mission: Mission, fleet: Fleet, rows: dict[str, PreflightRow]) -> list[dict[str, str]]:
     """One dict of display cells per vehicle (keys of :data:`COLUMNS`)."""
     out = []
@@ -68,7 +75,7 @@ def status_rows(mission: Mission, fleet: Fleet, rows: dict[str, PreflightRow]) -
                 row["position"] = (f"{enu[0]:.1f}, {enu[1]:.1f}, {enu[2]:.1f}" if enu else
                                    f"{lat:.7f}, {lon:.7f}, {alt:.1f}")
             if pre.role == "rover":
-                deck = on_deck(v, fleet.carrier)
+                deck = on_a_deck(v, fleet)
                 row["deck"] = "?" if deck is None else ("on deck" if deck else "off deck")
         out.append(row)
     return out
@@ -80,7 +87,7 @@ def json_objects(mission: Mission, fleet: Fleet, rows: dict[str, PreflightRow]) 
     for vid, v in fleet.vehicles.items():
         pre = rows[vid]
         enu = v.enu if v.connected else None
-        deck = on_deck(v, fleet.carrier) if v.connected and pre.role == "rover" else None
+        deck = on_a_deck(v, fleet) if v.connected and pre.role == "rover" else None
         out.append({
             "vehicle": vid, "role": pre.role, "sysid": v.sysid, "url": fleet.urls[vid],
             "connected": v.connected, "lost": bool(v.connected and v.lost),

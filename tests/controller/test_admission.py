@@ -12,7 +12,7 @@ from typing import Any
 
 from ctl_helpers import mission_dict, mission_from, write_mission
 
-from fleetctl.run.runner import execute
+from fleetctl.run.flight import execute
 from fleetctl.run.sim import sim_mission_dict
 from fleetctl.run.state import Event, FleetState
 from fleetctl.views.view import View

@@ -42,8 +42,8 @@ from pymavlink import mavutil
 
 from fleetctl.mavlink.fleet import Fleet
 from fleetctl.mission import Mission, load_mission
+from fleetctl.run.flight import execute
 from fleetctl.run.planning import COLLECT_MEET_HEIGHT
-from fleetctl.run.runner import execute
 from fleetctl.run.sim import sim_mission_dict
 from fleetctl.run.state import FleetState
 from fleetctl.views.dashboard import render

@@ -21,7 +21,7 @@ from fleetctl.mavlink.params import decode, encode, read_param, set_param
 from fleetctl.mavlink.vehicle import Vehicle, VehicleEvent
 from fleetctl.mission.model import GeofenceConfig
 from fleetctl.run.context import ExecutionError
-from fleetctl.run.runner import execute
+from fleetctl.run.flight import execute
 from fleetctl.run.safety import (
     check_plan,
     download_fence,

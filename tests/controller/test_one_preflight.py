@@ -18,8 +18,8 @@ from ctl_helpers import mission_dict, mission_from, sim_fleet, write_mission
 
 from fleetctl.cli import main
 from fleetctl.mavlink.fleet import connect_fleet
+from fleetctl.run.flight import execute
 from fleetctl.run.preflight import CHECKS, check_connected, check_fleet
-from fleetctl.run.runner import execute
 from fleetctl.run.safety import gather
 from fleetctl.views.status import json_objects, not_ready_report, plain_lines, status_rows
 

@@ -15,8 +15,8 @@ import pytest
 from ctl_helpers import mission_dict, mission_from, sim_fleet, write_mission
 
 from fleetctl.mavlink.fleet import connect_fleet
+from fleetctl.run.flight import execute
 from fleetctl.run.preflight import check_fleet, check_vehicle
-from fleetctl.run.runner import execute
 from fleetctl.run.safety import gather
 
 ROOT = Path(__file__).resolve().parents[2]

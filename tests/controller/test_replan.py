@@ -20,7 +20,7 @@ from ctl_helpers import ORIGIN
 
 from fleetctl.mavlink.fleet import Fleet
 from fleetctl.mission import load_mission
-from fleetctl.run.runner import execute
+from fleetctl.run.flight import execute
 from fleetctl.run.sim import sim_mission_dict
 from fleetctl.run.state import Event, FleetState
 from fleetctl.views.view import View

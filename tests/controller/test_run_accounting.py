@@ -10,7 +10,7 @@ import pytest
 from ctl_helpers import mission_dict, mission_from
 
 from fleetctl.cli import main
-from fleetctl.run.runner import execute
+from fleetctl.run.flight import execute
 
 ROOT = Path(__file__).resolve().parents[2]
 

@@ -16,7 +16,7 @@ from test_signing import ENV, KEY_HEX, Spoofer, armed_heartbeat, codec, signed_d
 
 from fleetctl.geo import Origin, enu_to_geodetic
 from fleetctl.mavlink.fleet import Fleet
-from fleetctl.run.runner import execute
+from fleetctl.run.flight import execute
 from fleetctl.run.sim import sim_mission_dict
 from fleetctl.run.state import Event, FleetState
 from fleetctl.views.view import View

@@ -31,7 +31,7 @@ from fleetctl.journal import Journal
 from fleetctl.mavlink.fleet import connect_fleet
 from fleetctl.mission import load_mission
 from fleetctl.run.executor import Executor
-from fleetctl.run.runner import execute
+from fleetctl.run.flight import execute
 from fleetctl.run.sim import sim_mission_dict
 from fleetctl.run.state import Event, FleetState
 from planners.core.problem import Task

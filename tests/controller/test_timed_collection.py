@@ -13,7 +13,7 @@ from typing import Any
 from ctl_helpers import mission_dict, mission_from
 
 from fleetctl.run.collect_timing import RELEASE_LEAD
-from fleetctl.run.runner import execute
+from fleetctl.run.flight import execute
 from sitl.world import Phase
 
 SPEEDUP = 10.0

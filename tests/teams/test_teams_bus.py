@@ -17,7 +17,7 @@ import pytest
 
 from fleetctl.bus.teams.protocol import TeamState, allocation_hash, parse_status
 from fleetctl.journal import read_journal
-from fleetctl.run.runner import execute
+from fleetctl.run.flight import execute
 from fleetctl.run.teams.own_controller import team_shares
 from tests.teams.teams_helpers import mission_from, two_teams
 from tests.test_bus import MOSQUITTO, WAIT, Broker, Subscriber, free_tcp_port

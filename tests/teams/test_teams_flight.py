@@ -11,7 +11,7 @@ from pathlib import Path
 from typing import Any
 
 from fleetctl.journal import read_journal
-from fleetctl.run.runner import execute
+from fleetctl.run.flight import execute
 from fleetctl.run.teams import fly_team
 from sitl import Fault
 from tests.teams.teams_helpers import mission_from, two_teams

@@ -19,7 +19,7 @@ from views_helpers import mission_dict, write_mission
 
 from fleetctl.bus.config import BusConfig
 from fleetctl.mission import load_mission
-from fleetctl.run.runner import execute
+from fleetctl.run.flight import execute
 from fleetctl.views.watch import watch
 from fleetctl.views.web import WebMapView
 

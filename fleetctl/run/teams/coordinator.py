@@ -28,26 +28,15 @@ import logging
 import threading
 import time
 from collections.abc import Callable
-from pathlib import Path
 from typing import Any
 
-from fleetctl.journal import Journal, run_dir_for, write_summary
-from fleetctl.mavlink.fleet import Fleet, connect_fleet
-from fleetctl.mavlink.link import LinkError
+from fleetctl.mavlink.fleet import Fleet
 from fleetctl.mission import Mission
 from fleetctl.mission.teams import mission_teams, team_mission, teams_problem
 from fleetctl.run.context import ExecutionError
 from fleetctl.run.kinds import Ev
+from fleetctl.run.lifecycle import EXIT_FAILED, EXIT_INTERRUPTED, EXIT_OK, RunOptions, RunOutcome, Session
 from fleetctl.run.results import PhaseResult
-from fleetctl.run.runner import (
-    EXIT_FAILED,
-    EXIT_INTERRUPTED,
-    EXIT_OK,
-    RunOptions,
-    RunOutcome,
-    begin_run_records,
-)
-from fleetctl.run.sim import mission_uses_sim, sim_fleet_config
 from fleetctl.run.teams.board import ACTIVE, TeamEntry, TeamsBoard, TeamStatus
 from fleetctl.run.teams.bus import TeamsBuses
 from fleetctl.run.teams.handover import Handovers
@@ -69,21 +58,16 @@ class TeamsRun:
     """A run of several teams (see the module docstring)."""
 
     def __init__(self, mission: Mission, command: str, opts: RunOptions) -> None:
+        if opts.resume is not None:
+            raise ExecutionError("resume flies one carrier; a run of several teams cannot be resumed yet")
+        self.session = Session(mission, command, opts)
         self.mission = mission
         self.command = command
         self.opts = opts
-        run_dir = Path(opts.run_dir) if opts.run_dir is not None else run_dir_for(mission.name, opts.runs_dir)
-        run_dir.mkdir(parents=True, exist_ok=True)
-        self.journal = Journal(run_dir)
+        self.journal = self.session.journal
         self.board = TeamsBoard(
             {t.carrier.id: TeamEntry(t.carrier.id, t.rovers) for t in mission_teams(mission)}
         )
-        self.sim: Any = opts.sim
-        self.sim_cm: Any = None
-        self.endpoints = dict(opts.sim.endpoints) if opts.sim is not None else opts.endpoints
-        self.uses_sim = opts.sim is None and self.endpoints is None and mission_uses_sim(mission)
-        self.sim_config = sim_fleet_config(mission, command, speedup=opts.speedup) if self.uses_sim else None
-        self.clock, self.scale = self._clock()
         self.fleet: Fleet | None = None
         self.runs: dict[str, dict[str, TeamRun]] = {}  # phase -> team -> its run
         self.flying: dict[str, asyncio.Task[RunOutcome]] = {}  # team -> its run of the phase flying
@@ -95,32 +79,47 @@ class TeamsRun:
         self.left: dict[str, str] = {}  # run: launched rovers the collection leaves in the field -> why
         self.dwell_planned: float | None = None
         self.dwell_flown: float | None = None
-        self.error: str | None = None
-        self.interrupted = False
         self.t0 = 0.0  # mission clock when the run of every team started (T+ = 0)
         self._confirm_lock = threading.Lock()
         self.buses = TeamsBuses.configure(mission, opts.mqtt, self.journal.write,
-                                          "sim" if self.uses_sim else "real")
+                                          "sim" if self.session.uses_sim else "real")
 
-    def _clock(self) -> tuple[Callable[[], float], float]:
-        if self.sim is not None:
-            sim = self.sim
-            return (lambda: float(sim.sim_time)), float(sim.speedup)
-        if self.sim_config is not None:
-            return time.monotonic, float(self.sim_config.speedup)  # until the simulator runs
-        if self.opts.clock_speedup is not None:
-            scale = float(self.opts.clock_speedup)
-            return (lambda: time.monotonic() * scale), scale
-        return time.monotonic, 1.0
+    @property
+    def clock(self) -> Callable[[], float]:
+        """The mission clock (the session's)."""
+        return self.session.clock
+
+    @property
+    def scale(self) -> float:
+        return self.session.scale
+
+    @property
+    def sim(self) -> Any:
+        return self.session.sim
+
+    @property
+    def endpoints(self) -> dict[str, str] | None:
+        return self.session.endpoints
+
+    @property
+    def error(self) -> str | None:
+        return self.session.error
+
+    @error.setter
+    def error(self, value: str | None) -> None:
+        self.session.error = value
+
+    @property
+    def interrupted(self) -> bool:
+        return self.session.interrupted
 
     # ============================================================================== the run
     async def fly(self) -> RunOutcome:
-        if self.opts.on_run_dir is not None:
-            self.opts.on_run_dir(self.journal.dir)
-        self.journal.start()
+        self.session.open_records()
         await self._begin_records()
         try:
-            await self._start_sim()
+            await self.session.start_sim()
+            self._hold_scenario_batteries()
             self.t0 = self.clock()
             await self._connect()
             if self.command in ("deploy", "run"):
@@ -133,41 +132,17 @@ class TeamsRun:
             self.error = str(exc)
             self.journal.write(Ev.ERROR, text=self.error)
         except asyncio.CancelledError:
-            task = asyncio.current_task()
-            if task is not None:
-                task.uncancel()
-            self.interrupted = True
+            self.session.was_interrupted()
             self.journal.write(Ev.INTERRUPTED, text="interrupted: every team holds its airborne rovers")
         finally:
             summary = await self._finish()
-        code = (
-            EXIT_INTERRUPTED
-            if self.interrupted
-            else (EXIT_OK if summary["result"] == "complete" else EXIT_FAILED)
-        )
-        return RunOutcome(code, summary, self.journal.dir, self.error)
+        return self.session.outcome(summary)
 
     async def _begin_records(self) -> None:
         teams = {cid: list(e.rovers) for cid, e in self.board.teams.items()}
-        await begin_run_records(self.journal, self.mission, self.command, self.uses_sim, self.scale,
-                                self.opts, teams=teams)
+        await self.session.begin_records(teams=teams)
         self.journal.add_observer(self.buses.on_record)
         self.buses.start(list(self.board.teams))
-
-    async def _start_sim(self) -> None:
-        if not self.uses_sim:
-            return
-        from sitl import SimFleet
-
-        assert self.sim_config is not None
-        self.sim_cm = SimFleet(self.sim_config)
-        self.sim = sim = await self.sim_cm.__aenter__()
-        self.clock = lambda: float(sim.sim_time)
-        self.endpoints = dict(sim.endpoints)
-        self.journal.write(Ev.SIM_STARTED, endpoints=self.endpoints, speedup=self.scale)
-        self._hold_scenario_batteries()
-        if self.opts.on_sim is not None:
-            self.opts.on_sim(sim)
 
     def _hold_scenario_batteries(self) -> None:
         """``collect`` on the simulated fleet: each rover of the ``collection:`` section has its
@@ -182,25 +157,14 @@ class TeamsRun:
 
     async def _connect(self) -> None:
         """Every vehicle of every team on one set of links (each team flies a view of it)."""
-        try:
-            fleet = await connect_fleet(
-                self.mission,
-                self.endpoints,
-                timeout=self.opts.connect_timeout,
-                tap=self.journal.tlog,
-                require_all=False,
-            )
-        except LinkError as exc:
-            raise ExecutionError(f"cannot open the link: {exc}") from None
-        self.fleet = fleet
-
-        def conflict(vid: str | None, sysid: int, old: Any, new: Any) -> None:
-            self.journal.write(Ev.ROUTE_CONFLICT, vehicle=vid, sysid=sysid, old=str(old), new=str(new))
-
-        fleet.on_route_conflict(conflict)
+        fleet = self.fleet = await self.session.connect(self._emit)
         for vid, v in fleet.vehicles.items():
             if v.connected:
                 self.journal.write(Ev.CONNECTED, vehicle=vid, url=fleet.urls.get(vid), sysid=v.sysid)
+
+    def _emit(self, kind: str, text: str, vehicle: str | None = None, **data: Any) -> None:
+        """An event of the run of every team (its journal: the teams' views show their own)."""
+        self.journal.write(kind, vehicle=vehicle, text=text, **data)
 
     # ============================================================================== deployment
     async def _deploy(self) -> None:
@@ -512,19 +476,8 @@ class TeamsRun:
         mqtt = self.buses.stats()
         if mqtt is not None:
             summary["mqtt"] = mqtt
-        self.journal.write(Ev.SUMMARY, **summary)
-        write_summary(summary, self.journal.summary_path, self.opts.summary_path)
-        await self.buses.aclose(*self._bus_finals(summary))
-        if self.opts.view is not None:
-            with contextlib.suppress(Exception):
-                await self.opts.view.stop()
-        if self.fleet is not None:
-            with contextlib.suppress(Exception):
-                await self.fleet.close()
-        await self.journal.aclose()
-        if self.sim_cm is not None:
-            with contextlib.suppress(Exception):
-                await self.sim_cm.__aexit__(None, None, None)
+        self.session.write_summary(summary)
+        await self.session.close(self.buses, lambda buses: buses.aclose(*self._bus_finals(summary)))
         return summary
 
 

@@ -26,8 +26,9 @@ from typing import Any
 from fleetctl.bus.config import BusConfig
 from fleetctl.mission import Mission
 from fleetctl.mission.teams import team_mission, team_of
+from fleetctl.run.lifecycle import RunOptions
 from fleetctl.run.rounds import NoMoreWork, WorkSource
-from fleetctl.run.runner import Run, RunOptions
+from fleetctl.run.runner import Run
 from fleetctl.run.sim import mission_uses_sim
 from fleetctl.run.teams.link import TeamLink
 from fleetctl.run.teams.rounds import LinkWork
@@ -125,7 +126,7 @@ class TeamControllerRun(Run):
 
 
 async def execute_team(mission: Mission, command: str, spec: TeamSpec, **options: Any) -> Any:
-    """:func:`fleetctl.run.runner.execute` for one team (``mission``: the team's own, from
+    """:func:`fleetctl.run.flight.execute` for one team (``mission``: the team's own, from
     :func:`prepare_team`)."""
     return await TeamControllerRun(mission, command, RunOptions(**options), spec).fly()
 

@@ -16,9 +16,10 @@ from typing import Any
 
 from fleetctl.mission import Mission
 from fleetctl.mission.teams import team_mission
+from fleetctl.run.lifecycle import RunOptions, RunOutcome
 from fleetctl.run.results import PhaseResult
 from fleetctl.run.rounds import NO_MORE_WORK, WorkSource
-from fleetctl.run.runner import Run, RunOptions, RunOutcome
+from fleetctl.run.runner import Run
 from fleetctl.run.teams.rounds import Coordinator, CoordinatorWork
 
 PLAN_WAIT = 120.0  # wall s a collection scenario's batteries are held at most, waiting for the first plan
@@ -123,7 +124,7 @@ async def fly_team(
     sim``, its own links): ``tasks`` its share of the tasks (default: every task), ``rovers`` the
     rovers it flies or collects (default: its deck). ``coordinator`` (e.g. one speaking to the other
     teams' controllers) is asked after each deployment round for tasks handed to it. Options as
-    :func:`fleetctl.run.runner.execute`."""
+    :func:`fleetctl.run.flight.execute`."""
     own = team_mission(mission, team_id, tasks=tasks, rovers=rovers)
     return await TeamRun(own, command, RunOptions(**options), team_id, coordinator).fly()
 

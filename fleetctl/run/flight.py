@@ -1,0 +1,36 @@
+"""What the command line calls to fly: :func:`execute`.
+
+One lifecycle (:class:`~fleetctl.run.lifecycle.Session`) for every mission; the crew flying in it
+is chosen by the mission's data: its one team is a :class:`~fleetctl.run.runner.Run`, several
+teams a :class:`~fleetctl.run.teams.coordinator.TeamsRun` of one ``Run`` per team (docs/teams.md).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from fleetctl.mission import Mission
+from fleetctl.mission.teams import mission_teams
+from fleetctl.run.lifecycle import COMMANDS, RunOptions, RunOutcome
+from fleetctl.run.runner import Run
+from fleetctl.run.teams.coordinator import TeamsRun
+
+
+async def execute(mission: Mission, command: str, **options: Any) -> RunOutcome:
+    """Fly ``command`` (``deploy`` | ``collect`` | ``run``) of ``mission`` end to end: start the
+    embedded simulator for ``connection: sim``, connect, fly, and write the records.
+
+    Options (:class:`~fleetctl.run.lifecycle.RunOptions`): ``sim`` - an already running
+    ``sitl.SimFleet`` to fly against (tests, benchmarks); ``on_sim`` - called with the embedded
+    simulator once it runs; ``clock_speedup`` - vehicles that run that much faster than the wall
+    clock elsewhere (mission time = wall x it); ``mqtt`` - a :class:`fleetctl.bus.config.BusConfig`
+    (default: the mission's ``mqtt:`` section); ``run_dir`` - the records folder; ``on_run_dir`` -
+    told it first; ``resume`` - a :class:`~fleetctl.run.resume.Resumption` to finish."""
+    if command not in COMMANDS:
+        raise ValueError(f"unknown command {command!r}")
+    opts = RunOptions(**options)
+    crew = TeamsRun if len(mission_teams(mission)) > 1 else Run
+    return await crew(mission, command, opts).fly()
+
+
+__all__ = ["execute"]
