@@ -624,9 +624,7 @@ def cmd_sim(args: argparse.Namespace) -> int:
     mission = load_mission(args.mission)
 
     async def serve() -> None:
-        async with _embedded_fleet(mission, speedup=args.speedup) as fleet:
-            if fleet is None:
-                raise CliError(f"{args.mission}: no vehicle has 'connection: sim': nothing to simulate")
+        async with _embedded_fleet(mission, speedup=args.speedup, always=True) as fleet:
             print(f"simulated fleet {mission.name!r} running at {fleet.speedup:g}x; "
                   "controller-side URLs (Ctrl-C to stop):")
             sysids = {s.id: s.sysid for s in fleet.config.vehicles}

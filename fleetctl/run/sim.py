@@ -150,13 +150,14 @@ def sim_mission_dict(mission: Mission, command: str = "deploy") -> dict[str, Any
 
 @asynccontextmanager
 async def embedded_fleet(mission: Mission, command: str = "deploy", *, speedup: float | None = None,
-                         signing_from_env: bool = True, config: FleetConfig | None = None
-                         ) -> AsyncIterator[SimFleet | None]:
+                         signing_from_env: bool = True, config: FleetConfig | None = None,
+                         always: bool = False) -> AsyncIterator[SimFleet | None]:
     """``async with embedded_fleet(mission) as sim:`` - the simulated fleet of a ``connection: sim``
     mission running for the block (``None`` for a mission flown on real links), stopped after it.
-    ``config``: one already built by :func:`sim_fleet_config`. Its errors (a bad configuration, a
+    ``config``: one already built by :func:`sim_fleet_config`; ``always``: whatever the connections
+    say (``fleetctl sim`` serves the mission's own URLs). Its errors (a bad configuration, a
     port in use) are :class:`ExecutionError`."""
-    if config is None and not mission_uses_sim(mission):
+    if config is None and not always and not mission_uses_sim(mission):
         yield None
         return
     from sitl import ConfigError, SimFleet
