@@ -252,7 +252,9 @@ def _fly(args: argparse.Namespace, mission: Mission, command: str, extra: dict[s
         mission = dataclasses.replace(mission, planner=planner)
     mqtt = _bus_config(mission, args)
     spec = None
-    if team is not None:
+    if team is not None and command == "collect":
+        mission, mqtt = _collecting_team(mission, team, mqtt)
+    elif team is not None:
         mission, spec, mqtt = _team(mission, team, args, mqtt)
     view = _with_web(args, make_view(True if args.headless else None, latlon=args.latlon), mission.origin)
 
@@ -273,6 +275,20 @@ def _fly(args: argparse.Namespace, mission: Mission, command: str, extra: dict[s
     if terminated and outcome.exit_code == EXIT_INTERRUPTED:
         return EXIT_TERMINATED
     return outcome.exit_code
+
+
+def _collecting_team(mission: Mission, team: str, mqtt: Any) -> tuple[Mission, Any]:
+    """``collect --team ID``: the team's carrier collects the rovers of its deck (its own
+    controller, its own bus prefix ``P/teams/ID``; nothing to coordinate)."""
+    from fleetctl.mission.teams import team_mission
+    from fleetctl.run.teams.own_controller import team_bus_config
+
+    try:
+        own = team_mission(mission, team, tasks=())
+    except MissionError as e:
+        raise CliError(str(e)) from None
+    print(f"team {team}: collecting {', '.join(u.id for u in own.rovers.units)} with {team}", flush=True)
+    return own, team_bus_config(mqtt, team)
 
 
 def _team(mission: Mission, team: str, args: argparse.Namespace, mqtt: Any) -> tuple[Mission, Any, Any]:
@@ -427,6 +443,10 @@ def _add_fly_commands(sub: argparse._SubParsersAction) -> None:
                            help="a mission with several carriers: fly only the team of carrier ID (its "
                                 "share of the tasks), coordinating with the other teams' controllers over "
                                 "the MQTT bus (docs/teams.md); without a bus it flies its share alone")
+        else:
+            p.add_argument("--team", metavar="ID",
+                           help="a mission with several carriers: carrier ID collects the rovers of its "
+                                "own deck only (one controller for that team; docs/teams.md)")
         p.add_argument("--runs", default="runs", metavar="DIR",
                        help="where run folders go (default: runs; each run gets runs/<mission>-<timestamp>)")
         p.add_argument("--run-dir", metavar="DIR",

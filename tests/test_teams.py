@@ -419,11 +419,19 @@ def test_export_of_several_teams_is_refused(tmp_path: Path, capsys: pytest.Captu
     assert "exporting several teams is not supported yet" in capsys.readouterr().err
 
 
-def test_status_of_several_teams_is_refused(capsys: pytest.CaptureFixture[str]) -> None:
-    # deploy, collect, run and sim fly or serve every team (tests/teams); status does not yet
-    assert main(["status", "--mission", str(TWO)]) == 2
-    err = capsys.readouterr().err
-    assert err.count("\n") == 1 and "'status' supports one carrier" in err and "--team ID" in err
+def test_status_checks_every_carrier_and_its_rovers(capsys: pytest.CaptureFixture[str]) -> None:
+    """``status`` of two teams: the embedded simulated fleet of both carriers, every vehicle checked
+    (each carrier as a carrier, each rover on a deck), one object per vehicle."""
+    import json
+
+    assert main(["status", "--mission", str(TWO), "--json", "--timeout", "10"]) == 0
+    rows = [json.loads(line) for line in capsys.readouterr().out.splitlines()]
+    by_id = {r["vehicle"]: r for r in rows}
+    assert set(by_id) == {"c1", "c2", *(f"r{i}" for i in range(1, 17))}
+    assert by_id["c1"]["role"] == by_id["c2"]["role"] == "carrier"
+    assert by_id["c2"]["sysid"] == 2 and by_id["r9"]["sysid"] == 31
+    assert all(r["ready"] for r in rows), [r for r in rows if not r["ready"]]
+    assert all(by_id[f"r{i}"]["on_deck"] is True for i in range(1, 17))  # r9..r16 on c2's deck, 200 m off c1
 
 
 def test_a_planner_that_cannot_serve_the_shares_is_one_line() -> None:

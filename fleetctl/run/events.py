@@ -16,6 +16,7 @@ from typing import TypeVar
 from fleetctl.run.context import RunContext
 from fleetctl.run.kinds import Ev, Watch
 from fleetctl.run.supervisor import SupervisorEvent
+from fleetctl.run.vehicle_events import battery_low_text
 
 T = TypeVar("T")
 
@@ -80,7 +81,7 @@ def announce_warning(ctx: RunContext, ev: SupervisorEvent) -> None:
     if ev.kind == Watch.BATTERY_LOW:
         ctx.state.event(
             Ev.BATTERY_LOW,
-            f"{rid}: battery {ev.data.get('battery_pct')}% at or below the reserve the plan assumed",
+            battery_low_text(rid, ev.data.get("battery_pct", "?")),
             rid,
             **ev.data,
         )

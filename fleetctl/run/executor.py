@@ -30,6 +30,7 @@ from fleetctl.run.results import PhaseResult
 from fleetctl.run.state import FleetState
 from fleetctl.run.supervisor import Supervisor, SupervisorEvent
 from fleetctl.run.task_board import TaskBoard
+from fleetctl.run.vehicle_events import tell_vehicle_event
 from planners.core.plan import Plan
 from planners.core.problem import Task
 
@@ -106,25 +107,9 @@ class Executor:
             self._loop.call_soon_threadsafe(self.supervisor.put, ev)
 
     def _on_vehicle_event(self, ev: VehicleEvent) -> None:
-        st, record = self.ctx.state, self.ctx.record
         if ev.kind == "lost":
-            st.set_state(ev.vehicle, VehicleStatus.LOST)
-            st.event(
-                Ev.LINK_LOST,
-                f"{ev.vehicle}: link lost (no heartbeat for {ev.data.get('timeout', 0):g} s)",
-                ev.vehicle,
-            )
-        elif ev.kind == "back":
-            st.event(Ev.LINK_BACK, f"{ev.vehicle}: link back", ev.vehicle)
-        elif ev.kind == "statustext":
-            record(
-                Ev.STATUSTEXT, vehicle=ev.vehicle, text=ev.data.get("text"), severity=ev.data.get("severity")
-            )
-        elif ev.kind == "geofence_breach":
-            st.event(Ev.GEOFENCE_BREACH, f"{ev.vehicle}: geofence breach ({ev.data.get('breach', '?')}); "
-                     f"its autopilot does the geofence action", ev.vehicle, **ev.data)
-        elif ev.kind in ("armed", "disarmed", "mode", "landed_state"):
-            record(ev.kind, vehicle=ev.vehicle, **ev.data)
+            self.ctx.state.set_state(ev.vehicle, VehicleStatus.LOST)
+        tell_vehicle_event(ev, self.ctx.state.event, self.ctx.record)
 
     # -- the way out -------------------------------------------------------------------------------
     async def hold_airborne(self, timeout: float = HOLD_TIMEOUT) -> list[str]:

@@ -50,7 +50,7 @@ class Run:
         self.opts = opts
         self.journal = self.session.journal
         self.state = FleetState(mission)
-        self.state.mission_clock = lambda: self.session.clock()
+        self.state.mission_clock = self.session.clock
         self.results: dict[str, PhaseResult] = {}
         self.deploy_rounds = DeployRounds()
         self.fleet: Fleet | None = None
@@ -108,6 +108,7 @@ class Run:
         try:
             await self._warm_planners()
             await self.session.start_sim()
+            self.state.mission_clock = self.session.clock  # the simulator's time once it runs: T+ from 0
             self._scenario_batteries(hold=True)
             await self._connect()
             await self._phases()

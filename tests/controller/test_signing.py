@@ -362,6 +362,25 @@ def test_cli_keys_provision(key_env: str, tmp_path: Path, monkeypatch: pytest.Mo
     assert "links.signing" in capsys.readouterr().err
 
 
+def test_cli_keys_provision_of_two_teams(key_env: str, tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                         capsys: pytest.CaptureFixture[str]) -> None:
+    """Every vehicle of every team: both carriers (sysids 1 and 2) and their 16 rovers."""
+    import yaml
+
+    from fleetctl.cli import main
+
+    monkeypatch.setenv("XDG_STATE_HOME", str(tmp_path / "state"))
+    two = yaml.safe_load((Path(__file__).parents[2] / "missions" / "two_carriers.yaml").read_text())
+    two.setdefault("links", {})["signing"] = {"key_env": ENV}
+    path = tmp_path / "two.yaml"
+    path.write_text(yaml.safe_dump(two))
+    assert main(["keys", "provision", "--mission", str(path), "--timeout", "5"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    ok = {line.split()[1] for line in lines if line.startswith("ok ")}
+    assert ok == {"c1", "c2", *(f"r{i}" for i in range(1, 17))}, lines
+    assert lines[-1].startswith("all 18 vehicles sign with key")
+
+
 # ------------------------------------------------------------------------------------ plausibility
 
 

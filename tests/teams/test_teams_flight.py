@@ -303,3 +303,54 @@ async def test_the_web_map_shows_a_two_team_run(tmp_path: Path) -> None:
     assert out.exit_code == 0 and web.error is None
     assert docs and docs[-1]["plan"]["kind"] == "deploy"  # the first team's plan on the map
     assert "c1 task_reached" in out_lines.getvalue() and "c2 task_reached" in out_lines.getvalue()
+
+
+def test_collect_team_collects_the_rovers_of_its_own_deck(tmp_path: Path) -> None:
+    """``fleetctl collect --team c2`` on missions/two_carriers.yaml: carrier c2 alone collects r9..r16
+    (the collection section's rovers of its deck), one team's records."""
+    import yaml
+
+    from fleetctl.cli import main
+
+    two = yaml.safe_load((Path(__file__).parents[2] / "missions" / "two_carriers.yaml").read_text())
+    path = tmp_path / "two.yaml"
+    path.write_text(yaml.safe_dump(two))
+    summary = tmp_path / "summary.json"
+    rc = main(["collect", "--mission", str(path), "--team", "c2", "--headless", "--yes", "--speedup", "20",
+               "--run-dir", str(tmp_path / "run"), "--summary", str(summary)])
+    s = json.loads(summary.read_text())
+    assert rc == 0, s
+    c2 = {r["id"] for r in two["collection"]["rovers"]} & {f"r{i}" for i in range(9, 17)}
+    # each of c2's rovers loaded, or left out because its range cannot reach c2 alone (c1 is not there
+    # to help: the file's ranges are tight)
+    assert s["rovers_loaded"] and set(s["rovers_loaded"]) | set(s["rovers_unreachable"]) == c2, s
+    journal = read_journal(tmp_path / "run" / "journal.jsonl")
+    connected = {r["vehicle"] for r in journal if r["kind"] == "connected"}
+    assert "c2" in connected and connected <= {"c2", *(f"r{i}" for i in range(9, 17))}, connected
+
+
+async def test_the_rovers_are_watched_during_the_dwell_of_several_teams(tmp_path: Path) -> None:
+    """A rover's link drops while every team dwells: its loss and its return are told (journalled
+    with the one-team wording) before the collection starts, and it is collected."""
+    rovers = {**two_teams()["rovers"], "endurance_range": 3000.0}  # hovering 120 s leaves plenty
+    m = mission_from(two_teams(dwell=120.0, rovers=rovers, links={"heartbeat_timeout": 2.0}), tmp_path)
+    run_dir = tmp_path / "run"
+    watchers: list[asyncio.Task[None]] = []
+
+    def on_sim(sim: Any) -> None:
+        async def drop_r3_while_dwelling() -> None:
+            journal = run_dir / "journal.jsonl"
+            await sim.wait_for(lambda: journal.exists() and '"kind":"dwell"' in journal.read_text(),
+                               timeout=120.0)
+            now = sim.sim_time
+            sim.inject(Fault("dropout", vehicle="r3", at=now, until=now + 70.0))  # 3.5 wall s
+
+        watchers.append(asyncio.create_task(drop_r3_while_dwelling()))
+
+    out = await execute(m, "run", run_dir=run_dir, speedup=SPEEDUP, on_sim=on_sim)
+    await asyncio.gather(*watchers)
+    kinds = [(r["kind"], r.get("vehicle")) for r in read_journal(run_dir / "journal.jsonl")]
+    dwell = kinds.index(("dwell", None))
+    collect = next(i for i, k in enumerate(kinds) if k[0] == "teams_plan" and i > dwell)
+    assert ("link_lost", "r3") in kinds[dwell:collect] and ("link_back", "r3") in kinds[dwell:collect], kinds
+    assert out.summary["result"] == "complete" and "r3" in out.summary["rovers_loaded"], out.summary

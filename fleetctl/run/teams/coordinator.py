@@ -44,6 +44,7 @@ from fleetctl.run.teams.live import live_mission, rovers_in_the_field
 from fleetctl.run.teams.summary import teams_summary
 from fleetctl.run.teams.team_run import TeamRun
 from fleetctl.run.teams.views import team_views
+from fleetctl.run.vehicle_events import battery_low_text, tell_vehicle_event
 from fleetctl.teams_plan import share_teams
 from planners.core.problem import CollectRover, Task
 from planners.teams import TeamsPlan
@@ -81,6 +82,7 @@ class TeamsRun:
         self.dwell_flown: float | None = None
         self.t0 = 0.0  # mission clock when the run of every team started (T+ = 0)
         self._confirm_lock = threading.Lock()
+        self._low: set[str] = set()  # rovers told at their reserve while dwelling
         self.buses = TeamsBuses.configure(mission, opts.mqtt, self.journal.write,
                                           "sim" if self.session.uses_sim else "real")
 
@@ -290,14 +292,43 @@ class TeamsRun:
 
     # ============================================================================== dwell
     async def _dwell(self) -> None:
+        """Every team's rovers stay on task; they are watched meanwhile as one team's are (their link
+        lost or back, geofence breaches, batteries at the reserve: :meth:`_watch_dwell`)."""
         wait = self.mission.dwell if self.opts.dwell is None else self.opts.dwell
         self.dwell_planned = wait
         self.journal.write(Ev.DWELL, text=f"every team dwells {wait:g} s on task")
         t0 = self.clock()
-        async with asyncio.timeout(wait / max(self.scale, 1e-9) + 60.0):
-            while self.clock() - t0 < wait:
-                await asyncio.sleep(CLOCK_STEP)
+        unlisten = self._listen_to_rovers()
+        try:
+            async with asyncio.timeout(wait / max(self.scale, 1e-9) + 60.0):
+                while self.clock() - t0 < wait:
+                    self._watch_dwell()
+                    await asyncio.sleep(CLOCK_STEP)
+        finally:
+            unlisten()
         self.dwell_flown = self.clock() - t0
+
+    def _listen_to_rovers(self) -> Callable[[], None]:
+        """Tell every rover's own events while no team's run is flying (the dwell)."""
+        assert self.fleet is not None
+        removers = [v.add_listener(lambda ev: tell_vehicle_event(ev, self._emit, self.journal.write))
+                    for v in self.fleet.rovers.values()]
+
+        def unlisten() -> None:
+            for remove in removers:
+                remove()
+
+        return unlisten
+
+    def _watch_dwell(self) -> None:
+        """A rover on task whose battery reaches the reserve is told once."""
+        assert self.fleet is not None
+        reserve = self.mission.rovers.reserve
+        for rid, v in self.fleet.rovers.items():
+            pct = v.battery_pct
+            if pct is not None and pct / 100.0 <= reserve and rid not in self._low:
+                self._low.add(rid)
+                self._emit(Ev.BATTERY_LOW, battery_low_text(rid, pct), rid, battery_pct=pct)
 
     # ============================================================================== collection
     async def _collect(self) -> None:
