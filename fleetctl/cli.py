@@ -18,7 +18,6 @@ from fleetctl.mission.teams import several_teams
 from planners.core.problem import CollectProblem
 
 if TYPE_CHECKING:
-    from fleetctl.mavlink.fleet import Fleet
     from fleetctl.run.runner import RunOutcome
     from planners.core.problem import DeployProblem
 
@@ -560,7 +559,6 @@ def build_parser() -> argparse.ArgumentParser:
 # ---------------------------------------------------------------------------------------------------
 
 EXIT_NOT_READY = 1
-DECK_RADIUS = 1.5  # m: a landed rover this close (horizontally) to the carrier is on its deck
 
 
 def _add_controller_commands(sub: argparse._SubParsersAction) -> None:
@@ -576,6 +574,9 @@ def _add_controller_commands(sub: argparse._SubParsersAction) -> None:
                         help="seconds to wait for each vehicle's first heartbeat (default 5)")
     status.add_argument("--speedup", type=float, default=None,
                         help="simulated time factor for 'connection: sim' (default: the mission's)")
+    status.add_argument("--json", action="store_true",
+                        help="print one JSON object per vehicle and line, with every check, "
+                             "instead of the table")
     status.set_defaults(func=cmd_status)
 
     sim = sub.add_parser(
@@ -632,13 +633,15 @@ def cmd_status(args: argparse.Namespace) -> int:
     _one_team(mission, "status")
     if not args.timeout > 0:
         raise CliError(f"--timeout must be > 0, got {args.timeout}")
-    return asyncio.run(_status(mission, args.timeout, args.speedup))
+    return asyncio.run(_status(mission, args.timeout, args.speedup, args.json))
 
 
-async def _status(mission: Mission, timeout: float, speedup: float | None) -> int:
-
-    from fleetctl.mavlink.fleet import CONNECT_HINT, connect_fleet
+async def _status(mission: Mission, timeout: float, speedup: float | None, as_json: bool = False) -> int:
+    from fleetctl.mavlink.fleet import connect_fleet
     from fleetctl.mavlink.link import LinkError
+    from fleetctl.run.preflight import check_connected
+    from fleetctl.run.safety import gather
+    from fleetctl.views import status as view
 
     sim = None
     endpoints = None
@@ -658,112 +661,39 @@ async def _status(mission: Mission, timeout: float, speedup: float | None) -> in
         except LinkError as e:
             raise CliError(str(e)) from None
         try:
-            from fleetctl.run.safety import gather
-
             failsafe = await gather(fleet, min(timeout, 3.0))  # preflight telemetry, link-loss parameters
-            rows, problems = _status_rows(mission, fleet, {vid: fs.text for vid, fs in failsafe.items()})
+            rows = check_connected(fleet, mission)  # the checks every flying command runs
+            for vid, fs in failsafe.items():
+                rows[vid].link_loss = fs.text
+            _rtl_warnings(fleet.carrier_id, rows, failsafe)
+            if as_json:
+                view.print_json(view.json_objects(mission, fleet, rows))
+            else:
+                view.print_table(mission, view.status_rows(mission, fleet, rows))
         finally:
             await fleet.close()
     finally:
         if sim is not None:
             await sim.stop()
-    _print_status(mission, rows)
-    for row in rows:
-        for w in row.get("warnings", "").split("\n"):
-            if w:
-                print(f"warning: {row['id']}: {w}")
-    if problems:
-        silent = any(not v.connected for v in fleet.vehicles.values())
-        hint = f" (no heartbeat: {CONNECT_HINT})" if silent else ""
-        print(f"fleetctl: {len(problems)} vehicle(s) missing or not ready{hint}:", file=sys.stderr)
-        for line in problems:
-            print(f"  {line}", file=sys.stderr)
+    notes = sys.stderr if as_json else sys.stdout
+    for vid, pre in rows.items():
+        for w in pre.warnings:
+            print(f"warning: {vid}: {w}", file=notes)
+    report = view.not_ready_report(fleet, rows)
+    if report:
+        for line in report:
+            print(line, file=sys.stderr)
         return EXIT_NOT_READY
-    print(f"all {len(rows)} vehicles connected and ready")
+    print(f"all {len(rows)} vehicles connected and ready", file=notes)
     return 0
 
 
-def _status_rows(mission: Mission, fleet: Fleet, link_loss: dict[str, str] | None = None
-                 ) -> tuple[list[dict[str, str]], list[str]]:
-    from fleetctl.geo import Origin, geodetic_to_enu
-    from fleetctl.run.preflight import check_vehicle
+def _rtl_warnings(carrier_id: str, rows: dict[str, Any], failsafe: dict[str, Any]) -> None:
     from fleetctl.run.safety import RTL_WARNING
 
-    carrier = fleet.carrier
-    rows: list[dict[str, str]] = []
-    problems: list[str] = []
-    for vid, v in fleet.vehicles.items():
-        url = fleet.urls[vid]
-        is_carrier = v is carrier
-        row = {"id": vid, "role": "carrier" if is_carrier else "rover", "sysid": str(v.sysid), "url": url,
-               "link": "-", "autopilot": "-", "armed": "-", "mode": "-", "battery": "-", "position": "-",
-               "deck": "-", "gps": "-", "link_loss": "-", "ready": "no", "reasons": "", "warnings": ""}
-        reasons: list[str] = []
-        if not v.connected:
-            row["link"] = "no answer"
-            heard = fleet.silence.get(vid)
-            reasons.append(fleet.errors.get(vid, "no heartbeat") + (f"; {heard}" if heard else ""))
-        else:
-            row["link"] = "lost" if v.lost else f"ok ({v.last_heard_age or 0.0:.1f} s)"
-            row["autopilot"] = v.autopilot.name if v.autopilot else "?"
-            row["armed"] = "armed" if v.armed else "disarmed"
-            row["mode"] = v.mode_firmware or "?"
-            pre = check_vehicle(v, mission, carrier=is_carrier)  # fleetctl.run.preflight
-            reasons += pre.failures
-            if v.gps_fix_type is not None:
-                fix = "3D" if v.gps_fix_type >= 3 else ("no fix" if v.gps_fix_type <= 1 else "2D")
-                row["gps"] = f"{fix}, {v.gps_satellites} sat" if v.gps_satellites is not None else fix
-            text = (link_loss or {}).get(vid)
-            if text:
-                row["link_loss"] = text.removeprefix("link loss: ")
-                if not is_carrier and "RTL" in row["link_loss"]:
-                    row["warnings"] = f"link loss {row['link_loss']}: {RTL_WARNING}"
-            if v.system_status in (6, 7, 8):  # MAV_STATE_CRITICAL, EMERGENCY, POWEROFF
-                reasons.append(f"system status {v.system_status} (critical)")
-            if v.battery_pct is not None:
-                row["battery"] = f"{v.battery_pct:.0f} %"
-            if v.position is None:
-                reasons.append("no position (GLOBAL_POSITION_INT) received")
-            else:
-                enu = v.enu
-                lat, lon, alt = v.position
-                row["position"] = (f"{enu[0]:.1f}, {enu[1]:.1f}, {enu[2]:.1f}" if enu else
-                                   f"{lat:.7f}, {lon:.7f}, {alt:.1f}")
-            if not is_carrier:
-                if v.position is not None and carrier.position is not None and v.on_ground is not None:
-                    lat, lon, alt = v.position
-                    e, n, _u = geodetic_to_enu(lat, lon, alt, Origin(*carrier.position))
-                    on_deck = v.on_ground and (e * e + n * n) ** 0.5 <= DECK_RADIUS
-                    row["deck"] = "on deck" if on_deck else "off deck"
-                else:
-                    row["deck"] = "?"
-        if reasons:
-            problems.append(fleet.failure_line(vid) if not v.connected
-                            else f"{vid} (sysid {v.sysid}) at {url}: " + "; ".join(reasons))
-            row["reasons"] = "; ".join(reasons)
-        else:
-            row["ready"] = "ready"
-        rows.append(row)
-    return rows, problems
-
-
-def _print_status(mission: Mission, rows: list[dict[str, str]]) -> None:
-    from rich.console import Console
-    from rich.table import Table
-
-    console = Console() if sys.stdout.isatty() else Console(width=200)
-    table = Table(title=f"Preflight of {mission.name}", title_justify="left")
-    columns = [("id", "vehicle"), ("role", "role"), ("sysid", "sysid"), ("url", "connection"),
-               ("link", "link"), ("autopilot", "autopilot"), ("armed", "armed"), ("mode", "mode"),
-               ("battery", "battery"), ("gps", "GPS"),
-               ("position", "position E, N, U m"), ("deck", "deck"), ("link_loss", "link loss"),
-               ("ready", "ready"), ("reasons", "why not ready")]
-    for key, title in columns:
-        table.add_column(title, no_wrap=key != "reasons")
-    for row in rows:
-        style = None if row["ready"] == "ready" else "red"
-        table.add_row(*(row[k] for k, _ in columns), style=style)
-    console.print(table)
+    for vid, fs in failsafe.items():
+        if vid != carrier_id and fs.action is not None and "rtl" in fs.action.lower():
+            rows[vid].warnings.append(f"link loss {fs.text.removeprefix('link loss: ')}: {RTL_WARNING}")
 
 
 # ---------------------------------------------------------------------------------------------------

@@ -15,6 +15,7 @@ from planners.core.approach import WithApproach, WithTakeoff
 from planners.core.bounds import deploy_lower_bound
 from planners.core.plan import Plan
 from planners.core.problem import CollectProblem, DeployProblem, PlanningError
+from planners.core.ranges import WithRoverRanges
 
 
 def collect_lower_bound(problem: CollectProblem) -> float:
@@ -44,11 +45,12 @@ class LazyPlanner:
 
 
 DEPLOY_PLANNERS: dict[str, Callable[[DeployProblem], Plan]] = {
-    "lee": WithTakeoff(LazyPlanner("planners.deploy.lee", "plan_lee")),
-    "greedy2opt": WithTakeoff(LazyPlanner("planners.deploy.baselines", "plan_greedy2opt")),
-    "direct": WithTakeoff(LazyPlanner("planners.deploy.baselines", "plan_direct")),
-    "two-task": WithTakeoff(LazyPlanner("planners.deploy.two_task", "plan_two_tasks")),
-    "lee-graph": WithTakeoff(LazyPlanner("planners.roadmap.deploy", "plan_lee_graph")),  # shapely, SciPy
+    "lee": WithRoverRanges(WithTakeoff(LazyPlanner("planners.deploy.lee", "plan_lee"))),
+    "greedy2opt": WithRoverRanges(WithTakeoff(LazyPlanner("planners.deploy.baselines", "plan_greedy2opt"))),
+    "direct": WithRoverRanges(WithTakeoff(LazyPlanner("planners.deploy.baselines", "plan_direct"))),
+    "two-task": WithRoverRanges(WithTakeoff(LazyPlanner("planners.deploy.two_task", "plan_two_tasks"))),
+    # shapely, SciPy
+    "lee-graph": WithRoverRanges(WithTakeoff(LazyPlanner("planners.roadmap.deploy", "plan_lee_graph"))),
 }
 
 COLLECT_PLANNERS: dict[str, Callable[[CollectProblem], Plan]] = {

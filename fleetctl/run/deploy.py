@@ -26,11 +26,13 @@ from fleetctl.run.events import announce_warning, drain, next_event, race
 from fleetctl.run.kinds import Ev, Phase, VehicleStatus, Watch
 from fleetctl.run.launch import DECK_CHECK_TIMEOUT, Launcher, Spares, flight_path, rover_on_deck, takeoff_seq
 from fleetctl.run.parts import PhaseParts
+from fleetctl.run.preflight import planning_range
 from fleetctl.run.results import PhaseResult
 from fleetctl.run.supervisor import SupervisorEvent, validate_task_change
 from fleetctl.run.task_board import TaskBoard
 from planners.core.plan import Plan, RoverLeg
 from planners.core.problem import Task, Vec3
+from planners.core.ranges import leg_length
 
 
 @dataclass(frozen=True)
@@ -174,6 +176,7 @@ class DeployPhase:
             heading=heading,
             tasks=tuple(tasks),
             rovers=tuple(usable),
+            rover_ranges=tuple(self._ranges(usable).items()),
         )
         plan = await self.planning.plan("deploy", problem)
         compiled = self.planning.compile(plan)
@@ -196,13 +199,26 @@ class DeployPhase:
         self.plan = plan
         await self._fly(plan, compiled, usable, plan_t0)
 
+    def _ranges(self, rovers: list[str]) -> dict[str, float]:
+        """The rovers whose battery (now) cannot fly the deploy range -> the range it can: they
+        are planned with it (fleetctl.run.preflight.planning_range, planners.core.ranges)."""
+        full = self.ctx.mission.rovers.deploy_range
+        out = {}
+        for rid in rovers:
+            rng = planning_range(self.ctx.fleet.rovers[rid], self.ctx.mission)
+            if rng is not None and rng < full:
+                out[rid] = rng
+        return out
+
     # ============================================================================== one route
     async def _fly(self, plan: Plan, compiled: CompiledPlan, usable: list[str], plan_t0: float) -> None:
         """Fly the stops of one plan; returns early when an event asks for a replan (the carrier
         holds at the stop it is at)."""
         ctx, board = self.ctx, self.board
         slots = compiled.rovers  # planned rover id -> its mission (the rover flying it may differ)
-        spares = Spares([rid for rid in usable if rid not in slots], used=set(slots))
+        spares = Spares([rid for rid in usable if rid not in slots], used=set(slots),
+                        ranges=self._ranges(usable),
+                        needs={leg.rover: leg_length(leg) for leg in plan.legs() if leg.task is not None})
         ctx.record(Ev.SPARES, rovers=spares.rovers)
         q = self.supervisor.queue
         last = len(plan.stops) - 1

@@ -10,6 +10,7 @@ stop) is on disk, so a journal cut short by a crash says which rover was being s
 from __future__ import annotations
 
 import contextlib
+import math
 from dataclasses import dataclass, field
 
 from fleetctl.mavlink.compile import RoverMission
@@ -25,6 +26,7 @@ from fleetctl.run.task_board import TaskBoard
 AIRBORNE_HEIGHT = 0.3  # m above home: a launched rover is off the deck
 CLEAR_HEIGHT = 0.8 * TAKEOFF_HEIGHT  # m above home: a launched rover is clear of the deck, the carrier may go
 DECK_CHECK_TIMEOUT = 2.0  # wall s for fresh telemetry to show a rover on the (stopped) carrier's deck
+RANGE_TOLERANCE = 1e-4  # m: a flight this much over a spare's range is within it (rounding)
 LIFTOFF_TIMEOUT = 5.0  # mission s from start_mission to clear of the deck (at least; 3x takeoff_time)
 
 Vec3 = tuple[float, float, float]
@@ -48,14 +50,21 @@ def flight_path(ctx: RunContext, rm: RoverMission, start: Vec3) -> list[Vec3]:
 
 @dataclass
 class Spares:
-    """The rovers on the deck that no stop of the current plan uses."""
+    """The rovers on the deck that no stop of the current plan uses. A spare takes a planned
+    rover's flight only when its battery range (``ranges``, planning range per rover; absent =
+    the mission's deploy range) covers that flight (``needs``: planned rover -> flight length)."""
 
     rovers: list[str]
     used: set[str] = field(default_factory=set)
+    ranges: dict[str, float] = field(default_factory=dict)
+    needs: dict[str, float] = field(default_factory=dict)
 
-    def take(self, ctx: RunContext, board: TaskBoard) -> str | None:
+    def take(self, ctx: RunContext, board: TaskBoard, slot: str | None = None) -> str | None:
+        need = self.needs.get(slot, 0.0) if slot is not None else 0.0
         for rid in self.rovers:
             r = ctx.fleet.rovers[rid]
+            if self.ranges.get(rid, math.inf) + RANGE_TOLERANCE < need:
+                continue  # its battery cannot fly this flight
             if rid not in self.used and board.available(rid) and r.connected and not r.lost:
                 self.used.add(rid)
                 return rid
@@ -94,19 +103,19 @@ class Launcher:
         while rid is not None:
             await self.carrier.ready()  # no launches while the carrier is lost
             if not self.board.available(rid):
-                rid = spares.take(self.ctx, self.board)
+                rid = spares.take(self.ctx, self.board, slot.rover)
                 continue
             v = self.ctx.fleet.rovers[rid]
             if not await self._on_deck(v):
                 self.ctx.state.event(Ev.ROVER_SKIPPED, f"{rid}: not on the deck, a spare takes {task}", rid)
-                rid = spares.take(self.ctx, self.board)
+                rid = spares.take(self.ctx, self.board, slot.rover)
                 continue
             armed, spare = await self._arm(v, slot, plan_id, spares)
             if not armed:
                 rid = spare
                 continue
             if not await self._lift_off(v, slot, go_at):
-                rid = spares.take(self.ctx, self.board)
+                rid = spares.take(self.ctx, self.board, slot.rover)
                 continue
             return rid
         return None
@@ -134,7 +143,7 @@ class Launcher:
         except CommandRejected as exc:
             self.board.refused.add(rid)
             st.set_state(rid, VehicleStatus.REFUSED)
-            spare = spares.take(self.ctx, self.board)
+            spare = spares.take(self.ctx, self.board, slot.rover)
             reason = exc.reason or exc.ack.result_name
             then = f"spare {spare} takes {task}" if spare else f"no spare left for {task}"
             st.event(
@@ -149,7 +158,7 @@ class Launcher:
                 self.board.substitutions.append({"refused": rid, "spare": spare, "task": task})
             return False, spare
         except (ExecutionError, LinkError, TimeoutError) as exc:
-            spare = spares.take(self.ctx, self.board)
+            spare = spares.take(self.ctx, self.board, slot.rover)
             st.event(
                 Ev.ROVER_FAILED,
                 f"{rid}: {exc}; " + (f"spare {spare} takes {task}" if spare else f"no spare left for {task}"),

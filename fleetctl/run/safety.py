@@ -212,6 +212,12 @@ async def admit_safety(fleet: Fleet, mission: Mission, command: str, *, resuming
         row.link_loss = failsafe[vid].text if vid in failsafe else None
         if not row.ok:
             _fail(fleet, rep, vid, "failed preflight: " + "; ".join(row.failures), resuming)
+            continue
+        for w in row.warnings:  # a critical system status
+            rep.notes.append((Ev.PREFLIGHT_WARNING, f"{vid}: {w}", vid))
+        battery = row.check("battery")
+        if row.range is not None and row.range < mission.rovers.deploy_range and battery is not None:
+            rep.notes.append((Ev.PREFLIGHT_WARNING, f"{vid}: {battery.detail}", vid))
     action = mission.links.failsafe
     for vid, v in vehicles.items():
         if vid in rep.left_out:
@@ -276,7 +282,7 @@ def _fail(fleet: Fleet, rep: SafetyReport, vid: str, why: str, resuming: bool) -
         raise ExecutionError(f"the carrier {vid} at {fleet.urls.get(vid, '?')} {why}; fix it before flying")
     v = fleet.vehicles[vid]
     if resuming and (v.armed or v.on_ground is False):  # flying its mission: keep it, say so
-        rep.notes.append(("preflight_warning", f"{vid}: {why} (flying: kept)", vid))
+        rep.notes.append((Ev.PREFLIGHT_WARNING, f"{vid}: {why} (flying: kept)", vid))
         return
     rep.left_out[vid] = why
     fleet.leave_out(vid, why)

@@ -178,11 +178,22 @@ def fit(state: FleetState, height: int, status_lines: int) -> tuple[int, int]:
     return max(free - events, 2), events
 
 
-def render_text(state: FleetState, width: int = 160, latlon: bool = False) -> str:
-    """The whole dashboard of ``state`` as plain text (``--headless`` endings, tests)."""
-    console = Console(width=width, record=True, file=io.StringIO(), color_system=None)
-    console.print(render(state, None, latlon=latlon, width=width))
-    return console.export_text()
+PLAIN_WIDTH = 4000  # characters: "no terminal" output is laid out this wide, so that no cell is cut
+
+
+def plain_text(renderable: Any, width: int | None = None) -> str:
+    """``renderable`` as plain text ``width`` wide; None = uncut lines (as wide as their content:
+    for output without a terminal, where nobody's screen width applies)."""
+    console = Console(width=width or PLAIN_WIDTH, record=True, file=io.StringIO(), color_system=None)
+    console.print(renderable)
+    text = console.export_text()
+    return text if width else "".join(line.rstrip() + "\n" for line in text.splitlines())
+
+
+def render_text(state: FleetState, width: int | None = None, latlon: bool = False) -> str:
+    """The whole dashboard of ``state`` as plain text (``--headless`` endings, tests): ``width``
+    wide, or without a width in uncut lines (:func:`plain_text`)."""
+    return plain_text(render(state, None, latlon=latlon, width=width), width)
 
 
 class LiveView(View):
@@ -272,4 +283,4 @@ def make_view(headless: bool | None = None, latlon: bool = False) -> View:
 
 
 __all__ = ["REFRESH_HZ", "HeadlessView", "LiveView", "fit", "make_view", "order_rows", "render",
-           "render_text", "tplus"]
+           "plain_text", "render_text", "tplus"]

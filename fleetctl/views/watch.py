@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
-import io
 import json
 import logging
 import sys
@@ -19,7 +18,6 @@ from types import SimpleNamespace
 from typing import IO, Any
 
 import aiomqtt
-from rich.console import Console
 
 from fleetctl.bus.config import (
     BACKOFF_MAX,
@@ -30,7 +28,7 @@ from fleetctl.bus.config import (
     client_kwargs,
 )
 from fleetctl.run.state import Event, FleetState, VehicleState
-from fleetctl.views.dashboard import HeadlessView, LiveView, render
+from fleetctl.views.dashboard import HeadlessView, LiveView, plain_text, render
 from fleetctl.views.view import View, Views
 
 log = logging.getLogger(__name__)
@@ -219,11 +217,10 @@ class Watcher:
                         await client.__aexit__(None, None, None)
 
 
-def render_text(watcher: Watcher, width: int = 160) -> str:
-    """The dashboard of ``watcher`` as plain text (for ``--headless`` and tests)."""
-    console = Console(width=width, record=True, file=io.StringIO(), color_system=None)
-    console.print(render(watcher.state, None, watcher.status_lines()))
-    return console.export_text()
+def render_text(watcher: Watcher, width: int | None = None) -> str:
+    """The dashboard of ``watcher`` as plain text (for ``--headless`` and tests): uncut lines
+    without a ``width`` (:func:`fleetctl.views.dashboard.plain_text`)."""
+    return plain_text(render(watcher.state, None, watcher.status_lines(), width=width), width)
 
 
 async def watch(config: BusConfig, *, headless: bool = False, exit_on_done: bool = False,

@@ -130,6 +130,15 @@ class DeployProblem:
     # the plan (iterated local search, seeded by ``seed``) for about this many milliseconds of
     # wall time, counted from the planner's call, and return the best plan found.
     budget_ms: float | None = None
+    # Rovers that cannot fly the whole ``deploy_range`` (a battery that is not full): (rover id,
+    # metres of flight it may plan) pairs; a rover not listed has ``deploy_range``. Honoured by
+    # every registered planner (planners.core.ranges.WithRoverRanges): such a rover flies only a
+    # task it reaches.
+    rover_ranges: tuple[tuple[str, float], ...] = ()
+
+    def rover_range(self, rover: str) -> float:
+        """Metres of flight ``rover`` may plan: its entry of ``rover_ranges``, at most ``deploy_range``."""
+        return min(dict(self.rover_ranges).get(rover, self.deploy_range), self.deploy_range)
 
     def rover_ids(self) -> tuple[str, ...]:
         if self.rovers:

@@ -44,16 +44,18 @@ async def test_every_check_fails_on_its_fault_and_passes_without(tmp_path: Path)
         fleet.rovers["r6"].home = None  # as if no HOME_POSITION came
         no_home = check_vehicle(fleet.rovers["r6"], mission, carrier=False, command="deploy")
     assert rows["carrier"].ok and rows["r6"].ok, (rows["carrier"].failures, rows["r6"].failures)
-    assert all(_by_check(rows["r6"]).values()) and len(rows["r6"].checks) == 6
+    assert all(_by_check(rows["r6"]).values()) and len(rows["r6"].checks) == 8
     assert _by_check(rows["r1"]) == {**_by_check(rows["r6"]), "gps": False}
     assert rows["r1"].failures == ["GPS no fix, 0 satellites: needs a 3D fix"]
     assert _by_check(rows["r2"]) == {**_by_check(rows["r6"]), "sensors": False}
     assert rows["r2"].failures == ["sensors not healthy: magnetometer"]
     assert rows["r3"].failures == ["battery 5 % is not above the reserve 10%"]
-    # 20 %: above the 10 % reserve, but (0.2 - 0.1) x 200 m = 20 m < the deploy range 40 m
-    assert rows["r4"].failures == [
-        "battery 20 % gives 20 m above the reserve, less than the deploy range 40 m (needs 30 %)"
-    ]
+    # 20 %: above the 10 % reserve, but (0.2 - 0.1) x 200 m = 20 m < the deploy range 40 m: planned
+    # with 20 m (the tasks are 4-5 m high: it reaches them from a stop under them)
+    assert rows["r4"].ok and rows["r4"].range == pytest.approx(20.0)
+    assert rows["r4"].check("battery").detail == (  # type: ignore[union-attr]
+        "battery 20 % gives 20 m above the reserve, less than the deploy range 40 m (needs 30 %): "
+        "planned with 20 m, flies only tasks it reaches")
     assert rows["r5"].failures == ["already armed"]
     assert no_home.failures == ["home position unknown (no HOME_POSITION received)"]
     # fleetctl resume takes over armed vehicles: that check is skipped

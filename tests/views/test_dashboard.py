@@ -141,3 +141,17 @@ def test_latlon_on_request(tmp_path: Path) -> None:
     assert "E m" in plain and "lat" not in plain.split("\n")[4]
     text = render_text(st, latlon=True)
     assert "47.397742" in text and "8.545594" in text and "E m" not in text
+
+
+def test_without_a_width_the_text_is_plain_uncut_lines(tmp_path: Path) -> None:
+    """``--headless`` / no terminal (issue 26 item 5): no cell or line is cut to a screen width."""
+    st, _ = _fleet(tmp_path)
+    st.replans, st.last_replan = 1, "r15 lost: " + "its task goes to a spare on the deck " * 8
+    long_event = "carrier: " + "a long event line that a screen would wrap " * 6
+    st.event("stop_reached", long_event, "carrier")
+    text = render_text(st)
+    assert "…" not in text
+    assert st.last_replan.strip() in text and long_event.strip() in text  # each on one line
+    assert all(line == line.rstrip() for line in text.splitlines())
+    assert "en_route" in text and "on_deck" in text
+    assert long_event.strip() not in render_text(st, width=80)  # a given width still folds, as on a terminal
