@@ -596,7 +596,7 @@ class CollectPhase:
         p = v.enu
         up = _airborne(v)
         pos = None if p is None else [round(c, 2) for c in p]
-        ctx.state.set_state(rid, VehicleStatus.RETURNING if up else VehicleStatus.LANDED)
+        ctx.state.set_state(rid, VehicleStatus.RETURNING if "RTL" in why else VehicleStatus.LANDED)
         ctx.state.event(
             Ev.ROVER_LET_GO,
             f"{rid}: {why}; let go, not collected (at {pos}, battery {v.battery_pct} %, "

@@ -39,6 +39,7 @@ TIMEOUT_FACTOR = 2.0  # a wait may take this many times its planned (mission) du
 TIMEOUT_MARGIN = 30.0  # ... plus this many mission seconds ...
 TIMEOUT_WALL = 15.0  # wall s more before a wait gives up on a mission clock that stopped (backstop)
 POLL_WALL = 0.05  # wall s at most between looks at the mission clock in a wait
+REPORT_WAIT = 2.5  # wall s past a deadline for the vehicle's next status report (1 Hz, lossy) to show it
 TELEMETRY_TIMEOUT = 10.0  # wall s to wait for first positions
 
 
@@ -124,15 +125,22 @@ class RunContext:
                        what: str) -> None:
         """Return once ``predicate(v)`` holds (checked on every message of ``v``); ``TimeoutError``
         once ``mission_seconds`` of mission time have passed (a deadline on the mission clock, so
-        the same at any speed-up; :meth:`wall` of it is a backstop for a clock that stops)."""
+        the same at any speed-up) and ``REPORT_WAIT`` wall seconds more brought no report showing
+        it (status messages come at ~1 Hz of wall time); :meth:`wall` of it is a backstop for a
+        clock that stops."""
         start = self.clock()
         end = start + max(mission_seconds, 0.0)
         backstop = time.monotonic() + self.wall(mission_seconds)
+        expired: float | None = None  # wall time the mission deadline passed
         while not predicate(v):
             left = end - self.clock()
-            if left <= 0.0 or time.monotonic() >= backstop:
+            now = time.monotonic()
+            if left <= 0.0 and expired is None:
+                expired = now
+            # past the deadline, the vehicle's next status report (sent on wall time) decides
+            if (expired is not None and now - expired >= REPORT_WAIT) or now >= backstop:
                 raise TimeoutError(f"{v.name} (sysid {v.sysid}): {what} not reached within "
-                                   f"{self.clock() - start:.1f} s of mission time")
+                                   f"{end - start:.1f} s of mission time")
             with contextlib.suppress(TimeoutError):
                 await v.wait_until(predicate, min(max(left / self.speedup, 0.005), POLL_WALL), what)
 
