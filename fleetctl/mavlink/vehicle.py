@@ -276,6 +276,12 @@ class Vehicle:
         return self.landed_state == M.MAV_LANDED_STATE_ON_GROUND
 
     @property
+    def critical(self) -> bool:
+        """The autopilot's HEARTBEAT says MAV_STATE_CRITICAL or EMERGENCY (a failsafe: ArduPilot
+        and PX4 report a critical battery so)."""
+        return self.system_status in (M.MAV_STATE_CRITICAL, M.MAV_STATE_EMERGENCY)
+
+    @property
     def last_heard_age(self) -> float | None:
         """Seconds since any message from this system (None if never)."""
         t = self.link.last_heard.get(self.sysid)
