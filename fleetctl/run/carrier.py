@@ -16,7 +16,7 @@ import logging
 import math
 from collections.abc import Callable
 
-from fleetctl.mavlink.compile import CompiledPlan
+from fleetctl.mavlink.compile import CompiledPlan, item_position
 from fleetctl.mavlink.link import LinkError, MissionItem, MissionRejected
 from fleetctl.mavlink.vehicle import CommandRejected, Vehicle
 from fleetctl.run.context import ExecutionError, RunContext
@@ -25,6 +25,8 @@ from fleetctl.run.supervisor import SupervisorEvent
 
 log = logging.getLogger(__name__)
 
+STAY_RADIUS = 1.0  # m: a stopped carrier this near its new route's first stop stays on it
+STAY_SPEED = 0.3  # m/s: a carrier this slow is stopped
 CARRIER_OUTAGE_MAX = 600.0  # mission s the controller waits for a lost carrier to come back
 
 Vec3 = tuple[float, float, float]
@@ -50,6 +52,7 @@ class CarrierControl:
         self.ok.set()
         self.losses = 0  # carrier link losses so far (a wait that timed out during one is retried)
         self.held: set[str] = set()  # rovers paused while the carrier is lost
+        self._stayed: int | None = None  # the first stop's arrive item when the route started there
 
     @property
     def vehicle(self) -> Vehicle:
@@ -76,16 +79,29 @@ class CarrierControl:
 
     # -- the route ---------------------------------------------------------------------------------
     async def start_route(self, compiled: CompiledPlan) -> None:
+        """Upload the route and start it. A carrier standing (stopped, within ``STAY_RADIUS``) at
+        the route's first stop starts on that stop's hold: it stays where it is (a replan that
+        keeps the stop must not make it drive a loop back onto it) and the stop counts as reached."""
         c = self.vehicle
         await upload(self.ctx, c, list(compiled.carrier))
+        stay = compiled.stops[0] if compiled.stops and self._standing_at(compiled, 0) else None
+        self._stayed = None if stay is None else stay.arrive_seq
         try:
             if not c.armed:
                 await self.ctx.command(c, "arm", c.arm())
-            await self.ctx.command(c, "start_mission", c.start_mission())
+            first = 0 if stay is None else stay.hold_seq
+            await self.ctx.command(c, "start_mission", c.start_mission(first))
         except CommandRejected as exc:
             raise ExecutionError(f"the carrier {c.name} refused to start its route: {exc}") from None
         except (LinkError, TimeoutError) as exc:
             raise ExecutionError(f"the carrier {c.name} did not answer: {exc}") from None
+
+    def _standing_at(self, compiled: CompiledPlan, k: int) -> bool:
+        c, origin = self.vehicle, self.vehicle.origin
+        if c.enu is None or origin is None or (c.ground_speed or 0.0) > STAY_SPEED:
+            return False
+        x, y, _z = item_position(compiled.carrier[compiled.stops[k].arrive_seq], origin)
+        return math.hypot(c.enu[0] - x, c.enu[1] - y) <= STAY_RADIUS
 
     async def release(self, stop: int, seq: int | None) -> None:
         """Let the carrier leave stop ``stop`` (0-based) by moving its mission on to ``seq``."""
@@ -131,15 +147,18 @@ class CarrierControl:
         c, st = self.vehicle, self.ctx.state
         st.stop_index = k + 1
         st.set_state(c.name, VehicleStatus.DRIVING)
-        try:
-            await self.ctx.wait_for(
-                c,
-                lambda v: arrive_seq in v.items_reached or (v.mission_current or -1) > arrive_seq,
-                self.ctx.late(planned_leg),
-                f"mission item {arrive_seq}",
-            )
-        except TimeoutError as exc:
-            raise ExecutionError(f"the carrier did not reach stop {k + 1}: {exc}") from None
+        if self._stayed == arrive_seq and k == 0:  # standing there already (start_route)
+            self._stayed = None
+        else:
+            try:
+                await self.ctx.wait_for(
+                    c,
+                    lambda v: arrive_seq in v.items_reached or (v.mission_current or -1) > arrive_seq,
+                    self.ctx.late(planned_leg),
+                    f"mission item {arrive_seq}",
+                )
+            except TimeoutError as exc:
+                raise ExecutionError(f"the carrier did not reach stop {k + 1}: {exc}") from None
         t = self.ctx.clock()
         st.set_state(c.name, VehicleStatus.HOLDING)
         st.event(

@@ -542,8 +542,8 @@ class CollectPhase:
         ctx.record(Ev.ROVER_STATE, vehicle=rid, text=text, offset=off)
         await ctx.command(v, "goto", v.goto(lat, lon, height))
         speed = ctx.mission.rovers.max_speed
-        await v.wait_until(lambda v: _over(v, c, RETARGET_DONE) or v.lost,
-                           ctx.wall(off / speed + RETARGET_SLACK), "over the carrier")
+        await ctx.wait_for(v, lambda v: _over(v, c, RETARGET_DONE) or v.lost, off / speed + RETARGET_SLACK,
+                           "over the carrier")
         await ctx.command(v, "land", v.land())
 
     def _landing_point(self, rnd: _Round, rid: str) -> Vec3 | None:

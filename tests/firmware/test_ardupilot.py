@@ -169,7 +169,10 @@ def test_signing_is_provisioned_and_enforced(tmp_path: Path) -> None:
     extra = {"links": {"signing": {"key_env": "FLEETCTL_FW_KEY"}}}
     # SERIAL1, a telemetry radio's port: ArduPilot takes unsigned messages on SERIAL0 (USB) always
     with ardupilot_team(tmp_path, gcs_port=14564, instance_base=56, n_rovers=3, gcs_serial=1,
-                        mission=mission_yaml(14564, 3, extra=extra), env={"FLEETCTL_FW_KEY": key},
+                        mission=mission_yaml(14564, 3, extra=extra),
+                        # a signing state of its own: timestamps that earlier runs reserved ahead of
+                        # the clock would put this test's probe more than 60 s behind the firmware
+                        env={"FLEETCTL_FW_KEY": key, "XDG_STATE_HOME": str(tmp_path / "state")},
                         ready=False) as team:
         # not provisioned yet: heartbeats arrive unsigned, and status says so
         deadline = time.monotonic() + 90
