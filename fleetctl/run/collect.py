@@ -33,7 +33,7 @@ from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from enum import StrEnum
 
-from fleetctl.mavlink.compile import CompiledPlan, StopItems, item_position, with_meeting_hold
+from fleetctl.mavlink.compile import CompiledPlan, StopItems, with_meeting_hold
 from fleetctl.mavlink.link import LinkError, MissionItem
 from fleetctl.mavlink.vehicle import CommandRejected, Vehicle
 from fleetctl.mission.flight import GROUND_HEIGHT, MEET_HEIGHT
@@ -61,8 +61,9 @@ from planners.core.problem import CollectProblem, CollectRover, Vec3
 
 log = logging.getLogger(__name__)
 
-RETARGET_OFFSET = 0.5  # m: a carrier stopped this far from the planned stop gets its rovers landed over it
-RETARGET_DONE = 0.3  # m: a re-targeted rover this near over the carrier is sent down
+RETARGET_OFFSET = 1.25  # m: a rover hovering this far off the carrier (the deck radius less a margin) is
+# moved over it first
+RETARGET_DONE = 0.5  # m: a re-targeted rover this near over the carrier is sent down
 RETARGET_SLACK = 5.0  # mission s on top of the flight over to the carrier
 DISARM_WAIT = 4.0  # mission s a rover down on the deck is given to disarm itself before it is told to
 LANDING_TIMEOUT = 10.0  # mission s from the land command to the rover on the deck (at least 3x land_time)
@@ -526,33 +527,30 @@ class CollectPhase:
         st.event(Ev.ROVER_LOADED, f"{rid}: loaded on the carrier at {flown:.1f} s", rid, flown=flown)
 
     async def _send_down(self, rnd: _Round, v: Vehicle) -> None:
-        """Land ``v`` on the carrier: its mission's landing on the planned stop, or - when the
-        carrier stopped more than ``RETARGET_OFFSET`` from it (autopilots stop within their
-        acceptance radius, an Ackermann carrier may overshoot) - over the carrier's live position
+        """Land ``v`` on the carrier: its mission's landing straight below it, or - when it hovers
+        more than ``RETARGET_OFFSET`` off the carrier (autopilots stop within their acceptance
+        radius, an Ackermann carrier may overshoot its stop) - over the carrier's live position
         first (DO_REPOSITION), then straight down, so that a rover lands on the deck, never beside it."""
         ctx, rid = self.ctx, v.name
-        c, stop = ctx.fleet.carrier, self._landing_point(rnd, rid)
-        off = None if c.enu is None or stop is None else math.hypot(c.enu[0] - stop[0], c.enu[1] - stop[1])
+        c = ctx.fleet.carrier
+        off = None if c.enu is None or v.enu is None else math.hypot(c.enu[0] - v.enu[0], c.enu[1] - v.enu[1])
         if off is None or off <= RETARGET_OFFSET or c.position is None:
             await ctx.command(v, "set_current", v.set_current(rnd.land_seq[rid]), seq=rnd.land_seq[rid])
             return
         lat, lon, _alt = c.position
         height = v.height if v.height is not None else MEET_HEIGHT
-        text = f"{rid}: the carrier stopped {off:.1f} m from the planned stop: landing over the carrier"
+        text = f"{rid}: {off:.1f} m off the carrier above its stop: landing over the carrier"
         ctx.record(Ev.ROVER_STATE, vehicle=rid, text=text, offset=off)
-        await ctx.command(v, "goto", v.goto(lat, lon, height))
+        try:
+            await ctx.command(v, "goto", v.goto(lat, lon, height))
+        except CommandRejected:  # it cannot be moved: its mission's landing on the planned stop
+            await ctx.command(v, "set_current", v.set_current(rnd.land_seq[rid]), seq=rnd.land_seq[rid])
+            return
         speed = ctx.mission.rovers.max_speed
-        await ctx.wait_for(v, lambda v: _over(v, c, RETARGET_DONE) or v.lost, off / speed + RETARGET_SLACK,
-                           "over the carrier")
+        with contextlib.suppress(TimeoutError):  # not quite over it in time: down from where it is
+            await ctx.wait_for(v, lambda v: _over(v, c, RETARGET_DONE) or v.lost,
+                               off / speed + RETARGET_SLACK, "over the carrier")
         await ctx.command(v, "land", v.land())
-
-    def _landing_point(self, rnd: _Round, rid: str) -> Vec3 | None:
-        """Where ``rid``'s mission lands it (its NAV_LAND item: the planned stop)."""
-        origin, items = self.ctx.fleet.carrier.origin, rnd.items.get(rid)
-        seq = rnd.land_seq.get(rid)
-        if origin is None or items is None or seq is None:
-            return None
-        return item_position(items[seq], origin, rnd.compiled.rovers[rid].home_height)
 
     async def _disarmed_on_deck(self, v: Vehicle) -> None:
         """A rover down on the deck counts as loaded once its motors are off, so the carrier never

@@ -121,4 +121,4 @@ def test_docs_state_how_long_a_landed_rover_is_given_to_disarm() -> None:
 def test_docs_state_when_a_rover_is_landed_over_the_carrier_instead_of_the_stop() -> None:
     from fleetctl.run.collect import RETARGET_OFFSET
 
-    assert f"more than {RETARGET_OFFSET:g} m from the planned stop" in (DOC.parent / "mavlink.md").read_text()
+    assert f"more than {RETARGET_OFFSET:g} m off the carrier" in (DOC.parent / "mavlink.md").read_text()

@@ -258,8 +258,10 @@ def param_answered(port: int, sysid: int, key: bytes | None, seconds: float = 3.
     if key is not None:
         mav.signing.secret_key = key
         mav.signing.sign_outgoing = True
-        mav.signing.link_id = 7  # a stream of its own: fleetctl's link 0 may have stamped later times
-        mav.signing.timestamp = int((time.time() - 1420070400) * 1e5)
+        mav.signing.link_id = 7  # a stream of its own
+        # an hour ahead: SITL run faster than real time dates its signing clock ahead of the wall
+        # clock (GPS time), and a timestamp more than 60 s behind it would be refused for that alone
+        mav.signing.timestamp = int((time.time() + 3600 - 1420070400) * 1e5)
     parser = mavlink2.MAVLink(None)
     parser.robust_parsing = True
     with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
