@@ -38,7 +38,7 @@ from fleetctl.mavlink.link import LinkError, MissionItem
 from fleetctl.mavlink.vehicle import CommandRejected, Vehicle
 from fleetctl.mission.flight import GROUND_HEIGHT, MEET_HEIGHT
 from fleetctl.mission.model import any_on_ground
-from fleetctl.run.carrier import upload
+from fleetctl.run.carrier import STAY_SPEED, upload
 from fleetctl.run.collect_timing import (
     CarrierNow,
     RoundClock,
@@ -528,13 +528,14 @@ class CollectPhase:
 
     async def _send_down(self, rnd: _Round, v: Vehicle) -> None:
         """Land ``v`` on the carrier: its mission's landing straight below it, or - when it hovers
-        more than ``RETARGET_OFFSET`` off the carrier (autopilots stop within their acceptance
+        more than ``RETARGET_OFFSET`` off the stopped carrier (autopilots stop within their acceptance
         radius, an Ackermann carrier may overshoot its stop) - over the carrier's live position
         first (DO_REPOSITION), then straight down, so that a rover lands on the deck, never beside it."""
         ctx, rid = self.ctx, v.name
         c = ctx.fleet.carrier
         off = None if c.enu is None or v.enu is None else math.hypot(c.enu[0] - v.enu[0], c.enu[1] - v.enu[1])
-        if off is None or off <= RETARGET_OFFSET or c.position is None:
+        moving = c.ground_speed is None or c.ground_speed > STAY_SPEED  # it is still coming to its stop
+        if off is None or off <= RETARGET_OFFSET or c.position is None or moving:
             await ctx.command(v, "set_current", v.set_current(rnd.land_seq[rid]), seq=rnd.land_seq[rid])
             return
         lat, lon, _alt = c.position

@@ -247,7 +247,8 @@ def probe(port: int, seconds: float = 3.0, *, sysids: Sequence[int] = (),
     return seen
 
 
-def param_answered(port: int, sysid: int, key: bytes | None, seconds: float = 3.0) -> bool:
+def param_answered(port: int, sysid: int, key: bytes | None, name: str = "SYSID_THISMAV",
+                   seconds: float = 3.0) -> bool:
     """Send PARAM_REQUEST_READ (signed with ``key``, or unsigned) to ``sysid`` through the team's
     port: does a PARAM_VALUE come back? (A vehicle enforcing signing ignores unsigned requests.)"""
     import socket
@@ -273,7 +274,7 @@ def param_answered(port: int, sysid: int, key: bytes | None, seconds: float = 3.
         while time.monotonic() < end:
             if addr is not None and time.monotonic() - sent > 0.5:
                 sent = time.monotonic()
-                sock.sendto(mav.param_request_read_encode(sysid, 1, b"SYSID_THISMAV", -1).pack(mav), addr)
+                sock.sendto(mav.param_request_read_encode(sysid, 1, name.encode(), -1).pack(mav), addr)
             try:
                 data, frm = sock.recvfrom(65536)
             except TimeoutError:
@@ -282,7 +283,7 @@ def param_answered(port: int, sysid: int, key: bytes | None, seconds: float = 3.
                 if msg.get_srcSystem() != sysid:
                     continue
                 addr = frm
-                if msg.get_type() == "PARAM_VALUE":
+                if msg.get_type() == "PARAM_VALUE" and msg.param_id.rstrip("\x00") == name:
                     return True
     return False
 

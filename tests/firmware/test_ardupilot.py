@@ -185,9 +185,10 @@ def test_signing_is_provisioned_and_enforced(tmp_path: Path) -> None:
         assert prov.returncode == 0, prov.stdout + prov.stderr
         team.wait_ready()
         port, raw = team.fleet.gcs_port, bytes.fromhex(key)
-        assert param_answered(port, 11, raw)  # signed: answered
-        assert not param_answered(port, 11, None)  # unsigned: ignored by the firmware
-        assert not param_answered(port, 11, bytes.fromhex("77" * 32))  # another key: ignored
+        # each asks for a parameter of its own: a late answer to one is no answer to the next
+        assert param_answered(port, 11, raw, "SYSID_THISMAV")  # signed: answered
+        assert not param_answered(port, 11, None, "FRAME_CLASS")  # unsigned: ignored by the firmware
+        assert not param_answered(port, 11, bytes.fromhex("77" * 32), "FRAME_TYPE")  # another key: ignored
         proc, deploy = team.fly("deploy")
         assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-2000:] + team.firmware_tail()
         assert deploy["result"] == "complete" and deploy["link"]["rejected_unsigned"] == 0, deploy
