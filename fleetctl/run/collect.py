@@ -324,6 +324,13 @@ class CollectPhase:
             # mission s the airborne rovers will have burnt when the round starts, as foreseen now
             ahead = began - read_at + self._attempt_cost + self._start_cost
             planned = [self._burnt(c, airborne, ahead) for c in crs]
+            for c in planned:  # the controller's own time leaves it too little to reach the ground
+                if c.id in airborne and c.range < max(c.position[2], _to_approach(c.position[2])):
+                    self._short_of_energy(c.id, ahead, battery[c.id] / speed)
+            planned = [c for c in planned if self.board.in_round(c.id)]
+            crs = [c for c in crs if self.board.in_round(c.id)]
+            if not crs:
+                break
             problem = CollectProblem(m.carrier_spec(), m.rovers.motion(any_on_ground(crs)), start, heading,
                                      tuple(planned), approach_height=MEET_HEIGHT, **m.environment())
             plan = await self.planning.plan("collect", problem)
