@@ -171,6 +171,11 @@ class CollectPhase:
         self.resumed = resumed
         self._speed_seen = (-math.inf, 0.0)  # (mission clock, carrier speed) of the last sample
         self._accelerating = True
+        # the controller's own cost in mission s (its rovers in the air burn battery meanwhile)
+        self._read_at: float | None = None  # mission clock when the round's batteries were read
+        self._attempt_cost = 0.0  # the last plan-and-check attempt
+        self._start_cost = 0.0  # the last round's start: from its plan checked to its route started
+        self._planned_at: float | None = None  # mission clock when this round's plan passed its check
 
     # ============================================================================== the loop
     async def run(self, rover_ids: Iterable[str] | None = None) -> PhaseResult:
@@ -234,6 +239,7 @@ class CollectPhase:
         """Positions and ranges of ``batch`` from fresh battery readings (not the ~1 Hz stream)."""
         ctx, rp, rovers = self.ctx, self.ctx.mission.rovers, self.ctx.fleet.rovers
         await asyncio.gather(*(rovers[rid].refresh_battery() for rid in batch))
+        self._read_at = ctx.clock()
         crs = []
         for rid in batch:
             v = rovers[rid]
@@ -297,27 +303,65 @@ class CollectPhase:
     async def _plan_within_reserve(self, crs: list[CollectRover], start: Vec3, heading: float) -> Plan:
         """A plan that brings no rover below its reserve: a rover in the air burns its battery while
         it waits (hovering costs as flying does); one the plan would bring too low gets a shorter
-        range and the round is planned again; after ENERGY_REPLANS it is left out (unreachable)."""
+        range and the round is planned again; after ENERGY_REPLANS it is left out (unreachable).
+
+        The controller budgets for itself: a rover in the air also burns its battery while the
+        controller plans and checks, so each plan is made and checked with the battery it will
+        have when the round starts - its reading less the mission time since it was read
+        (:attr:`_read_at`), less what is still to come before the round flies: this attempt's own
+        planning (predicted as the last attempt's measured cost) and the round's start (uploads,
+        measured on the last round). Each attempt's cost is journalled (``plan_budget``)."""
         m, ctx = self.ctx.mission, self.ctx
         airborne = {c.id for c in crs if c.position[2] > GROUND_HEIGHT}
         battery = {c.id: c.range for c in crs}
         r = m.rovers
+        speed = r.max_speed
         spent = {c.id: handling_range(r.max_speed, r.accel, r.land_time, r.takeoff_time, c.id not in airborne)
                  for c in crs}  # the planner plans path lengths: the rest of a flight's energy is not in them
         crs = [dataclasses.replace(c, range=max(c.range - spent[c.id], MIN_RANGE)) for c in crs]
+        read_at = self._read_at if self._read_at is not None else ctx.clock()
         for attempt in range(ENERGY_REPLANS + len(crs) + 1):
+            began = ctx.clock()
+            # mission s the airborne rovers will have burnt when the round starts, as foreseen now
+            ahead = began - read_at + self._attempt_cost + self._start_cost
+            planned = [self._burnt(c, airborne, ahead) for c in crs]
+            for c in planned:  # the controller's own time leaves it too little to reach the ground
+                if c.id in airborne and c.range < max(c.position[2], _to_approach(c.position[2])):
+                    self._short_of_energy(c.id, ahead, battery[c.id] / speed)
+            planned = [c for c in planned if self.board.in_round(c.id)]
+            crs = [c for c in crs if self.board.in_round(c.id)]
+            if not crs:
+                break
             problem = CollectProblem(m.carrier_spec(), m.rovers.motion(any_on_ground(crs)), start, heading,
-                                     tuple(crs), approach_height=MEET_HEIGHT, **m.environment())
+                                     tuple(planned), approach_height=MEET_HEIGHT, **m.environment())
             plan = await self.planning.plan("collect", problem)
-            short = {s.rover: s for s in energy_shortfalls(plan, battery, airborne, problem.carrier,
-                                                           m.rovers.max_speed)}
+            lag = ctx.clock() - read_at + self._start_cost  # measured up to now, the start foreseen
+            now_battery = {rid: b - lag * speed if rid in airborne else b for rid, b in battery.items()}
+            short = {s.rover: s
+                     for s in energy_shortfalls(plan, now_battery, airborne, problem.carrier, speed)}
+            self._attempt_cost = cost = ctx.clock() - began
+            ctx.record(Ev.PLAN_BUDGET, attempt=attempt, cost=cost, since_read=ctx.clock() - read_at,
+                       ahead=ahead, start_cost=self._start_cost, speedup=ctx.speedup,
+                       airborne=sorted(airborne), short=sorted(short))
             if not short:
+                self._planned_at = ctx.clock()
                 return plan
-            crs = self._shrink(crs, short, hopeless=attempt >= ENERGY_REPLANS)
+            # the shrunk ranges are the ranges at the round's start as seen now: back to the reading
+            back = {c.id: c for c in self._shrink(planned, short, hopeless=attempt >= ENERGY_REPLANS)}
+            crs = [c if c.id not in short else dataclasses.replace(
+                       back[c.id], range=back[c.id].range + (lag * speed if c.id in airborne else 0.0))
+                   for c in crs if c.id in back]
             if not crs:
                 break
             ctx.record(Ev.ROVER_STATE, text="replanned: rovers short of energy", rovers=sorted(short))
         return Plan("collect", "none", start, heading, [])  # nobody left to collect this round
+
+    def _burnt(self, c: CollectRover, airborne: set[str], seconds: float) -> CollectRover:
+        """``c`` with the range an airborne rover burns in ``seconds`` of mission time taken off."""
+        if c.id not in airborne or seconds <= 0.0:
+            return c
+        burnt = seconds * self.ctx.mission.rovers.max_speed
+        return dataclasses.replace(c, range=max(c.range - burnt, MIN_RANGE))
 
     def _shrink(
         self, crs: list[CollectRover], short: dict[str, Shortfall], hopeless: bool
@@ -413,6 +457,8 @@ class CollectPhase:
                 st.event(Ev.ROVER_FAILED, f"{rid}: mission upload failed ({r})", rid)
         await self.carrier.start_route(rnd.compiled)
         rnd.start = ctx.clock()
+        if self._planned_at is not None:
+            self._start_cost = rnd.start - self._planned_at
         if self.t0 is None:
             self.t0 = self.result.started = st.phase_started = rnd.start
         rnd.clock = RoundClock(rnd.plan, ctx.mission.carrier_spec(), rnd.start)

@@ -61,6 +61,7 @@ class Ev(StrEnum):
     # planning and commands
     PLAN = "plan"
     REPLAN = "replan"
+    PLAN_BUDGET = "plan_budget"  # collection: one plan-and-check attempt's cost in mission s (batteries burn)
     COMMAND = "command"
     ACK = "ack"
     SPARES = "spares"
