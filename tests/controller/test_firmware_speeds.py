@@ -66,6 +66,12 @@ def test_firmware_speeds_default_to_set_on_real_links_and_keep_on_the_sim(tmp_pa
         mission_from(d, tmp_path)
 
 
+def documented_params(text: str) -> set[str]:
+    """The parameter names in the tables of docs/autopilots.md (first column cells like `A`, `B`)."""
+    pairs = re.findall(r"\| `([A-Z_]+)`(?:, `([A-Z_]+)`)? \|", text)
+    return {n for pair in pairs for n in pair if n}
+
+
 def test_docs_autopilots_states_the_measured_constants_and_every_parameter() -> None:
     text = DOC.read_text()
     assert f"+ {apm.COPTER_TAKEOFF_OVERHEAD:.1f} s" in text
@@ -73,8 +79,7 @@ def test_docs_autopilots_states_the_measured_constants_and_every_parameter() -> 
     assert f"(v/a + {apm.COPTER_LEG_OVERHEAD:.1f} s)" in text
     assert f"(v/a + {apm.ROVER_LEG_OVERHEAD:.1f} s)" in text
     assert f"more than {HOME_ALT_TOLERANCE:g} m off" in text
-    documented = set(re.findall(r"\| `([A-Z_]+)`(?:, `([A-Z_]+)`)? \|", text))
-    names = {n for pair in documented for n in pair if n}
+    names = documented_params(text)
     for p in (*apm.COPTER_SPEEDS, *apm.ROVER_SPEEDS):
         assert p.name in names, p.name
         if p.scale == 100.0:  # cm/s rows state the range set
@@ -104,8 +109,7 @@ def test_px4_handling_is_planned_and_documented(tmp_path: Path) -> None:
     assert f"`TAKEOFF_HEIGHT / climb_rate + {px4.MC_TAKEOFF_OVERHEAD:.1f} s`" in text
     assert f"`MEET_HEIGHT / land_speed + {px4.MC_LAND_OVERHEAD:.1f} s`" in text
     assert f"`v / (v/a + {px4.MC_LEG_OVERHEAD:.1f} s)`" in text
-    documented = set(re.findall(r"\| `([A-Z_]+)`(?:, `([A-Z_]+)`)? \|", text))
-    names = {n for pair in documented for n in pair if n}
+    names = documented_params(text)
     for p in (*px4.MC_SPEED_PARAMS, *px4.ROVER_SPEED_PARAMS):
         assert p.name in names, p.name
     assert "| PX4 | v1.18" in text  # the tested firmware table
