@@ -597,6 +597,9 @@ class CollectPhase:
         with contextlib.suppress(TimeoutError):  # not quite over it in time: down from where it is
             await ctx.wait_for(v, lambda v: _over(v, c, RETARGET_DONE) or v.lost,
                                off / speed + RETARGET_SLACK, "over the carrier")
+        trouble = rnd.trouble.get(rid)
+        if trouble is not None:
+            trouble.commanded("LAND")
         await ctx.command(v, "land", v.land())
 
     async def _disarmed_on_deck(self, v: Vehicle) -> None:

@@ -168,12 +168,22 @@ def _lost_reason(rid: str, missing: dict[str, str], state: FleetState) -> str:
 
 def _is_airborne(v: VehicleState) -> bool | None:
     """By telemetry: the landed state when the rover reports one, else its height above home;
-    None (unknown) without either."""
+    None (unknown) without either. A rover whose flight was reported (climbing, en route, on its
+    task: MISSION_ITEM_REACHED and the like) after its last position or landed state is in the air:
+    that report is the newer telemetry."""
     if v.on_ground is not None:
-        return not v.on_ground
-    if v.alt is not None:
-        return v.alt > AIRBORNE_HEIGHT
-    return None
+        up: bool | None = not v.on_ground
+    elif v.alt is not None:
+        up = v.alt > AIRBORNE_HEIGHT
+    else:
+        up = None
+    newer = v.state_at is not None and (v.telemetry_at is None or v.state_at > v.telemetry_at)
+    if not up and newer and v.state in _IN_THE_AIR:
+        return True
+    return up
+
+
+_IN_THE_AIR = frozenset({VehicleStatus.CLIMBING, VehicleStatus.EN_ROUTE, VehicleStatus.ON_TASK})
 
 
 def _on_the_deck(f: RunFacts, v: VehicleState) -> bool:

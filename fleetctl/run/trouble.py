@@ -35,6 +35,11 @@ class Trouble:
         self.failsafe = failsafe
         self.been_up = False
         self.why: str | None = None
+        self.ordered: set[str] = set()  # modes the controller itself commanded (not a failsafe)
+
+    def commanded(self, mode: str) -> None:
+        """The controller put the rover in ``mode`` (e.g. LAND onto the carrier): not a failsafe."""
+        self.ordered.add(mode)
 
     def seen(self, v: Vehicle) -> bool:
         if self.why is not None:
@@ -43,7 +48,7 @@ class Trouble:
             self.been_up = True
         if v.battery_pct is not None and v.battery_pct <= EMPTY_BATTERY_PCT:
             self.why = f"battery empty ({v.battery_pct:.0f} %)"
-        elif self.failsafe and v.armed and v.mode in FAILSAFE_MODES:
+        elif self.failsafe and v.armed and v.mode in FAILSAFE_MODES and v.mode not in self.ordered:
             self.why = f"switched to {v.mode} (failsafe)"
         elif self.failsafe and v.armed and v.critical:
             self.why = "its autopilot reports a critical state"
