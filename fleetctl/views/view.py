@@ -1,8 +1,12 @@
-"""What a run shows while flying: the live terminal view implements :class:`View`."""
+"""What a run shows while flying: the live terminal view and the web map implement :class:`View`.
+
+A view is given the state it draws: one :class:`FleetState` (``start``), or, in a run of several
+teams, each team's (``start_team``, with ``declare_teams`` naming the teams in order first).
+"""
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
@@ -19,6 +23,17 @@ class View:
     async def stop(self) -> None:  # pragma: no cover - interface
         pass
 
+    def declare_teams(self, teams: Sequence[str]) -> None:
+        """The teams of a run of several, in the order they are shown (the mission's carriers)."""
+
+    def start_team(self, team: str, state: FleetState, fleet: Fleet | None) -> None:
+        """``team``'s state (a run of several teams: each team's run calls this as it starts a
+        phase). A view that shows every team draws it beside the others; this default, for a view
+        of one state, shows the first team it is given."""
+        first = self.__dict__.setdefault("_first_team", team)
+        if team == first:
+            self.start(state, fleet)
+
 
 class Views(View):
     """Several views fed the same state (the terminal view and the web map)."""
@@ -33,6 +48,14 @@ class Views(View):
     async def stop(self) -> None:
         for v in self.views:
             await v.stop()
+
+    def declare_teams(self, teams: Sequence[str]) -> None:
+        for v in self.views:
+            v.declare_teams(teams)
+
+    def start_team(self, team: str, state: FleetState, fleet: Fleet | None) -> None:
+        for v in self.views:
+            v.start_team(team, state, fleet)
 
     def add_status(self, line: Callable[[], str]) -> None:
         """Status lines go to every view that shows them (the terminal view)."""
