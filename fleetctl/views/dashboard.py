@@ -314,8 +314,8 @@ class LiveView(View):
         self.teams.set_main(state)
         self._begin()
 
-    def declare_teams(self, teams: Sequence[str]) -> None:
-        self.teams.declare(teams)
+    def declare_teams(self, teams: Sequence[str], *, every: bool = False) -> None:
+        self.teams.declare(teams, every=every)
 
     def start_team(self, team: str, state: FleetState, fleet: Fleet | None) -> None:
         """Draw ``team``'s state beside the other teams' (:func:`render_teams`)."""

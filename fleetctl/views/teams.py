@@ -46,8 +46,13 @@ class ShownTeams:
         self._set_at: dict[str, int] = {}  # team -> when its state was last set (a counter)
         self._sets = 0
 
-    def declare(self, teams: Iterable[str]) -> None:
-        """The teams' order (colours follow it); known teams keep their place."""
+    def declare(self, teams: Iterable[str], *, every: bool = False) -> None:
+        """The teams' order (colours follow it): known teams keep their place, unless ``every``
+        (the complete list, e.g. a run's status on the bus: it also orders the teams already known)."""
+        teams = list(teams)
+        if every:
+            self.order = list(dict.fromkeys(teams)) + [t for t in self.order if t not in teams]
+            del self.order[MAX_TEAMS:]
         for t in teams:
             if t not in self.order and len(self.order) < MAX_TEAMS:
                 self.order.append(t)

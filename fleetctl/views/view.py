@@ -23,8 +23,9 @@ class View:
     async def stop(self) -> None:  # pragma: no cover - interface
         pass
 
-    def declare_teams(self, teams: Sequence[str]) -> None:
-        """The teams of a run of several, in the order they are shown (the mission's carriers)."""
+    def declare_teams(self, teams: Sequence[str], *, every: bool = False) -> None:
+        """The teams of a run of several, in the order they are shown (the mission's carriers);
+        ``every``: the complete list, which also orders the teams already known."""
 
     def start_team(self, team: str, state: FleetState, fleet: Fleet | None) -> None:
         """``team``'s state (a run of several teams: each team's run calls this as it starts a
@@ -49,9 +50,9 @@ class Views(View):
         for v in self.views:
             await v.stop()
 
-    def declare_teams(self, teams: Sequence[str]) -> None:
+    def declare_teams(self, teams: Sequence[str], *, every: bool = False) -> None:
         for v in self.views:
-            v.declare_teams(teams)
+            v.declare_teams(teams, every=every)
 
     def start_team(self, team: str, state: FleetState, fleet: Fleet | None) -> None:
         for v in self.views:

@@ -316,8 +316,8 @@ class WebMapView(View):
         self.teams.set_main(state)
         self._serve_once()
 
-    def declare_teams(self, teams: Sequence[str]) -> None:
-        self.teams.declare(teams)
+    def declare_teams(self, teams: Sequence[str], *, every: bool = False) -> None:
+        self.teams.declare(teams, every=every)
 
     def start_team(self, team: str, state: FleetState, fleet: Fleet | None) -> None:
         """Draw ``team``'s state beside the other teams' (in its colour)."""

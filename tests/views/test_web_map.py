@@ -24,7 +24,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from views_helpers import ORIGIN, mission_dict, write_mission
+from views_helpers import TWO_TEAMS, mission_dict, write_mission
 
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
 CHROMIUM_FLAGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
@@ -149,23 +149,6 @@ def test_deploy_shows_vehicles_moving_to_their_tasks(tmp_path: Path) -> None:
 
 
 # -- two teams, bound beyond loopback: every team drawn, and the token ------------------------------
-
-CARRIER = {"connection": "sim", "heading_deg": 0, "max_speed": 10.0, "accel": 5.0, "turn_rate": None,
-           "unload_time": 1.0, "load_time": 1.0}
-TWO_TEAMS: dict[str, Any] = {  # each carrier drives north before its rovers can reach their tasks
-    "name": "twoteams_map",
-    "origin": ORIGIN,
-    "carriers": [
-        {"id": "c1", "sysid": 1, "position": [0, 0], **CARRIER, "fleet": {"count": 2, "sysid_start": 11}},
-        {"id": "c2", "sysid": 2, "position": [90, 0], **CARRIER, "fleet": {"count": 2, "sysid_start": 31}},
-    ],
-    "rovers": {"max_speed": 4.0, "accel": None, "deploy_range": 30.0, "endurance_range": 600.0,
-               "reserve": 0.1},
-    "tasks": [{"id": "t1", "position": [-10, 70, 5]}, {"id": "t2", "position": [10, 80, 4]},
-              {"id": "t3", "position": [80, 75, 5]}, {"id": "t4", "position": [100, 70, 4]}],
-    "sim": {"speedup": 4.0, "faults": []},
-    "links": {"heartbeat_timeout": 3.0},
-}
 
 READ_TEAMS = """() => {
     const colour = (e, prop) => e ? getComputedStyle(e)[prop] : null;
