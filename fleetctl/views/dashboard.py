@@ -249,6 +249,9 @@ def render_teams(teams: ShownTeams, max_rows: int | None = None, status: Sequenc
         table.add_row(Text(team.team or "", style=f"bold {team.colour}"),
                       *_cells(team.state, v, cols, legs[team.team]))
     parts: list[Any] = [_teams_header(teams), _team_rows(teams)]
+    link = _teams_link(teams)
+    if link is not None:
+        parts.append(Text.assemble(("link ", "bold"), (link.link_line, link.link_style)))
     parts += [Text(line, style="dim" if line.startswith("bus: connected") else "yellow", overflow="ellipsis",
                    no_wrap=True) for line in status]
     parts.append(table)
@@ -259,9 +262,16 @@ def render_teams(teams: ShownTeams, max_rows: int | None = None, status: Sequenc
     return Group(*parts)
 
 
+def _teams_link(teams: ShownTeams) -> FleetState | None:
+    """The state whose link line the view shows (the teams share one set of links): the first
+    with something to say."""
+    return next((t.state for t in teams.shown() if t.state.link_line), None)
+
+
 def fit_teams(teams: ShownTeams, height: int, status_lines: int) -> tuple[int, int]:
     """(vehicle rows, event lines) of several teams that fit a terminal ``height`` lines high."""
-    fixed = 1 + len(teams.shown()) + status_lines + 1 + 1 + 1
+    link = _teams_link(teams) is not None
+    fixed = 1 + len(teams.shown()) + link + status_lines + 1 + 1 + 1
     free = max(height - fixed, 4)
     events = min(MAX_EVENTS, max(2, free // 4))
     return max(free - events, 2), events

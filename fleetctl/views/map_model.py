@@ -113,9 +113,10 @@ def teams_frame(teams: ShownTeams) -> dict[str, Any]:
         return {"mission": teams.mission_name, "T": None, "phase": "", "stop": 0, "stops": 0, "elapsed": None,
                 "planned": None, "ttg": None, "replans": 0, "teams": [], "vehicles": [], "events": []}
     owner = {v.id: t.team for t, v in teams.vehicles()}
-    team_docs, vehicles = [], []
+    team_docs, vehicles, frames = [], [], []
     for t in shown:
         f = frame(t.state)
+        frames.append(f)
         T, ttg = f["T"], f["ttg"]
         team_docs.append({"team": t.team, "colour": t.colour, "phase": f["phase"], "stop": f["stop"],
                           "stops": f["stops"], "elapsed": f["elapsed"], "planned": f["planned"], "ttg": ttg,
@@ -125,8 +126,7 @@ def teams_frame(teams: ShownTeams) -> dict[str, Any]:
     events = [{"T": _r(ev.mission_time, 1), "kind": ev.kind, "text": ev.text, "team": t.team if t else None}
               for t, ev in teams.events(EVENTS_SHOWN)]
     if not teams.several:
-        one = frame(shown[0].state)
-        return one | {"teams": team_docs, "vehicles": vehicles, "events": events}
+        return frames[0] | {"teams": team_docs, "vehicles": vehicles, "events": events}
     ttgs = [d["ttg"] for d in team_docs if d["ttg"] is not None]
     phases = list(dict.fromkeys(d["phase"] for d in team_docs))
     return {"mission": teams.mission_name, "T": _r(teams.mission_time, 1), "phase": " · ".join(phases),

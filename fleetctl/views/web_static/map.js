@@ -188,6 +188,13 @@
       s.dataset.eta = t.eta === null ? "" : fmt(t.eta);
       s.textContent = `■ ${t.team} ${t.phase}` + (t.stops ? ` · stop ${t.stop}/${t.stops}` : "") + eta
         + (t.replans ? ` · ${t.replans} replans` : "");
+      if (t.planned) {  // the phase's progress: elapsed of planned
+        const bar = document.createElement("span"), done = document.createElement("i");
+        bar.className = "bar"; bar.title = `${fmt(t.elapsed)} of ${fmt(t.planned)} s planned`;
+        done.style.width = Math.min(100, 100 * (t.elapsed || 0) / t.planned).toFixed(1) + "%";
+        done.style.background = t.colour;
+        bar.appendChild(done); s.appendChild(bar);
+      }
       box.appendChild(s);
     }
   }
