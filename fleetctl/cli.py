@@ -907,7 +907,7 @@ def _web_view(args: argparse.Namespace, origin: object, headless: bool) -> Any:
         if headless:
             print(line(link), flush=True)
 
-    if not headless and token is not None:  # once, before the live view takes the terminal
+    if not headless and token is not None and port != 0:  # once, before the live view takes the terminal
         shown = f"[{host}]" if ":" in host else host
         print(line(f"http://{shown}:{port}/?token={token}"), flush=True)
     return WebMapView(host, port, origin=origin, tiles=args.tiles, on_ready=ready,  # type: ignore[arg-type]
@@ -918,13 +918,22 @@ def _with_web(args: argparse.Namespace, view: Any, origin: object) -> Any:
     """``view`` plus the web map of ``--web`` (its address shown as a status line of the live view)."""
     from fleetctl.views.dashboard import HeadlessView
     from fleetctl.views.view import Views
+    from fleetctl.views.web import parse_address
 
     web = _web_view(args, origin, isinstance(view, HeadlessView))
     if web is None:
         return view
+    any_port = parse_address(args.web)[1] == 0  # chosen when it listens: its link was not printed
     if hasattr(view, "add_status"):
-        view.add_status(lambda: f"web map: {web.error or web.server.url}"
-                        + (" (token required: its link was printed at start)" if web.server.token else ""))
+        def line() -> str:
+            server = web.server
+            if web.error or server.token is None:
+                return f"web map: {web.error or server.url}"
+            if any_port:
+                return f"web map: {server.link}"
+            return f"web map: {server.url} (token required: its link was printed at start)"
+
+        view.add_status(line)
     return Views(view, web)
 
 
