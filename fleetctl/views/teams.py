@@ -106,8 +106,9 @@ class ShownTeams:
 
     @property
     def mission_name(self) -> str:
+        """The one state's mission name (watch: the controller's once it said it), else the first team's."""
         shown = self.shown()
-        if self.main is not None and (not shown or self.main.mission_name not in ("?", "")):
+        if self.main is not None and (not self.states or self.main.mission_name != "?"):
             return self.main.mission_name
         return shown[0].state.mission_name if shown else "?"
 

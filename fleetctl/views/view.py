@@ -17,6 +17,8 @@ if TYPE_CHECKING:
 class View:
     """The interface the runner drives (:mod:`fleetctl.views.dashboard` implements it)."""
 
+    _first_team: str | None = None  # the team a view of one state shows (start_team's default)
+
     def start(self, state: FleetState, fleet: Fleet | None) -> None:  # pragma: no cover - interface
         pass
 
@@ -31,8 +33,9 @@ class View:
         """``team``'s state (a run of several teams: each team's run calls this as it starts a
         phase). A view that shows every team draws it beside the others; this default, for a view
         of one state, shows the first team it is given."""
-        first = self.__dict__.setdefault("_first_team", team)
-        if team == first:
+        if self._first_team is None:
+            self._first_team = team
+        if team == self._first_team:
             self.start(state, fleet)
 
 

@@ -137,3 +137,23 @@ def test_a_one_team_view_is_given_every_team_its_ports_say() -> None:
     assert spy.teams.order == ["c1", "c2"]
     text = out.getvalue()
     assert "c1 stop_reached" in text and "c2 stop_reached" in text
+
+
+def test_a_view_of_one_state_shows_the_first_team() -> None:
+    """A view that draws one state (View's default start_team) is given the first team's."""
+    from fleetctl.views.view import View
+
+    class One(View):
+        def __init__(self) -> None:
+            self.started: list[FleetState] = []
+
+        def start(self, state: FleetState, fleet: Any) -> None:
+            self.started.append(state)
+
+    one = One()
+    states = _two_teams(one, FakeClock(0.0))  # c2's port starts first
+    assert one.started == [states["c2"]]
+    again = _team_state("c2", FakeClock(0.0))
+    one.start_team("c2", again, None)  # the same team's next phase
+    one.start_team("c1", states["c1"], None)
+    assert one.started == [states["c2"], again]
