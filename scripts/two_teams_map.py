@@ -1,12 +1,12 @@
 #!/usr/bin/env python3
-"""The screenshot of the web map with every team (docs/images/two-teams-map.png), from a real run.
+"""The screenshot of the web map with every team (docs/two-teams-map.png), from a real run.
 
 Flies ``fleetctl deploy --mission missions/two_carriers.yaml --web 127.0.0.1:PORT`` on the
 embedded simulated fleet, opens the map in Debian's chromium (headless, through Playwright) and
 takes the shot once every team shows its ETA and at least ``--flying`` rovers of each team have
 left their deck; then stops the run (Ctrl-C: the airborne rovers hold, the records are written).
 
-    scripts/two_teams_map.py                          # writes docs/images/two-teams-map.png
+    scripts/two_teams_map.py                          # writes docs/two-teams-map.png
     scripts/two_teams_map.py --out /tmp/map.png --speedup 5 --flying 3
 """
 
@@ -85,7 +85,7 @@ def stop_run(run: subprocess.Popen[str]) -> None:
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--mission", default=str(REPO / "missions" / "two_carriers.yaml"))
-    ap.add_argument("--out", default=str(REPO / "docs" / "images" / "two-teams-map.png"))
+    ap.add_argument("--out", default=str(REPO / "docs" / "two-teams-map.png"))
     ap.add_argument("--speedup", type=float, default=5.0, help="simulated seconds per wall second")
     ap.add_argument("--flying", type=int, default=3, help="rovers of each team off their deck at the shot")
     ap.add_argument("--size", default="1400x800", help="viewport WIDTHxHEIGHT")
