@@ -193,6 +193,9 @@ class MapServer:
             self.unauthorised += 1
             return web.Response(status=403, text="wrong token for this map\n")
         resp: web.StreamResponse = await handler(request)
+        if resp.prepared:  # the event stream: its headers are out
+            return resp
+        resp.headers["Referrer-Policy"] = "no-referrer"  # the link's token goes nowhere else (tiles)
         if request.query.get("token") and request.cookies.get(self.cookie) != self.token:
             # the page's link: the page's script, style and event stream then carry the cookie
             resp.set_cookie(self.cookie, self.token, httponly=True, samesite="Strict", path="/")

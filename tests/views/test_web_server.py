@@ -246,6 +246,7 @@ async def test_beyond_loopback_page_and_stream_answer_401_or_403_without_the_tok
         async with aiohttp.ClientSession(cookie_jar=aiohttp.CookieJar(unsafe=True)) as s:
             async with s.get(base, params={"token": token}) as r:
                 assert r.status == 200 and "map.js" in await r.text()
+                assert r.headers["Referrer-Policy"] == "no-referrer" and r.cookies[view.server.cookie]
             async with s.get(base + "static/map.js") as r:
                 assert r.status == 200  # the cookie the link set
             stream = await s.get(base + "events")
