@@ -869,7 +869,8 @@ async def _keys_provision(mission: Mission, key: object, timeout: float) -> int:
 def _add_view_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--web", metavar="HOST:PORT",
                    help="also serve a live map page there (e.g. 127.0.0.1:8080; 0.0.0.0:PORT lets other "
-                        "machines see it); self-contained, no internet needed")
+                        "machines see it, with a token: the link printed at start, or "
+                        "FLEETCTL_WEB_TOKEN); self-contained, no internet needed")
     p.add_argument("--tiles", metavar="URL",
                    help="with --web: draw map tiles under the map from this XYZ template, e.g. "
                         "http://tiles.local/{z}/{x}/{y}.png (default: none)")
@@ -878,38 +879,64 @@ def _add_view_options(p: argparse.ArgumentParser) -> None:
 
 
 def _web_view(args: argparse.Namespace, origin: object, headless: bool) -> Any:
-    """The web map view of ``--web`` (None without it); refuses a bad address or --tiles alone."""
+    """The web map view of ``--web`` (None without it); refuses a bad address, a bad
+    FLEETCTL_WEB_TOKEN or --tiles alone. Bound beyond loopback the map has a token: its link is
+    printed once (``web map: http://HOST:PORT/?token=...``: with --headless when the map listens,
+    else before the live view starts); a token from the environment is not printed."""
     if getattr(args, "tiles", None) and not args.web:
         raise CliError("--tiles needs --web HOST:PORT")
     if not getattr(args, "web", None):
         return None
-    from fleetctl.views.web import WebError, WebMapView, parse_address
+    from fleetctl.views.web import TOKEN_ENV, WebError, WebMapView, map_token, parse_address
 
     try:
         host, port = parse_address(args.web)
+        token, from_env = map_token(host)
     except WebError as e:
         raise CliError(str(e)) from None
     if args.tiles and origin is None:
         raise CliError("--tiles needs the mission origin: watch has no mission file (use replay or the "
                        "flying commands)")
 
-    def ready(url: str) -> None:
-        if headless:
-            print(f"web map: {url}", flush=True)
+    def line(link: str) -> str:
+        if token is None:
+            return f"web map: {link}"
+        url = link.split("?", 1)[0]
+        if from_env:
+            return f"web map: {url}?token=${TOKEN_ENV} (the token in {TOKEN_ENV}: bound beyond loopback)"
+        return f"web map: {link} (the token is required: bound beyond loopback; {TOKEN_ENV} sets your own)"
 
-    return WebMapView(host, port, origin=origin, tiles=args.tiles, on_ready=ready)  # type: ignore[arg-type]
+    def ready(link: str) -> None:
+        if headless:
+            print(line(link), flush=True)
+
+    if not headless and token is not None and port != 0:  # once, before the live view takes the terminal
+        shown = f"[{host}]" if ":" in host else host
+        print(line(f"http://{shown}:{port}/?token={token}"), flush=True)
+    return WebMapView(host, port, origin=origin, tiles=args.tiles, on_ready=ready,  # type: ignore[arg-type]
+                      token=token)
 
 
 def _with_web(args: argparse.Namespace, view: Any, origin: object) -> Any:
     """``view`` plus the web map of ``--web`` (its address shown as a status line of the live view)."""
     from fleetctl.views.dashboard import HeadlessView
     from fleetctl.views.view import Views
+    from fleetctl.views.web import parse_address
 
     web = _web_view(args, origin, isinstance(view, HeadlessView))
     if web is None:
         return view
+    any_port = parse_address(args.web)[1] == 0  # chosen when it listens: its link was not printed
     if hasattr(view, "add_status"):
-        view.add_status(lambda: f"web map: {web.error or web.server.url}")
+        def line() -> str:
+            server = web.server
+            if web.error or server.token is None:
+                return f"web map: {web.error or server.url}"
+            if any_port:
+                return f"web map: {server.link}"
+            return f"web map: {server.url} (token required: its link was printed at start)"
+
+        view.add_status(line)
     return Views(view, web)
 
 

@@ -618,8 +618,10 @@ def start_bus(mission: Mission, config: BusConfig | None, journal: Any, state: F
 
 
 def iter_topics(prefix: str) -> Iterable[str]:
-    """The topics ``fleetctl watch`` subscribes to."""
-    return (f"{prefix}/status", f"{prefix}/plan", f"{prefix}/vehicles/+/telemetry", f"{prefix}/events")
+    """The topics ``fleetctl watch`` subscribes to: the controller's, and every team's under
+    ``<prefix>/teams/<team>/`` (docs/mqtt.md)."""
+    kinds = ("status", "plan", "vehicles/+/telemetry", "events")
+    return (*(f"{prefix}/{k}" for k in kinds), *(f"{prefix}/teams/+/{k}" for k in kinds))
 
 
 __all__ = ["BUFFER_SIZE", "TELEMETRY_HZ", "BusConfig", "BusConfigError", "FleetBus", "Secret",

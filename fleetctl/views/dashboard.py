@@ -25,6 +25,7 @@ from fleetctl.run.kinds import Ev
 from fleetctl.run.state import Event, FleetState, VehicleState
 from fleetctl.views.eta import FLYING, PlannedLeg, mission_time_to_go, planned_legs, time_to_go
 from fleetctl.views.levels import STYLE, battery_level, link_level
+from fleetctl.views.teams import ShownTeam, ShownTeams
 from fleetctl.views.view import View
 
 if TYPE_CHECKING:
@@ -170,6 +171,112 @@ def render(state: FleetState, max_rows: int | None = None, status: Sequence[str]
     return Group(*parts)
 
 
+def _team_rows(teams: ShownTeams) -> Table:
+    """One line per team: the team in its colour, phase, stop k of N, elapsed vs planned, ETA,
+    time to go and a progress bar."""
+    grid = Table.grid(padding=(0, 2))
+    for _ in range(6):
+        grid.add_column(no_wrap=True)
+    for t in teams.shown():
+        st = t.state
+        stop = f"stop {st.stop_index}/{st.stop_count}" if st.stop_count else ""
+        times = f"{st.elapsed:.1f}" + (f" / {st.planned:.1f} s" if st.planned else " s")
+        togo = mission_time_to_go(st)
+        eta = "" if togo is None else f"ETA {tplus(st.mission_time + togo)}  to go {togo:.1f} s"
+        planned = st.planned
+        bar: Any = ProgressBar(total=max(planned or 1.0, 1e-6), completed=min(st.elapsed, planned or 0.0),
+                               width=16, complete_style=t.colour or "bar.complete")
+        replans = f"replans {st.replans}" if st.replans else ""
+        grid.add_row(Text(f"■ {t.team}", style=f"bold {t.colour}"), Text(str(st.phase)), Text(stop),
+                     Text(times, style="dim"), Text(eta + (f"  {replans}" if replans else "")), bar)
+    return grid
+
+
+def _teams_header(teams: ShownTeams) -> Text:
+    togo = [x for x in (mission_time_to_go(t.state) for t in teams.shown()) if x is not None]
+    clock = tplus(teams.mission_time) + (f"  to go {max(togo):.1f} s" if togo else "")
+    n = len(teams.shown())
+    return Text.assemble((f"{teams.mission_name} · {n} teams", "bold"), "  ", clock)
+
+
+def order_team_rows(teams: ShownTeams,
+                    max_rows: int | None) -> tuple[list[tuple[ShownTeam, VehicleState]], int]:
+    """Every team's vehicles (a team's carrier first), and how many are left out: as
+    :func:`order_rows` over the vehicles of every team (carriers, then rovers in the air, then
+    the rest; teams in order within each)."""
+    rows = teams.vehicles()
+    if max_rows is None or len(rows) <= max_rows:
+        return rows, 0
+    def rank(row: tuple[ShownTeam, VehicleState]) -> int:
+        v = row[1]
+        if v.role == "carrier":
+            return 0
+        if _is_airborne(v):
+            return 1 if v.state in FLYING else 2
+        return 3
+    keep = max(max_rows - 1, 0)
+    return sorted(rows, key=rank)[:keep], len(rows) - keep
+
+
+def _team_events(teams: ShownTeams, count: int) -> Text:
+    width = max((len(t.team or "") for t in teams.shown()), default=0)
+    out = Text()
+    for team, ev in teams.events(count):
+        out.append(f"{tplus(ev.mission_time):>9}  ", style="dim")
+        out.append(f"{(team.team if team else ''):<{width}} ", style=f"bold {team.colour}" if team else "")
+        out.append(ev.text + "\n", style="red" if ev.kind in ALERT_KINDS else "")
+    return out
+
+
+def render_teams(teams: ShownTeams, max_rows: int | None = None, status: Sequence[str] = (), *,
+                 latlon: bool = False, width: int | None = None, events: int = MAX_EVENTS) -> Group:
+    """The dashboard of several teams: the mission's ``T+`` and time to go, one line per team (in
+    its colour: phase, stop k of N, elapsed vs planned, ETA, time to go, progress), one table of
+    every team's vehicles (the team column in its colour) and the latest events of every team."""
+    if not teams.several:
+        shown = teams.shown()
+        state = shown[0].state if shown else None
+        assert state is not None, "no state to draw"
+        return render(state, max_rows, status, latlon=latlon, width=width, events=events)
+    table = Table(expand=False, pad_edge=False, box=None, header_style="bold")
+    cols = _columns(width, latlon)
+    table.add_column("team", no_wrap=True)
+    for col, justify in cols:
+        table.add_column(col, justify=justify, no_wrap=True)
+    rows, hidden = order_team_rows(teams, max_rows)
+    legs = {t.team: planned_legs(t.state.plan) for t in teams.shown()}
+    for team, v in rows:
+        table.add_row(Text(team.team or "", style=f"bold {team.colour}"),
+                      *_cells(team.state, v, cols, legs[team.team]))
+    parts: list[Any] = [_teams_header(teams), _team_rows(teams)]
+    link = _teams_link(teams)
+    if link is not None:
+        parts.append(Text.assemble(("link ", "bold"), (link.link_line, link.link_style)))
+    parts += [Text(line, style="dim" if line.startswith("bus: connected") else "yellow", overflow="ellipsis",
+                   no_wrap=True) for line in status]
+    parts.append(table)
+    if hidden:
+        parts.append(Text(f"… {hidden} more", style="dim"))
+    parts.append(Text("events", style="bold"))
+    parts.append(_team_events(teams, events))
+    return Group(*parts)
+
+
+def _teams_link(teams: ShownTeams) -> FleetState | None:
+    """The state whose link line the view shows (the teams share one set of links): the first
+    with something to say."""
+    return next((t.state for t in teams.shown() if t.state.link_line), None)
+
+
+def fit_teams(teams: ShownTeams, height: int, status_lines: int) -> tuple[int, int]:
+    """(vehicle rows, event lines) of several teams that fit a terminal ``height`` lines high."""
+    link = _teams_link(teams) is not None
+    fixed = 1 + len(teams.shown()) + link + status_lines + 1 + 1 + 1
+    free = max(height - fixed, 4)
+    events = min(MAX_EVENTS, max(2, free // 4))
+    return max(free - events, 2), events
+
+
 def fit(state: FleetState, height: int, status_lines: int) -> tuple[int, int]:
     """(vehicle rows, event lines) that fit a terminal ``height`` lines high."""
     fixed = HEADER_LINES + bool(state.link_line) + bool(state.replans) + status_lines + 1 + 1 + 1
@@ -205,6 +312,7 @@ class LiveView(View):
         self._live: Live | None = None
         self._task: asyncio.Task[None] | None = None
         self._state: FleetState | None = None
+        self.teams = ShownTeams()  # a run of several teams: every team's state
         self._status: list[Callable[[], str]] = []
 
     def add_status(self, line: Callable[[], str]) -> None:
@@ -213,6 +321,20 @@ class LiveView(View):
 
     def start(self, state: FleetState, fleet: Fleet | None) -> None:
         self._state = state
+        self.teams.set_main(state)
+        self._begin()
+
+    def declare_teams(self, teams: Sequence[str], *, every: bool = False) -> None:
+        self.teams.declare(teams, every=every)
+
+    def start_team(self, team: str, state: FleetState, fleet: Fleet | None) -> None:
+        """Draw ``team``'s state beside the other teams' (:func:`render_teams`)."""
+        if self._state is None:
+            self._state = state
+        self.teams.set_team(team, state)
+        self._begin()
+
+    def _begin(self) -> None:
         if self._live is None:
             self._live = Live(console=self.console, auto_refresh=False, transient=False,
                               redirect_stdout=False, redirect_stderr=False)
@@ -235,6 +357,9 @@ class LiveView(View):
         assert self._state is not None
         status = [f() for f in self._status]
         size = self.console.size
+        if self.teams.several:
+            rows, events = fit_teams(self.teams, size.height, len(status))
+            return render_teams(self.teams, rows, status, latlon=self.latlon, width=size.width, events=events)
         rows, events = fit(self._state, size.height, len(status))
         return render(self._state, rows, status, latlon=self.latlon, width=size.width, events=events)
 
@@ -258,6 +383,7 @@ class HeadlessView(View):
         self.out = out or sys.stdout
         self.prefix = prefix
         self._unlisten: Any = None
+        self._teams: dict[tuple[str, int], Callable[[], None]] = {}
 
     def start(self, state: FleetState, fleet: Fleet | None) -> None:
         if self._unlisten is None:
@@ -265,14 +391,28 @@ class HeadlessView(View):
                 self._print(ev)
             self._unlisten = state.add_listener(self._print)
 
-    def _print(self, ev: Event) -> None:
-        self.out.write(f"[{tplus(ev.mission_time):>10}] {self.prefix}{ev.kind:<16} {ev.text}\n")
+    def _print(self, ev: Event, prefix: str | None = None) -> None:
+        prefix = self.prefix if prefix is None else prefix
+        self.out.write(f"[{tplus(ev.mission_time):>10}] {prefix}{ev.kind:<16} {ev.text}\n")
         self.out.flush()
+
+    def start_team(self, team: str, state: FleetState, fleet: Fleet | None) -> None:
+        """Print ``team``'s events too, each line prefixed with the team (``watch`` of several teams)."""
+        key = (team, id(state))
+        if key in self._teams:
+            return
+        prefix = f"{self.prefix}{team} "
+        for ev in list(state.events):
+            self._print(ev, prefix)
+        self._teams[key] = state.add_listener(lambda ev: self._print(ev, prefix))
 
     async def stop(self) -> None:
         if self._unlisten is not None:
             self._unlisten()
             self._unlisten = None
+        for unlisten in self._teams.values():
+            unlisten()
+        self._teams.clear()
 
 
 def make_view(headless: bool | None = None, latlon: bool = False) -> View:
@@ -282,5 +422,5 @@ def make_view(headless: bool | None = None, latlon: bool = False) -> View:
     return HeadlessView() if headless else LiveView(latlon=latlon)
 
 
-__all__ = ["REFRESH_HZ", "HeadlessView", "LiveView", "fit", "make_view", "order_rows", "render",
-           "plain_text", "render_text", "tplus"]
+__all__ = ["REFRESH_HZ", "HeadlessView", "LiveView", "fit", "fit_teams", "make_view", "order_rows",
+           "order_team_rows", "plain_text", "render", "render_teams", "render_text", "tplus"]

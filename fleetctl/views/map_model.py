@@ -4,7 +4,18 @@
   paths, in ENU metres, from the plan being flown (and the mission's tasks);
 * :func:`frame` - one moment: ``T`` (mission seconds since the run started), phase, stop k of N,
   time to go, and per vehicle its state, task, ENU position, battery and link level, time to go;
-* :class:`Trails` - the last positions of every vehicle (a bounded history a new page starts with).
+* :class:`Trails` - the last positions of every vehicle (a bounded history a new page starts with);
+* :func:`teams_plan` and :func:`teams_frame` - the same for every team a view shows
+  (:class:`~fleetctl.views.teams.ShownTeams`): the documents the page gets.
+
+The page's documents: ``plan`` = ``{"kind", "makespan", "tasks": [{id, e, n, u, team}],
+"teams": [{"team", "colour", "kind", "makespan", "route", "stops", "paths"}]}`` and ``frame`` =
+``{"mission", "T", "phase", "stop", "stops", "elapsed", "planned", "ttg", "replans", "teams":
+[{"team", "colour", "phase", "stop", "stops", "elapsed", "planned", "ttg", "eta", "replans"}],
+"vehicles": [{..., "team"}], "events": [{"T", "kind", "text", "team"}]}``. One state (a one-team
+run, replay, a one-team watch) is one entry of ``teams`` whose ``team`` and ``colour`` are null,
+and the frame's top-level fields are its own; with several teams they are the run's: ``T`` and
+``ttg`` the latest of the teams', ``phase`` the teams' phases, ``stop``/``stops`` 0.
 """
 
 from __future__ import annotations
@@ -17,7 +28,8 @@ from fleetctl.views.eta import mission_time_to_go, planned_legs, time_to_go
 from fleetctl.views.levels import battery_level, link_level
 
 if TYPE_CHECKING:
-    from fleetctl.run.state import FleetState
+    from fleetctl.run.state import FleetState, VehicleState
+    from fleetctl.views.teams import ShownTeams
 
 TRAIL_POINTS = 400  # positions kept per vehicle
 TRAIL_STEP = 0.5  # m: a new trail point once a vehicle moved this far
@@ -78,6 +90,51 @@ def frame(state: FleetState) -> dict[str, Any]:
     }
 
 
+def teams_plan(teams: ShownTeams) -> dict[str, Any]:
+    """Every team's plan layer (route, stops, rover paths, with its team and colour) and every
+    team's tasks (each with the team that has it)."""
+    layers, tasks = [], {}
+    for t in teams.shown():
+        layer = plan_layer(t.state)
+        for task in layer.pop("tasks"):
+            tasks[task["id"]] = task | {"team": t.team}
+        layers.append({"team": t.team, "colour": t.colour, **layer})
+    makespans = [x["makespan"] for x in layers if isinstance(x.get("makespan"), int | float)]
+    kinds = {x["kind"] for x in layers if x.get("kind")}
+    return {"kind": kinds.pop() if len(kinds) == 1 else (None if not kinds else "mixed"),
+            "makespan": max(makespans) if makespans else None,
+            "tasks": [tasks[k] for k in sorted(tasks)], "teams": layers}
+
+
+def teams_frame(teams: ShownTeams) -> dict[str, Any]:
+    """The run now, every team (see the module docstring)."""
+    shown = teams.shown()
+    if not shown:
+        return {"mission": teams.mission_name, "T": None, "phase": "", "stop": 0, "stops": 0, "elapsed": None,
+                "planned": None, "ttg": None, "replans": 0, "teams": [], "vehicles": [], "events": []}
+    owner = {v.id: t.team for t, v in teams.vehicles()}
+    team_docs, vehicles, frames = [], [], []
+    for t in shown:
+        f = frame(t.state)
+        frames.append(f)
+        T, ttg = f["T"], f["ttg"]
+        team_docs.append({"team": t.team, "colour": t.colour, "phase": f["phase"], "stop": f["stop"],
+                          "stops": f["stops"], "elapsed": f["elapsed"], "planned": f["planned"], "ttg": ttg,
+                          "eta": None if ttg is None or T is None else _r(T + ttg, 1),
+                          "replans": f["replans"]})
+        vehicles += [v | {"team": t.team} for v in f["vehicles"] if owner.get(v["id"]) == t.team]
+    events = [{"T": _r(ev.mission_time, 1), "kind": ev.kind, "text": ev.text, "team": t.team if t else None}
+              for t, ev in teams.events(EVENTS_SHOWN)]
+    if not teams.several:
+        return frames[0] | {"teams": team_docs, "vehicles": vehicles, "events": events}
+    ttgs = [d["ttg"] for d in team_docs if d["ttg"] is not None]
+    phases = list(dict.fromkeys(d["phase"] for d in team_docs))
+    return {"mission": teams.mission_name, "T": _r(teams.mission_time, 1), "phase": " · ".join(phases),
+            "stop": 0, "stops": 0, "elapsed": None, "planned": None, "ttg": max(ttgs) if ttgs else None,
+            "replans": sum(d["replans"] for d in team_docs), "teams": team_docs, "vehicles": vehicles,
+            "events": events}
+
+
 class Trails:
     """The last :data:`TRAIL_POINTS` positions (E, N) of every vehicle, a point per :data:`TRAIL_STEP` m."""
 
@@ -88,18 +145,26 @@ class Trails:
 
     def add(self, state: FleetState) -> None:
         for v in state.vehicles.values():
-            if v.enu is None:
-                continue
-            if v.role == "rover" and v.state in ON_DECK:  # riding on the carrier: no trail of its own
-                self.trails.pop(v.id, None)
-                continue
-            trail = self.trails.setdefault(v.id, deque(maxlen=self.points))
-            p = (round(v.enu[0], 2), round(v.enu[1], 2))
-            if not trail or math.dist(trail[-1], p) >= self.step:
-                trail.append(p)
+            self._add(v)
+
+    def _add(self, v: VehicleState) -> None:
+        if v.enu is None:
+            return
+        if v.role == "rover" and v.state in ON_DECK:  # riding on the carrier: no trail of its own
+            self.trails.pop(v.id, None)
+            return
+        trail = self.trails.setdefault(v.id, deque(maxlen=self.points))
+        p = (round(v.enu[0], 2), round(v.enu[1], 2))
+        if not trail or math.dist(trail[-1], p) >= self.step:
+            trail.append(p)
+
+    def add_teams(self, teams: ShownTeams) -> None:
+        """:meth:`add` for every vehicle every team shows."""
+        for _, v in teams.vehicles():
+            self._add(v)
 
     def to_json(self) -> dict[str, list[list[float]]]:
         return {vid: [list(p) for p in t] for vid, t in self.trails.items()}
 
 
-__all__ = ["EVENTS_SHOWN", "TRAIL_POINTS", "Trails", "frame", "plan_layer"]
+__all__ = ["EVENTS_SHOWN", "TRAIL_POINTS", "Trails", "frame", "plan_layer", "teams_frame", "teams_plan"]

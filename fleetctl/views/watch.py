@@ -1,9 +1,18 @@
 """``fleetctl watch``: the live view of a mission flown by another process, from the MQTT bus alone.
 
 :class:`Watcher` subscribes to ``<prefix>/status``, ``/plan``, ``/vehicles/+/telemetry`` and
-``/events`` (see :mod:`fleetctl.bus.client`), keeps a :class:`RemoteFleetState` up to date and the
-dashboard (:func:`fleetctl.dashboard.render`) draws it; ``--headless`` prints the operator events
-instead and the fleet table when it ends. The connection is retried with backoff like the bus's.
+``/events`` (see :mod:`fleetctl.bus.client`), and to the same four under ``<prefix>/teams/+/``
+(the teams of a run of several, docs/mqtt.md), keeps a :class:`RemoteFleetState` up to date for
+the controller and one for each team it hears of, and the dashboard draws them (one state as
+:func:`fleetctl.views.dashboard.render`, several teams as
+:func:`~fleetctl.views.dashboard.render_teams`); ``--headless`` prints the operator events instead
+(a team's prefixed with it) and the fleet table when it ends. The connection is retried with
+backoff like the bus's.
+
+Everything on the bus is outside input: a message over :data:`MAX_PAYLOAD` bytes, a team id that
+is not 1 to 64 characters of ``A-Z a-z 0-9 . _ -``, a team beyond
+:data:`~fleetctl.views.teams.MAX_TEAMS` and a vehicle beyond :data:`MAX_VEHICLES` per state are
+ignored (counted in :attr:`Watcher.ignored`).
 """
 
 from __future__ import annotations
@@ -12,13 +21,16 @@ import asyncio
 import contextlib
 import json
 import logging
+import re
 import sys
+from collections.abc import Callable
 from dataclasses import fields
 from types import SimpleNamespace
 from typing import IO, Any
 
 import aiomqtt
 
+from fleetctl.bus.client import iter_topics
 from fleetctl.bus.config import (
     BACKOFF_MAX,
     BACKOFF_MIN,
@@ -28,12 +40,16 @@ from fleetctl.bus.config import (
     client_kwargs,
 )
 from fleetctl.run.state import Event, FleetState, VehicleState
-from fleetctl.views.dashboard import HeadlessView, LiveView, plain_text, render
+from fleetctl.views.dashboard import HeadlessView, LiveView, plain_text, render_teams
+from fleetctl.views.teams import MAX_TEAMS, ShownTeams
 from fleetctl.views.view import View, Views
 
 log = logging.getLogger(__name__)
 
 _VEHICLE_FIELDS = {f.name for f in fields(VehicleState)}
+MAX_PAYLOAD = 1 << 20  # bytes of one message (a plan of many stops is the largest)
+MAX_VEHICLES = 1024  # vehicles kept per state
+ID_RE = re.compile(r"[A-Za-z0-9_.-]{1,64}")  # a team's id in a topic or a status
 
 
 class RemoteFleetState(FleetState):
@@ -84,9 +100,13 @@ class RemoteFleetState(FleetState):
                 log.exception("event listener failed")
         return ev
 
-    def update_vehicle(self, vid: str, data: dict[str, Any]) -> None:
+    def update_vehicle(self, vid: str, data: dict[str, Any]) -> bool:
+        """Apply a vehicle's telemetry; False (ignored) for a new vehicle beyond :data:`MAX_VEHICLES`
+        or with an id over 64 characters."""
         v = self.vehicles.get(vid)
         if v is None:
+            if len(self.vehicles) >= MAX_VEHICLES or not 0 < len(vid) <= 64:
+                return False
             sysid = data.get("sysid")
             v = VehicleState(vid, str(data.get("role", "rover")), sysid if isinstance(sysid, int) else 0)
             self.vehicles[vid] = v
@@ -101,6 +121,7 @@ class RemoteFleetState(FleetState):
         if self.carrier_id and next(iter(self.vehicles)) != self.carrier_id:
             self.vehicles = {self.carrier_id: self.vehicles[self.carrier_id],
                              **{k: x for k, x in self.vehicles.items() if k != self.carrier_id}}
+        return True
 
     def update_status(self, data: dict[str, Any]) -> None:
         self.remote_status = str(data.get("status", "online"))
@@ -119,16 +140,23 @@ class RemoteFleetState(FleetState):
 
 
 class Watcher:
-    """Keeps a :class:`RemoteFleetState` up to date from the bus."""
+    """Keeps a :class:`RemoteFleetState` up to date from the bus: the controller's
+    (:attr:`state`) and each team's (:attr:`teams`)."""
 
     def __init__(self, config: BusConfig, state: RemoteFleetState | None = None) -> None:
         self.config = config
         self.prefix = config.topic_prefix
         self.state = state or RemoteFleetState()
+        self.teams: dict[str, RemoteFleetState] = {}  # P/teams/<team>/...: each team's
+        self.shown = ShownTeams()  # what the views draw: the controller's state, then the teams'
+        self.shown.set_main(self.state)
+        self.on_team: Callable[[str, RemoteFleetState], None] | None = None  # a team first heard of
+        self.on_teams: Callable[[list[str]], None] | None = None  # the teams a run's status names
         self.status = "connecting"
         self.last_error: str | None = None
         self.connects = 0
         self.messages = 0
+        self.ignored = 0  # messages ignored (too large, a bad team id, too many teams or vehicles)
         self.finished = asyncio.Event()  # set when the controller's status is final
 
     def status_lines(self) -> list[str]:
@@ -140,6 +168,9 @@ class Watcher:
         if plan:
             out.append(f"plan: {plan.get('kind', '?')} ({plan.get('planner', '?')}), "
                        f"{len(plan.get('stops') or [])} stops, makespan {plan.get('makespan', 0.0):.1f} s")
+        if self.teams:
+            out.append("teams: " + ", ".join(f"{t} {self.teams[t].remote_status or '?'}"
+                                             for t in self.shown.order if t in self.teams))
         return out
 
     def _set_status(self, status: str, error: BaseException | None = None) -> None:
@@ -160,32 +191,79 @@ class Watcher:
         self.state.event(f"bus_{status}", text, None, url=url, error=self.last_error)
 
     def handle(self, topic: str, payload: bytes) -> None:
-        """Apply one message of the bus to the state."""
+        """Apply one message of the bus to the state (the controller's, or a team's)."""
         self.messages += 1
+        if len(payload) > MAX_PAYLOAD:
+            self.ignored += 1
+            return
         rel = topic[len(self.prefix) + 1:] if topic.startswith(self.prefix + "/") else topic
         try:
             data = json.loads(payload)
-        except (ValueError, UnicodeDecodeError):
+        except (ValueError, UnicodeDecodeError, RecursionError):
             data = payload.decode("utf-8", "replace").strip()
         st = self.state
+        if rel.startswith("teams/"):
+            team, _, rel = rel[len("teams/"):].partition("/")
+            found = self._team(team)
+            if found is None:
+                self.ignored += 1
+                return
+            st = found
+        if not self._apply(st, rel, data):
+            self.ignored += 1
+        self._check_finished()
+
+    def _apply(self, st: RemoteFleetState, rel: str, data: Any) -> bool:
         if rel == "status":
             st.update_status(data if isinstance(data, dict) else {"status": str(data)})
-            if st.remote_status in FINAL_STATES:
-                self.finished.set()
-            else:
-                self.finished.clear()
+            if st is self.state and isinstance(data, dict) and isinstance(data.get("teams"), list):
+                self._declare(data["teams"])
         elif rel == "plan" and isinstance(data, dict):
             st.plan = data
         elif rel == "events" and isinstance(data, dict):
             st.add_event(data)
         elif rel.startswith("vehicles/") and rel.endswith("/telemetry") and isinstance(data, dict):
-            st.update_vehicle(rel[len("vehicles/"):-len("/telemetry")], data)
+            return st.update_vehicle(rel[len("vehicles/"):-len("/telemetry")], data)
+        return True
+
+    def _declare(self, teams: list[Any]) -> None:
+        ids = [t for t in teams[:MAX_TEAMS] if isinstance(t, str) and ID_RE.fullmatch(t)]
+        changed = self.shown.order[:len(ids)] != ids
+        self.shown.declare(ids, every=True)
+        if changed and self.on_teams is not None:
+            self.on_teams(ids)
+
+    def _team(self, team: str) -> RemoteFleetState | None:
+        """The state of ``team`` (made when first heard of); None for a bad id or too many teams."""
+        st = self.teams.get(team)
+        if st is not None:
+            return st
+        if not ID_RE.fullmatch(team) or len(self.teams) >= MAX_TEAMS:
+            return None
+        st = self.teams[team] = RemoteFleetState(self.state.mission_name)
+        self.shown.set_team(team, st)
+        if self.on_team is not None:
+            self.on_team(team, st)
+        return st
+
+    def _check_finished(self) -> None:
+        """Finished: the controller's status is final; without one (controllers of one team each
+        under ``P/teams/``), every team's."""
+        top = self.state.remote_status
+        if top is not None:
+            done = top in FINAL_STATES
+        else:
+            done = bool(self.teams) and all(t.remote_status in FINAL_STATES for t in self.teams.values())
+        if done:
+            self.finished.set()
+        else:
+            self.finished.clear()
 
     async def run(self) -> None:
         """Connect (retrying with backoff) and apply messages until cancelled."""
         ctx = await asyncio.to_thread(self.config.ssl_context)
         delay = BACKOFF_MIN
-        topics = [(f"{self.prefix}/{t}", 1) for t in ("status", "plan", "vehicles/+/telemetry", "events")]
+        topics = [(t, 1) for t in iter_topics(self.prefix)]
         while True:
             client = aiomqtt.Client(identifier=self.config.client_id, **client_kwargs(self.config, ctx))
             try:
@@ -220,16 +298,17 @@ class Watcher:
 def render_text(watcher: Watcher, width: int | None = None) -> str:
     """The dashboard of ``watcher`` as plain text (for ``--headless`` and tests): uncut lines
     without a ``width`` (:func:`fleetctl.views.dashboard.plain_text`)."""
-    return plain_text(render(watcher.state, None, watcher.status_lines(), width=width), width)
+    return plain_text(render_teams(watcher.shown, None, watcher.status_lines(), width=width), width)
 
 
 async def watch(config: BusConfig, *, headless: bool = False, exit_on_done: bool = False,
-                out: IO[str] | None = None, latlon: bool = False, extra_view: View | None = None) -> int:
+                out: IO[str] | None = None, latlon: bool = False, extra_view: View | None = None,
+                watcher: Watcher | None = None) -> int:
     """Show the mission on ``config``'s bus until cancelled (Ctrl-C) or, with ``exit_on_done``,
     until the controller's status is final (done, failed, interrupted, offline). ``extra_view``
-    (the web map) is fed the same state. Returns 0."""
+    (the web map) is fed the same states; ``watcher`` (tests) is the :class:`Watcher` to use. Returns 0."""
     out = out or sys.stdout
-    watcher = Watcher(config)
+    watcher = watcher or Watcher(config)
     view: View
     if headless:
         view = HeadlessView(out)
@@ -242,6 +321,8 @@ async def watch(config: BusConfig, *, headless: bool = False, exit_on_done: bool
     if extra_view is not None:
         view = Views(view, extra_view)
     view.start(watcher.state, None)
+    watcher.on_teams = lambda teams: view.declare_teams(teams, every=True)
+    watcher.on_team = lambda team, st: view.start_team(team, st, None)
     runner = asyncio.create_task(watcher.run(), name="watch bus")
     try:
         while True:

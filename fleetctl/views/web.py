@@ -4,7 +4,15 @@ the run's state to it over server-sent events.
 
 Routes: ``/`` the page, ``/static/<file>`` its script and style, ``/events`` the event stream
 (``hello`` with the map's configuration, plan layer, trails and a frame; then ``plan`` when the
-plan changes and ``frame`` a few times a second), ``/state`` the ``hello`` document as JSON.
+plan changes and ``frame`` a few times a second), ``/state`` the ``hello`` document as JSON. The
+map shows every team a run of several teams gives it (:mod:`fleetctl.views.map_model`).
+
+Access: bound to a loopback address the map is open as it always was. Bound beyond loopback it
+has a token (:func:`map_token`: from ``FLEETCTL_WEB_TOKEN`` or made at start) and every route
+answers 401 (no token) or 403 (a wrong one) to a request that does not carry it: as
+``?token=...`` (the page's link; the page then sets a cookie for the rest, so the event stream
+and the static files carry it), as that cookie, or as ``Authorization: Bearer ...`` (scripts).
+Tokens are compared with :func:`hmac.compare_digest`.
 
 Bounded: at most :data:`MAX_CLIENTS` streams (more get 503), each with a queue of
 :data:`QUEUE_SIZE` messages; a client whose queue is full, or whose socket does not take a message
@@ -18,9 +26,14 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import hmac
+import ipaddress
 import json
 import logging
-from collections.abc import Callable
+import os
+import re
+import secrets
+from collections.abc import Awaitable, Callable, Sequence
 from importlib import resources
 from typing import TYPE_CHECKING, Any
 
@@ -28,7 +41,8 @@ from aiohttp import web
 
 from fleetctl.journal import json_safe
 from fleetctl.run.kinds import Ev
-from fleetctl.views.map_model import Trails, frame, plan_layer
+from fleetctl.views.map_model import Trails, teams_frame, teams_plan
+from fleetctl.views.teams import ShownTeams
 from fleetctl.views.view import View
 
 if TYPE_CHECKING:
@@ -45,10 +59,39 @@ KEEPALIVE = 10.0  # s: a comment line when nothing else was sent
 STOP_TIMEOUT = 5.0  # s for the server to close at shutdown
 FRAME_HZ = 4.0
 STATIC = {"map.js": "application/javascript", "map.css": "text/css", "index.html": "text/html"}
+TOKEN_ENV = "FLEETCTL_WEB_TOKEN"
+TOKEN_RE = re.compile(r"[A-Za-z0-9._~-]{16,128}")  # a token given in TOKEN_ENV (URL-safe, no escaping)
+MAX_TOKEN = 128  # characters: a longer token in a request is refused without comparing
 
 
 class WebError(Exception):
-    """A ``--web`` address that cannot be used."""
+    """A ``--web`` address (or token) that cannot be used."""
+
+
+def is_loopback(host: str) -> bool:
+    """``host`` is this machine only (127.0.0.0/8, ::1, localhost): the map needs no token there."""
+    if host.lower() == "localhost":
+        return True
+    try:
+        return ipaddress.ip_address(host).is_loopback
+    except ValueError:
+        return False  # a host name or an interface: reachable from elsewhere
+
+
+def map_token(host: str, environ: dict[str, str] | None = None) -> tuple[str | None, bool]:
+    """The token the map at ``host`` requires and whether it came from :data:`TOKEN_ENV`: (None,
+    False) on loopback; the variable's value when set (:class:`WebError` unless it is 16 to 128
+    characters of ``A-Z a-z 0-9 . _ ~ -``); else a new random one (32 URL-safe characters)."""
+    if is_loopback(host):
+        return None, False
+    env = os.environ if environ is None else environ
+    given = env.get(TOKEN_ENV)
+    if given is None:
+        return secrets.token_urlsafe(24), False
+    if not TOKEN_RE.fullmatch(given):
+        raise WebError(f"{TOKEN_ENV}: give 16 to 128 characters of A-Z a-z 0-9 . _ ~ - (it is the map's "
+                       "token, part of its link)")
+    return given, True
 
 
 def parse_address(text: str) -> tuple[str, int]:
@@ -96,24 +139,71 @@ class MapServer:
     """The HTTP side: page, static files and the bounded event streams."""
 
     def __init__(self, host: str, port: int, hello: Callable[[], dict[str, Any]], *,
-                 max_clients: int = MAX_CLIENTS, queue_size: int = QUEUE_SIZE) -> None:
+                 max_clients: int = MAX_CLIENTS, queue_size: int = QUEUE_SIZE,
+                 token: str | None = None) -> None:
         self.host, self.port = host, port
         self.hello = hello  # the document a new page starts from
         self.max_clients, self.queue_size = max_clients, queue_size
+        self.token = token  # None: open (loopback); else every route requires it
         self.clients: set[MapClient] = set()
         self.refused = 0  # streams refused (too many clients)
+        self.unauthorised = 0  # requests refused for a missing or wrong token
         self.dropped = 0  # slow clients dropped
         self._runner: web.AppRunner | None = None
         self._files: dict[str, bytes] = {}  # the page's files, read once (off the loop) at start
 
     @property
     def url(self) -> str:
+        """The page's address (without the token)."""
         host = f"[{self.host}]" if ":" in self.host else self.host
         return f"http://{host}:{self.port}/"
 
+    @property
+    def link(self) -> str:
+        """The address that opens the page: with ``?token=`` when the map has a token."""
+        return self.url if self.token is None else f"{self.url}?token={self.token}"
+
+    @property
+    def cookie(self) -> str:
+        """The token's cookie (one per port: cookies do not tell ports apart)."""
+        return f"fleetctl_map_{self.port}"
+
+    def _given(self, request: web.Request) -> str | None:
+        """The token a request carries: ``?token=``, ``Authorization: Bearer``, or the cookie."""
+        auth = request.headers.get("Authorization", "")
+        for given in (request.query.get("token"), auth[7:] if auth.startswith("Bearer ") else None,
+                      request.cookies.get(self.cookie)):
+            if given:
+                return given
+        return None
+
+    @web.middleware
+    async def _guard(self, request: web.Request,
+                     handler: Callable[[web.Request], Awaitable[web.StreamResponse]]) -> web.StreamResponse:
+        """Every route requires the token when the map has one: 401 without it, 403 when wrong."""
+        if self.token is None:
+            return await handler(request)
+        given = self._given(request)
+        if given is None:
+            self.unauthorised += 1
+            return web.Response(status=401, headers={"WWW-Authenticate": "Bearer"},
+                                text="this map needs its token: open the link fleetctl printed when it "
+                                     "started (http://HOST:PORT/?token=...)\n")
+        if len(given) > MAX_TOKEN or not hmac.compare_digest(given.encode(), self.token.encode()):
+            self.unauthorised += 1
+            return web.Response(status=403, text="wrong token for this map\n")
+        resp: web.StreamResponse = await handler(request)
+        if resp.prepared:  # the event stream: its headers are out
+            return resp
+        resp.headers["Referrer-Policy"] = "no-referrer"  # the link's token goes nowhere else (tiles)
+        if request.query.get("token") and request.cookies.get(self.cookie) != self.token:
+            # the page's link: the page's script, style and event stream then carry the cookie
+            resp.set_cookie(self.cookie, self.token, httponly=True, samesite="Strict", path="/")
+        return resp
+
     async def start(self) -> None:
         self._files = await asyncio.to_thread(lambda: {name: static_file(name) for name in STATIC})
-        app = web.Application()
+        app = web.Application(middlewares=[self._guard])
         app.add_routes([web.get("/", self._page), web.get("/static/{name}", self._static),
                         web.get("/events", self._events), web.get("/state", self._state)])
         # handler_cancellation: a stream whose browser went away ends at once (not at its next write)
@@ -204,20 +294,40 @@ class WebMapView(View):
 
     def __init__(self, host: str, port: int, *, origin: Origin | None = None, tiles: str | None = None,
                  hz: float = FRAME_HZ, on_ready: Callable[[str], None] | None = None,
-                 max_clients: int = MAX_CLIENTS, queue_size: int = QUEUE_SIZE) -> None:
-        self.server = MapServer(host, port, self.hello, max_clients=max_clients, queue_size=queue_size)
+                 max_clients: int = MAX_CLIENTS, queue_size: int = QUEUE_SIZE,
+                 token: str | None = None) -> None:
+        """``on_ready`` gets the page's link (with its token, if any) once the map listens."""
+        self.server = MapServer(host, port, self.hello, max_clients=max_clients, queue_size=queue_size,
+                                token=token)
         self.config = map_config(origin, tiles)
         self.hz = hz
         self.on_ready = on_ready
         self.trails = Trails()
         self.error: str | None = None
         self.ready = asyncio.Event()
-        self._state: FleetState | None = None
-        self._plan: Any = None
+        self.teams = ShownTeams()
+        self._plans: list[Any] = []  # the plans last sent (their identities: a new one is sent again)
         self._task: asyncio.Task[None] | None = None
 
+    @property
+    def _state(self) -> FleetState | None:
+        """The state events go to (the first team's with several)."""
+        shown = self.teams.shown()
+        return self.teams.main if self.teams.main is not None else (shown[0].state if shown else None)
+
     def start(self, state: FleetState, fleet: Fleet | None) -> None:
-        self._state = state
+        self.teams.set_main(state)
+        self._serve_once()
+
+    def declare_teams(self, teams: Sequence[str], *, every: bool = False) -> None:
+        self.teams.declare(teams, every=every)
+
+    def start_team(self, team: str, state: FleetState, fleet: Fleet | None) -> None:
+        """Draw ``team``'s state beside the other teams' (in its colour)."""
+        self.teams.set_team(team, state)
+        self._serve_once()
+
+    def _serve_once(self) -> None:
         if self._task is None:
             self._task = asyncio.get_running_loop().create_task(self._serve(), name="web map")
 
@@ -233,7 +343,7 @@ class WebMapView(View):
             return
         self.ready.set()
         if self.on_ready is not None:
-            self.on_ready(self.server.url)
+            self.on_ready(self.server.link)
         try:
             while True:
                 self.tick()
@@ -241,23 +351,26 @@ class WebMapView(View):
         finally:
             await self.server.stop()
 
+    def _plan_ids(self) -> list[Any]:
+        return [(t.team, id(t.state), id(t.state.plan)) for t in self.teams.shown()]
+
     def tick(self) -> None:
-        """Push the state now (and the plan when it changed) to every client."""
-        st = self._state
-        if st is None:
+        """Push the state now (and the plans when a team's changed) to every client."""
+        if not self.teams.shown():
             return
-        self.trails.add(st)
-        if st.plan is not self._plan:
-            self._plan = st.plan
-            self.server.broadcast(sse("plan", plan_layer(st)))
-        self.server.broadcast(sse("frame", frame(st)))
+        self.trails.add_teams(self.teams)
+        plans = self._plan_ids()
+        if plans != self._plans:
+            self._plans = plans
+            self.server.broadcast(sse("plan", teams_plan(self.teams)))
+        self.server.broadcast(sse("frame", teams_frame(self.teams)))
 
     def hello(self) -> dict[str, Any]:
         """What a page opened now starts from: configuration, plan layer, trails, a frame."""
-        st = self._state
         doc: dict[str, Any] = {"config": self.config}
-        if st is not None:
-            doc.update(plan=plan_layer(st), trails=self.trails.to_json(), frame=frame(st))
+        if self.teams.shown():
+            doc.update(plan=teams_plan(self.teams), trails=self.trails.to_json(),
+                       frame=teams_frame(self.teams))
         return doc
 
     async def stop(self) -> None:
@@ -287,5 +400,5 @@ def map_config(origin: Origin | None, tiles: str | None) -> dict[str, Any]:
             "m_per_deg": {"lat": north, "lon": east}}
 
 
-__all__ = ["FRAME_HZ", "MAX_CLIENTS", "QUEUE_SIZE", "MapClient", "MapServer", "WebError", "WebMapView",
-           "map_config", "parse_address", "sse"]
+__all__ = ["FRAME_HZ", "MAX_CLIENTS", "QUEUE_SIZE", "TOKEN_ENV", "MapClient", "MapServer", "WebError",
+           "WebMapView", "is_loopback", "map_config", "map_token", "parse_address", "sse"]

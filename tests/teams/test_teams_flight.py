@@ -231,7 +231,7 @@ def test_team_views() -> None:
     heads = team_views(HeadlessView(io.StringIO()), ["c1", "c22"])
     assert [v.prefix for v in heads.values()] == ["c1  ", "c22 "]  # type: ignore[union-attr]
     live = team_views(LiveView(), ["c1", "c2"])
-    assert [(type(v), v.shown) for v in live.values()] == [(SharedView, True), (SharedView, False)]  # type: ignore[union-attr]
+    assert [(type(v), v.team) for v in live.values()] == [(SharedView, "c1"), (SharedView, "c2")]  # type: ignore[union-attr]
     both = team_views(Views(HeadlessView(io.StringIO()), LiveView()), ["c1", "c2"])
     assert all(isinstance(v, Views) for v in both.values())
     assert team_views(None, ["c1"]) == {"c1": None}
@@ -292,7 +292,8 @@ async def test_the_web_map_shows_a_two_team_run(tmp_path: Path) -> None:
             for _ in range(200):
                 async with session.get(web.server.url + "state") as resp:
                     docs.append(await resp.json())
-                if docs[-1].get("plan", {}).get("kind") == "deploy":
+                teams = docs[-1].get("plan", {}).get("teams", [])
+                if [t["team"] for t in teams if t["kind"] == "deploy"] == ["c1", "c2"]:
                     return
                 await asyncio.sleep(0.05)
 
@@ -301,7 +302,10 @@ async def test_the_web_map_shows_a_two_team_run(tmp_path: Path) -> None:
     out = await execute(m, "deploy", run_dir=tmp_path / "run", speedup=SPEEDUP, view=view)
     await asyncio.wait_for(looker, 10.0)
     assert out.exit_code == 0 and web.error is None
-    assert docs and docs[-1]["plan"]["kind"] == "deploy"  # the first team's plan on the map
+    layers = docs[-1]["plan"]["teams"]  # every team's plan on the map, each in its colour
+    assert [(x["team"], x["kind"]) for x in layers] == [("c1", "deploy"), ("c2", "deploy")]
+    assert all(len(x["route"]) > 1 for x in layers) and layers[0]["colour"] != layers[1]["colour"]
+    assert {v["team"] for v in docs[-1]["frame"]["vehicles"] if v["role"] == "carrier"} == {"c1", "c2"}
     assert "c1 task_reached" in out_lines.getvalue() and "c2 task_reached" in out_lines.getvalue()
 
 

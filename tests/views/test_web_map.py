@@ -1,5 +1,6 @@
-"""The live web map in a real browser: a short deployment on the embedded simulated fleet with
-``--web``, its page opened in Debian's chromium through Playwright (no browser download).
+"""The live web map in a real browser: short deployments on the embedded simulated fleet with
+``--web``, their page opened in Debian's chromium through Playwright (no browser download): one
+team on loopback (no token), two teams bound beyond loopback (every team drawn; the token).
 
 Skipped only when chromium (or the playwright package) is missing here; scripts/test.sh installs
 both, so CI runs it.
@@ -7,7 +8,9 @@ both, so CI runs it.
 
 from __future__ import annotations
 
+import copy
 import math
+import os
 import queue
 import shutil
 import socket
@@ -15,11 +18,13 @@ import subprocess
 import sys
 import threading
 import time
+import urllib.error
+import urllib.request
 from pathlib import Path
 from typing import Any
 
 import pytest
-from views_helpers import mission_dict, write_mission
+from views_helpers import TWO_TEAMS, mission_dict, write_mission
 
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
 CHROMIUM_FLAGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
@@ -141,3 +146,82 @@ def test_deploy_shows_vehicles_moving_to_their_tasks(tmp_path: Path) -> None:
     assert ends == {"t1", "t2"}  # each at its own task
     carrier = _changes([v["state"] for v in _history(looks, "carrier")])
     assert "driving" in carrier and "holding" in carrier
+
+
+# -- two teams, bound beyond loopback: every team drawn, and the token ------------------------------
+
+READ_TEAMS = """() => {
+    const colour = (e, prop) => e ? getComputedStyle(e)[prop] : null;
+    const teams = {};
+    for (const s of document.querySelectorAll('#teams [data-team]')) teams[s.dataset.team] = {
+        eta: s.dataset.eta, text: s.textContent, colour: colour(s, 'color')};
+    const routes = {};
+    for (const r of document.querySelectorAll('[data-route]')) routes[r.dataset.route] = {
+        points: r.getAttribute('points').trim().split(/\\s+/).length, colour: colour(r, 'stroke')};
+    const carriers = {};
+    for (const c of document.querySelectorAll('.vehicle.carrier')) carriers[c.dataset.vehicle] = {
+        team: c.dataset.team, colour: colour(c.querySelector('.body'), 'fill')};
+    return {teams, routes, carriers};
+}"""
+
+
+def _status(url: str, headers: dict[str, str] | None = None) -> int:
+    try:
+        with urllib.request.urlopen(urllib.request.Request(url, headers=headers or {}), timeout=10) as r:
+            return int(r.status)
+    except urllib.error.HTTPError as e:
+        return int(e.code)
+
+
+def test_two_teams_are_drawn_and_beyond_loopback_the_map_needs_its_token(tmp_path: Path) -> None:
+    mission = write_mission(copy.deepcopy(TWO_TEAMS), tmp_path / "mission.yaml")
+    port = _free_port()
+    env = {k: v for k, v in os.environ.items() if k != "FLEETCTL_WEB_TOKEN"}  # a token made at start
+    sync_api = pytest.importorskip("playwright.sync_api", reason="the playwright package is not installed")
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "fleetctl.cli", "deploy", "--mission", str(mission), "--headless",
+         "--run-dir", str(tmp_path / "run"), "--web", f"0.0.0.0:{port}"],
+        cwd=REPO, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    looks: list[dict[str, Any]] = []
+    try:
+        printed = _wait_for_url(_lines(proc), proc).split()[0]  # "LINK (the token is required: ...)"
+        assert printed.startswith(f"http://0.0.0.0:{port}/?token=")
+        token = printed.split("?token=", 1)[1]
+        base = f"http://127.0.0.1:{port}/"
+        for route in ("", "events", "state"):  # no token, a wrong one: nothing of the map
+            assert _status(base + route) == 401, route
+            assert _status(base + route + "?token=" + token[::-1]) == 403, route
+            assert _status(base + route, {"Authorization": "Bearer " + token[:-2]}) == 403, route
+        with sync_api.sync_playwright() as p:
+            browser = p.chromium.launch_persistent_context(
+                str(tmp_path / "profile"), executable_path=CHROMIUM, headless=True, args=CHROMIUM_FLAGS)
+            try:
+                page = browser.new_page()
+                refused = page.goto(base, timeout=30_000)
+                assert refused is not None and refused.status == 401  # the browser without the link
+                opened = page.goto(f"{base}?token={token}", timeout=30_000)
+                assert opened is not None and opened.status == 200  # the printed link opens the page
+                page.wait_for_selector("#teams [data-team]", timeout=60_000)
+                deadline = time.monotonic() + RUN_TIMEOUT
+                while proc.poll() is None and time.monotonic() < deadline:
+                    looks.append(page.evaluate(READ_TEAMS))
+                    page.wait_for_timeout(POLL * 1000)
+                looks.append(page.evaluate(READ_TEAMS))
+                assert page.evaluate("document.getElementById('link').textContent") != "connecting…"
+            finally:
+                browser.close()
+        assert proc.wait(timeout=60) == 0
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait(timeout=10)
+    last = looks[-1]
+    assert sorted(last["teams"]) == ["c1", "c2"]
+    c1, c2 = last["teams"]["c1"]["colour"], last["teams"]["c2"]["colour"]
+    assert c1 != c2
+    for cid, colour in (("c1", c1), ("c2", c2)):  # each team's route and carrier in the team's colour
+        assert last["routes"][cid]["points"] >= 2 and last["routes"][cid]["colour"] == colour
+        assert last["carriers"][cid] == {"team": cid, "colour": colour}
+    both = [look for look in looks if sorted(look["teams"]) == ["c1", "c2"]
+            and all(t["eta"] and "ETA T+" in t["text"] for t in look["teams"].values())]
+    assert both, [look["teams"] for look in looks]  # both teams' ETAs on the page at once while flying

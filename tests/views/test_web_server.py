@@ -133,7 +133,8 @@ async def test_the_view_streams_state_and_shutdown_cancels_its_tasks(tmp_path: P
         assert page.status == 200 and "map.js" in await page.text()
         doc = await (await s.get(urls[0] + "state")).json()  # the hello document, for scripts
         r1_doc = next(v for v in doc["frame"]["vehicles"] if v["id"] == "r1")
-        assert doc["plan"]["route"] and r1_doc["e"] == 10.0
+        assert doc["plan"]["teams"][0]["route"] and r1_doc["e"] == 10.0
+        assert doc["plan"]["teams"][0]["team"] is None and r1_doc["team"] is None  # one state: no team
         await view.stop()
         assert await _eof(stream)  # the open stream was closed
         assert asyncio.all_tasks() - before - {asyncio.current_task()} == set()  # nothing left running
@@ -197,3 +198,91 @@ def test_tiles_are_placed_with_the_metres_per_degree_at_the_origin() -> None:
     assert cfg["m_per_deg"]["lat"] == pytest.approx(math.radians(1) * a * (1 - e2) / w ** 1.5, rel=1e-4)
     assert cfg["m_per_deg"]["lon"] == pytest.approx(math.radians(1) * a / w ** 0.5 * math.cos(phi), rel=1e-4)
     assert map_config(None, None) == {"tiles": None}
+
+
+# -- the token: bound beyond loopback the map and its stream need it --------------------------------
+
+def test_the_token_is_needed_only_beyond_loopback() -> None:
+    from fleetctl.views.web import TOKEN_ENV, is_loopback, map_token
+
+    for host in ("127.0.0.1", "127.1.2.3", "::1", "localhost"):
+        assert is_loopback(host) and map_token(host, {TOKEN_ENV: "x" * 20}) == (None, False)
+    for host in ("0.0.0.0", "::", "192.168.1.7", "fleet-laptop"):
+        assert not is_loopback(host)
+        made, from_env = map_token(host, {})
+        assert made is not None and len(made) >= 32 and not from_env
+        assert map_token(host, {})[0] != made  # a new one at every start
+        assert map_token(host, {TOKEN_ENV: "my-own.token_0123456789"}) == ("my-own.token_0123456789", True)
+        for bad in ("short", "with space in the token", "x" * 129, "semi;colon-0123456789"):
+            with pytest.raises(WebError, match=TOKEN_ENV):
+                map_token(host, {TOKEN_ENV: bad})
+
+
+async def test_beyond_loopback_page_and_stream_answer_401_or_403_without_the_token(tmp_path: Path) -> None:
+    from fleetctl.views.web import map_token
+
+    token, _ = map_token("0.0.0.0", {})
+    st = state_of(mission(tmp_path), FakeClock())
+    links: list[str] = []
+    view = WebMapView("0.0.0.0", 0, on_ready=links.append, token=token)
+    view.start(st, None)
+    await asyncio.wait_for(view.ready.wait(), TIMEOUT)
+    assert view.error is None and links[0].endswith(f"/?token={token}")
+    base = f"http://127.0.0.1:{view.server.port}/"
+    try:
+        async with aiohttp.ClientSession() as s:  # no token: nothing of the map
+            for route in ("", "events", "state", "static/map.js"):
+                async with s.get(base + route) as r:
+                    assert r.status == 401, route
+            for wrong in (token[:-1] + ("A" if token[-1] != "A" else "B"), "x" * 500):
+                async with s.get(base + "events", params={"token": wrong}) as r:
+                    assert r.status == 403
+                async with s.get(base, headers={"Authorization": f"Bearer {wrong}"}) as r:
+                    assert r.status == 403
+            async with s.get(base + "state", headers={"Authorization": f"Bearer {token}"}) as r:
+                assert r.status == 200 and "frame" in await r.json()  # scripts: the bearer header
+            assert not view.server.clients and view.server.unauthorised == 8
+        # the printed link: the page, then its cookie (kept for an IP address, as a browser does)
+        async with aiohttp.ClientSession(cookie_jar=aiohttp.CookieJar(unsafe=True)) as s:
+            async with s.get(base, params={"token": token}) as r:
+                assert r.status == 200 and "map.js" in await r.text()
+                assert r.headers["Referrer-Policy"] == "no-referrer" and r.cookies[view.server.cookie]
+            async with s.get(base + "static/map.js") as r:
+                assert r.status == 200  # the cookie the link set
+            stream = await s.get(base + "events")
+            assert stream.status == 200 and (await _read_event(stream))[0] == "hello"
+            stream.close()
+    finally:
+        await view.stop()
+
+
+async def test_on_loopback_the_map_is_open(tmp_path: Path) -> None:
+    from fleetctl.views.web import map_token
+
+    token, _ = map_token("127.0.0.1", {})
+    server = MapServer("127.0.0.1", 0, lambda: {"config": {}}, token=token)
+    await server.start()
+    try:
+        assert server.link == server.url
+        async with aiohttp.ClientSession() as s:
+            for route in ("", "state", "static/map.css"):
+                async with s.get(server.url + route) as r:
+                    assert r.status == 200, route
+    finally:
+        await server.stop()
+
+
+def test_the_cli_refuses_a_bad_token_in_the_environment(tmp_path: Path, capsys: pytest.CaptureFixture[str],
+                                                         monkeypatch: pytest.MonkeyPatch) -> None:
+    from views_helpers import mission_dict, write_mission
+
+    from fleetctl.cli import main
+
+    monkeypatch.setenv("FLEETCTL_WEB_TOKEN", "too short")
+    m = write_mission(mission_dict(), tmp_path / "m.yaml")
+    runs = str(tmp_path / "runs")
+    args = ["deploy", "--mission", str(m), "--headless", "--runs", runs, "--web", "0.0.0.0:0"]
+    assert main(args) == 2
+    err = capsys.readouterr().err
+    assert "FLEETCTL_WEB_TOKEN: give 16 to 128 characters" in err and "Traceback" not in err
+    assert not (tmp_path / "runs").exists()

@@ -28,6 +28,23 @@ BASE: dict[str, Any] = {
     "links": {"heartbeat_timeout": 3.0},
 }
 
+CARRIER = {"connection": "sim", "heading_deg": 0, "max_speed": 10.0, "accel": 5.0, "turn_rate": None,
+           "unload_time": 1.0, "load_time": 1.0}
+TWO_TEAMS: dict[str, Any] = {  # each carrier drives north before its rovers can reach their tasks
+    "name": "twoteams_map",
+    "origin": ORIGIN,
+    "carriers": [
+        {"id": "c1", "sysid": 1, "position": [0, 0], **CARRIER, "fleet": {"count": 2, "sysid_start": 11}},
+        {"id": "c2", "sysid": 2, "position": [90, 0], **CARRIER, "fleet": {"count": 2, "sysid_start": 31}},
+    ],
+    "rovers": {"max_speed": 4.0, "accel": None, "deploy_range": 30.0, "endurance_range": 600.0,
+               "reserve": 0.1},
+    "tasks": [{"id": "t1", "position": [-10, 70, 5]}, {"id": "t2", "position": [10, 80, 4]},
+              {"id": "t3", "position": [80, 75, 5]}, {"id": "t4", "position": [100, 70, 4]}],
+    "sim": {"speedup": 4.0, "faults": []},
+    "links": {"heartbeat_timeout": 3.0},
+}
+
 
 def mission_dict(rovers: int = 2, speedup: float = 2.0) -> dict[str, Any]:
     d = copy.deepcopy(BASE)

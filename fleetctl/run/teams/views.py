@@ -1,6 +1,7 @@
 """What each team's run shows: headless, every team's events on the one output, each line
-prefixed with its carrier; the live terminal view and the web map show the first team (they
-are started and stopped by the run of every team, not by the teams' runs)."""
+prefixed with its carrier; the live terminal view and the web map show every team, each team's
+run handing its state to them (``View.start_team``). They are stopped by the run of every team,
+not by the teams' runs."""
 
 from __future__ import annotations
 
@@ -15,16 +16,15 @@ if TYPE_CHECKING:
 
 
 class SharedView(View):
-    """A team's port to the run's view: only the first team's state is shown; stopping is left to
-    the run of every team."""
+    """A team's port to the run's view: its state is shown as ``team``'s; stopping is left to the
+    run of every team."""
 
-    def __init__(self, view: View, shown: bool) -> None:
+    def __init__(self, view: View, team: str) -> None:
         self.view = view
-        self.shown = shown
+        self.team = team
 
     def start(self, state: FleetState, fleet: Fleet | None) -> None:
-        if self.shown:
-            self.view.start(state, fleet)
+        self.view.start_team(self.team, state, fleet)
 
     async def stop(self) -> None:
         return None
@@ -33,6 +33,7 @@ class SharedView(View):
 def team_views(view: View | None, teams: list[str]) -> dict[str, View | None]:
     if view is None:
         return dict.fromkeys(teams)
+    view.declare_teams(teams)
     if isinstance(view, HeadlessView):
         width = max(len(t) for t in teams)
         return {t: HeadlessView(view.out, prefix=f"{t:<{width}} ") for t in teams}
@@ -42,11 +43,11 @@ def team_views(view: View | None, teams: list[str]) -> dict[str, View | None]:
         width = max(len(t) for t in teams)
         return {
             t: Views(
-                HeadlessView(heads[0].out, prefix=f"{t:<{width}} "), *(SharedView(v, k == 0) for v in others)
+                HeadlessView(heads[0].out, prefix=f"{t:<{width}} "), *(SharedView(v, t) for v in others)
             )
-            for k, t in enumerate(teams)
+            for t in teams
         }
-    return {t: SharedView(view, k == 0) for k, t in enumerate(teams)}
+    return {t: SharedView(view, t) for t in teams}
 
 
 __all__ = ["SharedView", "team_views"]

@@ -7,7 +7,7 @@
   const TRAIL_POINTS = 400, TRAIL_STEP = 0.5, ON_DECK = new Set(["on_deck", "loaded", "unknown"]);
   const $ = (id) => document.getElementById(id);
   const view = { minE: Infinity, maxE: -Infinity, minN: Infinity, maxN: -Infinity, key: "" };
-  let config = {}, plan = null, trails = {}, reached = new Set(), currentStop = 0;
+  let config = {}, plan = null, trails = {}, reached = new Set(), currentStops = {};
 
   function el(tag, attrs, parent) {
     const e = document.createElementNS(SVG, tag);
@@ -74,34 +74,42 @@
     }
   }
 
-  // -- the plan layer --------------------------------------------------------------------------
+  // -- the plan layer: every team's route, stops and rover paths; every task --------------------
+  // a team's colour (null for a one-team run: the style sheet's colours, as always)
+  const paint = (colour, prop) => colour ? `${prop}: ${colour}` : "";
   function drawPlan(p) {
     plan = p;
+    const teams = p.teams || [];
     for (const t of p.tasks) include(t.e, t.n);
-    for (const r of p.route) include(r[0], r[1]);
+    for (const l of teams) for (const r of l.route) include(r[0], r[1]);
     applyExtent();
     const u = unit();
     const route = $("route"); route.innerHTML = "";
-    if (p.route.length > 1) el("polyline", { class: "route", points: p.route.map((q) => q[0] + "," + -q[1]).join(" ") }, route);
     const paths = $("paths"); paths.innerHTML = "";
-    for (const r of p.paths) el("polyline", { class: "path", points: r.path.map((q) => q[0] + "," + -q[1]).join(" ") }, paths);
+    const stops = $("stops"); stops.innerHTML = "";
+    for (const l of teams) {
+      const team = l.team || "";
+      if (l.route.length > 1) el("polyline", { class: "route", "data-route": team, style: paint(l.colour, "stroke"), points: l.route.map((q) => q[0] + "," + -q[1]).join(" ") }, route);
+      for (const r of l.paths) el("polyline", { class: "path", "data-team": team, points: r.path.map((q) => q[0] + "," + -q[1]).join(" ") }, paths);
+      for (const s of l.stops) {
+        const g = el("g", { class: "stop", "data-stop": s.k, "data-team": team, transform: `translate(${s.e},${-s.n})` }, stops);
+        el("circle", { r: u * 2.2, style: paint(l.colour, "stroke") }, g);
+        el("text", { x: -u * 0.6, y: u * 4.4, "font-size": u * 1.8, fill: l.colour || "#4a90d9" }, g).textContent = s.k;
+      }
+    }
+    const colours = {};
+    for (const l of teams) colours[l.team] = l.colour;
     const tasks = $("tasks"); tasks.innerHTML = "";
     for (const t of p.tasks) {
-      const g = el("g", { class: "task-mark", "data-task": t.id, transform: `translate(${t.e},${-t.n})` }, tasks);
-      el("rect", { class: "task", x: -u, y: -u, width: 2 * u, height: 2 * u, transform: "rotate(45)" }, g);
+      const g = el("g", { class: "task-mark", "data-task": t.id, "data-team": t.team || "", transform: `translate(${t.e},${-t.n})` }, tasks);
+      el("rect", { class: "task", x: -u, y: -u, width: 2 * u, height: 2 * u, transform: "rotate(45)", style: paint(colours[t.team], "stroke") }, g);
       el("text", { x: u * 1.6, y: -u * 0.9, "font-size": u * 1.7 }, g).textContent = t.id;
-    }
-    const stops = $("stops"); stops.innerHTML = "";
-    for (const s of p.stops) {
-      const g = el("g", { class: "stop", "data-stop": s.k, transform: `translate(${s.e},${-s.n})` }, stops);
-      el("circle", { r: u * 2.2 }, g);
-      el("text", { x: -u * 0.6, y: u * 4.4, "font-size": u * 1.8, fill: "#4a90d9" }, g).textContent = s.k;
     }
     markStops();
   }
 
   function markStops() {
-    for (const g of $("stops").children) g.classList.toggle("current", Number(g.dataset.stop) === currentStop);
+    for (const g of $("stops").children) g.classList.toggle("current", Number(g.dataset.stop) === currentStops[g.dataset.team]);
     for (const g of $("tasks").children) g.querySelector("rect").classList.toggle("reached", reached.has(g.dataset.task));
   }
 
@@ -109,6 +117,8 @@
   function trailLine(v) {
     let line = $("trails").querySelector(`[data-trail="${v.id}"]`);
     if (!line) line = el("polyline", { class: "trail " + v.role, "data-trail": v.id, points: "" }, $("trails"));
+    const style = paint(v.colour, "stroke");
+    if (line.getAttribute("style") !== style) line.setAttribute("style", style);
     return line;
   }
   function addTrail(v) {
@@ -133,6 +143,12 @@
     g = el("g", { class: "vehicle " + v.role, "data-vehicle": v.id }, $("vehicles"));
     if (v.role === "carrier") el("rect", { class: "body", x: -1.8 * u, y: -1.2 * u, width: 3.6 * u, height: 2.4 * u }, g);
     else el("circle", { class: "body", r: u * 0.9 }, g);
+    if (v.colour) {  // several teams: the carrier in its team's colour, a rover ringed with it
+      g.dataset.team = v.team;
+      const body = g.querySelector(".body");
+      if (v.role === "carrier") body.style.fill = v.colour;
+      else { body.style.stroke = v.colour; body.style.strokeWidth = "2.5"; }
+    }
     el("text", { x: u * 1.3, y: u * 0.6, "font-size": u * 1.6 }, g).textContent = v.id;
     if (v.role === "carrier") $("vehicles").insertBefore(g, $("vehicles").firstChild);
     return g;
@@ -152,6 +168,7 @@
     const tb = $("list").tBodies[0];
     let tr = tb.querySelector(`[data-row="${v.id}"]`);
     if (!tr) { tr = document.createElement("tr"); tr.dataset.row = v.id; for (let i = 0; i < 7; i++) tr.appendChild(document.createElement("td")); tb.appendChild(tr); }
+    tr.style.boxShadow = v.colour ? `inset 4px 0 0 ${v.colour}` : "";
     const c = tr.children;
     c[0].textContent = v.id; c[1].textContent = v.state; c[2].textContent = v.task || "";
     c[3].textContent = fmt(v.e); c[4].textContent = fmt(v.n);
@@ -159,14 +176,40 @@
     c[6].textContent = v.ttg === null ? "" : fmt(v.ttg) + "s";
     c[0].className = "lvl-" + v.link;
   }
+  // several teams: one line per team under the header, in its colour
+  function drawTeams(f) {
+    const box = $("teams"), teams = (f.teams || []).filter((t) => t.team);
+    box.hidden = !teams.length;
+    box.innerHTML = "";
+    for (const t of teams) {
+      const s = document.createElement("span");
+      s.className = "team"; s.dataset.team = t.team; s.style.color = t.colour;
+      const eta = t.eta === null ? "" : ` · ETA T+${fmt(t.eta)}s (${fmt(t.ttg)} s to go)`;
+      s.dataset.eta = t.eta === null ? "" : fmt(t.eta);
+      s.textContent = `■ ${t.team} ${t.phase}` + (t.stops ? ` · stop ${t.stop}/${t.stops}` : "") + eta
+        + (t.replans ? ` · ${t.replans} replans` : "");
+      if (t.planned) {  // the phase's progress: elapsed of planned
+        const bar = document.createElement("span"), done = document.createElement("i");
+        bar.className = "bar"; bar.title = `${fmt(t.elapsed)} of ${fmt(t.planned)} s planned`;
+        done.style.width = Math.min(100, 100 * (t.elapsed || 0) / t.planned).toFixed(1) + "%";
+        done.style.background = t.colour;
+        bar.appendChild(done); s.appendChild(bar);
+      }
+      box.appendChild(s);
+    }
+  }
   function drawFrame(f) {
+    const colours = {};
+    for (const t of f.teams || []) colours[t.team] = t.colour;
     $("mission").textContent = f.mission;
     $("phase").textContent = f.phase + (f.replans ? ` · ${f.replans} replans` : "");
     $("stop").textContent = f.stops ? `stop ${f.stop}/${f.stops}` : "";
     $("clock").textContent = tplus(f.T);
     $("ttg").textContent = f.ttg === null ? "" : `ETA T+${fmt(f.T + f.ttg)}s (${fmt(f.ttg)} s to go)`;
-    currentStop = f.stop;
-    for (const v of f.vehicles) include(v.e, v.n);
+    currentStops = {};
+    for (const t of f.teams || []) currentStops[t.team || ""] = t.stop;
+    drawTeams(f);
+    for (const v of f.vehicles) { v.colour = colours[v.team] || null; include(v.e, v.n); }
     if (applyExtent() && plan) drawPlan(plan);
     for (const v of f.vehicles) { drawVehicle(v); row(v); }
     markStops();
@@ -174,7 +217,9 @@
     for (const ev of f.events.slice().reverse()) {
       const li = document.createElement("li");
       const t = document.createElement("span"); t.className = "t"; t.textContent = tplus(ev.T);
-      li.appendChild(t); li.appendChild(document.createTextNode(ev.text)); ol.appendChild(li);
+      li.appendChild(t);
+      if (ev.team) { const k = document.createElement("span"); k.className = "k"; k.style.color = colours[ev.team] || ""; k.textContent = ev.team; li.appendChild(k); }
+      li.appendChild(document.createTextNode(ev.text)); ol.appendChild(li);
     }
   }
 
@@ -192,7 +237,10 @@
 
   function connect() {
     const link = $("link");
-    const es = new EventSource("/events");
+    // a map bound beyond loopback has a token: the page's link carries it (and set a cookie); the
+    // stream is given it too
+    const token = new URLSearchParams(location.search).get("token");
+    const es = new EventSource(token ? "/events?token=" + encodeURIComponent(token) : "/events");
     es.addEventListener("hello", (m) => { link.textContent = "live"; link.className = "conn live"; hello(JSON.parse(m.data)); });
     es.addEventListener("plan", (m) => drawPlan(JSON.parse(m.data)));
     es.addEventListener("frame", (m) => drawFrame(JSON.parse(m.data)));
