@@ -40,7 +40,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from fleetctl.mission import load_mission  # noqa: E402
-from fleetctl.run.runner import execute  # noqa: E402
+from fleetctl.run.flight import execute  # noqa: E402
 from sitl.flavour import Mode  # noqa: E402
 from sitl.fleet import SimFleet  # noqa: E402
 from sitl.world import Phase  # noqa: E402

@@ -15,8 +15,8 @@ import pytest
 from ctl_helpers import mission_dict, mission_from
 from test_timed_collection import Recorder
 
+from fleetctl.run.flight import execute
 from fleetctl.run.planning import Planning
-from fleetctl.run.runner import execute
 
 SLOW = 6.0  # mission s each collection plan takes
 # in the air: r1 near the start with little battery above its reserve, r2 further with plenty
