@@ -26,34 +26,25 @@ parameters) is :func:`fleetctl.run.safety.gather`.
 
 from __future__ import annotations
 
-import time
 from collections.abc import Collection
 from dataclasses import dataclass, field
 
-from pymavlink.dialects.v20 import ardupilotmega as mavlink2
-
 from fleetctl.mavlink.fleet import Fleet
-from fleetctl.mavlink.link import enum_name
+from fleetctl.mavlink.health import (
+    STATE_CRITICAL,
+    STATE_FAILING,
+    fix_words,
+    has_3d_fix,
+    prearm_text,
+    state_words,
+    unhealthy_sensors,
+)
 from fleetctl.mavlink.vehicle import Vehicle
 from fleetctl.mission import Mission
 from fleetctl.mission.flight import TAKEOFF_HEIGHT
 from fleetctl.run.energy import range_from_percent
 
-M = mavlink2
 CHECKS = ("heartbeat", "system", "gps", "position", "home", "sensors", "battery", "disarmed")
-NOT_REQUIRED = M.MAV_SYS_STATUS_SENSOR_RC_RECEIVER
-PREARM_TEXT_AGE = 60.0  # s: a "PreArm:" STATUSTEXT older than this no longer explains a failing check
-_SENSOR_WORDS = {
-    "3D_GYRO": "gyroscope", "3D_ACCEL": "accelerometer", "3D_MAG": "magnetometer",
-    "ABSOLUTE_PRESSURE": "barometer", "GPS": "GPS", "AHRS": "attitude estimator",
-    "MOTOR_OUTPUTS": "motor outputs", "BATTERY": "battery", "RC_RECEIVER": "RC receiver",
-}
-_STATE = {0: "uninitialised", 1: "booting", 2: "calibrating", 3: "standby", 4: "active", 5: "critical",
-          6: "emergency", 7: "power-off", 8: "flight termination"}
-STATE_FAILING = (6, 7, 8)  # MAV_STATE_EMERGENCY, POWEROFF, FLIGHT_TERMINATION
-STATE_CRITICAL = 5  # MAV_STATE_CRITICAL: a failsafe is active (a warning)
-_FIX = {0: "no GPS", 1: "no fix", 2: "2D fix", 3: "3D fix", 4: "DGPS", 5: "RTK float", 6: "RTK fixed",
-        7: "static", 8: "PPP"}
 
 
 @dataclass(frozen=True)
@@ -84,31 +75,6 @@ class PreflightRow:
         return next((c for c in self.checks if c.name == name), None)
 
 
-def unhealthy_sensors(v: Vehicle) -> list[str]:
-    """Names of the sensors SYS_STATUS reports present (and enabled) but not healthy."""
-    if v.sensors_present is None or v.sensors_health is None:
-        return []
-    bad = v.sensors_present & ~v.sensors_health & ~NOT_REQUIRED
-    if v.sensors_enabled:
-        bad &= v.sensors_enabled
-    out = []
-    bit = 1
-    while bit <= bad:
-        if bad & bit:
-            name = enum_name("MAV_SYS_STATUS_SENSOR", bit).removeprefix("MAV_SYS_STATUS_SENSOR_")
-            name = name.removeprefix("MAV_SYS_STATUS_")
-            out.append(_SENSOR_WORDS.get(name, name.lower().replace("_", " ")))
-        bit <<= 1
-    return out
-
-
-def _prearm_text(v: Vehicle, within: float = PREARM_TEXT_AGE) -> str | None:
-    """The vehicle's last "PreArm: …" STATUSTEXT (ArduPilot says there why it cannot arm yet)."""
-    now = time.monotonic()
-    return next((text for ts, _sev, text in reversed(v.statustexts)
-                 if text.startswith("PreArm") and now - ts <= within), None)
-
-
 def needs_deploy_range(mission: Mission, command: str | None) -> bool:
     """Do the rovers need ``deploy_range`` of battery for ``command`` (None = ``fleetctl status``:
     yes when the mission has tasks)?"""
@@ -132,9 +98,8 @@ def check_vehicle(v: Vehicle, mission: Mission, *, carrier: bool, command: str |
         add(Check("gps", False, "no GPS_RAW_INT received (GPS fix unknown)"))
     else:
         sats = "" if v.gps_satellites is None else f", {v.gps_satellites} satellites"
-        words = _FIX.get(fix, f"fix type {fix}")
-        add(Check("gps", fix >= M.GPS_FIX_TYPE_3D_FIX,
-                  f"{words}{sats}" if fix >= M.GPS_FIX_TYPE_3D_FIX else f"GPS {words}{sats}: needs a 3D fix"))
+        words, ok = fix_words(fix), has_3d_fix(fix)
+        add(Check("gps", ok, f"{words}{sats}" if ok else f"GPS {words}{sats}: needs a 3D fix"))
     add(Check("position", v.position is not None, "ok" if v.position is not None else
               "no position (GLOBAL_POSITION_INT) received"))
     add(Check("home", v.home is not None, "ok" if v.home is not None else "home position unknown "
@@ -143,7 +108,7 @@ def check_vehicle(v: Vehicle, mission: Mission, *, carrier: bool, command: str |
     if v.sensors_present is None:
         add(Check("sensors", False, "no SYS_STATUS received (sensor health unknown)"))
     else:
-        prearm = _prearm_text(v) if bad else None
+        prearm = prearm_text(v) if bad else None
         detail = "sensors not healthy: " + ", ".join(bad) + (f" ({prearm})" if prearm else "")
         add(Check("sensors", not bad, "ok" if not bad else detail))
     in_field = command == "collect"  # rovers wait in the air where the deployment left them
@@ -160,7 +125,7 @@ def _system(v: Vehicle, row: PreflightRow) -> Check:
     st = v.system_status
     if st is None:
         return Check("system", True, "unknown")
-    words = _STATE.get(st, f"state {st}")
+    words = state_words(st)
     if st == STATE_CRITICAL:
         row.warnings.append("system status critical (an autopilot failsafe is active)")
     if st in STATE_FAILING:
@@ -229,4 +194,4 @@ def check_fleet(fleet_vehicles: dict[str, Vehicle], carriers: str | Collection[s
 
 
 __all__ = ["CHECKS", "Check", "PreflightRow", "check_connected", "check_fleet", "check_vehicle", "min_reach",
-           "needs_deploy_range", "planning_range", "unhealthy_sensors"]
+           "needs_deploy_range", "planning_range"]

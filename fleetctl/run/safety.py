@@ -14,13 +14,13 @@ import contextlib
 from dataclasses import dataclass, field
 from typing import Any
 
-from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 from shapely.geometry import LineString, Point, Polygon
 
 from fleetctl.geo import Origin
 from fleetctl.mavlink.autopilots import ModeError
 from fleetctl.mavlink.fence import fence_items as mavlink_fence_items
 from fleetctl.mavlink.fleet import Fleet
+from fleetctl.mavlink.health import request_missing
 from fleetctl.mavlink.link import LinkError, MissionItem
 from fleetctl.mavlink.params import ParamError, read_params, set_param
 from fleetctl.mavlink.vehicle import CommandRejected, Vehicle
@@ -31,7 +31,6 @@ from fleetctl.run.firmware_speeds import apply_firmware_speeds
 from fleetctl.run.kinds import Ev
 from fleetctl.run.preflight import PreflightRow, check_fleet
 
-M = mavlink2
 GATHER_TIMEOUT = 3.0  # s to wait for the telemetry preflight checks read
 RTL_WARNING = ("RTL returns a rover to where it armed: a carrier stop the carrier will have left "
                "(set links.failsafe: hold or land to keep rovers near their task)")
@@ -59,11 +58,7 @@ async def gather_telemetry(vehicles: list[Vehicle], timeout: float = GATHER_TIME
             return
         with contextlib.suppress(LinkError, CommandRejected, TimeoutError):
             async with asyncio.timeout(timeout):
-                for msgid, have in ((M.MAVLINK_MSG_ID_HOME_POSITION, v.home),
-                                    (M.MAVLINK_MSG_ID_GPS_RAW_INT, v.gps_fix_type),
-                                    (M.MAVLINK_MSG_ID_SYS_STATUS, v.sensors_present)):
-                    if have is None:
-                        await v.request_message(msgid, timeout=0.5)
+                await request_missing(v)
                 await v.wait_until(_complete, timeout, "preflight telemetry")
 
     await asyncio.gather(*(one(v) for v in vehicles if v.connected and not v.lost))
