@@ -1,0 +1,96 @@
+"""The operation planner's construction: the carrier serves the sites in order, stop after stop.
+
+At its current site the carrier makes the next stop the earlier of two events: rovers on the deck
+ready for a launch (with tasks of the site left), or the first returning rover (with the others
+back within one landing and loading, picked up together). A pick-up stop also launches the rovers
+ready by its end. A rover whose battery would not last until the stop after this one is picked up
+first (its deadline). When the site's tasks are all launched the carrier moves on; a rover still
+out that could not reach the next site is picked up before it leaves. At the end the carrier
+picks up everyone at its last site."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from planners.core.problem import PlanningError, Vec3
+from planners.operations.chains import assign
+from planners.operations.plan import OperationPlan
+from planners.operations.problem import OperationProblem, OpTask
+from planners.operations.schedule import Chain, Schedule
+from planners.operations.sites import Site
+
+
+@dataclass(frozen=True)
+class Policy:
+    radius: float  # m: a site's tasks fit a circle this wide
+    cap: float  # s of work per sortie at most (inf: the battery decides)
+    margin: float  # s of battery kept for waiting to be picked up
+
+
+def dispatch(problem: OperationProblem, sites: list[Site], policy: Policy, name: str) -> OperationPlan:
+    """The schedule of the whole operation (PlanningError when a rover's battery cannot be kept)."""
+    sch = Schedule(problem)
+    for n, site in enumerate(sites):
+        left = sorted((problem.tasks[i] for i in site.tasks), key=lambda t: (-t.duration, t.id))
+        while left:
+            _step(sch, site.point, left, policy)
+        if n + 1 < len(sites):
+            _before_leaving(sch, site.point, sites[n + 1].point, policy)
+    while sch.air:
+        _step(sch, sch.pos, [], policy)
+    return sch.finish(name)
+
+
+def _window(problem: OperationProblem) -> float:
+    """Rovers back within this long of the first one share its pick-up stop (saves a landing and loading)."""
+    return problem.carrier.collect_stop_time
+
+
+def _step(sch: Schedule, point: Vec3, left: list[OpTask], policy: Policy) -> None:
+    """One stop at ``point``: a launch, or a pick-up (with launches), or an urgent pick-up."""
+    p = sch.p
+    arrive = sch.free + sch.drive(point)
+    deck = sorted(sch.ready, key=lambda r: (sch.ready[r], r))
+    meets = {r: sch.earliest_meet(r, point) for r in sch.air}
+    t_launch = max(arrive, sch.ready[deck[0]]) if deck and left else math.inf
+    t_pick = min(meets.values(), default=math.inf)
+    pickups: list[str] = []
+    if t_launch <= t_pick:
+        launchers, not_before, loaded = [r for r in deck if sch.ready[r] <= t_launch], t_launch, t_launch
+    else:
+        pickups = sorted(r for r in meets if meets[r] <= t_pick + _window(p))
+        loaded = max(arrive, *(meets[r] for r in pickups)) + p.carrier.collect_stop_time
+        launchers, not_before = ([r for r in deck if sch.ready[r] <= loaded] if left else []), 0.0
+    launches = assign(point, launchers, left, p, policy.margin, policy.cap)
+    depart = loaded + (p.carrier.deploy_stop_time if launches else 0.0)
+    urgent = [r for r in sch.air if r not in pickups and sch.deadline(r, point) < depart]
+    if urgent:
+        _urgent_pickup(sch, point, urgent)
+        return
+    sch.add_stop(point, pickups, launches, not_before)
+    _consume(left, launches)
+
+
+def _consume(left: list[OpTask], launches: list[tuple[str, Chain]]) -> None:
+    taken = {t.id for _, chain in launches for t in chain.tasks}
+    left[:] = [t for t in left if t.id not in taken]
+
+
+def _urgent_pickup(sch: Schedule, point: Vec3, urgent: list[str]) -> None:
+    """Pick up the rover with the earliest deadline now (and those back by then)."""
+    first = min(urgent, key=lambda r: sch.deadline(r, point))
+    start = max(sch.free + sch.drive(point), sch.earliest_meet(first, point))
+    if start > sch.deadline(first, point):
+        raise PlanningError(f"rover {first}'s battery does not last until the carrier can pick it up")
+    pickups = sorted(r for r in sch.air if sch.earliest_meet(r, point) <= start)
+    sch.add_stop(point, pickups, [])
+
+
+def _before_leaving(sch: Schedule, here: Vec3, there: Vec3, policy: Policy) -> None:
+    """Pick up here the rovers that could not wait for the carrier at the next site."""
+    at_next = sch.free + sch.drive(there) + policy.margin
+    must = [r for r in sch.air if sch.deadline(r, there) < max(at_next, sch.earliest_meet(r, there))]
+    while must:
+        _urgent_pickup(sch, here, must)
+        must = [r for r in must if r in sch.air]
