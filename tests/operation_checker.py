@@ -4,8 +4,9 @@ docs/time-model.md "Operations").
 Written from the documents' formulas, not from planners/ (no import of it), so that a mistake in
 the planner's own time keeping shows up as a disagreement. It recomputes every time of the
 schedule and asserts: every task worked once for its duration, no rover below its reserve, no
-rover in two places (its sorties and swaps in order, launched only from the deck), the carrier's
-stops consistent with their launches and pick-ups, one swap at a time, every rover back.
+rover in two places (its sorties in order, launched only from the deck, swaps only on the deck), a
+battery carried from one sortie to the next unless swapped, the carrier's stops consistent with their
+launches and pick-ups, one swap at a time, every rover back.
 """
 
 from __future__ import annotations
@@ -132,8 +133,8 @@ def _check_sortie(s: dict[str, Any], stops: list[dict[str, Any]], lands: list[fl
     assert abs(s["landed"] - (land + spec.lam)) < TOL and abs(s["aboard"] - b["loaded"]) < TOL
     air = s["landed"] - s["takeoff"] - on_ground
     assert abs(s["air_time"] - air) < TOL, (s["air_time"], air)
-    assert air <= (1.0 - spec.reserve) * spec.endurance + TOL, f"{s['rover']} below its reserve ({air:.2f} s)"
-    assert abs(s["battery_left"] - (1.0 - air / spec.endurance)) < TOL
+    assert abs(s["battery_left"] - (s["battery_start"] - air / spec.endurance)) < TOL
+    assert s["battery_left"] >= spec.reserve - TOL, f"{s['rover']} below its reserve ({s['battery_left']:.4f})"
 
 
 def _check_tasks(sorties: list[dict[str, Any]], spec: OpSpec) -> None:
@@ -150,12 +151,21 @@ def _check_rovers(plan: dict[str, Any], spec: OpSpec) -> None:
     ordered = sorted((e["from"], e["to"]) for _, e in swaps)
     for (_, end), (start, _) in zip(ordered, ordered[1:], strict=False):
         assert start >= end - TOL, "two swaps at once"
-    for rover in {s["rover"] for s in sorties}:
+    for rover in {s["rover"] for s in sorties} | {r for r, _ in swaps}:
         assert rover in spec.rovers
         own = sorted((s for s in sorties if s["rover"] == rover), key=lambda s: s["takeoff"])
         mine = [e for r, e in swaps if r == rover]
+        # on the deck: before the first sortie, between two, after the last (swaps happen only there)
+        deck = [(-math.inf, stops[o["launch_stop"]]["loaded"] if (o := (own or [None])[0]) else math.inf)]
+        deck += [(s["aboard"], stops[n["launch_stop"]]["loaded"]) for s, n in zip(own, own[1:], strict=False)]
+        deck += [(own[-1]["aboard"], math.inf)] if own else []
+        for e in mine:
+            assert any(e["from"] >= a - TOL and e["to"] <= b + TOL for a, b in deck), f"{rover} swapped in the air"
+        battery = 1.0  # every rover starts on a full battery; a swap fills it again
+        for k, s in enumerate(own):
+            if k and any(e["from"] >= deck[k][0] - TOL and e["to"] <= deck[k][1] + TOL for e in mine):
+                battery = 1.0
+            assert abs(s["battery_start"] - battery) < TOL, (f"{rover} launched without its battery swap", s)
+            battery = s["battery_left"]
         for s, nxt in zip(own, own[1:], strict=False):
             assert nxt["launch_stop"] >= s["pickup_stop"] and nxt["takeoff"] >= s["aboard"] - TOL, "in two places"
-            ready = stops[nxt["launch_stop"]]["loaded"]  # unloading starts: the battery must be full
-            assert any(e["from"] >= s["aboard"] - TOL and e["to"] <= ready + TOL for e in mine), \
-                f"{rover} relaunched without a battery swap"

@@ -26,11 +26,12 @@ class Policy:
     radius: float  # m: a site's tasks fit a circle this wide
     cap: float  # s of work per sortie at most (inf: the battery decides)
     margin: float  # s of battery kept for waiting to be picked up
+    swap_below: float = 1.0  # a rover picked up with less than this fraction of its air time left is swapped
 
 
 def dispatch(problem: OperationProblem, sites: list[Site], policy: Policy, name: str) -> OperationPlan:
     """The schedule of the whole operation (PlanningError when a rover's battery cannot be kept)."""
-    sch = Schedule(problem)
+    sch = Schedule(problem, policy.swap_below)
     for n, site in enumerate(sites):
         left = sorted((problem.tasks[i] for i in site.tasks), key=lambda t: (-t.duration, t.id))
         while left:
@@ -62,7 +63,11 @@ def _step(sch: Schedule, point: Vec3, left: list[OpTask], policy: Policy) -> Non
         pickups = sorted(r for r in meets if meets[r] <= t_pick + _window(p))
         loaded = max(arrive, *(meets[r] for r in pickups)) + p.carrier.collect_stop_time
         launchers, not_before = ([r for r in deck if sch.ready[r] <= loaded] if left else []), 0.0
-    launches = assign(point, launchers, left, p, policy.margin, policy.cap)
+    launches, flat = assign(point, launchers, left, p, policy.margin, policy.cap, sch.battery)
+    if flat:  # on the deck with too little battery for any task left: a swap first
+        _swap(sch, flat)
+        if not launches and not pickups:
+            return
     depart = loaded + (p.carrier.deploy_stop_time if launches else 0.0)
     urgent = [r for r in sch.air if r not in pickups and sch.deadline(r, point) < depart]
     if urgent:
@@ -70,6 +75,13 @@ def _step(sch: Schedule, point: Vec3, left: list[OpTask], policy: Policy) -> Non
         return
     sch.add_stop(point, pickups, launches, not_before)
     _consume(left, launches)
+
+
+def _swap(sch: Schedule, rovers: list[str]) -> None:
+    for r in rovers:
+        if sch.used[r] == 0.0:
+            raise PlanningError(f"no task left fits rover {r}'s full battery with the flights to it and back")
+        sch.swap(r)
 
 
 def _consume(left: list[OpTask], launches: list[tuple[str, Chain]]) -> None:

@@ -40,7 +40,8 @@ class Sortie:
     landed: float = 0.0
     aboard: float = 0.0
     air_time: float = 0.0
-    battery_left: float = 1.0
+    battery_start: float = 1.0  # fraction of a full battery at take-off
+    battery_left: float = 1.0  # at touch-down
 
 
 @dataclass
@@ -120,7 +121,8 @@ def _sortie_json(k: int, s: Sortie) -> dict[str, Any]:
             "visits": [{"task": v.task, "position": _pt(v.position), "arrive": _t(v.arrive), "end": _t(v.end),
                         "leave": _t(v.leave), "work": "ground" if v.ground else "hover"} for v in s.visits],
             "meet": _t(s.meet), "landed": _t(s.landed), "aboard": _t(s.aboard),
-            "air_time": _t(s.air_time), "battery_left": round(s.battery_left, 6)}
+            "air_time": _t(s.air_time), "battery_start": round(s.battery_start, 6),
+            "battery_left": round(s.battery_left, 6)}
 
 
 def _pt(p: Vec3) -> list[float]:

@@ -60,14 +60,21 @@ class Airborne:
     end: float  # end of the last task's work
     ground: bool  # the last task is worked landed: the rover waits there for free
     air_to_end: float
+    used_before: float = 0.0  # s of this battery flown before the sortie (0: launched on a full one)
     release: float = 0.0  # it does not leave its last task before this (the waves' collection start)
 
 
 class Schedule:
-    """The operation so far: append stops; :meth:`finish` gives the plan."""
+    """The operation so far: append stops; :meth:`finish` gives the plan.
 
-    def __init__(self, problem: OperationProblem) -> None:
+    A rover picked up with less than ``swap_below`` of its battery's air time left gets a swap
+    at once (one swap at a time, in pick-up order); the others stay on the deck with what they
+    have and get a swap (:meth:`swap`) when a planner needs them full."""
+
+    def __init__(self, problem: OperationProblem, swap_below: float = 1.0) -> None:
         self.p = problem
+        self.swap_below = swap_below
+        self.used: dict[str, float] = dict.fromkeys(problem.rovers, 0.0)  # air s since the last full battery
         self.pos: Vec3 = (problem.start[0], problem.start[1], 0.0)
         self.heading = problem.heading
         self.free = 0.0  # the carrier's last departure
@@ -99,7 +106,8 @@ class Schedule:
 
     def deadline(self, rover: str, point: Vec3) -> float:
         """The latest landing start at ``point`` the rover's battery allows (-inf: none)."""
-        a, budget = self.air[rover], self.p.air_budget - EPS
+        a = self.air[rover]
+        budget = self.p.air_budget - EPS - a.used_before
         if self.air_if_landing(rover, point, -math.inf) > budget:
             return -math.inf
         if a.ground:
@@ -130,19 +138,30 @@ class Schedule:
         fly = self.fly_back(rover, point)
         s = a.sortie
         s.air_time = self.air_if_landing(rover, point, start)
-        if s.air_time > self.p.air_budget:
-            raise PlanningError(f"rover {rover} would land with {s.air_time:.1f} s in the air, more than its "
-                                f"battery's {self.p.air_budget:.1f} s above the reserve")
+        used = a.used_before + s.air_time
+        if used > self.p.air_budget:
+            raise PlanningError(f"rover {rover} would land with {used:.1f} s of its battery flown, more than "
+                                f"the {self.p.air_budget:.1f} s above the reserve")
         last = s.visits[-1]
         last.leave = max(last.end, a.release, start - fly)
         s.pickup_stop, s.meet, s.landed, s.aboard = k, last.leave + fly, start + self.p.carrier.land_time, loaded
-        s.battery_left = 1.0 - s.air_time / self.p.endurance
+        s.battery_left = 1.0 - used / self.p.endurance
         del self.air[rover]
-        begin = max(loaded, self._swap_free)
+        self.used[rover], self.ready[rover] = used, loaded
+        if self.p.air_budget - used < self.swap_below * self.p.air_budget:
+            self.swap(rover)
+
+    def swap(self, rover: str) -> None:
+        """A fresh battery for a rover on the deck, at the swap station's next free moment."""
+        begin = max(self.ready[rover], self._swap_free)
         self._swap_free = begin + self.p.swap_time
         self._pending[rover] = len(self.swaps)
         self.swaps.append(Swap(rover, begin, self._swap_free))
-        self.ready[rover] = self._swap_free
+        self.ready[rover], self.used[rover] = self._swap_free, 0.0
+
+    def battery(self, rover: str) -> float:
+        """Air seconds a rover on the deck may still fly above its reserve."""
+        return self.p.air_budget - self.used[rover]
 
     def _launch(self, rover: str, chain: Chain, point: Vec3, k: int, depart: float, loaded: float) -> None:
         assert self.ready[rover] <= loaded + 1e-9, (rover, self.ready[rover], loaded)
@@ -154,9 +173,10 @@ class Schedule:
             t = arrive + task.duration
             visits.append(Visit(task.id, task.position, arrive, t, t, task.ground))
             here, ground = task.position, task.ground
-        s = Sortie(rover, k, depart - self.p.carrier.takeoff_time, depart, visits)
+        s = Sortie(rover, k, depart - self.p.carrier.takeoff_time, depart, visits,
+                   battery_start=1.0 - self.used[rover] / self.p.endurance)
         self.sorties.append(s)
-        self.air[rover] = Airborne(s, here, t, ground, chain.air_to_end)
+        self.air[rover] = Airborne(s, here, t, ground, chain.air_to_end, self.used[rover])
 
     def finish(self, planner: str) -> OperationPlan:
         """The plan (every rover must be back); swaps never followed by a launch are left out."""
