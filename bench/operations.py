@@ -47,7 +47,8 @@ def random_operation(seed: int, rovers: int, tasks: int, ground: bool) -> Operat
     rng = random.Random(seed)
     ts = tuple(OpTask(f"t{i + 1}", (rng.uniform(0, SIDE), rng.uniform(0, SIDE), rng.uniform(0, 12)),
                       rng.uniform(30, 300), ground) for i in range(tasks))
-    return OperationProblem(CARRIER, ROVER, (0.0, 0.0, 0.0), 0.7854, ts, tuple(f"r{i + 1}" for i in range(rovers)),
+    ids = tuple(f"r{i + 1}" for i in range(rovers))
+    return OperationProblem(CARRIER, ROVER, (0.0, 0.0, 0.0), 0.7854, ts, ids,
                             deploy_range=DEPLOY, endurance=ENDURANCE, reserve=RESERVE, swap_time=SWAP,
                             takeoff_height=H_T, approach_height=H_A)
 
@@ -56,7 +57,8 @@ def spec(p: OperationProblem) -> OpSpec:
     c = p.carrier
     return OpSpec(c.max_speed, c.accel, c.turn_rate, c.unload_time, c.load_time, c.takeoff_time, c.land_time,
                   p.rover.max_speed, p.rover.accel, p.deploy_range, p.endurance, p.reserve, p.swap_time,
-                  p.takeoff_height, p.approach_height, {t.id: (t.position, t.duration, t.ground) for t in p.tasks},
+                  p.takeoff_height, p.approach_height,
+                  {t.id: (t.position, t.duration, t.ground) for t in p.tasks},
                   p.rovers)
 
 

@@ -93,7 +93,8 @@ def _check_stops(plan: dict[str, Any], spec: OpSpec) -> list[float]:
         path = stop.get("carrier_path") or [prev, stop["position"]]
         assert math.dist(path[-1], stop["position"]) < TOL
         dt, heading = _carrier(spec, prev, path, heading)
-        assert stop["arrive"] >= depart + dt - TOL, ("carrier there too early", k, stop["arrive"], depart + dt)
+        assert stop["arrive"] >= depart + dt - TOL, ("carrier there too early", k, stop["arrive"],
+                                                     depart + dt)
         picked = sorted(s["rover"] for s in sorties if s["pickup_stop"] == k)
         launched = sorted(s["rover"] for s in sorties if s["launch_stop"] == k)
         assert picked == sorted(stop["pickups"]) and launched == sorted(stop["launches"]), k
@@ -134,7 +135,8 @@ def _check_sortie(s: dict[str, Any], stops: list[dict[str, Any]], lands: list[fl
     air = s["landed"] - s["takeoff"] - on_ground
     assert abs(s["air_time"] - air) < TOL, (s["air_time"], air)
     assert abs(s["battery_left"] - (s["battery_start"] - air / spec.endurance)) < TOL
-    assert s["battery_left"] >= spec.reserve - TOL, f"{s['rover']} below its reserve ({s['battery_left']:.4f})"
+    assert s["battery_left"] >= spec.reserve - TOL, \
+        f"{s['rover']} below its reserve ({s['battery_left']:.4f})"
 
 
 def _check_tasks(sorties: list[dict[str, Any]], spec: OpSpec) -> None:
@@ -146,7 +148,7 @@ def _check_rovers(plan: dict[str, Any], spec: OpSpec) -> None:
     """Each rover: sorties one after another, a swap on the deck between two; one swap at a time."""
     sorties, stops = plan["sorties"], plan["stops"]
     swaps = [(r, e) for r, rows in plan["rovers"].items() for e in rows if e["kind"] == "swap"]
-    for r, e in swaps:
+    for _, e in swaps:
         assert abs(e["to"] - e["from"] - spec.swap) < TOL
     ordered = sorted((e["from"], e["to"]) for _, e in swaps)
     for (_, end), (start, _) in zip(ordered, ordered[1:], strict=False):
@@ -160,7 +162,8 @@ def _check_rovers(plan: dict[str, Any], spec: OpSpec) -> None:
         deck += [(s["aboard"], stops[n["launch_stop"]]["loaded"]) for s, n in zip(own, own[1:], strict=False)]
         deck += [(own[-1]["aboard"], math.inf)] if own else []
         for e in mine:
-            assert any(e["from"] >= a - TOL and e["to"] <= b + TOL for a, b in deck), f"{rover} swapped in the air"
+            assert any(e["from"] >= a - TOL and e["to"] <= b + TOL for a, b in deck), \
+                f"{rover} swapped in the air"
         battery = 1.0  # every rover starts on a full battery; a swap fills it again
         for k, s in enumerate(own):
             if k and any(e["from"] >= deck[k][0] - TOL and e["to"] <= deck[k][1] + TOL for e in mine):
@@ -168,4 +171,5 @@ def _check_rovers(plan: dict[str, Any], spec: OpSpec) -> None:
             assert abs(s["battery_start"] - battery) < TOL, (f"{rover} launched without its battery swap", s)
             battery = s["battery_left"]
         for s, nxt in zip(own, own[1:], strict=False):
-            assert nxt["launch_stop"] >= s["pickup_stop"] and nxt["takeoff"] >= s["aboard"] - TOL, "in two places"
+            assert nxt["launch_stop"] >= s["pickup_stop"], "in two places"
+            assert nxt["takeoff"] >= s["aboard"] - TOL, "in two places"

@@ -27,18 +27,20 @@ def instance(seed: int) -> tuple[OperationProblem, OpSpec]:
                   for i in range(n_rovers * rng.randint(2, 4)))
     accel = rng.choice([None, 2.0])
     turn = rng.choice([None, 1.0])
-    u, l, tau, lam = rng.uniform(0, 5), rng.uniform(0, 5), rng.choice([0.0, 1.1]), rng.choice([0.0, 3.1])
+    unload, load = rng.uniform(0, 5), rng.uniform(0, 5)
+    tau, lam = rng.choice([0.0, 1.1]), rng.choice([0.0, 3.1])
     v_r, a_r = rng.uniform(3, 8), rng.choice([None, 3.0])
     swap = rng.choice([0.0, 20.0, 60.0])
     endurance = rng.uniform(500, 900)
     deploy = rng.uniform(60, 200)
     start = (rng.uniform(-50, 50), rng.uniform(-50, 0), 0.0)
     heading = rng.uniform(-3, 3)
-    problem = OperationProblem(CarrierSpec(12.0, accel, turn, u, l, tau, lam), Motion(v_r, a_r), start, heading,
+    carrier = CarrierSpec(12.0, accel, turn, unload, load, tau, lam)
+    problem = OperationProblem(carrier, Motion(v_r, a_r), start, heading,
                                tasks, tuple(f"r{i + 1}" for i in range(n_rovers)), deploy_range=deploy,
                                endurance=endurance, reserve=0.1, swap_time=swap, takeoff_height=1.0,
                                approach_height=3.0)
-    spec = OpSpec(12.0, accel, turn, u, l, tau, lam, v_r, a_r, deploy, endurance, 0.1, swap, 1.0, 3.0,
+    spec = OpSpec(12.0, accel, turn, unload, load, tau, lam, v_r, a_r, deploy, endurance, 0.1, swap, 1.0, 3.0,
                   {t.id: (t.position, t.duration, t.ground) for t in tasks}, problem.rovers)
     return problem, spec
 
@@ -66,8 +68,9 @@ def test_rovers_chain_tasks_and_are_relaunched_after_a_swap() -> None:
     """Short tasks close together: one sortie works several; more tasks than rovers: a rover flies
     again, after a swap on the deck."""
     tasks = tuple(OpTask(f"t{i}", (10.0 * i, 5.0, 3.0), 30.0) for i in range(6))
-    problem = OperationProblem(CarrierSpec(10.0, None, None, 2.0, 2.0, 1.0, 2.0), Motion(4.0), (0.0, 0.0, 0.0),
-                               0.0, tasks, ("r1",), deploy_range=100.0, endurance=150.0, swap_time=15.0)
+    carrier = CarrierSpec(10.0, None, None, 2.0, 2.0, 1.0, 2.0)
+    problem = OperationProblem(carrier, Motion(4.0), (0.0, 0.0, 0.0), 0.0, tasks, ("r1",),
+                               deploy_range=100.0, endurance=150.0, swap_time=15.0)
     plan = plan_operation(problem)
     assert max(len(s.visits) for s in plan.sorties) >= 2
     assert len(plan.sorties) >= 2 and plan.swaps
@@ -99,7 +102,8 @@ def _breakages(plan: dict[str, Any]) -> list[dict[str, Any]]:
     s["sorties"][-1]["pickup_stop"] = -1  # a rover never picked up
     out.append(s)
     s = copy.deepcopy(plan)
-    s["sorties"][0]["visits"] = s["sorties"][0]["visits"][1:] or s["sorties"][1]["visits"]  # a task twice/never
+    # a task never worked, or one twice
+    s["sorties"][0]["visits"] = s["sorties"][0]["visits"][1:] or s["sorties"][1]["visits"]
     out.append(s)
     s = copy.deepcopy(plan)
     s["makespan"] -= 1.0

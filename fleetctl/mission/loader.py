@@ -73,7 +73,6 @@ from fleetctl.mission.model import (
     SigningConfig,
     SimConfig,
     TeamConfig,
-    TaskWork,
     TlsConfig,
 )
 from fleetctl.mission.operation import WORK_MODES, check_operation, task_work

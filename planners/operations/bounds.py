@@ -11,9 +11,9 @@ Each bound below holds for every plan in the time model of docs/time-model.md ("
    landed and loaded: makespan ≥ u + τ + Σ_j (d_j + in_j) / n + min_j out_j + λ + l, n = the rovers
    that can be used (at most one per task).
 3. Swaps: a sortie spends at most ``air_budget`` in the air, at least in_j (+ d_j hovering) per task,
-   so the operation flies at least S = ⌈Σ_j air_j / air_budget⌉ sorties; all but the first of each rover need a
-   swap before them, one at a time: makespan ≥ (S − n) · swap_time + the work bound's first launch
-   and last return.
+   so the operation flies at least S = ⌈Σ_j air_j / air_budget⌉ sorties, and the rovers' first
+   batteries last at most n_rovers of them: at least S − n_rovers swaps, one at a time:
+   makespan ≥ (S − n_rovers) · swap_time + the work bound's first launch and last return.
 """
 
 from __future__ import annotations
@@ -46,7 +46,8 @@ def operation_lower_bound(problem: OperationProblem) -> float:
     launch, back = c.deploy_stop_time, c.collect_stop_time
     ins = [_flight_in(t, problem) for t in problem.tasks]
     outs = [_flight_out(t, problem) for t in problem.tasks]
-    per_task = max(launch + i + t.duration + o + back for t, i, o in zip(problem.tasks, ins, outs, strict=True))
+    per_task = max(launch + i + t.duration + o + back
+                   for t, i, o in zip(problem.tasks, ins, outs, strict=True))
     n = min(len(problem.rovers), len(problem.tasks))
     ends = launch + min(outs) + back
     work = ends + sum(t.duration + i for t, i in zip(problem.tasks, ins, strict=True)) / n

@@ -25,10 +25,11 @@ def build_chain(stop: Vec3, left: list[OpTask], problem: OperationProblem, margi
                 budget: float) -> Chain | None:
     """A chain from ``left`` (longest first; not modified) for a rover with ``budget`` air seconds,
     or None when no task of ``left`` fits it."""
-    chain = next((c for t in left if fits(c := chain_profile(stop, [t], problem), stop, problem, 0.0, budget)),
-                 None)
-    if chain is None:
+    singles = (chain_profile(stop, [t], problem) for t in left)
+    found = next((c for c in singles if fits(c, stop, problem, 0.0, budget)), None)
+    if found is None:
         return None
+    chain = found
     rest = [t for t in left if t is not chain.tasks[0]]
     work = chain.tasks[0].duration
     while rest:

@@ -105,7 +105,8 @@ class OperationPlan:
             out.setdefault(s.rover, []).append(
                 (s.takeoff, {"kind": "sortie", "sortie": k, "from": _t(s.takeoff), "to": _t(s.aboard)}))
         for w in self.swaps:
-            out.setdefault(w.rover, []).append((w.start, {"kind": "swap", "from": _t(w.start), "to": _t(w.end)}))
+            row = {"kind": "swap", "from": _t(w.start), "to": _t(w.end)}
+            out.setdefault(w.rover, []).append((w.start, row))
         return {r: [e for _, e in sorted(rows, key=lambda x: x[0])] for r, rows in sorted(out.items())}
 
 

@@ -144,7 +144,8 @@ class Schedule:
                                 f"the {self.p.air_budget:.1f} s above the reserve")
         last = s.visits[-1]
         last.leave = max(last.end, a.release, start - fly)
-        s.pickup_stop, s.meet, s.landed, s.aboard = k, last.leave + fly, start + self.p.carrier.land_time, loaded
+        s.pickup_stop, s.meet, s.aboard = k, last.leave + fly, loaded
+        s.landed = start + self.p.carrier.land_time
         s.battery_left = 1.0 - used / self.p.endurance
         del self.air[rover]
         self.used[rover], self.ready[rover] = used, loaded

@@ -62,13 +62,15 @@ def _wave(sch: Schedule, wave: list[OpTask]) -> None:
     from planners import COLLECT_PLANNERS, DEPLOY_PLANNERS
 
     for stop in DEPLOY_PLANNERS["lee"](dp).stops:
-        launches = [(leg.rover, chain_profile(stop.position, [by_id[str(leg.task)]], p)) for leg in stop.rovers]
+        launches = [(leg.rover, chain_profile(stop.position, [by_id[str(leg.task)]], p))
+                    for leg in stop.rovers]
         sch.add_stop(stop.position, [], launches, not_before=max(sch.ready[r] for r, _ in launches))
     start = max(sch.air[r].end for r in sch.air)  # every task of the wave worked: the collection starts
     for a in sch.air.values():
         a.release = start
     cp = CollectProblem(p.carrier, _collect_motion(sch), sch.pos, sch.heading,
-                        tuple(CollectRover(r, a.last, _range(sch, r, start)) for r, a in sorted(sch.air.items())),
+                        tuple(CollectRover(r, a.last, _range(sch, r, start))
+                              for r, a in sorted(sch.air.items())),
                         approach_height=p.approach_height)
     stops = COLLECT_PLANNERS["lee"](cp).stops
     for k, stop in enumerate(stops):
