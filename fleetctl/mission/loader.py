@@ -75,7 +75,7 @@ from fleetctl.mission.model import (
     TeamConfig,
     TlsConfig,
 )
-from fleetctl.mission.operation import WORK_MODES, check_operation, task_work
+from fleetctl.mission.operation import WORK_MODES, check_one_carrier, check_operation, task_work
 from fleetctl.mission.yaml_safe import YamlError, read_yaml
 from planners.core.problem import (
     CollectRover,
@@ -794,6 +794,7 @@ def _build(ctx: _Ctx, data: Any, path: Path | None) -> Mission:
     d = ctx.section(data, (), _TOP)
     origin: Origin | None = d["origin"]
     _carriers(ctx, d)
+    check_one_carrier(ctx.fail, d)
     _read_files(ctx, d, origin, path)
     carrier, r = d["carrier"], d["rovers"]
     tasks, collection = _tasks_and_collection(ctx, d, origin)

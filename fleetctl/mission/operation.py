@@ -22,15 +22,19 @@ def task_work(rows: Sequence[dict[str, Any]], dwell: float, default_work: str) -
                           (t.get("work") or default_work) == "ground") for t in rows)
 
 
-def check_operation(fail: Fail, d: dict[str, Any], tasks: Sequence[Task], work: Sequence[TaskWork],
-                    endurance_range: float) -> None:
-    """An operation has one carrier, and every task worked hovering fits a battery above its reserve
-    (the flights to and from it come on top: the planner says when those do not fit)."""
-    if not d["operation"]:
-        return
-    if d["carriers"] is not None and len(d["carriers"]) > 1:
+def check_one_carrier(fail: Fail, d: dict[str, Any]) -> None:
+    """An operation is planned for one carrier (checked before the teams' rovers are counted)."""
+    if d["operation"] and d["carriers"] is not None and len(d["carriers"]) > 1:
         fail(("operation",), f"a long operation is planned for one carrier; the mission has "
                              f"{len(d['carriers'])} in 'carriers:' (keep one, or set operation: false)")
+
+
+def check_operation(fail: Fail, d: dict[str, Any], tasks: Sequence[Task], work: Sequence[TaskWork],
+                    endurance_range: float) -> None:
+    """Every task worked hovering fits a battery above its reserve (the flights to and from it come
+    on top: the planner says when those do not fit)."""
+    if not d["operation"]:
+        return
     r = d["rovers"]
     air = (1.0 - r["reserve"]) * endurance_range / r["max_speed"]  # s in the air above the reserve
     for i, (t, w) in enumerate(zip(tasks, work, strict=True)):
