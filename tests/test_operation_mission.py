@@ -39,7 +39,8 @@ def test_existing_missions_keep_their_meaning() -> None:
 
 
 def test_fewer_rovers_than_tasks_only_in_an_operation() -> None:
-    with pytest.raises(MissionError, match=r"rovers\.fleet\.count: only 6 rover\(s\) for 18 tasks.*operation: true"):
+    refused = r"rovers\.fleet\.count: only 6 rover\(s\) for 18 tasks.*operation: true"
+    with pytest.raises(MissionError, match=refused):
         _parse(_changed(operation=False))
     assert len(_parse(RAW).rovers.units) == 6
 
@@ -95,9 +96,9 @@ def test_an_operation_has_one_carrier() -> None:
 def _spec(m: Mission) -> OpSpec:
     c, r = m.carrier, m.rovers
     tasks = {t.id: (t.position, w.duration, w.ground) for t, w in zip(m.tasks, m.work, strict=True)}
-    return OpSpec(c.max_speed, c.accel, c.turn_rate, c.unload_time, c.load_time, r.takeoff_time, r.land_time,
-                  r.max_speed, r.accel, r.deploy_range, r.endurance_range / r.max_speed, r.reserve, c.swap_time,
-                  1.0, 3.0, tasks, r.ids)
+    return OpSpec(c.max_speed, c.accel, c.turn_rate, c.unload_time, c.load_time, r.takeoff_time,
+                  r.land_time, r.max_speed, r.accel, r.deploy_range, r.endurance_range / r.max_speed,
+                  r.reserve, c.swap_time, 1.0, 3.0, tasks, r.ids)
 
 
 @pytest.mark.parametrize("planner", ["operation", "waves"])
