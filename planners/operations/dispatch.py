@@ -11,6 +11,7 @@ picks up everyone at its last site."""
 from __future__ import annotations
 
 import math
+import random
 from dataclasses import dataclass
 
 from planners.core.problem import PlanningError, Vec3
@@ -26,20 +27,28 @@ class Policy:
     radius: float  # m: a site's tasks fit a circle this wide
     cap: float  # s of work per sortie at most (inf: the battery decides)
     margin: float  # s of battery kept for waiting to be picked up
-    swap_below: float = 1.0  # a rover picked up with less than this fraction of its air time left is swapped
+    swap_below: float = 1.0  # swap a rover picked up with less than this fraction of its air time left
+    chase: bool = False  # at the end, drive to the rovers (below their last task), not call them back
+    jitter: int = 0  # a seed: a task's duration counts up to 30 % more or less in the launch order (0: none)
 
 
 def dispatch(problem: OperationProblem, sites: list[Site], policy: Policy, name: str) -> OperationPlan:
     """The schedule of the whole operation (PlanningError when a rover's battery cannot be kept)."""
     sch = Schedule(problem, policy.swap_below)
+    rng = random.Random(policy.jitter)
+    weight = {t.id: 1.0 + (0.3 * rng.uniform(-1.0, 1.0) if policy.jitter else 0.0) for t in problem.tasks}
     for n, site in enumerate(sites):
-        left = sorted((problem.tasks[i] for i in site.tasks), key=lambda t: (-t.duration, t.id))
+        left = sorted((problem.tasks[i] for i in site.tasks), key=lambda t: (-t.duration * weight[t.id],
+                                                                             t.id))
         while left:
             _step(sch, site.point, left, policy)
         if n + 1 < len(sites):
             _before_leaving(sch, site.point, sites[n + 1].point, policy)
     while sch.air:
-        _step(sch, sch.pos, [], policy)
+        if policy.chase:
+            _chase(sch)
+        else:
+            _step(sch, sch.pos, [], policy)
     return sch.finish(name)
 
 
@@ -97,6 +106,36 @@ def _urgent_pickup(sch: Schedule, point: Vec3, urgent: list[str]) -> None:
         raise PlanningError(f"rover {first}'s battery does not last until the carrier can pick it up")
     pickups = sorted(r for r in sch.air if sch.earliest_meet(r, point) <= start)
     sch.add_stop(point, pickups, [])
+
+
+def _below(sch: Schedule, rover: str) -> Vec3:
+    last = sch.air[rover].last
+    return (last[0], last[1], 0.0)
+
+
+def _meet_below(sch: Schedule, rover: str) -> float:
+    """When the carrier, driving there now, and the rover can meet below the rover's last task."""
+    q = _below(sch, rover)
+    return max(sch.free + sch.drive(q), sch.earliest_meet(rover, q))
+
+
+def _chase(sch: Schedule) -> None:
+    """One pick-up stop of the end: below the rover the carrier can meet first, unless another
+    rover's battery would not last until the carrier reached it afterwards (then that one first)."""
+    order = sorted(sch.air, key=lambda r: (_meet_below(sch, r), r))
+    slack = {r: sch.deadline(r, _below(sch, r)) - _meet_below(sch, r) for r in order}
+    after = sch.p.carrier.collect_stop_time + max((sch.drive(_below(sch, r)) for r in order), default=0.0)
+    first = order[0]
+    late = [r for r in order[1:] if slack[r] < _meet_below(sch, first) - sch.free + after]
+    if late:
+        first = min(late, key=lambda r: slack[r])
+    if slack[first] < 0.0:
+        raise PlanningError(f"rover {first}'s battery does not last until the carrier can pick it up")
+    q, start = _below(sch, first), _meet_below(sch, first)
+    window = sch.p.carrier.collect_stop_time
+    pickups = sorted(r for r in sch.air if sch.earliest_meet(r, q) <= start + window
+                     and sch.deadline(r, q) >= start + window)
+    sch.add_stop(q, pickups if first in pickups else [first], [])
 
 
 def _before_leaving(sch: Schedule, here: Vec3, there: Vec3, policy: Policy) -> None:
