@@ -15,6 +15,7 @@ import copy
 import math
 import time
 
+from planners import COLLECT_PLANNERS, DEPLOY_PLANNERS
 from planners.core.problem import CollectProblem, CollectRover, DeployProblem, Motion, PlanningError, Task
 from planners.operations.plan import OperationPlan
 from planners.operations.problem import OperationProblem, OpTask
@@ -59,8 +60,6 @@ def _wave(sch: Schedule, wave: list[OpTask]) -> None:
     dp = DeployProblem(p.carrier, p.rover, p.deploy_range, sch.pos, sch.heading,
                        tuple(Task(t.id, t.position) for t in wave), rovers=tuple(deck),
                        takeoff_height=p.takeoff_height)
-    from planners import COLLECT_PLANNERS, DEPLOY_PLANNERS
-
     for stop in DEPLOY_PLANNERS["lee"](dp).stops:
         launches = [(leg.rover, chain_profile(stop.position, [by_id[str(leg.task)]], p))
                     for leg in stop.rovers]
