@@ -5,6 +5,7 @@
 from __future__ import annotations
 
 import copy
+import dataclasses
 import json
 from pathlib import Path
 from typing import Any
@@ -14,6 +15,8 @@ import yaml
 
 from fleetctl.cli import main
 from fleetctl.mission import Mission, MissionError, load_mission, parse_mission
+from planners.core.problem import Task
+from planners.operations import OpTask
 from tests.operation_checker import OpSpec, check_operation
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -34,8 +37,8 @@ def _changed(**top: Any) -> dict[str, Any]:
 def test_existing_missions_keep_their_meaning() -> None:
     m = load_mission(ROOT / "missions" / "recon.yaml")
     assert not m.operation and m.carrier.swap_time == 0.0
-    assert [w.duration for w in m.work] == [m.dwell] * len(m.tasks)
-    assert not any(w.ground for w in m.work)
+    assert [m.task_work(t.id).duration for t in m.tasks] == [m.dwell] * len(m.tasks)
+    assert not any(m.task_work(t.id).ground for t in m.tasks)
 
 
 def test_fewer_rovers_than_tasks_only_in_an_operation() -> None:
@@ -55,6 +58,8 @@ def test_durations_default_to_dwell_and_work_to_rovers_work() -> None:
     landed = copy.deepcopy(RAW)
     landed["rovers"]["work"] = "ground"
     assert all(t.ground for t in _parse(landed).operation_problem().tasks)
+    added = dataclasses.replace(m, tasks=(*m.tasks, Task("new", (0.0, 50.0, 2.0))))  # e.g. over MQTT
+    assert added.operation_problem().tasks[-1] == OpTask("new", (0.0, 50.0, 2.0), m.dwell, False)
 
 
 @pytest.mark.parametrize("path, value, message", [
@@ -95,7 +100,7 @@ def test_an_operation_has_one_carrier() -> None:
 
 def _spec(m: Mission) -> OpSpec:
     c, r = m.carrier, m.rovers
-    tasks = {t.id: (t.position, w.duration, w.ground) for t, w in zip(m.tasks, m.work, strict=True)}
+    tasks = {t.id: (t.position, m.task_work(t.id).duration, m.task_work(t.id).ground) for t in m.tasks}
     return OpSpec(c.max_speed, c.accel, c.turn_rate, c.unload_time, c.load_time, r.takeoff_time,
                   r.land_time, r.max_speed, r.accel, r.deploy_range, r.endurance_range / r.max_speed,
                   r.reserve, c.swap_time, 1.0, 3.0, tasks, r.ids)

@@ -818,7 +818,8 @@ def _build(ctx: _Ctx, data: Any, path: Path | None) -> Mission:
         carrier=_carrier_config(carrier),
         rovers=RoversConfig(r["max_speed"], r["accel"], deploy_range, endurance, r["reserve"], units, energy,
                             **_flight_times(r), firmware_speeds=_firmware_speeds(r, carrier["connection"]),
-                            handling_given=(r["takeoff_time"] is not None, r["land_time"] is not None)),
+                            handling_given=(r["takeoff_time"] is not None, r["land_time"] is not None),
+                            work=r["work"]),
         tasks=tasks,
         obstacles=obstacles,
         bounds=bounds,
@@ -832,7 +833,7 @@ def _build(ctx: _Ctx, data: Any, path: Path | None) -> Mission:
         path=path,
         geofence=geofence,
         teams=tuple(TeamConfig(_carrier_config(c), ids) for c, ids in teams),
-        work=work,
+        work=tuple((t.id, w) for t, w in zip(tasks, work, strict=True)),
         operation=d["operation"],
     )
     log.debug(

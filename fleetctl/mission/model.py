@@ -102,6 +102,7 @@ class RoversConfig:
     land_time: float = 0.0  # s, time model: above the stop with the carrier there -> loaded
     firmware_speeds: str = "keep"  # set | keep: the mission's speeds written to the autopilots
     handling_given: tuple[bool, bool] = (True, True)  # takeoff_time, land_time given in the file
+    work: str = "hover"  # how a rover works at a task unless the task says: hover | ground
 
     @property
     def ids(self) -> tuple[str, ...]:
@@ -215,7 +216,7 @@ class Mission:
     path: Path | None = None
     geofence: GeofenceConfig | None = None
     teams: tuple[TeamConfig, ...] = ()  # every carrier with its deck; () = one team (carrier, every rover)
-    work: tuple[TaskWork, ...] = ()  # per task (same order as ``tasks``): its duration and work mode
+    work: tuple[tuple[str, TaskWork], ...] = ()  # (task id, its duration and work mode) as the file gives
     operation: bool = False  # a long operation: rovers serve several tasks in sorties (docs/operations.md)
 
     def carrier_spec(self) -> CarrierSpec:
@@ -265,7 +266,7 @@ class Mission:
         if not self.tasks:
             raise MissionError(f"{self._where()}: tasks: the mission has no tasks to work")
         r = self.rovers
-        work = self.work or tuple(TaskWork(self.dwell) for _ in self.tasks)
+        work = [self.task_work(t.id) for t in self.tasks]
         tasks = tuple(OpTask(t.id, t.position, w.duration, w.ground)
                       for t, w in zip(self.tasks, work, strict=True))
         return OperationProblem(
@@ -274,6 +275,10 @@ class Mission:
             deploy_range=r.deploy_range, endurance=r.endurance_range / r.max_speed, reserve=r.reserve,
             swap_time=self.carrier.swap_time, takeoff_height=TAKEOFF_HEIGHT, approach_height=MEET_HEIGHT,
             seed=self.planner.seed)
+
+    def task_work(self, task_id: str) -> TaskWork:
+        """A task's work: as the file gives it, else (a task added later) ``dwell`` in ``rovers.work``."""
+        return dict(self.work).get(task_id) or TaskWork(self.dwell, self.rovers.work == "ground")
 
     def planner_for(self, phase: str) -> str:
         """The planner a phase ("deploy" or "collect") uses when the command line names none: the
