@@ -66,13 +66,22 @@ def _step(sch: Schedule, point: Vec3, left: list[OpTask], policy: Policy) -> Non
     t_launch = max(arrive, sch.ready[deck[0]]) if deck and left else math.inf
     t_pick = min(meets.values(), default=math.inf)
     pickups: list[str] = []
+    after: dict[str, float] = {}  # picked-up rovers flying on at once: air s of their battery flown
     if t_launch <= t_pick:
         launchers, not_before, loaded = [r for r in deck if sch.ready[r] <= t_launch], t_launch, t_launch
     else:
         pickups = sorted(r for r in meets if meets[r] <= t_pick + _window(p))
-        loaded = max(arrive, *(meets[r] for r in pickups)) + p.carrier.collect_stop_time
-        launchers, not_before = ([r for r in deck if sch.ready[r] <= loaded] if left else []), 0.0
-    launches, flat = assign(point, launchers, left, p, policy.margin, policy.cap, sch.battery)
+        land = max(arrive, *(meets[r] for r in pickups))
+        loaded = land + p.carrier.collect_stop_time
+        after = _kept_batteries(sch, point, pickups, land)
+        ready = [r for r in deck if sch.ready[r] <= loaded] + sorted(after)
+        launchers, not_before = (ready if left else []), 0.0
+
+    def battery(r: str) -> float:
+        return p.air_budget - after[r] if r in after else sch.battery(r)
+
+    launches, flat = assign(point, launchers, left, p, policy.margin, policy.cap, battery)
+    flat = [r for r in flat if r not in after]
     if flat:  # on the deck with too little battery for any task left: a swap first
         _swap(sch, flat)
         if not launches and not pickups:
@@ -84,6 +93,14 @@ def _step(sch: Schedule, point: Vec3, left: list[OpTask], policy: Policy) -> Non
         return
     sch.add_stop(point, pickups, launches, not_before)
     _consume(left, launches)
+
+
+def _kept_batteries(sch: Schedule, point: Vec3, pickups: list[str], land: float) -> dict[str, float]:
+    """The rovers of a pick-up that keep their battery (no swap: enough of it left), with the air
+    seconds of it they will have flown: a stop may launch them again at once."""
+    p = sch.p
+    used = {r: sch.air[r].used_before + sch.air_if_landing(r, point, land) for r in pickups}
+    return {r: u for r, u in used.items() if p.air_budget - u >= sch.swap_below * p.air_budget}
 
 
 def _swap(sch: Schedule, rovers: list[str]) -> None:
