@@ -3,10 +3,11 @@
 At its current site the carrier makes the next stop the earlier of two events: rovers on the deck
 ready for a launch (with tasks of the site left), or the first returning rover (with the others
 back within one landing and loading, picked up together). A pick-up stop also launches the rovers
-ready by its end. A rover whose battery would not last until the stop after this one is picked up
-first (its deadline). When the site's tasks are all launched the carrier moves on; a rover still
-out that could not reach the next site is picked up before it leaves. At the end the carrier
-picks up everyone at its last site."""
+ready by its end, and those it picks up that keep their battery. A rover whose battery would not
+last until the stop after this one is picked up first (its deadline). When the site's tasks are
+all launched the carrier moves on; a rover still out that could not reach the next site is picked
+up before it leaves. At the end the carrier picks up everyone at its last site, or (``chase``)
+drives to them."""
 
 from __future__ import annotations
 
