@@ -113,6 +113,9 @@ def test_plan_an_operation_mission(planner: str, capsys: pytest.CaptureFixture[s
     assert plan["kind"] == "operation" and plan["planner"] == planner
     check_operation(plan, _spec(load_mission(OPERATION)))
     assert len(plan["sorties"]) > 6 > 0  # more sorties than rovers: rovers fly again
+    if planner == "operation":  # launches and pick-ups interleaved on one route, tasks chained
+        assert any(s["pickups"] and s["launches"] for s in plan["stops"])
+        assert any(len(s["visits"]) > 1 for s in plan["sorties"])
 
 
 def test_plan_summary_and_the_flying_commands_refuse_an_operation(capsys: pytest.CaptureFixture[str]) -> None:
