@@ -47,6 +47,8 @@ def cmd_plan(args: argparse.Namespace) -> int:
 
     mission = load_mission(args.mission)
     _warn(mission, args.collect)
+    if mission.operation:  # a long operation: sorties, pick-ups and swaps (docs/operations.md)
+        return _plan_operation(args, mission)
     registry = _planners(args.collect)
     phase = "collect" if args.collect else "deploy"
     name = args.planner or mission.planner_for(phase)
@@ -76,6 +78,28 @@ def cmd_plan(args: argparse.Namespace) -> int:
         files = _export(mission, plan, args.export)
         print(f"exported {len(files) - 1} QGroundControl .plan files and {files[-1].name} to {args.export}",
               file=sys.stderr if args.json else sys.stdout)
+    return 0
+
+
+def _plan_operation(args: argparse.Namespace, mission: Mission) -> int:
+    """``plan`` on a long operation (``operation: true``; docs/operations.md)."""
+    from fleetctl.operation_plan import plan_for_operation, print_operation_summary
+    from planners import PlanningError
+    from planners.operations import OPERATION_PLANNERS
+
+    name = args.planner or "operation"
+    for option, given in (("--collect", args.collect), ("--export", args.export), ("--plot", args.plot),
+                          ("--budget-ms", args.budget_ms is not None)):
+        if given:
+            raise CliError(f"{args.mission}: {option} does not apply to a long operation yet")
+    if name not in OPERATION_PLANNERS:
+        raise CliError(f"unknown planner {name!r} for an operation; choose one of: "
+                       f"{', '.join(sorted(OPERATION_PLANNERS))}")
+    try:
+        plan, bound = plan_for_operation(mission, name)
+    except PlanningError as e:
+        raise CliError(f"{args.mission}: cannot plan the operation with {name!r}: {e}") from None
+    _report(args, plan.to_json(), lambda: print_operation_summary(mission, plan, bound), lambda out: out)
     return 0
 
 
@@ -206,6 +230,9 @@ EXIT_TERMINATED = 143  # SIGTERM: like Ctrl-C (airborne rovers hold, records wri
 def cmd_fly(args: argparse.Namespace) -> int:
     mission = load_mission(args.mission)
     _warn(mission, args.command == "collect")
+    if mission.operation:
+        raise CliError(f"{mission.path}: operation: flying a long operation is not supported yet; "
+                       f"'fleetctl plan --mission {args.mission}' plans it (docs/operations.md)")
     if args.command in ("deploy", "run") and not mission.tasks:
         raise CliError(f"{mission.path}: tasks: the mission has no tasks to deploy rovers to (a collection-"
                        f"only mission); fly it with 'fleetctl collect --mission {args.mission}'")

@@ -82,7 +82,10 @@ def test_mission_directory_is_populated() -> None:
 def test_every_mission_file_loads(path: Path) -> None:
     m = load_mission(path)
     assert m.path == path
-    if m.tasks:
+    if m.operation:  # a long operation: fewer rovers than tasks, each task with its work
+        ops = m.operation_problem()
+        assert len(ops.tasks) == len(m.tasks) > len(ops.rovers) > 0
+    elif m.tasks:
         problem = m.deploy_problem()
         assert len(problem.rovers) >= len(problem.tasks) > 0
     else:  # a collection-only scenario

@@ -75,6 +75,7 @@ from fleetctl.mission.model import (
     TeamConfig,
     TlsConfig,
 )
+from fleetctl.mission.operation import WORK_MODES, check_one_carrier, check_operation, task_work
 from fleetctl.mission.yaml_safe import YamlError, read_yaml
 from planners.core.problem import (
     CollectRover,
@@ -374,6 +375,7 @@ _CARRIER = {
     "turn_rate": (_number(ge=L.MIN_TURN_RATE, le=L.MAX_TURN_RATE, null=True, unit="rad/s"), None),
     "unload_time": (_TIME, 0.0),
     "load_time": (_TIME, 0.0),
+    "swap_time": (_TIME, 0.0),
     "firmware_speeds": (_one_of(*FIRMWARE_SPEEDS), None),
 }
 _ENERGY = {
@@ -402,13 +404,16 @@ _ROVERS = {
     "takeoff_time": (_number(ge=0, le=L.MAX_HANDLING_TIME, null=True, unit="s"), None),
     "land_time": (_number(ge=0, le=L.MAX_HANDLING_TIME, null=True, unit="s"), None),
     "firmware_speeds": (_one_of(*FIRMWARE_SPEEDS), None),
+    "work": (_one_of(*WORK_MODES), "hover"),
     "fleet": (lambda c, v, p: c.section(v, p, _FLEET), None),
     "units": (_list(lambda c, v, p: c.section(v, p, _UNIT), "units {id, sysid, connection}", L.MAX_ROVERS),
               None),
 }
 _TEAM = {**_CARRIER, "id": (_ID, _REQUIRED), "sysid": (_CARRIER["sysid"][0], _REQUIRED),
          "fleet": _ROVERS["fleet"], "units": _ROVERS["units"]}  # carriers[i]: a carrier and its rovers
-_TASK = {"id": (_ID, _REQUIRED), **_POINT_SPEC}
+_TASK = {"id": (_ID, _REQUIRED), **_POINT_SPEC,
+         "duration": (_number(ge=0, le=L.MAX_DWELL, null=True, unit="seconds of work; null = dwell"), None),
+         "work": (_one_of(*WORK_MODES), None)}
 _COLLECT_ROVER = {
     "id": (_ID, _REQUIRED),
     **_POINT_SPEC,
@@ -550,6 +555,7 @@ _TOP = {
     "links": (lambda c, v, p: LinksConfig(**c.section(v, p, _LINKS)), LinksConfig()),
     "planner": (lambda c, v, p: PlannerConfig(**c.section(v, p, _PLANNER)), PlannerConfig()),
     "dwell": (_number(ge=0, le=L.MAX_DWELL, unit="seconds on task"), 60.0),
+    "operation": (_boolean, False),
     "mqtt": (lambda c, v, p: c.section(v, p, _MQTT), None),
     "geofence": (lambda c, v, p: c.section(v, p, _GEOFENCE), None),
 }
@@ -788,6 +794,7 @@ def _build(ctx: _Ctx, data: Any, path: Path | None) -> Mission:
     d = ctx.section(data, (), _TOP)
     origin: Origin | None = d["origin"]
     _carriers(ctx, d)
+    check_one_carrier(ctx.fail, d)
     _read_files(ctx, d, origin, path)
     carrier, r = d["carrier"], d["rovers"]
     tasks, collection = _tasks_and_collection(ctx, d, origin)
@@ -795,10 +802,12 @@ def _build(ctx: _Ctx, data: Any, path: Path | None) -> Mission:
     _check_task_heights(ctx, tasks, deploy_range)
     teams: tuple[tuple[dict[str, Any], tuple[str, ...]], ...]
     if d["carriers"] is None:
-        units = _fleet_units(ctx, r, carrier, tasks, collection)
+        units = _fleet_units(ctx, r, carrier, tasks, collection, d["operation"])
         teams = ((carrier, tuple(u.id for u in units)),)
     else:
         units, teams = _team_units(ctx, d, tasks, collection)
+    work = task_work(d["tasks"], d["dwell"], r["work"])
+    check_operation(ctx.fail, d, tasks, work, endurance)
     obstacles, bounds = _check_geometry(ctx, d, tasks)
     geofence = _geofence(ctx, d, tasks, obstacles, bounds, origin)
     _check_roadmap(ctx, d, tasks, collection, bounds, deploy_range)
@@ -809,7 +818,8 @@ def _build(ctx: _Ctx, data: Any, path: Path | None) -> Mission:
         carrier=_carrier_config(carrier),
         rovers=RoversConfig(r["max_speed"], r["accel"], deploy_range, endurance, r["reserve"], units, energy,
                             **_flight_times(r), firmware_speeds=_firmware_speeds(r, carrier["connection"]),
-                            handling_given=(r["takeoff_time"] is not None, r["land_time"] is not None)),
+                            handling_given=(r["takeoff_time"] is not None, r["land_time"] is not None),
+                            work=r["work"]),
         tasks=tasks,
         obstacles=obstacles,
         bounds=bounds,
@@ -823,6 +833,8 @@ def _build(ctx: _Ctx, data: Any, path: Path | None) -> Mission:
         path=path,
         geofence=geofence,
         teams=tuple(TeamConfig(_carrier_config(c), ids) for c, ids in teams),
+        work=tuple((t.id, w) for t, w in zip(tasks, work, strict=True)),
+        operation=d["operation"],
     )
     log.debug(
         "mission %s: %d tasks, %d rovers, d_deploy %.2f m", mission.name, len(tasks), len(units), deploy_range
@@ -926,17 +938,19 @@ def _check_task_heights(ctx: _Ctx, tasks: tuple[Task, ...], deploy_range: float)
 
 def _fleet_units(
     ctx: _Ctx, r: dict[str, Any], carrier: dict[str, Any], tasks: tuple[Task, ...],
-    collection: tuple[CollectRover, ...] | None,
+    collection: tuple[CollectRover, ...] | None, operation: bool = False,
 ) -> tuple[RoverUnit, ...]:
-    """The rover units, enough for the tasks, ids and sysids unique, collection rovers among them."""
+    """The rover units, enough for the tasks (unless the mission is a long operation, whose rovers
+    serve several tasks each), ids and sysids unique, collection rovers among them."""
     n_default = len(tasks) if tasks else len(collection or ())
     units = _build_fleet(ctx, r, carrier, n_default)
     fleet_key = ("rovers", "units") if r["units"] is not None else ("rovers", "fleet", "count")
-    if len(units) < len(tasks):
+    if len(units) < len(tasks) and not operation:
         ctx.fail(
             fleet_key,
             f"only {len(units)} rover(s) for {len(tasks)} tasks; every task needs its own rover, "
-            f"give at least {len(tasks)} rovers",
+            f"give at least {len(tasks)} rovers (or plan a long operation, where rovers serve several "
+            "tasks each: 'operation: true', docs/mission-file.md)",
         )
 
     def unit_path(i: int, key: str) -> KeyPath:

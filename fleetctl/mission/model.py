@@ -19,6 +19,7 @@ from planners.core.problem import (
     RoadmapParams,
     Task,
 )
+from planners.operations.problem import OperationProblem, OpTask
 
 Vec2 = tuple[float, float]
 Vec3 = tuple[float, float, float]
@@ -49,6 +50,7 @@ class CarrierConfig:
     unload_time: float
     load_time: float
     firmware_speeds: str = "keep"  # set | keep (docs/autopilots.md)
+    swap_time: float = 0.0  # s to swap one rover's battery on the deck (a long operation)
 
     def spec(self) -> CarrierSpec:
         return CarrierSpec(self.max_speed, self.accel, self.turn_rate, self.unload_time, self.load_time)
@@ -60,6 +62,15 @@ class TeamConfig:
 
     carrier: CarrierConfig
     rovers: tuple[str, ...]
+
+
+@dataclass(frozen=True)
+class TaskWork:
+    """The work at one task (``tasks[].duration``, ``tasks[].work``): seconds of work, and whether
+    the rover works landed (no battery burnt) or hovering."""
+
+    duration: float
+    ground: bool = False
 
 
 @dataclass(frozen=True)
@@ -91,6 +102,7 @@ class RoversConfig:
     land_time: float = 0.0  # s, time model: above the stop with the carrier there -> loaded
     firmware_speeds: str = "keep"  # set | keep: the mission's speeds written to the autopilots
     handling_given: tuple[bool, bool] = (True, True)  # takeoff_time, land_time given in the file
+    work: str = "hover"  # how a rover works at a task unless the task says: hover | ground
 
     @property
     def ids(self) -> tuple[str, ...]:
@@ -204,6 +216,8 @@ class Mission:
     path: Path | None = None
     geofence: GeofenceConfig | None = None
     teams: tuple[TeamConfig, ...] = ()  # every carrier with its deck; () = one team (carrier, every rover)
+    work: tuple[tuple[str, TaskWork], ...] = ()  # (task id, its duration and work mode) as the file gives
+    operation: bool = False  # a long operation: rovers serve several tasks in sorties (docs/operations.md)
 
     def carrier_spec(self) -> CarrierSpec:
         """The carrier in the time model, with the rovers' take-off and touch-down times; it stops and
@@ -245,6 +259,26 @@ class Mission:
             approach_height=MEET_HEIGHT,
             **self.environment(),
         )
+
+    def operation_problem(self) -> OperationProblem:
+        """The long operation (``operation: true``): every task with its work, the battery in
+        seconds of flight, the battery swap on the deck (docs/operations.md)."""
+        if not self.tasks:
+            raise MissionError(f"{self._where()}: tasks: the mission has no tasks to work")
+        r = self.rovers
+        work = [self.task_work(t.id) for t in self.tasks]
+        tasks = tuple(OpTask(t.id, t.position, w.duration, w.ground)
+                      for t, w in zip(self.tasks, work, strict=True))
+        return OperationProblem(
+            carrier=self.carrier_spec(), rover=r.motion(), start=self._start(),
+            heading=compass_to_math(self.carrier.heading_deg), tasks=tasks, rovers=r.ids,
+            deploy_range=r.deploy_range, endurance=r.endurance_range / r.max_speed, reserve=r.reserve,
+            swap_time=self.carrier.swap_time, takeoff_height=TAKEOFF_HEIGHT, approach_height=MEET_HEIGHT,
+            seed=self.planner.seed)
+
+    def task_work(self, task_id: str) -> TaskWork:
+        """A task's work: as the file gives it, else (a task added later) ``dwell`` in ``rovers.work``."""
+        return dict(self.work).get(task_id) or TaskWork(self.dwell, self.rovers.work == "ground")
 
     def planner_for(self, phase: str) -> str:
         """The planner a phase ("deploy" or "collect") uses when the command line names none: the
