@@ -23,10 +23,11 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from planners.collect import lee as collection  # noqa: E402
-from planners.collect.polish import polish  # noqa: E402
+from planners.collect.polish import compass, polish  # noqa: E402
 from planners.deploy import lee as deploy  # noqa: E402
 from planners.deploy.cluster import DeployInstance  # noqa: E402
 from planners.deploy.path import PathBuilder, Route  # noqa: E402
+from planners.deploy.polish import polish as deploy_polish  # noqa: E402
 
 
 def _bench(name: str) -> ModuleType:
@@ -44,7 +45,7 @@ def deploy_headroom(n: int, seed: int) -> float:
     inst = DeployInstance(problem)
     builder = PathBuilder(inst)
     route = Route(builder, clusters, [inst.geometry(c) for c in clusters], list(positions))
-    joint = deploy._polish(builder, route, sweeps=200, tol=1e-4)
+    joint = deploy_polish(builder, route, sweeps=200, tol=1e-4)
     return max(route.makespan - joint.makespan, 0.0) / route.makespan * 100
 
 
@@ -52,7 +53,7 @@ def collect_headroom(n: int, seed: int) -> float:
     problem = _bench("scaling_collect").random_problem(n, 1000 * n + seed, 200.0, ranges=(5.0, 20.0))
     builder, route = collection.lee_route(problem)
     joint = polish(builder, route, sweeps=20, level=2)
-    joint = collection.compass(builder, joint, sweeps=200, tol=1e-4)
+    joint = compass(builder, joint, sweeps=200, tol=1e-4)
     return max(route.makespan - joint.makespan, 0.0) / route.makespan * 100
 
 

@@ -25,9 +25,10 @@ from planners.core.routing import (
     two_opt_route,
 )
 from planners.deploy.cluster import DeployInstance
-from planners.deploy.lee import _polish_long, lee_clusters
+from planners.deploy.lee import lee_clusters
 from planners.deploy.path import PathBuilder as DeployBuilder
 from planners.deploy.path import Route as DeployRoute
+from planners.deploy.polish import polish_long
 from planners.deploy.stops import StopClass, search_class, stop_cost
 
 CARRIER = CarrierSpec(max_speed=12.0, accel=4.0, turn_rate=2.5, unload_time=2.0, load_time=3.0)
@@ -278,7 +279,7 @@ def test_a_class_of_stops_scored_at_once_equals_each_stop_scored_alone(seed: int
         new = search_class(b, route, ks, 0.05)
         for k, q in new.items():
             assert b.inst.reach_from(q, route.clusters[k]) <= b.inst.d + 1e-9
-    polished = _polish_long(b, route, 0.05)
+    polished = polish_long(b, route, 0.05)
     assert polished.makespan <= route.makespan
     assert polished.makespan == pytest.approx(
         DeployRoute(b, polished.clusters, polished.geos, polished.positions).makespan, abs=1e-9)
