@@ -49,13 +49,10 @@ ILS_PATIENCE = 20  # kicks per item without a new best before the anytime search
 
 
 class Routed(Protocol):
-    """What the driver reads of a route: its clusters in visiting order, stops and makespan."""
+    """What the driver reads of a route: its clusters in visiting order and its makespan."""
 
-    @property
-    def clusters(self) -> list[list[int]]: ...
-
-    @property
-    def makespan(self) -> float: ...
+    clusters: list[list[int]]
+    makespan: float
 
 
 R = TypeVar("R", bound=Routed)
