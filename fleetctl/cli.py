@@ -15,6 +15,7 @@ from fleetctl.mission import Mission, MissionError, load_mission
 from fleetctl.mission.limits import MAX_BUDGET_MS
 from fleetctl.mission.outliers import far_task_warnings
 from fleetctl.mission.teams import several_teams
+from fleetctl.run.budget import DEFAULT_BUDGET_MS, offline_budget
 from planners.core.problem import CollectProblem
 
 if TYPE_CHECKING:
@@ -58,8 +59,11 @@ def cmd_plan(args: argparse.Namespace) -> int:
     if several_teams(mission):  # carriers: [...] with more than one carrier (docs/teams.md)
         return _plan_teams(args, mission, registry[name], name)
     problem = mission.collect_problem() if args.collect else mission.deploy_problem()
-    if args.budget_ms is not None:
-        problem = dataclasses.replace(problem, budget_ms=args.budget_ms)
+    named = args.budget_ms if args.budget_ms is not None else problem.budget_ms
+    try:
+        problem = dataclasses.replace(problem, budget_ms=offline_budget(named))
+    except ValueError as e:
+        raise CliError(str(e)) from None
     try:
         plan = registry[name](problem)
         bound = _lower_bound(problem, args.collect)
@@ -450,7 +454,9 @@ def _budget_ms(text: str) -> float:
 def _add_budget_option(p: argparse.ArgumentParser) -> None:
     p.add_argument("--budget-ms", type=_budget_ms, metavar="N",
                    help="after the quick plan, improve it for about N ms (iterated local search, seeded "
-                        "by planner.seed; default: the mission's planner.budget_ms, none = quick plan)")
+                        "by planner.seed, ending sooner when it converges; 0: the quick plan; default: the "
+                        f"mission's planner.budget_ms, else {DEFAULT_BUDGET_MS:.0f} ms for a phase's first "
+                        "plan and the quick plan for replans)")
 
 
 def _add_shared_fly_options(p: argparse.ArgumentParser) -> None:

@@ -10,8 +10,9 @@ steps for every change at once, composed only of the numpy twins of the scalar f
 ``leg_time`` in the time model (``planners.core.timing``), ``max_range_points`` beside
 ``max_range_point`` (``planners.deploy.cluster``). Its numbers (``estimate``) differ from the exact
 ones by rounding only (a property test checks 1e-9 on random routes), so ``screen`` returns them
-less ``MARGIN`` as lower bounds. Changes it does not score (at the route's start, next to its last two stops, which
-are placed together, or with a hop of almost no length, where a heading is lost) get −inf.
+less ``MARGIN`` as lower bounds. Changes it does not score (at the route's start, next to its last
+two stops, which are placed together, or with a hop of almost no length, where a heading is lost)
+get −inf.
 """
 
 from __future__ import annotations
