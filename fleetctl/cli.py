@@ -250,7 +250,7 @@ def _fly(args: argparse.Namespace, mission: Mission, command: str, extra: dict[s
         raise CliError(f"--speedup must be > 0, got {args.speedup}")
     if getattr(args, "dwell", None) is not None and args.dwell < 0:
         raise CliError(f"--dwell must be >= 0 s, got {args.dwell}")
-    if args.budget_ms is not None:  # every plan of the run (replans: at most planning.REPLAN_BUDGET_MS)
+    if args.budget_ms is not None:  # every plan of the run (replans: at most budget.REPLAN_BUDGET_MS)
         planner = dataclasses.replace(mission.planner, budget_ms=args.budget_ms)
         mission = dataclasses.replace(mission, planner=planner)
     mqtt = _bus_config(mission, args)
