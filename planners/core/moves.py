@@ -2,9 +2,10 @@
 
 Each move is a small generator: given the clusters in visiting order (and ``fits``, whether one
 stop can serve a cluster) it yields local changes ``(i, pieces, count)`` — replace clusters
-i..i+count-1 by ``pieces`` — without scoring them. Scoring is the route's business: the cluster
-searches of ``planners.deploy.lee`` and ``planners.collect.lee`` re-time a change with
-``route.replace`` (quick) or re-place the whole route (fine), both on ``planners.core.timing``.
+i..i+count-1 by ``pieces`` — without scoring them. Scoring is the route's business: the search
+driver (``planners.core.driver``, for ``planners.deploy.lee`` and ``planners.collect.lee``) re-times a
+change with ``route.replace`` (quick) or re-places the whole route (fine), both on
+``planners.core.timing``.
 ``local_search`` applies the moves until none makes the route faster; only improvements are kept.
 
 Beyond the dissertation: Algorithms 4.2 and 5.2 only divide, swap two halves and merge back.
