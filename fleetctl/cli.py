@@ -16,6 +16,7 @@ from fleetctl.mission import Mission, MissionError, load_mission
 from fleetctl.mission.limits import MAX_BUDGET_MS
 from fleetctl.mission.outliers import far_task_warnings
 from fleetctl.mission.teams import several_teams
+from fleetctl.run.budget import DEFAULT_BUDGET_MS, offline_budget
 from planners.core.problem import CollectProblem
 
 if TYPE_CHECKING:
@@ -61,8 +62,11 @@ def cmd_plan(args: argparse.Namespace) -> int:
     if several_teams(mission):  # carriers: [...] with more than one carrier (docs/teams.md)
         return _plan_teams(args, mission, registry[name], name)
     problem = mission.collect_problem() if args.collect else mission.deploy_problem()
-    if args.budget_ms is not None:
-        problem = dataclasses.replace(problem, budget_ms=args.budget_ms)
+    named = args.budget_ms if args.budget_ms is not None else problem.budget_ms
+    try:
+        problem = dataclasses.replace(problem, budget_ms=offline_budget(named))
+    except ValueError as e:
+        raise CliError(str(e)) from None
     try:
         plan = registry[name](problem)
         bound = _lower_bound(problem, args.collect)
@@ -274,7 +278,7 @@ def _fly(args: argparse.Namespace, mission: Mission, command: str, extra: dict[s
         raise CliError(f"--speedup must be > 0, got {args.speedup}")
     if getattr(args, "dwell", None) is not None and args.dwell < 0:
         raise CliError(f"--dwell must be >= 0 s, got {args.dwell}")
-    if args.budget_ms is not None:  # every plan of the run (replans: at most planning.REPLAN_BUDGET_MS)
+    if args.budget_ms is not None:  # every plan of the run (replans: at most budget.REPLAN_BUDGET_MS)
         planner = dataclasses.replace(mission.planner, budget_ms=args.budget_ms)
         mission = dataclasses.replace(mission, planner=planner)
     mqtt = _bus_config(mission, args)
@@ -498,7 +502,9 @@ def _budget_ms(text: str) -> float:
 def _add_budget_option(p: argparse.ArgumentParser) -> None:
     p.add_argument("--budget-ms", type=_budget_ms, metavar="N",
                    help="after the quick plan, improve it for about N ms (iterated local search, seeded "
-                        "by planner.seed; default: the mission's planner.budget_ms, none = quick plan)")
+                        "by planner.seed, ending sooner when it converges; 0: the quick plan; default: the "
+                        f"mission's planner.budget_ms, else {DEFAULT_BUDGET_MS:.0f} ms for a phase's first "
+                        "plan and the quick plan for replans)")
 
 
 def _add_shared_fly_options(p: argparse.ArgumentParser) -> None:

@@ -10,6 +10,8 @@ import random
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from planners.collect.instance import CollectInstance
 from planners.collect.path import PathBuilder as CollectBuilder
@@ -25,9 +27,10 @@ from planners.core.routing import (
     two_opt_route,
 )
 from planners.deploy.cluster import DeployInstance
-from planners.deploy.lee import _polish_long, lee_clusters
+from planners.deploy.lee import lee_clusters
 from planners.deploy.path import PathBuilder as DeployBuilder
 from planners.deploy.path import Route as DeployRoute
+from planners.deploy.polish import polish_long
 from planners.deploy.stops import StopClass, search_class, stop_cost
 
 CARRIER = CarrierSpec(max_speed=12.0, accel=4.0, turn_rate=2.5, unload_time=2.0, load_time=3.0)
@@ -278,7 +281,7 @@ def test_a_class_of_stops_scored_at_once_equals_each_stop_scored_alone(seed: int
         new = search_class(b, route, ks, 0.05)
         for k, q in new.items():
             assert b.inst.reach_from(q, route.clusters[k]) <= b.inst.d + 1e-9
-    polished = _polish_long(b, route, 0.05)
+    polished = polish_long(b, route, 0.05)
     assert polished.makespan <= route.makespan
     assert polished.makespan == pytest.approx(
         DeployRoute(b, polished.clusters, polished.geos, polished.positions).makespan, abs=1e-9)
@@ -321,6 +324,55 @@ def test_the_screen_bounds_every_change_from_below_and_tightly(seed: int) -> Non
             assert exact - bound <= 2 * MARGIN
             scored += 1
     assert scored > 0.8 * len(changes) - 12  # all but the changes at the start and the end
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.integers(0, 2**31 - 1), st.integers(8, 60), st.floats(4.0, 30.0))
+def test_the_screen_is_the_exact_re_timing_to_1e9_on_random_routes(seed: int, n: int, d: float) -> None:
+    """The screen's numbers (``estimate``: numpy twins of the time model and of max_range_point)
+    against Route.replace (the scalar forms) on random routes, carriers and changes: equal to 1e-9
+    wherever the screen scores; and max_range_points equal to max_range_point."""
+    from planners.core.moves import merge, relocate, swap
+    from planners.deploy.cluster import max_range_point, max_range_points
+    from planners.deploy.screen import estimate
+
+    rng = random.Random(seed)
+    carrier = CarrierSpec(rng.uniform(2.0, 20.0), rng.choice([None, rng.uniform(0.5, 8.0)]),
+                          rng.choice([None, rng.uniform(0.3, 4.0)]), unload_time=rng.uniform(0.0, 5.0))
+    rover = Motion(rng.uniform(1.0, 5.0), rng.choice([None, rng.uniform(0.5, 4.0)]), rng.uniform(0.0, 2.0))
+    size = rng.uniform(2.0, 12.0) * d
+    tasks = tuple(Task(f"t{i}", (rng.uniform(0, size), rng.uniform(0, size), rng.uniform(0, d / 3)))
+                  for i in range(n))
+    problem = DeployProblem(carrier, rover, d, (rng.uniform(-size, 0), rng.uniform(-size, 0), 0.0),
+                            rng.uniform(-math.pi, math.pi), tasks)
+    inst = DeployInstance(problem)
+    b = DeployBuilder(inst)
+    order = list(range(n))
+    rng.shuffle(order)
+    clusters: list[list[int]] = []
+    for i in order:  # random clusters of one to four tasks, where they fit
+        if clusters and len(clusters[-1]) < 4 and rng.random() < 0.6 and inst.fits([*clusters[-1], i]):
+            clusters[-1].append(i)
+        else:
+            clusters.append([i])
+    route = b.route(clusters)
+    changes = [ch for move in (swap, relocate, merge) for ch in move(route.clusters, inst.fits_quick, 0)]
+    got = estimate(route, changes)
+    scored = 0
+    for change, value in zip(changes, got, strict=True):
+        if math.isfinite(value):
+            assert value == pytest.approx(route.replace(*change)[0], rel=0, abs=1e-9)
+            scored += 1
+    assert scored > 0.5 * len(changes) - 40  # all but the changes at the route's start and end
+    geos = route.geos
+    for k in range(1, len(geos) - 1):
+        prev, nxt = route.positions[k - 1], geos[k + 1].center
+        one = max_range_point(prev, geos[k], nxt)
+        many = max_range_points(np.array(prev[0]), np.array(prev[1]), np.array(geos[k].center[0]),
+                                np.array(geos[k].center[1]), np.array(max(geos[k].slack, 0.0)),
+                                np.array(nxt[0]), np.array(nxt[1]))
+        assert float(many[0]) == pytest.approx(one[0], rel=0, abs=1e-9)
+        assert float(many[1]) == pytest.approx(one[1], rel=0, abs=1e-9)
 
 
 class _Unscreened(DeployRoute):

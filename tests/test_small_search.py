@@ -9,18 +9,21 @@ import pytest
 
 from bench.optimality import collect_instance, deploy_instance
 from planners import COLLECT_PLANNERS
-from planners.collect import lee as collect_lee
+from planners.collect.build import build_collect_plan
 from planners.collect.instance import CollectInstance
-from planners.collect.lee import build_collect_plan, compass, lee_route, place_finely
+from planners.collect.lee import CollectSpace, lee_route
 from planners.collect.path import PathBuilder as CollectBuilder
-from planners.collect.polish import polish, smooth
+from planners.collect.path import Route as CollectRoute
+from planners.collect.polish import compass, place_finely, polish, smooth
+from planners.core import driver
 from planners.core.moves import split
 from planners.core.partitions import best_partition, ordered_partitions, ranked_partitions
 from planners.core.smooth import smooth_max
 from planners.core.timing import RANGE_MARGIN
 from planners.deploy.cluster import DeployInstance
-from planners.deploy.lee import _fresh, _polish
 from planners.deploy.path import PathBuilder as DeployBuilder
+from planners.deploy.polish import fresh
+from planners.deploy.polish import polish as deploy_polish
 from planners.deploy.polish import smooth as deploy_smooth
 from tests.test_collect import check_plan as check_collect
 from tests.test_deploy import check
@@ -80,16 +83,18 @@ def test_a_budget_screens_every_partition_on_the_finer_placement() -> None:
     # (r1 | r5 | r2 | r3 r4, two stops 3 cm apart) 100th of 541; the quick plan stays at 4.171 s
     problem = collect_instance(5, 6)
     builder, quick = lee_route(problem)
-    screened = collect_lee.screened(builder, quick, lambda r: smooth(builder, place_finely(builder, r, True)),
-                                    lambda: False)
+    def smoothed(r: CollectRoute) -> CollectRoute:
+        return smooth(builder, place_finely(builder, r, True))
+
+    rank = CollectSpace(problem, builder).ranking()
+    screened = driver.screened(5, builder.inst.fits, rank, quick, smoothed, lambda: False)
     assert quick.makespan > 4.17
     assert screened.makespan < 4.128 * 1.005  # the exact reference: 4.128 s (this screen alone: 4.1455)
     assert sorted(map(sorted, screened.clusters)) == [[0], [1], [2, 3], [4]]
     plan = build_collect_plan(problem, "lee", screened.clusters, screened.positions)
     check_collect(problem, plan)
     assert abs(plan.makespan - screened.makespan) < 1e-6
-    stopped = collect_lee.screened(builder, quick, lambda r: smooth(builder, place_finely(builder, r, True)),
-                                   lambda: True)
+    stopped = driver.screened(5, builder.inst.fits, rank, quick, smoothed, lambda: True)
     assert stopped is quick  # out of budget: the route it was given
 
 
@@ -113,7 +118,7 @@ def test_smoothed_deployment_starts_in_the_other_basin() -> None:
     # the first stop belongs en route to the second cluster, not at its near side (exact: 25.687 s)
     problem = deploy_instance(3, 2)
     b = DeployBuilder(DeployInstance(problem))
-    route = _polish(b, _fresh(b, b.route([[2], [0, 1]])), 3, 1e-3)
+    route = deploy_polish(b, fresh(b, b.route([[2], [0, 1]])), 3, 1e-3)
     better = deploy_smooth(b, route)
     assert better.makespan < route.makespan * 0.995
     assert better.makespan < 25.687 * 1.001

@@ -11,6 +11,7 @@ from typing import Any
 import planners
 from fleetctl.mavlink.compile import CompiledPlan, CompileError, compile_for_fleet
 from fleetctl.mission.flight import MEET_HEIGHT
+from fleetctl.run.budget import REPLAN_BUDGET_MS, offline_budget, replan_budget
 from fleetctl.run.context import ExecutionError, RunContext
 from fleetctl.run.kinds import Ev
 from fleetctl.run.safety import check_plan
@@ -18,9 +19,6 @@ from planners.core.plan import Plan
 from planners.core.problem import PlanningError
 
 COLLECT_MEET_HEIGHT = MEET_HEIGHT  # m above the carrier's stop where a returning rover waits for the carrier
-REPLAN_BUDGET_MS = 50.0  # a replan (every plan of a phase after its first) improves for at most this long
-
-
 class Planning:
     """Plans a phase with the mission's planner (or the command line's ``planner``: ``NAME`` for
     both phases or ``DEPLOY,COLLECT``); every plan is journalled before it flies."""
@@ -50,9 +48,11 @@ class Planning:
             raise ExecutionError(
                 f"unknown {kind} planner {name!r}; choose one of {', '.join(sorted(registry))}"
             )
-        budget = getattr(problem, "budget_ms", None)
-        if kind in self.planned and budget is not None and budget > REPLAN_BUDGET_MS:
-            problem = dataclasses.replace(problem, budget_ms=REPLAN_BUDGET_MS)  # the fleet is waiting
+        if hasattr(problem, "budget_ms"):  # replans: the fleet is waiting
+            named = problem.budget_ms
+            budget = replan_budget(named) if kind in self.planned else offline_budget(named)
+            if budget != named:
+                problem = dataclasses.replace(problem, budget_ms=budget)
         self.planned.add(kind)
         try:
             plan = await asyncio.to_thread(registry[name], problem)
@@ -82,4 +82,4 @@ class Planning:
             raise ExecutionError(str(exc)) from None
 
 
-__all__ = ["COLLECT_MEET_HEIGHT", "Planning"]
+__all__ = ["COLLECT_MEET_HEIGHT", "REPLAN_BUDGET_MS", "Planning"]

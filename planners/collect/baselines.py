@@ -17,8 +17,8 @@ import time
 
 import numpy as np
 
+from planners.collect.build import build_collect_plan
 from planners.collect.instance import CollectInstance
-from planners.collect.lee import build_collect_plan
 from planners.collect.reach import Point2
 from planners.core.plan import Plan
 from planners.core.problem import CollectProblem, refuse_obstacles

@@ -27,7 +27,8 @@ import warnings
 import numpy as np
 from scipy.optimize import minimize
 
-from planners.collect.lee import build_collect_plan, lee_route
+from planners.collect.build import build_collect_plan
+from planners.collect.lee import lee_route
 from planners.collect.path import PathBuilder, Route
 from planners.collect.polish import polish
 from planners.collect.reach import Point2, Region

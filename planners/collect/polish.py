@@ -1,5 +1,7 @@
-"""Re-placing a collection route's stops once both neighbours are known (dissertation ch. 5.5.1),
-and on the smoothed makespan for short routes."""
+"""The final placement of a collection route's stops (``planners.collect.lee``'s evaluator): each
+stop re-placed once both neighbours are known (dissertation ch. 5.5.1, ``polish``), moved on its own
+inside its region on the exact time model (``compass``), and short routes' stops on the smoothed
+makespan (``smooth``)."""
 
 from __future__ import annotations
 
@@ -8,9 +10,11 @@ from collections.abc import Callable, Sequence
 
 from planners.collect.path import PathBuilder, Route
 from planners.collect.reach import INSIDE_TOL, Point2, Region
+from planners.core.driver import COARSE_TOL
+from planners.core.geometry import compass_search
 from planners.core.plan import SNAP
 from planners.core.smooth import smooth_compass, smooth_max
-from planners.core.timing import carrier_hop, leg_time
+from planners.core.timing import carrier_hop, carrier_step, leg_time
 
 
 def polish(builder: PathBuilder, route: Route,
@@ -81,3 +85,71 @@ def smooth(builder: PathBuilder, route: Route, tol: float = 1e-3) -> Route:
     cand = Route(builder, route.clusters, regions, pos)
     return cand if cand.makespan < route.makespan - 1e-9 else route
 
+
+def _stop_cost(route: Route, k: int) -> Callable[[float, float], float]:
+    """Makespan of ``route`` with stop k moved to (x, y), the others kept, or inf outside I_β:
+    the hops into k, k + 1 and k + 2 are re-timed, later stops by ``Route.end_from``. The compass
+    search calls it thousands of times: the hops are ``planners.core.timing.carrier_step``."""
+    b = route.b
+    inst, c, rover, load = b.inst, b.carrier, b.rover, b.load
+    members = route.clusters[k]
+    rows = [(inst.pts2[i][0], inst.pts2[i][1], float(inst.radii[i]) ** 2, float(inst.heights2[i]))
+            for i in members]
+    (px, py), t0, h0 = route.state_before(k)
+    n = len(route.positions)
+    nxt = route.positions[k + 1:k + 3]
+    ready = route.ready[k + 1:k + 3]
+
+    def cost(x: float, y: float) -> float:
+        far = 0.0
+        for gx, gy, r2, z2 in rows:
+            e = (x - gx) ** 2 + (y - gy) ** 2
+            if e > r2:
+                return math.inf
+            if e + z2 > far:
+                far = e + z2
+        dt, h = carrier_step(x - px, y - py, h0, c)
+        t = max(t0 + dt, leg_time(math.sqrt(far), rover)) + load
+        qx, qy = x, y
+        for (nx, ny), rd in zip(nxt, ready, strict=True):
+            dt, h = carrier_step(nx - qx, ny - qy, h, c)
+            t = max(t + dt, rd) + load
+            qx, qy = nx, ny
+        return route.end_from(k + len(nxt), t) if k + 1 < n else t
+
+    return cost
+
+
+def compass(builder: PathBuilder, route: Route, sweeps: int = 2, tol: float = 1e-3) -> Route:
+    """Move each stop on its own inside its region I_β wherever the route gets faster (a compass
+    search on the exact time model, 8 directions, halving steps down to ``tol`` m): the candidate
+    points of eq. 5.13–5.16 miss the interior point where the carrier and the cluster's last rover
+    arrive together. After the first sweep only stops with a moved neighbour are searched again."""
+    inst = builder.inst
+    todo = set(range(len(route.clusters)))
+    for _ in range(sweeps):
+        before = route.makespan
+        moved: set[int] = set()
+        for k in sorted(todo):
+            cost = _stop_cost(route, k)
+            best = route.makespan
+            x, y = route.positions[k]
+            step = max(float(min(inst.radii[i] for i in route.clusters[k])) / 4, 0.05)
+            x, y, best = compass_search(cost, x, y, best, step, tol)
+            if (x, y) != route.positions[k]:
+                route = route.moved(k, (x, y))
+                moved.add(k)
+        if route.makespan >= before - 1e-6:
+            break
+        todo = {j for k in moved for j in range(k - 2, k + 3) if 0 <= j < len(route.clusters)}
+    return route
+
+
+def place_finely(builder: PathBuilder, r: Route, small: bool) -> Route:
+    """The final placement of a route's stops: (small routes: afresh, finely, if faster) the polish
+    of each stop with both neighbours known, then the compass search on eq. 5.2."""
+    if small:
+        fresh = builder.route(r.clusters, 2)
+        r = fresh if fresh.makespan <= r.makespan else r
+    r = polish(builder, r, sweeps=2 if small else 1, level=2 if small else 1)
+    return compass(builder, r, tol=1e-3 if small else COARSE_TOL)

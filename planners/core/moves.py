@@ -2,9 +2,10 @@
 
 Each move is a small generator: given the clusters in visiting order (and ``fits``, whether one
 stop can serve a cluster) it yields local changes ``(i, pieces, count)`` — replace clusters
-i..i+count-1 by ``pieces`` — without scoring them. Scoring is the route's business: the cluster
-searches of ``planners.deploy.lee`` and ``planners.collect.lee`` re-time a change with
-``route.replace`` (quick) or re-place the whole route (fine), both on ``planners.core.timing``.
+i..i+count-1 by ``pieces`` — without scoring them. Scoring is the route's business: the search
+driver (``planners.core.driver``, for ``planners.deploy.lee`` and ``planners.collect.lee``) re-times a
+change with ``route.replace`` (quick) or re-places the whole route (fine), both on
+``planners.core.timing``.
 ``local_search`` applies the moves until none makes the route faster; only improvements are kept.
 
 Beyond the dissertation: Algorithms 4.2 and 5.2 only divide, swap two halves and merge back.
@@ -156,7 +157,8 @@ def local_search(route: R, fits: Fits, score: Callable[[R, Change], tuple[float,
                  stop: Callable[[], bool] | None = None) -> R:
     """First-improvement descent over ``moves``: ``score(route, change)`` → (makespan, candidate),
     ``accept(route, candidate)`` → the new route. Stops when no move helps, after ``rounds``
-    improvements per move sweep, or when ``stop()`` says so (a time budget)."""
+    improvements per move sweep, or when ``stop()`` says so (a time budget; asked before every
+    change is scored, so that a budget ends within one score)."""
     for _ in range(rounds):
         improved = False
         for move in moves:
@@ -164,12 +166,12 @@ def local_search(route: R, fits: Fits, score: Callable[[R, Change], tuple[float,
             while begin is not None:  # after an improvement at cluster i, go on from i − 1
                 clusters, at, begin = route.clusters, begin, None  # type: ignore[attr-defined]
                 for change in move(clusters, fits, at):
+                    if stop is not None and stop():  # before scoring: a fine score can take a while
+                        return route
                     t, cand = score(route, change)
                     if t < makespan(route) - 1e-9:
                         route, improved, begin = accept(route, cand), True, max(change[0] - 1, 0)
                         break
-                    if stop is not None and stop():
-                        return route
         if not improved:
             break
     return route

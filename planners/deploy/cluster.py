@@ -134,3 +134,18 @@ def max_range_point(prev: Point2, geo: ClusterGeometry, nxt: Point2) -> Point2:
     if off <= step:
         return (fx, fy)
     return (cx + ox / off * step, cy + oy / off * step)
+
+
+def max_range_points(px: np.ndarray, py: np.ndarray, cx: np.ndarray, cy: np.ndarray, slack: np.ndarray,
+                     nx: np.ndarray, ny: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``max_range_point`` of every row (numpy, broadcast; the same arithmetic in the same order):
+    prev = (px, py), the disc (cx, cy, slack ≥ 0), next = (nx, ny)."""
+    dx, dy = nx - px, ny - py
+    n2 = dx * dx + dy * dy
+    s = np.where(n2 < 1e-18, 0.0, ((cx - px) * dx + (cy - py) * dy) / np.where(n2 < 1e-18, 1.0, n2))
+    fx, fy = px + s * dx, py + s * dy
+    ox, oy = fx - cx, fy - cy
+    off = np.hypot(ox, oy)
+    inside = off <= slack
+    off = np.where(inside, 1.0, off)
+    return np.where(inside, fx, cx + ox / off * slack), np.where(inside, fy, cy + oy / off * slack)

@@ -5,10 +5,14 @@ that might make the route faster.
 A change (i, pieces, count) re-places the stops around it as ``Route.replace`` does: the stop
 before it, the pieces and the stop after them by eq. 4.21–4.23 (``max_range_point``), then the
 first kept stop and the turn after it; every later stop shifts in time. The screen runs the same
-steps on the numpy forms of the time model (``planners.core.timing``) for every change at once;
-its numbers differ from the exact ones by rounding only, so it returns them less ``MARGIN`` as
-lower bounds. Changes it does not score (at the route's start, next to its last two stops, which
-are placed together, or with a hop of almost no length, where a heading is lost) get −inf.
+steps for every change at once, composed only of the numpy twins of the scalar functions that
+``Route.replace`` calls: ``carrier_steps`` and ``leg_times`` beside ``carrier_step`` and
+``leg_time`` in the time model (``planners.core.timing``), ``max_range_points`` beside
+``max_range_point`` (``planners.deploy.cluster``). Its numbers (``estimate``) differ from the exact
+ones by rounding only (a property test checks 1e-9 on random routes), so ``screen`` returns them
+less ``MARGIN`` as lower bounds. Changes it does not score (at the route's start, next to its last
+two stops, which are placed together, or with a hop of almost no length, where a heading is lost)
+get −inf.
 """
 
 from __future__ import annotations
@@ -21,6 +25,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from planners.core.timing import carrier_steps, leg_times
+from planners.deploy.cluster import max_range_points
 
 if TYPE_CHECKING:
     from planners.deploy.cluster import ClusterGeometry
@@ -33,6 +38,12 @@ SHORT2 = 1e-6  # m²: a hop this short is scored exactly (its heading is roundin
 
 def screen(route: Route, changes: Sequence[Change]) -> np.ndarray:
     """A lower bound of ``route.replace(*change)[0]`` for every change, −inf where unknown."""
+    return estimate(route, changes) - MARGIN
+
+
+def estimate(route: Route, changes: Sequence[Change]) -> np.ndarray:
+    """``route.replace(*change)[0]`` of every change, up to rounding (the same steps on the numpy
+    forms of the time model), −inf where unknown."""
     out = np.full(len(changes), -np.inf)
     groups: dict[tuple[int, int], list[int]] = defaultdict(list)
     n_old = len(route.clusters)
@@ -41,7 +52,7 @@ def screen(route: Route, changes: Sequence[Change]) -> np.ndarray:
         if i >= 1 and i + len(pieces) + 1 < n_new - 2:  # replace() places a window of stops lo..hi-1
             groups[(len(pieces), count)].append(c)
     for (p, count), idx in groups.items():
-        out[idx] = _window(route, [changes[c] for c in idx], p, count) - MARGIN
+        out[idx] = _window(route, [changes[c] for c in idx], p, count)
     return out
 
 
@@ -73,7 +84,7 @@ def _window(route: Route, changes: Sequence[Change], p: int, count: int) -> np.n
     short = np.zeros(len(changes), dtype=bool)
     qxs, qys, ts = [], [], []
     for k in range(w):
-        qx, qy = _max_range_point(px, py, cx[:, k], cy[:, k], slack[:, k], cx[:, k + 1], cy[:, k + 1])
+        qx, qy = max_range_points(px, py, cx[:, k], cy[:, k], slack[:, k], cx[:, k + 1], cy[:, k + 1])
         dx, dy = qx - px, qy - py
         short |= dx * dx + dy * dy < SHORT2
         dt, h = carrier_steps(dx, dy, h, c)
@@ -110,17 +121,3 @@ def _farthest(xyz: np.ndarray, members: Sequence[Sequence[int]], qx: np.ndarray,
     task = xyz[flat]
     ex, ey = task[:, 0] - np.repeat(qx, lens), task[:, 1] - np.repeat(qy, lens)
     return np.maximum.reduceat(ex * ex + ey * ey + task[:, 2] ** 2, np.cumsum(lens) - lens)
-
-
-def _max_range_point(px: np.ndarray, py: np.ndarray, cx: np.ndarray, cy: np.ndarray, slack: np.ndarray,
-                     nx: np.ndarray, ny: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """``planners.deploy.cluster.max_range_point`` of every row (numpy)."""
-    dx, dy = nx - px, ny - py
-    n2 = dx * dx + dy * dy
-    s = np.where(n2 < 1e-18, 0.0, ((cx - px) * dx + (cy - py) * dy) / np.where(n2 < 1e-18, 1.0, n2))
-    fx, fy = px + s * dx, py + s * dy
-    ox, oy = fx - cx, fy - cy
-    off = np.hypot(ox, oy)
-    inside = off <= slack
-    scale = slack / np.where(inside, 1.0, off)
-    return np.where(inside, fx, cx + ox * scale), np.where(inside, fy, cy + oy * scale)

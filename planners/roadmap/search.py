@@ -14,15 +14,13 @@ import math
 import random
 from collections.abc import Callable, Sequence
 
+from planners.core.driver import FINE_MOVES_UPTO, ILS_PATIENCE
 from planners.core.moves import deadline, fine_descent, iterated_search, quick_descent, remembered
 from planners.core.plan import Plan
 from planners.core.search import reorder
 from planners.roadmap.costs import RoadmapCosts
 from planners.roadmap.refine import refine
 from planners.roadmap.route import SEARCH_SHORTLIST, RoadmapRoute, RouteSpace
-
-FINE_MOVES_UPTO = 8  # targets: up to this many, every move is also scored on polished stops
-ILS_PATIENCE = 20  # kicks per target without a new best before the anytime search gives up
 
 
 def search(route: RoadmapRoute, build: Callable[[Sequence[tuple[int, list[int]]]], Plan], greedy: Plan,
