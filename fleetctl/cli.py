@@ -503,8 +503,9 @@ def _add_budget_option(p: argparse.ArgumentParser) -> None:
     p.add_argument("--budget-ms", type=_budget_ms, metavar="N",
                    help="after the quick plan, improve it for about N ms (iterated local search, seeded "
                         "by planner.seed, ending sooner when it converges; 0: the quick plan; default: the "
-                        f"mission's planner.budget_ms, else {DEFAULT_BUDGET_MS:.0f} ms for a phase's first "
-                        "plan and the quick plan for replans)")
+                        f"mission's planner.budget_ms, else {DEFAULT_BUDGET_MS:.0f} ms for 'plan' and a "
+                        "deployment's first plan, the quick plan for a collection (its rovers hover) and "
+                        "for replans)")
 
 
 def _add_shared_fly_options(p: argparse.ArgumentParser) -> None:

@@ -61,6 +61,32 @@ async def test_the_environment_or_zero_asks_for_the_quick_plan(monkeypatch: pyte
     assert await _budgets_seen(monkeypatch, 0.0) == [None, None]
 
 
+async def test_a_collections_first_plan_searches_only_for_a_named_budget(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """Its rovers hover while it plans: no default search, the mission's budget when it names one."""
+    monkeypatch.delenv(BUDGET_ENV, raising=False)
+    seen: list[float | None] = []
+    lee = planners.COLLECT_PLANNERS["lee"]
+
+    def spy(problem: Any) -> Any:
+        seen.append(problem.budget_ms)
+        return lee(dataclasses.replace(problem, budget_ms=None))
+
+    monkeypatch.setitem(planners.COLLECT_PLANNERS, "lee", spy)
+
+    async def commit(*args: Any, **kwargs: Any) -> None:
+        return None
+
+    for named in (None, 300.0):
+        mission = load_mission(RECON)
+        mission = dataclasses.replace(mission, planner=dataclasses.replace(mission.planner, budget_ms=named))
+        state = SimpleNamespace(set_plan=lambda doc: None, event=lambda *a, **k: None)
+        ctx = SimpleNamespace(mission=dataclasses.replace(mission, geofence=None), commit=commit, state=state)
+        problem = mission.collect_problem()
+        await Planning(ctx, "lee").plan("collect", problem)  # type: ignore[arg-type]
+    assert seen == [None, 300.0]
+
+
 def test_budget_rules(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.delenv(BUDGET_ENV, raising=False)
     assert offline_budget(None) == DEFAULT_BUDGET_MS and offline_budget(0.0) is None

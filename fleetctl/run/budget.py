@@ -1,10 +1,12 @@
 """How long a plan may search: the default budget of offline plans, the cap of replans in flight.
 
-A phase's first plan (``fleetctl plan``, the first deployment and collection plan of ``deploy``,
-``collect`` and ``run``) is made while the carrier is loaded or the rovers dwell: it runs the
-planners' anytime search (``budget_ms``), which ends sooner when it converges. A replan is made
-while the fleet waits: the quick plan, or at most ``REPLAN_BUDGET_MS`` of search when a budget is
-named. No I/O beyond reading one environment variable; imported by the CLI at start-up.
+An offline plan (``fleetctl plan``, and the first deployment plan of ``deploy`` and ``run``, made
+while the rovers are still on the deck) runs the planners' anytime search (``budget_ms``), which
+ends sooner when it converges. The first collection plan is made while the rovers hover in the
+field, burning their batteries: it searches only for a budget the mission or the command line
+names. A replan is made while the fleet waits: the quick plan, or at most ``REPLAN_BUDGET_MS`` of
+search when a budget is named. No I/O beyond reading one environment variable; imported by the
+CLI at start-up.
 """
 
 from __future__ import annotations
@@ -15,8 +17,8 @@ import os
 # planning began: with the step under way when it ends, a replan at 100 tasks (rovers) answers within
 # 50 ms of CPU (bench/scaling.py --speed).
 REPLAN_BUDGET_MS = 40.0
-# A phase's first plan (and ``fleetctl plan``) when neither the mission nor the command line names a
-# budget: the anytime search for up to this long, ending sooner when it converges (the planners'
+# An offline plan (``fleetctl plan``, a deployment's first) when neither the mission nor the command
+# line names a budget: the anytime search for up to this long, ending sooner when it converges (the planners'
 # patience; bench/headroom.py compares it with a 3 s and a 30 s search); replans without a named
 # budget are the quick plan.
 DEFAULT_BUDGET_MS = 3000.0
@@ -35,8 +37,8 @@ def default_budget_ms() -> float | None:
 
 
 def offline_budget(named: float | None) -> float | None:
-    """The budget of an offline plan (a phase's first): the one named (0: the quick plan, None),
-    else ``default_budget_ms()``."""
+    """The budget of an offline plan (``plan``, a deployment's first): the one named (0: the quick
+    plan, None), else ``default_budget_ms()``."""
     if named is None:
         return default_budget_ms()
     return named if named > 0 else None

@@ -48,9 +48,14 @@ class Planning:
             raise ExecutionError(
                 f"unknown {kind} planner {name!r}; choose one of {', '.join(sorted(registry))}"
             )
-        if hasattr(problem, "budget_ms"):  # replans: the fleet is waiting
+        if hasattr(problem, "budget_ms"):
             named = problem.budget_ms
-            budget = replan_budget(named) if kind in self.planned else offline_budget(named)
+            if kind in self.planned:  # a replan: the fleet is waiting
+                budget = replan_budget(named)
+            elif kind == "deploy":  # the first deployment plan: the rovers are still on the deck
+                budget = offline_budget(named)
+            else:  # the first collection plan: the rovers hover, so only a budget asked for
+                budget = named
             if budget != named:
                 problem = dataclasses.replace(problem, budget_ms=budget)
         self.planned.add(kind)
