@@ -12,16 +12,19 @@ Connection URLs are written from the controller's side (docs/mavlink.md):
 * ``tcp://HOST:PORT`` - connect (reconnects after a drop while the link is open).
 * ``serial:///dev/ttyX?baud=57600`` - needs the optional ``pyserial-asyncio`` package.
 
-Layers, bottom up:
+Layers, bottom up, a module each:
 
-1. transport + one parser per remote address; incoming messages are routed by source system id
-   (``Link.subscribe``) and offered to the registered expectations;
-2. single request/response: :meth:`Link.expect` (one future) and :meth:`Link.collect` (an inbox
-   for a whole exchange) are registered *before* the request is sent;
-3. retries: :meth:`Link.command` (COMMAND_LONG/COMMAND_INT with COMMAND_ACK, resent with
-   ``confirmation`` incremented, a longer wait after MAV_RESULT_IN_PROGRESS) and the mission
-   protocol (:meth:`Link.upload_mission`, :meth:`Link.download_mission`,
-   :meth:`Link.clear_mission`) with the spec's 1.5 s timeout, 5 retries and re-requested items.
+1. the URL (:mod:`fleetctl.mavlink.address`), the transport and one parser per remote address
+   (here); incoming messages are routed by source system id (``Link.subscribe``) and offered to
+   the registered expectations;
+2. single request/response (:mod:`fleetctl.mavlink.expectations`): :meth:`Link.expect` (one
+   future) and :meth:`Link.collect` (an inbox for a whole exchange) are registered *before* the
+   request is sent;
+3. the protocols with their retries: commands (:mod:`fleetctl.mavlink.command_protocol`, behind
+   :meth:`Link.command`) and missions (:mod:`fleetctl.mavlink.mission_protocol`, behind
+   :meth:`Link.upload_mission`, :meth:`Link.download_mission`, :meth:`Link.clear_mission`);
+   signing (:mod:`fleetctl.mavlink.signing`); the values they carry
+   (:mod:`fleetctl.mavlink.messages`) and the errors (:mod:`fleetctl.mavlink.errors`).
 
 Every message in and out can be observed with :meth:`Link.add_tap` (``callback(direction,
 unix_time, raw_bytes)``, direction ``"in"`` or ``"out"``), e.g. by :class:`fleetctl.tlog.TlogWriter`.
@@ -51,13 +54,23 @@ import math
 import secrets
 import time
 from collections.abc import Callable, Iterable, Iterator
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, cast
-from urllib.parse import parse_qs, urlsplit
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
+from fleetctl.mavlink import mission_protocol
+from fleetctl.mavlink.address import LinkAddress, parse_url
+from fleetctl.mavlink.command_protocol import (
+    COMMAND_PROGRESS_TIMEOUT,
+    COMMAND_RETRIES,
+    COMMAND_TIMEOUT,
+    send_command,
+    set_message_interval,
+)
+from fleetctl.mavlink.errors import LinkError, LinkTimeout, MissionRejected
+from fleetctl.mavlink.expectations import Inbox, Waiter
+from fleetctl.mavlink.messages import CommandAck, MissionItem, command_name, enum_name
 from fleetctl.mavlink.signing import (
     OK,
     REJECTION_KEYS,
@@ -74,13 +87,6 @@ M = mavlink2
 GCS_SYSID = 255
 GCS_COMPID = M.MAV_COMP_ID_MISSIONPLANNER  # 190
 
-MISSION_TIMEOUT = 1.5  # s, MAVLink mission protocol default
-MISSION_ITEM_TIMEOUT = 0.25  # s, first wait for one item; doubles on each retry up to MISSION_TIMEOUT
-MISSION_RETRIES = 5
-COMMAND_TIMEOUT = 1.0  # s per attempt
-COMMAND_RETRIES = 7  # resends after the first attempt: with 20 % loss each way an attempt fails
-# 36 % of the time; 8 attempts leave 0.03 % (5 left 0.6 %, about one failed launch in four lossy runs)
-COMMAND_PROGRESS_TIMEOUT = 10.0  # s to wait for the final ACK after MAV_RESULT_IN_PROGRESS
 MAX_PEERS = 64
 ROUTE_TIMEOUT = 3.0  # s: a system id's route moves to a new address only after this much silence
 _CONFLICT_LOG_S = 10.0  # s between two warnings about the same route conflict
@@ -88,210 +94,6 @@ _CONFLICT_LOG_S = 10.0  # s between two warnings about the same route conflict
 Tap = Callable[[str, float, bytes], None]
 Handler = Callable[[Any], None]
 RouteConflict = Callable[[int, Any, Any], None]
-
-
-# ------------------------------------------------------------------------------------ errors
-
-
-class LinkError(Exception):
-    """A link that cannot be opened or used (bad URL, port in use, unreachable peer)."""
-
-
-class LinkTimeout(LinkError, TimeoutError):
-    """No (final) reply from a vehicle after every retry."""
-
-
-class MissionRejected(LinkError):
-    """The vehicle ended a mission transfer with an error MISSION_ACK (final, per the spec)."""
-
-    def __init__(self, sysid: int, operation: str, result: int) -> None:
-        self.sysid = sysid
-        self.operation = operation
-        self.result = result
-        self.result_name = enum_name("MAV_MISSION_RESULT", result)
-        self.reason: str | None = None  # the autopilot's STATUSTEXT, when the vehicle proxy saw one
-        super().__init__(f"system {sysid} rejected the mission {operation}: {self.result_name}")
-
-
-def enum_name(enum: str, value: int) -> str:
-    """The MAVLink name of ``value`` in ``enum`` (e.g. ``MAV_RESULT_DENIED``), or ``ENUM(value)``."""
-    entry = M.enums.get(enum, {}).get(value)
-    return entry.name if entry is not None else f"{enum}({value})"
-
-
-def command_name(command: int) -> str:
-    return enum_name("MAV_CMD", command)
-
-
-# ------------------------------------------------------------------------------------ URLs
-
-
-@dataclass(frozen=True)
-class LinkAddress:
-    """A parsed connection URL. ``kind`` is ``udpin``, ``udpout``, ``tcp`` or ``serial``."""
-
-    url: str
-    kind: str
-    host: str = ""
-    port: int = 0
-    device: str = ""
-    baud: int = 57600
-
-
-def parse_url(url: str) -> LinkAddress:
-    """Parse a controller-side connection URL; :class:`LinkError` says what to write instead."""
-    parts = urlsplit(url)
-    scheme = parts.scheme.lower()
-    if scheme == "serial":
-        device = parts.path or parts.netloc
-        if not device:
-            raise LinkError(f"connection {url!r}: needs a device, e.g. serial:///dev/ttyACM0?baud=57600")
-        q = parse_qs(parts.query)
-        try:
-            baud = int(q.get("baud", q.get("baudrate", ["57600"]))[0])
-        except ValueError:
-            raise LinkError(f"connection {url!r}: baud must be an integer") from None
-        return LinkAddress(url, "serial", device=device, baud=baud)
-    if scheme not in ("udpin", "udp", "udpout", "tcp"):
-        raise LinkError(f"connection {url!r}: unknown scheme; use udpin://HOST:PORT, udp://HOST:PORT, "
-                        "tcp://HOST:PORT or serial:///dev/X?baud=N")
-    try:
-        port = parts.port
-    except ValueError:
-        port = None
-    if port is None or (port == 0 and scheme != "udpin"):
-        raise LinkError(f"connection {url!r}: needs a port, e.g. {scheme}://127.0.0.1:14550")
-    host = parts.hostname or ("0.0.0.0" if scheme == "udpin" else "127.0.0.1")
-    kind = "udpout" if scheme in ("udp", "udpout") else scheme
-    return LinkAddress(url, kind, host=host, port=port)
-
-
-# ------------------------------------------------------------------------------------ mission items
-
-
-@dataclass(frozen=True)
-class MissionItem:
-    """One mission item in MISSION_ITEM_INT form: ``x``/``y`` are degrees·1e7 in global frames,
-    ``z`` metres (relative to home in ``MAV_FRAME_GLOBAL_RELATIVE_ALT_INT``)."""
-
-    command: int
-    frame: int = M.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT
-    param1: float = 0.0
-    param2: float = 0.0
-    param3: float = 0.0
-    param4: float = 0.0
-    x: int = 0
-    y: int = 0
-    z: float = 0.0
-    autocontinue: int = 1
-    current: int = 0
-
-    @property
-    def lat(self) -> float:
-        return self.x / 1e7
-
-    @property
-    def lon(self) -> float:
-        return self.y / 1e7
-
-    @property
-    def name(self) -> str:
-        return command_name(self.command).removeprefix("MAV_CMD_")
-
-    @classmethod
-    def from_msg(cls, msg: Any) -> MissionItem:
-        """From a MISSION_ITEM_INT (or legacy float MISSION_ITEM) message."""
-        x, y = msg.x, msg.y
-        if msg.get_type() == "MISSION_ITEM":
-            x = int(round(x * 1e7)) if math.isfinite(x) else 0
-            y = int(round(y * 1e7)) if math.isfinite(y) else 0
-        return cls(command=msg.command, frame=msg.frame, param1=msg.param1, param2=msg.param2,
-                   param3=msg.param3, param4=msg.param4, x=int(x), y=int(y), z=msg.z,
-                   autocontinue=msg.autocontinue, current=msg.current)
-
-    def same_as(self, other: MissionItem, tol: float = 1e-3) -> bool:
-        """Equal up to float32 rounding of the parameters and ``z`` (what survives a round trip)."""
-        def close(a: float, b: float) -> bool:
-            return (math.isnan(a) and math.isnan(b)) or math.isclose(a, b, rel_tol=1e-6, abs_tol=tol)
-
-        return (self.command == other.command and self.frame == other.frame and self.x == other.x
-                and self.y == other.y and self.autocontinue == other.autocontinue
-                and all(close(a, b) for a, b in zip(
-                    (self.param1, self.param2, self.param3, self.param4, self.z),
-                    (other.param1, other.param2, other.param3, other.param4, other.z), strict=True)))
-
-
-@dataclass(frozen=True)
-class CommandAck:
-    """The final COMMAND_ACK of a command (after retries)."""
-
-    sysid: int
-    command: int
-    result: int
-    attempts: int
-    progress: int = 0
-    result_param2: int = 0
-
-    @property
-    def accepted(self) -> bool:
-        return self.result == M.MAV_RESULT_ACCEPTED
-
-    @property
-    def result_name(self) -> str:
-        return enum_name("MAV_RESULT", self.result)
-
-    @property
-    def command_name(self) -> str:
-        return command_name(self.command)
-
-
-# ------------------------------------------------------------------------------------ expectations
-
-
-class _Waiter:
-    """A registered expectation: message types from one system (or any), optionally filtered."""
-
-    __slots__ = ("types", "sysid", "match", "fut", "queue")
-
-    def __init__(self, types: frozenset[str], sysid: int | None, match: Callable[[Any], bool] | None,
-                 fut: asyncio.Future[Any] | None, queue: asyncio.Queue[Any] | None) -> None:
-        self.types = types
-        self.sysid = sysid
-        self.match = match
-        self.fut = fut
-        self.queue = queue
-
-    def offer(self, msg: Any) -> bool:
-        """Deliver ``msg`` if it matches; True when this one-shot waiter is done."""
-        if self.sysid is not None and msg.get_srcSystem() != self.sysid:
-            return False
-        if self.match is not None:
-            try:
-                if not self.match(msg):
-                    return False
-            except Exception:  # noqa: BLE001 - a faulty matcher must not break the receive path
-                log.exception("expectation matcher failed on %s", msg.get_type())
-                return False
-        if self.queue is not None:
-            self.queue.put_nowait(msg)
-            return False
-        assert self.fut is not None
-        if not self.fut.done():
-            self.fut.set_result(msg)
-        return True
-
-
-class Inbox:
-    """Messages matching an expectation, queued for the duration of one exchange (see
-    :meth:`Link.collect`)."""
-
-    def __init__(self, queue: asyncio.Queue[Any]) -> None:
-        self._queue = queue
-
-    async def get(self, timeout: float) -> Any:
-        """The next matching message; ``TimeoutError`` after ``timeout`` seconds."""
-        async with asyncio.timeout(timeout):
-            return await self._queue.get()
 
 
 # ------------------------------------------------------------------------------------ transports
@@ -364,10 +166,10 @@ class Link:
         # copy-on-write index of _subs: source sysid (None = any) -> type (None = any) -> handlers
         self._sub_index: dict[int | None, dict[str | None, tuple[Handler, ...]]] = {}
         self._any_src: dict[str | None, tuple[Handler, ...]] | None = None
-        self._waiters: dict[str, list[_Waiter]] = {}
+        self._waiters: dict[str, list[Waiter]] = {}
         self._locks: dict[Any, asyncio.Lock] = {}
         self._open = False
-        self._last_rtt = 0.0  # of the last mission exchange; sets the item timeout of a download
+        self.mission_rtt = 0.0  # of the last mission exchange; sets the item timeout of a download
         self.route_timeout = route_timeout
         self.on_route_conflict = on_route_conflict
         self.route_conflicts = 0
@@ -758,11 +560,11 @@ class Link:
             await asyncio.sleep(period)
 
     # -- request / response ----------------------------------------------------------------------------
-    def _register(self, w: _Waiter) -> None:
+    def _register(self, w: Waiter) -> None:
         for t in w.types:
             self._waiters.setdefault(t, []).append(w)
 
-    def _remove_waiter(self, w: _Waiter) -> None:
+    def _remove_waiter(self, w: Waiter) -> None:
         for t in w.types:
             lst = self._waiters.get(t)
             if lst is not None and w in lst:
@@ -776,7 +578,7 @@ class Link:
         for which ``match(msg)`` holds. Register it before sending the request; cancelling the
         future (e.g. ``asyncio.wait_for`` timing out) unregisters it."""
         fut: asyncio.Future[Any] = asyncio.get_running_loop().create_future()
-        w = _Waiter(frozenset([types] if isinstance(types, str) else types), sysid, match, fut, None)
+        w = Waiter(frozenset([types] if isinstance(types, str) else types), sysid, match, fut, None)
         self._register(w)
         fut.add_done_callback(lambda _f: self._remove_waiter(w))
         return fut
@@ -787,7 +589,7 @@ class Link:
         """``with link.collect(...) as inbox:`` queues every matching message until the block ends
         (for exchanges with several replies: command progress, mission transfers)."""
         queue: asyncio.Queue[Any] = asyncio.Queue()
-        w = _Waiter(frozenset([types] if isinstance(types, str) else types), sysid, match, None, queue)
+        w = Waiter(frozenset([types] if isinstance(types, str) else types), sysid, match, None, queue)
         self._register(w)
         try:
             yield Inbox(queue)
@@ -801,7 +603,8 @@ class Link:
         self.send(msg, sysid)
         return await asyncio.wait_for(fut, timeout)
 
-    def _lock(self, key: Any) -> asyncio.Lock:
+    def lock(self, key: Any) -> asyncio.Lock:
+        """One exchange of a kind at a time (``key``: e.g. a command and a vehicle)."""
         lock = self._locks.get(key)
         if lock is None:
             lock = self._locks[key] = asyncio.Lock()
@@ -813,178 +616,28 @@ class Link:
         frame: int | None = None, timeout: float = COMMAND_TIMEOUT, retries: int = COMMAND_RETRIES,
         progress_timeout: float = COMMAND_PROGRESS_TIMEOUT,
     ) -> CommandAck:
-        """Send a command and return its final :class:`CommandAck` (any result; check ``accepted``).
-
-        ``params`` are param1..param7. ``frame=None`` sends COMMAND_LONG (resent with
-        ``confirmation`` incremented); a frame sends COMMAND_INT with param5/param6 as latitude/
-        longitude in degrees (encoded ·1e7) and param7 as z. After MAV_RESULT_IN_PROGRESS the
-        final ACK is awaited up to ``progress_timeout``. :class:`LinkTimeout` when no ACK comes.
-        """
-        p = [float(v) for v in params]
-        if len(p) > 7:
-            raise ValueError("a command has at most 7 parameters")
-        p += [0.0] * (7 - len(p))
-        name = command_name(command)
-        attempts = 0
-        async with self._lock(("command", sysid, command)):
-            with self.collect("COMMAND_ACK", sysid=sysid, match=lambda m: m.command == command) as inbox:
-                for attempt in range(retries + 1):
-                    attempts = attempt + 1
-                    if frame is None:
-                        msg = self.mav.command_long_encode(sysid, compid, command, min(attempt, 255), *p)
-                    else:
-                        msg = self.mav.command_int_encode(sysid, compid, frame, command, 0, 0, *p[:4],
-                                                          _deg_e7(p[4]), _deg_e7(p[5]), p[6])
-                    self.send(msg, sysid)
-                    try:
-                        ack = await inbox.get(timeout)
-                    except TimeoutError:
-                        log.debug("%s: no ACK for %s from %d (attempt %d)", self.url, name, sysid, attempts)
-                        continue
-                    while ack.result == M.MAV_RESULT_IN_PROGRESS:
-                        try:
-                            ack = await inbox.get(progress_timeout)
-                        except TimeoutError:
-                            raise LinkTimeout(f"system {sysid}: {name} still in progress after "
-                                              f"{progress_timeout:g} s") from None
-                    return CommandAck(sysid, command, ack.result, attempts, getattr(ack, "progress", 0),
-                                      getattr(ack, "result_param2", 0))
-        raise LinkTimeout(f"system {sysid} did not acknowledge {name} "
-                          f"({attempts} attempts, {timeout:g} s each) on {self.url}")
+        """Send a command; its final :class:`CommandAck`
+        (:func:`fleetctl.mavlink.command_protocol.send_command`)."""
+        return await send_command(self, sysid, command, params, compid=compid, frame=frame, timeout=timeout,
+                                  retries=retries, progress_timeout=progress_timeout)
 
     async def set_message_interval(self, sysid: int, msgid: int, hz: float, *, compid: int = 1,
                                    retries: int = COMMAND_RETRIES) -> CommandAck:
-        """MAV_CMD_SET_MESSAGE_INTERVAL: stream ``msgid`` at ``hz`` (0 = the default rate, < 0 = off)."""
-        interval = 0.0 if hz == 0 else (-1.0 if hz < 0 else 1e6 / hz)
-        return await self.command(sysid, M.MAV_CMD_SET_MESSAGE_INTERVAL, (msgid, interval), compid=compid,
-                                  retries=retries)
+        """Stream ``msgid`` at ``hz`` (0 = the default rate, < 0 = off)."""
+        return await set_message_interval(self, sysid, msgid, hz, compid=compid, retries=retries)
 
     # -- mission protocol ------------------------------------------------------------------------------------
-    def _mission_match(self, mission_type: int) -> Callable[[Any], bool]:
-        return lambda m: getattr(m, "mission_type", 0) == mission_type
+    async def upload_mission(self, sysid: int, items: list[MissionItem], **options: Any) -> None:
+        """Upload ``items`` (:func:`fleetctl.mavlink.mission_protocol.upload_mission`)."""
+        await mission_protocol.upload_mission(self, sysid, items, **options)
 
-    async def upload_mission(
-        self, sysid: int, items: list[MissionItem], *, compid: int = 1, mission_type: int = 0,
-        timeout: float = MISSION_TIMEOUT, item_timeout: float = MISSION_ITEM_TIMEOUT,
-        retries: int = MISSION_RETRIES,
-    ) -> None:
-        """Upload ``items`` (MISSION_COUNT → MISSION_REQUEST_INT → MISSION_ITEM_INT → MISSION_ACK).
+    async def download_mission(self, sysid: int, **options: Any) -> list[MissionItem]:
+        """The vehicle's mission (:func:`fleetctl.mavlink.mission_protocol.download_mission`)."""
+        return await mission_protocol.download_mission(self, sysid, **options)
 
-        The vehicle drives the transfer: whatever item it requests is sent, so re-requested and
-        out-of-order items are served. Without an answer the last message is resent (COUNT after
-        ``timeout``; an item after ``item_timeout``, doubling up to ``timeout``), at most
-        ``retries`` times in a row. :class:`MissionRejected` on an error ACK (the vehicle keeps its
-        previous mission), :class:`LinkTimeout` after the retries (the transfer is cancelled).
-        """
-        n = len(items)
-        types = ("MISSION_REQUEST_INT", "MISSION_REQUEST", "MISSION_ACK")
-        async with self._lock(("mission", sysid)):
-            with self.collect(types, sysid=sysid, match=self._mission_match(mission_type)) as inbox:
-                count_msg = self.mav.mission_count_encode(sysid, compid, n, mission_type)
-                self.send(count_msg, sysid)
-                t0 = time.monotonic()
-                last: Any = count_msg
-                started = False
-                base = wait = timeout
-                left = retries
-                served = 0
-                while True:
-                    try:
-                        m = await inbox.get(wait)
-                    except TimeoutError:
-                        if left == 0:
-                            cancel = M.MAV_MISSION_OPERATION_CANCELLED
-                            self.send(self.mav.mission_ack_encode(sysid, compid, cancel, mission_type), sysid)
-                            raise LinkTimeout(f"system {sysid}: mission upload timed out after {retries} "
-                                              f"retries ({served} of {n} items sent) on {self.url}") from None
-                        left -= 1
-                        self.send(last, sysid)
-                        t0 = time.monotonic()  # the round trip is measured from the last send
-                        wait = min(wait * 2, timeout) if started else timeout
-                        continue
-                    if m.get_type() == "MISSION_ACK":
-                        if m.type == M.MAV_MISSION_ACCEPTED:
-                            if started or n == 0:
-                                log.info("%s: mission of %d items uploaded to %d", self.url, n, sysid)
-                                return
-                            continue  # a stale ACK of an earlier transfer
-                        raise MissionRejected(sysid, "upload", m.type)
-                    seq = m.seq
-                    if not 0 <= seq < n:
-                        log.warning("%s: system %d requested item %d of %d; ignored", self.url, sysid, seq, n)
-                        continue
-                    if not started:
-                        started = True
-                        base = max(item_timeout, 3.0 * (time.monotonic() - t0))
-                    it = items[seq]
-                    # MISSION_ITEM_INT also answers a legacy MISSION_REQUEST: ArduPilot asks that way
-                    # and rejects a float MISSION_ITEM in an _INT frame (MAV_MISSION_INVALID_PARAM4)
-                    last = self.mav.mission_item_int_encode(
-                        sysid, compid, seq, it.frame, it.command, it.current, it.autocontinue, it.param1,
-                        it.param2, it.param3, it.param4, it.x, it.y, it.z, mission_type)
-                    self.send(last, sysid)
-                    served = max(served, seq + 1)
-                    left, wait = retries, base
-
-    async def download_mission(
-        self, sysid: int, *, compid: int = 1, mission_type: int = 0, timeout: float = MISSION_TIMEOUT,
-        item_timeout: float = MISSION_ITEM_TIMEOUT, retries: int = MISSION_RETRIES,
-    ) -> list[MissionItem]:
-        """Download the vehicle's mission (MISSION_REQUEST_LIST → COUNT → REQUEST_INT → ITEM_INT → ACK).
-        On ArduPilot item 0 is home."""
-        types = ("MISSION_COUNT", "MISSION_ITEM_INT", "MISSION_ITEM", "MISSION_ACK")
-        async with self._lock(("mission", sysid)):
-            with self.collect(types, sysid=sysid, match=self._mission_match(mission_type)) as inbox:
-                count_msg = await self._exchange(
-                    inbox, self.mav.mission_request_list_encode(sysid, compid, mission_type), sysid,
-                    lambda m: m.get_type() == "MISSION_COUNT", timeout, timeout, retries, "download")
-                n = count_msg.count
-                base = max(item_timeout, 3.0 * self._last_rtt)
-                items: list[MissionItem] = []
-                for seq in range(n):
-                    def is_item(m: Any, seq: int = seq) -> bool:
-                        return m.get_type() in ("MISSION_ITEM_INT", "MISSION_ITEM") and m.seq == seq
-
-                    m = await self._exchange(
-                        inbox, self.mav.mission_request_int_encode(sysid, compid, seq, mission_type), sysid,
-                        is_item, base, timeout, retries, "download")
-                    items.append(MissionItem.from_msg(m))
-                if n:
-                    ok = M.MAV_MISSION_ACCEPTED
-                    self.send(self.mav.mission_ack_encode(sysid, compid, ok, mission_type), sysid)
-                return items
-
-    async def clear_mission(self, sysid: int, *, compid: int = 1, mission_type: int = 0,
-                            timeout: float = MISSION_TIMEOUT, retries: int = MISSION_RETRIES) -> None:
-        """MISSION_CLEAR_ALL → MISSION_ACK."""
-        async with self._lock(("mission", sysid)):
-            with self.collect("MISSION_ACK", sysid=sysid, match=self._mission_match(mission_type)) as inbox:
-                await self._exchange(inbox, self.mav.mission_clear_all_encode(sysid, compid, mission_type),
-                                     sysid, lambda m: True, timeout, timeout, retries, "clear")
-
-    async def _exchange(self, inbox: Inbox, msg: Any, sysid: int, accept: Callable[[Any], bool],
-                        first_wait: float, max_wait: float, retries: int, operation: str) -> Any:
-        """Send ``msg`` until a message passing ``accept`` arrives; an error MISSION_ACK is final."""
-        wait = first_wait
-        for attempt in range(retries + 1):
-            if attempt:
-                log.debug("%s: resending %s to %d (retry %d)", self.url, msg.get_type(), sysid, attempt)
-            self.send(msg, sysid)
-            sent = time.monotonic()
-            deadline = sent + wait
-            while (remaining := deadline - time.monotonic()) > 0:
-                try:
-                    m = await inbox.get(remaining)
-                except TimeoutError:
-                    break
-                if m.get_type() == "MISSION_ACK" and m.type != M.MAV_MISSION_ACCEPTED:
-                    raise MissionRejected(sysid, operation, m.type)
-                if accept(m):
-                    self._last_rtt = time.monotonic() - sent
-                    return m
-            wait = min(wait * 2, max_wait)
-        raise LinkTimeout(f"system {sysid}: mission {operation} timed out ({msg.get_type()} unanswered "
-                          f"after {retries} retries) on {self.url}")
+    async def clear_mission(self, sysid: int, **options: Any) -> None:
+        """MISSION_CLEAR_ALL (:func:`fleetctl.mavlink.mission_protocol.clear_mission`)."""
+        await mission_protocol.clear_mission(self, sysid, **options)
 
 
 _REFUSED_WHY = {
@@ -995,13 +648,6 @@ _REFUSED_WHY = {
     "rejected_replay": "heard, but its signing timestamps go back ({n} messages refused: a replay, or "
                        "the vehicle's clock was reset)",
 }
-
-
-def _deg_e7(deg: float) -> int:
-    """Degrees → degrees·1e7 for COMMAND_INT; NaN means 'not given' (INT32_MAX)."""
-    if not math.isfinite(deg):
-        return 0x7FFFFFFF
-    return int(round(deg * 1e7))
 
 
 __all__ = [

@@ -1,0 +1,157 @@
+"""The MAVLink mission protocol on a link: :func:`upload_mission` (MISSION_COUNT → MISSION_REQUEST_INT
+→ MISSION_ITEM_INT → MISSION_ACK, the vehicle driving the transfer), :func:`download_mission` and
+:func:`clear_mission`, with the spec's 1.5 s timeout, 5 retries and re-requested items. One
+transfer per vehicle at a time."""
+
+from __future__ import annotations
+
+import logging
+import time
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any
+
+from pymavlink.dialects.v20 import ardupilotmega as M
+
+from fleetctl.mavlink.errors import LinkTimeout, MissionRejected
+from fleetctl.mavlink.expectations import Inbox
+from fleetctl.mavlink.messages import MissionItem
+
+if TYPE_CHECKING:
+    from fleetctl.mavlink.link import Link
+
+log = logging.getLogger(__name__)
+
+MISSION_TIMEOUT = 1.5  # s, MAVLink mission protocol default
+MISSION_ITEM_TIMEOUT = 0.25  # s, first wait for one item; doubles on each retry up to MISSION_TIMEOUT
+MISSION_RETRIES = 5
+
+
+def _mission_match(mission_type: int) -> Callable[[Any], bool]:
+    return lambda m: getattr(m, "mission_type", 0) == mission_type
+
+async def upload_mission(
+    link: Link, sysid: int, items: list[MissionItem], *, compid: int = 1, mission_type: int = 0,
+    timeout: float = MISSION_TIMEOUT, item_timeout: float = MISSION_ITEM_TIMEOUT,
+    retries: int = MISSION_RETRIES,
+) -> None:
+    """Upload ``items`` (MISSION_COUNT → MISSION_REQUEST_INT → MISSION_ITEM_INT → MISSION_ACK).
+
+    The vehicle drives the transfer: whatever item it requests is sent, so re-requested and
+    out-of-order items are served. Without an answer the last message is resent (COUNT after
+    ``timeout``; an item after ``item_timeout``, doubling up to ``timeout``), at most
+    ``retries`` times in a row. :class:`MissionRejected` on an error ACK (the vehicle keeps its
+    previous mission), :class:`LinkTimeout` after the retries (the transfer is cancelled).
+    """
+    n = len(items)
+    types = ("MISSION_REQUEST_INT", "MISSION_REQUEST", "MISSION_ACK")
+    async with link.lock(("mission", sysid)):
+        with link.collect(types, sysid=sysid, match=_mission_match(mission_type)) as inbox:
+            count_msg = link.mav.mission_count_encode(sysid, compid, n, mission_type)
+            link.send(count_msg, sysid)
+            t0 = time.monotonic()
+            last: Any = count_msg
+            started = False
+            base = wait = timeout
+            left = retries
+            served = 0
+            while True:
+                try:
+                    m = await inbox.get(wait)
+                except TimeoutError:
+                    if left == 0:
+                        cancel = M.MAV_MISSION_OPERATION_CANCELLED
+                        link.send(link.mav.mission_ack_encode(sysid, compid, cancel, mission_type), sysid)
+                        raise LinkTimeout(f"system {sysid}: mission upload timed out after {retries} "
+                                          f"retries ({served} of {n} items sent) on {link.url}") from None
+                    left -= 1
+                    link.send(last, sysid)
+                    t0 = time.monotonic()  # the round trip is measured from the last send
+                    wait = min(wait * 2, timeout) if started else timeout
+                    continue
+                if m.get_type() == "MISSION_ACK":
+                    if m.type == M.MAV_MISSION_ACCEPTED:
+                        if started or n == 0:
+                            log.info("%s: mission of %d items uploaded to %d", link.url, n, sysid)
+                            return
+                        continue  # a stale ACK of an earlier transfer
+                    raise MissionRejected(sysid, "upload", m.type)
+                seq = m.seq
+                if not 0 <= seq < n:
+                    log.warning("%s: system %d requested item %d of %d; ignored", link.url, sysid, seq, n)
+                    continue
+                if not started:
+                    started = True
+                    base = max(item_timeout, 3.0 * (time.monotonic() - t0))
+                it = items[seq]
+                # MISSION_ITEM_INT also answers a legacy MISSION_REQUEST: ArduPilot asks that way
+                # and rejects a float MISSION_ITEM in an _INT frame (MAV_MISSION_INVALID_PARAM4)
+                last = link.mav.mission_item_int_encode(
+                    sysid, compid, seq, it.frame, it.command, it.current, it.autocontinue, it.param1,
+                    it.param2, it.param3, it.param4, it.x, it.y, it.z, mission_type)
+                link.send(last, sysid)
+                served = max(served, seq + 1)
+                left, wait = retries, base
+
+async def download_mission(
+    link: Link, sysid: int, *, compid: int = 1, mission_type: int = 0, timeout: float = MISSION_TIMEOUT,
+    item_timeout: float = MISSION_ITEM_TIMEOUT, retries: int = MISSION_RETRIES,
+) -> list[MissionItem]:
+    """Download the vehicle's mission (MISSION_REQUEST_LIST → COUNT → REQUEST_INT → ITEM_INT → ACK).
+    On ArduPilot item 0 is home."""
+    types = ("MISSION_COUNT", "MISSION_ITEM_INT", "MISSION_ITEM", "MISSION_ACK")
+    async with link.lock(("mission", sysid)):
+        with link.collect(types, sysid=sysid, match=_mission_match(mission_type)) as inbox:
+            count_msg = await _exchange(
+                link, inbox, link.mav.mission_request_list_encode(sysid, compid, mission_type), sysid,
+                lambda m: m.get_type() == "MISSION_COUNT", timeout, timeout, retries, "download")
+            n = count_msg.count
+            base = max(item_timeout, 3.0 * link.mission_rtt)
+            items: list[MissionItem] = []
+            for seq in range(n):
+                def is_item(m: Any, seq: int = seq) -> bool:
+                    return m.get_type() in ("MISSION_ITEM_INT", "MISSION_ITEM") and m.seq == seq
+
+                m = await _exchange(
+                    link, inbox, link.mav.mission_request_int_encode(sysid, compid, seq, mission_type), sysid,
+                    is_item, base, timeout, retries, "download")
+                items.append(MissionItem.from_msg(m))
+            if n:
+                ok = M.MAV_MISSION_ACCEPTED
+                link.send(link.mav.mission_ack_encode(sysid, compid, ok, mission_type), sysid)
+            return items
+
+async def clear_mission(link: Link, sysid: int, *, compid: int = 1, mission_type: int = 0,
+                        timeout: float = MISSION_TIMEOUT, retries: int = MISSION_RETRIES) -> None:
+    """MISSION_CLEAR_ALL → MISSION_ACK."""
+    async with link.lock(("mission", sysid)):
+        with link.collect("MISSION_ACK", sysid=sysid, match=_mission_match(mission_type)) as inbox:
+            await _exchange(link, inbox, link.mav.mission_clear_all_encode(sysid, compid, mission_type),
+                                 sysid, lambda m: True, timeout, timeout, retries, "clear")
+
+async def _exchange(link: Link, inbox: Inbox, msg: Any, sysid: int, accept: Callable[[Any], bool],
+                    first_wait: float, max_wait: float, retries: int, operation: str) -> Any:
+    """Send ``msg`` until a message passing ``accept`` arrives; an error MISSION_ACK is final."""
+    wait = first_wait
+    for attempt in range(retries + 1):
+        if attempt:
+            log.debug("%s: resending %s to %d (retry %d)", link.url, msg.get_type(), sysid, attempt)
+        link.send(msg, sysid)
+        sent = time.monotonic()
+        deadline = sent + wait
+        while (remaining := deadline - time.monotonic()) > 0:
+            try:
+                m = await inbox.get(remaining)
+            except TimeoutError:
+                break
+            if m.get_type() == "MISSION_ACK" and m.type != M.MAV_MISSION_ACCEPTED:
+                raise MissionRejected(sysid, operation, m.type)
+            if accept(m):
+                link.mission_rtt = time.monotonic() - sent
+                return m
+        wait = min(wait * 2, max_wait)
+    raise LinkTimeout(f"system {sysid}: mission {operation} timed out ({msg.get_type()} unanswered "
+                      f"after {retries} retries) on {link.url}")
+
+
+__all__ = ["MISSION_ITEM_TIMEOUT", "MISSION_RETRIES", "MISSION_TIMEOUT", "clear_mission", "download_mission",
+           "upload_mission"]
