@@ -7,7 +7,8 @@ rovers from their live positions and fresh
 battery readings (:mod:`fleetctl.run.energy`), sends each above its meeting point (where it holds
 in an unlimited loiter) and the carrier along its route; at a stop the stop's rovers are sent to
 land on the carrier, which waits until every one is *loaded* (landed within
-:data:`fleetctl.run.state.DECK_RADIUS`), then ``load_time``, then goes on.
+:data:`fleetctl.run.state.DECK_RADIUS`), then ``load_time`` from the last touch-down (a rover's
+autopilot disarms it meanwhile; the carrier waits for that too), then goes on.
 
 A rover lost on the way is removed: the others keep the meeting points they are flying to (on
 the energy they have left, ch. 5.5.3) and stops left empty are dropped (:meth:`_trim`); a lost
@@ -143,6 +144,7 @@ class _Round:
     due: dict[str, float] = field(default_factory=dict)  # rover -> expected above its stop (mission clock)
     trouble: dict[str, Trouble] = field(default_factory=dict)  # rover -> evidence it will not arrive
     watch: dict[str, asyncio.Task[None]] = field(default_factory=dict)  # rover -> its trouble watch
+    touched: dict[str, float] = field(default_factory=dict)  # rover -> mission clock of its touch-down
 
 
 @dataclass(frozen=True)
@@ -327,7 +329,10 @@ class CollectPhase:
             planned = [self._burnt(c, airborne, ahead) for c in crs]
             for c in planned:  # the controller's own time leaves it too little to reach the ground
                 if c.id in airborne and c.range < max(c.position[2], _to_approach(c.position[2])):
-                    self._short_of_energy(c.id, ahead, battery[c.id] / speed)
+                    self._short_of_energy(c.id, ahead, battery[c.id] / speed, why=(
+                        f"{c.id}: {c.range:.1f} m of range left once the round starts ({ahead:.1f} s of "
+                        f"the controller's own time from now), too little to come down from "
+                        f"{c.position[2]:.1f} m: not collected"))
             planned = [c for c in planned if self.board.in_round(c.id)]
             crs = [c for c in crs if self.board.in_round(c.id)]
             if not crs:
@@ -383,16 +388,18 @@ class CollectPhase:
                 keep.append(dataclasses.replace(c, range=shrunk))
         return keep
 
-    def _short_of_energy(self, rid: str, airborne: float, allowed: float) -> None:
-        """Leave ``rid`` out; in the air it lands where it is while it still has its reserve
-        (rather than hover its battery away), to be picked up by hand."""
+    def _short_of_energy(self, rid: str, airborne: float, allowed: float, why: str | None = None) -> None:
+        """Leave ``rid`` out (``why``: the words, default: its flight against what it has left); in
+        the air it lands where it is while it still has its reserve (rather than hover its battery
+        away), to be picked up by hand."""
         v = self.ctx.fleet.rovers[rid]
         up = v.on_ground is False or (v.height or 0.0) > GROUND_HEIGHT
         self.board.set(rid, RoverStatus.UNREACHABLE)
+        text = why or (f"{rid}: would be {airborne:.0f} s in the air before it is on the deck but has "
+                       f"{allowed:.0f} s above its reserve: not collected")
         self.ctx.state.event(
             Ev.ROVER_UNREACHABLE,
-            f"{rid}: would be {airborne:.0f} s in the air before it is on the deck but has "
-            f"{allowed:.0f} s above its reserve: not collected" + ("; landing where it is" if up else ""),
+            text + ("; landing where it is" if up else ""),
             rid, airborne=airborne, allowed=allowed,
         )
         if up:
@@ -424,7 +431,7 @@ class CollectPhase:
             prev = stop.depart
             self._at_stop(rnd, k)
             await asyncio.gather(*(self._bring_in(rnd, leg.rover, leg.arrive) for leg in stop.rovers))
-            await ctx.sleep_mission(ctx.mission.carrier.load_time)
+            await ctx.sleep_mission(self._load_left(rnd, [leg.rover for leg in stop.rovers]))
             assert self.t0 is not None
             self.result.flown = ctx.clock() - self.t0
             if drain(q, self.handle) and k + 1 < len(stops):
@@ -560,6 +567,7 @@ class CollectPhase:
             )
             if v.lost or not self.board.in_round(rid):
                 return
+            rnd.touched[rid] = ctx.clock()
             await self._disarmed_on_deck(v)
         except (CommandRejected, LinkError, TimeoutError) as exc:
             self.board.why[rid] = f"not loaded ({exc})"
@@ -601,6 +609,16 @@ class CollectPhase:
         if trouble is not None:
             trouble.commanded("LAND")
         await ctx.command(v, "land", v.land())
+
+    def _load_left(self, rnd: _Round, rovers: list[str]) -> float:
+        """Mission seconds of ``load_time`` still to wait at a stop: the loading of a rover starts at
+        its touch-down (its autopilot disarms it meanwhile), so it ends ``load_time`` after the
+        last touch-down of the stop's rovers."""
+        load = self.ctx.mission.carrier.load_time
+        down = [rnd.touched[r] for r in rovers if r in rnd.touched]
+        if not down:
+            return load
+        return max(0.0, load - (self.ctx.clock() - max(down)))
 
     async def _disarmed_on_deck(self, v: Vehicle) -> None:
         """A rover down on the deck counts as loaded once its motors are off, so the carrier never
