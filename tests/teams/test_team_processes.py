@@ -273,7 +273,7 @@ def test_team_option_errors_are_one_line(tmp_path: Path) -> None:
     mission = two_team_mission(tmp_path / "two.yaml", 1, "unused")
     env = dict(os.environ, PYTHONPATH=str(ROOT))
     for argv, text in ((["deploy", "--team", "zz"], "no carrier 'zz' in the mission (carriers: c1, c2)"),
-                       (["collect", "--team", "c1"], "unrecognized arguments: --team")):
+                       (["collect", "--team", "zz"], "no carrier 'zz' in the mission (carriers: c1, c2)")):
         out = subprocess.run([sys.executable, "-m", "fleetctl.cli", *argv[:1], "--mission", str(mission),
                               *argv[1:], "--headless"], cwd=ROOT, env=env, capture_output=True, text=True,
                              timeout=WAIT)
