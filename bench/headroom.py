@@ -1,4 +1,4 @@
-"""Headroom of the quick plan against a joint re-optimisation of every stop (issue 15 target ≤ 0.5 %).
+"""Headroom of the quick plan against a joint re-optimisation of every stop (the target: ≤ 0.5 %).
 
 For n = 20, 50, 100 tasks (rovers) on the instances of bench/scaling.py (deployment, 200 m square)
 and bench/scaling_collect.py (collection, 200 m square, ranges 5–20 m), ``lee``'s quick plan keeps

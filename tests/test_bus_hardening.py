@@ -1,4 +1,4 @@
-"""The MQTT bus survives every payload and guards who may change a mission (issue 13).
+"""The MQTT bus survives every payload and guards who may change a mission.
 
 Without a broker: FleetBus.handle_task_message on its own (each message its own error boundary,
 size and depth limits, off unless the mission enables it, absurd changes refused unless forced,

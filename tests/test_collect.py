@@ -27,7 +27,7 @@ SCENARIOS = sorted((ROOT / "missions" / "paper").glob("collect_*.yaml")) + [ROOT
 TOL = 1e-6
 
 
-# ------------------------------------------------------------------ an independent time model (DESIGN.md)
+# ------------------------------------------------------------- an independent time model (docs/time-model.md)
 
 def _leg(length: float, v: float, a: float | None) -> float:
     if length <= 0:
@@ -61,7 +61,7 @@ def _recompute(js: dict, problem: CollectProblem) -> float:
 
 
 def check_plan(problem: CollectProblem, plan: Plan) -> None:
-    """Every property issue 3 asks of a collection plan."""
+    """Every property a collection plan must have."""
     rovers = {r.id: r for r in problem.rovers}
     js = json.loads(json.dumps(plan.to_json()))
     assert js["kind"] == "collect"

@@ -1,4 +1,4 @@
-"""fleetctl.mission: the mission-file contract of DESIGN.md, one test per rejection rule."""
+"""fleetctl.mission: the mission-file contract (docs/mission-file.md), one test per rejection rule."""
 
 from __future__ import annotations
 
@@ -156,7 +156,7 @@ def test_fleet_sysids_follow_the_carrier(tmp_path: Path) -> None:
     assert [u.sysid for u in m.rovers.units] == [15, 16, 17] and m.rovers.ids == ("r1", "r2", "r3")
 
 
-# DESIGN.md "Mission file (YAML) — the contract" (one comment shortened for the line length)
+# the mission-file contract's example mission (one comment shortened for the line length)
 DESIGN_EXAMPLE = """\
 name: recon
 origin: {lat: 47.397742, lon: 8.545594, alt: 488.0}

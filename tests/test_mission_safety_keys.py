@@ -1,4 +1,4 @@
-"""fleetctl.mission: the field-safety keys (issue 12 items 3, 5, 6): preflight fault kinds,
+"""fleetctl.mission: the field-safety keys (docs/field-safety.md): preflight fault kinds,
 links.failsafe and geofence - one test per rule, errors naming file:line, key and the fix."""
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""The planners' fast data structures against brute force (issue 15, item 4): the long tours'
+"""The planners' fast data structures against brute force: the long tours'
 neighbour-list 2-opt and its k-d tree nearest neighbour tour, the reach regions' vertices and
 projections, and the routes' incremental re-timing (deployment and collection) against a
 route timed from scratch."""

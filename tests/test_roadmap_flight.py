@@ -1,9 +1,9 @@
 """The office mission (ch. 6.5.3) flown through the simulated fleet: deploy, dwell, collect, with
 every vehicle's flown ground track outside the walls.
 
-The executor builds its collection problem from live telemetry without the mission's obstacles
-(fleetctl/executor.py, CollectProblem(...)); until it adds ``**mission.environment()`` this test
-hands them to the ``lee-graph`` collection planner itself.
+The collection problem built from live telemetry (fleetctl/run/collect.py, CollectProblem(...))
+carries the mission's obstacles (``**mission.environment()``); this test also hands them to the
+``lee-graph`` collection planner itself (written when the run did not).
 """
 
 from __future__ import annotations

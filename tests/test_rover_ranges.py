@@ -1,4 +1,4 @@
-"""Rovers with less than the deploy range (issue 26 item 5): planned with the range their battery
+"""Rovers with less than the deploy range: planned with the range their battery
 has, flown only on tasks they reach, left out when they reach none (planners.core.ranges)."""
 
 from __future__ import annotations

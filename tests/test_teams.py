@@ -1,4 +1,4 @@
-"""Several carriers (issue 17, planning): allocation properties, the mission keys, ``fleetctl plan``."""
+"""Several carriers, planning: allocation properties, the mission keys, ``fleetctl plan``."""
 
 from __future__ import annotations
 
@@ -86,7 +86,7 @@ def _retimed_equal(plan: Plan, p: DeployProblem | CollectProblem) -> None:
 
 
 def _independent_check(plan: Plan, p: DeployProblem | CollectProblem) -> None:
-    """The JSON of one team's plan against tests/plan_checker (written from DESIGN.md's text)."""
+    """The JSON of one team's plan against tests/plan_checker (written from docs/time-model.md's text)."""
     c = p.carrier
     carrier = {"max_speed": c.max_speed, "accel": c.accel, "turn_rate": c.turn_rate,
                "unload_time": c.unload_time, "load_time": c.load_time, "takeoff_time": c.takeoff_time,

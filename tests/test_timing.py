@@ -1,4 +1,4 @@
-"""The time model (DESIGN.md, eq. 4.2/4.3/5.2) against hand-computed values."""
+"""The time model (docs/time-model.md, eq. 4.2/4.3/5.2) against hand-computed values."""
 
 import math
 

@@ -2,7 +2,7 @@
 
 :class:`Watcher` subscribes to ``<prefix>/status``, ``/plan``, ``/vehicles/+/telemetry`` and
 ``/events`` (see :mod:`fleetctl.bus.client`), keeps a :class:`RemoteFleetState` up to date and the
-dashboard (:func:`fleetctl.dashboard.render`) draws it; ``--headless`` prints the operator events
+dashboard (:func:`fleetctl.views.dashboard.render`) draws it; ``--headless`` prints the operator events
 instead and the fleet table when it ends. The connection is retried with backoff like the bus's.
 """
 

@@ -210,7 +210,7 @@ def _polish_stop(builder: PathBuilder, route: Route, k: int, tol: float) -> Rout
 
 def _polish_long(builder: PathBuilder, route: Route, tol: float) -> Route:
     """One sweep of ``_polish`` for long routes, with numpy: every third stop at once
-    (``planners.deploy.batch``: stops three apart share no hop), the three classes in turn, each
+    (``planners.deploy.stops``: stops three apart share no hop), the three classes in turn, each
     class's moves kept when the route re-timed exactly is faster (else one at a time, each on
     the exact cost); then the last two stops one at a time."""
     n = len(route.clusters)

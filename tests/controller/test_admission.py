@@ -1,5 +1,5 @@
 """Before arming: fly with the rovers that answer, one controller per fleet, arming real aircraft
-only on a decision (issue 12 items 1, 4, 7). Real MAVLink over UDP against the simulated fleet."""
+only on a decision. Real MAVLink over UDP against the simulated fleet."""
 
 from __future__ import annotations
 

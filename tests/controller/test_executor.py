@@ -4,7 +4,7 @@ collection of field-placed rovers, errors users meet, the records of a run and t
 
 Flown vs planned makespan (simulated seconds) - the tolerance and why:
 the simulated vehicles move by the planners' time model, except that a rover takes off
-*vertically* to its task height and then flies level to the task (DESIGN.md "MAVLink mapping":
+*vertically* to its task height and then flies level to the task (docs/mavlink.md, the mission items:
 NAV_TAKEOFF to the task height, then NAV_WAYPOINT), while the plan charges the straight 3D line.
 That costs each rover ``z + h - sqrt(z² + h²)`` over its speed (z = task height, h = horizontal
 distance). On top of it the controller only sees the world through telemetry (10 Hz wall, i.e.

@@ -1,4 +1,4 @@
-"""Link-loss failsafe (issue 12 item 5) and geofence (item 6): parameters read, described and set
+"""Link-loss failsafe and geofence (docs/field-safety.md): parameters read, described and set
 for PX4 and ArduPilot, the simulated autopilot acting on link loss and on a breach, the FENCE
 mission round trip and plans checked against the fence. Real MAVLink over UDP."""
 

@@ -1,4 +1,4 @@
-"""The mission-file watcher of the supervisor survives every bad edit (issue 13).
+"""The mission-file watcher of the supervisor survives every bad edit.
 
 No flight: a Supervisor over a stub fleet watches a mission file; each bad edit (a recursive alias,
 an alias bomb, a 400-digit number, a file over the size cap, a loader that raises something other

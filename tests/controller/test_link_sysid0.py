@@ -1,5 +1,5 @@
 """Messages with source system id 0 (PX4 sends some from every instance) are not a vehicle's:
-no route, no subscriber, no route conflict (issue 25)."""
+no route, no subscriber, no route conflict."""
 
 from __future__ import annotations
 

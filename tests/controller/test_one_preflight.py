@@ -1,4 +1,4 @@
-"""Issue 26 item 5, "one preflight": `fleetctl status` and the flying commands run the same checks
+"""One preflight: `fleetctl status` and the flying commands run the same checks
 (fleetctl.run.preflight, system status and position included), the real reason first; `status
 --json` prints one object per vehicle with every check; without a terminal the table is plain,
 uncut lines. Real MAVLink over UDP against the simulated fleet."""

@@ -1,4 +1,4 @@
-"""Preflight (issue 12 item 3): each check fails on its simulated fault and passes without, in
+"""Preflight (docs/field-safety.md): each check fails on its simulated fault and passes without, in
 `fleetctl status` and before arming (a failing rover is left out, a failing carrier stops the run).
 Real MAVLink over UDP against the simulated fleet."""
 

@@ -1,4 +1,4 @@
-"""Supervision and replanning (issue 6) through the simulated fleet's faults over real UDP: rovers
+"""Supervision and replanning through the simulated fleet's faults over real UDP: rovers
 lost on the deck / climbing / en route / on task / flying to a meeting point, no spare left, the
 carrier lost, tasks added and removed by editing the running mission file, an invalid edit, and a
 whole run under packet loss and latency. After each run the summary must account for every task

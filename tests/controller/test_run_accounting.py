@@ -1,5 +1,5 @@
 """What a run reports: the planned total of `run` uses the dwell actually flown, and commands a
-mission cannot fly fail with a message, not a traceback (issue 11 item 4)."""
+mission cannot fly fail with a message, not a traceback."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""A signed deployment under attack (issue 12 item 10): spoofed unsigned HEARTBEAT, COMMAND_ACK,
+"""A signed deployment under attack: spoofed unsigned HEARTBEAT, COMMAND_ACK,
 GLOBAL_POSITION_INT and MISSION_ITEM_REACHED from another local socket change nothing, and the
 summary counts them."""
 

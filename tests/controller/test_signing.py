@@ -1,4 +1,4 @@
-"""Issue 12 (field safety): MAVLink 2 signing between fleetctl's links and the simulated fleet over
+"""Field safety: MAVLink 2 signing between fleetctl's links and the simulated fleet over
 real UDP, spoofed and replayed packets from another local socket, provisioning with SETUP_SIGNING,
 a resumed controller's persisted timestamp, and route takeover without signing."""
 

@@ -1,4 +1,4 @@
-"""Supervision events (issue 6) that test_replan.py does not cover, through the simulated fleet over
+"""Supervision events that test_replan.py does not cover, through the simulated fleet over
 real UDP: a rover's battery drained to the reserve (``battery_low``), a rover pushed off its path
 (``off_course``), the carrier lost while an airborne rover is at the reserve (it lands instead of
 holding), and task changes handed to :meth:`Executor.submit_task_change` directly (as the MQTT bus

@@ -1,4 +1,4 @@
-"""Collections that fly as planned (issue 14): rovers released on the carrier's live ETA, a late
+"""Collections that fly as planned: rovers released on the carrier's live ETA, a late
 carrier re-timing the rovers still waiting, and no rover below its reserve in a plan that says it
 is feasible. End to end: controller ↔ simulated fleet over real UDP; times are simulated seconds."""
 

@@ -1,4 +1,4 @@
-"""Issue 5 item 9: a rejected mission upload. The simulated fleet's ``reject_mission`` fault makes a
+"""A rejected mission upload. The simulated fleet's ``reject_mission`` fault makes a
 vehicle refuse every upload like a real autopilot whose feasibility check fails: a STATUSTEXT with
 its reason, then MISSION_ACK MAV_MISSION_DENIED. The link raises with the result name, the vehicle
 proxy attaches the autopilot's reason, and ``fleetctl deploy`` exits non-zero naming the vehicle

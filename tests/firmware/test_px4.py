@@ -144,7 +144,7 @@ def test_status_sees_every_vehicle_ready(px4: dict[str, Any]) -> None:
     out = px4["status"]
     assert out.returncode == 0, out.stdout[-3000:] + out.stderr[-2000:]
     assert "all 4 vehicles connected and ready" in out.stdout
-    assert "route" not in out.stderr and "system 0" not in out.stderr  # issue 25: no sysid-0 vehicle
+    assert "route" not in out.stderr and "system 0" not in out.stderr  # no vehicle for sysid-0 messages
 
 
 def test_deploy_reaches_every_task(px4: dict[str, Any]) -> None:

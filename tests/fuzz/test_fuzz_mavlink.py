@@ -1,4 +1,4 @@
-"""MAVLink datagram fuzzing (issue 13): random bytes, truncated and bit-flipped packets and
+"""MAVLink datagram fuzzing: random bytes, truncated and bit-flipped packets and
 valid-but-unexpected messages against the controller's :class:`fleetctl.mavlink.link.Link` (and
 the vehicle proxies listening on it) and against the simulated fleet (``sitl``). Nothing may raise
 out of a handler, and valid traffic still flows afterwards.

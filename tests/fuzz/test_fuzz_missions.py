@@ -1,4 +1,4 @@
-"""Mutated mission files never crash, hang or print non-finite JSON (issue 13).
+"""Mutated mission files never crash, hang or print non-finite JSON.
 
 ``test_fuzz_in_process`` runs a few hundred seeded mutations (tests/fuzz/mutate.py) through
 ``fleetctl plan --json`` in this process; ``test_reproducers`` runs every file of

@@ -1,4 +1,4 @@
-"""Two teams flown in one controller on the embedded simulated fleet (issue 17, items 3 and 7):
+"""Two teams flown in one controller on the embedded simulated fleet:
 every task reached once by the team it was shared to, each team's flown stops those of its plan,
 the makespan the latest team's; a collection landing a rover on the other team's carrier; a
 hand-over when a team's carrier is lost mid-deployment; one team flown alone."""
