@@ -7,6 +7,7 @@ names out of the documented default and checks them against a loaded mission."""
 
 from __future__ import annotations
 
+import ast
 import re
 from collections.abc import Callable
 from pathlib import Path
@@ -229,3 +230,30 @@ def test_every_probe_has_its_row() -> None:
 @pytest.mark.parametrize("key", sorted(PROBES))
 def test_the_documented_default_is_the_loaders(key: str) -> None:
     PROBES[key](_doc_rows()[key][3])
+
+
+def _module_constants() -> dict[str, list[float]]:
+    """NAME -> the values of every module-level ``NAME = number`` in fleetctl/ and planners/."""
+    root = Path(__file__).resolve().parents[2]
+    out: dict[str, list[float]] = {}
+    for path in sorted([*(root / "fleetctl").rglob("*.py"), *(root / "planners").rglob("*.py")]):
+        for node in ast.parse(path.read_text(encoding="utf-8")).body:
+            if not (isinstance(node, ast.Assign) and len(node.targets) == 1):
+                continue
+            target, value = node.targets[0], node.value
+            if isinstance(target, ast.Name) and isinstance(value, ast.Constant) and isinstance(value.value, int | float):
+                out.setdefault(target.id, []).append(float(value.value))
+    return out
+
+
+def test_constants_quoted_in_the_docs_are_the_codes() -> None:
+    """``TAKEOFF_SETTLE = 0.1 s`` in docs/time-model.md (and any ``NAME = number`` in a doc) is the
+    value of that constant in the code."""
+    constants = _module_constants()
+    assignment = re.compile(r"\b([A-Z][A-Z0-9_]{3,}) = (\d+(?:\.\d+)?)\b")
+    quoted = [(doc.name, m[1], float(m[2])) for doc in sorted(DOCS.glob("*.md"))
+              for m in assignment.finditer(doc.read_text(encoding="utf-8"))]
+    assert any(name == "TAKEOFF_SETTLE" for _, name, _ in quoted)
+    wrong = [(doc, name, value, constants.get(name)) for doc, name, value in quoted
+             if value not in constants.get(name, [])]
+    assert not wrong, f"(doc, constant, quoted, the code's): {wrong}"
