@@ -241,7 +241,9 @@ def _module_constants() -> dict[str, list[float]]:
             if not (isinstance(node, ast.Assign) and len(node.targets) == 1):
                 continue
             target, value = node.targets[0], node.value
-            if isinstance(target, ast.Name) and isinstance(value, ast.Constant) and isinstance(value.value, int | float):
+            number = isinstance(value, ast.Constant) and isinstance(value.value, int | float)
+            if isinstance(target, ast.Name) and number:
+                assert isinstance(value, ast.Constant)
                 out.setdefault(target.id, []).append(float(value.value))
     return out
 
