@@ -188,22 +188,43 @@ def test_a_spent_budget_gives_the_quick_plan() -> None:
         check_deploy(a, problem, obstacles)
 
 
+class _PollBudget:
+    """A budget's deadline counted in polls of ``stop()`` instead of seconds: the search it bounds
+    does the same work on any machine."""
+
+    def __init__(self, polls: int) -> None:
+        self.limit, self.polls = polls, 0
+
+    def __call__(self) -> bool:
+        self.polls += 1
+        return self.polls > self.limit
+
+
 def test_a_budget_runs_the_anytime_search(monkeypatch: pytest.MonkeyPatch) -> None:
-    """With a budget the iterated search runs (bounded by its deadline) and keeps only
-    improvements: never slower than the quick plan. How long it ran depends on the machine: not
-    asserted."""
+    """With a budget the iterated search runs, is bounded by the budget's deadline, and keeps only
+    improvements: what it returns is never slower than the route it started from, and the plan is
+    never slower than the quick plan. The deadline is a count of polls, so nothing here depends on
+    how fast the machine is."""
     problem, obstacles = collect_problem(6)
     quick = plan_collect_lee_graph(problem)
-    problem = dataclasses.replace(problem, budget_ms=quick.compute_ms + 400.0)  # 400 ms beyond the quick plan
-    calls = []
+    budget = _PollBudget(60)
+    monkeypatch.setattr(search_module, "deadline",
+                        lambda budget_ms, t0=None: None if budget_ms is None else budget)
+    runs: list[tuple[float, float, bool]] = []  # (start makespan, result makespan, the budget spent)
     real = search_module.iterated_search
 
-    def spy(*args, **kw):  # type: ignore[no-untyped-def]
-        calls.append(args[5])  # its stop(): the budget's deadline
-        return real(*args, **kw)
+    def spy(best, fits, rebuild, finish, rng, stop, max_fails):  # type: ignore[no-untyped-def]
+        assert stop is budget  # bounded by the budget's deadline
+        better = real(best, fits, rebuild, finish, rng, stop, max_fails)
+        runs.append((best.makespan, better.makespan, budget.polls > budget.limit))
+        return better
+
     monkeypatch.setattr(search_module, "iterated_search", spy)
-    plan = plan_collect_lee_graph(problem)
-    assert calls and callable(calls[0])  # the search ran, bounded by the budget's deadline (not timed here)
+    plan = plan_collect_lee_graph(dataclasses.replace(problem, budget_ms=1.0))
+    assert len(runs) == 1, "the budget did not run the iterated search"
+    start, result, spent = runs[0]
+    assert spent, "the iterated search ended before its budget (or it did not poll the deadline)"
+    assert result <= start + 1e-9  # only improvements kept
     assert plan.makespan <= quick.makespan + 1e-9
     check_collect(plan, problem, obstacles)
 

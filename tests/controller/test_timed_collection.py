@@ -12,6 +12,7 @@ from typing import Any
 
 from ctl_helpers import mission_dict, mission_from
 
+from fleetctl.journal import read_journal
 from fleetctl.run.collect_timing import RELEASE_LEAD
 from fleetctl.run.runner import execute
 from sitl.world import Phase
@@ -140,6 +141,12 @@ async def test_no_rover_below_its_reserve_and_one_that_would_be_is_reported(tmp_
         assert rec.lowest[rid] >= reserve - 1e-3, (rid, rec.lowest[rid])
     assert set(s["rovers_loaded"]) | set(s["rovers_unreachable"]) == {"r1", "r2", "r3"}
     assert "r3" in s["rovers_loaded"] and "r1" in s["rovers_loaded"]
-    journal = (out.run_dir / "journal.jsonl").read_text()
-    for rid in s["rovers_unreachable"]:
-        assert f"{rid}: would be" in journal or f"{rid}: " in journal
+    assert s["rovers_unreachable"], "no rover was left out for its reserve"
+    unreachable = {r["vehicle"]: r for r in read_journal(out.run_dir / "journal.jsonl")
+                   if r["kind"] == "rover_unreachable"}
+    assert set(unreachable) == set(s["rovers_unreachable"]), unreachable
+    for rid, r in unreachable.items():
+        # the record says why: longer in the air than its battery allows above the reserve, or
+        # too little range left to reach any stop
+        assert r["airborne"] > r["allowed"] if "airborne" in r else "cannot reach" in r["text"], r
+        assert r["text"].startswith(f"{rid}: ") and "not collected" in r["text"], r
