@@ -483,7 +483,7 @@ def test_duplicate_collection_rovers(tmp_path: Path) -> None:
 def test_duplicate_yaml_key(tmp_path: Path) -> None:
     text = yaml.safe_dump(BASE, sort_keys=False) + "name: again\n"
     msg = error(tmp_path, text)
-    assert ":10: name: duplicate key" in msg or ": name: duplicate key" in msg
+    assert f":{len(text.splitlines())}: name: duplicate key" in msg, msg  # the line of the second one
 
 
 def test_lat_lon_task_without_origin(tmp_path: Path) -> None:

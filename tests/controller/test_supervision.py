@@ -226,7 +226,7 @@ async def test_submit_task_change_directly_adds_removes_and_rejects(tmp_path: Pa
     assert sorted(res.tasks_reached) == ["t1", "t2", "t9"] and "t3" not in res.assignment
     assert "t3" not in res.tasks_unserved  # removed, not unserved
     rec = [json.loads(x) for x in (tmp_path / "run" / "journal.jsonl").read_text().splitlines()]
-    assert any(r.get("kind") == "replan" or r.get("type") == "replan" for r in rec)
+    assert any(r["kind"] == "replan" for r in rec)
 
 
 async def _refresh(state: FleetState, fleet: Any) -> None:
