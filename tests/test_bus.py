@@ -279,6 +279,7 @@ async def test_task_added_over_mqtt_is_reached(broker: Broker, tmp_path: Path) -
     assert any(leg["task"] == "t3" for p in sub.on("plan") for s in p["stops"] for leg in s["rovers"])
 
 
+@pytest.mark.slow
 async def test_broker_killed_mid_mission(tmp_path: Path) -> None:
     broker = Broker(tmp_path)
     broker.start()

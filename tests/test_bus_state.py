@@ -28,6 +28,7 @@ def _deploy_cli(tmp_path: Path, mqtt: str) -> subprocess.CompletedProcess[str]:
     return subprocess.run(cmd, capture_output=True, text=True, cwd=ROOT, timeout=120)
 
 
+@pytest.mark.slow
 def test_a_dead_broker_is_not_silent(tmp_path: Path) -> None:
     url = f"mqtt://127.0.0.1:{free_tcp_port()}"  # nothing listens there
     p = _deploy_cli(tmp_path, url)
@@ -46,6 +47,7 @@ def test_without_a_bus_the_summary_says_null(tmp_path: Path) -> None:
     assert out.exit_code == 0 and out.summary["mqtt"] is None
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(MOSQUITTO is None, reason="mosquitto binary not installed")
 def test_a_live_broker(tmp_path: Path) -> None:
     broker = Broker(tmp_path)
@@ -61,6 +63,7 @@ def test_a_live_broker(tmp_path: Path) -> None:
     assert mqtt["last_error"] is None and mqtt["published"] > 0
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(MOSQUITTO is None, reason="mosquitto binary not installed")
 async def test_a_broker_that_dies_counts_a_disconnect(tmp_path: Path,
                                                       monkeypatch: pytest.MonkeyPatch) -> None:

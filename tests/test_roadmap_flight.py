@@ -21,6 +21,8 @@ from fleetctl.run.runner import execute
 from fleetctl.run.sim import sim_mission_dict
 from sitl import FleetConfig, SimFleet
 
+pytestmark = pytest.mark.slow
+
 ROOT = Path(__file__).resolve().parents[1]
 OFFICE = ROOT / "missions" / "paper" / "roadmap_office.yaml"
 TOLERANCE = 0.05  # m: walls are 0.2 m thick; the track between two samples is taken as straight

@@ -152,12 +152,14 @@ def _search_and_baseline(problem: TeamsProblem, planner: Any, screen: Any = None
 # ------------------------------------------------------------------------------------ properties
 
 
+@pytest.mark.slow
 @settings(max_examples=8, deadline=None)
 @given(seed=st.integers(0, 10_000), n=st.integers(1, 14), m=st.integers(1, 4))
 def test_deploy_allocation_properties(seed: int, n: int, m: int) -> None:
     _search_and_baseline(deploy_teams(seed, n, m, spare=seed % 3), DEPLOY_PLANNERS["lee"])
 
 
+@pytest.mark.slow
 @settings(max_examples=6, deadline=None)
 @given(seed=st.integers(0, 10_000), n=st.integers(1, 12), m=st.integers(1, 3))
 def test_collect_allocation_properties(seed: int, n: int, m: int) -> None:
@@ -201,6 +203,7 @@ def test_a_screened_search_flies_the_planner_s_own_plans() -> None:
     assert out.makespan <= base.makespan + EPS
 
 
+@pytest.mark.slow
 def test_tight_decks_hold_exactly_their_rovers() -> None:
     problem = deploy_teams(7, 12, 3, spare=0)
     out = plan_teams(problem, DEPLOY_PLANNERS["lee"], "lee", max_calls=80)

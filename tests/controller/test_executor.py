@@ -114,6 +114,7 @@ async def fly(mission: Mission, command: str, tmp_path: Path, d: dict[str, Any] 
     return out, sim, probe
 
 
+@pytest.mark.slow
 async def test_recon_run_deploys_then_collects_every_rover(tmp_path: Path) -> None:
     mission = load_mission(RECON)
     out, sim, probe = await fly(mission, "run", tmp_path, dwell=10.0, summary_path=tmp_path / "s.json")
@@ -199,6 +200,7 @@ async def test_deploy_records_tlog_plan_journal_and_summary(tmp_path: Path) -> N
     assert {1, 11, 12, 255} <= sources
 
 
+@pytest.mark.slow
 async def test_deployment_completes_with_ten_percent_packet_loss(tmp_path: Path) -> None:
     d = mission_dict(rovers=3, faults=[{"kind": "packet_loss", "rate": 0.1}])
     d["tasks"] = [{"id": "t1", "position": [20, 10, 5]}, {"id": "t2", "position": [40, -10, 4]},
@@ -306,6 +308,7 @@ def test_dashboard_renders_a_row_per_vehicle(tmp_path: Path) -> None:
     assert "carrier: stop 2/3 reached" in text
 
 
+@pytest.mark.slow
 def test_cli_deploy_recon_headless_exits_zero_and_accounts_for_every_task(tmp_path: Path) -> None:
     out = tmp_path / "s.json"
     proc = subprocess.run(
@@ -322,6 +325,7 @@ def test_cli_deploy_recon_headless_exits_zero_and_accounts_for_every_task(tmp_pa
     assert Path(tmp_path / s["journal"]).exists() or Path(s["journal"]).exists()
 
 
+@pytest.mark.slow
 def test_cli_ctrl_c_holds_rovers_writes_summary_and_exits_130(tmp_path: Path) -> None:
     d = mission_dict(rovers=2, speedup=2.0)
     path = write_mission(d, tmp_path / "slow.yaml")
@@ -350,6 +354,7 @@ def test_cli_ctrl_c_holds_rovers_writes_summary_and_exits_130(tmp_path: Path) ->
     assert any(r["kind"] == "command" and r["command"] == "hold" and r["vehicle"] == "r1" for r in records)
 
 
+@pytest.mark.slow
 async def test_link_lost_and_back_are_journaled_and_the_run_still_completes(tmp_path: Path) -> None:
     # the spare r3 stays on the deck and goes silent during the dwell for longer than the
     # heartbeat timeout (3 s wall = 60 simulated s at 20x), then comes back; connect, preflight and

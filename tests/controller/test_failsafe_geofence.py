@@ -157,6 +157,7 @@ async def _airborne(v: Vehicle, x: float = 15.0, y: float = -8.0, z: float = 6.0
         ("px4", {"COM_DL_LOSS_T": 2.5}, None),  # NAV_DLL_ACT 0: disabled, the rover flies on
     ],
 )
+@pytest.mark.slow
 async def test_a_link_loss_triggers_the_configured_action(
     autopilot: str, params: dict[str, float], mode: Mode | None, tmp_path: Path
 ) -> None:

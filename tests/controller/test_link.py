@@ -95,6 +95,7 @@ async def test_mission_round_trip_and_clear(sim: SimFleet) -> None:
         assert sim.vehicle("r1").mission == []
 
 
+@pytest.mark.slow
 async def test_mission_transfer_survives_packet_loss(sim: SimFleet) -> None:
     sim.set_packet_loss(0.1, vehicle="r2")
     items = waypoints(25)

@@ -26,6 +26,8 @@ from fleetctl.run.state import Event, FleetState
 from fleetctl.views.view import View
 from sitl import FleetConfig, SimFleet
 
+pytestmark = pytest.mark.slow
+
 SPEEDUP = 8.0
 TASKS = [{"id": "t1", "position": [15, 30, 3]}, {"id": "t2", "position": [-15, 35, 4]},
          {"id": "t3", "position": [30, 70, 3]}, {"id": "t4", "position": [-10, 90, 5]},

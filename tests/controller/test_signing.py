@@ -313,6 +313,7 @@ async def test_route_takeover_is_refused_and_reported(fleet: Fleet, sim: SimFlee
     assert sim.vehicle("r1").armed
 
 
+@pytest.mark.slow
 async def test_provision_sets_keys_and_refuses_an_armed_vehicle(key_env: str, tmp_path: Path) -> None:
     from fleetctl.mavlink.fleet import fleet_urls
     from fleetctl.mavlink.provision import provision

@@ -23,6 +23,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+import pytest
 import yaml
 from ctl_helpers import ORIGIN
 from test_replan import Trigger, assert_accounted, journal
@@ -116,6 +117,7 @@ def records(s: dict[str, Any], kind: str) -> list[dict[str, Any]]:
     return [r for r in journal(s) if kind in (r.get("kind"), r.get("type"), r.get("event"))]
 
 
+@pytest.mark.slow
 async def test_battery_drained_to_the_reserve_is_a_battery_low_event(tmp_path: Path) -> None:
     action, victim, bg = drain_first_launched()
     s, trig = await fly(tmp_path, mission_dict(rovers=4, speedup=10.0, far=True), action)
@@ -151,6 +153,7 @@ async def test_rover_pushed_off_its_path_is_an_off_course_event(tmp_path: Path) 
     assert_accounted(s, TASK_IDS, ROVERS3)
 
 
+@pytest.mark.slow
 async def test_carrier_lost_with_a_rover_at_the_reserve_lands_it(tmp_path: Path) -> None:
     def drop_carrier(rid: str, sim: SimFleet) -> None:
         sim.dropout("carrier", 3.0 * sim.speedup)  # 3 wall s

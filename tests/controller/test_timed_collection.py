@@ -10,6 +10,7 @@ import math
 from pathlib import Path
 from typing import Any
 
+import pytest
 from ctl_helpers import mission_dict, mission_from
 
 from fleetctl.journal import read_journal
@@ -109,6 +110,7 @@ async def test_rovers_leave_to_meet_the_carrier_instead_of_waiting_above_the_sto
     assert far["arrive"] - far["rovers"][0]["arrive"] > 5.0, "the scenario has a rover that must wait"
 
 
+@pytest.mark.slow
 async def test_a_late_carrier_delays_the_release_of_the_rovers_still_waiting(tmp_path: Path) -> None:
     rec = Recorder()
     rec.slow_down_at = 1.0

@@ -71,6 +71,7 @@ async def test_refused_arm_says_why(tmp_path: Path) -> None:
             assert sim.vehicle("r1").armed and not sim.vehicle("r2").armed
 
 
+@pytest.mark.slow
 async def test_lost_and_back(tmp_path: Path) -> None:
     d = mission_dict(heartbeat_timeout=2.0)  # the sim beats at 1 Hz
     async with sim_fleet(d) as sim:

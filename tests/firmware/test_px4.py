@@ -31,6 +31,8 @@ from px4_fleet import GCS_PORT, SKIP_REASON, TASKS, mission_yaml, port_free, px4
 
 from sitl.firmware import find_px4
 
+pytestmark = pytest.mark.firmware
+
 if find_px4() is None:
     pytest.skip(SKIP_REASON, allow_module_level=True)
 

@@ -247,6 +247,7 @@ def start_peer(path: Path, team: str) -> subprocess.Popen[bytes]:
                             env=dict(os.environ, PYTHONPATH=str(ROOT)))
 
 
+@pytest.mark.slow
 @pytestmark_broker
 async def test_a_killed_peer_is_seen_offline_and_its_tasks_are_claimed(tmp_path: Path) -> None:
     broker = Broker(tmp_path)
@@ -357,6 +358,7 @@ async def test_better_claim_takes_a_task_and_a_worse_one_is_answered(tmp_path: P
         broker.stop()
 
 
+@pytest.mark.slow
 @pytestmark_broker
 async def test_a_team_with_another_allocation_is_reported_and_ignored(tmp_path: Path) -> None:
     broker = Broker(tmp_path)
@@ -427,6 +429,7 @@ def three_team_mission(path: Path, port: int, prefix: str) -> Path:
     return path
 
 
+@pytest.mark.slow
 @pytestmark_broker
 async def test_two_survivors_split_a_lost_team_without_a_conflict(tmp_path: Path) -> None:
     broker = Broker(tmp_path)

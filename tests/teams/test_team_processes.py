@@ -30,8 +30,8 @@ from tests.test_bus import MOSQUITTO, Broker, Subscriber
 ROOT = Path(__file__).resolve().parents[2]
 WAIT = 60.0  # s: generous bound of every wait (never a timing assertion)
 
-pytestmark = pytest.mark.skipif(MOSQUITTO is None, reason="mosquitto binary not installed "
-                                "(scripts/test.sh installs Debian's mosquitto)")
+pytestmark = [pytest.mark.skipif(MOSQUITTO is None, reason="mosquitto binary not installed "
+                                "(scripts/test.sh installs Debian's mosquitto)"), pytest.mark.slow]
 
 
 def two_team_mission(path: Path, port: int, prefix: str, faults: list[dict[str, Any]] | None = None) -> Path:

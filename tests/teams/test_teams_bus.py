@@ -64,6 +64,7 @@ async def _send_task_add_once_online(broker: Broker, sub: Subscriber) -> None:
         await c.publish(f"{PREFIX}/teams/c1/tasks/add", task, qos=1)
 
 
+@pytest.mark.slow
 async def test_a_two_team_deploy_in_one_controller_publishes_every_team(broker: Broker,
                                                                        tmp_path: Path) -> None:
     d = two_teams(mqtt={"url": broker.url, "topic_prefix": PREFIX, "accept_task_changes": True})
@@ -129,6 +130,7 @@ async def test_a_two_team_deploy_in_one_controller_publishes_every_team(broker: 
     assert all(b["state"] == "closed" or b["published"] > 0 for b in s["mqtt"]["teams"].values())
 
 
+@pytest.mark.slow
 async def test_a_broker_that_is_down_changes_nothing_in_a_teams_run(tmp_path: Path) -> None:
     url = f"mqtt://127.0.0.1:{free_tcp_port()}"  # nobody listens there
     m = mission_from(two_teams(mqtt={"url": url, "topic_prefix": PREFIX}), tmp_path)

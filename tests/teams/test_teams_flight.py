@@ -10,11 +10,15 @@ import json
 from pathlib import Path
 from typing import Any
 
+import pytest
+
 from fleetctl.journal import read_journal
 from fleetctl.run.runner import execute
 from fleetctl.run.teams import fly_team
 from sitl import Fault
 from tests.teams.teams_helpers import mission_from, two_teams
+
+pytestmark = pytest.mark.slow
 
 SPEEDUP = 20.0
 
