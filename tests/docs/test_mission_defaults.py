@@ -21,7 +21,7 @@ from fleetctl.mavlink.fleet import fleet_urls
 from fleetctl.mission import Mission
 from fleetctl.mission.loader import parse_mission_text
 from planners.core.problem import RoadmapParams
-from tests.test_docs import DOCS, _default_shown, _loader_specs
+from tests.docs.test_docs import DOCS, _default_shown, _loader_specs
 
 # a default cell that says the key has no value unless given (the loader keeps None)
 ABSENT = re.compile(r"^(none\b|`null`|required\b|every vehicle|chosen by the client library|the system CAs"

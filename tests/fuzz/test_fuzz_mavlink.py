@@ -11,18 +11,15 @@ import logging
 import math
 import random
 import socket
-import sys
 from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
 from pymavlink.dialects.v20 import ardupilotmega as M
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "controller"))
-from ctl_helpers import mission_dict, mission_from, sim_fleet  # noqa: E402
-
 from fleetctl.mavlink.fleet import connect_fleet  # noqa: E402
 from fleetctl.mavlink.link import Link, parse_url  # noqa: E402
+from tests.run.ctl_helpers import mission_dict, mission_from, sim_fleet
 
 N = 400  # datagrams per target
 
