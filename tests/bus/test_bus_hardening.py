@@ -2,7 +2,7 @@
 
 Without a broker: FleetBus.handle_task_message on its own (each message its own error boundary,
 size and depth limits, off unless the mission enables it, absurd changes refused unless forced,
-changes before the controller exists queued). With a real mosquitto (tests/test_bus.py's
+changes before the controller exists queued). With a real mosquitto (tests/bus/test_bus.py's
 Broker): a fuzzed payload stream against a running bus, after which telemetry still flows and a
 valid change still arrives; and a broker with password_file + ACL (the README's config), where
 only the named operator can change tasks.

@@ -1,6 +1,6 @@
 """The defaults docs/mission-file.md gives in words or formulas are what the loader does.
 
-tests/test_docs.py compares the literal defaults (`1.0`, `lee`, ...) with the loader's tables;
+tests/docs/test_docs.py compares the literal defaults (`1.0`, `lee`, ...) with the loader's tables;
 here every default the loader leaves to be worked out later (its table says None) is either
 documented as absent (none, null, required, ...) or has a probe below that reads the numbers and
 names out of the documented default and checks them against a loaded mission."""

@@ -1,7 +1,7 @@
 """The search after the greedy of ``lee-graph`` (planners/roadmap/search.py, route.py, costs.py):
 never slower than Algorithm 6.3's plan, every stop a roadmap node clear of the obstacles, every
 flight within range and every time recomputed by the independent checker (tests/plan_checker.py
-through tests/test_roadmap.py's checks)."""
+through tests/planners/test_roadmap.py's checks)."""
 
 from __future__ import annotations
 
