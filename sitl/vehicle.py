@@ -629,6 +629,7 @@ class SimVehicle:
             if ev == "takeoff":
                 self._disarm_at = None
             elif ev == "touchdown":
+                self._emit(M.MAVLINK_MSG_ID_EXTENDED_SYS_STATE)  # the landed state as it changes
                 self.statustext("Landed on carrier" if body.loaded else "Landed")
                 delay = self.flavour.disarm_delay()
                 if self.armed and delay >= 0:

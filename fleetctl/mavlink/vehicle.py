@@ -142,6 +142,7 @@ class Vehicle:
         self.heading_deg: float | None = None  # compass degrees
         self.home: tuple[float, float, float] | None = None  # lat, lon, alt AMSL (HOME_POSITION)
         self.landed_state: int | None = None  # MAV_LANDED_STATE
+        self.telemetry_at: float | None = None  # time.monotonic() of the last position or landed state
         self.battery_pct: float | None = None  # 0..100
         self.battery_time: float | None = None  # s of flight left (BATTERY_STATUS.time_remaining), if sent
         self.battery_at = 0.0  # time.monotonic() of the last BATTERY_STATUS
@@ -274,6 +275,12 @@ class Vehicle:
         if self.landed_state is None or self.landed_state == M.MAV_LANDED_STATE_UNDEFINED:
             return None
         return self.landed_state == M.MAV_LANDED_STATE_ON_GROUND
+
+    @property
+    def critical(self) -> bool:
+        """The autopilot's HEARTBEAT says MAV_STATE_CRITICAL or EMERGENCY (a failsafe: ArduPilot
+        and PX4 report a critical battery so)."""
+        return self.system_status in (M.MAV_STATE_CRITICAL, M.MAV_STATE_EMERGENCY)
 
     @property
     def last_heard_age(self) -> float | None:
@@ -435,11 +442,13 @@ class Vehicle:
         self.relative_alt = msg.relative_alt / 1000.0
         self.velocity = (msg.vy / 100.0, msg.vx / 100.0, -msg.vz / 100.0)
         self.heading_deg = None if msg.hdg == 0xFFFF else msg.hdg / 100.0
+        self.telemetry_at = now
 
     def _on_home(self, msg: Any) -> None:
         self.home = (msg.latitude / 1e7, msg.longitude / 1e7, msg.altitude / 1000.0)
 
     def _on_extended_state(self, msg: Any) -> None:
+        self.telemetry_at = time.monotonic()
         if msg.landed_state != self.landed_state:
             self.landed_state = msg.landed_state
             self._emit("landed_state", state=self.landed_state_name)

@@ -151,7 +151,12 @@ class CarrierControl:
             self._stayed = None
         else:
             try:
-                await c.wait_item_reached(arrive_seq, self.ctx.wall(planned_leg))
+                await self.ctx.wait_for(
+                    c,
+                    lambda v: arrive_seq in v.items_reached or (v.mission_current or -1) > arrive_seq,
+                    self.ctx.late(planned_leg),
+                    f"mission item {arrive_seq}",
+                )
             except TimeoutError as exc:
                 raise ExecutionError(f"the carrier did not reach stop {k + 1}: {exc}") from None
         t = self.ctx.clock()
@@ -170,9 +175,7 @@ class CarrierControl:
         if self.ok.is_set() and not self.lost:
             return
         try:
-            await self.vehicle.wait_until(
-                lambda v: not v.lost, self.ctx.wall(CARRIER_OUTAGE_MAX), "carrier back"
-            )
+            await self.ctx.wait_for(self.vehicle, lambda v: not v.lost, CARRIER_OUTAGE_MAX, "carrier back")
         except TimeoutError:
             raise ExecutionError(
                 f"the carrier {self.ctx.fleet.carrier_id} stayed lost for more than "

@@ -12,6 +12,14 @@ land on the carrier, which waits until every one is *loaded* (landed within
 A rover lost on the way is removed: the others keep the meeting points they are flying to (on
 the energy they have left, ch. 5.5.3) and stops left empty are dropped (:meth:`_trim`); a lost
 rover that comes back is collected in a further round planned from the live state.
+
+A rover that cannot arrive is *let go* (:meth:`CollectPhase._let_go`) on the first telemetry
+message that shows it (:class:`fleetctl.run.trouble.Trouble`: battery empty, a failsafe mode or
+critical state, down on the ground short of its stop): journalled (``rover_let_go``, with the
+reason, its last position, battery and landed state), its stop no longer waits for it (the
+carrier is released when it waited only for it) and the rest of the route is trimmed and re-timed.
+It is not collected again (it is picked up by hand). Every wait is a deadline in mission time
+(:meth:`fleetctl.run.context.RunContext.wait_for`).
 """
 
 from __future__ import annotations
@@ -21,7 +29,7 @@ import contextlib
 import dataclasses
 import logging
 import math
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from enum import StrEnum
 
@@ -47,6 +55,7 @@ from fleetctl.run.parts import PhaseParts
 from fleetctl.run.results import PhaseResult
 from fleetctl.run.state import DECK_RADIUS
 from fleetctl.run.supervisor import SupervisorEvent
+from fleetctl.run.trouble import Trouble
 from planners.core.plan import Plan, Stop
 from planners.core.problem import CollectProblem, CollectRover, Vec3
 
@@ -64,6 +73,7 @@ RECHECK = 1.0  # mission s between looks at the carrier's ETA while a rover wait
 ENERGY_REPLANS = 3  # plans tried with shrunk ranges before a rover short of energy is left out
 SHRINK_MARGIN = 0.1  # m: a range cut for energy goes this much further
 GROUND_SNAP = 1.0  # m: a landed rover reporting less than this is on the ground (altitude estimates drift)
+WATCH_FOREVER = 1e9  # s: a round's trouble watch ends with the round (cancelled), not by a timeout
 MIN_RANGE = 0.01  # m: what is left to plan with of a range the handling eats up (then it is short)
 
 
@@ -90,6 +100,7 @@ class RoverStatus(StrEnum):
     LOST = "lost"
     UNREACHABLE = "unreachable"
     FAILED = "failed"  # a round could not bring it in (upload, arm or landing failed)
+    LET_GO = "let_go"  # it cannot arrive (battery empty, failsafe, down short of its stop): left where it is
 
 
 @dataclass
@@ -99,6 +110,7 @@ class RoverBoard:
     status: dict[str, RoverStatus] = field(default_factory=dict)  # in the order given
     loaded_at: dict[str, float] = field(default_factory=dict)  # mission s since the phase started
     lost_at_start: list[str] = field(default_factory=list)  # never heard or without a position
+    why: dict[str, str] = field(default_factory=dict)  # let go / failed -> the reason
 
     def with_status(self, s: RoverStatus) -> list[str]:
         return [r for r, x in self.status.items() if x == s]
@@ -129,6 +141,8 @@ class _Round:
     going: dict[str, asyncio.Task[None]] = field(default_factory=dict)  # rover -> its timed release
     stop_of: dict[str, int] = field(default_factory=dict)  # rover -> index of its stop in the route flown
     due: dict[str, float] = field(default_factory=dict)  # rover -> expected above its stop (mission clock)
+    trouble: dict[str, Trouble] = field(default_factory=dict)  # rover -> evidence it will not arrive
+    watch: dict[str, asyncio.Task[None]] = field(default_factory=dict)  # rover -> its trouble watch
 
 
 @dataclass(frozen=True)
@@ -157,6 +171,11 @@ class CollectPhase:
         self.resumed = resumed
         self._speed_seen = (-math.inf, 0.0)  # (mission clock, carrier speed) of the last sample
         self._accelerating = True
+        # the controller's own cost in mission s (its rovers in the air burn battery meanwhile)
+        self._read_at: float | None = None  # mission clock when the round's batteries were read
+        self._attempt_cost = 0.0  # the last plan-and-check attempt
+        self._start_cost = 0.0  # the last round's start: from its plan checked to its route started
+        self._planned_at: float | None = None  # mission clock when this round's plan passed its check
 
     # ============================================================================== the loop
     async def run(self, rover_ids: Iterable[str] | None = None) -> PhaseResult:
@@ -220,6 +239,7 @@ class CollectPhase:
         """Positions and ranges of ``batch`` from fresh battery readings (not the ~1 Hz stream)."""
         ctx, rp, rovers = self.ctx, self.ctx.mission.rovers, self.ctx.fleet.rovers
         await asyncio.gather(*(rovers[rid].refresh_battery() for rid in batch))
+        self._read_at = ctx.clock()
         crs = []
         for rid in batch:
             v = rovers[rid]
@@ -283,27 +303,65 @@ class CollectPhase:
     async def _plan_within_reserve(self, crs: list[CollectRover], start: Vec3, heading: float) -> Plan:
         """A plan that brings no rover below its reserve: a rover in the air burns its battery while
         it waits (hovering costs as flying does); one the plan would bring too low gets a shorter
-        range and the round is planned again; after ENERGY_REPLANS it is left out (unreachable)."""
+        range and the round is planned again; after ENERGY_REPLANS it is left out (unreachable).
+
+        The controller budgets for itself: a rover in the air also burns its battery while the
+        controller plans and checks, so each plan is made and checked with the battery it will
+        have when the round starts - its reading less the mission time since it was read
+        (:attr:`_read_at`), less what is still to come before the round flies: this attempt's own
+        planning (predicted as the last attempt's measured cost) and the round's start (uploads,
+        measured on the last round). Each attempt's cost is journalled (``plan_budget``)."""
         m, ctx = self.ctx.mission, self.ctx
         airborne = {c.id for c in crs if c.position[2] > GROUND_HEIGHT}
         battery = {c.id: c.range for c in crs}
         r = m.rovers
+        speed = r.max_speed
         spent = {c.id: handling_range(r.max_speed, r.accel, r.land_time, r.takeoff_time, c.id not in airborne)
                  for c in crs}  # the planner plans path lengths: the rest of a flight's energy is not in them
         crs = [dataclasses.replace(c, range=max(c.range - spent[c.id], MIN_RANGE)) for c in crs]
+        read_at = self._read_at if self._read_at is not None else ctx.clock()
         for attempt in range(ENERGY_REPLANS + len(crs) + 1):
+            began = ctx.clock()
+            # mission s the airborne rovers will have burnt when the round starts, as foreseen now
+            ahead = began - read_at + self._attempt_cost + self._start_cost
+            planned = [self._burnt(c, airborne, ahead) for c in crs]
+            for c in planned:  # the controller's own time leaves it too little to reach the ground
+                if c.id in airborne and c.range < max(c.position[2], _to_approach(c.position[2])):
+                    self._short_of_energy(c.id, ahead, battery[c.id] / speed)
+            planned = [c for c in planned if self.board.in_round(c.id)]
+            crs = [c for c in crs if self.board.in_round(c.id)]
+            if not crs:
+                break
             problem = CollectProblem(m.carrier_spec(), m.rovers.motion(any_on_ground(crs)), start, heading,
-                                     tuple(crs), approach_height=MEET_HEIGHT, **m.environment())
+                                     tuple(planned), approach_height=MEET_HEIGHT, **m.environment())
             plan = await self.planning.plan("collect", problem)
-            short = {s.rover: s for s in energy_shortfalls(plan, battery, airborne, problem.carrier,
-                                                           m.rovers.max_speed)}
+            lag = ctx.clock() - read_at + self._start_cost  # measured up to now, the start foreseen
+            now_battery = {rid: b - lag * speed if rid in airborne else b for rid, b in battery.items()}
+            short = {s.rover: s
+                     for s in energy_shortfalls(plan, now_battery, airborne, problem.carrier, speed)}
+            self._attempt_cost = cost = ctx.clock() - began
+            ctx.record(Ev.PLAN_BUDGET, attempt=attempt, cost=cost, since_read=ctx.clock() - read_at,
+                       ahead=ahead, start_cost=self._start_cost, speedup=ctx.speedup,
+                       airborne=sorted(airborne), short=sorted(short))
             if not short:
+                self._planned_at = ctx.clock()
                 return plan
-            crs = self._shrink(crs, short, hopeless=attempt >= ENERGY_REPLANS)
+            # the shrunk ranges are the ranges at the round's start as seen now: back to the reading
+            back = {c.id: c for c in self._shrink(planned, short, hopeless=attempt >= ENERGY_REPLANS)}
+            crs = [c if c.id not in short else dataclasses.replace(
+                       back[c.id], range=back[c.id].range + (lag * speed if c.id in airborne else 0.0))
+                   for c in crs if c.id in back]
             if not crs:
                 break
             ctx.record(Ev.ROVER_STATE, text="replanned: rovers short of energy", rovers=sorted(short))
         return Plan("collect", "none", start, heading, [])  # nobody left to collect this round
+
+    def _burnt(self, c: CollectRover, airborne: set[str], seconds: float) -> CollectRover:
+        """``c`` with the range an airborne rover burns in ``seconds`` of mission time taken off."""
+        if c.id not in airborne or seconds <= 0.0:
+            return c
+        burnt = seconds * self.ctx.mission.rovers.max_speed
+        return dataclasses.replace(c, range=max(c.range - burnt, MIN_RANGE))
 
     def _shrink(
         self, crs: list[CollectRover], short: dict[str, Shortfall], hopeless: bool
@@ -380,7 +438,7 @@ class CollectPhase:
             if rnd.clock is not None:
                 rnd.clock.released(k)
             k += 1
-        for t in rnd.going.values():
+        for t in (*rnd.going.values(), *rnd.watch.values()):
             t.cancel()
 
     async def _send_rovers(self, rnd: _Round) -> None:
@@ -399,6 +457,8 @@ class CollectPhase:
                 st.event(Ev.ROVER_FAILED, f"{rid}: mission upload failed ({r})", rid)
         await self.carrier.start_route(rnd.compiled)
         rnd.start = ctx.clock()
+        if self._planned_at is not None:
+            self._start_cost = rnd.start - self._planned_at
         if self.t0 is None:
             self.t0 = self.result.started = st.phase_started = rnd.start
         rnd.clock = RoundClock(rnd.plan, ctx.mission.carrier_spec(), rnd.start)
@@ -406,12 +466,15 @@ class CollectPhase:
             for leg in stop.rovers:
                 if leg.rover in rnd.items and leg.rover not in rnd.failed:
                     rnd.stop_of[leg.rover] = k
+                    rnd.trouble[leg.rover] = Trouble(self._landing_places(rnd, leg.rover), failsafe=True)
                     go = self._go(rnd, leg.rover, leg.arrive)
                     rnd.going[leg.rover] = ctx.spawn(go, f"release {leg.rover}")
+                    rnd.watch[leg.rover] = ctx.spawn(self._watch(rnd, leg.rover), f"watch {leg.rover}")
         for rid in rnd.failed:
             if self.board.in_round(rid):
                 self.board.set(rid, RoverStatus.LOST if rovers[rid].lost else RoverStatus.FAILED)
-        st.event(Ev.COLLECTION_STARTED, f"collecting {len(rnd.items) - len(rnd.failed)} rovers", None)
+        st.event(Ev.COLLECTION_STARTED, f"collecting {len(rnd.items) - len(rnd.failed)} rovers", None,
+                 at=rnd.start)
 
     def _retime_round(self, rnd: _Round, rest: Plan) -> None:
         """The route goes on as ``rest`` (a trimmed one): the live ETAs and each waiting rover's
@@ -449,6 +512,8 @@ class CollectPhase:
         ctx, v = self.ctx, self.ctx.fleet.rovers[rid]
         assert rnd.clock is not None
         while not v.lost:
+            if not self.board.in_round(rid):  # let go while it waited
+                return
             now = ctx.clock()
             k = rnd.stop_of[rid]  # (a trimmed route renumbers the stops)
             wait = release_delay(rnd.clock.eta(k, now, self._carrier_now()), flight, now)
@@ -476,26 +541,28 @@ class CollectPhase:
         v = ctx.fleet.rovers[rid]
         going = rnd.going.get(rid)
         if going is not None and not going.done():
-            await asyncio.wait({going}, timeout=ctx.wall(leg_arrive + RECHECK))
+            await ctx.wait_task(going, ctx.late(leg_arrive + RECHECK))
         if rid in rnd.failed or not self.board.in_round(rid):
             return
         try:
             await self._wait_meeting_point(rnd, v, leg_arrive)
-            if v.lost:
+            if v.lost or not self.board.in_round(rid):
                 return
             if not rover_on_deck(ctx, v):
                 await self._send_down(rnd, v)
                 st.set_state(rid, VehicleStatus.LANDED)
             landing = max(LANDING_TIMEOUT, 3.0 * ctx.mission.rovers.land_time)
-            await v.wait_until(
-                lambda v: rover_on_deck(ctx, v) or self._down_on_deck(rnd, v) or v.lost,
-                ctx.wall(landing),
+            await ctx.wait_for(
+                v,
+                lambda v: rover_on_deck(ctx, v) or self._down_on_deck(rnd, v) or v.lost or self._gone(rnd, v),
+                landing,
                 "landing on the carrier",
             )
-            if v.lost:
+            if v.lost or not self.board.in_round(rid):
                 return
             await self._disarmed_on_deck(v)
         except (CommandRejected, LinkError, TimeoutError) as exc:
+            self.board.why[rid] = f"not loaded ({exc})"
             st.event(Ev.ROVER_FAILED, f"{rid}: not loaded ({exc})", rid)
             return
         assert self.t0 is not None
@@ -528,8 +595,11 @@ class CollectPhase:
             return
         speed = ctx.mission.rovers.max_speed
         with contextlib.suppress(TimeoutError):  # not quite over it in time: down from where it is
-            await v.wait_until(lambda v: _over(v, c, RETARGET_DONE) or v.lost,
-                               ctx.wall(off / speed + RETARGET_SLACK), "over the carrier")
+            await ctx.wait_for(v, lambda v: _over(v, c, RETARGET_DONE) or v.lost,
+                               off / speed + RETARGET_SLACK, "over the carrier")
+        trouble = rnd.trouble.get(rid)
+        if trouble is not None:
+            trouble.commanded("LAND")
         await ctx.command(v, "land", v.land())
 
     async def _disarmed_on_deck(self, v: Vehicle) -> None:
@@ -539,7 +609,7 @@ class CollectPhase:
         2 s); after ``DISARM_WAIT`` it is told to."""
         ctx = self.ctx
         with contextlib.suppress(TimeoutError):
-            await v.wait_until(lambda v: not v.armed or v.lost, ctx.wall(DISARM_WAIT), "disarmed on the deck")
+            await ctx.wait_for(v, lambda v: not v.armed or v.lost, DISARM_WAIT, "disarmed on the deck")
             return
         await ctx.command(v, "disarm", v.disarm())
 
@@ -553,21 +623,78 @@ class CollectPhase:
         return math.hypot(v.enu[0] - c.enu[0], v.enu[1] - c.enu[1]) <= DECK_RADIUS
 
     async def _wait_meeting_point(self, rnd: _Round, v: Vehicle, leg_arrive: float) -> None:
+        """Wait until ``v`` holds above its stop: until it was due there (its release plus its
+        planned flight) and the stated slack (:meth:`RunContext.late`), in mission time; a rover
+        let go on the way ends the wait at once."""
         ctx, rid = self.ctx, v.name
         while True:
             losses = self.carrier.losses
             try:
-                await v.wait_until(
+                await ctx.wait_for(
+                    v,
                     lambda v: (
                         (v.mission_current or 0) >= rnd.hold_seq[rid] or rover_on_deck(ctx, v) or v.lost
+                        or self._gone(rnd, v)
                     ),
-                    ctx.wall(max(rnd.due.get(rid, rnd.start + leg_arrive) - ctx.clock(), 0.0)),
+                    ctx.late(max(rnd.due.get(rid, rnd.start + leg_arrive) - ctx.clock(), 0.0)),
                     "meeting point",
                 )
                 return
             except TimeoutError:
                 if losses == self.carrier.losses and not self.carrier.lost:
                     raise
+
+    # ============================================================================== letting go
+    def _landing_places(self, rnd: _Round, rid: str) -> Callable[[], list[Vec3 | None]]:
+        """Where ``rid`` may come down in this round: its stop (of the route flown now) and the carrier."""
+        def places() -> list[Vec3 | None]:
+            k = rnd.stop_of.get(rid)
+            stops = rnd.clock.plan.stops if rnd.clock is not None else rnd.plan.stops
+            stop = stops[k].position if k is not None and k < len(stops) else None
+            return [stop, self.ctx.fleet.carrier.enu]
+        return places
+
+    def _gone(self, rnd: _Round, v: Vehicle) -> bool:
+        """``v`` cannot arrive: let it go on the first evidence (idempotent; checked on each of
+        its messages by every wait on it)."""
+        rid = v.name
+        if not self.board.in_round(rid):
+            return self.board.status.get(rid) == RoverStatus.LET_GO
+        trouble = rnd.trouble.get(rid)
+        if trouble is None or v.lost or not trouble.seen(v):
+            return False
+        self._let_go(rnd, v, trouble.why or "cannot arrive")
+        return True
+
+    async def _watch(self, rnd: _Round, rid: str) -> None:
+        """Watch ``rid`` for the whole round (also while it waits for its release)."""
+        v = self.ctx.fleet.rovers[rid]
+        with contextlib.suppress(TimeoutError):
+            await v.wait_until(lambda v: self._gone(rnd, v) or not self.board.in_round(rid), WATCH_FOREVER,
+                               "trouble")
+
+    def _let_go(self, rnd: _Round, v: Vehicle, why: str) -> None:
+        """``v`` leaves the round: journalled with the reason and where it is, no stop waits for
+        it; the route is trimmed (a ``stranded`` event for the phase's loop)."""
+        ctx, rid = self.ctx, v.name
+        self.board.set(rid, RoverStatus.LET_GO)
+        self.board.why[rid] = why
+        self.supervisor.expect(rid, None)
+        p = v.enu
+        up = _airborne(v)
+        pos = None if p is None else [round(c, 2) for c in p]
+        ctx.state.set_state(rid, VehicleStatus.RETURNING if "RTL" in why else VehicleStatus.LANDED)
+        ctx.state.event(
+            Ev.ROVER_LET_GO,
+            f"{rid}: {why}; let go, not collected (at {pos}, battery {v.battery_pct} %, "
+            f"{'in the air' if up else 'on the ground'})",
+            rid, reason=why, position=pos, battery_pct=v.battery_pct, landed=v.landed_state_name, mode=v.mode,
+            airborne=up, at=ctx.clock(),
+        )
+        going = rnd.going.get(rid)
+        if going is not None and not going.done() and going is not asyncio.current_task():
+            going.cancel()
+        self.supervisor.put(SupervisorEvent(Watch.STRANDED, rid, data={"why": why}))
 
     async def _trim(
         self, rnd: _Round, rest: list[Stop], rest_items: list[StopItems]
@@ -631,6 +758,9 @@ class CollectPhase:
         if ev.kind == Watch.TASKS:
             self.supervisor.reject("the deployment is over; tasks can change only while deploying", ev.source)
             return False
+        if ev.kind == Watch.STRANDED and rid is not None and status == RoverStatus.LET_GO:
+            self.ctx.replans.begin(f"{rid} let go: {ev.data.get('why')}", ev, self.plan)
+            return True
         announce_warning(self.ctx, ev)
         if ev.kind == Watch.BATTERY_LOW and rid is not None and self.carrier.lost and board.in_round(rid):
             self.carrier.held.discard(rid)
@@ -667,10 +797,16 @@ class CollectPhase:
         res.rovers_loaded = board.with_status(RoverStatus.LOADED)
         res.rovers_lost = board.with_status(RoverStatus.LOST)
         res.rovers_unreachable = board.with_status(RoverStatus.UNREACHABLE)
+        res.rovers_let_go = {r: board.why.get(r, "cannot arrive")
+                             for r in board.with_status(RoverStatus.LET_GO)}
+        res.rovers_failed = {r: board.why.get(r, "not loaded in its round")
+                             for r in board.with_status(RoverStatus.FAILED)}
         lost_at_start = set(board.lost_at_start)
-        # complete: every rover loaded, except those out of reach and those lost before it began
+        # complete: every rover loaded, except those out of reach, those let go (they cannot
+        # arrive: reported with where they are) and those lost before it began
         res.complete = all(
-            board.status[r] in (RoverStatus.LOADED, RoverStatus.UNREACHABLE) or r in lost_at_start
+            board.status[r] in (RoverStatus.LOADED, RoverStatus.UNREACHABLE, RoverStatus.LET_GO)
+            or r in lost_at_start
             for r in ids
         )
         if self.t0 is None:  # nothing flown
@@ -678,6 +814,13 @@ class CollectPhase:
             res.complete = res.complete and not lost_at_start
         res.flown = (last_load if last_load is not None else 0.0) if res.complete else None
         return res
+
+
+def _airborne(v: Vehicle) -> bool:
+    """In the air by telemetry: its landed state, else its height."""
+    if v.on_ground is not None:
+        return not v.on_ground
+    return (v.height or 0.0) > GROUND_HEIGHT
 
 
 def _to_approach(z: float) -> float:

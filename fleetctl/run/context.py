@@ -2,8 +2,11 @@
 mission clock, the journal and the background tasks the run owns.
 
 * **Clock.** ``clock()`` is the mission clock (simulated seconds on the embedded simulated fleet,
-  else ``time.monotonic`` scaled by the vehicles' speed-up); :meth:`RunContext.wall` turns a
-  planned mission duration into the wall-clock timeout of a wait on it.
+  else ``time.monotonic`` scaled by the vehicles' speed-up). Every wait on the fleet is a deadline
+  in mission time, :meth:`RunContext.late` (the planned duration from the live plan, times
+  ``TIMEOUT_FACTOR``, plus ``TIMEOUT_MARGIN`` mission seconds), waited by :meth:`RunContext.wait_for`,
+  so a mission takes the same decisions at any speed-up; :meth:`RunContext.wall` (that deadline in
+  wall seconds, plus ``TIMEOUT_WALL``) is only the backstop for a mission clock that stops.
 * **Journalled commands.** :meth:`RunContext.command` writes the command record to disk
   (write-ahead, :meth:`fleetctl.journal.Journal.commit`) *before* sending it, then records the
   acknowledgement; a pending replan's latency is measured at its first command.
@@ -34,7 +37,9 @@ T = TypeVar("T")
 
 TIMEOUT_FACTOR = 2.0  # a wait may take this many times its planned (mission) duration ...
 TIMEOUT_MARGIN = 30.0  # ... plus this many mission seconds ...
-TIMEOUT_WALL = 15.0  # ... plus this many wall seconds (protocol retries, packet loss)
+TIMEOUT_WALL = 15.0  # wall s more before a wait gives up on a mission clock that stopped (backstop)
+POLL_WALL = 0.05  # wall s at most between looks at the mission clock in a wait
+REPORT_WAIT = 2.5  # wall s past a deadline for the vehicle's next status report (1 Hz, lossy) to show it
 TELEMETRY_TIMEOUT = 10.0  # wall s to wait for first positions
 
 
@@ -110,6 +115,41 @@ class RunContext:
     def wall(self, mission_seconds: float) -> float:
         """Wall seconds a wait of ``mission_seconds`` may take (generous: see TIMEOUT_*)."""
         return (mission_seconds * TIMEOUT_FACTOR + TIMEOUT_MARGIN) / self.speedup + TIMEOUT_WALL
+
+    def late(self, planned: float) -> float:
+        """Mission seconds a wait on something planned to take ``planned`` mission seconds is given
+        (the stated slack: ``TIMEOUT_FACTOR`` times it plus ``TIMEOUT_MARGIN``)."""
+        return max(planned, 0.0) * TIMEOUT_FACTOR + TIMEOUT_MARGIN
+
+    async def wait_for(self, v: Vehicle, predicate: Callable[[Vehicle], bool], mission_seconds: float,
+                       what: str) -> None:
+        """Return once ``predicate(v)`` holds (checked on every message of ``v``); ``TimeoutError``
+        once ``mission_seconds`` of mission time have passed (a deadline on the mission clock, so
+        the same at any speed-up) and ``REPORT_WAIT`` wall seconds more brought no report showing
+        it (status messages come at ~1 Hz of wall time); :meth:`wall` of it is a backstop for a
+        clock that stops."""
+        start = self.clock()
+        end = start + max(mission_seconds, 0.0)
+        backstop = time.monotonic() + self.wall(mission_seconds)
+        expired: float | None = None  # wall time the mission deadline passed
+        while not predicate(v):
+            left = end - self.clock()
+            now = time.monotonic()
+            if left <= 0.0 and expired is None:
+                expired = now
+            # past the deadline, the vehicle's next status report (sent on wall time) decides
+            if (expired is not None and now - expired >= REPORT_WAIT) or now >= backstop:
+                raise TimeoutError(f"{v.name} (sysid {v.sysid}): {what} not reached within "
+                                   f"{end - start:.1f} s of mission time")
+            with contextlib.suppress(TimeoutError):
+                await v.wait_until(predicate, min(max(left / self.speedup, 0.005), POLL_WALL), what)
+
+    async def wait_task(self, task: asyncio.Future[Any], mission_seconds: float) -> None:
+        """Wait for ``task`` at most ``mission_seconds`` of mission time (no error after that)."""
+        end = self.clock() + max(mission_seconds, 0.0)
+        backstop = time.monotonic() + self.wall(mission_seconds)
+        while not task.done() and (left := end - self.clock()) > 0 and time.monotonic() < backstop:
+            await asyncio.wait({task}, timeout=min(max(left / self.speedup, 0.005), POLL_WALL))
 
     async def sleep_mission(self, seconds: float) -> None:
         """Sleep ``seconds`` of mission time (checked against the mission clock)."""

@@ -30,6 +30,7 @@ from fleetctl.run.preflight import planning_range
 from fleetctl.run.results import PhaseResult
 from fleetctl.run.supervisor import SupervisorEvent, validate_task_change
 from fleetctl.run.task_board import TaskBoard
+from fleetctl.run.trouble import HOLD_SPEED, Trouble
 from planners.core.plan import Plan, RoverLeg
 from planners.core.problem import Task, Vec3
 from planners.core.ranges import leg_length
@@ -44,9 +45,6 @@ class ResumedDeploy:
 
 
 REACH_RADIUS = 1.0  # m: a rover within this 3D distance of its task, holding, has reached it
-HOLD_SPEED = 0.3  # m/s: slower than this counts as holding
-EMPTY_BATTERY_PCT = 1.0  # %: a rover reporting this little has no flight left
-DOWN_AWAY_M = 3.0  # m (horizontal) from its task: a rover landed farther away has not reached it
 WATCH_RETRIES = 3  # timeouts of a task watch forgiven while the carrier's link was down
 
 
@@ -300,7 +298,7 @@ class DeployPhase:
         ctx, st = self.ctx, self.ctx.state
         v = ctx.fleet.rovers[rid]
 
-        trouble = _Trouble(target)
+        trouble = Trouble(lambda: (target,))
 
         def check(v: Vehicle) -> bool:
             if st.vehicles[rid].state == VehicleStatus.CLIMBING and (v.mission_current or 0) > takeoff:
@@ -321,7 +319,7 @@ class DeployPhase:
             losses = self.carrier.losses
             remaining = max(arrive - (ctx.clock() - plan_t0), 0.0)
             try:
-                await v.wait_until(check, ctx.wall(remaining), f"task {task}")
+                await ctx.wait_for(v, check, ctx.late(remaining), f"task {task}")
                 break
             except TimeoutError:
                 tries += 1
@@ -539,28 +537,6 @@ class DeployPhase:
         if res.complete:
             res.flown = max(reached.values()) if reached else 0.0
         return res
-
-
-class _Trouble:
-    """A flying rover that will not reach its task: its battery is empty, or it is down on the
-    ground (after having flown) away from the task."""
-
-    def __init__(self, target: Vec3) -> None:
-        self.target = target
-        self.been_up = False
-        self.why: str | None = None
-
-    def seen(self, v: Vehicle) -> bool:
-        if v.on_ground is False:
-            self.been_up = True
-        if v.battery_pct is not None and v.battery_pct <= EMPTY_BATTERY_PCT:
-            self.why = f"battery empty ({v.battery_pct:.0f} %)"
-        p = v.enu
-        if self.been_up and v.on_ground and p is not None and (v.ground_speed or 0.0) < HOLD_SPEED:
-            away = math.dist(p[:2], self.target[:2])
-            if away > DOWN_AWAY_M:
-                self.why = f"is down on the ground {away:.0f} m from it"
-        return self.why is not None
 
 
 async def _settle(ctx: RunContext, v: Vehicle) -> None:

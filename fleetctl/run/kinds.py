@@ -61,6 +61,7 @@ class Ev(StrEnum):
     # planning and commands
     PLAN = "plan"
     REPLAN = "replan"
+    PLAN_BUDGET = "plan_budget"  # collection: one plan-and-check attempt's cost in mission s (batteries burn)
     COMMAND = "command"
     ACK = "ack"
     SPARES = "spares"
@@ -86,6 +87,7 @@ class Ev(StrEnum):
     ROVER_LANDING = "rover_landing"
     ROVER_LOADED = "rover_loaded"
     ROVER_UNREACHABLE = "rover_unreachable"
+    ROVER_LET_GO = "rover_let_go"  # collection: it cannot arrive (battery empty, failsafe, down short): left
     TASK_REACHED = "task_reached"
     TASK_RETURNED = "task_returned"
     TASK_TIMEOUT = "task_timeout"

@@ -178,13 +178,14 @@ class Launcher:
         try:
             await ctx.command(v, "start_mission", v.start_mission())
             # a task on the ground may be left again before a position shows it
-            await v.wait_until(
+            await ctx.wait_for(
+                v,
                 lambda v: (
                     (v.height or 0.0) > CLEAR_HEIGHT
                     or tk in v.items_reached
                     or (v.mission_current or -1) > tk
                 ),
-                ctx.wall(timeout),
+                timeout,
                 "lift-off",
             )
             return True

@@ -20,6 +20,8 @@ class PhaseResult:
     rovers_loaded: list[str] = field(default_factory=list)
     rovers_lost: list[str] = field(default_factory=list)
     rovers_unreachable: list[str] = field(default_factory=list)  # collect: too little range to be picked up
+    rovers_let_go: dict[str, str] = field(default_factory=dict)  # collect: cannot arrive -> why
+    rovers_failed: dict[str, str] = field(default_factory=dict)  # collect: not brought in -> why
     assignment: dict[str, str] = field(default_factory=dict)  # task -> rover (deploy)
     substitutions: list[dict[str, str]] = field(default_factory=list)  # refused rover -> spare
     error: str | None = None

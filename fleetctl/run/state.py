@@ -47,6 +47,8 @@ class VehicleState:
     mode: str | None = None
     on_ground: bool | None = None
     latlon: tuple[float, float] | None = None  # WGS84 degrees (the view's --latlon)
+    telemetry_at: float | None = None  # time.monotonic() of the last position or landed state
+    state_at: float | None = None  # time.monotonic() when ``state`` was last set
 
 
 @dataclass(frozen=True)
@@ -178,6 +180,7 @@ class FleetState:
         if v is None:
             return
         v.state = state
+        v.state_at = time.monotonic()
         if task is not None:
             v.task = task
 
@@ -205,6 +208,7 @@ class FleetState:
             s.battery_pct = v.battery_pct
             s.link_age = v.last_heard_age
             s.on_ground = v.on_ground
+            s.telemetry_at = v.telemetry_at
             s.latlon = (v.position[0], v.position[1]) if v.position is not None else None
             if s.role == "rover":
                 try:

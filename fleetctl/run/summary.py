@@ -75,6 +75,8 @@ def build_summary(f: RunFacts) -> dict[str, Any]:
     out.update(_accounting(f, dep, col, unserved, lost))
     if col is not None:
         out["rovers_unreachable"] = col.rovers_unreachable
+        out["rovers_let_go"] = dict(col.rovers_let_go)
+        out["rovers_not_loaded_reasons"] = dict(col.rovers_failed)
     if dep is not None:
         out["assignment"] = dep.assignment
         out["substitutions"] = dep.substitutions
@@ -114,8 +116,10 @@ def _accounting(
 ) -> dict[str, Any]:
     """Summary fields that account for every task and every rover: why a task was not reached,
     tasks added/removed while flying, and for each rover not loaded nor lost: on the deck (only
-    when it is) or left in the field (``rovers_left``: position, state, task, airborne), and
-    ``rovers_airborne``: those of them in the air."""
+    when it is) or left in the field (``rovers_left``: position, state, task, battery, airborne,
+    and why when the collection let it go or could not load it), and ``rovers_airborne``: those
+    of them in the air. Airborne follows telemetry (landed state, else height), never the last
+    command; null when the rover sent neither."""
     out: dict[str, Any] = {"last_replan": f.state.last_replan}
     if f.command != "collect":
         reasons = dep.unserved_reasons if dep else {}
@@ -127,6 +131,7 @@ def _accounting(
     loaded = set(col.rovers_loaded) if col else set()
     unreachable = set(col.rovers_unreachable) if col else set()
     launched = set(dep.launched) if dep else set()
+    why = {**(col.rovers_failed if col else {}), **(col.rovers_let_go if col else {})}
     on_deck: list[str] = []
     airborne: dict[str, Any] = {}
     left: dict[str, Any] = {}
@@ -135,17 +140,19 @@ def _accounting(
         pos = [round(c, 2) for c in v.enu] if v.enu is not None else None
         if v.id in loaded:
             continue
-        # a rover seen lifting off that no later state puts down is in the air, whatever an older
-        # telemetry snapshot says
-        up = _is_airborne(v) or (v.id in launched and v.state in _IN_THE_AIR)
+        up = _is_airborne(v)
         if v.id in lost:
             last[v.id] = pos
-        elif not up and v.id not in launched and v.id not in unreachable and _on_the_deck(f, v):
+        elif not up and v.id not in launched | unreachable | set(why) and _on_the_deck(f, v):
             on_deck.append(v.id)
         else:
-            left[v.id] = {"position": pos, "state": v.state, "task": v.task, "airborne": up}
+            left[v.id] = {"position": pos, "state": v.state, "task": v.task, "battery_pct": v.battery_pct,
+                          "airborne": up}
+            if v.id in why:
+                left[v.id]["why"] = why[v.id]
             if up:
-                airborne[v.id] = {"position": pos, "state": v.state, "task": v.task}
+                airborne[v.id] = {"position": pos, "state": v.state, "task": v.task,
+                                  "battery_pct": v.battery_pct}
     out["rovers_on_deck"] = on_deck
     out["rovers_airborne"] = airborne
     out["rovers_left"] = left
@@ -159,11 +166,24 @@ def _lost_reason(rid: str, missing: dict[str, str], state: FleetState) -> str:
     return "link lost while flying the mission" if state.vehicles[rid].connected else "link lost"
 
 
+def _is_airborne(v: VehicleState) -> bool | None:
+    """By telemetry: the landed state when the rover reports one, else its height above home;
+    None (unknown) without either. A rover whose flight was reported (climbing, en route, on its
+    task: MISSION_ITEM_REACHED and the like) after its last position or landed state is in the air:
+    that report is the newer telemetry."""
+    if v.on_ground is not None:
+        up: bool | None = not v.on_ground
+    elif v.alt is not None:
+        up = v.alt > AIRBORNE_HEIGHT
+    else:
+        up = None
+    newer = v.state_at is not None and (v.telemetry_at is None or v.state_at > v.telemetry_at)
+    if not up and newer and v.state in _IN_THE_AIR:
+        return True
+    return up
+
+
 _IN_THE_AIR = frozenset({VehicleStatus.CLIMBING, VehicleStatus.EN_ROUTE, VehicleStatus.ON_TASK})
-
-
-def _is_airborne(v: VehicleState) -> bool:
-    return v.connected and (v.on_ground is False or (v.alt or 0.0) > AIRBORNE_HEIGHT)
 
 
 def _on_the_deck(f: RunFacts, v: VehicleState) -> bool:
