@@ -1,4 +1,4 @@
-"""Issue 26: a rover that cannot arrive is let go at once, and every wait is a deadline in mission
+"""A rover that cannot arrive is let go at once, and every wait is a deadline in mission
 time. End to end through the simulated fleet (bench/faults.py's scenario: r2 dies or fails safe on
 its way to its collection stop); times are simulated seconds."""
 

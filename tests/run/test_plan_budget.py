@@ -1,4 +1,4 @@
-"""The controller budgets for itself (issue 26): a rover in the air burns its battery while the
+"""The controller budgets for itself: a rover in the air burns its battery while the
 controller plans and checks its collection, so the plan and its energy check use the battery it
 will have when the round flies (mission time since the reading, the planning still to come), and
 each attempt's cost is journalled (``plan_budget``). End to end on the simulated fleet, with the
