@@ -32,6 +32,7 @@ def _check_let_go(row: dict[str, Any], why: str) -> None:
     assert row["flown"] is not None
 
 
+@pytest.mark.slow
 async def test_a_rover_dying_on_its_way_is_let_go_and_the_decisions_do_not_depend_on_the_speedup(
         tmp_path: Path) -> None:
     fast = await fly("battery", 20.0, tmp_path)

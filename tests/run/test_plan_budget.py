@@ -79,6 +79,7 @@ async def test_slow_planning_is_paid_from_the_battery_and_budgeted(tmp_path: Pat
     assert any(r["short"] == ["r1"] for r in budget), budget
 
 
+@pytest.mark.slow
 async def test_the_same_decisions_at_speedup_1_and_20(tmp_path: Path,
                                                       monkeypatch: pytest.MonkeyPatch) -> None:
     slow_planner(monkeypatch)
