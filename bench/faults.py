@@ -3,7 +3,7 @@ arrive, at several speed-ups, and what the collection then does.
 
 One collection (the carrier at the origin, three rovers on the ground at r1 (12, 4), r2 (110, -6),
 r3 (60, 30); ``rovers.endurance_range`` 200 m at 5 m/s) is flown by
-``fleetctl.run.runner.execute`` against the in-process simulated fleet (real UDP) with one fault
+``fleetctl.run.flight.execute`` against the in-process simulated fleet (real UDP) with one fault
 on r2, which strikes on its way to its stop:
 
 * ``battery empty`` - the mission's ``sim.faults`` ``battery_drain`` (factor 15 for r2): its

@@ -1,4 +1,4 @@
-"""Several carriers on the same tasks and rovers (issue 17): what 1–4 teams buy.
+"""Several carriers on the same tasks and rovers: what 1–4 teams buy.
 
 Monte Carlo instances as in ch. 4.6.2 (bench/scaling.py): n = 20 … 100 tasks in a 300 m square,
 d_deploy 10–40 m, carrier and rover parameters drawn around 15 m/s, 5 m/s², 3 rad/s, 3 s unload,

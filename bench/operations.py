@@ -1,4 +1,4 @@
-"""Long operations (issue 29): the operation planner against the waves baseline and the lower bound.
+"""Long operations: the operation planner against the waves baseline and the lower bound.
 
 Random instances: n rovers and 2–4 × n tasks in a 600 m square (heights 0–12 m), 30–300 s of work
 per task, hovering (``--work ground``: landed), the carrier starting at a corner (10 m/s, 2 m/s²,

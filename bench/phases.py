@@ -1,4 +1,4 @@
-"""Where the quick plan's CPU time goes, phase by phase, and what each phase gains (issue 15's speed
+"""Where the quick plan's CPU time goes, phase by phase, and what each phase gains (the speed
 targets: deploy 100 tasks ≤ 10 ms, 1000 ≤ 100 ms; collect 100 rovers ≤ 20 ms, 1000 ≤ 150 ms).
 
 On the instances of bench/scaling.py (deployment) and bench/scaling_collect.py (collection, ranges

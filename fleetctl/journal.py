@@ -3,7 +3,7 @@
 * ``journal.jsonl`` - one JSON object per line: ``{"t": unix, "elapsed": s, "kind": ..., ...}``
   (plan, each command and its ack, stop reached, rover launched, task reached, rover loaded,
   link lost/back, replans);
-* ``traffic.tlog`` - every MAVLink message in and out (:class:`fleetctl.tlog.TlogWriter` on the
+* ``traffic.tlog`` - every MAVLink message in and out (:class:`fleetctl.mavlink.tlog.TlogWriter` on the
   links' tap), readable by pymavlink / ``mavlogdump.py``;
 * ``plan.json`` (``plan-collect.json`` for the collection of ``run``) - the plan JSON contract;
 * ``summary.json`` - the run summary (``schema fleetctl.summary/1``).
@@ -113,7 +113,7 @@ class Journal(BackgroundFile[str]):
         return dest
 
     def on_event(self, ev: Event) -> None:
-        """A :class:`fleetctl.fleet.FleetState` listener: journal every event."""
+        """A :class:`fleetctl.run.state.FleetState` listener: journal every event."""
         mission_t = None if ev.mission_time is None else round(ev.mission_time, 3)
         self.write(ev.kind, **{"vehicle": ev.vehicle, "text": ev.text, **ev.data, "T": mission_t})
 

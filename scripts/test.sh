@@ -4,7 +4,7 @@
 # browser test drives it through Playwright, which downloads no browser), the package with its test extras,
 # then the static checks (ruff, then mypy with its pyproject config; its cache .mypy_cache keeps a
 # rerun fast), then pytest. Either check failing fails the script before any test runs. Extra
-# arguments go to pytest, e.g. scripts/test.sh tests/test_bus.py
+# arguments go to pytest, e.g. scripts/test.sh tests/bus/test_bus.py
 set -euo pipefail
 cd "$(dirname "$0")/.."
 SUDO=""

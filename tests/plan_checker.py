@@ -1,4 +1,4 @@
-"""An independent check of plan JSON against DESIGN.md's time model.
+"""An independent check of plan JSON against the time model (docs/time-model.md), written from its text.
 
 Written from the contract's text, not from planners/core/timing.py, so that a mistake in the time
 model itself shows up as a disagreement. Used by the planner tests.

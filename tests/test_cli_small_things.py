@@ -118,7 +118,7 @@ def test_a_closed_stdout_is_no_traceback() -> None:
 
 
 def test_the_command_line_loads_no_planner_or_heavy_library_before_it_needs_one() -> None:
-    """``fleetctl plan`` starts in about the time Python imports NumPy (issue 15): importing the
+    """``fleetctl plan`` starts in about the time Python imports NumPy: importing the
     command line and loading a mission import no planner (deployment, collection, roadmap, the
     teams' allocation), SciPy, shapely, matplotlib, rich, MAVLink, MQTT or asyncio; planning a
     deployment then loads the deployment planner and nothing of collection, roadmaps or SciPy."""

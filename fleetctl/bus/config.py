@@ -14,7 +14,7 @@ if TYPE_CHECKING:
 
 TELEMETRY_HZ = 2.0
 BUFFER_SIZE = 2000  # messages held while the broker is away
-CONNECT_TIMEOUT = 5.0  # s for TCP + CONNACK
+CONNECT_TIMEOUT = 5.0  # s for the broker's CONNACK (aiomqtt's timeout); a whole attempt, TCP included: 2x
 PUBLISH_TIMEOUT = 5.0  # s for a QoS 1 PUBACK
 BACKOFF_MIN = 0.2  # s before the first reconnect
 BACKOFF_MAX = 5.0

@@ -124,7 +124,7 @@ def compile_plan(
 ) -> CompiledPlan:
     """Turn a deployment or collection :class:`~planners.core.plan.Plan` into mission items.
 
-    ``autopilot``: one :class:`~fleetctl.autopilot.Autopilot` for all vehicles or a mapping
+    ``autopilot``: one :class:`~fleetctl.mavlink.autopilots.base.Autopilot` for all vehicles or a mapping
     vehicle id -> autopilot (e.g. ``{vid: v.autopilot for vid, v in fleet.vehicles.items()}``);
     only ``home_is_item0`` matters here. None = no home item (PX4 / generic).
     ``meet_height``: the safe height (above home) of the approach point above a collection stop;

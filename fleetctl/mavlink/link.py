@@ -27,9 +27,9 @@ Layers, bottom up, a module each:
    (:mod:`fleetctl.mavlink.messages`) and the errors (:mod:`fleetctl.mavlink.errors`).
 
 Every message in and out can be observed with :meth:`Link.add_tap` (``callback(direction,
-unix_time, raw_bytes)``, direction ``"in"`` or ``"out"``), e.g. by :class:`fleetctl.tlog.TlogWriter`.
+unix_time, raw_bytes)``, direction ``"in"`` or ``"out"``), e.g. by :class:`fleetctl.mavlink.tlog.TlogWriter`.
 
-Safety (issue 12):
+Safety (docs/field-safety.md, docs/signing.md):
 
 * MAVLink 2 signing (``signing_key=``, :mod:`fleetctl.mavlink.signing`): everything sent is signed
   (``link_id``, a strictly increasing timestamp persisted in ``signing_state``); incoming messages
@@ -414,7 +414,7 @@ class Link:
         if src == 0:
             # 0 is the broadcast address, never a sender's: PX4 sends some messages (ids outside the
             # common dialect) with it from every instance. Not a vehicle: no route, no subscriber,
-            # and no route conflict between the vehicles that all send it (issue 25)
+            # and no route conflict between the vehicles that all send it
             self.rx_sysid0 += 1
             return
         if mtype == "HEARTBEAT" and msg.type == M.MAV_TYPE_GCS:  # a ground station, not a vehicle

@@ -2,7 +2,7 @@
 receive/send time as an 8-byte big-endian unsigned integer of microseconds since the Unix epoch.
 Readable by ``pymavlink.mavutil.mavlink_connection(path)`` and ``mavlogdump.py``.
 
-``TlogWriter`` is a :data:`fleetctl.link.Tap`: ``link.add_tap(writer)`` (or ``fleet.add_tap``)
+``TlogWriter`` is a :data:`fleetctl.mavlink.link.Tap`: ``link.add_tap(writer)`` (or ``fleet.add_tap``)
 logs both directions. Records are buffered in memory and written by a worker thread every
 ``flush_interval`` seconds, so the event loop never waits on the disk.
 """

@@ -53,7 +53,7 @@ DEFAULT_POSITION_HZ = 10.0
 DEFAULT_BATTERY_HZ = 1.0
 MAX_BATTERY_TIME = 86_400  # s: a BATTERY_STATUS.time_remaining above a day is not believed
 _STATUS_REASON_S = 2.0  # a STATUSTEXT this recent explains a rejected command
-# position plausibility (issue 12): a fix farther from the last applied one than
+# position plausibility (field safety): a fix farther from the last applied one than
 # JUMP_FACTOR x max_speed x dt + JUMP_SLACK_M is held back until CONFIRM_FIXES consecutive fixes
 # spanning CONFIRM_S wall seconds agree with it (with no fix consistent with the old track between)
 GENERIC_MAX_SPEED = 30.0  # m/s when the mission gives none
@@ -101,7 +101,7 @@ class Vehicle:
     silence after which the vehicle is *lost*. Call :meth:`close` when done (it cancels the timer
     and unsubscribes from the link; the link itself is not closed).
 
-    Plausibility (issue 12): ``max_speed`` (m/s, default 30) bounds how far two position fixes
+    Plausibility (field safety): ``max_speed`` (m/s, default 30) bounds how far two position fixes
     may be apart: a GLOBAL_POSITION_INT farther than 3 x max_speed x dt + 3 m from the last applied
     fix (dt from the vehicle's ``time_boot_ms``, capped by the wall time elapsed times the
     vehicle clock's measured rate, so a simulated fleet's speed-up is taken into account and a
@@ -611,7 +611,7 @@ class Vehicle:
 
     async def upload_mission(self, items: list[MissionItem]) -> None:
         """Upload ``items`` as given (on ArduPilot item 0 must be home: see :mod:`fleetctl.mavlink.compile`).
-        Raises :class:`fleetctl.link.MissionRejected` with the autopilot's MAV_MISSION_RESULT (and its
+        Raises :class:`fleetctl.mavlink.link.MissionRejected` with the autopilot's MAV_MISSION_RESULT (and its
         ``reason``: a STATUSTEXT the vehicle sent while refusing, if any).
 
         A vehicle flying a mission is first put in its hold mode (ArduCopter GUIDED, else HOLD):

@@ -4,7 +4,7 @@
 position, altitude, speed, battery, range, link age), the mission phase, the stop being served
 (k of N), planned vs elapsed time and the latest :class:`Event` s. The executor writes the
 controller-side fields (``state``, ``task``, phase, stop) and raises events; :meth:`FleetState.refresh`
-copies the telemetry of the live :class:`fleetctl.mavlink.vehicle.Fleet` into it. Listeners (journal,
+copies the telemetry of the live :class:`fleetctl.mavlink.fleet.Fleet` into it. Listeners (journal,
 headless log) get every event as it happens.
 """
 

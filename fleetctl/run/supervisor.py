@@ -1,6 +1,6 @@
 """Supervision: telemetry and operator input turned into events the executor replans on.
 
-:class:`Supervisor` watches a connected :class:`fleetctl.mavlink.vehicle.Fleet` and puts
+:class:`Supervisor` watches a connected :class:`fleetctl.mavlink.fleet.Fleet` and puts
 :class:`SupervisorEvent` s on an :class:`asyncio.Queue` that the executor consumes:
 
 * ``lost`` / ``back``: no heartbeat for ``links.heartbeat_timeout`` (the vehicle proxy's timer),
@@ -12,7 +12,7 @@
 * ``tasks``: tasks added/removed - from the running mission file (its ``tasks:`` are re-read when
   the file's mtime changes, polled every :data:`FILE_POLL_S` s, and re-validated with
   :mod:`fleetctl.mission`; an invalid edit is rejected with a ``task_change_rejected`` event and
-  the running plan is kept) or from :meth:`fleetctl.executor.Executor.submit_task_change` (the
+  the running plan is kept) or from :meth:`fleetctl.run.executor.Executor.submit_task_change` (the
   MQTT bus calls it).
 
 Every event carries ``t``: the ``time.monotonic()`` of its detection, from which the executor

@@ -7,7 +7,7 @@ or refused to arm, the task → rover assignment, the refused → spare substitu
 added and removed while flying, and the rovers in the field without a task (to be collected).
 
 Nothing here touches the fleet: the deploy phase changes the board, and ``fleetctl resume``
-rebuilds one from the journal (:func:`fleetctl.run.resume.board_from_journal`).
+rebuilds one from the journal (:func:`fleetctl.run.resume.load_resumption`).
 """
 
 from __future__ import annotations

@@ -1,7 +1,7 @@
 """The operator's view of a run: a live terminal dashboard (rich) or, ``--headless``, one log
 line per event.
 
-:class:`LiveView` redraws from :class:`fleetctl.fleet.FleetState` a few times a second in a
+:class:`LiveView` redraws from :class:`fleetctl.run.state.FleetState` a few times a second in a
 task of its own (``rich.live.Live`` without its refresh thread), so the view never blocks the
 mission; :class:`HeadlessView` prints each event as it happens. :func:`make_view` picks one.
 """

@@ -68,7 +68,7 @@ class _Model:
                    for c, p in zip(clusters, positions, strict=True) for i in c)
 
     def makespan(self, clusters: Sequence[Sequence[int]], positions: Sequence[Point2]) -> float:
-        """The time model of DESIGN.md for straight legs (as ``timing.deploy/collect_schedule``)."""
+        """The time model (docs/time-model.md) for straight legs (as ``timing.deploy/collect_schedule``)."""
         prev, h, t, worst = self.start, self.heading, 0.0, 0.0
         for c, p in zip(clusters, positions, strict=True):
             dt, h = carrier_hop(prev, p, h, self.carrier)

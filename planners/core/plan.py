@@ -1,4 +1,4 @@
-"""Plan types and their JSON form (DESIGN.md "Plan (JSON) — the contract")."""
+"""Plan types and their JSON form (docs/plan-json.md)."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""The time model (DESIGN.md "Time model"; dissertation eq. 4.2, 4.3, 5.2, 6.2).
+"""The time model (docs/time-model.md; dissertation eq. 4.2, 4.3, 5.2, 6.2).
 
 This module is the one source of truth for mission times: planners, baselines, lower bounds,
 benchmarks and the controller's ETA all call it.

@@ -139,7 +139,7 @@ def polish_stop(builder: PathBuilder, route: Route, k: int, tol: float) -> Route
 
 def polish_long(builder: PathBuilder, route: Route, tol: float) -> Route:
     """One sweep of ``polish`` for long routes, with numpy: every third stop at once
-    (``planners.deploy.batch``: stops three apart share no hop), the three classes in turn, each
+    (stops three apart share no hop), the three classes in turn, each
     class's moves kept when the route re-timed exactly is faster (else one at a time, each on
     the exact cost); then the last two stops one at a time."""
     n = len(route.clusters)

@@ -1,4 +1,4 @@
-"""Long operations (issue 29, docs/operations.md): more tasks than rovers, task durations,
+"""Long operations (docs/operations.md): more tasks than rovers, task durations,
 sorties with pick-ups timed to the work, battery swaps on the deck. Pure maths, no I/O.
 
 ``plan_operation`` (the planner), ``plan_waves`` (the operator's baseline: deploy, wait, collect,

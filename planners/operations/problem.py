@@ -1,4 +1,4 @@
-"""A long operation (issue 29, docs/operations.md): more tasks than rovers, each task needing
+"""A long operation (docs/operations.md): more tasks than rovers, each task needing
 ``duration`` seconds of work; rovers fly sorties from the carrier's deck, chain tasks while their
 battery allows, come back and get a fresh battery (``swap_time`` on the deck) before the next one."""
 

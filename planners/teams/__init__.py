@@ -1,4 +1,4 @@
-"""Several carriers on one mission (issue 17): share the tasks (deployment) or the rovers
+"""Several carriers on one mission (docs/teams.md): share the tasks (deployment) or the rovers
 (collection) between teams, each team planned by today's planners; the nearest-carrier baseline
 and a lower bound. Pure maths, no I/O.
 

@@ -31,6 +31,8 @@ from px4_fleet import GCS_PORT, SKIP_REASON, TASKS, mission_yaml, port_free, px4
 
 from sitl.firmware import find_px4
 
+pytestmark = pytest.mark.firmware
+
 if find_px4() is None:
     pytest.skip(SKIP_REASON, allow_module_level=True)
 
@@ -144,7 +146,7 @@ def test_status_sees_every_vehicle_ready(px4: dict[str, Any]) -> None:
     out = px4["status"]
     assert out.returncode == 0, out.stdout[-3000:] + out.stderr[-2000:]
     assert "all 4 vehicles connected and ready" in out.stdout
-    assert "route" not in out.stderr and "system 0" not in out.stderr  # issue 25: no sysid-0 vehicle
+    assert "route" not in out.stderr and "system 0" not in out.stderr  # no vehicle for sysid-0 messages
 
 
 def test_deploy_reaches_every_task(px4: dict[str, Any]) -> None:

@@ -1,4 +1,4 @@
-"""MAVLink datagram fuzzing (issue 13): random bytes, truncated and bit-flipped packets and
+"""MAVLink datagram fuzzing: random bytes, truncated and bit-flipped packets and
 valid-but-unexpected messages against the controller's :class:`fleetctl.mavlink.link.Link` (and
 the vehicle proxies listening on it) and against the simulated fleet (``sitl``). Nothing may raise
 out of a handler, and valid traffic still flows afterwards.
@@ -11,18 +11,15 @@ import logging
 import math
 import random
 import socket
-import sys
 from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
 from pymavlink.dialects.v20 import ardupilotmega as M
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "controller"))
-from ctl_helpers import mission_dict, mission_from, sim_fleet  # noqa: E402
-
 from fleetctl.mavlink.fleet import connect_fleet  # noqa: E402
 from fleetctl.mavlink.link import Link, parse_url  # noqa: E402
+from tests.run.ctl_helpers import mission_dict, mission_from, sim_fleet
 
 N = 400  # datagrams per target
 

@@ -1,4 +1,4 @@
-"""Mutated mission files never crash, hang or print non-finite JSON (issue 13).
+"""Mutated mission files never crash, hang or print non-finite JSON.
 
 ``test_fuzz_in_process`` runs a few hundred seeded mutations (tests/fuzz/mutate.py) through
 ``fleetctl plan --json`` in this process; ``test_reproducers`` runs every file of
@@ -71,12 +71,14 @@ def test_check_output_refuses_non_finite_json() -> None:
     assert check_output(1, "", "Traceback ...").outcome == "bad_exit"
 
 
+@pytest.mark.slow
 def test_mutations_are_seeded() -> None:
     a = [(c.kind, c.text) for c in mutations(5, 24)]
     assert a == [(c.kind, c.text) for c in mutations(5, 24)]
     assert {k for k, _ in a} == set(KINDS)
 
 
+@pytest.mark.slow
 def test_fuzz_in_process(tmp_path: Path) -> None:
     """240 mutated files (20 of each kind): exit 0 with finite JSON or exit 2 with a message."""
     bad = []

@@ -1,4 +1,4 @@
-"""FleetConfig from a parsed mission-file dict (the structure in DESIGN.md), and the CLI."""
+"""FleetConfig from a parsed mission-file dict (the structure of docs/mission-file.md), and the CLI."""
 
 from __future__ import annotations
 

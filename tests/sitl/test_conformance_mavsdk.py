@@ -19,6 +19,8 @@ from mavsdk.asyncio.plugins.action import ActionAsync  # noqa: E402
 from mavsdk.asyncio.plugins.mission_raw import MissionItem, MissionRawAsync  # noqa: E402
 from mavsdk.asyncio.plugins.telemetry import FlightMode, LandedState, TelemetryAsync  # noqa: E402
 
+pytestmark = pytest.mark.slow
+
 REL_INT = 6  # MAV_FRAME_GLOBAL_RELATIVE_ALT_INT
 NAV_WAYPOINT = 16
 

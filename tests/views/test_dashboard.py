@@ -144,7 +144,7 @@ def test_latlon_on_request(tmp_path: Path) -> None:
 
 
 def test_without_a_width_the_text_is_plain_uncut_lines(tmp_path: Path) -> None:
-    """``--headless`` / no terminal (issue 26 item 5): no cell or line is cut to a screen width."""
+    """``--headless`` / no terminal: no cell or line is cut to a screen width."""
     st, _ = _fleet(tmp_path)
     st.replans, st.last_replan = 1, "r15 lost: " + "its task goes to a spare on the deck " * 8
     long_event = "carrier: " + "a long event line that a screen would wrap " * 6

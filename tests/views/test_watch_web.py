@@ -54,6 +54,7 @@ def broker_port(tmp_path: Path) -> Iterator[int]:
         proc.wait(10.0)
 
 
+@pytest.mark.slow
 async def test_watch_web_draws_the_mission_flown_elsewhere(tmp_path: Path, broker_port: int) -> None:
     prefix = "test/watchweb"
     d = mission_dict(rovers=2, speedup=10.0)

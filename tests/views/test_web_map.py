@@ -33,8 +33,8 @@ REPO = Path(__file__).resolve().parents[2]
 RUN_TIMEOUT = 180.0  # s: the whole deployment (a bound, not a measurement)
 POLL = 0.1  # s between two looks at the page
 
-pytestmark = pytest.mark.skipif(CHROMIUM is None, reason="chromium is not installed (scripts/test.sh "
-                                "installs Debian's chromium; apt-get install -y chromium)")
+pytestmark = [pytest.mark.skipif(CHROMIUM is None, reason="chromium is not installed (scripts/test.sh "
+                                "installs Debian's chromium; apt-get install -y chromium)"), pytest.mark.slow]
 
 READ_VEHICLES = """() => [...document.querySelectorAll('[data-vehicle]')].map(e => ({
     id: e.dataset.vehicle, state: e.dataset.state, e: e.dataset.e, n: e.dataset.n}))"""

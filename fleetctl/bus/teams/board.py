@@ -16,7 +16,7 @@ rules (docs/mqtt.md#teams):
   vehicles were an embedded simulator (they died with it): a real rover flies on to its task.
 * **Split.** The orphans, in mission order, each go to the online team (allocation hash equal to
   ours, a free rover on its deck) whose carrier reaches it soonest by the time model
-  (``planners.timing.carrier_step`` from the carrier's reported position), ties to the team
+  (``planners.core.timing.carrier_step`` from the carrier's reported position), ties to the team
   earlier in ``carriers:``. Every controller with the same view computes the same split; where
   views differ the conflict rule settles it.
 * A team claims its share of the orphans at the orphan's epoch + 1, and flies a claimed task only

@@ -1,0 +1,128 @@
+"""firmware_speeds: the mission's speeds as autopilot parameters (clamped), the handling the plan
+takes from the firmware, the mission keys, and docs/autopilots.md kept true."""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import pytest
+from pymavlink.dialects.v20 import ardupilotmega as M
+
+from fleetctl.mavlink.autopilots import ArduPilot
+from fleetctl.mavlink.autopilots import ardupilot as apm
+from fleetctl.mavlink.vehicle import HOME_ALT_TOLERANCE
+from fleetctl.mission import MissionError
+from fleetctl.mission.flight import MEET_HEIGHT, TAKEOFF_HEIGHT
+from fleetctl.run.firmware_speeds import fitted_handling, quantities
+from tests.run.ctl_helpers import mission_dict, mission_from
+
+DOC = Path(__file__).resolve().parents[2] / "docs" / "autopilots.md"
+
+
+def test_copter_parameters_follow_the_mission_within_the_firmware_range(tmp_path: Path) -> None:
+    d = mission_dict(carrier_connection="udpin://127.0.0.1:14599")
+    d["rovers"].update(max_speed=5.0, accel=2.5, climb_rate=3.0, land_speed=4.0)
+    m = mission_from(d, tmp_path)
+    values = ArduPilot().speed_values(quantities(m, carrier=False))
+    # LAND_SPEED at most 2 m/s
+    assert values == {"WPNAV_SPEED": 500.0, "WPNAV_ACCEL": 250.0, "WPNAV_ACCEL_Z": 250.0,
+                      "WPNAV_SPEED_UP": 300.0, "WPNAV_SPEED_DN": 400.0, "LAND_SPEED": 200.0}
+    rover = ArduPilot(M.MAV_TYPE_GROUND_ROVER).speed_values(quantities(m, carrier=True))
+    assert rover["WP_SPEED"] == rover["CRUISE_SPEED"] == m.carrier.max_speed
+
+
+def test_the_plan_takes_the_copters_measured_handling_where_the_file_is_silent(tmp_path: Path) -> None:
+    d = mission_dict(carrier_connection="udpin://127.0.0.1:14599")
+    d["rovers"].update(max_speed=5.0, accel=2.5, land_speed=1.0)
+    m = mission_from(d, tmp_path)
+    fitted = fitted_handling(m, [ArduPilot()])
+    assert fitted is not None
+    r = fitted.rovers
+    assert r.takeoff_time == pytest.approx(TAKEOFF_HEIGHT / 5.0 + apm.COPTER_TAKEOFF_OVERHEAD)
+    assert r.land_time == pytest.approx(MEET_HEIGHT / 1.0 + apm.COPTER_LAND_OVERHEAD)
+    assert r.accel == pytest.approx(5.0 / (5.0 / 2.5 + apm.COPTER_LEG_OVERHEAD)) and r.accel < 2.5
+    d["rovers"].update(takeoff_time=1.5, land_time=2.5)  # given in the file: kept
+    kept = fitted_handling(mission_from(d, tmp_path), [ArduPilot()])
+    assert kept is not None and (kept.rovers.takeoff_time, kept.rovers.land_time) == (1.5, 2.5)
+    assert fitted_handling(m, []) is None
+    carrier = fitted_handling(m, [], ArduPilot(M.MAV_TYPE_GROUND_ROVER))
+    assert carrier is not None and carrier.rovers == m.rovers and m.carrier.accel is not None
+    c = m.carrier
+    expected = c.max_speed / (c.max_speed / c.accel + apm.ROVER_LEG_OVERHEAD)
+    assert carrier.carrier.accel == pytest.approx(expected)
+
+
+def test_firmware_speeds_default_to_set_on_real_links_and_keep_on_the_sim(tmp_path: Path) -> None:
+    sim = mission_from(mission_dict(), tmp_path)
+    assert (sim.carrier.firmware_speeds, sim.rovers.firmware_speeds) == ("keep", "keep")
+    real = mission_from(mission_dict(carrier_connection="udpin://127.0.0.1:14599"), tmp_path)
+    assert (real.carrier.firmware_speeds, real.rovers.firmware_speeds) == ("set", "set")
+    d = mission_dict(carrier_connection="udpin://127.0.0.1:14599")
+    d["rovers"]["firmware_speeds"] = "keep"
+    assert mission_from(d, tmp_path).rovers.firmware_speeds == "keep"
+    d["rovers"]["firmware_speeds"] = "fast"
+    with pytest.raises(MissionError, match="firmware_speeds"):
+        mission_from(d, tmp_path)
+
+
+def documented_params(text: str) -> set[str]:
+    """The parameter names in the tables of docs/autopilots.md (first column cells like `A`, `B`)."""
+    pairs = re.findall(r"\| `([A-Z_]+)`(?:, `([A-Z_]+)`)? \|", text)
+    return {n for pair in pairs for n in pair if n}
+
+
+def test_docs_autopilots_states_the_measured_constants_and_every_parameter() -> None:
+    text = DOC.read_text()
+    assert f"+ {apm.COPTER_TAKEOFF_OVERHEAD:.1f} s" in text
+    assert f"+ {apm.COPTER_LAND_OVERHEAD:.1f} s" in text
+    assert f"(v/a + {apm.COPTER_LEG_OVERHEAD:.1f} s)" in text
+    assert f"(v/a + {apm.ROVER_LEG_OVERHEAD:.1f} s)" in text
+    assert f"more than {HOME_ALT_TOLERANCE:g} m off" in text
+    names = documented_params(text)
+    for p in (*apm.COPTER_SPEEDS, *apm.ROVER_SPEEDS):
+        assert p.name in names, p.name
+        if p.scale == 100.0:  # cm/s rows state the range set
+            assert f"{p.lo:g} – {p.hi:g}" in text, p.name
+
+
+def test_docs_autopilots_states_the_deck_of_the_json_physics() -> None:
+    from sitl.json_physics import Deck
+
+    deck = Deck()
+    assert f"({deck.height:g} m high, {deck.radius:g} m" in DOC.read_text()
+
+
+def test_px4_handling_is_planned_and_documented(tmp_path: Path) -> None:
+    from fleetctl.mavlink.autopilots import px4
+
+    d = mission_dict(carrier_connection="udpin://127.0.0.1:14599")
+    d["rovers"].update(max_speed=5.0, accel=3.0, climb_rate=1.5, land_speed=0.7)
+    fitted = fitted_handling(mission_from(d, tmp_path), [px4.Px4(M.MAV_TYPE_QUADROTOR)])
+    assert fitted is not None
+    r = fitted.rovers
+    assert r.takeoff_time == pytest.approx(TAKEOFF_HEIGHT / 1.5 + px4.MC_TAKEOFF_OVERHEAD)
+    assert r.land_time == pytest.approx(MEET_HEIGHT / 0.7 + px4.MC_LAND_OVERHEAD)
+    assert r.accel == pytest.approx(5.0 / (5.0 / 3.0 + px4.MC_LEG_OVERHEAD))
+    assert px4.Px4(M.MAV_TYPE_GROUND_ROVER).handling_times(1.5, 0.7) is None  # a carrier: none
+    text = DOC.read_text()
+    assert f"`TAKEOFF_HEIGHT / climb_rate + {px4.MC_TAKEOFF_OVERHEAD:.1f} s`" in text
+    assert f"`MEET_HEIGHT / land_speed + {px4.MC_LAND_OVERHEAD:.1f} s`" in text
+    assert f"`v / (v/a + {px4.MC_LEG_OVERHEAD:.1f} s)`" in text
+    names = documented_params(text)
+    for p in (*px4.MC_SPEED_PARAMS, *px4.ROVER_SPEED_PARAMS):
+        assert p.name in names, p.name
+    assert "| PX4 | v1.18" in text  # the tested firmware table
+
+
+def test_docs_state_how_long_a_landed_rover_is_given_to_disarm() -> None:
+    from fleetctl.run.collect import DISARM_WAIT
+
+    text = (DOC.parent / "mavlink.md").read_text()
+    assert f"after {DISARM_WAIT:g} s it is\ntold to" in text
+
+
+def test_docs_state_when_a_rover_is_landed_over_the_carrier_instead_of_the_stop() -> None:
+    from fleetctl.run.collect import RETARGET_OFFSET
+
+    assert f"more than {RETARGET_OFFSET:g} m off the carrier" in (DOC.parent / "mavlink.md").read_text()
