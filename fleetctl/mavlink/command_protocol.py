@@ -5,6 +5,7 @@ and :func:`set_message_interval`. One command of a kind per vehicle at a time.""
 from __future__ import annotations
 
 import logging
+import time
 from collections.abc import Iterable
 from typing import TYPE_CHECKING
 
@@ -34,7 +35,10 @@ async def send_command(
     ``params`` are param1..param7. ``frame=None`` sends COMMAND_LONG (resent with
     ``confirmation`` incremented); a frame sends COMMAND_INT with param5/param6 as latitude/
     longitude in degrees (encoded ·1e7) and param7 as z. After MAV_RESULT_IN_PROGRESS the
-    final ACK is awaited up to ``progress_timeout``. :class:`LinkTimeout` when no ACK comes.
+    final ACK is awaited up to ``progress_timeout``. An attempt waits ``timeout`` until the link
+    has measured its round trips, then the link's retransmission timeout
+    (:class:`~fleetctl.mavlink.rtt.RoundTrip`, at most ``timeout``). :class:`LinkTimeout` when no
+    ACK comes.
     """
     p = [float(v) for v in params]
     if len(p) > 7:
@@ -52,11 +56,14 @@ async def send_command(
                     msg = link.mav.command_int_encode(sysid, compid, frame, command, 0, 0, *p[:4],
                                                       deg_e7(p[4]), deg_e7(p[5]), p[6])
                 link.send(msg, sysid)
+                sent = time.monotonic()
                 try:
-                    ack = await inbox.get(timeout)
+                    ack = await inbox.get(link.rtt.timeout(timeout))
                 except TimeoutError:
                     log.debug("%s: no ACK for %s from %d (attempt %d)", link.url, name, sysid, attempts)
                     continue
+                if attempts == 1:
+                    link.rtt.add(time.monotonic() - sent)
                 while ack.result == M.MAV_RESULT_IN_PROGRESS:
                     try:
                         ack = await inbox.get(progress_timeout)
@@ -66,7 +73,7 @@ async def send_command(
                 return CommandAck(sysid, command, ack.result, attempts, getattr(ack, "progress", 0),
                                   getattr(ack, "result_param2", 0))
     raise LinkTimeout(f"system {sysid} did not acknowledge {name} "
-                      f"({attempts} attempts, {timeout:g} s each) on {link.url}")
+                      f"({attempts} attempts, up to {timeout:g} s each) on {link.url}")
 
 async def set_message_interval(link: Link, sysid: int, msgid: int, hz: float, *, compid: int = 1,
                                retries: int = COMMAND_RETRIES) -> CommandAck:

@@ -71,6 +71,7 @@ from fleetctl.mavlink.command_protocol import (
 from fleetctl.mavlink.errors import LinkError, LinkTimeout, MissionRejected
 from fleetctl.mavlink.expectations import Inbox, Waiter
 from fleetctl.mavlink.messages import CommandAck, MissionItem, command_name, enum_name
+from fleetctl.mavlink.rtt import RoundTrip
 from fleetctl.mavlink.signing import (
     OK,
     REJECTION_KEYS,
@@ -170,6 +171,7 @@ class Link:
         self._locks: dict[Any, asyncio.Lock] = {}
         self._open = False
         self.mission_rtt = 0.0  # of the last mission exchange; sets the item timeout of a download
+        self.rtt = RoundTrip()  # the commands' round trips: how long an attempt waits before a resend
         self.route_timeout = route_timeout
         self.on_route_conflict = on_route_conflict
         self.route_conflicts = 0

@@ -51,7 +51,7 @@ async def upload_mission(
             t0 = time.monotonic()
             last: Any = count_msg
             started = False
-            base = wait = timeout
+            base = wait = link.rtt.timeout(timeout)  # the link's retransmission timeout, once known
             left = retries
             served = 0
             while True:
@@ -66,7 +66,7 @@ async def upload_mission(
                     left -= 1
                     link.send(last, sysid)
                     t0 = time.monotonic()  # the round trip is measured from the last send
-                    wait = min(wait * 2, timeout) if started else timeout
+                    wait = min(wait * 2, timeout)  # backing off up to the protocol timeout
                     continue
                 if m.get_type() == "MISSION_ACK":
                     if m.type == M.MAV_MISSION_ACCEPTED:
@@ -103,7 +103,8 @@ async def download_mission(
         with link.collect(types, sysid=sysid, match=_mission_match(mission_type)) as inbox:
             count_msg = await _exchange(
                 link, inbox, link.mav.mission_request_list_encode(sysid, compid, mission_type), sysid,
-                lambda m: m.get_type() == "MISSION_COUNT", timeout, timeout, retries, "download")
+                lambda m: m.get_type() == "MISSION_COUNT", link.rtt.timeout(timeout), timeout, retries,
+                "download")
             n = count_msg.count
             base = max(item_timeout, 3.0 * link.mission_rtt)
             items: list[MissionItem] = []
@@ -126,7 +127,7 @@ async def clear_mission(link: Link, sysid: int, *, compid: int = 1, mission_type
     async with link.lock(("mission", sysid)):
         with link.collect("MISSION_ACK", sysid=sysid, match=_mission_match(mission_type)) as inbox:
             await _exchange(link, inbox, link.mav.mission_clear_all_encode(sysid, compid, mission_type),
-                                 sysid, lambda m: True, timeout, timeout, retries, "clear")
+                                 sysid, lambda m: True, link.rtt.timeout(timeout), timeout, retries, "clear")
 
 async def _exchange(link: Link, inbox: Inbox, msg: Any, sysid: int, accept: Callable[[Any], bool],
                     first_wait: float, max_wait: float, retries: int, operation: str) -> Any:
