@@ -214,23 +214,26 @@ def cmd_fly(args: argparse.Namespace) -> int:
 
 def cmd_resume(args: argparse.Namespace) -> int:
     from fleetctl.run.resume import ResumeError, load_resumption
+    from fleetctl.run.resume_teams import is_teams_run, load_teams_resumption
 
     try:
-        resumption = load_resumption(args.run, args.mission)
+        if is_teams_run(args.run):  # a run of several teams in one controller (docs/teams.md#resume)
+            teams = load_teams_resumption(args.run, args.mission)
+            resumption: Any = teams
+            extra: dict[str, Any] = {"teams_resume": teams}
+        else:
+            resumption = load_resumption(args.run, args.mission)
+            extra = {"resume": resumption}
     except ResumeError as e:
         raise CliError(str(e)) from None
+    if several_teams(resumption.mission) and "resume" in extra:
+        raise CliError(f"{args.run}: the journal is of a run of one carrier and the mission has "
+                       f"{len(resumption.mission.teams)} (carriers:); the journal and the mission do not "
+                       "match")
     for key in ("planner", "dwell"):  # the interrupted run's choices, unless given again
         if getattr(args, key, None) is None:
             setattr(args, key, resumption.options.get(key))
-    return _fly(args, resumption.mission, resumption.command, {"resume": resumption})
-
-
-def _one_team(mission: Mission, command: str) -> None:
-    if several_teams(mission):
-        raise CliError(f"{mission.path or mission.name}: '{command}' supports one carrier and this mission "
-                       f"has {len(mission.teams)} (carriers:); several teams fly with deploy, collect and "
-                       "run (every team in one controller, or one per controller with --team ID), and "
-                       "'sim' serves them (docs/teams.md)")
+    return _fly(args, resumption.mission, resumption.command, extra)
 
 
 def _fly(args: argparse.Namespace, mission: Mission, command: str, extra: dict[str, Any]) -> int:
@@ -241,8 +244,6 @@ def _fly(args: argparse.Namespace, mission: Mission, command: str, extra: dict[s
     from fleetctl.views.dashboard import make_view
 
     team = getattr(args, "team", None)
-    if "resume" in extra:  # several teams fly deploy/collect/run (docs/teams.md), not resume yet
-        _one_team(mission, "resume")
     if args.speedup is not None and args.speedup <= 0:
         raise CliError(f"--speedup must be > 0, got {args.speedup}")
     if getattr(args, "dwell", None) is not None and args.dwell < 0:
