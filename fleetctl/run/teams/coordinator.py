@@ -383,7 +383,11 @@ class TeamsRun:
         if resume is not None:  # shared again from the live fleet: rovers already on a deck stay there
             ids = ([cr.id for cr in self.mission.collection or ()] if self.command == "collect"
                    else [*resume.launched(), *self._launched()])
-            live = dataclasses.replace(self.live_mission(), collection=await self._rovers_in_the_field(ids))
+            field = await self._rovers_in_the_field(ids)
+            live = dataclasses.replace(self.live_mission(), collection=field)
+            out = {cr.id for cr in field} | set(self.left)  # launched, found on a deck: loaded before
+            self.loaded_before += [r for r in dict.fromkeys(ids) if r not in out and
+                                   r not in self.loaded_before]
         elif self.command == "collect":
             live = self.live_mission()
         else:
