@@ -216,24 +216,60 @@ def cmd_resume(args: argparse.Namespace) -> int:
     from fleetctl.run.resume import ResumeError, load_resumption
     from fleetctl.run.resume_teams import is_teams_run, load_teams_resumption
 
+    team = None
     try:
         if is_teams_run(args.run):  # a run of several teams in one controller (docs/teams.md#resume)
             teams = load_teams_resumption(args.run, args.mission)
             resumption: Any = teams
             extra: dict[str, Any] = {"teams_resume": teams}
         else:
-            resumption = load_resumption(args.run, args.mission)
+            team = _resumed_team(args)  # a --team controller's run: that team again
+            resumption = team[1] if team is not None else load_resumption(args.run, args.mission)
             extra = {"resume": resumption}
     except ResumeError as e:
         raise CliError(str(e)) from None
-    if several_teams(resumption.mission) and "resume" in extra:
+    mission = team[0] if team is not None else resumption.mission
+    if team is None and several_teams(mission) and "resume" in extra:
         raise CliError(f"{args.run}: the journal is of a run of one carrier and the mission has "
-                       f"{len(resumption.mission.teams)} (carriers:); the journal and the mission do not "
-                       "match")
+                       f"{len(mission.teams)} (carriers:); the journal and the mission do not match")
     for key in ("planner", "dwell"):  # the interrupted run's choices, unless given again
         if getattr(args, key, None) is None:
             setattr(args, key, resumption.options.get(key))
-    return _fly(args, resumption.mission, resumption.command, extra)
+    return _fly(args, mission, resumption.command, extra)
+
+
+def _resumed_team(args: argparse.Namespace) -> tuple[Mission, Any] | None:
+    """``resume`` of a ``--team ID`` controller's run folder (its ``run`` record names the team):
+    the whole mission and the :class:`~fleetctl.run.resume.Resumption` of that team's run, over
+    the team's share (the allocation every team's controller computes alike) or, for ``collect
+    --team``, its deck; ``args`` get ``team`` and the interrupted run's planner and dwell. None
+    for any other run folder."""
+    from pathlib import Path
+
+    from fleetctl.mission.teams import team_mission
+    from fleetctl.run.resume import ResumeError, read_records, read_run, resumption_of
+    from fleetctl.run.teams.own_controller import team_shares
+    from planners import PlanningError
+
+    path = Path(args.run) / "journal.jsonl"
+    if not path.is_file():
+        return None
+    run = next((r for r in read_records(path) if r["kind"] == "run"), None)
+    if run is None or not isinstance(run.get("team"), str):
+        return None
+    d, records, run, whole = read_run(args.run, args.mission)
+    team, command = str(run["team"]), str(run["command"])
+    for key in ("planner", "dwell"):  # the interrupted run's choices, unless given again
+        if getattr(args, key, None) is None:
+            setattr(args, key, run.get(key))
+    args.team = team
+    try:
+        tasks = () if command == "collect" else team_shares(whole, args.planner).get(team, [])
+        own = team_mission(whole, team, tasks=tasks)
+    except (MissionError, KeyError, PlanningError) as e:
+        raise ResumeError(f"{d}: cannot fly team {team} of {whole.path or whole.name} again: {e}") from None
+    return whole, resumption_of(d, records, command, own, float(run.get("speedup") or 1.0),
+                                {"planner": run.get("planner"), "dwell": run.get("dwell")})
 
 
 def _fly(args: argparse.Namespace, mission: Mission, command: str, extra: dict[str, Any]) -> int:
@@ -265,7 +301,8 @@ def _fly(args: argparse.Namespace, mission: Mission, command: str, extra: dict[s
     options = dict(speedup=args.speedup, planner=args.planner, dwell=getattr(args, "dwell", None),
                    summary_path=args.summary, view=view, connect_timeout=args.timeout, mqtt=mqtt,
                    on_run_dir=announce, require_all=args.require_all, force=args.force,
-                   confirm=_arming_confirmation(args, mission, command), team_spec=spec, **extra)
+                   confirm=_arming_confirmation(args, mission, command), team_spec=spec, team=team,
+                   **extra)
     if args.speedup is not None and mission.carrier.connection != "sim":  # SITL firmware run faster
         options["clock_speedup"] = args.speedup
     try:

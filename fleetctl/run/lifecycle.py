@@ -69,6 +69,7 @@ class RunOptions:
     mqtt: Any = None
     resume: Resumption | None = None  # a one-team run to finish
     teams_resume: TeamsResumption | None = None  # a run of several teams to finish
+    team: str | None = None  # --team ID: the one team of a several-carrier mission flown (run record)
     require_all: bool = False  # refuse a fleet with a rover that does not answer
     force: bool = False  # fly although another controller seems to be in charge
     confirm: Callable[[list[str]], bool] | None = None  # asked before arming (real vehicles)
@@ -153,6 +154,8 @@ class Session:
             with contextlib.suppress(OSError):
                 await asyncio.to_thread(j.save_mission, m.path)
                 await asyncio.to_thread(copy_data_files, m, j.dir)  # tasks/obstacles {file}: for resume
+        if self.opts.team is not None:  # resume flies this team again
+            extra["team"] = self.opts.team
         await j.commit(Ev.RUN, mission=m.name, command=self.command, file=str(m.path or ""),
                        sim=self.uses_sim, speedup=self.scale, planner=self.opts.planner,
                        dwell=self.opts.dwell, unix_t0=time.time(), **extra)
