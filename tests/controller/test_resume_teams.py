@@ -46,6 +46,7 @@ from resume_helpers import (
 )
 
 from tests.teams.teams_helpers import two_teams
+from tests.test_bus import MOSQUITTO, Broker
 
 TASKS = ["t1", "t2", "t3", "t4"]
 TEAMS = {"c1": ["r1", "r2"], "c2": ["r3", "r4"]}
@@ -56,16 +57,16 @@ POLL = 0.005  # s between looks at the journals
 WAIT = 60.0  # s: bound of every wait (never a timing assertion)
 
 
-def write_two_teams(tmp_path: Path) -> tuple[Path, dict[str, Any]]:
-    """Both carriers and their rovers on one UDP URL, the sim at 5x; each team's two tasks 60 m
-    apart in a row north of its carrier, ``deploy_range`` 15 m: each team plans two stops of one
-    launch each."""
+def write_two_teams(tmp_path: Path, links: int = 1) -> tuple[Path, dict[str, Any]]:
+    """Both carriers and their rovers on one UDP URL (``links`` 2: each team on its own), the sim
+    at 5x; each team's two tasks 60 m apart in a row north of its carrier, ``deploy_range`` 15 m:
+    each team plans two stops of one launch each."""
     d = two_teams(tasks=[{"id": "t1", "position": [-5, 30, 5]}, {"id": "t2", "position": [5, 90, 4]},
                          {"id": "t3", "position": [75, 30, 5]}, {"id": "t4", "position": [85, 90, 4]}])
     d["rovers"]["deploy_range"] = 15.0
-    url = f"udp://127.0.0.1:{free_udp_port()}"
-    for c in d["carriers"]:
-        c["connection"] = url
+    urls = [f"udp://127.0.0.1:{free_udp_port()}" for _ in range(links)]
+    for k, c in enumerate(d["carriers"]):
+        c["connection"] = urls[k % links]
     d["sim"]["speedup"] = 5.0
     path = tmp_path / "two.yaml"
     path.write_text(yaml.safe_dump(d, sort_keys=False), encoding="utf-8")
@@ -354,3 +355,117 @@ def test_resume_of_a_teams_run_refuses_in_one_line(tmp_path: Path, change: str, 
     assert "Traceback" not in out, out
     assert message in out, out
     assert len([line for line in out.splitlines() if line.strip()]) == 1, out
+
+
+# ---------------------------------------------------------------------------------------------------
+# a --team controller resumed
+# ---------------------------------------------------------------------------------------------------
+
+def _records(run_dir: Path) -> Records:
+    return _partial(run_dir / "journal.jsonl")
+
+
+def _team_launched(run_dir: Path) -> Callable[[dict[str, Records]], bool]:
+    return lambda _js: bool(of_kind(_records(run_dir), "rover_launched"))
+
+
+def _wait_records(ctl: Any, run_dir: Path, until: Callable[[Records], bool], what: str) -> Records:
+    wait_journals(ctl, run_dir, lambda _js: until(_records(run_dir)), what)
+    return _records(run_dir)
+
+
+def _check_team_killed(recs: Records, rovers: list[str]) -> None:
+    launched = {r["vehicle"] for r in of_kind(recs, "rover_launched")}
+    assert 1 <= len(launched) < len(rovers), f"{sorted(launched)} launched when killed (test timing)"
+
+
+def _on_tasks(seen: dict[str, Seen], d: dict[str, Any]) -> dict[str, list[str]]:
+    return {t["id"]: [rid for rid, s in seen.items()
+                      if s.enu is not None and math.dist(s.enu, t["position"]) <= REACH]
+            for t in d["tasks"]}
+
+
+def test_kill_9_a_team_controller_then_resume_flies_its_share(tmp_path: Path) -> None:
+    """``deploy --team c1`` (no bus: its share alone) killed after its first launch; resumed, it
+    flies the rest of c1's share and nothing else: c2's rovers stay on c2's deck."""
+    mission, d = write_two_teams(tmp_path)
+    run_dir = tmp_path / "c1"
+    with sim_process(mission, tmp_path / "sim.log", speedup=5.0, vehicles=len(TEAMS) + len(ROVERS)) as sim:
+        with controller(["deploy", "--team", "c1", "--mission", str(mission), "--run-dir", str(run_dir),
+                         "--headless", "--yes"], tmp_path / "fly.log") as fly:
+            killed = _wait_records(fly, run_dir, lambda rs: bool(of_kind(rs, "rover_launched")),
+                                   "c1's rover_launched record")
+            assert fly.kill9() == -signal.SIGKILL
+        _check_team_killed(killed, TEAMS["c1"])
+        assert of_kind(killed, "run")[0].get("team") == "c1", of_kind(killed, "run")
+        rc, out = run_ctl(["resume", "--run", str(run_dir), "--headless", "--yes"], tmp_path / "resume.log")
+        seen = observe(mission)
+        assert sim.proc.poll() is None, sim.output()
+    p = Problems()
+    p.check(rc == 0, f"resume exited {rc}")
+    p.check("Traceback" not in out, "a traceback in the output of resume")
+    recs = parse_journal_strict(run_dir)
+    p.check(len(of_kind(recs, "resumed")) == 1, "no single 'resumed' record")
+    for v in launch_violations(recs):
+        p.check(False, v)
+    reached = Counter(r["task"] for r in of_kind(recs, "task_reached"))
+    p.check(reached == Counter({"t1": 1, "t2": 1}), f"c1 reached {dict(reached)} (want t1, t2 once)")
+    launched = Counter(r["vehicle"] for r in of_kind(recs, "rover_launched"))
+    p.check(set(launched) <= set(TEAMS["c1"]) and all(n == 1 for n in launched.values()),
+            f"rovers launched {dict(launched)}")
+    result = read_summary(run_dir).get("result")
+    p.check(result == "complete", f"summary result {result}")
+    on_task = _on_tasks(seen, d)
+    p.check(len(on_task["t1"]) == 1 and len(on_task["t2"]) == 1 and not on_task["t3"] and not on_task["t4"],
+            f"the world: rovers on the tasks {on_task}")
+    p.check(all(seen[r].deck == "c2" for r in TEAMS["c2"]), "the world: c2's rovers left its deck")
+    p.assert_none(f"the world:\n{describe(seen)}", f"resume output:\n{out[-2000:]}")
+
+
+@pytest.mark.skipif(MOSQUITTO is None, reason="mosquitto binary not installed")
+def test_a_resumed_team_controller_rejoins_the_bus(tmp_path: Path) -> None:
+    """Both teams' controllers (``deploy --team``) coordinate over a real mosquitto; c1's is killed
+    after its first launch and resumed while c2 flies on: c1 re-joins the bus (a new session, its
+    share claimed again) and finishes its share; every task is reached once, by one team."""
+    broker = Broker(tmp_path)
+    broker.start()
+    try:
+        mission, d = write_two_teams(tmp_path, links=2)  # each controller on its own team's link
+        d["mqtt"] = {"url": broker.url, "topic_prefix": "test/resume-team"}
+        mission.write_text(yaml.safe_dump(d, sort_keys=False), encoding="utf-8")
+        d1, d2 = tmp_path / "c1", tmp_path / "c2"
+        vehicles = len(TEAMS) + len(ROVERS)
+        with sim_process(mission, tmp_path / "sim.log", speedup=5.0, vehicles=vehicles) as sim, \
+                controller(["deploy", "--team", "c2", "--mission", str(mission), "--run-dir", str(d2),
+                            "--headless", "--yes"], tmp_path / "c2.log") as c2:
+            with controller(["deploy", "--team", "c1", "--mission", str(mission), "--run-dir", str(d1),
+                             "--headless", "--yes"], tmp_path / "c1.log") as c1:
+                killed = _wait_records(c1, d1, lambda rs: bool(of_kind(rs, "rover_launched")),
+                                       "c1's rover_launched record")
+                assert c1.kill9() == -signal.SIGKILL
+            _check_team_killed(killed, TEAMS["c1"])
+            rc, out = run_ctl(["resume", "--run", str(d1), "--headless", "--yes"], tmp_path / "resume.log")
+            rc2 = c2.wait()
+            seen = observe(mission)
+            assert sim.proc.poll() is None, sim.output()
+    finally:
+        broker.stop()
+    p = Problems()
+    p.check(rc == 0 and rc2 == 0, f"resume of c1 exited {rc}, c2 exited {rc2}")
+    p.check("Traceback" not in out, "a traceback in the output of resume")
+    r1, r2 = parse_journal_strict(d1), parse_journal_strict(d2)
+    after = r1[len(killed):]
+    p.check(len(of_kind(after, "resumed")) == 1, "no single 'resumed' record appended to c1's journal")
+    sessions = [r.get("session") for r in of_kind(r1, "team") if r.get("session")]
+    p.check(len(set(sessions)) == 2, f"c1's link sessions {sessions}: want the killed one and a new one")
+    rejoined = [r for r in of_kind(after, "team") if r.get("session")]
+    p.check(bool(rejoined) and rejoined[0].get("share") == ["t1", "t2"], f"c1 re-joined with {rejoined}")
+    reached = Counter(r["task"] for r in of_kind(r1 + r2, "task_reached"))
+    p.check(reached == Counter({t: 1 for t in TASKS}), f"tasks reached (both teams) {dict(reached)}")
+    launched = Counter(r["vehicle"] for r in of_kind(r1 + r2, "rover_launched"))
+    p.check(all(n == 1 for n in launched.values()), f"a rover launched twice: {dict(launched)}")
+    for v in launch_violations(r1) + launch_violations(r2):
+        p.check(False, v)
+    on_task = _on_tasks(seen, d)
+    p.check(all(len(v) == 1 for v in on_task.values()), f"the world: rovers on each task {on_task}")
+    p.assert_none(f"the world:\n{describe(seen)}", f"resume output:\n{out[-2000:]}")
