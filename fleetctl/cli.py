@@ -538,6 +538,12 @@ the collection - with the same planners and replanning. It never launches a rove
 and never serves a reached task again; it appends to the same journal (a 'resumed' record) and
 writes DIR/summary.json for the whole run.
 
+Several teams (carriers:) in one controller: each team's deployment goes on from its own journal
+(DIR/teams/<carrier>/deploy/) over the tasks it owns now (its share and the hand-overs recorded in
+DIR/journal.jsonl), then the dwell left, then the collection shared out again from the live fleet.
+The run folder of a --team controller is resumed as that team's run (re-joining the bus with its
+claims). docs/teams.md#resume says more.
+
 It refuses (exit 2) a folder without a journal, a run that completed, a --mission that is not
 the saved one, and a run on the embedded simulated fleet (connection: sim), which died with the
 controller. Exit status otherwise as for deploy/collect/run.
