@@ -230,8 +230,9 @@ def cmd_resume(args: argparse.Namespace) -> int:
         raise CliError(str(e)) from None
     mission = team[0] if team is not None else resumption.mission
     if team is None and several_teams(mission) and "resume" in extra:
-        raise CliError(f"{args.run}: the journal is of a run of one carrier and the mission has "
-                       f"{len(mission.teams)} (carriers:); the journal and the mission do not match")
+        raise CliError(f"{args.run}: the mission has {len(mission.teams)} carriers and the journal's run "
+                       "record names neither its teams (every team in one controller) nor the team it flew "
+                       "(--team ID); it cannot be told what to resume")
     for key in ("planner", "dwell"):  # the interrupted run's choices, unless given again
         if getattr(args, key, None) is None:
             setattr(args, key, resumption.options.get(key))

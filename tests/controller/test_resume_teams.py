@@ -327,13 +327,15 @@ def check_resumed(p: Problems, rc: int, out: str, run_dir: Path, before: dict[st
 # what resume refuses, in one line
 # ---------------------------------------------------------------------------------------------------
 
-def _teams_run_folder(tmp_path: Path, d: dict[str, Any], teams: dict[str, list[str]]) -> Path:
+def _teams_run_folder(tmp_path: Path, d: dict[str, Any], teams: dict[str, list[str]] | None) -> Path:
     """A run folder of a several-team deploy killed right after its ``run`` record."""
     run_dir = tmp_path / "run"
     run_dir.mkdir()
     (run_dir / "mission.yaml").write_text(yaml.safe_dump(d, sort_keys=False), encoding="utf-8")
     rec = {"kind": "run", "t": time.time(), "elapsed": 0.0, "mission": d["name"], "command": "deploy",
-           "file": "", "sim": False, "speedup": 1.0, "planner": None, "dwell": None, "teams": teams}
+           "file": "", "sim": False, "speedup": 1.0, "planner": None, "dwell": None}
+    if teams is not None:
+        rec["teams"] = teams
     (run_dir / "journal.jsonl").write_text(json.dumps(rec) + "\n", encoding="utf-8")
     return run_dir
 
@@ -341,9 +343,10 @@ def _teams_run_folder(tmp_path: Path, d: dict[str, Any], teams: dict[str, list[s
 @pytest.mark.parametrize(("change", "teams", "message"), [
     ("sim", TEAMS, "embedded simulated fleet"),
     ("udp", {"c1": ["r1", "r2"], "c9": ["r3", "r4"]}, "are not the mission's carriers"),
-], ids=["embedded-sim", "other-teams"])
-def test_resume_of_a_teams_run_refuses_in_one_line(tmp_path: Path, change: str, teams: dict[str, list[str]],
-                                                   message: str) -> None:
+    ("udp", None, "names neither its teams"),
+], ids=["embedded-sim", "other-teams", "no-teams-named"])
+def test_resume_of_a_teams_run_refuses_in_one_line(tmp_path: Path, change: str,
+                                                   teams: dict[str, list[str]] | None, message: str) -> None:
     d = two_teams()
     if change == "udp":
         for c in d["carriers"]:
