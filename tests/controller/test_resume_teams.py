@@ -128,12 +128,12 @@ class Seen:
     deck: str | None  # the carrier on whose deck it sits
 
 
-def observe(mission_path: Path, timeout: float = 8.0) -> dict[str, Seen]:
+def observe(mission_path: Path, timeout: float = 8.0, rovers: list[str] = ROVERS) -> dict[str, Seen]:
     """Every rover as its telemetry shows it now (a second GCS on the sim's links)."""
-    return asyncio.run(_observe(mission_path, timeout))
+    return asyncio.run(_observe(mission_path, timeout, rovers))
 
 
-async def _observe(mission_path: Path, timeout: float) -> dict[str, Seen]:
+async def _observe(mission_path: Path, timeout: float, rovers: list[str]) -> dict[str, Seen]:
     from fleetctl.mavlink.fleet import connect_fleet
     from fleetctl.mission import load_mission
 
@@ -147,7 +147,7 @@ async def _observe(mission_path: Path, timeout: float) -> dict[str, Seen]:
         await asyncio.gather(*(telemetry(v) for v in fleet.vehicles.values()))
         await asyncio.sleep(0.3)
         out: dict[str, Seen] = {}
-        for rid in ROVERS:
+        for rid in rovers:
             v, p = fleet.vehicles[rid], fleet.vehicles[rid].enu
             deck = None
             for cid in TEAMS:
@@ -321,6 +321,59 @@ def check_resumed(p: Problems, rc: int, out: str, run_dir: Path, before: dict[st
              for k, recs in js.items()]
     return ["journals after resume:", *story, f"the world after resume:\n{describe(seen)}",
             f"resume output:\n{out[-2000:]}"]
+
+
+def test_kill_9_after_a_handover_then_resume_honours_it(tmp_path: Path) -> None:
+    """c1's r1 refuses to arm (a simulated fault) and c1 has no spare: c1 hands its unserved task
+    over to c2 (4 rovers). The controller is killed right after the ``handover`` record; resumed,
+    the task is c2's: c2 flies it once, c1 never does."""
+    mission, d = write_two_teams(tmp_path)
+    d["carriers"][1]["fleet"] = {"count": 4, "sysid_start": 31}
+    d["sim"]["faults"] = [{"kind": "refuse_arm", "vehicle": "r1"}]
+    mission.write_text(yaml.safe_dump(d, sort_keys=False), encoding="utf-8")
+    rovers = ["r1", "r2", "r3", "r4", "r5", "r6"]
+    run_dir = tmp_path / "run"
+
+    def handed(js: dict[str, Records]) -> bool:
+        return any(r.get("to_team") == "c2" for r in of_kind(js["run"], "handover"))
+
+    with sim_process(mission, tmp_path / "sim.log", speedup=5.0, vehicles=2 + len(rovers)) as sim:
+        with controller(["deploy", "--mission", str(mission), "--run-dir", str(run_dir), "--headless",
+                         "--yes"], tmp_path / "fly.log") as fly:
+            wait_journals(fly, run_dir, handed, "a handover record to c2")
+            assert fly.kill9() == -signal.SIGKILL
+        killed = journals(run_dir)
+        (h,) = [r for r in of_kind(killed["run"], "handover") if r.get("to_team") == "c2"]
+        task = h["tasks"][0]
+        assert task not in {r["task"] for r in of_kind(team_records(killed, "deploy"), "task_reached")}
+        before = journal_texts(run_dir)
+        rc, out = run_ctl(["resume", "--run", str(run_dir), "--headless", "--yes"], tmp_path / "resume.log")
+        seen = observe(mission, rovers=rovers)
+        assert sim.proc.poll() is None, sim.output()
+    p = Problems()
+    p.check(rc == 0, f"resume exited {rc}")
+    p.check("Traceback" not in out, "a traceback in the output of resume")
+    after = journal_texts(run_dir)
+    for name, text in before.items():
+        p.check(after.get(name, "").startswith(text[: text.rfind("\n") + 1]), f"resume rewrote {name}")
+    js = journals(run_dir)
+    reached = Counter(r["task"] for r in of_kind(team_records(js, "deploy"), "task_reached"))
+    p.check(reached == Counter({t: 1 for t in TASKS}), f"tasks reached {dict(reached)} (each once)")
+    by_c2 = {r["task"] for r in of_kind(js.get("c2/deploy", []), "task_reached")}
+    by_c1 = {r["task"] for r in of_kind(js.get("c1/deploy", []), "task_reached")}
+    p.check(task in by_c2 and task not in by_c1, f"handed {task}: reached by c1 {by_c1}, c2 {by_c2}")
+    c1_launches = {r["task"] for r in of_kind(js.get("c1/deploy", []), "rover_launched")}
+    p.check(task not in c1_launches, f"c1 launched a rover for {task}, handed to c2")
+    launched = Counter(r["vehicle"] for r in of_kind(team_records(js, "deploy"), "rover_launched"))
+    p.check(all(n == 1 for n in launched.values()) and "r1" not in launched,
+            f"rovers launched {dict(launched)}")
+    summary = read_summary(run_dir)
+    p.check(summary.get("result") == "complete", f"summary result {summary.get('result')}")
+    p.check(any(x["tasks"] == [task] and x["to"] == "c2" for x in summary.get("handovers", [])),
+            f"summary handovers {summary.get('handovers')}")
+    on_task = _on_tasks(seen, d)
+    p.check(all(len(v) == 1 for v in on_task.values()), f"the world: rovers on each task {on_task}")
+    p.assert_none(f"the world:\n{describe(seen)}", f"resume output:\n{out[-2000:]}")
 
 
 # ---------------------------------------------------------------------------------------------------
