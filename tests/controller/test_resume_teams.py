@@ -239,6 +239,8 @@ KILL_CASES = {
                                       _check_mid_deployment),
     "deploy-launch-written-ahead": KillCase(["deploy"], _launch_at_stop_2, "a launch record at a stop 2",
                                             _check_launch_written),
+    "run-mid-deployment": KillCase(["run", "--dwell", "1"], _launched, "a team's rover_launched record",
+                                   _check_mid_deployment),
     "run-during-dwell": KillCase(["run", "--dwell", "4"], _dwelling, "the run's dwell record",
                                  _check_dwelling),
     "run-during-collection": KillCase(["run", "--dwell", "1"], _collecting,
@@ -270,8 +272,32 @@ def test_kill_9_a_two_team_run_then_resume_finishes_it(tmp_path: Path, case: str
     p.assert_none(*context)
 
 
+def test_a_resume_killed_in_turn_is_resumed_again(tmp_path: Path) -> None:
+    """A two-team deploy killed after a launch, its resume killed as soon as it has taken over
+    (its ``resumed`` record), and a second resume finishes it: still no task or rover flown twice."""
+    mission, d = write_two_teams(tmp_path)
+    run_dir = tmp_path / "run"
+    args = ["--run", str(run_dir), "--headless", "--yes"]
+    with sim_process(mission, tmp_path / "sim.log", speedup=5.0, vehicles=len(TEAMS) + len(ROVERS)) as sim:
+        with controller(["deploy", "--mission", str(mission), "--run-dir", str(run_dir), "--headless",
+                         "--yes"], tmp_path / "fly.log") as fly:
+            wait_journals(fly, run_dir, _launched, "a team's rover_launched record")
+            assert fly.kill9() == -signal.SIGKILL
+        _check_mid_deployment(journals(run_dir))
+        before = journal_texts(run_dir)
+        with controller(["resume", *args], tmp_path / "resume1.log") as again:
+            wait_journals(again, run_dir, lambda js: bool(of_kind(js["run"], "resumed")),
+                          "the resumed record")
+            assert again.kill9() == -signal.SIGKILL
+        rc, out = run_ctl(["resume", *args], tmp_path / "resume2.log")
+        seen = observe(mission)
+        assert sim.proc.poll() is None, sim.output()
+    p = Problems()
+    p.assert_none(*check_resumed(p, rc, out, run_dir, before, seen, d, run=False, resumes=2))
+
+
 def check_resumed(p: Problems, rc: int, out: str, run_dir: Path, before: dict[str, str],
-                  seen: dict[str, Seen], d: dict[str, Any], run: bool) -> list[str]:
+                  seen: dict[str, Seen], d: dict[str, Any], run: bool, resumes: int = 1) -> list[str]:
     p.check(rc == 0, f"resume exited {rc} (want 0)")
     p.check("Traceback" not in out, "a traceback in the output of resume")
     after = journal_texts(run_dir)
@@ -280,7 +306,8 @@ def check_resumed(p: Problems, rc: int, out: str, run_dir: Path, before: dict[st
         p.check(after.get(name, "").startswith(whole), f"resume rewrote {name}")
     run_recs = parse_journal_strict(run_dir)
     resumed = of_kind(run_recs[len(before["journal.jsonl"].splitlines()):], "resumed")
-    p.check(len(resumed) == 1, f"{len(resumed)} 'resumed' records appended to the run's journal (want 1)")
+    p.check(len(resumed) == resumes,
+            f"{len(resumed)} 'resumed' records appended to the run's journal (want {resumes})")
     js = journals(run_dir)
     dep = team_records(js, "deploy")
     launched = Counter(r["vehicle"] for r in of_kind(dep, "rover_launched"))
