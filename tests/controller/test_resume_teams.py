@@ -13,6 +13,13 @@ then ``fleetctl resume --run DIR`` must finish the run:
 * the summary complete, and the simulated world (a fresh MAVLink connection) agrees: after a
   ``deploy`` one rover on each task, the one the journals launched for it; after a ``run`` every
   rover on a carrier's deck, loaded once.
+
+The moments: before a team's first launch, after a launch, in a launch's write-ahead window,
+mid-deployment of a ``run`` (then the dwell and the collection), during the dwell, during the
+collection, right after a hand-over record (the handed task is flown once, by its new team), and
+a resume killed in turn. A ``--team`` controller killed and resumed flies its own share (or
+collects its own deck) only, and with a real mosquitto re-joins the bus while the other team
+flies on. Resume refuses what it cannot finish in one line.
 """
 
 from __future__ import annotations
@@ -502,6 +509,36 @@ def test_kill_9_a_team_controller_then_resume_flies_its_share(tmp_path: Path) ->
     p.check(len(on_task["t1"]) == 1 and len(on_task["t2"]) == 1 and not on_task["t3"] and not on_task["t4"],
             f"the world: rovers on the tasks {on_task}")
     p.check(all(seen[r].deck == "c2" for r in TEAMS["c2"]), "the world: c2's rovers left its deck")
+    p.assert_none(f"the world:\n{describe(seen)}", f"resume output:\n{out[-2000:]}")
+
+
+def test_kill_9_a_team_collection_then_resume_collects_its_deck(tmp_path: Path) -> None:
+    """``deploy --team c1`` to the end, then ``collect --team c1`` killed once its collection has
+    started: resumed, c1 collects its own rovers (each loaded once), c2's stay on its deck."""
+    mission, _ = write_two_teams(tmp_path)
+    dep, col = tmp_path / "c1-deploy", tmp_path / "c1-collect"
+    team = ["--team", "c1", "--mission", str(mission), "--headless", "--yes"]
+    with sim_process(mission, tmp_path / "sim.log", speedup=5.0, vehicles=len(TEAMS) + len(ROVERS)) as sim:
+        rc, out = run_ctl(["deploy", *team, "--run-dir", str(dep)], tmp_path / "deploy.log")
+        assert rc == 0, out
+        with controller(["collect", *team, "--run-dir", str(col)], tmp_path / "collect.log") as fly:
+            killed = _wait_records(fly, col, lambda rs: bool(of_kind(rs, "collection_started")),
+                                   "c1's collection_started record")
+            assert fly.kill9() == -signal.SIGKILL
+        assert of_kind(killed, "run")[0].get("team") == "c1"
+        rc, out = run_ctl(["resume", "--run", str(col), "--headless", "--yes"], tmp_path / "resume.log")
+        seen = observe(mission)
+        assert sim.proc.poll() is None, sim.output()
+    p = Problems()
+    p.check(rc == 0, f"resume exited {rc}")
+    p.check("Traceback" not in out, "a traceback in the output of resume")
+    recs = parse_journal_strict(col)
+    p.check(len(of_kind(recs, "resumed")) == 1, "no single 'resumed' record")
+    loaded = Counter(r["vehicle"] for r in of_kind(recs, "rover_loaded"))
+    p.check(loaded == Counter({"r1": 1, "r2": 1}), f"rovers loaded {dict(loaded)} (want c1's r1, r2 once)")
+    p.check(read_summary(col).get("result") == "complete", f"summary {read_summary(col).get('result')}")
+    decks = {rid: s.deck for rid, s in seen.items()}
+    p.check(decks == {"r1": "c1", "r2": "c1", "r3": "c2", "r4": "c2"}, f"the world: decks {decks}")
     p.assert_none(f"the world:\n{describe(seen)}", f"resume output:\n{out[-2000:]}")
 
 
