@@ -176,6 +176,8 @@ class TeamsRun:
             self.deployed_before = True
             for tid, (cid, _) in resume.reached().items():
                 board.reached.setdefault(tid, (cid, self.t0))
+            for entry in board.teams.values():
+                entry.status, entry.finished = TeamStatus.DONE, True
             self.loaded_before = resume.loaded()
 
     async def _begin_records(self) -> None:

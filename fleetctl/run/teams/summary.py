@@ -106,6 +106,13 @@ def _team(tr: TeamsRun, cid: str, dep: TeamRun | None, col: TeamRun | None) -> d
             else None,
             "records": str(dep.journal.dir),
         }
+    elif tr.deployed_before:  # resumed after the deployment: what its records told
+        out["deploy"] = {
+            "tasks_planned": e.tasks,
+            "tasks_received": [t.id for t in e.received],
+            "tasks_reached": [t for t, (team, _) in board.reached.items() if team == cid],
+            "records": str(tr.journal.dir / "teams" / cid / "deploy"),
+        }
     if col is not None:
         out["collect"] = {
             "rovers_planned": list(col.mission.rovers.ids),
