@@ -245,23 +245,63 @@ def cmd_fly(args: argparse.Namespace) -> int:
 
 def cmd_resume(args: argparse.Namespace) -> int:
     from fleetctl.run.resume import ResumeError, load_resumption
+    from fleetctl.run.resume_teams import is_teams_run, load_teams_resumption
 
+    team = None
     try:
-        resumption = load_resumption(args.run, args.mission)
+        if is_teams_run(args.run):  # a run of several teams in one controller (docs/teams.md#resume)
+            teams = load_teams_resumption(args.run, args.mission)
+            resumption: Any = teams
+            extra: dict[str, Any] = {"teams_resume": teams}
+        else:
+            team = _resumed_team(args)  # a --team controller's run: that team again
+            resumption = team[1] if team is not None else load_resumption(args.run, args.mission)
+            extra = {"resume": resumption}
     except ResumeError as e:
         raise CliError(str(e)) from None
+    mission = team[0] if team is not None else resumption.mission
+    if team is None and several_teams(mission) and "resume" in extra:
+        raise CliError(f"{args.run}: the mission has {len(mission.teams)} carriers and the journal's run "
+                       "record names neither its teams (every team in one controller) nor the team it flew "
+                       "(--team ID); it cannot be told what to resume")
     for key in ("planner", "dwell"):  # the interrupted run's choices, unless given again
         if getattr(args, key, None) is None:
             setattr(args, key, resumption.options.get(key))
-    return _fly(args, resumption.mission, resumption.command, {"resume": resumption})
+    return _fly(args, mission, resumption.command, extra)
 
 
-def _one_team(mission: Mission, command: str) -> None:
-    if several_teams(mission):
-        raise CliError(f"{mission.path or mission.name}: '{command}' supports one carrier and this mission "
-                       f"has {len(mission.teams)} (carriers:); several teams fly with deploy, collect and "
-                       "run (every team in one controller, or one per controller with --team ID), and "
-                       "'sim' serves them (docs/teams.md)")
+def _resumed_team(args: argparse.Namespace) -> tuple[Mission, Any] | None:
+    """``resume`` of a ``--team ID`` controller's run folder (its ``run`` record names the team):
+    the whole mission and the :class:`~fleetctl.run.resume.Resumption` of that team's run, over
+    the team's share (the allocation every team's controller computes alike) or, for ``collect
+    --team``, its deck; ``args`` get ``team`` and the interrupted run's planner and dwell. None
+    for any other run folder."""
+    from pathlib import Path
+
+    from fleetctl.mission.teams import team_mission
+    from fleetctl.run.resume import ResumeError, read_records, read_run, resumption_of
+    from fleetctl.run.teams.own_controller import team_shares
+    from planners import PlanningError
+
+    path = Path(args.run) / "journal.jsonl"
+    if not path.is_file():
+        return None
+    run = next((r for r in read_records(path) if r["kind"] == "run"), None)
+    if run is None or not isinstance(run.get("team"), str):
+        return None
+    d, records, run, whole = read_run(args.run, args.mission)
+    team, command = str(run["team"]), str(run["command"])
+    for key in ("planner", "dwell"):  # the interrupted run's choices, unless given again
+        if getattr(args, key, None) is None:
+            setattr(args, key, run.get(key))
+    args.team = team
+    try:
+        tasks = () if command == "collect" else team_shares(whole, args.planner).get(team, [])
+        own = team_mission(whole, team, tasks=tasks)
+    except (MissionError, KeyError, PlanningError) as e:
+        raise ResumeError(f"{d}: cannot fly team {team} of {whole.path or whole.name} again: {e}") from None
+    return whole, resumption_of(d, records, command, own, float(run.get("speedup") or 1.0),
+                                {"planner": run.get("planner"), "dwell": run.get("dwell")})
 
 
 def _fly(args: argparse.Namespace, mission: Mission, command: str, extra: dict[str, Any]) -> int:
@@ -272,8 +312,6 @@ def _fly(args: argparse.Namespace, mission: Mission, command: str, extra: dict[s
     from fleetctl.views.dashboard import make_view
 
     team = getattr(args, "team", None)
-    if "resume" in extra:  # several teams fly deploy/collect/run (docs/teams.md), not resume yet
-        _one_team(mission, "resume")
     if args.speedup is not None and args.speedup <= 0:
         raise CliError(f"--speedup must be > 0, got {args.speedup}")
     if getattr(args, "dwell", None) is not None and args.dwell < 0:
@@ -295,7 +333,8 @@ def _fly(args: argparse.Namespace, mission: Mission, command: str, extra: dict[s
     options = dict(speedup=args.speedup, planner=args.planner, dwell=getattr(args, "dwell", None),
                    summary_path=args.summary, view=view, connect_timeout=args.timeout, mqtt=mqtt,
                    on_run_dir=announce, require_all=args.require_all, force=args.force,
-                   confirm=_arming_confirmation(args, mission, command), team_spec=spec, **extra)
+                   confirm=_arming_confirmation(args, mission, command), team_spec=spec, team=team,
+                   **extra)
     if args.speedup is not None and mission.carrier.connection != "sim":  # SITL firmware run faster
         options["clock_speedup"] = args.speedup
     try:
@@ -533,6 +572,12 @@ lost; where the carrier is), then finishes the interrupted phase - and for a 'ru
 the collection - with the same planners and replanning. It never launches a rover that is flying
 and never serves a reached task again; it appends to the same journal (a 'resumed' record) and
 writes DIR/summary.json for the whole run.
+
+Several teams (carriers:) in one controller: each team's deployment goes on from its own journal
+(DIR/teams/<carrier>/deploy/) over the tasks it owns now (its share and the hand-overs recorded in
+DIR/journal.jsonl), then the dwell left, then the collection shared out again from the live fleet.
+The run folder of a --team controller is resumed as that team's run (re-joining the bus with its
+claims). docs/teams.md#resume says more.
 
 It refuses (exit 2) a folder without a journal, a run that completed, a --mission that is not
 the saved one, and a run on the embedded simulated fleet (connection: sim), which died with the

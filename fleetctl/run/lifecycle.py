@@ -30,6 +30,7 @@ from fleetctl.mission.formats import copy_data_files
 from fleetctl.run.context import ExecutionError
 from fleetctl.run.kinds import Ev
 from fleetctl.run.resume import Resumption
+from fleetctl.run.resume_teams import TeamsResumption
 from fleetctl.run.sim import mission_uses_sim, sim_fleet_config
 from fleetctl.views.view import View
 
@@ -66,7 +67,9 @@ class RunOptions:
     sim: Any = None
     clock_speedup: float | None = None
     mqtt: Any = None
-    resume: Resumption | None = None
+    resume: Resumption | None = None  # a one-team run to finish
+    teams_resume: TeamsResumption | None = None  # a run of several teams to finish
+    team: str | None = None  # --team ID: the one team of a several-carrier mission flown (run record)
     require_all: bool = False  # refuse a fleet with a rover that does not answer
     force: bool = False  # fly although another controller seems to be in charge
     confirm: Callable[[list[str]], bool] | None = None  # asked before arming (real vehicles)
@@ -111,6 +114,8 @@ class Session:
         o = self.opts
         if o.resume is not None:
             d = Path(o.resume.run_dir)
+        elif o.teams_resume is not None:
+            d = Path(o.teams_resume.run_dir)
         elif o.run_dir is not None:
             d = Path(o.run_dir)
         else:
@@ -142,13 +147,15 @@ class Session:
         """A new run's first records: the mission file and the data files it names copied into the
         run folder (for resume), then the ``run`` record (``extra``: more of its fields). A resumed
         run's journal goes on instead."""
-        if self.opts.resume is not None:
+        if self.opts.resume is not None or self.opts.teams_resume is not None:
             return
         m, j = self.mission, self.journal
         if m.path is not None:
             with contextlib.suppress(OSError):
                 await asyncio.to_thread(j.save_mission, m.path)
                 await asyncio.to_thread(copy_data_files, m, j.dir)  # tasks/obstacles {file}: for resume
+        if self.opts.team is not None:  # resume flies this team again
+            extra["team"] = self.opts.team
         await j.commit(Ev.RUN, mission=m.name, command=self.command, file=str(m.path or ""),
                        sim=self.uses_sim, speedup=self.scale, planner=self.opts.planner,
                        dwell=self.opts.dwell, unix_t0=time.time(), **extra)

@@ -28,6 +28,7 @@ from fleetctl.journal import JOURNAL_NAME, MISSION_COPY, JournalError, read_jour
 from fleetctl.mavlink.fleet import Fleet
 from fleetctl.mavlink.vehicle import Vehicle
 from fleetctl.mission import Mission, MissionError, load_mission
+from fleetctl.mission.teams import mission_teams
 from fleetctl.run.collect import ResumedCollect
 from fleetctl.run.deploy import HOLD_SPEED, REACH_RADIUS, ResumedDeploy
 from fleetctl.run.kinds import Ev
@@ -190,16 +191,26 @@ def _airborne(v: Vehicle) -> bool:
 # ================================================================================== the folder
 def load_resumption(run_dir: str | Path, mission_file: str | Path | None = None) -> Resumption:
     """Read a run folder (see the module docstring); :class:`ResumeError` when it cannot be resumed."""
+    d, records, run, mission = read_run(run_dir, mission_file)
+    return resumption_of(d, records, str(run["command"]), mission, float(run.get("speedup") or 1.0),
+                         {"planner": run.get("planner"), "dwell": run.get("dwell")})
+
+
+Records = list[dict[str, Any]]
+
+
+def read_run(run_dir: str | Path,
+             mission_file: str | Path | None = None) -> tuple[Path, Records, dict[str, Any], Mission]:
+    """The run folder ``run_dir``, its journal's records, its ``run`` record and the mission it
+    flew; :class:`ResumeError` when it cannot be resumed (no journal, another mission file, the
+    embedded simulated fleet, a run that completed, vehicles that are not the mission's)."""
     d = Path(run_dir)
     if not (d / JOURNAL_NAME).is_file():
         raise ResumeError(
             f"{d}: no {JOURNAL_NAME} here; give the run folder printed when the run "
             "started (runs/<mission>-<timestamp>)"
         )
-    try:
-        records = read_journal(d / JOURNAL_NAME)
-    except JournalError as exc:
-        raise ResumeError(str(exc)) from None
+    records = read_records(d / JOURNAL_NAME)
     run = next((r for r in records if r["kind"] == Ev.RUN), None)
     if run is None or run.get("command") not in ("deploy", "collect", "run"):
         raise ResumeError(f"{d / JOURNAL_NAME}: no 'run' record: not the journal of a deploy, collect or run")
@@ -214,17 +225,23 @@ def load_resumption(run_dir: str | Path, mission_file: str | Path | None = None)
     if last is not None and last.get("result") == "complete":
         raise ResumeError(f"{d}: this run completed ({last.get('phase')}); there is nothing to resume")
     _check_vehicles(d, records, mission)
-    res = Resumption(
-        d,
-        str(run["command"]),
-        mission,
-        TaskBoard.of(mission.tasks),
-        "deploy",
-        float(run.get("speedup") or 1.0),
-        options={"planner": run.get("planner"), "dwell": run.get("dwell")},
-    )
-    if res.command == "collect":
-        res.phase = "collect"
+    return d, records, run, mission
+
+
+def read_records(path: Path) -> list[dict[str, Any]]:
+    """A journal's records (:class:`ResumeError` when it cannot be read)."""
+    try:
+        return read_journal(path)
+    except JournalError as exc:
+        raise ResumeError(str(exc)) from None
+
+
+def resumption_of(d: Path, records: list[dict[str, Any]], command: str, mission: Mission, scale: float,
+                  options: dict[str, Any] | None = None) -> Resumption:
+    """The :class:`Resumption` of the run of ``command`` whose folder is ``d`` and journal
+    ``records``, flying ``mission`` (a run of several teams builds one per team's folder)."""
+    res = Resumption(d, command, mission, TaskBoard.of(mission.tasks),
+                     "collect" if command == "collect" else "deploy", scale, options=dict(options or {}))
     _replay(res, records)
     return res
 
@@ -251,7 +268,8 @@ def _mission(d: Path, run: dict[str, Any], mission_file: str | Path | None) -> M
 
 
 def _check_vehicles(d: Path, records: list[dict[str, Any]], mission: Mission) -> None:
-    sysids = {mission.carrier.id: mission.carrier.sysid} | {u.id: u.sysid for u in mission.rovers.units}
+    sysids = {t.carrier.id: t.carrier.sysid for t in mission_teams(mission)}
+    sysids |= {u.id: u.sysid for u in mission.rovers.units}
     for r in records:
         if r["kind"] != Ev.CONNECTED:
             continue
@@ -316,4 +334,4 @@ def _replay_task_change(board: TaskBoard, r: dict[str, Any]) -> None:
             board.add(Task(t["id"], (float(p[0]), float(p[1]), float(p[2]))))
 
 
-__all__ = ["ResumeError", "Resumption", "load_resumption"]
+__all__ = ["ResumeError", "Resumption", "load_resumption", "read_records", "read_run", "resumption_of"]

@@ -44,6 +44,8 @@ class Run:
     """One run of a command (see the module docstring)."""
 
     def __init__(self, mission: Mission, command: str, opts: RunOptions) -> None:
+        if opts.teams_resume is not None:
+            raise ExecutionError("the records are of a run of several teams and the mission has one carrier")
         self.session = Session(mission, command, opts)
         self.mission = mission
         self.command = command

@@ -100,9 +100,9 @@ class Sim:
 
 @contextlib.contextmanager
 def sim_process(mission: Path, log: Path, speedup: float = SIM_SPEEDUP,
-                timeout: float = 30.0) -> Iterator[Sim]:
-    """``fleetctl sim --mission M --speedup X`` in its own process, until it has printed every
-    vehicle's URL; stopped with SIGTERM (then killed) on the way out."""
+                timeout: float = 30.0, vehicles: int = 1 + len(ROVERS)) -> Iterator[Sim]:
+    """``fleetctl sim --mission M --speedup X`` in its own process, until it has printed the URL
+    of every one of its ``vehicles``; stopped with SIGTERM (then killed) on the way out."""
     with open(log, "wb") as out:
         proc = subprocess.Popen([*CLI, "sim", "--mission", str(mission), "--speedup", str(speedup)],
                                 stdout=out, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL, cwd=ROOT,
@@ -110,7 +110,7 @@ def sim_process(mission: Path, log: Path, speedup: float = SIM_SPEEDUP,
         sim = Sim(proc, log)
         try:
             deadline = time.monotonic() + timeout
-            while _tail(log, 100000).count("udp://") < 1 + len(ROVERS):
+            while _tail(log, 100000).count("udp://") < vehicles:
                 if proc.poll() is not None:
                     raise AssertionError(f"fleetctl sim exited ({proc.returncode}):\n{sim.output()}")
                 if time.monotonic() > deadline:

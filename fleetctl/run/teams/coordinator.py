@@ -37,7 +37,9 @@ from fleetctl.run.context import ExecutionError
 from fleetctl.run.kinds import Ev
 from fleetctl.run.lifecycle import EXIT_FAILED, EXIT_INTERRUPTED, EXIT_OK, RunOptions, RunOutcome, Session
 from fleetctl.run.results import PhaseResult
-from fleetctl.run.teams.board import ACTIVE, TeamEntry, TeamsBoard, TeamStatus
+from fleetctl.run.resume import Resumption
+from fleetctl.run.resume_teams import TeamsResumption
+from fleetctl.run.teams.board import ACTIVE, Handover, TeamEntry, TeamsBoard, TeamStatus
 from fleetctl.run.teams.bus import TeamsBuses
 from fleetctl.run.teams.handover import Handovers
 from fleetctl.run.teams.live import live_mission, rovers_in_the_field
@@ -60,7 +62,8 @@ class TeamsRun:
 
     def __init__(self, mission: Mission, command: str, opts: RunOptions) -> None:
         if opts.resume is not None:
-            raise ExecutionError("resume flies one carrier; a run of several teams cannot be resumed yet")
+            raise ExecutionError("the records are of a run of one carrier and the mission has several")
+        self.resume = opts.teams_resume  # a run of several teams to finish (fleetctl.run.resume_teams)
         self.session = Session(mission, command, opts)
         self.mission = mission
         self.command = command
@@ -78,6 +81,8 @@ class TeamsRun:
         self.handovers = Handovers(self)
         self.views: dict[str, Any] = {}  # team -> its view of the phase flying (fleetctl.run.teams.views)
         self.left: dict[str, str] = {}  # run: launched rovers the collection leaves in the field -> why
+        self.deployed_before = False  # resumed past the deployment: it was flown before the restart
+        self.loaded_before: list[str] = []  # resumed collection: rovers loaded before the restart
         self.dwell_planned: float | None = None
         self.dwell_flown: float | None = None
         self.t0 = 0.0  # mission clock when the run of every team started (T+ = 0)
@@ -124,12 +129,16 @@ class TeamsRun:
             self._hold_scenario_batteries()
             self.t0 = self.clock()
             await self._connect()
-            if self.command in ("deploy", "run"):
-                await self._deploy()
-            if self.command == "run":
-                await self._dwell()
-            if self.command in ("collect", "run"):
-                await self._collect()
+            if self.resume is not None:
+                self._resumed_records(self.resume)
+                await self.journal.commit(Ev.RESUMED, **self.resume.record())
+            for phase in self._phases():
+                if phase == "deploy":
+                    await self._deploy()
+                elif phase == "dwell":
+                    await self._dwell()
+                else:
+                    await self._collect()
         except ExecutionError as exc:
             self.error = str(exc)
             self.journal.write(Ev.ERROR, text=self.error)
@@ -139,6 +148,37 @@ class TeamsRun:
         finally:
             summary = await self._finish()
         return self.session.outcome(summary)
+
+    def _phases(self) -> list[str]:
+        if self.resume is not None:
+            return self.resume.phases_left()
+        return {"deploy": ["deploy"], "collect": ["collect"], "run": ["deploy", "dwell", "collect"]}[
+            self.command
+        ]
+
+    def _resumed_records(self, resume: TeamsResumption) -> None:
+        """A resumed run: the hand-overs recorded before the restart stand (a task handed to a team
+        is that team's, never handed back to the team that gave it up); past the deployment, what
+        it reached counts and the rovers already loaded stay loaded."""
+        board, now = self.board, time.time()
+        by_id = {t.id: t for t in self.mission.tasks}
+        for cid, tasks in (resume.shares or {}).items():
+            if cid in board.teams:
+                board.allocate(cid, tasks)
+        board.owner.update(resume.owner())
+        board.gave_up.update(resume.gave_up())
+        for h in resume.handovers:  # T before the resumed run's start: negative
+            board.handovers.append(Handover(h.tasks, h.from_team, h.to_team, h.why,
+                                            self.t0 - max(0.0, now - h.t) * self.scale))
+            if h.to_team in board.teams:
+                board.teams[h.to_team].received.extend(by_id[t] for t in h.tasks if t in by_id)
+        if resume.phase != "deploy":
+            self.deployed_before = True
+            for tid, (cid, _) in resume.reached().items():
+                board.reached.setdefault(tid, (cid, self.t0))
+            for entry in board.teams.values():
+                entry.status, entry.finished = TeamStatus.DONE, True
+            self.loaded_before = resume.loaded()
 
     async def _begin_records(self) -> None:
         teams = {cid: list(e.rovers) for cid, e in self.board.teams.items()}
@@ -170,15 +210,20 @@ class TeamsRun:
 
     # ============================================================================== deployment
     async def _deploy(self) -> None:
-        plan = await self._share("deploy", self.live_mission())
+        resume = self.resume if self.resume is not None and self.resume.shares is not None else None
+        if resume is None:  # a new deployment (or one killed before its work was shared)
+            plan = await self._share("deploy", self.live_mission())
+            for team in plan.teams:
+                tasks = [leg.task for leg in team.plan.legs() if leg.task is not None]
+                self.board.allocate(team.carrier, tasks)
+        else:
+            self.buses.start_teams({cid: resume.team_tasks(cid) for cid in self.board.teams})
         self.views = team_views(self.opts.view, list(self.board.teams))
-        for team in plan.teams:
-            self.board.allocate(team.carrier, [leg.task for leg in team.plan.legs() if leg.task is not None])
         runs = {
             cid: TeamRun(
-                self._team_mission(cid, tasks=e.tasks),
+                self._team_mission(cid, tasks=resume.team_tasks(cid) if resume is not None else e.tasks),
                 "deploy",
-                self._team_opts(cid, "deploy"),
+                self._team_opts(cid, "deploy", resume=None if resume is None else resume.team_deploy(cid)),
                 cid,
                 self,
                 self.t0,
@@ -296,8 +341,12 @@ class TeamsRun:
         lost or back, geofence breaches, batteries at the reserve: :meth:`_watch_dwell`)."""
         wait = self.mission.dwell if self.opts.dwell is None else self.opts.dwell
         self.dwell_planned = wait
-        self.journal.write(Ev.DWELL, text=f"every team dwells {wait:g} s on task")
-        t0 = self.clock()
+        left = self.resume.dwell_left(wait) if self.resume is not None else wait
+        if left < wait:
+            self.journal.write(Ev.DWELL, text=f"every team dwells the {left:g} s left of {wait:g} s on task")
+        else:
+            self.journal.write(Ev.DWELL, text=f"every team dwells {wait:g} s on task")
+        t0 = self.clock() - (wait - left)
         unlisten = self._listen_to_rovers()
         try:
             async with asyncio.timeout(wait / max(self.scale, 1e-9) + 60.0):
@@ -332,7 +381,16 @@ class TeamsRun:
 
     # ============================================================================== collection
     async def _collect(self) -> None:
-        if self.command == "collect":
+        resume = self.resume
+        if resume is not None:  # shared again from the live fleet: rovers already on a deck stay there
+            ids = ([cr.id for cr in self.mission.collection or ()] if self.command == "collect"
+                   else [*resume.launched(), *self._launched()])
+            field = await self._rovers_in_the_field(ids)
+            live = dataclasses.replace(self.live_mission(), collection=field)
+            out = {cr.id for cr in field} | set(self.left)  # launched, found on a deck: loaded before
+            self.loaded_before += [r for r in dict.fromkeys(ids) if r not in out and
+                                   r not in self.loaded_before]
+        elif self.command == "collect":
             live = self.live_mission()
         else:
             live = dataclasses.replace(self.live_mission(), collection=await self._rovers_in_the_field())
@@ -342,14 +400,16 @@ class TeamsRun:
         plan = await self._share("collect", live)
         shares = {t.carrier: [leg.rover for leg in t.plan.legs()] for t in plan.teams}
         self.views = team_views(self.opts.view, [cid for cid, rovers in shares.items() if rovers])
-        keep = self.command == "collect"  # a scenario's collection section (its batteries are pinned)
+        # a scenario's collection section (its batteries are pinned); a resumed one is the live fleet's
+        keep = self.command == "collect" and resume is None
         runs = {}
         for cid, rovers in shares.items():
             if not rovers:
                 continue
             own = team_mission(live, cid, tasks=(), rovers=rovers)
             own = dataclasses.replace(own, mqtt=None, collection=own.collection if keep else None)
-            runs[cid] = TeamRun(own, "collect", self._team_opts(cid, "collect", rovers), cid, None, self.t0)
+            opts = self._team_opts(cid, "collect", rovers, resume=self._collect_resumption(cid))
+            runs[cid] = TeamRun(own, "collect", opts, cid, None, self.t0)
             self.board.set_status(cid, TeamStatus.COLLECTING)
         self.runs["collect"] = runs
         await self._fly_all("collect", runs, self._collect_ended)
@@ -357,15 +417,27 @@ class TeamsRun:
     async def _collect_ended(self, cid: str, run: TeamRun, outcome: RunOutcome) -> None:
         self.board.set_status(cid, TeamStatus.DONE if outcome.exit_code == EXIT_OK else TeamStatus.FAILED)
 
-    async def _rovers_in_the_field(self) -> tuple[CollectRover, ...]:
-        """Every rover a team launched that is not on a deck now (``self.left``: those that
-        cannot be collected, with why)."""
-        assert self.fleet is not None
-        launched = [
+    def _collect_resumption(self, cid: str) -> Resumption | None:
+        """A resumed run's team collection whose records exist goes on in them (its journal
+        appended to, reconciled with the live fleet) with a new plan of its new share."""
+        res = self.resume.collect.get(cid) if self.resume is not None else None
+        if res is None:
+            return None
+        return dataclasses.replace(res, started={}, planned={}, loaded={}, intents={})
+
+    def _launched(self) -> list[str]:
+        """Every rover this run's team deployments launched."""
+        return [
             r
             for run in self.runs.get("deploy", {}).values()
             for r in (run.results["deploy"].launched if "deploy" in run.results else [])
         ]
+
+    async def _rovers_in_the_field(self, launched: list[str] | None = None) -> tuple[CollectRover, ...]:
+        """Every rover a team launched (``launched``: those given) that is not on a deck now
+        (``self.left``: those that cannot be collected, with why)."""
+        assert self.fleet is not None
+        launched = self._launched() if launched is None else launched
         before = set(self.left)
         crs = await rovers_in_the_field(self.mission, self.fleet, launched, self.left)
         for rid in self.left.keys() - before:
@@ -382,7 +454,8 @@ class TeamsRun:
     def _team_mission(self, cid: str, tasks: list[str]) -> Mission:
         return dataclasses.replace(team_mission(self.mission, cid, tasks=tasks), mqtt=None)
 
-    def _team_opts(self, cid: str, phase: str, rovers: list[str] | None = None) -> RunOptions:
+    def _team_opts(self, cid: str, phase: str, rovers: list[str] | None = None,
+                   resume: Resumption | None = None) -> RunOptions:
         o = self.opts
         assert self.fleet is not None
         ids = tuple(rovers) if rovers is not None else self.board.teams[cid].rovers
@@ -401,6 +474,7 @@ class TeamsRun:
             confirm=self._confirm(),
             fleet=self.fleet.team(cid, ids),
             bus=self.buses.of(cid),
+            resume=resume,
         )
 
     def _confirm(self) -> Callable[[list[str]], bool] | None:

@@ -88,6 +88,7 @@ class TeamLink:
         self._batches = 0
         self._sent: dict[str, list[str]] = {}  # source of a handed-over batch -> its tasks
         self.released: list[str] = []  # tasks we gave up (our carrier lost, or our deployment refused them)
+        self.resumed: dict[str, int] = {}  # a resumed controller: handed-over task -> epoch it held it at
 
     # -- wiring ----------------------------------------------------------------------------------
     @property
@@ -111,11 +112,32 @@ class TeamLink:
                                                   "teams": self.shares, "t": round(t, 3)},
                          retain=True, qos=1, absolute=True)
         for task in self.shares.get(self.team, []):
-            self._publish_claim(self.board.make_claim(task, 0, t, now, held=True))
+            if task not in self.released:
+                self._publish_claim(self.board.make_claim(task, 0, t, now, held=True))
+        for task, epoch in self.resumed.items():  # re-joining: the claims held when the controller stopped
+            self._publish_claim(self.board.make_claim(task, epoch, t, now, held=True))
+            self.delivered.append(task)
+            record("team_claim", op="resumed", task=task, epoch=epoch)
         self._publish_progress()
         record("team", team=self.team, session=self.session, allocation=self.board.alloc_hash,
                share=self.shares.get(self.team, []), teams=list(self.board.order), prefix=self.topics.prefix)
         self._task = asyncio.get_running_loop().create_task(self._loop(), name="team link")
+
+    def resume(self, records: Sequence[Mapping[str, Any]]) -> None:
+        """A resumed controller (before :meth:`start`): from its journal's records, the handed-over
+        tasks it held claims on (re-claimed at their epochs when it starts) and the tasks it had
+        given up (not claimed again)."""
+        for r in records:
+            task = r.get("task")
+            if r.get("kind") == "team_claim" and isinstance(task, str) and task in self.tasks:
+                if r.get("op") == "held":
+                    self.resumed[task] = int(r.get("epoch") or 0)
+                elif r.get("op") == "lost":
+                    self.resumed.pop(task, None)
+            elif r.get("kind") == "team_release":
+                for t in r.get("tasks") or []:
+                    self.resumed.pop(str(t), None)
+                    self.released.append(str(t))
 
     def attach_executor(self, executor: Any) -> None:
         """The deployment to feed; tasks of our share that another team claimed better before it

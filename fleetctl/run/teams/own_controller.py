@@ -21,9 +21,11 @@ import contextlib
 import dataclasses
 from collections.abc import Callable
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 from fleetctl.bus.config import BusConfig
+from fleetctl.journal import JOURNAL_NAME, read_journal
 from fleetctl.mission import Mission
 from fleetctl.mission.teams import team_mission, team_of
 from fleetctl.run.lifecycle import RunOptions
@@ -87,6 +89,8 @@ class TeamControllerRun(Run):
             embedded = opts.sim is None and opts.endpoints is None and mission_uses_sim(mission)
             vehicles = "sim" if embedded else "real"
             self.link = TeamLink(spec.mission, spec.team, spec.shares, spec.prefix, vehicles, rovers)
+            if opts.resume is not None:  # re-joins the other teams with the claims it held
+                self.link.resume(read_journal(Path(opts.resume.run_dir) / JOURNAL_NAME))
 
     def _start_bus(self) -> Any:
         from fleetctl.bus.client import start_bus

@@ -20,7 +20,8 @@ def teams_summary(tr: TeamsRun) -> dict[str, Any]:
     order = [t.id for t in m.tasks]
     reached = [t for t in order if t in board.reached] if cmd != "collect" else []
     unserved = [t for t in order if t not in board.reached] if cmd != "collect" else []
-    loaded = [r for run in collects.values() for r in run.loaded_at]
+    now = [r for run in collects.values() for r in run.loaded_at]
+    loaded = list(dict.fromkeys([*tr.loaded_before, *now]))
     unreachable = dict(tr.left) | {
         r: f"{cid}: out of reach (its range left)"
         for cid, run in collects.items()
@@ -28,7 +29,7 @@ def teams_summary(tr: TeamsRun) -> dict[str, Any]:
         for r in run.results["collect"].rovers_unreachable
     }
     summaries = {phase: {cid: o.summary for cid, o in outs.items()} for phase, outs in tr.outcomes.items()}
-    deploy_ok = cmd == "collect" or (bool(deploys) and not unserved)
+    deploy_ok = cmd == "collect" or ((bool(deploys) or tr.deployed_before) and not unserved)
     # as one team counts it: every rover loaded but those out of reach (and those lost before it began)
     collect_ok = cmd == "deploy" or all(
         "collect" in r.results and r.results["collect"].complete for r in collects.values()
@@ -104,6 +105,13 @@ def _team(tr: TeamsRun, cid: str, dep: TeamRun | None, col: TeamRun | None) -> d
             if cid in tr.outcomes.get("deploy", {})
             else None,
             "records": str(dep.journal.dir),
+        }
+    elif tr.deployed_before:  # resumed after the deployment: what its records told
+        out["deploy"] = {
+            "tasks_planned": e.tasks,
+            "tasks_received": [t.id for t in e.received],
+            "tasks_reached": [t for t, (team, _) in board.reached.items() if team == cid],
+            "records": str(tr.journal.dir / "teams" / cid / "deploy"),
         }
     if col is not None:
         out["collect"] = {
