@@ -8,7 +8,7 @@ commands that raise :class:`CommandRejected` when the autopilot refuses and
 :class:`fleetctl.mavlink.link.LinkTimeout` when it does not answer. Firmware differences go through
 ``vehicle.autopilot`` (:mod:`fleetctl.mavlink.autopilots`), chosen from the first HEARTBEAT.
 
-Events (``VehicleEvent.kind``): ``connected`` (first heartbeat), ``lost`` (no heartbeat for
+Events (``VehicleEvent.kind``): ``connected`` (first heartbeat), ``lost`` (nothing heard for
 ``heartbeat_timeout`` s), ``back`` (a heartbeat after ``lost``), ``armed``, ``disarmed``, ``mode``
 (data: mode, previous), ``landed_state`` (data: state), ``item_reached`` (data: seq),
 ``mission_current`` (data: seq), ``statustext`` (data: text, severity), ``geofence_breach``
@@ -382,10 +382,18 @@ class Vehicle:
         self._lost_timer = asyncio.get_running_loop().call_later(self.heartbeat_timeout, self._on_silence)
 
     def _on_silence(self) -> None:
+        """No heartbeat for ``heartbeat_timeout``: lost, unless another of its messages came since
+        (a lossy link drops heartbeats too; any message of the vehicle shows the link works), then
+        looked at again when that one is ``heartbeat_timeout`` old."""
         self._lost_timer = None
+        heard = self.link.last_heard.get(self.sysid)
+        left = None if heard is None else self.heartbeat_timeout - (time.monotonic() - heard)
+        if left is not None and left > 0:
+            self._lost_timer = asyncio.get_running_loop().call_later(left, self._on_silence)
+            return
         if not self.lost:
             self.lost = True
-            log.warning("%s (sysid %d): no heartbeat for %.1f s", self.name, self.sysid,
+            log.warning("%s (sysid %d): nothing heard for %.1f s", self.name, self.sysid,
                         self.heartbeat_timeout)
             self._emit("lost", timeout=self.heartbeat_timeout)
             self._wake()

@@ -3,7 +3,7 @@
 :class:`Supervisor` watches a connected :class:`fleetctl.mavlink.fleet.Fleet` and puts
 :class:`SupervisorEvent` s on an :class:`asyncio.Queue` that the executor consumes:
 
-* ``lost`` / ``back``: no heartbeat for ``links.heartbeat_timeout`` (the vehicle proxy's timer),
+* ``lost`` / ``back``: nothing heard for ``links.heartbeat_timeout`` (the vehicle proxy's timer),
   and the first heartbeat after that;
 * ``battery_low``: a rover's battery at or below the reserve the plan assumed (``rovers.reserve``),
   once per rover;

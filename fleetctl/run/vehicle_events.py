@@ -17,7 +17,7 @@ Record = Callable[..., object]  # record(kind, **data): journalled only
 def tell_vehicle_event(ev: VehicleEvent, tell: Tell, record: Record) -> None:
     """Tell ``ev``: link lost/back and geofence breaches as events, the rest journalled."""
     if ev.kind == "lost":
-        tell(Ev.LINK_LOST, f"{ev.vehicle}: link lost (no heartbeat for {ev.data.get('timeout', 0):g} s)",
+        tell(Ev.LINK_LOST, f"{ev.vehicle}: link lost (nothing heard for {ev.data.get('timeout', 0):g} s)",
              ev.vehicle)
     elif ev.kind == "back":
         tell(Ev.LINK_BACK, f"{ev.vehicle}: link back", ev.vehicle)

@@ -90,6 +90,30 @@ async def test_lost_and_back(tmp_path: Path) -> None:
             assert seen == [("r1", "lost"), ("r1", "back")]
 
 
+async def test_a_vehicle_heard_otherwise_is_not_lost_for_want_of_heartbeats(tmp_path: Path) -> None:
+    """A lossy link drops heartbeats too: while any other message of the vehicle arrives (here: its
+    link's last-heard time kept fresh while the simulator sends nothing), it is not lost; once
+    nothing comes, it is lost after ``heartbeat_timeout``."""
+    import asyncio
+    import time
+
+    d = mission_dict(heartbeat_timeout=1.0)
+    async with sim_fleet(d) as sim:
+        async with await connect_fleet(mission_from(d, tmp_path), sim.endpoints, timeout=5.0) as fleet:
+            r1 = fleet.rovers["r1"]
+            sim.dropout("r1", duration=60.0 * sim.speedup)  # no heartbeat from now on
+
+            async def other_messages(seconds: float) -> None:
+                end = time.monotonic() + seconds
+                while time.monotonic() < end:
+                    r1.link.last_heard[r1.sysid] = time.monotonic()
+                    await asyncio.sleep(0.1)
+
+            await other_messages(3.0)  # three heartbeat timeouts without a heartbeat
+            assert not r1.lost
+            await r1.wait_until(lambda v: v.lost, 5.0, "lost")  # nothing heard at all
+
+
 def two_stop_plan() -> Plan:
     s1 = Stop(position=(20.0, 0.0, 0.0), carrier_path=[(0.0, 0.0, 0.0), (10.0, 5.0, 0.0), (20.0, 0.0, 0.0)],
               rovers=[RoverLeg("r1", [(20.0, 0.0, 0.0), (26.0, 6.0, 5.0)], task="t1")])
