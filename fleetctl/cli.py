@@ -152,7 +152,7 @@ def _export(mission: Mission, plan: Any, out_dir: str) -> list[Any]:
     """``--export DIR``: the mission items the controller would upload (compile_plan, no autopilot
     known offline) as <vehicle>.plan, and plan.geojson (docs/formats.md)."""
     from fleetctl.mavlink.compile import CompileError, compile_plan
-    from fleetctl.mission.formats.export import export_plan
+    from fleetctl.mission.formats.plan_export import export_plan
     from fleetctl.run.planning import COLLECT_MEET_HEIGHT
 
     if mission.origin is None:

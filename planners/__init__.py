@@ -12,17 +12,17 @@ from collections.abc import Callable
 from typing import Any
 
 from planners.core.approach import WithApproach, WithTakeoff
-from planners.core.bounds import deploy_lower_bound
+from planners.core.lower_bound import deploy_lower_bound
 from planners.core.plan import Plan
 from planners.core.problem import CollectProblem, DeployProblem, PlanningError
 from planners.core.ranges import WithRoverRanges
 
 
 def collect_lower_bound(problem: CollectProblem) -> float:
-    """A lower bound of any collection plan's makespan (``planners.collect.bounds``, imported on
+    """A lower bound of any collection plan's makespan (``planners.collect.lower_bound``, imported on
     first use: it builds reach regions, which a deployment never needs)."""
-    bounds = importlib.import_module("planners.collect.bounds")
-    return float(bounds.collect_lower_bound(problem))
+    lower = importlib.import_module("planners.collect.lower_bound")
+    return float(lower.collect_lower_bound(problem))
 
 
 class LazyPlanner:

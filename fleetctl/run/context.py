@@ -28,7 +28,7 @@ from fleetctl.mavlink.link import LinkError, MissionRejected
 from fleetctl.mavlink.vehicle import CommandRejected, Vehicle
 from fleetctl.mission import Mission
 from fleetctl.run.kinds import Ev
-from fleetctl.run.replan import ReplanTracker
+from fleetctl.run.replan_record import ReplanTracker
 from fleetctl.run.state import FleetState
 
 log = logging.getLogger(__name__)

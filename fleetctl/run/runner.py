@@ -239,7 +239,7 @@ class Run:
         """RUN/export/: the uploaded mission items as QGroundControl plans, and plan.geojson."""
         if self.executor is None or self.fleet is None or self.mission.origin is None:
             return
-        from fleetctl.mission.formats.export import export_plan
+        from fleetctl.mission.formats.plan_export import export_plan
 
         try:
             compiled = self.executor.planning.compile(plan)

@@ -5,7 +5,7 @@ sorties with pick-ups timed to the work, battery swaps on the deck. Pure maths, 
 swap, repeat) and ``operation_lower_bound``.
 """
 
-from planners.operations.bounds import operation_lower_bound
+from planners.operations.lower_bound import operation_lower_bound
 from planners.operations.plan import OperationPlan
 from planners.operations.planner import plan_operation
 from planners.operations.problem import OperationProblem, OpTask

@@ -13,11 +13,11 @@ from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
     from planners.teams.allocation import plan_teams, plan_teams_nearest
-    from planners.teams.bounds import teams_lower_bound
+    from planners.teams.lower_bound import teams_lower_bound
     from planners.teams.plan import TeamPlan, TeamsPlan
     from planners.teams.problem import TeamsProblem
 
-_HOME = {"plan_teams": "allocation", "plan_teams_nearest": "allocation", "teams_lower_bound": "bounds",
+_HOME = {"plan_teams": "allocation", "plan_teams_nearest": "allocation", "teams_lower_bound": "lower_bound",
          "TeamPlan": "plan", "TeamsPlan": "plan", "TeamsProblem": "problem"}
 
 __all__ = ["TeamPlan", "TeamsPlan", "TeamsProblem", "plan_teams", "plan_teams_nearest", "teams_lower_bound"]

@@ -324,7 +324,7 @@ def test_the_schema_accepts_qgroundcontrols_own_files_and_refuses_broken_ones(re
 
 
 def test_vehicle_ids_become_safe_file_names() -> None:
-    from fleetctl.mission.formats.export import file_name
+    from fleetctl.mission.formats.plan_export import file_name
 
     assert [file_name(v) for v in ("r1", "carrier-2.b", "../etc/x", "a b")] == ["r1", "carrier-2.b", "_etc_x",
                                                                                 "a_b"]
@@ -506,7 +506,7 @@ def test_mqtt_task_messages_work_with_obstacles_from_a_file(tmp_path: Path,
 
 
 def test_run_folder_export_prunes_vehicles_a_replan_left_out(tmp_path: Path) -> None:
-    from fleetctl.mission.formats.export import export_plan
+    from fleetctl.mission.formats.plan_export import export_plan
 
     m = load_mission(RECON)
     plan = DEPLOY_PLANNERS["lee"](m.deploy_problem())
@@ -520,7 +520,7 @@ def test_run_folder_export_prunes_vehicles_a_replan_left_out(tmp_path: Path) -> 
 
 def test_ardupilot_home_item_becomes_the_planned_home(tmp_path: Path) -> None:
     from fleetctl.mavlink.autopilots import ArduPilot
-    from fleetctl.mission.formats.export import export_plan
+    from fleetctl.mission.formats.plan_export import export_plan
 
     m = load_mission(RECON)
     plan = DEPLOY_PLANNERS["lee"](m.deploy_problem())

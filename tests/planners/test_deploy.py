@@ -155,7 +155,7 @@ def test_lower_bound_regression_zero_length_tree_edges():
 
 
 def test_mst_length():
-    from planners.core.bounds import mst_length
+    from planners.core.lower_bound import mst_length
 
     w = [[0, 0, 5, 9], [0, 0, 4, 8], [5, 4, 0, 1], [9, 8, 1, 0]]
     import numpy as np

@@ -67,7 +67,7 @@ class MyClaim:
 
 
 @dataclass
-class TeamsBoard:
+class ClaimBoard:
     me: str
     session: str
     order: tuple[str, ...]  # the mission's carriers, in order
@@ -240,4 +240,4 @@ class TeamsBoard:
                     break
         return out
 
-__all__ = ["CLAIM_SETTLE", "HANDOVER_GRACE", "MyClaim", "Peer", "TeamsBoard"]
+__all__ = ["CLAIM_SETTLE", "HANDOVER_GRACE", "MyClaim", "Peer", "ClaimBoard"]

@@ -3,7 +3,7 @@
 :class:`TeamLink` rides on the run's :class:`~fleetctl.bus.client.FleetBus` (whose prefix is
 ``P/teams/<team>``, so its retained status and last will are the team's presence): it subscribes
 to every team's status and progress and to the task claims, publishes this team's progress and
-claims, and acts on :class:`~fleetctl.bus.teams.board.TeamsBoard`'s rules once per
+claims, and acts on :class:`~fleetctl.bus.teams.board.ClaimBoard`'s rules once per
 :data:`TICK` in one owned background task: tasks of a gone team are split, claimed, and once
 held handed to the running deployment (``Executor.submit_task_change``); a claim lost to a
 better one takes the task out again if no rover flies to it yet.
@@ -24,7 +24,7 @@ from collections.abc import Callable, Mapping, Sequence
 from dataclasses import replace
 from typing import Any
 
-from fleetctl.bus.teams.board import HANDOVER_GRACE, TeamsBoard
+from fleetctl.bus.teams.board import HANDOVER_GRACE, ClaimBoard
 from fleetctl.bus.teams.protocol import (
     ClaimState,
     PeerMessageError,
@@ -65,7 +65,7 @@ class TeamLink:
         self.task_ids = frozenset(self.tasks)
         owner = {task: k for k, ids in self.shares.items() for task in ids}
         teams = {t.carrier.id: t.carrier for t in mission_teams(mission)}
-        self.board = TeamsBoard(
+        self.board = ClaimBoard(
             team, uuid.uuid4().hex[:12], order, tuple(self.tasks), owner,
             allocation_hash(mission.name, self.shares),
             carriers={k: _carrier_spec(mission, k) for k in teams},

@@ -25,7 +25,7 @@ import aiomqtt
 import pytest
 
 from fleetctl.bus.client import FleetBus, bus_config
-from fleetctl.bus.teams.board import HANDOVER_GRACE, TeamsBoard
+from fleetctl.bus.teams.board import HANDOVER_GRACE, ClaimBoard
 from fleetctl.bus.teams.protocol import (
     Claim,
     ClaimState,
@@ -48,9 +48,9 @@ ORDER = ("c1", "c2", "c3")
 TASKS = ("a", "b", "c", "d")
 
 
-def board(me: str = "c1", **kw: Any) -> TeamsBoard:
+def board(me: str = "c1", **kw: Any) -> ClaimBoard:
     alloc = {"a": "c1", "b": "c2", "c": "c3", "d": "c3"}
-    return TeamsBoard(me, f"s-{me}", ORDER, TASKS, alloc, "h", **kw)
+    return ClaimBoard(me, f"s-{me}", ORDER, TASKS, alloc, "h", **kw)
 
 
 def status(team: str, state: TeamState, session: str | None = None, vehicles: str = "sim") -> StatusMsg:

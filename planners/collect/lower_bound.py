@@ -8,7 +8,7 @@ import numpy as np
 
 from planners.collect.instance import CollectInstance
 from planners.core.approach import lifted
-from planners.core.bounds import separated_stops_bound
+from planners.core.lower_bound import separated_stops_bound
 from planners.core.problem import CollectProblem
 from planners.core.timing import leg_time
 

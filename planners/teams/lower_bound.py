@@ -6,8 +6,8 @@ import math
 
 import numpy as np
 
-from planners.collect.bounds import collect_lower_bound
-from planners.core.bounds import deploy_lower_bound, mst_length
+from planners.collect.lower_bound import collect_lower_bound
+from planners.core.lower_bound import deploy_lower_bound, mst_length
 from planners.core.problem import CollectProblem, DeployProblem
 from planners.core.timing import leg_time
 from planners.teams.clusters import ground_reach
@@ -51,7 +51,7 @@ def _stops_bound(problem: TeamsProblem) -> float:
     costing at least h, the shortest stop time of the teams (``TeamsProblem.stop_time``). Some team
     makes ≥ ceil(K / m) of them, so the makespan is ≥ ceil(K / m) · h. Also, team k's route from its
     start through its stops is ≥ L_k long and takes ≥ g(L_k), g(L) = the least over the teams'
-    carriers of leg_time(L) (``planners.core.bounds``: leg time is increasing, concave and zero at zero,
+    carriers of leg_time(L) (``planners.core.lower_bound``: leg time is increasing, concave and zero at zero,
     so a split into legs never beats one leg; g, a minimum of such functions, is concave too, hence
     subadditive). The routes together contain a spanning forest of the chosen stops rooted at the
     starts, at least W long: the minimum spanning tree with every start merged into one root and the
