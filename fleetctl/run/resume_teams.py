@@ -105,12 +105,12 @@ class TeamsResumption:
         return out
 
     def launched(self) -> list[str]:
-        """Every rover a team's deployment launched (the collection brings them back)."""
-        return list(dict.fromkeys(r for res in self.deploy.values() for r in res.board.launched))
+        """Every rover a team's deployment launched (the collection brings them back), sorted."""
+        return sorted({r for res in self.deploy.values() for r in res.board.launched})
 
     def loaded(self) -> list[str]:
-        """Rovers a team's collection had loaded before the run stopped."""
-        return list(dict.fromkeys(r for res in self.collect.values() for r in res.loaded))
+        """Rovers a team's collection had loaded before the run stopped, sorted."""
+        return sorted({r for res in self.collect.values() for r in res.loaded})
 
     # -- for the run ---------------------------------------------------------------------------------
     def phases_left(self) -> list[str]:
