@@ -37,8 +37,8 @@ async def send_command(
     longitude in degrees (encoded ·1e7) and param7 as z. After MAV_RESULT_IN_PROGRESS the
     final ACK is awaited up to ``progress_timeout``. An attempt waits ``timeout`` until the link
     has measured its round trips, then the link's retransmission timeout
-    (:class:`~fleetctl.mavlink.rtt.RoundTrip`, at most ``timeout``). :class:`LinkTimeout` when no
-    ACK comes.
+    (:class:`~fleetctl.mavlink.rtt.RoundTrip`, at most ``timeout``); attempts go on for
+    ``(retries + 1) x timeout`` in all, as many as fit. :class:`LinkTimeout` when no ACK comes.
     """
     p = [float(v) for v in params]
     if len(p) > 7:
@@ -48,7 +48,10 @@ async def send_command(
     attempts = 0
     async with link.lock(("command", sysid, command)):
         with link.collect("COMMAND_ACK", sysid=sysid, match=lambda m: m.command == command) as inbox:
-            for attempt in range(retries + 1):
+            deadline = time.monotonic() + (retries + 1) * timeout  # the patience of fixed waits
+            attempt = -1
+            while (left := deadline - time.monotonic()) > 0:
+                attempt += 1
                 attempts = attempt + 1
                 if frame is None:
                     msg = link.mav.command_long_encode(sysid, compid, command, min(attempt, 255), *p)
@@ -58,7 +61,7 @@ async def send_command(
                 link.send(msg, sysid)
                 sent = time.monotonic()
                 try:
-                    ack = await inbox.get(link.rtt.timeout(timeout))
+                    ack = await inbox.get(min(link.rtt.timeout(timeout), left))
                 except TimeoutError:
                     log.debug("%s: no ACK for %s from %d (attempt %d)", link.url, name, sysid, attempts)
                     continue
@@ -73,7 +76,7 @@ async def send_command(
                 return CommandAck(sysid, command, ack.result, attempts, getattr(ack, "progress", 0),
                                   getattr(ack, "result_param2", 0))
     raise LinkTimeout(f"system {sysid} did not acknowledge {name} "
-                      f"({attempts} attempts, up to {timeout:g} s each) on {link.url}")
+                      f"({attempts} attempts in {(retries + 1) * timeout:g} s) on {link.url}")
 
 async def set_message_interval(link: Link, sysid: int, msgid: int, hz: float, *, compid: int = 1,
                                retries: int = COMMAND_RETRIES) -> CommandAck:

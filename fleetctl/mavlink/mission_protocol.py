@@ -58,12 +58,13 @@ async def upload_mission(
                 try:
                     m = await inbox.get(wait)
                 except TimeoutError:
-                    if left == 0:
-                        cancel = M.MAV_MISSION_OPERATION_CANCELLED
-                        link.send(link.mav.mission_ack_encode(sysid, compid, cancel, mission_type), sysid)
-                        raise LinkTimeout(f"system {sysid}: mission upload timed out after {retries} "
-                                          f"retries ({served} of {n} items sent) on {link.url}") from None
-                    left -= 1
+                    if started or wait >= timeout:  # the COUNT's early resends (a short wait) are extra
+                        if left == 0:
+                            cancel = M.MAV_MISSION_OPERATION_CANCELLED
+                            link.send(link.mav.mission_ack_encode(sysid, compid, cancel, mission_type), sysid)
+                            raise LinkTimeout(f"system {sysid}: mission upload timed out after {retries} "
+                                              f"retries ({served} of {n} items sent) on {link.url}") from None
+                        left -= 1
                     link.send(last, sysid)
                     t0 = time.monotonic()  # the round trip is measured from the last send
                     wait = min(wait * 2, timeout)  # backing off up to the protocol timeout
@@ -131,11 +132,16 @@ async def clear_mission(link: Link, sysid: int, *, compid: int = 1, mission_type
 
 async def _exchange(link: Link, inbox: Inbox, msg: Any, sysid: int, accept: Callable[[Any], bool],
                     first_wait: float, max_wait: float, retries: int, operation: str) -> Any:
-    """Send ``msg`` until a message passing ``accept`` arrives; an error MISSION_ACK is final."""
-    wait = first_wait
-    for attempt in range(retries + 1):
+    """Send ``msg`` until a message passing ``accept`` arrives; an error MISSION_ACK is final. The
+    wait doubles from ``first_wait`` to ``max_wait``; ``retries`` counts the resends after a
+    ``max_wait`` one (the shorter early ones come on top)."""
+    wait, left, attempt = first_wait, retries + 1, 0
+    while left > 0:
+        if wait >= max_wait:
+            left -= 1
         if attempt:
             log.debug("%s: resending %s to %d (retry %d)", link.url, msg.get_type(), sysid, attempt)
+        attempt += 1
         link.send(msg, sysid)
         sent = time.monotonic()
         deadline = sent + wait

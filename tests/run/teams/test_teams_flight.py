@@ -320,7 +320,7 @@ def test_collect_team_collects_the_rovers_of_its_own_deck(tmp_path: Path) -> Non
 
     from fleetctl.cli import main
 
-    two = yaml.safe_load((Path(__file__).parents[2] / "missions" / "two_carriers.yaml").read_text())
+    two = yaml.safe_load((Path(__file__).parents[3] / "missions" / "two_carriers.yaml").read_text())
     path = tmp_path / "two.yaml"
     path.write_text(yaml.safe_dump(two))
     summary = tmp_path / "summary.json"
