@@ -37,9 +37,10 @@ async def upload_mission(
     """Upload ``items`` (MISSION_COUNT → MISSION_REQUEST_INT → MISSION_ITEM_INT → MISSION_ACK).
 
     The vehicle drives the transfer: whatever item it requests is sent, so re-requested and
-    out-of-order items are served. Without an answer the last message is resent (COUNT after
-    ``timeout``; an item after ``item_timeout``, doubling up to ``timeout``), at most
-    ``retries`` times in a row. :class:`MissionRejected` on an error ACK (the vehicle keeps its
+    out-of-order items are served. Without an answer the last message is resent (the COUNT after
+    the link's retransmission timeout, an item after ``item_timeout``, each doubling up to
+    ``timeout``), at most ``retries`` times in a row after waits of the full ``timeout`` (the
+    shorter early resends come on top). :class:`MissionRejected` on an error ACK (the vehicle keeps its
     previous mission), :class:`LinkTimeout` after the retries (the transfer is cancelled).
     """
     n = len(items)
@@ -58,7 +59,7 @@ async def upload_mission(
                 try:
                     m = await inbox.get(wait)
                 except TimeoutError:
-                    if started or wait >= timeout:  # the COUNT's early resends (a short wait) are extra
+                    if wait >= timeout:  # early resends (a wait shorter than the timeout) are extra
                         if left == 0:
                             cancel = M.MAV_MISSION_OPERATION_CANCELLED
                             link.send(link.mav.mission_ack_encode(sysid, compid, cancel, mission_type), sysid)
