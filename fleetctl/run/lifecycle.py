@@ -238,11 +238,48 @@ class Session:
                 await self._sim_cm.__aexit__(None, None, None)
 
 
+class OnSession:
+    """What a crew (:class:`~fleetctl.run.runner.Run`, :class:`~fleetctl.run.teams.coordinator.TeamsRun`)
+    reads from its :attr:`session`: the mission clock and its scale, the simulator, the endpoints, the
+    error and whether it was interrupted."""
+
+    session: Session
+
+    @property
+    def clock(self) -> Callable[[], float]:
+        return self.session.clock
+
+    @property
+    def scale(self) -> float:
+        return self.session.scale
+
+    @property
+    def sim(self) -> Any:
+        return self.session.sim
+
+    @property
+    def endpoints(self) -> dict[str, str] | None:
+        return self.session.endpoints
+
+    @property
+    def error(self) -> str | None:
+        return self.session.error
+
+    @error.setter
+    def error(self, value: str | None) -> None:
+        self.session.error = value
+
+    @property
+    def interrupted(self) -> bool:
+        return self.session.interrupted
+
+
 __all__ = [
     "COMMANDS",
     "EXIT_FAILED",
     "EXIT_INTERRUPTED",
     "EXIT_OK",
+    "OnSession",
     "RunOptions",
     "RunOutcome",
     "Session",

@@ -29,7 +29,7 @@ from fleetctl.run.context import ExecutionError
 from fleetctl.run.deploy import ResumedDeploy
 from fleetctl.run.executor import Executor
 from fleetctl.run.kinds import Ev, Phase, VehicleStatus
-from fleetctl.run.lifecycle import RunOptions, RunOutcome, Session
+from fleetctl.run.lifecycle import OnSession, RunOptions, RunOutcome, Session
 from fleetctl.run.results import PhaseResult
 from fleetctl.run.rounds import NO_MORE_WORK, DeployRounds, Unserved, WorkSource
 from fleetctl.run.state import FleetState
@@ -40,7 +40,7 @@ from planners.core.problem import Task
 log = logging.getLogger(__name__)
 
 
-class Run:
+class Run(OnSession):
     """One run of a command (see the module docstring)."""
 
     def __init__(self, mission: Mission, command: str, opts: RunOptions) -> None:
@@ -64,31 +64,6 @@ class Run:
         self.left_out: dict[str, str] = {}  # rovers that failed preflight -> why
         self._opened = 0.0
         self._refresher: asyncio.Task[None] | None = None
-
-    @property
-    def clock(self) -> Any:
-        """The mission clock (the session's)."""
-        return self.session.clock
-
-    @property
-    def scale(self) -> float:
-        return self.session.scale
-
-    @property
-    def sim(self) -> Any:
-        return self.session.sim
-
-    @property
-    def error(self) -> str | None:
-        return self.session.error
-
-    @error.setter
-    def error(self, value: str | None) -> None:
-        self.session.error = value
-
-    @property
-    def interrupted(self) -> bool:
-        return self.session.interrupted
 
     # ============================================================================== the run
     def _start_bus(self) -> Any:

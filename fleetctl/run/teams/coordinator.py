@@ -35,7 +35,15 @@ from fleetctl.mission import Mission
 from fleetctl.mission.teams import mission_teams, team_mission, teams_problem
 from fleetctl.run.context import ExecutionError
 from fleetctl.run.kinds import Ev
-from fleetctl.run.lifecycle import EXIT_FAILED, EXIT_INTERRUPTED, EXIT_OK, RunOptions, RunOutcome, Session
+from fleetctl.run.lifecycle import (
+    EXIT_FAILED,
+    EXIT_INTERRUPTED,
+    EXIT_OK,
+    OnSession,
+    RunOptions,
+    RunOutcome,
+    Session,
+)
 from fleetctl.run.results import PhaseResult
 from fleetctl.run.resume import Resumption
 from fleetctl.run.resume_teams import TeamsResumption
@@ -57,7 +65,7 @@ WATCH_EVERY = 0.2  # wall s between looks at the carriers' links while the teams
 CLOCK_STEP = 0.05  # wall s between looks at the mission clock while dwelling
 
 
-class TeamsRun:
+class TeamsRun(OnSession):
     """A run of several teams (see the module docstring)."""
 
     def __init__(self, mission: Mission, command: str, opts: RunOptions) -> None:
@@ -90,35 +98,6 @@ class TeamsRun:
         self._low: set[str] = set()  # rovers told at their reserve while dwelling
         self.buses = TeamsBuses.configure(mission, opts.mqtt, self.journal.write,
                                           "sim" if self.session.uses_sim else "real")
-
-    @property
-    def clock(self) -> Callable[[], float]:
-        """The mission clock (the session's)."""
-        return self.session.clock
-
-    @property
-    def scale(self) -> float:
-        return self.session.scale
-
-    @property
-    def sim(self) -> Any:
-        return self.session.sim
-
-    @property
-    def endpoints(self) -> dict[str, str] | None:
-        return self.session.endpoints
-
-    @property
-    def error(self) -> str | None:
-        return self.session.error
-
-    @error.setter
-    def error(self, value: str | None) -> None:
-        self.session.error = value
-
-    @property
-    def interrupted(self) -> bool:
-        return self.session.interrupted
 
     # ============================================================================== the run
     async def fly(self) -> RunOutcome:
