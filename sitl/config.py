@@ -98,14 +98,20 @@ class FleetConfig:
             if r.carrier is not None and r.carrier not in carrier_ids:
                 raise ConfigError(f"rover {r.id!r}: no carrier {r.carrier!r} in the fleet")
         seen_ids: set[str] = set()
-        seen_sysids: set[int] = set()
         for v in self.vehicles:
             if v.id in seen_ids:
                 raise ConfigError(f"vehicle id {v.id!r} is used twice")
-            if v.sysid in seen_sysids:
-                raise ConfigError(f"sysid {v.sysid} is used twice (vehicle {v.id!r})")
             seen_ids.add(v.id)
-            seen_sysids.add(v.sysid)
+        groups, by_id = self.link_groups(), {v.id: v for v in self.vehicles}
+        for key, ids in groups.items():  # system ids are unique per link, not per fleet
+            seen_sysids: dict[int, str] = {}
+            for vid in ids:
+                sysid = by_id[vid].sysid
+                if sysid in seen_sysids:
+                    where = "" if len(groups) == 1 else f" on link {key!r}"
+                    raise ConfigError(f"sysid {sysid} is used twice{where} (vehicles {seen_sysids[sysid]!r} "
+                                      f"and {vid!r})")
+                seen_sysids[sysid] = vid
         for f in self.faults:
             if f.vehicle is not None and f.vehicle not in seen_ids:
                 raise ConfigError(f"sim.faults: vehicle {f.vehicle!r} is not in the fleet")
@@ -118,6 +124,28 @@ class FleetConfig:
     @property
     def vehicles(self) -> list[VehicleSpec]:
         return [*self.carriers, *self.rovers]
+
+    def link_groups(self) -> dict[str, list[str]]:
+        """Link key -> the ids of the vehicles on it (one UDP endpoint each), in fleet order: vehicles
+        with the same URL share one; a rover without a connection shares its carrier's; each ``sim``
+        connection is a link of its own (key ``sim#<vehicle id>``, a free loopback port). System ids
+        are unique per link."""
+
+        def carrier_key(c: VehicleSpec) -> str:
+            return c.connection if c.connection not in (None, "sim") else f"sim#{c.id}"
+
+        groups: dict[str, list[str]] = {}
+        for spec in self.vehicles:
+            if spec.role == "carrier":
+                key = carrier_key(spec)
+            elif spec.connection is None:
+                key = carrier_key(self.home_of(spec))
+            elif spec.connection == "sim":
+                key = f"sim#{spec.id}"
+            else:
+                key = spec.connection
+            groups.setdefault(key, []).append(spec.id)
+        return groups
 
     def home_of(self, rover: VehicleSpec) -> VehicleSpec:
         """The carrier ``rover`` starts on and whose link it shares."""

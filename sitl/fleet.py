@@ -16,7 +16,7 @@ import time
 from collections.abc import Awaitable, Callable
 from typing import Any
 
-from .config import FleetConfig, VehicleSpec
+from .config import FleetConfig
 from .endpoint import LinkSpec, UdpEndpoint, parse_connection
 from .faults import Fault, FaultBook
 from .flavour import Flavour
@@ -68,25 +68,9 @@ class SimFleet:
         return lambda: self.faults.drain_factor(vid, self.world.time)
 
     def _group_links(self) -> list[tuple[LinkSpec, list[str]]]:
-        """Vehicles on the same URL share one endpoint; rovers without a connection share their
-        carrier's; each ``sim`` connection gets its own free port."""
-
-        def carrier_key(c: VehicleSpec) -> str:
-            return c.connection if c.connection not in (None, "sim") else f"sim#{c.id}"
-
-        groups: dict[str, list[str]] = {}
-        for spec in self.config.vehicles:
-            if spec.role == "carrier":
-                key = carrier_key(spec)
-            elif spec.connection is None:
-                key = carrier_key(self.config.home_of(spec))
-            elif spec.connection == "sim":
-                key = f"sim#{spec.id}"
-            else:
-                key = spec.connection
-            groups.setdefault(key, []).append(spec.id)
+        """One endpoint per link of the configuration (:meth:`FleetConfig.link_groups`)."""
         return [(parse_connection("sim" if key.startswith("sim#") else key), ids)
-                for key, ids in groups.items()]
+                for key, ids in self.config.link_groups().items()]
 
     # -- clock (the vehicles' view of time) ---------------------------------------------------
     @property

@@ -567,7 +567,9 @@ class FleetBus:
         if "carriers" not in raw:  # (a carriers: list gives every fleet's count itself)
             rovers = dict(raw.get("rovers") or {})
             rovers.pop("fleet", None)  # the fleet is fixed: spell out its units
-            rovers["units"] = [{"id": u.id, "sysid": u.sysid} for u in self.mission.rovers.units]
+            rovers["units"] = [{"id": u.id, "sysid": u.sysid} | ({} if u.connection is None else
+                                                                 {"connection": u.connection})
+                               for u in self.mission.rovers.units]
             raw["rovers"] = rovers
         raw.pop("mqtt", None)
         if isinstance(raw.get("obstacles"), dict):  # {file: PATH}: the obstacles as loaded, no file I/O here

@@ -247,7 +247,8 @@ async def connect_fleet(
             await v.wait_heartbeat(timeout)
         except TimeoutError:
             errors[vid] = f"no heartbeat within {timeout:g} s"
-            fleet.silence[vid] = v.link.why_silent(v.sysid, sysids.values())
+            on_link = (sysids[other] for other, url in urls.items() if url == urls[vid])
+            fleet.silence[vid] = v.link.why_silent(v.sysid, on_link)
 
     await asyncio.gather(*(first_heartbeat(vid, v) for vid, v in vehicles.items()))
     missing = fleet.missing()

@@ -20,6 +20,9 @@ Decisions beyond the contract:
 * Collection rover ids must be rovers of the fleet; fault ``vehicle`` must be a vehicle id.
 * The carrier's start and every task must lie outside every obstacle and inside ``bounds``.
 * Duplicate keys in a YAML mapping are rejected (YAML silently keeps the last one).
+* MAVLink system ids are unique per link (:mod:`fleetctl.mission.links`): a vehicle's link is its
+  ``connection`` (``sim``: a simulated link of its own), a rover without one shares its carrier's;
+  the same sysid on two links is two vehicles, on one link an error naming both key paths.
 * ``carriers: [...]`` (docs/teams.md) replaces ``carrier:``: each entry takes the carrier keys (``id``
   and ``sysid`` required) and its own ``fleet`` or ``units``; ``fleet`` ids run on across carriers
   and its ``sysid_start`` defaults to one after the previous carrier's last rover. ``Mission.carrier``
@@ -54,6 +57,7 @@ from fleetctl.mission.flight import (
     default_land_time,
     default_takeoff_time,
 )
+from fleetctl.mission.links import link_key, shown_link
 from fleetctl.mission.model import (
     FAILSAFE_ACTIONS,
     FAULT_KINDS,
@@ -575,6 +579,20 @@ def _unique(ctx: _Ctx, items: list[tuple[Any, KeyPath]], what: str) -> None:
         seen[value] = path
 
 
+def _unique_sysids(ctx: _Ctx, rows: list[tuple[str, int, KeyPath]]) -> None:
+    """System ids are unique per link (:mod:`fleetctl.mission.links`): ``rows`` are (link key,
+    sysid, key path) of every vehicle; a repeat on the same link is an error naming both."""
+    seen: dict[tuple[str, int], KeyPath] = {}
+    several = len({link for link, _, _ in rows}) > 1
+    for link, sysid, path in rows:
+        other = seen.get((link, sysid))
+        if other is not None:
+            on = f" on {shown_link(link)}" if several else ""
+            ctx.fail(path, f"duplicate vehicle sysid {sysid}{on} (also at {_fmt_path(other)}); make every "
+                           "vehicle sysid on one link unique (vehicles on different links may share one)")
+        seen[(link, sysid)] = path
+
+
 def _build_fleet(
     ctx: _Ctx, r: dict[str, Any], carrier: dict[str, Any], default_count: int
 ) -> tuple[RoverUnit, ...]:
@@ -941,7 +959,7 @@ def _fleet_units(
     collection: tuple[CollectRover, ...] | None, operation: bool = False,
 ) -> tuple[RoverUnit, ...]:
     """The rover units, enough for the tasks (unless the mission is a long operation, whose rovers
-    serve several tasks each), ids and sysids unique, collection rovers among them."""
+    serve several tasks each), ids unique, sysids unique per link, collection rovers among them."""
     n_default = len(tasks) if tasks else len(collection or ())
     units = _build_fleet(ctx, r, carrier, n_default)
     fleet_key = ("rovers", "units") if r["units"] is not None else ("rovers", "fleet", "count")
@@ -963,12 +981,10 @@ def _fleet_units(
         [(carrier["id"], ("carrier", "id"))] + [(u.id, unit_path(i, "id")) for i, u in enumerate(units)],
         "vehicle id",
     )
-    _unique(
-        ctx,
-        [(carrier["sysid"], ("carrier", "sysid"))]
-        + [(u.sysid, unit_path(i, "sysid")) for i, u in enumerate(units)],
-        "vehicle sysid",
-    )
+    home = link_key(carrier["connection"], carrier["id"])
+    _unique_sysids(ctx, [(home, carrier["sysid"], ("carrier", "sysid"))]
+                   + [(link_key(u.connection, u.id, home), u.sysid, unit_path(i, "sysid"))
+                      for i, u in enumerate(units)])
     _check_collection(ctx, collection, {u.id for u in units})
     return tuple(units)
 
@@ -1042,22 +1058,25 @@ def _team_units(
     ctx: _Ctx, d: dict[str, Any], tasks: tuple[Task, ...], collection: tuple[CollectRover, ...] | None,
 ) -> tuple[tuple[RoverUnit, ...], tuple[tuple[dict[str, Any], tuple[str, ...]], ...]]:
     """Every carrier's rovers (``fleet:`` ids run on across carriers in list order), enough for the
-    tasks, ids and sysids unique over every vehicle, collection rovers among them."""
+    tasks, ids unique over every vehicle, sysids unique per link, collection rovers among them."""
     rows: list[tuple[RoverUnit, KeyPath, KeyPath]] = []
     teams = []
+    links: dict[str, str] = {}  # vehicle id -> its link
     for i, c in enumerate(d["carriers"]):
         next_sysid = rows[-1][0].sysid + 1 if rows else c["sysid"] + 10
         own = _team_fleet(ctx, c, ("carriers", i), len(rows), next_sysid)
         rows += own
         teams.append((c, tuple(u.id for u, _, _ in own)))
+        home = links[c["id"]] = link_key(c["connection"], c["id"])
+        links.update({u.id: link_key(u.connection, u.id, home) for u, _, _ in own})
     if len(rows) < len(tasks):
         ctx.fail(("carriers",), f"only {len(rows)} rover(s) on the carriers for {len(tasks)} tasks; every "
                                 f"task needs its own rover, give at least {len(tasks)} rovers in all")
     cars = d["carriers"]
     _unique(ctx, [(c["id"], ("carriers", i, "id")) for i, c in enumerate(cars)]
             + [(u.id, p) for u, p, _ in rows], "vehicle id")
-    _unique(ctx, [(c["sysid"], ("carriers", i, "sysid")) for i, c in enumerate(cars)]
-            + [(u.sysid, p) for u, _, p in rows], "vehicle sysid")
+    _unique_sysids(ctx, [(links[c["id"]], c["sysid"], ("carriers", i, "sysid")) for i, c in enumerate(cars)]
+                   + [(links[u.id], u.sysid, p) for u, _, p in rows])
     _check_collection(ctx, collection, {u.id for u, _, _ in rows})
     return tuple(u for u, _, _ in rows), tuple(teams)
 

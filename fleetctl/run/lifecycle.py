@@ -107,7 +107,7 @@ class Session:
         self.error: str | None = None
         self.interrupted = False
         self._sim_cm: Any = None
-        self._conflicts: dict[tuple[int, str], float] = {}  # route conflicts told -> when
+        self._conflicts: dict[tuple[str | None, int, str], float] = {}  # route conflicts told -> when
         self._emit: Emit | None = None
 
     def _run_dir(self) -> Path:
@@ -194,7 +194,7 @@ class Session:
     def route_conflict(self, vid: str | None, sysid: int, old: Any, new: Any) -> None:
         """A known system id heard from a new address: told once per source and
         :data:`ROUTE_CONFLICT_EVERY` seconds, never acted on (the first address stays)."""
-        key, now = (sysid, str(new)), time.monotonic()
+        key, now = (vid, sysid, str(new)), time.monotonic()  # a sysid may repeat on another link
         if now - self._conflicts.get(key, -1e9) < ROUTE_CONFLICT_EVERY or self._emit is None:
             return
         self._conflicts[key] = now

@@ -16,6 +16,7 @@ import asyncio
 import bisect
 import contextlib
 import logging
+from collections import Counter
 from collections.abc import Awaitable, Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -24,6 +25,7 @@ from typing import Any
 from fleetctl.geo import Origin, geodetic_to_local
 from fleetctl.journal import JOURNAL_NAME, MISSION_COPY, JournalError, read_journal
 from fleetctl.mission import Mission, MissionError, load_mission
+from fleetctl.mission.teams import mission_teams
 from fleetctl.run.energy import range_from_percent
 from fleetctl.run.kinds import Ev, Phase, VehicleStatus
 from fleetctl.run.state import Event, FleetState
@@ -107,10 +109,12 @@ def load_run(run_dir: str | Path) -> RunRecord:
 
 
 def read_tlog(path: Path, mission: Mission) -> list[Sample]:
-    """Vehicle positions and batteries from a ``.tlog`` (messages from the mission's system ids)."""
+    """Vehicle positions and batteries from a ``.tlog`` (messages from the mission's system ids).
+    The log does not say which link a message came on: a system id the mission uses on several
+    links names no one vehicle, and its messages are left out."""
     from pymavlink import mavutil
 
-    ids = {mission.carrier.sysid: mission.carrier.id, **{u.sysid: u.id for u in mission.rovers.units}}
+    ids = _vehicles_by_sysid(mission)
     origin = mission.origin
     out: list[Sample] = []
     try:
@@ -126,6 +130,15 @@ def read_tlog(path: Path, mission: Mission) -> list[Sample]:
         with contextlib.suppress(Exception):
             mlog.close()
     return out
+
+
+def _vehicles_by_sysid(mission: Mission) -> dict[int, str]:
+    """System id -> vehicle id, every carrier and rover whose sysid no other vehicle uses (on
+    another link)."""
+    sysids = {t.carrier.id: t.carrier.sysid for t in mission_teams(mission)}
+    sysids |= {u.id: u.sysid for u in mission.rovers.units}
+    uses = Counter(sysids.values())
+    return {sysid: vid for vid, sysid in sysids.items() if uses[sysid] == 1}
 
 
 def _messages(mlog: Any, types: tuple[str, ...]) -> Iterator[Any]:

@@ -285,6 +285,9 @@ def test_teams_json_shape() -> None:
 TEAM = {"sysid": 1, "position": [0, 0], "max_speed": 15.0, "fleet": {"count": 2}}
 
 
+RADIO = "udpin://0.0.0.0:14550"  # one radio network both carriers share (one system-id space)
+
+
 def teams_mission(*carriers: dict[str, Any], **top: Any) -> dict[str, Any]:
     data = copy.deepcopy(BASE)
     del data["carrier"]
@@ -344,10 +347,13 @@ def test_one_team_list_is_today_s_carrier(tmp_path: Path) -> None:
     ({k: v for k, v in BASE.items() if k != "carrier"}, "carrier:", "required key is missing"),
     (teams_mission(), "carriers:", "the list is empty"),
     (teams_mission(c("c1", 1), c("c1", 2)), "carriers[1].id:", "duplicate vehicle id 'c1'"),
-    (teams_mission(c("c1", 1), c("c2", 1)), "carriers[1].sysid:", "duplicate vehicle sysid 1"),
-    (teams_mission(c("c1", 1), c("c2", 2, fleet={"count": 2, "sysid_start": 12})),
+    (teams_mission(c("c1", 1, connection=RADIO), c("c2", 1, connection=RADIO)), "carriers[1].sysid:",
+     "duplicate vehicle sysid 1"),
+    (teams_mission(c("c1", 1, connection=RADIO),
+                   c("c2", 2, connection=RADIO, fleet={"count": 2, "sysid_start": 12})),
      "carriers[1].fleet.sysid_start:", "duplicate vehicle sysid 12"),
-    (teams_mission(c("c1", 1), c("c2", 11, fleet={"count": 2, "sysid_start": 40})),
+    (teams_mission(c("c1", 1, connection=RADIO),
+                   c("c2", 11, connection=RADIO, fleet={"count": 2, "sysid_start": 40})),
      "carriers[0].fleet.sysid_start:", "duplicate vehicle sysid 11"),
     (teams_mission(c("c1", 1, fleet={"count": 1})), "carriers:",
      "only 1 rover(s) on the carriers for 2 tasks"),

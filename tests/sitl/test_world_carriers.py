@@ -3,6 +3,8 @@ rover touching down by any stopped carrier is loaded on that one (a collection a
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import pytest
 
 from sitl import LOAD_RADIUS, FleetConfig, VehicleSpec, World
@@ -75,8 +77,22 @@ def test_a_moving_carrier_does_not_load() -> None:
 def test_config_checks_a_rovers_carrier() -> None:
     with pytest.raises(ConfigError, match="no carrier 'c9'"):
         FleetConfig(origin=(47.0, 8.0, 400.0), carrier=carrier("c1", 1, 0.0), rovers=[rover("r1", 11, "c9")])
-    with pytest.raises(ConfigError, match="sysid 1 is used twice"):
-        FleetConfig(origin=(47.0, 8.0, 400.0), carrier=carrier("c1", 1, 0.0), rovers=[],
-                    more_carriers=[carrier("c2", 1, 5.0)])
+    radio = "udp://127.0.0.1:0"
+    with pytest.raises(ConfigError, match="sysid 1 is used twice"):  # on one link
+        FleetConfig(origin=(47.0, 8.0, 400.0), carrier=replace(carrier("c1", 1, 0.0), connection=radio),
+                    rovers=[], more_carriers=[replace(carrier("c2", 1, 5.0), connection=radio)])
     with pytest.raises(ConfigError, match="fleetctl sim"):
         FleetConfig.from_mission_dict({"carriers": []})
+
+
+def test_system_ids_are_unique_per_link() -> None:
+    """Each simulated carrier is a link of its own with its deck's rovers: the same system ids on
+    two links are two vehicles, each served on its own endpoint."""
+    cfg = FleetConfig(origin=(47.0, 8.0, 400.0), carrier=carrier("c1", 1, 0.0),
+                      rovers=[rover("r1", 11, "c1"), rover("r2", 11, "c2")], more_carriers=[carrier("c2", 1, 50.0)])
+    assert cfg.link_groups() == {"sim#c1": ["c1", "r1"], "sim#c2": ["c2", "r2"]}
+    radio = "udp://127.0.0.1:0"
+    with pytest.raises(ConfigError, match="sysid 11 is used twice on link 'sim#c1'"):
+        FleetConfig(origin=(47.0, 8.0, 400.0), carrier=carrier("c1", 1, 0.0),
+                    rovers=[rover("r1", 11, "c1"), rover("r2", 11, "c1"), replace(rover("r3", 11, "c1"),
+                                                                                  connection=radio)])
