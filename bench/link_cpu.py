@@ -3,15 +3,18 @@ decode loop on the same datagrams.
 
 Traffic per vehicle and simulated second: 10 GLOBAL_POSITION_INT and 1 each of HEARTBEAT,
 SYS_STATUS, BATTERY_STATUS, EXTENDED_SYS_STATE, MISSION_CURRENT and GPS_RAW_INT, bundled into
-datagrams of at most 1200 bytes the way the simulated fleet's endpoint does (all vehicles behind
-one address, as rovers sharing the carrier's radio). The datagrams are fed straight into the
-link's ``datagram_received`` (no sockets: what is measured is decoding and dispatch), with one
-subscriber per vehicle system id (as each :class:`~fleetctl.mavlink.vehicle.Vehicle` proxy
-subscribes) whose handler does nothing; the bare loop is ``parser.parse_buffer(datagram)`` and a
+datagrams of at most 1200 bytes the way the simulated fleet's endpoint does (all vehicles of a link
+behind one address, as rovers sharing their carrier's radio). The vehicles sit on links of at most
+``--per-link`` vehicles each (system ids 1.. on every link, as a mission of several carriers on
+links of their own numbers them): 400 vehicles are 4 links of 100 with the same system ids. The
+datagrams of all links are fed in time order straight into their link's ``datagram_received`` (no
+sockets: what is measured is decoding and dispatch), with one subscriber per vehicle system id on
+its link (as each :class:`~fleetctl.mavlink.vehicle.Vehicle` proxy subscribes) whose handler
+counts; the bare loop is one pymavlink parser per link, ``parser.parse_buffer(datagram)`` and a
 loop over the messages. ``--signed`` adds rows where every message is signed and the link checks
 each signature (the bare loop then decodes the same signed datagrams without checking them).
 
-    python bench/link_cpu.py [--vehicles 50,100,200] [--seconds 5] [--repeat 5] [--signed]
+    python bench/link_cpu.py [--vehicles 100,200,400] [--per-link 100] [--seconds 5] [--repeat 5] [--signed]
 
 Prints a markdown table; the ratio is link CPU / bare CPU (best of ``--repeat`` interleaved runs each).
 """
@@ -39,107 +42,134 @@ ADDR = ("127.0.0.1", 14555)
 KEY = SigningKey(bytes(range(32)))
 
 
-def traffic(n: int, seconds: float, signed: bool) -> tuple[list[bytes], int]:
-    """Datagrams of ``seconds`` of ``n`` vehicles' telemetry, and the number of messages."""
+Datagrams = list[tuple[int, bytes]]  # (link index, datagram) in time order
+
+
+def traffic(n: int, per_link: int, seconds: float, signed: bool) -> tuple[Datagrams, int]:
+    """Datagrams of ``seconds`` of ``n`` vehicles' telemetry on links of ``per_link`` vehicles,
+    and the number of messages."""
     mavs = []
     for k in range(n):
-        mav = M.MAVLink(None, srcSystem=k + 1, srcComponent=1)
+        mav = M.MAVLink(None, srcSystem=k % per_link + 1, srcComponent=1)
         if signed:
             mav.signing.secret_key = KEY.secret
             mav.signing.sign_outgoing = True
             mav.signing.timestamp = 1_000_000_000 + k
+            mav.signing.link_id = k // per_link
         mavs.append(mav)
-    datagrams: list[bytes] = []
+    datagrams: Datagrams = []
     count = 0
-    ticks = int(seconds * TICK_HZ)
-    for tick in range(ticks):
-        t = tick / TICK_HZ
-        buf = bytearray()
+    for tick in range(int(seconds * TICK_HZ)):
+        bufs: dict[int, bytearray] = {}
         for k, mav in enumerate(mavs):
-            phase = (k * 7) % TICK_HZ
-            msgs: list[Any] = []
-            if (tick + phase) % (TICK_HZ // 10) == 0:
-                msgs.append(mav.global_position_int_encode(int(t * 1000), 473977420 + k, 85455940 + k,
-                                                           488000, 5000, 120, -40, 0, 9000))
-            if (tick + phase) % TICK_HZ == 0:
-                msgs += [
-                    mav.heartbeat_encode(M.MAV_TYPE_QUADROTOR, M.MAV_AUTOPILOT_PX4, 209, 0x04030000, 4),
-                    mav.sys_status_encode(1, 1, 1, 100, 16000, -1, 90, 0, 0, 0, 0, 0, 0),
-                    mav.battery_status_encode(0, 0, 1, 0x7FFF, [4000] * 4 + [0xFFFF] * 6, -1, -1, -1, 90, 0,
-                                              1),
-                    mav.extended_sys_state_encode(0, M.MAV_LANDED_STATE_IN_AIR),
-                    mav.mission_current_encode(3, 7, 3, 1),
-                    mav.gps_raw_int_encode(int(t * 1e6), 3, 473977420 + k, 85455940 + k, 488000, 80, 120,
-                                           500, 9000, 14),
-                ]
-            for m in msgs:
-                data = m.pack(mav)
-                mav.seq = (mav.seq + 1) & 0xFF
+            li = k // per_link
+            for data in _due(mav, k, tick):
                 count += 1
+                buf = bufs.setdefault(li, bytearray())
                 if buf and len(buf) + len(data) > MAX_DATAGRAM:
-                    datagrams.append(bytes(buf))
-                    buf = bytearray()
+                    datagrams.append((li, bytes(buf)))
+                    buf = bufs[li] = bytearray()
                 buf += data
-        if buf:
-            datagrams.append(bytes(buf))
+        datagrams += [(li, bytes(buf)) for li, buf in bufs.items() if buf]
     return datagrams, count
 
 
-def bare(datagrams: list[bytes]) -> float:
-    parser = M.MAVLink(None)
-    parser.robust_parsing = True
+def _due(mav: Any, k: int, tick: int) -> list[bytes]:
+    """The messages vehicle ``k`` sends at ``tick``, packed."""
+    t = tick / TICK_HZ
+    phase = (k * 7) % TICK_HZ
+    msgs: list[Any] = []
+    if (tick + phase) % (TICK_HZ // 10) == 0:
+        msgs.append(mav.global_position_int_encode(int(t * 1000), 473977420 + k, 85455940 + k,
+                                                   488000, 5000, 120, -40, 0, 9000))
+    if (tick + phase) % TICK_HZ == 0:
+        msgs += [
+            mav.heartbeat_encode(M.MAV_TYPE_QUADROTOR, M.MAV_AUTOPILOT_PX4, 209, 0x04030000, 4),
+            mav.sys_status_encode(1, 1, 1, 100, 16000, -1, 90, 0, 0, 0, 0, 0, 0),
+            mav.battery_status_encode(0, 0, 1, 0x7FFF, [4000] * 4 + [0xFFFF] * 6, -1, -1, -1, 90, 0, 1),
+            mav.extended_sys_state_encode(0, M.MAV_LANDED_STATE_IN_AIR),
+            mav.mission_current_encode(3, 7, 3, 1),
+            mav.gps_raw_int_encode(int(t * 1e6), 3, 473977420 + k, 85455940 + k, 488000, 80, 120,
+                                   500, 9000, 14),
+        ]
+    out = []
+    for m in msgs:
+        out.append(bytes(m.pack(mav)))
+        mav.seq = (mav.seq + 1) & 0xFF
+    return out
+
+
+def bare(datagrams: Datagrams, links: int) -> float:
+    parsers = [M.MAVLink(None) for _ in range(links)]
+    for p in parsers:
+        p.robust_parsing = True
     t0 = time.process_time()
-    for d in datagrams:
-        for _m in parser.parse_buffer(d) or []:
+    for li, d in datagrams:
+        for _m in parsers[li].parse_buffer(d) or []:
             pass
     return time.process_time() - t0
 
 
-def link(datagrams: list[bytes], n: int, signed: bool) -> tuple[float, Link]:
-    lk = Link("udp://127.0.0.1:14555", signing_key=KEY if signed else None, signing_state=False)
-    if signed:  # the bench's vehicles' clocks are far in the past: accept their first timestamps
-        lk._verifier.max_behind = 1 << 47  # type: ignore[union-attr]
-    handled = [0]
+def link(datagrams: Datagrams, n: int, per_link: int, signed: bool) -> tuple[float, list[Link], list[int]]:
+    """CPU of the links on the datagrams; the links and, per vehicle, the messages its subscriber got."""
+    lks = []
+    for li in range((n + per_link - 1) // per_link):
+        lk = Link(f"udp://127.0.0.1:{14555 + li}", signing_key=KEY if signed else None, link_id=li,
+                  signing_state=False)
+        if signed:  # the bench's vehicles' clocks are far in the past: accept their first timestamps
+            lk._verifier.max_behind = 1 << 47  # type: ignore[union-attr]
+        lks.append(lk)
+    handled = [0] * n
 
-    def handler(_msg: Any) -> None:
-        handled[0] += 1
+    def handler_of(k: int) -> Any:
+        def handler(_msg: Any) -> None:
+            handled[k] += 1
+
+        return handler
 
     for k in range(n):
-        lk.subscribe(handler, sysid=k + 1)
+        lks[k // per_link].subscribe(handler_of(k), sysid=k % per_link + 1)
+    received = [lk._received for lk in lks]
     t0 = time.process_time()
-    for d in datagrams:
-        lk._received(d, ADDR)
+    for li, d in datagrams:
+        received[li](d, ADDR)
     elapsed = time.process_time() - t0
-    assert lk.rx_bad == 0, lk.rx_bad
-    return elapsed, lk
+    assert all(lk.rx_bad == 0 for lk in lks), [lk.rx_bad for lk in lks]
+    return elapsed, lks, handled
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--vehicles", default="50,100,200")
+    ap.add_argument("--vehicles", default="100,200,400")
+    ap.add_argument("--per-link", type=int, default=100, help="vehicles per link (system ids 1.. on each)")
     ap.add_argument("--seconds", type=float, default=5.0, help="simulated seconds of traffic per run")
     ap.add_argument("--repeat", type=int, default=5)
     ap.add_argument("--signed", action="store_true", help="also measure signed traffic")
     args = ap.parse_args()
+    if not 1 <= args.per_link <= 254:
+        ap.error("--per-link: 1 .. 254 vehicles (system ids on one link)")
     rows = []
     for signed in (False, True) if args.signed else (False,):
         for n in (int(x) for x in args.vehicles.split(",")):
-            datagrams, count = traffic(n, args.seconds, signed)
+            datagrams, count = traffic(n, args.per_link, args.seconds, signed)
+            links = (n + args.per_link - 1) // args.per_link
             gc.collect()
             tb = tl = float("inf")
             for _ in range(args.repeat):  # interleaved, so both see the same load on a shared machine
-                tb = min(tb, bare(datagrams))
-                t, lk = link(datagrams, n, signed)
+                tb = min(tb, bare(datagrams, links))
+                t, lks, handled = link(datagrams, n, args.per_link, signed)
                 tl = min(tl, t)
-            assert lk.rx_messages == count, (lk.rx_messages, count)
+            assert sum(lk.rx_messages for lk in lks) == count == sum(handled), (count, sum(handled))
+            per_vehicle = count // n
+            assert all(abs(h - per_vehicle) <= 12 for h in handled), "a vehicle got another's messages"
             if signed:
-                assert sum(lk.rejected.values()) == 0, lk.rejected
-            rows.append((n, "signed" if signed else "unsigned", count / args.seconds, count, tb, tl))
+                assert all(sum(lk.rejected.values()) == 0 for lk in lks)
+            rows.append((n, links, "signed" if signed else "unsigned", count / args.seconds, count, tb, tl))
     print(f"python {sys.version.split()[0]}, {args.seconds:g} s of traffic per run, best of {args.repeat}\n")
-    print("| vehicles | traffic | msg/s (per sim s) | bare decode µs/msg | Link µs/msg | ratio |")
-    print("|---:|---|---:|---:|---:|---:|")
-    for n, kind, rate, count, tb, tl in rows:
-        print(f"| {n} | {kind} | {rate:,.0f} | {tb / count * 1e6:.2f} | {tl / count * 1e6:.2f} | "
+    print("| vehicles | links | traffic | msg/s (per sim s) | bare decode µs/msg | Link µs/msg | ratio |")
+    print("|---:|---:|---|---:|---:|---:|---:|")
+    for n, links, kind, rate, count, tb, tl in rows:
+        print(f"| {n} | {links} | {kind} | {rate:,.0f} | {tb / count * 1e6:.2f} | {tl / count * 1e6:.2f} | "
               f"{tl / tb:.2f}x |")
 
 
