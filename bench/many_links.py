@@ -82,9 +82,14 @@ def main() -> None:
     ap.add_argument("--tasks", type=int, default=80)
     ap.add_argument("--speedup", type=float, default=10.0)
     ap.add_argument("--command", default="deploy", choices=("deploy", "run"))
+    ap.add_argument("--keep", type=Path, default=None, help="write the mission and run folder here")
     args = ap.parse_args()
-    with tempfile.TemporaryDirectory() as tmp:
-        r = asyncio.run(fly(args, Path(tmp)))
+    if args.keep is not None:
+        args.keep.mkdir(parents=True, exist_ok=True)
+        r = asyncio.run(fly(args, args.keep))
+    else:
+        with tempfile.TemporaryDirectory() as tmp:
+            r = asyncio.run(fly(args, Path(tmp)))
     print(f"python {sys.version.split()[0]}, {args.command}, speedup {args.speedup:g}\n")
     print("| vehicles | links | connected | distinct sysids | result | tasks reached | makespan planned s "
           "| flown s | wall s | CPU s |")
