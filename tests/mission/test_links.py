@@ -67,7 +67,8 @@ def test_the_message_names_the_link_when_there_are_several(tmp_path: Path) -> No
 
 def test_a_rover_on_its_own_link_reuses_a_sysid(tmp_path: Path) -> None:
     data = {"carrier": {"sysid": 1, "connection": A, "position": [0, 0], "max_speed": 10.0},
-            "rovers": {**ROVERS, "units": [{"id": "r1", "sysid": 11}, {"id": "r2", "sysid": 11, "connection": B}]},
+            "rovers": {**ROVERS, "units": [{"id": "r1", "sysid": 11},
+                                           {"id": "r2", "sysid": 11, "connection": B}]},
             "tasks": TASKS[:2]}
     m = load(tmp_path, data)
     assert vehicle_links(m) == {"carrier": A, "r1": A, "r2": B}

@@ -89,7 +89,8 @@ def test_system_ids_are_unique_per_link() -> None:
     """Each simulated carrier is a link of its own with its deck's rovers: the same system ids on
     two links are two vehicles, each served on its own endpoint."""
     cfg = FleetConfig(origin=(47.0, 8.0, 400.0), carrier=carrier("c1", 1, 0.0),
-                      rovers=[rover("r1", 11, "c1"), rover("r2", 11, "c2")], more_carriers=[carrier("c2", 1, 50.0)])
+                      rovers=[rover("r1", 11, "c1"), rover("r2", 11, "c2")],
+                      more_carriers=[carrier("c2", 1, 50.0)])
     assert cfg.link_groups() == {"sim#c1": ["c1", "r1"], "sim#c2": ["c2", "r2"]}
     radio = "udp://127.0.0.1:0"
     with pytest.raises(ConfigError, match="sysid 11 is used twice on link 'sim#c1'"):

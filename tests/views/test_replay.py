@@ -165,3 +165,28 @@ def test_a_runs_dwell_is_its_planned_time(tmp_path: Path) -> None:
             break
         state.apply(step)
     assert state.phase == "dwell" and state.planned == 30.0  # the run's --dwell, not the mission's
+
+
+def test_a_system_id_used_on_two_links_is_not_taken_from_the_log(tmp_path: Path) -> None:
+    """The .tlog does not say which link a message came on: a system id two links use names no
+    one vehicle, so its positions are left out; every other vehicle (every carrier too) is placed."""
+    from views_helpers import ORIGIN, position_msg
+
+    from fleetctl.mavlink.tlog import tlog_record
+    from fleetctl.mission import load_mission
+    from fleetctl.views.replay import read_tlog
+
+    team = {"connection": "sim", "max_speed": 10.0}
+    mission = {"origin": ORIGIN, "rovers": {"max_speed": 5.0, "deploy_range": 40.0},
+               "carriers": [{"id": "c1", "sysid": 1, "position": [0, 0], **team,
+                             "units": [{"id": "r1", "sysid": 11}, {"id": "r2", "sysid": 12}]},
+                            {"id": "c2", "sysid": 2, "position": [80, 0], **team,
+                             "units": [{"id": "r3", "sysid": 11}, {"id": "r4", "sysid": 13}]}],
+               "tasks": [{"id": "t1", "position": [5, 20, 3]}]}
+    (tmp_path / "m.yaml").write_text(json.dumps(mission))
+    m = load_mission(tmp_path / "m.yaml")
+    log = b"".join(tlog_record(1000.0 + k, position_msg(sysid, 10.0 * k, 0, 0))
+                   for k, sysid in enumerate((1, 2, 11, 12, 13)))
+    (tmp_path / "t.tlog").write_bytes(log)
+    placed = [s.vehicle for s in read_tlog(tmp_path / "t.tlog", m)]
+    assert placed == ["c1", "c2", "r2", "r4"]
