@@ -118,6 +118,19 @@ def test_far_task_is_refused_unless_forced(tmp_path: Path) -> None:
     assert ex.changes[-1][0] == ["t9"] and records[-1][1].get("force") is True
 
 
+def test_a_task_added_keeps_each_rover_on_its_own_link(tmp_path: Path) -> None:
+    """Rovers with links of their own may reuse system ids: the task set re-checked with a new
+    task keeps every rover on its link (not all of them on the carrier's, where the ids clash)."""
+    units = [{"id": "r1", "sysid": 11}, {"id": "r2", "sysid": 11, "connection": "sim"},
+             {"id": "r3", "sysid": 12}]
+    d = mission_dict(units=units)
+    d["mqtt"] = {"url": "mqtt://127.0.0.1:1883", "topic_prefix": "test/hard", "accept_task_changes": True}
+    bus, errors, _ = make_bus(mission_from(d, tmp_path))
+    bus.attach_executor(ex := FakeExecutor())
+    assert bus.handle_task_message(ADD, msg({"tasks": [{"id": "t9", "position": [60, 30, 2]}]})), errors
+    assert ex.changes[-1][0] == ["t9"]
+
+
 def test_task_near_the_others_is_accepted(tmp_path: Path) -> None:
     bus, _, _ = make_bus(make_mission(tmp_path))
     bus.attach_executor(ex := FakeExecutor())
