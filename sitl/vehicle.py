@@ -11,6 +11,7 @@ from __future__ import annotations
 import logging
 import math
 import time
+import zlib
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any, Protocol
@@ -105,6 +106,7 @@ class SimVehicle:
         self.spec = spec
         self.id = spec.id
         self.sysid = spec.sysid
+        self.uid = zlib.crc32(spec.id.encode())  # AUTOPILOT_VERSION's uid: one per vehicle, not per sysid
         self.compid = spec.compid
         self.body = body
         self.rover = body if isinstance(body, Rover) else None  # the body again, when it is a rover
@@ -1203,7 +1205,7 @@ class SimVehicle:
     def _autopilot_version(self) -> Any:
         return self.mav.autopilot_version_encode(
             _CAPABILITIES, self.flavour.sw_version, 0, 0, 0, [0] * 8, [0] * 8, [0] * 8, 0, 0,
-            0x51A1_0000_0000 + self.sysid)
+            0x51A1_0000_0000 + self.uid)
 
 
 def _param_name(raw: Any) -> str:
