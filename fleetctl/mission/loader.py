@@ -1064,10 +1064,11 @@ def _team_units(
     links: dict[str, str] = {}  # vehicle id -> its link
     for i, c in enumerate(d["carriers"]):
         next_sysid = rows[-1][0].sysid + 1 if rows else c["sysid"] + 10
-        own = _team_fleet(ctx, c, ("carriers", i), len(rows), next_sysid)
+        home = link_key(c["connection"], c["id"])
+        own = _team_fleet(ctx, c, ("carriers", i), len(rows), next_sysid, home not in links.values())
         rows += own
         teams.append((c, tuple(u.id for u, _, _ in own)))
-        home = links[c["id"]] = link_key(c["connection"], c["id"])
+        links[c["id"]] = home
         links.update({u.id: link_key(u.connection, u.id, home) for u, _, _ in own})
     if len(rows) < len(tasks):
         ctx.fail(("carriers",), f"only {len(rows)} rover(s) on the carriers for {len(tasks)} tasks; every "
@@ -1081,8 +1082,8 @@ def _team_units(
     return tuple(u for u, _, _ in rows), tuple(teams)
 
 
-def _team_fleet(ctx: _Ctx, c: dict[str, Any], path: KeyPath, first: int,
-                next_sysid: int) -> list[tuple[RoverUnit, KeyPath, KeyPath]]:
+def _team_fleet(ctx: _Ctx, c: dict[str, Any], path: KeyPath, first: int, next_sysid: int,
+                own_link: bool = False) -> list[tuple[RoverUnit, KeyPath, KeyPath]]:
     """One carrier's rovers with the key paths of their id and sysid: ``units: [...]`` as given, or
     ``fleet: {count, sysid_start}`` as r<first+1>.. with sysids from sysid_start (default: after
     the previous carrier's last rover; for the first carrier, its sysid + 10)."""
@@ -1107,8 +1108,11 @@ def _team_fleet(ctx: _Ctx, c: dict[str, Any], path: KeyPath, first: int,
     count, start = c["fleet"]["count"], c["fleet"]["sysid_start"] or next_sysid
     fp = path + ("fleet",)
     if start + count - 1 > 255:
+        fresh = c["sysid"] + 1 if c["sysid"] + count <= 255 else 1 if count < c["sysid"] else None
+        hint = (f"; this carrier's link is its own (system ids are unique per link): 'sysid_start: {fresh}' "
+                "numbers its rovers afresh" if own_link and fresh is not None else "")
         ctx.fail(fp + ("sysid_start",), f"rover sysids {start}..{start + count - 1} exceed 255; lower "
-                                        "sysid_start (or the carriers' sysids)")
+                                        f"sysid_start (or the carriers' sysids){hint}")
     return [(RoverUnit(f"r{first + j + 1}", start + j, None), fp, fp + ("sysid_start",))
             for j in range(count)]
 

@@ -83,3 +83,21 @@ def test_shipped_missions_keep_their_links_and_sysids() -> None:
     assert set(vehicle_links(m).values()) == {"sim:c1", "sim:c2"}
     one = load_mission(ROOT / "missions" / "recon.yaml")
     assert not several_links(one)
+
+
+def test_four_carriers_of_a_hundred_rovers(tmp_path: Path) -> None:
+    """404 vehicles on four links; rovers numbered on from the previous carrier's would pass 255,
+    and the message says how to number them afresh on a carrier's own link."""
+    cars = [carrier(f"c{k + 1}", f"udpin://0.0.0.0:{14550 + k}", 300.0 * k, fleet={"count": 100})
+            for k in range(4)]
+    with pytest.raises(MissionError) as err:
+        load(tmp_path, teams(*cars))
+    msg = str(err.value)
+    assert "carriers[2].fleet.sysid_start: rover sysids 211..310 exceed 255" in msg
+    assert "'sysid_start: 2' numbers its rovers afresh" in msg
+    for c in cars:
+        c["fleet"]["sysid_start"] = 2
+    m = load(tmp_path, teams(*cars))
+    links = vehicle_links(m)
+    assert len(links) == 404 and len(set(links.values())) == 4
+    assert {u.sysid for u in m.rovers.units} == set(range(2, 102))
