@@ -80,9 +80,10 @@ class CollectSpace:
         keep = next(k for upto, k in QD_KEEP if self.size <= upto)
         self.cheap: Sequence[Move] = (swap, relocate_nearest(self.nearness, keep), merge)
 
-    def nearness(self, rover: int, cluster: Sequence[int]) -> float:
-        c, p = self.inst.region(cluster).center, self.inst.pts2[rover]
-        return (p[0] - c[0]) ** 2 + (p[1] - c[1]) ** 2
+    def nearness(self, cluster: Sequence[int]) -> Callable[[int], float]:
+        """The key ranking rovers by their squared distance to ``cluster``'s power centre."""
+        c, pts = self.inst.region(cluster).center, self.inst.pts2
+        return lambda rover: (pts[rover][0] - c[0]) ** 2 + (pts[rover][1] - c[1]) ** 2
 
     def finish(self, route: Route, small: bool, improve: bool) -> Route:
         return place_finely(self.builder, route, small)
