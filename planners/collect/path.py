@@ -28,6 +28,9 @@ class PathBuilder:
         self.step = carrier_stepper(self.carrier)
         self.drive = carrier_hopper(self.carrier)
         self.leg = leg_timer(self.rover)
+        # whether Route.replace places the stop before a change afresh too (the quick descent of
+        # long routes leaves it where it is: ``planners.collect.lee.QD_KEEP_BEFORE_FROM``)
+        self.replace_before = True
 
     def ready(self, region: Region, p: Point2) -> float:
         """g(q_γ) of eq. 5.2: when the cluster's last rover lands at ``p`` (all leave at t = 0)."""
@@ -219,13 +222,14 @@ class Route:
         return r
 
     def replace(self, i: int, pieces: list[list[int]], count: int = 1) -> Candidate:
-        """Makespan after clusters i..i+count-1 are replaced by ``pieces``: the stop before, the
-        pieces and their stops are placed afresh; later stops keep their places and are re-timed."""
+        """Makespan after clusters i..i+count-1 are replaced by ``pieces``: the stop before (unless
+        the builder's ``replace_before`` is off), the pieces and their stops are placed afresh; later
+        stops keep their places and are re-timed."""
         b, old = self.b, self.clusters
         clusters = old[:i] + pieces + old[i + count:]
         near = old[i:i + count]
         regions = self.regions[:i] + [b.inst.region(p, near) for p in pieces] + self.regions[i + count:]
-        lo = max(i - 1, 0)
+        lo = max(i - 1, 0) if b.replace_before else i
         hi = min(i + len(pieces), len(clusters))  # new indices lo..hi-1 are placed afresh
         m = hi - len(pieces) + count  # old index of the first kept stop
         prev, t, h = self.state_before(lo)

@@ -53,7 +53,7 @@ def smooth(builder: PathBuilder, route: Route, tol: float = 1e-3) -> Route:
     regions, load, drive, leg = route.regions, builder.load, builder.drive, builder.leg
 
     inst = builder.inst
-    rows = [[(*inst.pts2[i], (float(inst.radii[i]) + INSIDE_TOL) ** 2, float(inst.heights2[i])) for i in c]
+    rows = [[(*inst.pts2[i], (inst.rad[i] + INSIDE_TOL) ** 2, inst.h2[i]) for i in c]
             for c in route.clusters]  # (stops on a disc's rim are inside up to rounding)
 
     def cost(pos: Sequence[Point2], tau: float) -> float:
@@ -76,7 +76,7 @@ def smooth(builder: PathBuilder, route: Route, tol: float = 1e-3) -> Route:
     def exact(pos: Sequence[Point2]) -> float:
         return cost(pos, 0.0)
 
-    step = max(min(float(min(builder.inst.radii[i] for i in c)) for c in route.clusters) / 4, 0.05)
+    step = max(min(min(builder.inst.rad[i] for i in c) for c in route.clusters) / 4, 0.05)
     centres = [reg.time_center for reg in regions]
     forward = [reg.project(nxt) for reg, nxt in zip(regions, [*centres[1:], centres[-1]], strict=True)]
     starts = [route.positions, centres, forward]  # forward: each stop as near the next cluster as it can
@@ -93,7 +93,7 @@ def _stop_cost(route: Route, k: int) -> Callable[[float, float], float]:
     b = route.b
     inst, step, leg, load = b.inst, b.step, b.leg, b.load
     members = route.clusters[k]
-    rows = [(inst.pts2[i][0], inst.pts2[i][1], float(inst.radii[i]) ** 2, float(inst.heights2[i]))
+    rows = [(inst.pts2[i][0], inst.pts2[i][1], inst.rad[i] ** 2, inst.h2[i])
             for i in members]
     (px, py), t0, h0 = route.state_before(k)
     n = len(route.positions)
@@ -134,7 +134,7 @@ def compass(builder: PathBuilder, route: Route, sweeps: int = 2, tol: float = 1e
             cost = _stop_cost(route, k)
             best = route.makespan
             x, y = route.positions[k]
-            step = max(float(min(inst.radii[i] for i in route.clusters[k])) / 4, 0.05)
+            step = max(min(inst.rad[i] for i in route.clusters[k]) / 4, 0.05)
             x, y, best = compass_search(cost, x, y, best, step, tol)
             if (x, y) != route.positions[k]:
                 route = route.moved(k, (x, y))
