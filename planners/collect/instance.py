@@ -28,8 +28,9 @@ class CollectInstance:
         # Reach radius on the ground, kept RANGE_MARGIN inside the range (timing.RANGE_MARGIN).
         self.radii = np.sqrt(np.maximum(np.maximum(rng - RANGE_MARGIN, 0.0) ** 2 - self.heights2, 0.0))
         self.pts2: list[Point2] = [(float(x), float(y)) for x, y in self.ground.tolist()]
-        self.rad: list[float] = self.radii.tolist()
-        self._lists = (self.pts2, self.rad, self.heights2.tolist())
+        self.rad: list[float] = self.radii.tolist()  # the same numbers as lists, for Python loops
+        self.h2: list[float] = self.heights2.tolist()
+        self._lists = (self.pts2, self.rad, self.h2)
         self._regions: dict[tuple[int, ...], Region] = {}
         # power and time centres' circles, derived from neighbouring clusters' (core.geometry)
         self._circles = (EnclosingCircles(self.pts2), EnclosingCircles(self.pts2))

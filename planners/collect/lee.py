@@ -47,7 +47,7 @@ def _move_rovers(builder: PathBuilder, route: Route) -> Route:
             stop = route.positions[dst]
             for r in list(a):
                 # only rovers that reach the neighbour's present stop: that cluster keeps a stop
-                if math.dist(inst.pts2[r], stop) > inst.radii[r] or not inst.fits([*b, r]):
+                if math.dist(inst.pts2[r], stop) > inst.rad[r] or not inst.fits([*b, r]):
                     continue
                 pieces = [[x for x in a if x != r], [*b, r]]
                 if src > dst:
@@ -79,10 +79,14 @@ class CollectSpace:
         self.rebuild = builder.route
         keep = next(k for upto, k in QD_KEEP if self.size <= upto)
         self.cheap: Sequence[Move] = (swap, relocate_nearest(self.nearness, keep), merge)
+        # long routes: a change's quick score leaves the stop before it in place (a third fewer
+        # stops placed per score, and as good plans on 500-1000 rovers)
+        builder.replace_before = self.size < QD_KEEP_BEFORE_FROM
 
-    def nearness(self, rover: int, cluster: Sequence[int]) -> float:
-        c, p = self.inst.region(cluster).center, self.inst.pts2[rover]
-        return (p[0] - c[0]) ** 2 + (p[1] - c[1]) ** 2
+    def nearness(self, cluster: Sequence[int]) -> Callable[[int], float]:
+        """The key ranking rovers by their squared distance to ``cluster``'s power centre."""
+        c, pts = self.inst.region(cluster).center, self.inst.pts2
+        return lambda rover: (pts[rover][0] - c[0]) ** 2 + (pts[rover][1] - c[1]) ** 2
 
     def finish(self, route: Route, small: bool, improve: bool) -> Route:
         return place_finely(self.builder, route, small)
@@ -156,6 +160,7 @@ def lee_route(problem: CollectProblem, improve: bool = True, t0: float | None = 
 # (up to n rovers, k): the rovers of a cluster nearest its neighbour that the quick descent offers to it
 QD_KEEP = ((200, 4), (math.inf, 2))
 MOVE_ROVERS_UPTO = 200  # rovers: beyond, the loop does not hand rovers over (the quick descent does)
+QD_KEEP_BEFORE_FROM = 201  # rovers: from this many on, the search's changes keep the stop before them
 
 
 def plan_collect_lee(problem: CollectProblem, tiny_search: bool = True) -> Plan:

@@ -11,7 +11,7 @@ import numpy as np
 from planners.collect.instance import CollectInstance
 from planners.collect.reach import Point2, Region
 from planners.core.geometry import minimize_1d
-from planners.core.timing import carrier_hop, leg_time
+from planners.core.timing import carrier_hopper, carrier_stepper, leg_timer
 
 
 class PathBuilder:
@@ -24,18 +24,25 @@ class PathBuilder:
         self.load = p.carrier.collect_stop_time
         self.start: Point2 = (p.start[0], p.start[1])
         self.heading0 = p.heading
+        # the time model's hop, step and rover flight with this problem's numbers bound (the same floats)
+        self.step = carrier_stepper(self.carrier)
+        self.drive = carrier_hopper(self.carrier)
+        self.leg = leg_timer(self.rover)
+        # whether Route.replace places the stop before a change afresh too (the quick descent of
+        # long routes leaves it where it is: ``planners.collect.lee.QD_KEEP_BEFORE_FROM``)
+        self.replace_before = True
 
     def ready(self, region: Region, p: Point2) -> float:
         """g(q_γ) of eq. 5.2: when the cluster's last rover lands at ``p`` (all leave at t = 0)."""
-        return leg_time(region.farthest_flight(p), self.rover)
+        return self.leg(region.farthest_flight(p))
 
     def local_time(self, region: Region, p: Point2, prev: Point2, t: float, heading: float,
                    nxt: Point2 | None) -> float:
         """η_β of eq. 5.2 at ``p`` plus the hop on to the next stop: what placing q_γβ at p costs."""
-        dt, h = carrier_hop(prev, p, heading, self.carrier)
-        eta = max(t + dt, self.ready(region, p)) + self.load
+        dt, h = self.drive(prev, p, heading)
+        eta = max(t + dt, self.leg(region.farthest_flight(p))) + self.load
         if nxt is not None:
-            eta += carrier_hop(p, nxt, h, self.carrier)[0]
+            eta += self.drive(p, nxt, h)[0]
         return eta
 
     def place(self, region: Region, prev: Point2, t: float, heading: float, nxt: Point2 | None,
@@ -80,7 +87,7 @@ class PathBuilder:
         for k, reg in enumerate(regions):
             nxt = regions[k + 1].center if k + 1 < len(regions) else None  # next stop not known yet
             pos = self.place(reg, prev, t, heading, nxt, level)
-            dt, heading = carrier_hop(prev, pos, heading, self.carrier)
+            dt, heading = self.drive(prev, pos, heading)
             t = max(t + dt, self.ready(reg, pos)) + self.load
             positions.append(pos)
             prev = pos
@@ -109,7 +116,7 @@ class Route:
         self.ready: list[float] = []
         prev, h = b.start, b.heading0
         for reg, pos in zip(regions, positions, strict=True):
-            dt, h = carrier_hop(prev, pos, h, b.carrier)
+            dt, h = b.drive(prev, pos, h)
             self.hop.append(dt)
             self.heading.append(h)
             self.ready.append(b.ready(reg, pos))
@@ -161,7 +168,7 @@ class Route:
         for j in range(k, len(r.positions)):
             if j > k + 1 and h == self.heading[j - 1]:
                 break
-            r.hop[j], h = carrier_hop(prev, r.positions[j], h, b.carrier)
+            r.hop[j], h = b.drive(prev, r.positions[j], h)
             r.heading[j] = h
             prev = r.positions[j]
         r._times()
@@ -183,7 +190,7 @@ class Route:
         last = min(m + 2, len(self.positions))
         for j in range(m, last):  # the heading into m changed, so the rotation at m (into m + 1) too
             pos = self.positions[j]
-            dt, h = carrier_hop(prev, pos, h, b.carrier)
+            dt, h = b.drive(prev, pos, h)
             t = max(t + dt, self.ready[j]) + b.load
             prev = pos
         return self.end_from(last - 1, t)
@@ -206,7 +213,7 @@ class Route:
                 r.heading += self.heading[o:]
                 r.ready += self.ready[o:]
                 break
-            dt, h = carrier_hop(prev, positions[j], h, b.carrier)
+            dt, h = b.drive(prev, positions[j], h)
             r.hop.append(dt)
             r.heading.append(h)
             r.ready.append(b.ready(r.regions[j], positions[j]) if j < hi else self.ready[o])
@@ -215,13 +222,14 @@ class Route:
         return r
 
     def replace(self, i: int, pieces: list[list[int]], count: int = 1) -> Candidate:
-        """Makespan after clusters i..i+count-1 are replaced by ``pieces``: the stop before, the
-        pieces and their stops are placed afresh; later stops keep their places and are re-timed."""
+        """Makespan after clusters i..i+count-1 are replaced by ``pieces``: the stop before (unless
+        the builder's ``replace_before`` is off), the pieces and their stops are placed afresh; later
+        stops keep their places and are re-timed."""
         b, old = self.b, self.clusters
         clusters = old[:i] + pieces + old[i + count:]
         near = old[i:i + count]
         regions = self.regions[:i] + [b.inst.region(p, near) for p in pieces] + self.regions[i + count:]
-        lo = max(i - 1, 0)
+        lo = max(i - 1, 0) if b.replace_before else i
         hi = min(i + len(pieces), len(clusters))  # new indices lo..hi-1 are placed afresh
         m = hi - len(pieces) + count  # old index of the first kept stop
         prev, t, h = self.state_before(lo)
@@ -232,7 +240,7 @@ class Route:
             else:
                 nxt = self.positions[m] if m < len(old) else None
             pos = b.place(regions[k], prev, t, h, nxt)
-            dt, h = carrier_hop(prev, pos, h, b.carrier)
+            dt, h = b.drive(prev, pos, h)
             t = max(t + dt, b.ready(regions[k], pos)) + b.load
             positions.append(pos)
             prev = pos

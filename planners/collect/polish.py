@@ -14,7 +14,6 @@ from planners.core.driver import COARSE_TOL
 from planners.core.geometry import compass_search
 from planners.core.plan import SNAP
 from planners.core.smooth import smooth_compass, smooth_max
-from planners.core.timing import carrier_hop, carrier_step, leg_time
 
 
 def polish(builder: PathBuilder, route: Route,
@@ -51,10 +50,10 @@ def smooth(builder: PathBuilder, route: Route, tol: float = 1e-3) -> Route:
     clusters' time centres and each stop nearest the next cluster's; keeps the faster route."""
     if not route.clusters:
         return route
-    regions, load, carrier = route.regions, builder.load, builder.carrier
+    regions, load, drive, leg = route.regions, builder.load, builder.drive, builder.leg
 
     inst = builder.inst
-    rows = [[(*inst.pts2[i], (float(inst.radii[i]) + INSIDE_TOL) ** 2, float(inst.heights2[i])) for i in c]
+    rows = [[(*inst.pts2[i], (inst.rad[i] + INSIDE_TOL) ** 2, inst.h2[i]) for i in c]
             for c in route.clusters]  # (stops on a disc's rim are inside up to rounding)
 
     def cost(pos: Sequence[Point2], tau: float) -> float:
@@ -69,15 +68,15 @@ def smooth(builder: PathBuilder, route: Route, tol: float = 1e-3) -> Route:
             hop2 = (q[0] - prev[0]) ** 2 + (q[1] - prev[1]) ** 2
             if 0.0 < hop2 < SNAP2:  # the plan would put this stop on the previous one (and lose its turn)
                 return math.inf
-            dt, h = carrier_hop(prev, q, h, carrier)
-            t = smooth_max(t + dt, leg_time(math.sqrt(far), builder.rover), tau) + load
+            dt, h = drive(prev, q, h)
+            t = smooth_max(t + dt, leg(math.sqrt(far)), tau) + load
             prev = q
         return t
 
     def exact(pos: Sequence[Point2]) -> float:
         return cost(pos, 0.0)
 
-    step = max(min(float(min(builder.inst.radii[i] for i in c)) for c in route.clusters) / 4, 0.05)
+    step = max(min(min(builder.inst.rad[i] for i in c) for c in route.clusters) / 4, 0.05)
     centres = [reg.time_center for reg in regions]
     forward = [reg.project(nxt) for reg, nxt in zip(regions, [*centres[1:], centres[-1]], strict=True)]
     starts = [route.positions, centres, forward]  # forward: each stop as near the next cluster as it can
@@ -89,11 +88,12 @@ def smooth(builder: PathBuilder, route: Route, tol: float = 1e-3) -> Route:
 def _stop_cost(route: Route, k: int) -> Callable[[float, float], float]:
     """Makespan of ``route`` with stop k moved to (x, y), the others kept, or inf outside I_β:
     the hops into k, k + 1 and k + 2 are re-timed, later stops by ``Route.end_from``. The compass
-    search calls it thousands of times: the hops are ``planners.core.timing.carrier_step``."""
+    search calls it thousands of times: the hops are the builder's ``step``
+    (``planners.core.timing.carrier_stepper``)."""
     b = route.b
-    inst, c, rover, load = b.inst, b.carrier, b.rover, b.load
+    inst, step, leg, load = b.inst, b.step, b.leg, b.load
     members = route.clusters[k]
-    rows = [(inst.pts2[i][0], inst.pts2[i][1], float(inst.radii[i]) ** 2, float(inst.heights2[i]))
+    rows = [(inst.pts2[i][0], inst.pts2[i][1], inst.rad[i] ** 2, inst.h2[i])
             for i in members]
     (px, py), t0, h0 = route.state_before(k)
     n = len(route.positions)
@@ -108,11 +108,11 @@ def _stop_cost(route: Route, k: int) -> Callable[[float, float], float]:
                 return math.inf
             if e + z2 > far:
                 far = e + z2
-        dt, h = carrier_step(x - px, y - py, h0, c)
-        t = max(t0 + dt, leg_time(math.sqrt(far), rover)) + load
+        dt, h = step(x - px, y - py, h0)
+        t = max(t0 + dt, leg(math.sqrt(far))) + load
         qx, qy = x, y
         for (nx, ny), rd in zip(nxt, ready, strict=True):
-            dt, h = carrier_step(nx - qx, ny - qy, h, c)
+            dt, h = step(nx - qx, ny - qy, h)
             t = max(t + dt, rd) + load
             qx, qy = nx, ny
         return route.end_from(k + len(nxt), t) if k + 1 < n else t
@@ -134,7 +134,7 @@ def compass(builder: PathBuilder, route: Route, sweeps: int = 2, tol: float = 1e
             cost = _stop_cost(route, k)
             best = route.makespan
             x, y = route.positions[k]
-            step = max(float(min(inst.radii[i] for i in route.clusters[k])) / 4, 0.05)
+            step = max(min(inst.rad[i] for i in route.clusters[k]) / 4, 0.05)
             x, y, best = compass_search(cost, x, y, best, step, tol)
             if (x, y) != route.positions[k]:
                 route = route.moved(k, (x, y))

@@ -190,15 +190,15 @@ class Region:
         (x − v lies in the cone of the two active circles' outward normals); else None, and the
         caller scans every vertex. O(k²) only through the inside test, no vertex list built."""
         xm, ym, rm = disc
+        pairs = [(math.hypot(q[0] - x, q[1] - y), q, d2)
+                 for d2 in self.discs if d2 is not disc for q in _pair_points(disc, d2)]
+        pairs.sort(key=lambda e: e[0])  # nearest first (stable: ties in the discs' order)
         best: Point2 | None = None
-        best_d, other = math.inf, disc
-        for d2 in self.discs:
-            if d2 is disc:
-                continue
-            for q in _pair_points(disc, d2):
-                d = math.hypot(q[0] - x, q[1] - y)
-                if d < best_d and self.contains(q):
-                    best, best_d, other = q, d, d2
+        other = disc
+        for _, q, d2 in pairs:  # the nearest vertex: the first that lies in I_β
+            if self.contains(q):
+                best, other = q, d2
+                break
         if best is None:
             return None
         vx, vy = best

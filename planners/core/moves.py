@@ -13,6 +13,7 @@ Beyond the dissertation: Algorithms 4.2 and 5.2 only divide, swap two halves and
 
 from __future__ import annotations
 
+import heapq
 import math
 import time
 from collections.abc import Callable, Iterator, Sequence
@@ -40,20 +41,21 @@ def relocate(clusters: Clusters, fits: Fits, start: int = 0) -> Iterator[Change]
                 yield k, [[*a, r], [x for x in b if x != r]], 2
 
 
-def relocate_nearest(near: Callable[[int, Sequence[int]], float], keep: int = 2) -> Move:
+def relocate_nearest(near: Callable[[Sequence[int]], Callable[[int], float]], keep: int = 2) -> Move:
     """``relocate`` with a bounded candidate list: of each cluster only the ``keep`` members
-    nearest the neighbouring cluster (``near(item, cluster)``) are handed over (long routes)."""
+    nearest the neighbouring cluster are handed over (long routes). ``near(cluster)`` gives the
+    key that ranks items by their nearness to ``cluster`` (made once per neighbour, not per item)."""
     def move(clusters: Clusters, fits: Fits, start: int = 0) -> Iterator[Change]:
         if keep <= 0:  # nothing to hand over (and no members to sort by nearness)
             return
         for k in range(start, len(clusters) - 1):
             a, b = list(clusters[k]), list(clusters[k + 1])
             if len(a) > 1:
-                for r in sorted(a, key=lambda x: near(x, b))[:keep]:
+                for r in heapq.nsmallest(keep, a, key=near(b)):
                     if fits([*b, r]):
                         yield k, [[x for x in a if x != r], [*b, r]], 2
             if len(b) > 1:
-                for r in sorted(b, key=lambda x: near(x, a))[:keep]:
+                for r in heapq.nsmallest(keep, b, key=near(a)):
                     if fits([*a, r]):
                         yield k, [[*a, r], [x for x in b if x != r]], 2
     move.__name__ = "relocate_nearest"

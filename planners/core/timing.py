@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import TypeVar
 
 import numpy as np
@@ -158,6 +158,63 @@ def carrier_step(dx: float, dy: float, heading: float, carrier: CarrierSpec) -> 
         turn = (h - heading) % _TAU
         t += min(turn, _TAU - turn) / carrier.turn_rate
     return t, h
+
+
+Step = Callable[[float, float, float], tuple[float, float]]
+Hop = Callable[[Sequence[float], Sequence[float], float], tuple[float, float]]
+
+
+def carrier_stepper(carrier: CarrierSpec) -> Step:
+    """:func:`carrier_step` with ``carrier``'s numbers bound once: ``step(dx, dy, heading)``, the same
+    arithmetic in the same order (the same floats, bit for bit; a test checks), for the planners'
+    innermost loops, which call it millions of times."""
+    v, a, w = carrier.max_speed, carrier.accel, carrier.turn_rate
+    atan2, sqrt, tau = math.atan2, math.sqrt, _TAU
+    ramp = None if a is None else v * v / a
+    brake = None if a is None else v / a
+
+    def step(dx: float, dy: float, heading: float) -> tuple[float, float]:
+        d2 = dx * dx + dy * dy
+        if d2 <= 1e-18:
+            return 0.0, heading
+        h = atan2(dy, dx)
+        length = sqrt(d2)
+        if a is None:
+            t = length / v
+        elif length >= ramp:  # type: ignore[operator]
+            t = length / v + brake  # type: ignore[operator]
+        else:
+            t = 2.0 * sqrt(length / a)
+        if w is not None:
+            turn = (h - heading) % tau
+            t += (turn if turn <= tau - turn else tau - turn) / w
+        return t, h
+    return step
+
+
+def carrier_hopper(carrier: CarrierSpec) -> Hop:
+    """:func:`carrier_hop` with ``carrier``'s numbers bound once (``carrier_stepper``):
+    ``hop(p, q, heading)``."""
+    step = carrier_stepper(carrier)
+    return lambda p, q, heading: step(q[0] - p[0], q[1] - p[1], heading)
+
+
+def leg_timer(motion: Motion) -> Callable[[float], float]:
+    """:func:`leg_time` with ``motion``'s numbers bound once: ``leg(length)``, the same floats."""
+    v, a, fixed = motion.max_speed, motion.accel, motion.fixed_time
+    ramp = None if a is None else v * v / a
+    brake = None if a is None else v / a
+    sqrt = math.sqrt
+
+    def leg(length: float) -> float:
+        if length <= 0.0:
+            return fixed + 0.0
+        if a is None:
+            return fixed + length / v
+        if length >= ramp:  # type: ignore[operator]
+            return fixed + (length / v + brake)  # type: ignore[operator]
+        return fixed + 2.0 * sqrt(length / a)
+    return leg
 
 
 def travel_times(length: np.ndarray, motion: Motion) -> np.ndarray:

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 from planners.core.clustering import Divider, divide_cluster
 from planners.core.driver import search
@@ -39,9 +39,10 @@ class DeploySpace:
         keep = next(k for upto, k in QD_KEEP if self.size <= upto)
         self.cheap: Sequence[Move] = (relocate_nearest(self.nearness, keep), merge)
 
-    def nearness(self, task: int, cluster: Sequence[int]) -> float:
-        c, p = self.inst.geometry(cluster).center, self.inst.pts[task]
-        return (p[0] - c[0]) ** 2 + (p[1] - c[1]) ** 2
+    def nearness(self, cluster: Sequence[int]) -> Callable[[int], float]:
+        """The key ranking tasks by their squared distance to ``cluster``'s centre."""
+        c, pts = self.inst.geometry(cluster).center, self.inst.pts
+        return lambda task: (pts[task][0] - c[0]) ** 2 + (pts[task][1] - c[1]) ** 2
 
     def finish(self, route: Route, small: bool, improve: bool) -> Route:
         return place_finely(self.builder, route, small, improve)

@@ -10,7 +10,7 @@ import numpy as np
 
 from planners.core.geometry import find_root, minimize_1d
 from planners.core.problem import Point2
-from planners.core.timing import carrier_hop, leg_time
+from planners.core.timing import carrier_hopper, leg_timer
 from planners.deploy.cluster import ClusterGeometry, DeployInstance, lerp, max_range_point
 from planners.deploy.screen import screen
 
@@ -24,10 +24,13 @@ class PathBuilder:
         self.carrier, self.rover = p.carrier, p.rover
         self.unload = p.carrier.deploy_stop_time
         self.start: Point2 = (p.start[0], p.start[1])
+        # the time model's hop and rover flight with this problem's numbers bound (the same floats)
+        self.drive = carrier_hopper(self.carrier)
+        self.leg = leg_timer(self.rover)
 
     def finish(self, pos: Point2, members: Sequence[int]) -> float:
         """Rover flight time to the cluster's farthest task from ``pos`` (eq. 4.5)."""
-        return leg_time(self.inst.reach_from(pos, members), self.rover)
+        return self.leg(self.inst.reach_from(pos, members))
 
     def place(self, clusters: Sequence[Sequence[int]], geos: Sequence[ClusterGeometry], k: int,
               prev: Point2, t: float, heading: float, worst: float, fine: bool) -> Point2:
@@ -49,7 +52,7 @@ class PathBuilder:
 
         def last_stop(pos: Point2, h: float, t1: float, u: float, nxt: Point2) -> float:
             q = lerp(pos, nxt, u)
-            dt2, _ = carrier_hop(pos, q, h, self.carrier)
+            dt2, _ = self.drive(pos, q, h)
             return t1 + dt2 + self.unload + self.finish(q, clusters[k + 1])
 
         seen: dict[tuple[float, float], tuple[float, float]] = {}  # the searches revisit their ends
@@ -60,7 +63,7 @@ class PathBuilder:
             if got is not None:
                 return got
             pos = lerp(prev, center, s)
-            dt, h = carrier_hop(prev, pos, heading, self.carrier)
+            dt, h = self.drive(prev, pos, heading)
             t1 = t + dt + self.unload
             later = last_stop(pos, h, t1, u, nxt) if nxt is not None else 0.0
             got = seen[(s, u)] = (t1 + self.finish(pos, clusters[k]), later)
@@ -117,7 +120,7 @@ class PathBuilder:
         prev, t, heading, worst = self.start, 0.0, self.inst.problem.heading, 0.0
         for k in range(len(clusters)):
             pos = self.place(clusters, geos, k, prev, t, heading, worst, fine)
-            dt, heading = carrier_hop(prev, pos, heading, self.carrier)
+            dt, heading = self.drive(prev, pos, heading)
             fly = self.finish(pos, clusters[k])
             t += dt + self.unload
             worst = max(worst, t + fly)
@@ -155,7 +158,7 @@ class Route:
         self.fly: list[float] = []
         prev, h = b.start, b.inst.problem.heading
         for members, pos in zip(clusters, positions, strict=True):
-            dt, h = carrier_hop(prev, pos, h, b.carrier)
+            dt, h = b.drive(prev, pos, h)
             self.hop.append(dt)
             self.heading.append(h)
             self.fly.append(b.finish(pos, members))
@@ -209,7 +212,7 @@ class Route:
                 r.fly += self.fly[o:]
                 break
             pos = r.positions[j]
-            dt, h = carrier_hop(prev, pos, h, b.carrier)
+            dt, h = b.drive(prev, pos, h)
             r.hop.append(dt)
             r.heading.append(h)
             r.fly.append(b.finish(pos, r.clusters[j]) if j < hi else self.fly[o])
@@ -240,7 +243,7 @@ class Route:
         for j in range(min(new, default=len(pos)), len(pos)):
             h = r.heading[j - 1] if j else b.inst.problem.heading
             if j in new or j - 1 in new or (j and h != self.heading[j - 1]):
-                r.hop[j], r.heading[j] = carrier_hop(pos[j - 1] if j else b.start, pos[j], h, b.carrier)
+                r.hop[j], r.heading[j] = b.drive(pos[j - 1] if j else b.start, pos[j], h)
                 if j in new:
                     r.fly[j] = b.finish(pos[j], self.clusters[j])
         r._times()
@@ -279,7 +282,7 @@ class Route:
         positions = self.positions[:lo]
         for k in range(lo, hi):
             pos = b.place(clusters, geos, k, prev, t, h, worst, fine=False)
-            dt, h = carrier_hop(prev, pos, h, b.carrier)
+            dt, h = b.drive(prev, pos, h)
             t += dt + b.unload
             worst = max(worst, t + b.finish(pos, clusters[k]))
             positions.append(pos)
@@ -287,11 +290,11 @@ class Route:
         m = hi - len(pieces) + count  # old index of the first kept stop
         if m < len(old):
             pos = self.positions[m]
-            dt, h = carrier_hop(prev, pos, h, b.carrier)
+            dt, h = b.drive(prev, pos, h)
             t += dt + b.unload
             worst = max(worst, t + self.fly[m])  # the kept stop's flight: b.finish(pos, old[m])
             if m + 1 < len(old):
-                dt, _ = carrier_hop(pos, self.positions[m + 1], h, b.carrier)
+                dt, _ = b.drive(pos, self.positions[m + 1], h)
                 shift = t + dt - self.arrive[m + 1]
                 worst = max(worst, self.tail[m + 1] + shift)
             positions += self.positions[m:]

@@ -18,7 +18,7 @@ import numpy as np
 
 from planners.core.geometry import COMPASS, compass_search
 from planners.core.problem import Point2
-from planners.core.timing import carrier_hop, carrier_step, carrier_steps, leg_time, leg_times, travel_times
+from planners.core.timing import carrier_hop, carrier_stepper, carrier_steps, leg_times, travel_times
 from planners.deploy.cluster import max_range_point
 from planners.deploy.path import PathBuilder, Route
 
@@ -33,11 +33,11 @@ def stop_cost(builder: PathBuilder, r: Route, k: int) -> Callable[[float, float]
     """Makespan of route ``r`` with stop k moved to (x, y), the others kept, or inf where a task of
     stop k is out of reach: only the legs into k and k + 1 and the turn at k + 1 change; later
     stops shift in time by the same amount. The polish calls it
-    thousands of times: the hops are ``planners.core.timing.carrier_step``."""
+    thousands of times: the hops are ``planners.core.timing.carrier_stepper``'s."""
     b, pos, unload, d2max = builder, r.positions, builder.unload, builder.inst.d ** 2
     c = b.carrier
     w = c.turn_rate
-    rover = b.rover
+    step, leg = carrier_stepper(c), b.leg
     rows = [b.inst.pts[i] for i in r.clusters[k]]
     rows2 = [(x, y, z * z) for x, y, z in rows]
     if k == 0:
@@ -68,11 +68,11 @@ def stop_cost(builder: PathBuilder, r: Route, k: int) -> Callable[[float, float]
                 far = e
         if far > d2max:
             return math.inf
-        dt, h = carrier_step(x - px, y - py, h0, c)
+        dt, h = step(x - px, y - py, h0)
         t = t0 + dt + unload
-        worst = max(head, t + leg_time(math.sqrt(far), rover))
+        worst = max(head, t + leg(math.sqrt(far)))
         if k + 1 < n:
-            dt, h = carrier_step(nx1 - x, ny1 - y, h, c)
+            dt, h = step(nx1 - x, ny1 - y, h)
             t1 = t + dt  # new arrival at k + 1
             worst = max(worst, done1 + (t1 - arrive1))
             if k + 2 < n:

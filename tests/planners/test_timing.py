@@ -202,3 +202,31 @@ def test_numpy_forms_agree_with_carrier_step_and_leg_time():
             t1, h1 = carrier_step(float(dx[i]), float(dy[i]), float(h0[i]), c)
             assert t[i] == pytest.approx(t1, rel=1e-12, abs=1e-12) and h[i] == pytest.approx(h1, abs=1e-12)
             assert legs[i] == pytest.approx(leg_time(float(lengths[i]), m), rel=1e-12, abs=1e-12)
+
+
+def test_bound_forms_give_carrier_step_carrier_hop_and_leg_time_bit_for_bit():
+    """carrier_stepper / carrier_hopper / leg_timer (the planners' innermost loops) return exactly
+    the floats of carrier_step, carrier_hop and leg_time (plans must not change with them), on
+    both branches of eq. 4.2, at the ramp's threshold, for zero-length hops and half turns."""
+    import random
+
+    from planners.core.timing import carrier_hop, carrier_hopper, carrier_step, carrier_stepper, leg_timer
+
+    rng = random.Random(11)
+    for _ in range(80):
+        c = CarrierSpec(rng.uniform(1, 20), rng.choice([None, rng.uniform(0.5, 10)]),
+                        rng.choice([None, rng.uniform(0.2, 4)]))
+        m = Motion(rng.uniform(1, 5), rng.choice([None, rng.uniform(0.5, 5)]), rng.uniform(0, 3))
+        step, hop, leg = carrier_stepper(c), carrier_hopper(c), leg_timer(m)
+        ramp = c.max_speed ** 2 / c.accel if c.accel else 1.0
+        lengths = [0.0, -1.0, ramp, m.max_speed ** 2 / m.accel if m.accel else 2.0,
+                   *(rng.uniform(0, 80) for _ in range(30))]
+        for length in lengths:
+            assert leg(length) == leg_time(length, m)
+            a = rng.uniform(-math.pi, math.pi)
+            dx, dy = length * math.cos(a), length * math.sin(a)
+            h0 = rng.choice([a + math.pi, a - math.pi, rng.uniform(-7, 7)])
+            assert step(dx, dy, h0) == carrier_step(dx, dy, h0, c)
+            p = (rng.uniform(-50, 50), rng.uniform(-50, 50))
+            q = (p[0] + dx, p[1] + dy)
+            assert hop(p, q, h0) == carrier_hop(p, q, h0, c)
