@@ -641,18 +641,21 @@ class CollectPhase:
         return math.hypot(v.enu[0] - c.enu[0], v.enu[1] - c.enu[1]) <= DECK_RADIUS
 
     async def _wait_meeting_point(self, rnd: _Round, v: Vehicle, leg_arrive: float) -> None:
-        """Wait until ``v`` holds above its stop: until it was due there (its release plus its
+        """Wait until ``v`` holds above its stop - its hold is the current item, or its autopilot
+        reported the approach waypoint before it reached (MISSION_ITEM_REACHED comes at once,
+        MISSION_CURRENT at its 1 Hz stream rate) -: until it was due there (its release plus its
         planned flight) and the stated slack (:meth:`RunContext.late`), in mission time; a rover
         let go on the way ends the wait at once."""
         ctx, rid = self.ctx, v.name
+        hold = rnd.hold_seq[rid]
         while True:
             losses = self.carrier.losses
             try:
                 await ctx.wait_for(
                     v,
                     lambda v: (
-                        (v.mission_current or 0) >= rnd.hold_seq[rid] or rover_on_deck(ctx, v) or v.lost
-                        or self._gone(rnd, v)
+                        (v.mission_current or 0) >= hold or hold - 1 in v.items_reached
+                        or rover_on_deck(ctx, v) or v.lost or self._gone(rnd, v)
                     ),
                     ctx.late(max(rnd.due.get(rid, rnd.start + leg_arrive) - ctx.clock(), 0.0)),
                     "meeting point",
