@@ -160,6 +160,7 @@ class Vehicle:
         self.mission_total: int | None = None
         self.mission_state: int | None = None
         self.items_reached: set[int] = set()
+        self.mission_current_reports = 0  # MISSION_CURRENT messages heard
         self.mission_items: list[MissionItem] = []  # the last mission uploaded through this proxy
         # plausibility
         self.max_speed = max_speed if max_speed and max_speed > 0 else GENERIC_MAX_SPEED
@@ -489,6 +490,7 @@ class Vehicle:
 
     def _on_mission_current(self, msg: Any) -> None:
         self.mission_total = getattr(msg, "total", None)
+        self.mission_current_reports += 1
         self.mission_state = getattr(msg, "mission_state", None)
         if msg.seq != self.mission_current:
             self.mission_current = msg.seq

@@ -247,6 +247,12 @@ class _CountingPx4Link(_Px4SetCurrentLink):
         super().__init__()
         self.commands: list[int] = []
         self.sent: list[str] = []
+        self.reports = 0  # MISSION_CURRENT messages the vehicle got
+        self.reports_when_sent: list[int] = []
+
+    def feed(self, msg) -> None:  # type: ignore[no-untyped-def]
+        self.reports += msg.get_type() == "MISSION_CURRENT"
+        super().feed(msg)
 
     async def command(self, sysid, command, params, **kw):  # type: ignore[no-untyped-def]
         from fleetctl.mavlink.link import CommandAck
@@ -260,6 +266,7 @@ class _CountingPx4Link(_Px4SetCurrentLink):
         import asyncio
 
         self.sent.append(msg.get_type())
+        self.reports_when_sent.append(self.reports)
         loop = asyncio.get_running_loop()
         loop.call_soon(self.feed, self.M.MAVLink_mission_current_message(msg.seq, 4, 3, 1))
 
@@ -286,13 +293,20 @@ async def test_px4_current_item_set_by_message_without_asking_the_command_first(
 
 async def test_px4_new_mission_starts_at_its_first_item_by_one_mode_switch() -> None:
     """A mission uploaded to a PX4 vehicle that had another current item gets item 0 current right
-    after the upload; the start is then only the mode switch."""
+    after the upload - once PX4's next MISSION_CURRENT shows it took the new mission (it ignores
+    MISSION_SET_CURRENT until then) -; the start is then only the mode switch."""
+    import asyncio
+
     link = _CountingPx4Link()
     v = _px4_vehicle(link)
     link.feed(link.M.MAVLink_mission_current_message(2, 4, 3, 1))  # the old mission's landing item
     assert v.autopilot is not None
+    loop = asyncio.get_running_loop()
+    loop.call_later(0.05, link.feed, link.M.MAVLink_mission_current_message(2, 3, 3, 1))  # index kept
     await v.autopilot.after_upload(v)
     assert v.mission_current == 0 and link.sent == ["MISSION_SET_CURRENT"]
+    assert link.reports_when_sent == [2]  # sent after the report that followed the upload
+    loop.call_later(0.05, link.feed, link.M.MAVLink_mission_current_message(0, 3, 3, 1))
     await v.autopilot.after_upload(v)  # already at the first item: nothing sent
     assert link.sent == ["MISSION_SET_CURRENT"]
     await v.start_mission()

@@ -28,7 +28,7 @@ enable an uploaded geofence with its height limit and breach action.
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
 from typing import Any, Protocol
 
@@ -42,6 +42,7 @@ class Vehicle(Protocol):
     mode: str | None
     armed: bool
     mission_current: int | None
+    mission_current_reports: int
 
     @property
     def home_amsl(self) -> float | None: ...
@@ -55,6 +56,8 @@ class Vehicle(Protocol):
     async def set_mode(self, mode: str) -> None: ...
 
     async def set_current(self, seq: int) -> None: ...
+
+    async def wait_until(self, predicate: Callable[[Any], bool], timeout: float, what: str = "") -> None: ...
 
 
 SPEED_QUANTITIES = ("max_speed", "accel", "climb_rate", "land_speed")
