@@ -232,7 +232,10 @@ class FleetState:
 
 DECK_RADIUS = 1.5  # m: a landed rover this close (horizontally) to the carrier is on its deck
 DECK_HEIGHT = 0.15  # m: a rover this low above the carrier, at rest, is down on the deck
-LANDED_HEIGHT = 1.0  # m: height slack when the autopilot itself reports ON_GROUND (GPS altitude noise)
+# m: height slack when the autopilot itself reports ON_GROUND: both altitudes come from GPS and
+# barometer, and a ground vehicle's drifts (PX4 SITL's rover carrier: 2 m below its home within a
+# minute, while its rovers stood next to it)
+LANDED_HEIGHT = 3.0
 
 
 def on_deck(pos: tuple[float, float, float] | None, carrier: tuple[float, float, float] | None,
