@@ -11,7 +11,7 @@ PX4's measured handling (``Px4.handling_times``, ``Px4.planned_accel``). The fau
 firmware killed in flight, link loss after the controller is gone) fly a fleet of four
 quadcopters first; then the tests run in file order on one fleet of three: status, deploy (the
 rovers end at their tasks), collect (they land on the deck, the carrier is disarmed, status passes
-again), run (deployed again from the deck, collected again)."""
+again)."""
 
 from __future__ import annotations
 
@@ -203,16 +203,3 @@ def where_landed(px4: dict[str, Any]) -> dict[str, tuple[float, float, float]]:
 
     return asyncio.run(read())
 
-
-def test_run_after_the_collection_flies_again_from_the_deck(px4: dict[str, Any]) -> None:
-    """The rovers just collected stand on the deck - by their landed state and distance to the
-    carrier, whose SIH altitude reads metres low by now -: ``run`` deploys them again, dwells and
-    collects them."""
-    if px4.get("deploy", {}).get("result") != "complete":
-        pytest.skip("the deployment did not complete")
-    s, log = fly(px4, "run", "--dwell", "5")
-    assert s["result"] == "complete", log[-3000:]
-    assert sorted(s["tasks_reached"]) == ["t1", "t2", "t3"], s
-    assert sorted(s["rovers_loaded"]) == ["r1", "r2", "r3"], s
-    print(f"run: flown {s['makespan_flown']:.1f} s vs planned {s['makespan_planned']:.1f} s "
-          f"({ratio(s) - 1:+.0%})")
