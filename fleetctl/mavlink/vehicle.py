@@ -160,6 +160,7 @@ class Vehicle:
         self.mission_total: int | None = None
         self.mission_state: int | None = None
         self.items_reached: set[int] = set()
+        self.mission_current_reports = 0  # MISSION_CURRENT messages heard
         self.mission_items: list[MissionItem] = []  # the last mission uploaded through this proxy
         # plausibility
         self.max_speed = max_speed if max_speed and max_speed > 0 else GENERIC_MAX_SPEED
@@ -489,6 +490,7 @@ class Vehicle:
 
     def _on_mission_current(self, msg: Any) -> None:
         self.mission_total = getattr(msg, "total", None)
+        self.mission_current_reports += 1
         self.mission_state = getattr(msg, "mission_state", None)
         if msg.seq != self.mission_current:
             self.mission_current = msg.seq
@@ -624,7 +626,8 @@ class Vehicle:
 
         A vehicle flying a mission is first put in its hold mode (ArduCopter GUIDED, else HOLD):
         ArduPilot keeps the current index of a mission replaced in AUTO and starts whatever the new
-        mission has there at once. :meth:`start_mission` then sets the first item explicitly."""
+        mission has there at once. :meth:`start_mission` then sets the first item explicitly (PX4,
+        which keeps the index too, right after the upload: :meth:`Autopilot.after_upload`)."""
         if self.armed and self.mode == "MISSION" and self.autopilot is not None:
             await self.set_mode(self.autopilot.upload_hold_mode)
         sent = time.monotonic()
@@ -636,6 +639,8 @@ class Vehicle:
             raise
         self.items_reached.clear()
         self.mission_items = list(items)
+        if self.autopilot is not None:
+            await self.autopilot.after_upload(self)
 
     async def upload_fence(self, items: list[MissionItem]) -> None:
         """Upload a FENCE mission (:func:`fleetctl.mavlink.fence.fence_items`)."""
@@ -662,32 +667,41 @@ class Vehicle:
 
     async def set_current(self, seq: int) -> None:
         """Make mission item ``seq`` current (MAV_CMD_DO_SET_MISSION_CURRENT; falls back to the
-        MISSION_SET_CURRENT message when the command is unsupported, as on PX4 1.18).
+        MISSION_SET_CURRENT message when the command is unsupported, as on PX4 1.18, whose
+        autopilot class sends the message straight away: :attr:`Autopilot.set_current_by_message`).
 
         The message is confirmed by MISSION_CURRENT showing ``seq``, or - when the vehicle already
         stands within the item's acceptance radius (a carrier's next stop at or next to the one it
         holds at) and goes straight on to the next item, so that ``seq`` is never reported current -
         by MISSION_ITEM_REACHED for ``seq`` or MISSION_CURRENT past it (from an item before it)."""
+        if self.autopilot is not None and self.autopilot.set_current_by_message:
+            await self._set_current_message(seq)
+            return
         ack = await self.command(M.MAV_CMD_DO_SET_MISSION_CURRENT, (seq, 0), check=False)
         if ack.result == M.MAV_RESULT_UNSUPPORTED:
-            before = self.mission_current
-            reached = seq in self.items_reached
-
-            def taken(v: Vehicle) -> bool:
-                cur = v.mission_current
-                if cur == seq or (not reached and seq in v.items_reached):
-                    return True
-                return before is not None and cur is not None and before < seq < cur
-
-            for _attempt in range(3):
-                msg = self.link.mav.mission_set_current_encode(self.sysid, self.compid, seq)
-                self.link.send(msg, self.sysid)
-                with contextlib.suppress(TimeoutError):
-                    await self.wait_until(taken, 1.5, f"current item {seq}")
-                    return
-            raise TimeoutError(f"{self.name}: MISSION_SET_CURRENT {seq} not confirmed")
+            await self._set_current_message(seq)
+            return
         if not ack.accepted:
             raise CommandRejected(self.name, ack)
+
+    async def _set_current_message(self, seq: int) -> None:
+        """MISSION_SET_CURRENT ``seq`` (no ACK: confirmed from the telemetry, see :meth:`set_current`)."""
+        before = self.mission_current
+        reached = seq in self.items_reached
+
+        def taken(v: Vehicle) -> bool:
+            cur = v.mission_current
+            if cur == seq or (not reached and seq in v.items_reached):
+                return True
+            return before is not None and cur is not None and before < seq < cur
+
+        for _attempt in range(3):
+            msg = self.link.mav.mission_set_current_encode(self.sysid, self.compid, seq)
+            self.link.send(msg, self.sysid)
+            with contextlib.suppress(TimeoutError):
+                await self.wait_until(taken, 1.5, f"current item {seq}")
+                return
+        raise TimeoutError(f"{self.name}: MISSION_SET_CURRENT {seq} not confirmed")
 
     async def pause(self) -> None:
         """Hold position in the middle of a mission (DO_PAUSE_CONTINUE 0)."""

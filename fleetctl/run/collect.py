@@ -71,6 +71,9 @@ LANDING_TIMEOUT = 10.0  # mission s from the land command to the rover on the de
 MAX_POSITION_AGE = 5.0  # mission s: an older carrier position is not moved on by its speed
 SPEED_SAMPLE = 0.5  # mission s between carrier speed samples (is it speeding up?)
 RECHECK = 1.0  # mission s between looks at the carrier's ETA while a rover waits for its release
+# mission s: a rover waiting on the ground is armed this long (at most; RECHECK less at least) before
+# its release; well within the autopilots' disarming of an idle armed vehicle (10 s)
+ARM_LEAD = 2.5
 ENERGY_REPLANS = 3  # plans tried with shrunk ranges before a rover short of energy is left out
 SHRINK_MARGIN = 0.1  # m: a range cut for energy goes this much further
 GROUND_SNAP = 1.0  # m: a landed rover reporting less than this is on the ground (altitude estimates drift)
@@ -527,6 +530,8 @@ class CollectPhase:
             self._predict(rnd)
             if wait <= 0.0:
                 break
+            if wait <= ARM_LEAD and not v.armed and v.on_ground:
+                await self._arm_ahead(v)
             ctx.state.set_state(rid, VehicleStatus.WAITING)
             await ctx.sleep_mission(min(wait, RECHECK))
         try:
@@ -541,6 +546,14 @@ class CollectPhase:
         except (CommandRejected, LinkError, TimeoutError) as exc:
             ctx.state.event(Ev.ROVER_FAILED, f"{rid}: cannot start its way back ({exc})", rid)
             rnd.failed.add(rid)
+
+    async def _arm_ahead(self, v: Vehicle) -> None:
+        """Arm a rover waiting on the ground shortly before its release, so that its motors have
+        spun up when it is started (as a deployment arms its rovers while the carrier unloads): on
+        ArduCopter arming then starting at once takes 2 s longer to lift off. Refused: it is armed
+        again at its release."""
+        with contextlib.suppress(CommandRejected, LinkError, TimeoutError):
+            await self.ctx.command(v, "arm", v.arm())
 
     async def _bring_in(self, rnd: _Round, rid: str, leg_arrive: float) -> None:
         """Wait for ``rid`` above the stop, send it down onto the carrier, wait until loaded."""
@@ -641,18 +654,21 @@ class CollectPhase:
         return math.hypot(v.enu[0] - c.enu[0], v.enu[1] - c.enu[1]) <= DECK_RADIUS
 
     async def _wait_meeting_point(self, rnd: _Round, v: Vehicle, leg_arrive: float) -> None:
-        """Wait until ``v`` holds above its stop: until it was due there (its release plus its
+        """Wait until ``v`` holds above its stop - its hold is the current item, or its autopilot
+        reported the approach waypoint before it reached (MISSION_ITEM_REACHED comes at once,
+        MISSION_CURRENT at its 1 Hz stream rate) -: until it was due there (its release plus its
         planned flight) and the stated slack (:meth:`RunContext.late`), in mission time; a rover
         let go on the way ends the wait at once."""
         ctx, rid = self.ctx, v.name
+        hold = rnd.hold_seq[rid]
         while True:
             losses = self.carrier.losses
             try:
                 await ctx.wait_for(
                     v,
                     lambda v: (
-                        (v.mission_current or 0) >= rnd.hold_seq[rid] or rover_on_deck(ctx, v) or v.lost
-                        or self._gone(rnd, v)
+                        (v.mission_current or 0) >= hold or hold - 1 in v.items_reached
+                        or rover_on_deck(ctx, v) or v.lost or self._gone(rnd, v)
                     ),
                     ctx.late(max(rnd.due.get(rid, rnd.start + leg_arrive) - ctx.clock(), 0.0)),
                     "meeting point",

@@ -34,7 +34,7 @@ Vec3 = tuple[float, float, float]
 
 def rover_on_deck(ctx: RunContext, v: Vehicle) -> bool:
     c = ctx.fleet.carrier
-    return v.connected and not v.lost and on_deck(v.enu, c.enu, v.on_ground, v.ground_speed)
+    return v.connected and not v.lost and on_deck(v.enu, c.enu, v.on_ground, v.ground_speed, v.height)
 
 
 def takeoff_seq(slot: RoverMission) -> int:

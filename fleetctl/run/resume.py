@@ -181,7 +181,7 @@ async def _settle(v: Vehicle) -> None:
 
 
 def _on_deck(fleet: Fleet, v: Vehicle) -> bool:
-    return on_deck(v.enu, fleet.carrier.enu, v.on_ground, v.ground_speed)
+    return on_deck(v.enu, fleet.carrier.enu, v.on_ground, v.ground_speed, v.height)
 
 
 def _airborne(v: Vehicle) -> bool:

@@ -216,7 +216,7 @@ class FleetState:
                 except ValueError:
                     s.range_m = None
                 if (s.state == VehicleStatus.UNKNOWN and v.connected
-                        and on_deck(v.enu, cpos, v.on_ground, v.ground_speed)):
+                        and on_deck(v.enu, cpos, v.on_ground, v.ground_speed, v.height)):
                     s.state = VehicleStatus.ON_DECK
 
     def snapshot(self) -> dict[str, Any]:
@@ -236,16 +236,19 @@ LANDED_HEIGHT = 1.0  # m: height slack when the autopilot itself reports ON_GROU
 
 
 def on_deck(pos: tuple[float, float, float] | None, carrier: tuple[float, float, float] | None,
-            on_ground: bool | None, speed: float | None = None) -> bool:
+            on_ground: bool | None, speed: float | None = None, height: float | None = None) -> bool:
     """A rover is on the carrier's deck when it is within :data:`DECK_RADIUS` (horizontal) of the
-    carrier and either reports ON_GROUND (within :data:`LANDED_HEIGHT`) or is at rest within
+    carrier and either reports ON_GROUND within :data:`LANDED_HEIGHT` of the carrier's altitude or
+    of its own home (``height``: metres above its home, which a rover sets on the deck) - a ground
+    vehicle's altitude drifts by metres: PX4 SITL's rover carrier reads 2 m low within a minute,
+    3 m after two flights, while its rovers stand next to it -, or is at rest within
     :data:`DECK_HEIGHT` of it (the landed state comes at ~1 Hz, positions much faster)."""
     if pos is None or carrier is None:
         return False
     if math.hypot(pos[0] - carrier[0], pos[1] - carrier[1]) > DECK_RADIUS:
         return False
     dz = pos[2] - carrier[2]
-    if on_ground is True and dz <= LANDED_HEIGHT:
+    if on_ground is True and (dz <= LANDED_HEIGHT or (height is not None and height <= LANDED_HEIGHT)):
         return True
     return dz <= DECK_HEIGHT and (speed is None or speed < 0.2)
 

@@ -17,6 +17,9 @@ class Body:
     attitude: Quat = LEVEL
     gyro: Vec = ZERO
     accel_body: Vec = (0.0, 0.0, -GRAVITY)
+    # a contact's velocity change (m/s, earth frame) the accelerometer has yet to report: a
+    # touch-down stops the body in one step, its reading spreads that over the following steps
+    contact_dv: Vec = ZERO
 
     def set_specific_force(self, accel_earth: Vec) -> None:
         """The accelerometer reading for an earth-frame acceleration ``accel_earth``."""

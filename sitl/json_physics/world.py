@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 from .body import Body
 from .ground_vehicle import GroundParams, GroundVehicle
 from .multicopter import Multicopter, QuadParams
-from .rigid import Vec, from_yaw, norm, scale, sub, yaw_of
+from .rigid import ZERO, Vec, add, from_yaw, norm, scale, sub, yaw_of
 
 MAX_CONTACT_ACCEL = 30.0  # m/s^2: a touch-down's velocity change is reported over several steps
 DECK_CATCH = 0.3          # m: how far below the deck surface one step may end and still land on it
@@ -129,6 +129,7 @@ class World:
                 self._rest(m.body, v.support, dt)
                 return m.body
             v.support = None
+            m.body.contact_dv = ZERO  # it lifts off: what is left of a touch-down's jolt is moot
         before = m.body.position[2]
         m.fly(dt)
         v.support = self._touchdown(m.body, before)
@@ -170,10 +171,15 @@ class World:
             yaw_rate = cb.gyro[2]
             velocity = (cb.velocity[0] - yaw_rate * de, cb.velocity[1] + yaw_rate * dn, cb.velocity[2])
             yaw = cyaw + s.yaw
-        accel = scale(sub(velocity, b.velocity), 1.0 / dt)
+        # the whole velocity change is reported, at most MAX_CONTACT_ACCEL at a time: an
+        # accelerometer that missed part of a touch-down would leave the firmware's estimator
+        # believing the copter still sinks (through the ground) for seconds
+        dv = add(sub(velocity, b.velocity), b.contact_dv)
+        accel = scale(dv, 1.0 / dt)
         size = norm(accel)
         if size > MAX_CONTACT_ACCEL:
             accel = scale(accel, MAX_CONTACT_ACCEL / size)
+        b.contact_dv = sub(dv, scale(accel, dt))
         b.position, b.velocity = position, velocity
         b.attitude = from_yaw(yaw)
         b.gyro = (0.0, 0.0, yaw_rate)

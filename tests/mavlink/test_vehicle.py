@@ -238,3 +238,76 @@ async def test_release_confirmed_when_px4_passes_the_item_at_once(reports_curren
             link.M.MAVLink_mission_current_message(msg.seq, 4, 3, 1))
     await v.set_current(2)
     assert v.mission_current == (2 if reports_current else 3)
+
+
+class _CountingPx4Link(_Px4SetCurrentLink):
+    """A PX4 that answers MISSION_SET_CURRENT with MISSION_CURRENT, and counts the commands it gets."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.commands: list[int] = []
+        self.sent: list[str] = []
+        self.reports = 0  # MISSION_CURRENT messages the vehicle got
+        self.reports_when_sent: list[int] = []
+
+    def feed(self, msg) -> None:  # type: ignore[no-untyped-def]
+        self.reports += msg.get_type() == "MISSION_CURRENT"
+        super().feed(msg)
+
+    async def command(self, sysid, command, params, **kw):  # type: ignore[no-untyped-def]
+        from fleetctl.mavlink.link import CommandAck
+
+        self.commands.append(command)
+        if command == self.M.MAV_CMD_DO_SET_MODE:
+            return CommandAck(sysid, command, self.M.MAV_RESULT_ACCEPTED, 1)
+        return await super().command(sysid, command, params, **kw)
+
+    def send(self, msg, sysid=None) -> None:  # type: ignore[no-untyped-def]
+        import asyncio
+
+        self.sent.append(msg.get_type())
+        self.reports_when_sent.append(self.reports)
+        loop = asyncio.get_running_loop()
+        loop.call_soon(self.feed, self.M.MAVLink_mission_current_message(msg.seq, 4, 3, 1))
+
+
+def _px4_vehicle(link: _CountingPx4Link):  # type: ignore[no-untyped-def]
+    from fleetctl.mavlink.autopilots.px4 import Px4
+    from fleetctl.mavlink.vehicle import Vehicle
+
+    v = Vehicle(link, 11, name="r1")  # type: ignore[arg-type]
+    v.autopilot = Px4(link.M.MAV_TYPE_QUADROTOR)
+    return v
+
+
+async def test_px4_current_item_set_by_message_without_asking_the_command_first() -> None:
+    """PX4 refuses DO_SET_MISSION_CURRENT: the message goes out at once, no command round trip."""
+    link = _CountingPx4Link()
+    v = _px4_vehicle(link)
+    link.feed(link.M.MAVLink_mission_current_message(1, 4, 3, 1))
+    await v.set_current(2)
+    assert v.mission_current == 2
+    assert link.sent == ["MISSION_SET_CURRENT"]
+    assert link.M.MAV_CMD_DO_SET_MISSION_CURRENT not in link.commands
+
+
+async def test_px4_new_mission_starts_at_its_first_item_by_one_mode_switch() -> None:
+    """A mission uploaded to a PX4 vehicle that had another current item gets item 0 current right
+    after the upload - once PX4's next MISSION_CURRENT shows it took the new mission (it ignores
+    MISSION_SET_CURRENT until then) -; the start is then only the mode switch."""
+    import asyncio
+
+    link = _CountingPx4Link()
+    v = _px4_vehicle(link)
+    link.feed(link.M.MAVLink_mission_current_message(2, 4, 3, 1))  # the old mission's landing item
+    assert v.autopilot is not None
+    loop = asyncio.get_running_loop()
+    loop.call_later(0.05, link.feed, link.M.MAVLink_mission_current_message(2, 3, 3, 1))  # index kept
+    await v.autopilot.after_upload(v)
+    assert v.mission_current == 0 and link.sent == ["MISSION_SET_CURRENT"]
+    assert link.reports_when_sent == [2]  # sent after the report that followed the upload
+    loop.call_later(0.05, link.feed, link.M.MAVLink_mission_current_message(0, 3, 3, 1))
+    await v.autopilot.after_upload(v)  # already at the first item: nothing sent
+    assert link.sent == ["MISSION_SET_CURRENT"]
+    await v.start_mission()
+    assert link.sent == ["MISSION_SET_CURRENT"] and link.commands == [link.M.MAV_CMD_DO_SET_MODE]

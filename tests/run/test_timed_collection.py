@@ -110,6 +110,25 @@ async def test_rovers_leave_to_meet_the_carrier_instead_of_waiting_above_the_sto
     assert far["arrive"] - far["rovers"][0]["arrive"] > 5.0, "the scenario has a rover that must wait"
 
 
+async def test_a_rover_waiting_on_the_ground_is_armed_shortly_before_its_release(tmp_path: Path) -> None:
+    """Its motors spin up while it waits (ArduCopter lifts off 2 s later when armed and started at
+    once): armed when its release is at most ARM_LEAD away - at least ARM_LEAD - RECHECK mission
+    seconds before it is started, more when the carrier's live ETA moves the release on (2 s
+    allowed) -, not at the round's start."""
+    from fleetctl.run.collect import ARM_LEAD, RECHECK
+
+    rec = Recorder()
+    out, plan = await fly(collect_mission(tmp_path, GROUND), tmp_path, rec)
+    assert out.exit_code == 0, out.summary
+    rows = read_journal(out.run_dir / "journal.jsonl")
+    t0 = next(r["t"] for r in rows if r["kind"] == "collection_started")
+    sent = {(r["vehicle"], r["command"]): (r["t"] - t0) * SPEEDUP for r in rows if r["kind"] == "command"}
+    far = plan["stops"][-1]["rovers"][0]["rover"]  # the rover that waits for its release
+    armed, started = sent[(far, "arm")], sent[(far, "start_mission")]
+    assert started > ARM_LEAD + 2.0, (armed, started)  # it did wait
+    assert ARM_LEAD - RECHECK - 0.5 <= started - armed <= ARM_LEAD + 2.0, (armed, started)
+
+
 @pytest.mark.slow
 async def test_a_late_carrier_delays_the_release_of_the_rovers_still_waiting(tmp_path: Path) -> None:
     rec = Recorder()

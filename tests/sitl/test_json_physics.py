@@ -103,6 +103,29 @@ def test_ground_contact_stops_a_fall_and_holds() -> None:
     assert b.position == where
 
 
+def test_accelerometer_reports_the_whole_touch_down() -> None:
+    """What the accelerometer reports adds up to the velocity the copter gained and lost: a
+    touch-down that stops it in one step is reported over the following steps (a firmware
+    estimator that missed part of it would believe the copter still sinks, through the ground)."""
+    w = World()
+    w.add_copter("q", 20)
+    airborne(w, "q", -3.0)
+    v = w.vehicles["q"]
+    v.body.velocity = (2.0, 1.0, 0.0)
+    felt = [0.0, 0.0, 0.0]
+    fastest = 0.0
+    for _ in range(1600):
+        b = w.step("q", IDLE, DT)
+        fastest = max(fastest, b.velocity[2])
+        a = euler(b.attitude)  # level: body and earth axes agree (checked below)
+        assert abs(a[0]) < 1e-6 and abs(a[1]) < 1e-6
+        fx, fy, fz = b.accel_body
+        felt = [felt[0] + fx * DT, felt[1] + fy * DT, felt[2] + (fz + GRAVITY) * DT]
+    assert v.support is not None and fastest > 3.0  # it fell fast and landed
+    assert b.velocity == (0.0, 0.0, 0.0)
+    assert felt == pytest.approx([-2.0, -1.0, 0.0], abs=0.05)
+
+
 def test_ground_vehicle_drives_and_turns() -> None:
     w = World()
     w.add_ground_vehicle("c", 20)

@@ -47,15 +47,17 @@ ROVER_SPEEDS = (SpeedParam("WP_SPEED", "max_speed", 1.0, 0.0, 100.0),
                 SpeedParam("CRUISE_SPEED", "max_speed", 1.0, 0.0, 100.0),
                 SpeedParam("WP_ACCEL", "accel", 1.0, 0.0, 10.0),
                 SpeedParam("ATC_ACCEL_MAX", "accel", 1.0, 0.0, 10.0))
-# ArduCopter's handling as measured on SITL (docs/autopilots.md): from MISSION_START to clear of the
-# deck takes the motors' spool-up and the take-off throttle ramp (TKOFF_SLEW_TIME) on top of the
-# climb. A rover comes down only once it has settled above its stop (the firmware moves on to the
-# hold after the approach waypoint: ~1.6 s after it is within 2 m), and a landing ends with the land
-# detector's second and the report of the landed state (~2 s), then the auto-disarm (~1.9 s later)
-# that the controller waits for before the carrier may leave
+# ArduCopter's handling as measured on SITL (docs/autopilots.md; vehicle seconds): from MISSION_START
+# to clear of the deck takes the motors' spool-up and the take-off throttle ramp (TKOFF_SLEW_TIME) on
+# top of the climb (a rover armed 2 s before, as at a deployment stop; armed and started at once it
+# lifts off 2 s later). A leg from rest to rest takes 3.3 - 3.6 s more than the trapezoid (the S-curve's
+# jerk-limited start and its slow-down into the waypoint: 3 deployment legs and 3 collection legs on
+# ArduCopter's own physics, 4 on sitl.json_physics). A landing from the approach waypoint 3 m up (its
+# MISSION_ITEM_REACHED) to the rover loaded - down at LAND_SPEED, the land detector's second and the
+# auto-disarm the controller waits for - took 4.5 - 4.7 s (own physics) and 5.1 - 5.7 s (json_physics)
 COPTER_TAKEOFF_OVERHEAD = 2.6  # s
-COPTER_LAND_OVERHEAD = 5.5  # s
-COPTER_LEG_OVERHEAD = 1.6  # s a waypoint leg takes beyond S/v + v/a (jerk-limited S-curve, stop at the end)
+COPTER_LAND_OVERHEAD = 3.5  # s
+COPTER_LEG_OVERHEAD = 3.4  # s a waypoint leg takes beyond S/v + v/a (jerk-limited S-curve, stop at the end)
 # ArduRover: a leg takes this much beyond S/v + v/a and the turn on the spot the time model charges
 # (it steers onto the new heading while it drives, slows into the waypoint and stops at the hold)
 ROVER_LEG_OVERHEAD = 3.5  # s

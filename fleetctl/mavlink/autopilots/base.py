@@ -28,7 +28,7 @@ enable an uploaded geofence with its height limit and breach action.
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
 from typing import Any, Protocol
 
@@ -42,6 +42,7 @@ class Vehicle(Protocol):
     mode: str | None
     armed: bool
     mission_current: int | None
+    mission_current_reports: int
 
     @property
     def home_amsl(self) -> float | None: ...
@@ -55,6 +56,8 @@ class Vehicle(Protocol):
     async def set_mode(self, mode: str) -> None: ...
 
     async def set_current(self, seq: int) -> None: ...
+
+    async def wait_until(self, predicate: Callable[[Any], bool], timeout: float, what: str = "") -> None: ...
 
 
 SPEED_QUANTITIES = ("max_speed", "accel", "climb_rate", "land_speed")
@@ -101,6 +104,9 @@ class Autopilot:
     # None = 0, the firmware's own default (PX4: NAV_ACC_RAD, 10 m on a multicopter)
     acceptance_radius: float | None = None
     param_bytewise = False  # integer parameters' bytes in PARAM_VALUE's float (PX4), else cast
+    # the current mission item is set with the MISSION_SET_CURRENT message straight away (PX4 1.18
+    # answers DO_SET_MISSION_CURRENT with MAV_RESULT_UNSUPPORTED: asking first costs a round trip)
+    set_current_by_message = False
 
     def __init__(self, mav_type: int = M.MAV_TYPE_GENERIC) -> None:
         self.mav_type = mav_type
@@ -165,6 +171,9 @@ class Autopilot:
     async def start_mission(self, vehicle: Vehicle, first: int = 0) -> None:
         """Fly the uploaded mission from its current item (or ``first`` if > 0)."""
         await vehicle.command(M.MAV_CMD_MISSION_START, (first, 0))
+
+    async def after_upload(self, vehicle: Vehicle) -> None:
+        """What a new mission needs before it can be started (nothing here)."""
 
     # -- telemetry rates ------------------------------------------------------------------------------
     def stream_rates(self, position_hz: float, status_hz: float) -> dict[str, float]:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import math
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
@@ -55,18 +56,23 @@ ROVER_SPEED_PARAMS = (
     SpeedParam("RO_DECEL_LIM", "accel", 1.0),
 )
 # A quadcopter's handling (10040), measured on SITL v1.18 SIH at speed factor 4 with MPC_TKO_SPEED 1.5,
-# MPC_LAND_SPEED 0.7, MPC_XY_CRUISE 5, MPC_ACC_HOR 3 (tests/firmware, 12 launches, 4 landings):
-# - start (DO_SET_MODE AUTO.MISSION, armed) -> 0.8 m above the deck: 3.7 - 5.8 s, median 5.5 s:
-#   1 m / 1.5 m/s of climb + 4.8 s (take-off detection, the MPC_TKO_RAMP_T 3 s velocity ramp);
-# - clear of the deck -> a task 22 - 25 m away reached (1 m radius): 0.4 - 2.0 s, median 1.3 s,
-#   longer than the trapezoid of v = 5, a = 3 (jerk-limited, stops at the task; a short take-off
-#   leaves more of the climb to the leg: take-off + leg is 12.0 - 14.0 s);
-# - sent down from 2.9 - 3.1 m above the carrier -> the landing item reached: 7.8 - 8.6 s (4
-#   landings); -> loaded (fleetctl's deck check on the telemetry): 9.2 - 11.1 s, mean 10.0 s (3):
-#   3 m / 0.7 m/s + 5.7 s (slow-down near the ground, the land detector, the landed state)
-MC_TAKEOFF_OVERHEAD = 4.8  # s
-MC_LAND_OVERHEAD = 5.7  # s
-MC_LEG_OVERHEAD = 1.3  # s a waypoint leg takes beyond S/v + v/a
+# MPC_LAND_SPEED 0.7, MPC_XY_CRUISE 5, MPC_ACC_HOR 3 (tests/firmware; vehicle seconds, from the
+# firmware's time_boot_ms):
+# - a leg from rest (a collection rover hovering at its task, released: its start command -> its
+#   approach waypoint 23 m away reached, 1 m radius): 7.3 - 9.2 s flying, mean 8.45 s, plus 0.3 - 0.5 s
+#   from the command to the mission running (9 legs) - 2.5 s more than the trapezoid of v = 5, a = 3:
+#   the jerk-limited start, and the slow-down into the waypoint (PX4 closes in at MPC_XY_TRAJ_P
+#   0.5 m/s per metre: about 4 s from 8 m off to 1 m where the trapezoid brakes in 1.7 s);
+# - a deployment's take-off and leg together (start -> task reached): 12.0 - 14.0 s; its take-off
+#   clearance is that less the leg: 1 m / 1.5 m/s of climb + 3.6 s (take-off detection, the
+#   MPC_TKO_RAMP_T velocity ramp, less the start of the leg the rover flies while it climbs);
+# - sent down from its approach waypoint 3 m above the carrier (MISSION_ITEM_REACHED) -> loaded
+#   (landed, auto-disarmed COM_DISARM_LAND 2 s later, seen by fleetctl): 9.7 - 11.6 s, mean 10.7 s
+#   (6 landings; touch-down -> "Landing detected" alone takes 1 - 4 s on SIH): 3 m / 0.7 m/s + 6.4 s
+MC_TAKEOFF_OVERHEAD = 3.6  # s
+MC_LAND_OVERHEAD = 6.4  # s
+MC_LEG_OVERHEAD = 2.5  # s a waypoint leg from rest takes beyond S/v + v/a
+UPLOAD_SETTLE = 1.5  # s: the longest wait for the MISSION_CURRENT after an upload (streamed at 1 Hz)
 WAYPOINT_RADIUS = 1.0  # m: param2 of compiled waypoints ("reached" = at the point, not 10 m early)
 _WORDS = {"none": "no action", "hold": "hold", "rtl": "RTL", "land": "land",
           "terminate": "flight termination", "lockdown": "lockdown (motors off)"}
@@ -75,6 +81,7 @@ _WORDS = {"none": "no action", "hold": "hold", "rtl": "RTL", "land": "land",
 class Px4(Autopilot):
     name = "px4"
     param_bytewise = True
+    set_current_by_message = True
     acceptance_radius = WAYPOINT_RADIUS
     _MAIN = {1: "MANUAL", 2: "ALTCTL", 3: "POSCTL", 4: "AUTO", 5: "ACRO", 6: "OFFBOARD", 7: "STABILIZED",
              8: "RATTITUDE"}
@@ -128,9 +135,21 @@ class Px4(Autopilot):
             await vehicle.set_current(first)
         await vehicle.set_mode("MISSION")
 
+    async def after_upload(self, vehicle: Vehicle) -> None:
+        # the first item made current at once (see start_mission), so that the start is only the
+        # mode switch: a rover released to fly back at its timed release leaves a round trip earlier.
+        # PX4 ignores a MISSION_SET_CURRENT that comes a few milliseconds after its MISSION_ACK (its
+        # navigator has not taken the new mission yet: SITL v1.18): the next MISSION_CURRENT (1 Hz)
+        # says it has, and whether the index is already 0 (a landed vehicle starts at 0)
+        heard = vehicle.mission_current_reports
+        with contextlib.suppress(TimeoutError):
+            await vehicle.wait_until(lambda v: v.mission_current_reports > heard, UPLOAD_SETTLE,
+                                     "MISSION_CURRENT after the upload")
+        if vehicle.mission_current not in (None, 0):
+            await vehicle.set_current(0)
+
     def speed_params(self) -> tuple[SpeedParam, ...]:
         return ROVER_SPEED_PARAMS if self.ground else MC_SPEED_PARAMS
-
 
     def planned_accel(self, speed: float, accel: float | None) -> float | None:
         if self.ground or accel is None:

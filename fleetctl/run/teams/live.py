@@ -47,7 +47,7 @@ async def rovers_in_the_field(
         if not v.connected or v.lost or v.enu is None:
             left[rid] = "lost: no position to collect it from"
             continue
-        if any(on_deck(v.enu, c, v.on_ground, v.ground_speed) for c in carriers):
+        if any(on_deck(v.enu, c, v.on_ground, v.ground_speed, v.height) for c in carriers):
             continue
         with contextlib.suppress(LinkError, TimeoutError):
             await v.refresh_battery()

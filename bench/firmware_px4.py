@@ -1,0 +1,131 @@
+"""Flown vs planned on real PX4 firmware (SITL with SIH physics): deploy then collect, several times.
+
+One PX4 fleet (an Ackermann rover carrier, three quadcopters at its home: ``tests/firmware/px4_fleet``)
+is started; ``fleetctl deploy`` and ``fleetctl collect`` are flown through the command line at the
+firmware's speed factor, ``--rounds`` times in a row. For each command the table gives the
+summaries' ``makespan_planned`` and ``makespan_flown`` (mission seconds: wall seconds times
+``--speedup``) and the flown makespan in the vehicles' own seconds (the carrier's ``time_boot_ms``
+over the same span, from the run's ``traffic.tlog``): lockstep firmware that falls behind its speed
+factor on a loaded machine makes the mission-time figure longer, not the vehicle-time one.
+
+    FLEETCTL_PX4_DIR=/path/to/px4 python bench/firmware_px4.py [--rounds 3] [--json OUT]
+
+Prints a markdown table. Each round takes about 30 s of wall time on a quiet machine.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+from pymavlink import mavutil
+
+HERE = Path(__file__).resolve().parent
+ROOT = HERE.parent
+sys.path.insert(0, str(ROOT / "tests" / "firmware"))
+
+from px4_fleet import SPEEDUP, mission_yaml, port_free, px4_fleet  # noqa: E402
+
+STARTS = ("carrier_started", "collection_started")  # the journal record a command's makespan counts from
+
+
+def fleetctl(mission: Path, runs: Path, *args: str,
+             timeout: float = 240.0) -> subprocess.CompletedProcess[str]:
+    argv = [sys.executable, "-m", "fleetctl.cli", *args, "-m", str(mission), "--speedup", f"{SPEEDUP:g}"]
+    if args[0] != "status":
+        argv += ["--yes", "--headless", "--runs", str(runs)]
+    return subprocess.run(argv, cwd=ROOT, capture_output=True, text=True, timeout=timeout, check=False)
+
+
+def wait_ready(mission: Path, runs: Path, timeout: float = 60.0) -> None:
+    deadline = time.monotonic() + timeout
+    while fleetctl(mission, runs, "status", "--timeout", "10").returncode != 0:
+        if time.monotonic() > deadline:
+            raise RuntimeError("the PX4 fleet was not ready")
+        time.sleep(1.0)
+
+
+def vehicle_seconds(run_dir: Path, start: float, end: float, sysid: int = 1) -> float | None:
+    """The vehicle's own seconds (``time_boot_ms`` of its GLOBAL_POSITION_INT) between two wall
+    times (unix), interpolated; None without its telemetry."""
+    log = mavutil.mavlink_connection(str(run_dir / "traffic.tlog"), dialect="ardupilotmega")
+    pts: list[tuple[float, float]] = []
+    while (msg := log.recv_match(type="GLOBAL_POSITION_INT", blocking=False)) is not None:
+        if msg.get_srcSystem() == sysid:
+            pts.append((msg._timestamp, msg.time_boot_ms / 1000.0))
+
+    def at(t: float) -> float | None:
+        for (t0, b0), (t1, b1) in zip(pts, pts[1:], strict=False):
+            if t0 <= t <= t1:
+                return b0 + (b1 - b0) * (t - t0) / max(t1 - t0, 1e-9)
+        return None
+
+    a, b = at(start), at(end)
+    return None if a is None or b is None else b - a
+
+
+def fly(mission: Path, runs: Path, command: str) -> dict[str, Any]:
+    out = runs / f"{command}-{time.monotonic_ns()}.json"
+    proc = fleetctl(mission, runs, command, "--summary", str(out))
+    s = json.loads(out.read_text()) if out.exists() else {}
+    row: dict[str, Any] = {"command": command, "exit": proc.returncode, "result": s.get("result"),
+                           "planned": s.get("makespan_planned"), "flown": s.get("makespan_flown"),
+                           "vehicle": None}
+    if s.get("journal") and s.get("makespan_flown") is not None:
+        run_dir = Path(s["journal"]).parent
+        rows = [json.loads(line) for line in (run_dir / "journal.jsonl").read_text().splitlines() if line]
+        start = next((r["t"] for r in rows if r["kind"] in STARTS), None)
+        if start is not None:
+            end = start + float(s["makespan_flown"]) / SPEEDUP
+            row["vehicle"] = vehicle_seconds(run_dir, start, end)
+    return row
+
+
+def percent(planned: float | None, flown: float | None) -> str:
+    return "-" if not planned or flown is None else f"{100.0 * (flown - planned) / planned:+.1f} %"
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--rounds", type=int, default=3, help="deploy + collect this many times (default 3)")
+    ap.add_argument("--json", help="also write the rows here")
+    ap.add_argument("--runs", help="keep the run folders here (default: a temporary folder)")
+    args = ap.parse_args()
+    if not port_free():
+        print("UDP port 14550 (PX4's ground-station port) is in use", file=sys.stderr)
+        return 2
+    rows = []
+    print("| round | command | result | planned s | flown s (mission) | vs planned | flown s (vehicle) "
+          "| vs planned |")
+    print("|---|---|---|---|---|---|---|---|")
+    with tempfile.TemporaryDirectory() as tmp, px4_fleet(speedup=SPEEDUP):
+        mission, runs = Path(tmp) / "mission.yaml", Path(args.runs or Path(tmp) / "runs")
+        mission.write_text(mission_yaml())
+        wait_ready(mission, runs)
+        for k in range(args.rounds):
+            for command in ("deploy", "collect"):
+                r = fly(mission, runs, command)
+                r["round"] = k + 1
+                rows.append(r)
+                p, f, v = r["planned"], r["flown"], r["vehicle"]
+                cells = [f"{x:.1f}" if x is not None else "-" for x in (p, f, v)]
+                print(f"| {k + 1} | {command} | {r['result']} | {cells[0]} | {cells[1]} | {percent(p, f)} | "
+                      f"{cells[2]} | {percent(p, v)} |", flush=True)
+                if r["result"] != "complete":
+                    break
+            else:
+                continue
+            break
+    if args.json:
+        Path(args.json).write_text(json.dumps(rows, indent=1))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
