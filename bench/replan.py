@@ -111,7 +111,8 @@ async def main() -> None:
     ap.add_argument("--speedup", type=float, default=30.0)
     a = ap.parse_args()
     rows = [await one(int(s), a.speedup) for s in a.sizes.split(",")]
-    print(f"heartbeat_timeout {HB} s (wall), sim speedup {a.speedup:g}\n")
+    print(f"heartbeat_timeout {HB} s (mission time, and at least min(it, 1 s) of wall time), "
+          f"sim speedup {a.speedup:g}; detection in wall s\n")
     print("| tasks | replans | task change → first command (ms) | rover lost → first command (ms) "
           "| dropout detected after (s) | target detect ≤ (s) | result |")
     print("|---:|---:|---:|---:|---:|---:|---|")

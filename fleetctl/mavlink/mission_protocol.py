@@ -24,6 +24,7 @@ log = logging.getLogger(__name__)
 MISSION_TIMEOUT = 1.5  # s, MAVLink mission protocol default
 MISSION_ITEM_TIMEOUT = 0.25  # s, first wait for one item; doubles on each retry up to MISSION_TIMEOUT
 MISSION_RETRIES = 5
+EARLY_RESENDS = 3  # resends in a row at the retransmission timeout before the wait starts doubling
 
 
 def _mission_match(mission_type: int) -> Callable[[Any], bool]:
@@ -37,10 +38,14 @@ async def upload_mission(
     """Upload ``items`` (MISSION_COUNT → MISSION_REQUEST_INT → MISSION_ITEM_INT → MISSION_ACK).
 
     The vehicle drives the transfer: whatever item it requests is sent, so re-requested and
-    out-of-order items are served. Without an answer the last message is resent (the COUNT after
-    the link's retransmission timeout, an item after ``item_timeout``, each doubling up to
-    ``timeout``), at most ``retries`` times in a row after waits of the full ``timeout`` (the
-    shorter early resends come on top). :class:`MissionRejected` on an error ACK (the vehicle keeps its
+    out-of-order items are served. Without an answer the last message is resent after the link's
+    retransmission timeout (:class:`~fleetctl.mavlink.rtt.RoundTrip`; before a round trip is known,
+    ``timeout`` for the COUNT and ``item_timeout`` or three COUNT round trips for an item), the
+    wait doubling up to ``timeout`` after :data:`EARLY_RESENDS` resends in a row, at most
+    ``retries`` times in a row after waits of the full ``timeout`` (the shorter early resends come
+    on top). Every exchange answered at its first send is a round trip sample of the link; a
+    MAV_MISSION_INVALID_SEQUENCE ACK during the transfer answers a resent item that crossed its
+    request and is passed over. :class:`MissionRejected` on another error ACK (the vehicle keeps its
     previous mission), :class:`LinkTimeout` after the retries (the transfer is cancelled).
     """
     n = len(items)
@@ -52,9 +57,11 @@ async def upload_mission(
             t0 = time.monotonic()
             last: Any = count_msg
             started = False
-            base = wait = link.rtt.timeout(timeout)  # the link's retransmission timeout, once known
+            wait = link.rtt.timeout(timeout)  # the link's retransmission timeout, once known
+            first = item_timeout
             left = retries
             served = 0
+            resent = 0  # resends of the last message in a row
             while True:
                 try:
                     m = await inbox.get(wait)
@@ -68,14 +75,20 @@ async def upload_mission(
                         left -= 1
                     link.send(last, sysid)
                     t0 = time.monotonic()  # the round trip is measured from the last send
-                    wait = min(wait * 2, timeout)  # backing off up to the protocol timeout
+                    resent += 1
+                    if resent > EARLY_RESENDS:
+                        wait = min(wait * 2, timeout)  # backing off up to the protocol timeout
                     continue
+                if not resent and m.get_type() != "MISSION_ACK":
+                    link.rtt.add(time.monotonic() - t0)  # answered at its first send: a round trip
                 if m.get_type() == "MISSION_ACK":
                     if m.type == M.MAV_MISSION_ACCEPTED:
                         if started or n == 0:
                             log.info("%s: mission of %d items uploaded to %d", link.url, n, sysid)
                             return
                         continue  # a stale ACK of an earlier transfer
+                    if started and m.type == M.MAV_MISSION_INVALID_SEQUENCE:
+                        continue  # our resend of an item crossed its request (ArduPilot answers so)
                     raise MissionRejected(sysid, "upload", m.type)
                 seq = m.seq
                 if not 0 <= seq < n:
@@ -83,7 +96,7 @@ async def upload_mission(
                     continue
                 if not started:
                     started = True
-                    base = max(item_timeout, 3.0 * (time.monotonic() - t0))
+                    first = max(item_timeout, 3.0 * (time.monotonic() - t0))  # until a round trip is known
                 it = items[seq]
                 # MISSION_ITEM_INT also answers a legacy MISSION_REQUEST: ArduPilot asks that way
                 # and rejects a float MISSION_ITEM in an _INT frame (MAV_MISSION_INVALID_PARAM4)
@@ -92,7 +105,9 @@ async def upload_mission(
                     it.param2, it.param3, it.param4, it.x, it.y, it.z, mission_type)
                 link.send(last, sysid)
                 served = max(served, seq + 1)
-                left, wait = retries, base
+                t0 = time.monotonic()
+                left, resent = retries, 0
+                wait = link.rtt.timeout(first if link.rtt.srtt is None else timeout)
 
 async def download_mission(
     link: Link, sysid: int, *, compid: int = 1, mission_type: int = 0, timeout: float = MISSION_TIMEOUT,
@@ -108,7 +123,8 @@ async def download_mission(
                 lambda m: m.get_type() == "MISSION_COUNT", link.rtt.timeout(timeout), timeout, retries,
                 "download")
             n = count_msg.count
-            base = max(item_timeout, 3.0 * link.mission_rtt)
+            first = max(item_timeout, 3.0 * link.mission_rtt)
+            base = link.rtt.timeout(first if link.rtt.srtt is None else timeout)
             items: list[MissionItem] = []
             for seq in range(n):
                 def is_item(m: Any, seq: int = seq) -> bool:
@@ -155,11 +171,13 @@ async def _exchange(link: Link, inbox: Inbox, msg: Any, sysid: int, accept: Call
                 raise MissionRejected(sysid, operation, m.type)
             if accept(m):
                 link.mission_rtt = time.monotonic() - sent
+                if attempt == 1:
+                    link.rtt.add(link.mission_rtt)  # answered at its first send: a round trip
                 return m
         wait = min(wait * 2, max_wait)
     raise LinkTimeout(f"system {sysid}: mission {operation} timed out ({msg.get_type()} unanswered "
                       f"after {retries} retries) on {link.url}")
 
 
-__all__ = ["MISSION_ITEM_TIMEOUT", "MISSION_RETRIES", "MISSION_TIMEOUT", "clear_mission", "download_mission",
-           "upload_mission"]
+__all__ = ["EARLY_RESENDS", "MISSION_ITEM_TIMEOUT", "MISSION_RETRIES", "MISSION_TIMEOUT", "clear_mission",
+           "download_mission", "upload_mission"]

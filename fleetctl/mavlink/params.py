@@ -10,6 +10,7 @@ from __future__ import annotations
 import asyncio
 import math
 import struct
+import time
 from typing import Any, Protocol
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
@@ -17,8 +18,9 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 from fleetctl.mavlink.link import Link, LinkError
 
 M = mavlink2
-PARAM_TIMEOUT = 1.0  # s per attempt
-PARAM_RETRIES = 3
+PARAM_TIMEOUT = 1.0  # s per attempt until the link's round trips are known
+PARAM_RETRIES = 3  # attempts of PARAM_TIMEOUT: the patience, filled with attempts at the link's
+# retransmission timeout (as commands are)
 _INT_TYPES = {M.MAV_PARAM_TYPE_UINT8: "<B", M.MAV_PARAM_TYPE_INT8: "<b", M.MAV_PARAM_TYPE_UINT16: "<H",
               M.MAV_PARAM_TYPE_INT16: "<h", M.MAV_PARAM_TYPE_UINT32: "<I", M.MAV_PARAM_TYPE_INT32: "<i"}
 
@@ -68,14 +70,24 @@ async def read_param(v: _Vehicle, name: str, *, timeout: float = PARAM_TIMEOUT,
     """(value, MAV_PARAM_TYPE) of ``name``, or None when the vehicle does not answer (it has no
     such parameter: autopilots stay silent then)."""
     link = v.link
-    for _attempt in range(retries):
-        msg = link.mav.param_request_read_encode(v.sysid, v.compid, name.encode(), -1)
+    msg = link.mav.param_request_read_encode(v.sysid, v.compid, name.encode(), -1)
+    reply = await _ask(link, msg, v.sysid, name, timeout, retries)
+    if reply is None:
+        return None
+    return decode(reply.param_value, reply.param_type, _bytewise(v)), reply.param_type
+
+
+async def _ask(link: Link, msg: Any, sysid: int, name: str, timeout: float, retries: int) -> Any:
+    """Send ``msg`` until a PARAM_VALUE of ``name`` answers it (None when none does) for
+    ``retries x timeout`` in all, each attempt waiting the link's retransmission timeout
+    (:class:`~fleetctl.mavlink.rtt.RoundTrip`, ``timeout`` until it is known)."""
+    deadline = time.monotonic() + retries * timeout
+    while (left := deadline - time.monotonic()) > 0:
         try:
-            reply = await link.request(msg, v.sysid, "PARAM_VALUE",
-                                       match=lambda m: _name(m.param_id) == name, timeout=timeout)
+            return await link.request(msg, sysid, "PARAM_VALUE", match=lambda m: _name(m.param_id) == name,
+                                      timeout=min(link.rtt.timeout(timeout), left))
         except TimeoutError:
             continue
-        return decode(reply.param_value, reply.param_type, _bytewise(v)), reply.param_type
     return None
 
 
@@ -95,19 +107,16 @@ async def set_param(v: _Vehicle, name: str, value: float, *, param_type: int | N
             raise ParamError(f"{v.name}: parameter {name} not answered (the firmware may not have it)")
         param_type = cur[1]
     link, bytewise = v.link, _bytewise(v)
-    for _attempt in range(retries):
-        msg = link.mav.param_set_encode(v.sysid, v.compid, name.encode(), encode(value, param_type, bytewise),
-                                        param_type)
-        try:
-            reply = await link.request(msg, v.sysid, "PARAM_VALUE",
-                                       match=lambda m: _name(m.param_id) == name, timeout=timeout)
-        except TimeoutError:
-            continue
-        got = decode(reply.param_value, reply.param_type, bytewise)
-        if math.isclose(got, value, rel_tol=1e-6, abs_tol=1e-6):
-            return got
-        raise ParamError(f"{v.name}: {name} is {got:g} after setting it to {value:g} (the vehicle refused)")
-    raise ParamError(f"{v.name}: PARAM_SET {name} = {value:g} not confirmed ({retries} attempts)")
+    msg = link.mav.param_set_encode(v.sysid, v.compid, name.encode(), encode(value, param_type, bytewise),
+                                    param_type)
+    reply = await _ask(link, msg, v.sysid, name, timeout, retries)
+    if reply is None:
+        raise ParamError(f"{v.name}: PARAM_SET {name} = {value:g} not confirmed "
+                         f"within {retries * timeout:g} s")
+    got = decode(reply.param_value, reply.param_type, bytewise)
+    if math.isclose(got, value, rel_tol=1e-6, abs_tol=1e-6):
+        return got
+    raise ParamError(f"{v.name}: {name} is {got:g} after setting it to {value:g} (the vehicle refused)")
 
 
 __all__ = ["ParamError", "decode", "encode", "read_param", "read_params", "set_param"]

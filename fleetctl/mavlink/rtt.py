@@ -6,7 +6,10 @@ trip is measured the protocol's timeout applies."""
 
 from __future__ import annotations
 
-MIN_RTO = 0.25  # s: shortest wait before a resend (an autopilot busy for a moment is not a loss)
+MIN_RTO = 0.05  # s: shortest wait before a resend: an autopilot answers a command or a mission item
+# within milliseconds on a wire or a local network, and a resend it did not need is answered again
+# (the command protocol's ``confirmation``, the mission protocol's re-requested item); on a radio
+# link the measured round trips, not this floor, set the wait
 ALPHA, BETA = 1 / 8, 1 / 4  # RFC 6298's gains for the smoothed round trip and its deviation
 
 

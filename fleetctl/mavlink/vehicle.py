@@ -9,7 +9,8 @@ commands that raise :class:`CommandRejected` when the autopilot refuses and
 ``vehicle.autopilot`` (:mod:`fleetctl.mavlink.autopilots`), chosen from the first HEARTBEAT.
 
 Events (``VehicleEvent.kind``): ``connected`` (first heartbeat), ``lost`` (nothing heard for
-``heartbeat_timeout`` s), ``back`` (a heartbeat after ``lost``), ``armed``, ``disarmed``, ``mode``
+``heartbeat_timeout`` s of mission time: :mod:`fleetctl.mavlink.silence`), ``back`` (a heartbeat
+after ``lost``), ``armed``, ``disarmed``, ``mode``
 (data: mode, previous), ``landed_state`` (data: state), ``item_reached`` (data: seq),
 ``mission_current`` (data: seq), ``statustext`` (data: text, severity), ``geofence_breach``
 (data: breach - FENCE_BREACH name, count; from FENCE_STATUS, or a "fence breach" STATUSTEXT of
@@ -43,6 +44,7 @@ from fleetctl.mavlink.link import (
     command_name,
     enum_name,
 )
+from fleetctl.mavlink.silence import LATE_S, MissionClock, floor_wall, silence_left
 
 log = logging.getLogger(__name__)
 
@@ -98,8 +100,9 @@ class Vehicle:
     """Live state and commands of one vehicle (system id ``sysid``) on ``link``.
 
     ``origin`` (the mission's ENU origin) enables :attr:`enu`; ``heartbeat_timeout`` is the
-    silence after which the vehicle is *lost*. Call :meth:`close` when done (it cancels the timer
-    and unsubscribes from the link; the link itself is not closed).
+    silence (mission seconds on the clock given to :meth:`use_clock`, the wall clock until then)
+    after which the vehicle is *lost* (:mod:`fleetctl.mavlink.silence`). Call :meth:`close` when
+    done (it cancels the timer and unsubscribes from the link; the link itself is not closed).
 
     Plausibility (field safety): ``max_speed`` (m/s, default 30) bounds how far two position fixes
     may be apart: a GLOBAL_POSITION_INT farther than 3 x max_speed x dt + 3 m from the last applied
@@ -177,6 +180,10 @@ class Vehicle:
         self._listeners: list[Listener] = []
         self._tick: asyncio.Future[None] | None = None
         self._lost_timer: asyncio.TimerHandle | None = None
+        self._lost_due = 0.0  # time.monotonic() the silence check is due
+        self._postponed = False  # this silence's check already ran late once (a busy event loop)
+        self._clock = MissionClock()
+        self._heard_mission: float | None = None  # mission time of the last message of this vehicle
         self._unsubscribe = link.subscribe(self._on_message, sysid=sysid)
         self._handlers: dict[str, Callable[[Any], None]] = {
             "HEARTBEAT": self._on_heartbeat,
@@ -342,6 +349,8 @@ class Vehicle:
 
     # -- receive -----------------------------------------------------------------------------------------
     def _on_message(self, msg: Any) -> None:
+        self._heard_mission = self._clock.now()
+        self._postponed = False
         handler = self._handlers.get(msg.get_type())
         if handler is not None:
             handler(msg)
@@ -377,24 +386,51 @@ class Vehicle:
             previous, self.mode = self.mode, mode
             self._emit("mode", mode=mode, previous=previous)
 
-    def _arm_lost_timer(self) -> None:
+    def use_clock(self, now: Callable[[], float], rate: float) -> None:
+        """Measure silences on the mission clock ``now`` (``rate`` mission seconds per wall second):
+        ``heartbeat_timeout`` is then in mission seconds (:mod:`fleetctl.mavlink.silence`)."""
+        heard = self.link.last_heard.get(self.sysid)
+        if heard is not None:  # the last message's mission time, on the new clock
+            self._heard_mission = now() - (time.monotonic() - heard) * rate
+        self._clock = MissionClock(now, rate)
+        if self._lost_timer is not None:
+            self._arm_lost_timer()
+
+    def _silence_left(self) -> float:
+        """Wall seconds until this vehicle's silence makes it lost (zero or less: lost now)."""
+        heard = self.link.last_heard.get(self.sysid)
+        if heard is None:
+            return 0.0
+        wall = time.monotonic() - heard
+        clock = self._clock
+        mission = clock.now() - self._heard_mission if self._heard_mission is not None else wall * clock.rate
+        return silence_left(self.heartbeat_timeout, wall, mission, clock.rate)
+
+    def _arm_lost_timer(self, wait: float | None = None) -> None:
         if self._lost_timer is not None:
             self._lost_timer.cancel()
-        self._lost_timer = asyncio.get_running_loop().call_later(self.heartbeat_timeout, self._on_silence)
+        wait = max(self._silence_left() if wait is None else wait, 0.001)
+        self._lost_due = time.monotonic() + wait
+        self._lost_timer = asyncio.get_running_loop().call_later(wait, self._on_silence)
 
     def _on_silence(self) -> None:
-        """No heartbeat for ``heartbeat_timeout``: lost, unless another of its messages came since
-        (a lossy link drops heartbeats too; any message of the vehicle shows the link works), then
-        looked at again when that one is ``heartbeat_timeout`` old."""
+        """The silence check: lost after ``heartbeat_timeout`` of mission time without a heartbeat or
+        any other of its messages (a lossy link drops heartbeats too; any message of the vehicle
+        shows the link works), and at least the wall-clock floor; looked at again when a message
+        came since, or once when this check ran late on a busy event loop."""
         self._lost_timer = None
-        heard = self.link.last_heard.get(self.sysid)
-        left = None if heard is None else self.heartbeat_timeout - (time.monotonic() - heard)
-        if left is not None and left > 0:
-            self._lost_timer = asyncio.get_running_loop().call_later(left, self._on_silence)
+        left = self._silence_left()
+        late = time.monotonic() - self._lost_due > LATE_S
+        if late and not self._postponed and not self.lost:
+            self._postponed = True  # its messages may be waiting to be read: the floor once more
+            self._arm_lost_timer(max(left, floor_wall(self.heartbeat_timeout)))
+            return
+        if left > 0:
+            self._arm_lost_timer(left)
             return
         if not self.lost:
             self.lost = True
-            log.warning("%s (sysid %d): nothing heard for %.1f s", self.name, self.sysid,
+            log.warning("%s (sysid %d): nothing heard for %.1f s of mission time", self.name, self.sysid,
                         self.heartbeat_timeout)
             self._emit("lost", timeout=self.heartbeat_timeout)
             self._wake()

@@ -43,6 +43,17 @@ async def upload(ctx: RunContext, v: Vehicle, items: list[MissionItem]) -> None:
         ) from None
 
 
+def stopped_on_item(v: Vehicle, seq: int) -> bool:
+    """Telemetry shows ``v`` stopped (at most ``STAY_SPEED``) within ``STAY_RADIUS`` of its uploaded
+    mission item ``seq``: its arrival there when both the MISSION_ITEM_REACHED and the MISSION_CURRENT
+    that tell it at once were lost (the next MISSION_CURRENT comes about a wall second later)."""
+    items, origin, p, speed = v.mission_items, v.origin, v.enu, v.ground_speed
+    if p is None or origin is None or speed is None or speed > STAY_SPEED or not 0 <= seq < len(items):
+        return False
+    x, y, _z = item_position(items[seq], origin)
+    return math.hypot(p[0] - x, p[1] - y) <= STAY_RADIUS
+
+
 class CarrierControl:
     """The carrier of one run (see the module docstring)."""
 
@@ -153,7 +164,8 @@ class CarrierControl:
             try:
                 await self.ctx.wait_for(
                     c,
-                    lambda v: arrive_seq in v.items_reached or (v.mission_current or -1) > arrive_seq,
+                    lambda v: (arrive_seq in v.items_reached or (v.mission_current or -1) > arrive_seq
+                               or stopped_on_item(v, arrive_seq)),
                     self.ctx.late(planned_leg),
                     f"mission item {arrive_seq}",
                 )
@@ -243,4 +255,4 @@ class CarrierControl:
             await self.ctx.command(v, "resume", v.resume())
 
 
-__all__ = ["CARRIER_OUTAGE_MAX", "CarrierControl", "upload"]
+__all__ = ["CARRIER_OUTAGE_MAX", "CarrierControl", "stopped_on_item", "upload"]

@@ -637,12 +637,21 @@ class CollectPhase:
         """A rover down on the deck counts as loaded once its motors are off, so the carrier never
         drives off with a rover armed on it (whose land detector a moving deck may keep from
         finishing): its autopilot disarms it on its own after the landing (ArduCopter and PX4 about
-        2 s); after ``DISARM_WAIT`` it is told to."""
+        2 s); after ``DISARM_WAIT`` mission seconds without a HEARTBEAT showing it disarmed, it is
+        told to, and the command's ACK confirms it (a disarm of a disarmed vehicle is accepted too):
+        its next HEARTBEAT, ~1 wall s away and lost on a lossy link, is not waited for. An autopilot
+        that refuses (its landing not finished) is given ``DISARM_WAIT`` more to disarm on its own."""
         ctx = self.ctx
+        end = ctx.clock() + DISARM_WAIT
         with contextlib.suppress(TimeoutError):
-            await ctx.wait_for(v, lambda v: not v.armed or v.lost, DISARM_WAIT, "disarmed on the deck")
+            await ctx.wait_for(v, lambda v: not v.armed or v.lost or ctx.clock() >= end, DISARM_WAIT,
+                               "disarmed on the deck")
+        if not v.armed or v.lost:
             return
-        await ctx.command(v, "disarm", v.disarm())
+        try:
+            await ctx.command(v, "disarm", v.disarm())
+        except CommandRejected:
+            await ctx.wait_for(v, lambda v: not v.armed or v.lost, DISARM_WAIT, "disarmed on the deck")
 
     def _down_on_deck(self, rnd: _Round, v: Vehicle) -> bool:
         """``v``'s autopilot reports its landing done (at once; the landed state and positions come

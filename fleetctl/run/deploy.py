@@ -411,7 +411,7 @@ class DeployPhase:
         return False
 
     async def _reassign_later(self, rid: str, task: str, after: float) -> None:
-        await asyncio.sleep(after)  # wall seconds, like the heartbeat timeout
+        await self.ctx.sleep_mission(after)  # mission seconds, like the heartbeat timeout
         self.grace.pop(rid, None)
         self.supervisor.put(SupervisorEvent(Watch.REASSIGN, rid, data={"task": task, "after": after}))
 

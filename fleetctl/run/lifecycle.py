@@ -181,6 +181,7 @@ class Session:
         self._emit = emit
         if self.opts.fleet is not None:
             self.fleet = self.opts.fleet
+            self._mission_silences(self.fleet)
             return self.fleet
         try:
             fleet = await connect_fleet(self.mission, self.endpoints, timeout=self.opts.connect_timeout,
@@ -188,8 +189,14 @@ class Session:
         except LinkError as exc:
             raise ExecutionError(f"cannot open the link: {exc}") from None
         fleet.on_route_conflict(self.route_conflict)
+        self._mission_silences(fleet)
         self.fleet = fleet
         return fleet
+
+    def _mission_silences(self, fleet: Fleet) -> None:
+        """A vehicle is lost after ``links.heartbeat_timeout`` of mission time (the run's clock)."""
+        for v in fleet.vehicles.values():
+            v.use_clock(self.clock, self.scale)
 
     def route_conflict(self, vid: str | None, sysid: int, old: Any, new: Any) -> None:
         """A known system id heard from a new address: told once per source and

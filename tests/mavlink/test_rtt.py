@@ -35,7 +35,7 @@ async def test_a_lost_command_is_resent_after_the_links_timeout(tmp_path) -> Non
         link = r1.link
         for _ in range(5):  # round trips measured on a clean link
             await r1.request_message(0, timeout=1.0)
-        assert link.rtt.samples >= 5 and link.rtt.timeout(1.0) == MIN_RTO
+        assert link.rtt.samples >= 5 and MIN_RTO <= link.rtt.timeout(1.0) < 0.5
         sim.inject(Fault("dropout", vehicle="r1", at=sim.sim_time, until=sim.sim_time + 0.4 * sim.speedup))
         waits = []
         timeout = link.rtt.timeout

@@ -46,7 +46,7 @@ class TeamEntry:
     tasks: list[str] = field(default_factory=list)  # allocated by the teams plan
     status: TeamStatus = TeamStatus.WAITING
     received: list[Task] = field(default_factory=list)  # handed to it, in order
-    lost_since: float | None = None  # wall clock: its carrier's link went down
+    lost_since: float | None = None  # mission clock: its carrier's link went down
     lost: bool = False  # its carrier was lost for too long: it takes no more tasks
     finished: bool = False  # its deployment is over (no further round)
 

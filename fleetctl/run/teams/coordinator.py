@@ -270,7 +270,7 @@ class TeamsRun(OnSession):
                 if not run.fleet.carrier.lost:
                     entry.lost_since = None
                     continue
-                now = time.monotonic()
+                now = self.clock()  # mission seconds, like the heartbeat timeout
                 entry.lost_since = entry.lost_since or now
                 if now - entry.lost_since >= after:
                     entry.lost = True
