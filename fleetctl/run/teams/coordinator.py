@@ -152,7 +152,7 @@ class TeamsRun(OnSession):
             if h.to_team in board.teams:
                 board.teams[h.to_team].received.extend(by_id[t] for t in h.tasks if t in by_id)
         if resume.phase != "deploy":
-            self.deployed_before = True
+            self.deployed_before = resume.command == "run"  # a collect run has no deployment
             for tid, (cid, _) in resume.reached().items():
                 board.reached.setdefault(tid, (cid, self.t0))
             for entry in board.teams.values():

@@ -1,0 +1,126 @@
+"""``fleetctl resume --run DIR`` of several teams killed at the moments
+:mod:`tests.run.test_resume_teams` leaves out (docs/teams.md#resume):
+
+* a two-team ``collect`` killed during its collection: resumed, every rover is loaded once and
+  the summary says so;
+* a ``run --team`` controller on a real mosquitto killed during its collection while the other
+  team's controller flies on: resumed, it re-joins the bus and collects its own rovers, once;
+* a two-team ``deploy`` in which c1's carrier is lost (its link drops out for good), killed after
+  c1 gave its tasks up: resumed, the hand-over holds - c2 flies them, c1 flies nothing.
+
+The fleet is ``fleetctl sim`` in its own process (it outlives the controller, as a real fleet does).
+"""
+
+from __future__ import annotations
+
+import signal
+from collections import Counter
+from pathlib import Path
+from typing import Any
+
+import pytest
+import yaml
+
+from tests.run.resume_helpers import (
+    Problems,
+    Records,
+    controller,
+    launch_violations,
+    of_kind,
+    parse_journal_strict,
+    read_summary,
+    run_ctl,
+    sim_process,
+)
+from tests.run.test_resume_teams import (
+    ROVERS,
+    TASKS,
+    TEAMS,
+    journal_texts,
+    journals,
+    observe,
+    team_records,
+    wait_journals,
+    write_two_teams,
+)
+
+pytestmark = pytest.mark.slow
+
+SPEEDUP = 8.0
+VEHICLES = len(TEAMS) + len(ROVERS)
+
+
+def _fast(tmp_path: Path, **changes: Any) -> tuple[Path, dict[str, Any]]:
+    mission, d = write_two_teams(tmp_path)
+    d["sim"]["speedup"] = SPEEDUP
+    d["rovers"]["endurance_range"] = 5000.0  # batteries that outlast the test's hovering
+    d["planner"] = {"budget_ms": 0}  # the quick plans: the test is about the records, not the plans
+    d.update(changes)
+    mission.write_text(yaml.safe_dump(d, sort_keys=False), encoding="utf-8")
+    return mission, d
+
+
+def _fly(args: list[str], mission: Path, run_dir: Path, log: Path) -> None:
+    rc, out = run_ctl([*args, "--mission", str(mission), "--run-dir", str(run_dir), "--headless", "--yes"], log)
+    assert rc == 0, out[-3000:]
+
+
+def _appended(p: Problems, run_dir: Path, before: dict[str, str]) -> None:
+    after = journal_texts(run_dir)
+    for name, text in before.items():  # appended to, never rewritten
+        p.check(after.get(name, "").startswith(text[: text.rfind("\n") + 1]), f"resume rewrote {name}")
+
+
+def _collection_started(js: dict[str, Records]) -> bool:
+    col = team_records(js, "collect")
+    i = next((k for k, r in enumerate(col) if r.get("kind") == "collection_started"), None)
+    return i is not None and bool(of_kind(col[i:], "command"))
+
+
+# ---------------------------------------------------------------------------------------------------
+# (a) a two-team collect
+# ---------------------------------------------------------------------------------------------------
+
+def test_kill_9_a_two_team_collect_then_resume_loads_every_rover_once(tmp_path: Path) -> None:
+    """Both teams deployed (``deploy``), then ``collect`` of the mission with a ``collection:``
+    section naming every rover where it holds, killed once a team's collection commands; resumed,
+    every rover is loaded once (in the teams' collection journals) and sits on a carrier's deck."""
+    mission, d = _fast(tmp_path)
+    col = tmp_path / "collect"
+    with sim_process(mission, tmp_path / "sim.log", speedup=SPEEDUP, vehicles=VEHICLES) as sim:
+        _fly(["deploy"], mission, tmp_path / "deploy", tmp_path / "deploy.log")
+        on_task = {r["vehicle"]: r["task"] for r in of_kind(team_records(journals(tmp_path / "deploy"), "deploy"),
+                                                             "task_reached")}
+        where = {t["id"]: t["position"] for t in d["tasks"]}
+        d["collection"] = {"rovers": [{"id": rid, "position": where[on_task[rid]], "range": 300.0}
+                                      for rid in ROVERS]}
+        mission.write_text(yaml.safe_dump(d, sort_keys=False), encoding="utf-8")
+        with controller(["collect", "--mission", str(mission), "--run-dir", str(col), "--headless", "--yes"],
+                        tmp_path / "collect.log") as fly:
+            wait_journals(fly, col, _collection_started, "a command after a team's collection_started")
+            assert fly.kill9() == -signal.SIGKILL
+        killed = journals(col)
+        loaded_before = {r["vehicle"] for r in of_kind(team_records(killed, "collect"), "rover_loaded")}
+        assert len(loaded_before) < len(ROVERS), f"every rover loaded before the kill (test timing)"
+        before = journal_texts(col)
+        rc, out = run_ctl(["resume", "--run", str(col), "--headless", "--yes"], tmp_path / "resume.log")
+        seen = observe(mission)
+        assert sim.proc.poll() is None, sim.output()
+    p = Problems()
+    p.check(rc == 0, f"resume exited {rc}")
+    p.check("Traceback" not in out, "a traceback in the output of resume")
+    _appended(p, col, before)
+    js = journals(col)
+    p.check(len(of_kind(parse_journal_strict(col), "resumed")) == 1, "no single 'resumed' record in the run's")
+    loaded = Counter(r["vehicle"] for r in of_kind(team_records(js, "collect"), "rover_loaded"))
+    p.check(loaded == Counter(dict.fromkeys(ROVERS, 1)), f"rovers loaded {dict(loaded)} (want each once)")
+    p.check(not of_kind(team_records(js, "collect"), "rover_launched"), "a collection launched a rover")
+    summary = read_summary(col)
+    p.check(summary.get("result") == "complete", f"summary result {summary.get('result')!r}")
+    p.check(sorted(summary.get("rovers_loaded", [])) == ROVERS, f"summary rovers_loaded "
+            f"{summary.get('rovers_loaded')}")
+    teams = {t["carrier"]: t for t in summary.get("teams", [])}
+    p.check(all("deploy" not in t for t in teams.values()), f"a collection's summary with a deployment: {teams}")
+    off = [rid for rid, s in seen.items() if s.deck is None]
+    p.check(not off, f"the world: rovers not on a carrier's deck: {off}")
+    p.assert_none(f"loaded before the kill: {sorted(loaded_before)}", f"resume output:\n{out[-3000:]}")
