@@ -13,6 +13,7 @@ The fleet is ``fleetctl sim`` in its own process (it outlives the controller, as
 
 from __future__ import annotations
 
+import math
 import signal
 from collections import Counter
 from pathlib import Path
@@ -33,9 +34,11 @@ from tests.run.resume_helpers import (
     sim_process,
 )
 from tests.run.test_resume_teams import (
+    REACH,
     ROVERS,
     TASKS,
     TEAMS,
+    describe,
     journal_texts,
     journals,
     observe,
@@ -101,7 +104,7 @@ def test_kill_9_a_two_team_collect_then_resume_loads_every_rover_once(tmp_path: 
             assert fly.kill9() == -signal.SIGKILL
         killed = journals(col)
         loaded_before = {r["vehicle"] for r in of_kind(team_records(killed, "collect"), "rover_loaded")}
-        assert len(loaded_before) < len(ROVERS), f"every rover loaded before the kill (test timing)"
+        assert len(loaded_before) < len(ROVERS), "every rover loaded before the kill (test timing)"
         before = journal_texts(col)
         rc, out = run_ctl(["resume", "--run", str(col), "--headless", "--yes"], tmp_path / "resume.log")
         seen = observe(mission)
@@ -124,3 +127,80 @@ def test_kill_9_a_two_team_collect_then_resume_loads_every_rover_once(tmp_path: 
     off = [rid for rid, s in seen.items() if s.deck is None]
     p.check(not off, f"the world: rovers not on a carrier's deck: {off}")
     p.assert_none(f"loaded before the kill: {sorted(loaded_before)}", f"resume output:\n{out[-3000:]}")
+
+
+# ---------------------------------------------------------------------------------------------------
+# (c) a carrier lost, its tasks handed over, then the controller killed
+# ---------------------------------------------------------------------------------------------------
+
+LOST_SPEEDUP = 4.0
+DROPOUT_AT = 60.0  # s of simulated time: c1's link drops out for good (about 15 s after the sim starts)
+
+
+def _lost_carrier_mission(tmp_path: Path) -> tuple[Path, dict[str, Any]]:
+    """c1's two tasks far north (a long drive, during which its link drops out for good), c2's two
+    near it; c2 has four rovers, two to spare for c1's tasks."""
+    mission, d = _fast(tmp_path)
+    d["sim"] = {"speedup": LOST_SPEEDUP, "faults": [{"kind": "dropout", "vehicle": "c1", "at": DROPOUT_AT}]}
+    d["carriers"][1]["fleet"] = {"count": 4, "sysid_start": 31}
+    d["tasks"] = [{"id": "t1", "position": [-5, 400, 5]}, {"id": "t2", "position": [5, 460, 4]},
+                  {"id": "t3", "position": [75, 30, 5]}, {"id": "t4", "position": [85, 90, 4]}]
+    d["links"] = {"heartbeat_timeout": 2.0, "reassign_after": 1.0}
+    mission.write_text(yaml.safe_dump(d, sort_keys=False), encoding="utf-8")
+    return mission, d
+
+
+def _handed_by_c1(js: dict[str, Records]) -> bool:
+    return any(r.get("from_team") == "c1" and r.get("to_team") == "c2" for r in of_kind(js["run"], "handover"))
+
+
+def test_kill_9_while_a_carrier_is_lost_then_resume_honours_the_handover(tmp_path: Path) -> None:
+    """c1's carrier drops out for good while it deploys; c1 gives its tasks up and c2 is handed
+    them; the controller is killed right after the ``handover`` record. Resumed (c1 still lost),
+    every task is reached once, c1's by c2's rovers; c1 launches nothing; the summary has the
+    hand-over and c1 lost."""
+    mission, d = _lost_carrier_mission(tmp_path)
+    rovers = ["r1", "r2", "r3", "r4", "r5", "r6"]
+    run_dir = tmp_path / "run"
+    with sim_process(mission, tmp_path / "sim.log", speedup=LOST_SPEEDUP, vehicles=2 + len(rovers)) as sim:
+        with controller(["deploy", "--mission", str(mission), "--run-dir", str(run_dir), "--headless", "--yes"],
+                        tmp_path / "fly.log") as fly:
+            wait_journals(fly, run_dir, _handed_by_c1, "a handover record from c1 to c2")
+            assert fly.kill9() == -signal.SIGKILL
+        killed = journals(run_dir)
+        (h,) = [r for r in of_kind(killed["run"], "handover") if r.get("from_team") == "c1"]
+        handed = sorted(h["tasks"])
+        assert handed, h
+        assert not set(handed) & {r["task"] for r in of_kind(team_records(killed, "deploy"), "task_reached")}
+        before = journal_texts(run_dir)
+        rc, out = run_ctl(["resume", "--run", str(run_dir), "--headless", "--yes"], tmp_path / "resume.log")
+        seen = observe(mission, rovers=rovers)
+        assert sim.proc.poll() is None, sim.output()
+    p = Problems()
+    p.check(rc == 0, f"resume exited {rc}")
+    p.check("Traceback" not in out, "a traceback in the output of resume")
+    _appended(p, run_dir, before)
+    js = journals(run_dir)
+    dep = team_records(js, "deploy")
+    reached = Counter(r["task"] for r in of_kind(dep, "task_reached"))
+    p.check(reached == Counter(dict.fromkeys(TASKS, 1)), f"tasks reached {dict(reached)} (each once)")
+    by_c2 = {r["task"] for r in of_kind(js.get("c2/deploy", []), "task_reached")}
+    p.check(set(handed) <= by_c2, f"handed {handed}: c2 reached {sorted(by_c2)}")
+    c1_after = js.get("c1/deploy", [])[len(killed.get("c1/deploy", [])):]
+    p.check(not of_kind(c1_after, "launch", "rover_launched"), "c1 launched a rover after the resume")
+    launched = Counter(r["vehicle"] for r in of_kind(dep, "rover_launched"))
+    p.check(all(n == 1 for n in launched.values()), f"rovers launched {dict(launched)}")
+    for key, recs in js.items():
+        for v in launch_violations(recs):
+            p.check(False, f"{key}: {v}")
+    summary = read_summary(run_dir)
+    p.check(summary.get("result") == "complete", f"summary result {summary.get('result')}")
+    lost = {t["carrier"]: t["lost"] for t in summary.get("teams", [])}
+    p.check(lost == {"c1": True, "c2": False}, f"summary teams lost {lost}")
+    p.check(any(x["from"] == "c1" and x["to"] == "c2" and sorted(x["tasks"]) == handed
+                for x in summary.get("handovers", [])), f"summary handovers {summary.get('handovers')}")
+    on_task = {t["id"]: [rid for rid, s in seen.items() if s.enu is not None
+                         and math.dist(s.enu, t["position"]) <= REACH] for t in d["tasks"]}
+    p.check(all(len(v) == 1 for v in on_task.values()), f"the world: rovers on each task {on_task}")
+    p.assert_none(f"handed over before the kill: {handed}", f"the world:\n{describe(seen)}",
+                  f"resume output:\n{out[-3000:]}")
