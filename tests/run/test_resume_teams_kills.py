@@ -22,6 +22,7 @@ from typing import Any
 import pytest
 import yaml
 
+from tests.bus.test_bus import MOSQUITTO, Broker
 from tests.run.resume_helpers import (
     Problems,
     Records,
@@ -38,6 +39,7 @@ from tests.run.test_resume_teams import (
     ROVERS,
     TASKS,
     TEAMS,
+    _partial,
     describe,
     journal_texts,
     journals,
@@ -64,7 +66,8 @@ def _fast(tmp_path: Path, **changes: Any) -> tuple[Path, dict[str, Any]]:
 
 
 def _fly(args: list[str], mission: Path, run_dir: Path, log: Path) -> None:
-    rc, out = run_ctl([*args, "--mission", str(mission), "--run-dir", str(run_dir), "--headless", "--yes"], log)
+    rc, out = run_ctl([*args, "--mission", str(mission), "--run-dir", str(run_dir), "--headless", "--yes"],
+                      log)
     assert rc == 0, out[-3000:]
 
 
@@ -92,8 +95,8 @@ def test_kill_9_a_two_team_collect_then_resume_loads_every_rover_once(tmp_path: 
     col = tmp_path / "collect"
     with sim_process(mission, tmp_path / "sim.log", speedup=SPEEDUP, vehicles=VEHICLES) as sim:
         _fly(["deploy"], mission, tmp_path / "deploy", tmp_path / "deploy.log")
-        on_task = {r["vehicle"]: r["task"] for r in of_kind(team_records(journals(tmp_path / "deploy"), "deploy"),
-                                                             "task_reached")}
+        deployed = team_records(journals(tmp_path / "deploy"), "deploy")
+        on_task = {r["vehicle"]: r["task"] for r in of_kind(deployed, "task_reached")}
         where = {t["id"]: t["position"] for t in d["tasks"]}
         d["collection"] = {"rovers": [{"id": rid, "position": where[on_task[rid]], "range": 300.0}
                                       for rid in ROVERS]}
@@ -114,7 +117,7 @@ def test_kill_9_a_two_team_collect_then_resume_loads_every_rover_once(tmp_path: 
     p.check("Traceback" not in out, "a traceback in the output of resume")
     _appended(p, col, before)
     js = journals(col)
-    p.check(len(of_kind(parse_journal_strict(col), "resumed")) == 1, "no single 'resumed' record in the run's")
+    p.check(len(of_kind(parse_journal_strict(col), "resumed")) == 1, "no single 'resumed' record (run's)")
     loaded = Counter(r["vehicle"] for r in of_kind(team_records(js, "collect"), "rover_loaded"))
     p.check(loaded == Counter(dict.fromkeys(ROVERS, 1)), f"rovers loaded {dict(loaded)} (want each once)")
     p.check(not of_kind(team_records(js, "collect"), "rover_launched"), "a collection launched a rover")
@@ -123,7 +126,7 @@ def test_kill_9_a_two_team_collect_then_resume_loads_every_rover_once(tmp_path: 
     p.check(sorted(summary.get("rovers_loaded", [])) == ROVERS, f"summary rovers_loaded "
             f"{summary.get('rovers_loaded')}")
     teams = {t["carrier"]: t for t in summary.get("teams", [])}
-    p.check(all("deploy" not in t for t in teams.values()), f"a collection's summary with a deployment: {teams}")
+    p.check(all("deploy" not in t for t in teams.values()), f"a collect summary with a deployment: {teams}")
     off = [rid for rid, s in seen.items() if s.deck is None]
     p.check(not off, f"the world: rovers not on a carrier's deck: {off}")
     p.assert_none(f"loaded before the kill: {sorted(loaded_before)}", f"resume output:\n{out[-3000:]}")
@@ -204,3 +207,76 @@ def test_kill_9_while_a_carrier_is_lost_then_resume_honours_the_handover(tmp_pat
     p.check(all(len(v) == 1 for v in on_task.values()), f"the world: rovers on each task {on_task}")
     p.assert_none(f"handed over before the kill: {handed}", f"the world:\n{describe(seen)}",
                   f"resume output:\n{out[-3000:]}")
+
+
+# ---------------------------------------------------------------------------------------------------
+# (b) a run --team controller on the bus killed during its collection
+# ---------------------------------------------------------------------------------------------------
+
+def _team_collecting(recs: Records) -> bool:
+    i = next((k for k, r in enumerate(recs) if r.get("kind") == "collection_started"), None)
+    return i is not None and bool(of_kind(recs[i:], "command"))
+
+
+def _team_dwelling(recs: Records) -> bool:
+    return bool(of_kind(recs, "dwell"))
+
+
+TEAM_MOMENTS = {  # the dwell, the collection's wait: kill when, then what must not have happened yet
+    "dwell": (["--dwell", "3"], _team_dwelling, "collection_started"),
+    "collection": (["--dwell", "1"], _team_collecting, "collected"),
+}
+
+
+@pytest.mark.skipif(MOSQUITTO is None, reason="mosquitto binary not installed")
+@pytest.mark.parametrize("moment", list(TEAM_MOMENTS))
+def test_kill_9_a_run_team_controller_then_resume_collects_its_rovers(tmp_path: Path, moment: str) -> None:
+    """Both teams' controllers (``run --team``) on a real mosquitto; c1's is killed during its
+    dwell or once its collection commands, and resumed while c2's flies on: c1 re-joins the bus (a
+    new session) and loads each of its rovers once; every task was reached once, every rover is on
+    a deck."""
+    dwell, until, not_yet = TEAM_MOMENTS[moment]
+    broker = Broker(tmp_path)
+    broker.start()
+    try:
+        mission, d = write_two_teams(tmp_path, links=2)  # each controller on its own team's link
+        d["sim"]["speedup"] = SPEEDUP
+        d["rovers"]["endurance_range"] = 5000.0
+        d["planner"] = {"budget_ms": 0}
+        d["mqtt"] = {"url": broker.url, "topic_prefix": "test/resume-run-team"}
+        mission.write_text(yaml.safe_dump(d, sort_keys=False), encoding="utf-8")
+        d1, d2 = tmp_path / "c1", tmp_path / "c2"
+        team = ["--mission", str(mission), *dwell, "--headless", "--yes"]
+        with sim_process(mission, tmp_path / "sim.log", speedup=SPEEDUP, vehicles=VEHICLES) as sim, \
+                controller(["run", "--team", "c2", *team, "--run-dir", str(d2)], tmp_path / "c2.log") as c2:
+            with controller(["run", "--team", "c1", *team, "--run-dir", str(d1)], tmp_path / "c1.log") as c1:
+                wait_journals(c1, d1, lambda _js: until(_partial(d1 / "journal.jsonl")), f"c1's {moment}")
+                assert c1.kill9() == -signal.SIGKILL
+            killed = parse_journal_strict(d1)
+            assert not of_kind(killed, not_yet), f"c1's {not_yet} before the kill (test timing)"
+            rc, out = run_ctl(["resume", "--run", str(d1), "--headless", "--yes"], tmp_path / "resume.log")
+            rc2 = c2.wait()
+            seen = observe(mission)
+            assert sim.proc.poll() is None, sim.output()
+    finally:
+        broker.stop()
+    p = Problems()
+    p.check(rc == 0 and rc2 == 0, f"resume of c1 exited {rc}, c2 exited {rc2}")
+    p.check("Traceback" not in out, "a traceback in the output of resume")
+    r1, r2 = parse_journal_strict(d1), parse_journal_strict(d2)
+    after = r1[len(killed):]
+    p.check(len(of_kind(after, "resumed")) == 1, "no single 'resumed' record appended to c1's journal")
+    sessions = {r.get("session") for r in of_kind(r1, "team") if r.get("session")}
+    p.check(len(sessions) == 2, f"c1's link sessions {sessions}: want the killed one and a new one")
+    reached = Counter(r["task"] for r in of_kind(r1 + r2, "task_reached"))
+    p.check(reached == Counter(dict.fromkeys(TASKS, 1)), f"tasks reached (both teams) {dict(reached)}")
+    p.check(not of_kind(after, "launch", "rover_launched"), "c1 launched a rover after the resume")
+    loaded = Counter(r["vehicle"] for r in of_kind(r1, "rover_loaded"))
+    p.check(loaded == Counter(dict.fromkeys(TEAMS["c1"], 1)), f"c1 loaded {dict(loaded)} (want r1, r2 once)")
+    for v in launch_violations(r1) + launch_violations(r2):
+        p.check(False, v)
+    summary = read_summary(d1)
+    p.check(summary.get("result") == "complete", f"c1's summary result {summary.get('result')}")
+    off = [rid for rid, s in seen.items() if s.deck is None]
+    p.check(not off, f"the world: rovers not on a carrier's deck: {off}")
+    p.assert_none(f"the world:\n{describe(seen)}", f"resume output:\n{out[-3000:]}")
