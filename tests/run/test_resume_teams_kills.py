@@ -154,7 +154,8 @@ def _lost_carrier_mission(tmp_path: Path) -> tuple[Path, dict[str, Any]]:
 
 
 def _handed_by_c1(js: dict[str, Records]) -> bool:
-    return any(r.get("from_team") == "c1" and r.get("to_team") == "c2" for r in of_kind(js["run"], "handover"))
+    return any(r.get("from_team") == "c1" and r.get("to_team") == "c2"
+               for r in of_kind(js["run"], "handover"))
 
 
 def test_kill_9_while_a_carrier_is_lost_then_resume_honours_the_handover(tmp_path: Path) -> None:
@@ -166,8 +167,8 @@ def test_kill_9_while_a_carrier_is_lost_then_resume_honours_the_handover(tmp_pat
     rovers = ["r1", "r2", "r3", "r4", "r5", "r6"]
     run_dir = tmp_path / "run"
     with sim_process(mission, tmp_path / "sim.log", speedup=LOST_SPEEDUP, vehicles=2 + len(rovers)) as sim:
-        with controller(["deploy", "--mission", str(mission), "--run-dir", str(run_dir), "--headless", "--yes"],
-                        tmp_path / "fly.log") as fly:
+        args = ["deploy", "--mission", str(mission), "--run-dir", str(run_dir), "--headless", "--yes"]
+        with controller(args, tmp_path / "fly.log") as fly:
             wait_journals(fly, run_dir, _handed_by_c1, "a handover record from c1 to c2")
             assert fly.kill9() == -signal.SIGKILL
         killed = journals(run_dir)
