@@ -172,6 +172,8 @@ def test_kill_9_while_a_carrier_is_lost_then_resume_honours_the_handover(tmp_pat
             wait_journals(fly, run_dir, _handed_by_c1, "a handover record from c1 to c2")
             assert fly.kill9() == -signal.SIGKILL
         killed = journals(run_dir)
+        assert [r["vehicle"] for r in of_kind(killed["run"], "carrier_lost")] == ["c1"], \
+            "c1's link dropped out before its deployment began (test timing: a slow controller start)"
         (h,) = [r for r in of_kind(killed["run"], "handover") if r.get("from_team") == "c1"]
         handed = sorted(h["tasks"])
         assert handed, h
