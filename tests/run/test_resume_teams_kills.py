@@ -179,7 +179,9 @@ def test_kill_9_while_a_carrier_is_lost_then_resume_honours_the_handover(tmp_pat
         assert handed, h
         assert not set(handed) & {r["task"] for r in of_kind(team_records(killed, "deploy"), "task_reached")}
         before = journal_texts(run_dir)
-        rc, out = run_ctl(["resume", "--run", str(run_dir), "--headless", "--yes"], tmp_path / "resume.log")
+        # --timeout 3: c1 does not answer; the resume waits 3 s for it, not the default 10
+        rc, out = run_ctl(["resume", "--run", str(run_dir), "--headless", "--yes", "--timeout", "3"],
+                          tmp_path / "resume.log")
         seen = observe(mission, rovers=rovers)
         assert sim.proc.poll() is None, sim.output()
     p = Problems()
