@@ -11,7 +11,8 @@ records: the run's journal ``RUN/journal.jsonl`` (the ``run`` record naming the 
 * the phase interrupted: ``deploy`` until the ``dwell`` record, ``dwell`` until the collection
   was shared (or a team's collection started), then ``collect``;
 * who owns each task: the deployment's shares, then every recorded hand-over (a task handed to
-  another team is that team's; the team that gave it up is never handed it again);
+  another team is that team's; the team that gave it up is never handed it again); the teams
+  whose carrier was lost (``carrier_lost``) stay lost: they are handed nothing;
 * for each team whose deployment journal exists, a :class:`~fleetctl.run.resume.Resumption` of
   that journal over the tasks the team owns now: the tasks its rovers reached, the rovers it
   launched and where to, refused or unusable rovers. The resumed run flies each team's
@@ -65,6 +66,7 @@ class TeamsResumption:
     deploy: dict[str, Resumption] = field(default_factory=dict)  # team -> its deployment's journal
     collect: dict[str, Resumption] = field(default_factory=dict)  # team -> its collection's journal
     dwell_started: float | None = None  # unix time
+    lost: list[str] = field(default_factory=list)  # teams whose carrier was lost (they take no more tasks)
 
     # -- who owns what ---------------------------------------------------------------------------
     def owner(self) -> dict[str, str]:
@@ -134,6 +136,7 @@ class TeamsResumption:
             "launched": self.launched(),
             "loaded": self.loaded(),
             "teams_resumed": sorted(self.deploy) if self.phase == "deploy" else sorted(self.collect),
+            "lost": self.lost,
         }
 
 
@@ -210,6 +213,8 @@ def _replay(res: TeamsResumption, records: list[dict[str, Any]]) -> None:
             res.handovers.append(Handed([str(t) for t in r["tasks"]], r["from_team"],
                                         to if isinstance(to, str) else None, str(r.get("why") or ""),
                                         float(r["t"])))
+        elif kind == Ev.CARRIER_LOST and isinstance(r.get("vehicle"), str) and r["vehicle"] not in res.lost:
+            res.lost.append(r["vehicle"])
         elif kind == Ev.DWELL and res.phase == "deploy" and res.command == "run":
             res.phase = "dwell"
             res.dwell_started = float(r["t"])

@@ -146,7 +146,8 @@ async def _observe(mission_path: Path, timeout: float, rovers: list[str]) -> dic
     from fleetctl.mavlink.fleet import connect_fleet
     from fleetctl.mission import load_mission
 
-    fleet = await connect_fleet(load_mission(mission_path), None, timeout=timeout)
+    # a vehicle not heard (a carrier lost for good) is seen nowhere
+    fleet = await connect_fleet(load_mission(mission_path), None, timeout=timeout, require_all=False)
     try:
         async def telemetry(v: Any) -> None:
             with contextlib.suppress(TimeoutError):

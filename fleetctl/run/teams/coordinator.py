@@ -137,8 +137,9 @@ class TeamsRun(OnSession):
 
     def _resumed_records(self, resume: TeamsResumption) -> None:
         """A resumed run: the hand-overs recorded before the restart stand (a task handed to a team
-        is that team's, never handed back to the team that gave it up); past the deployment, what
-        it reached counts and the rovers already loaded stay loaded."""
+        is that team's, never handed back to the team that gave it up, a team whose carrier was
+        lost stays lost); past the deployment, what it reached counts and the rovers already
+        loaded stay loaded."""
         board, now = self.board, time.time()
         by_id = {t.id: t for t in self.mission.tasks}
         for cid, tasks in (resume.shares or {}).items():
@@ -146,13 +147,16 @@ class TeamsRun(OnSession):
                 board.allocate(cid, tasks)
         board.owner.update(resume.owner())
         board.gave_up.update(resume.gave_up())
+        for cid in resume.lost:  # a team whose carrier was lost takes no more tasks
+            if cid in board.teams:
+                board.teams[cid].lost = True
         for h in resume.handovers:  # T before the resumed run's start: negative
             board.handovers.append(Handover(h.tasks, h.from_team, h.to_team, h.why,
                                             self.t0 - max(0.0, now - h.t) * self.scale))
             if h.to_team in board.teams:
                 board.teams[h.to_team].received.extend(by_id[t] for t in h.tasks if t in by_id)
         if resume.phase != "deploy":
-            self.deployed_before = True
+            self.deployed_before = resume.command == "run"  # a collect run has no deployment
             for tid, (cid, _) in resume.reached().items():
                 board.reached.setdefault(tid, (cid, self.t0))
             for entry in board.teams.values():

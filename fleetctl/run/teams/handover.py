@@ -3,7 +3,8 @@
 The receiving teams are chosen by the time model: the handed tasks are shared out again with
 ``planners.teams`` over every team that may take tasks (deploying or settling, its carrier not
 lost), each from its carrier's live pose with the rovers it has left on its deck (those not
-needed by its own pooled tasks). A team still deploying gets its share as a task change
+needed by its own pooled tasks; a team still starting - connecting, preflight - from its start
+with the rovers of its roster its share leaves over). A team still deploying gets its share as a task change
 (:meth:`~fleetctl.run.executor.Executor.submit_task_change`, source ``team <from>``); a team
 that finished deploying flies it in a further round (:meth:`TeamsRun.more_work`). Tasks no team
 can take stay unserved, owned by the team that gave them up. Every hand-over is journalled
@@ -116,8 +117,12 @@ class Handovers:
     def _free_rovers(self, cid: str) -> list[str]:
         """The rovers on ``cid``'s deck its own pooled and handed tasks do not need."""
         run = self.teams.runs.get("deploy", {}).get(cid)
-        ex = run.executor if run is not None else None
-        if ex is None or run is None or run.fleet is None or run.fleet.carrier.lost:
+        if run is None:
+            return []
+        ex = run.executor
+        if ex is None:
+            return self._roster_left(cid)
+        if run.fleet is None or run.fleet.carrier.lost:
             return []
         b, rovers = ex.board, run.fleet.rovers
         # the deck as its deployment found it (a driving carrier's deck is not told from telemetry)
@@ -126,6 +131,16 @@ class Handovers:
         deck = [rid for rid in deck if rid in rovers and b.available(rid) and not rovers[rid].lost]
         waiting = [t for t in self.teams.board.teams[cid].received if t.id not in b.entries]
         return deck[len(b.pooled()) + len(waiting) :]
+
+    def _roster_left(self, cid: str) -> list[str]:
+        """A team still starting (connecting, preflight: no deployment yet): the rovers of its
+        roster that its share and the tasks already handed to it leave over (handed tasks wait on
+        the team board and are flown as a further round once its share is done)."""
+        fleet, e = self.teams.fleet, self.teams.board.teams[cid]
+        if fleet is None or cid not in fleet.vehicles or fleet.vehicles[cid].lost:
+            return []
+        rovers = [rid for rid in e.rovers if rid in fleet.vehicles and not fleet.vehicles[rid].lost]
+        return rovers[len(e.tasks) + len(e.received) :]
 
     async def _share(self, tasks: list[Task], free: dict[str, list[str]]) -> dict[str, list[Task]]:
         """Plan ``tasks`` over the teams with rovers ``free``: each team's share."""
@@ -138,15 +153,14 @@ class Handovers:
         problems = []
         for cid, rovers in free.items():
             run = tm.runs["deploy"][cid]
-            assert run.executor is not None
-            start, heading = run.executor.carrier.pose()
-            own = dataclasses.replace(run.mission, tasks=tuple(tasks))
-            problems.append(
-                dataclasses.replace(own.deploy_problem(), start=start, heading=heading, rovers=tuple(rovers))
-            )
-        problem = TeamsProblem(tuple(free), tuple(problems))
+            own = dataclasses.replace(run.mission, tasks=tuple(tasks)).deploy_problem()
+            if run.executor is not None:  # its live pose; a team still starting is at its mission's start
+                start, heading = run.executor.carrier.pose()
+                own = dataclasses.replace(own, start=start, heading=heading)
+            problems.append(dataclasses.replace(own, rovers=tuple(rovers)))
+        teams = TeamsProblem(tuple(free), tuple(problems))
         try:
-            plan = await asyncio.to_thread(share_teams, problem, DEPLOY_PLANNERS[name], name)
+            plan = await asyncio.to_thread(share_teams, teams, DEPLOY_PLANNERS[name], name)
         except Exception:  # noqa: BLE001 - cannot plan: the team with the most rovers left takes them
             best = max(free, key=lambda c: len(free[c]))
             return {best: tasks}

@@ -131,3 +131,33 @@ def test_a_journal_of_other_teams_is_refused(tmp_path: Path) -> None:
     d["carriers"][1]["id"] = "c9"
     with pytest.raises(ResumeError, match="are not the mission's carriers"):
         load_teams_resumption(_folder(tmp_path, d, "deploy", [SHARES]))
+
+
+def test_a_lost_carrier_stays_lost(tmp_path: Path) -> None:
+    """c1's carrier lost (a ``carrier_lost`` record), its tasks handed to c2: resumed, c1 owns
+    nothing, never gets them back, and is lost on the resumed run's board (it is handed nothing)."""
+    lost = {"kind": "carrier_lost", "vehicle": "c1", "text": "c1: carrier lost for 1 s: handing over t1, t2"}
+    handed = {"kind": "handover", "tasks": ["t1", "t2"], "from_team": "c1", "to_team": "c2",
+              "why": "c1's carrier lost for more than 1 s"}
+    res = load_teams_resumption(_folder(tmp_path, _mission(tmp_path), "deploy", [SHARES, lost, handed]))
+    assert res.lost == ["c1"]
+    assert res.record()["lost"] == ["c1"]
+    assert res.team_tasks("c1") == [] and res.team_tasks("c2") == ["t1", "t2", "t3", "t4"]
+    tr = TeamsRun(res.mission, "deploy", RunOptions(teams_resume=res))
+    tr._resumed_records(res)
+    assert tr.board.teams["c1"].lost and not tr.board.teams["c1"].can_receive
+    assert not tr.board.teams["c2"].lost
+
+
+@pytest.mark.parametrize(("command", "deployed_before"), [("collect", False), ("run", True)])
+def test_a_resumed_collection_has_a_deployment_only_in_a_run(tmp_path: Path, command: str,
+                                                             deployed_before: bool) -> None:
+    """A ``run`` resumed in its collection deployed before the kill (its summary says what its
+    records told); a ``collect`` run never deployed."""
+    records = [SHARES, {"kind": "dwell"}] if command == "run" else []
+    records.append({"kind": "teams_plan", "phase": "collect", "shares": TEAMS})
+    res = load_teams_resumption(_folder(tmp_path, _mission(tmp_path), command, records))
+    assert res.phase == "collect"
+    tr = TeamsRun(res.mission, command, RunOptions(teams_resume=res))
+    tr._resumed_records(res)
+    assert tr.deployed_before is deployed_before
