@@ -4,7 +4,9 @@
 # browser test drives it through Playwright, which downloads no browser), the package with its test extras,
 # then the static checks (ruff, then mypy with its pyproject config; its cache .mypy_cache keeps a
 # rerun fast), then pytest. Either check failing fails the script before any test runs. Extra
-# arguments go to pytest, e.g. scripts/test.sh tests/bus/test_bus.py
+# arguments go to pytest, e.g. scripts/test.sh tests/bus/test_bus.py. The tests run on two pytest-xdist
+# workers (most of a test's time is a simulated flight waiting on its clock); the firmware tests are
+# one group flown by one worker in turn (tests/conftest.py).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 SUDO=""
@@ -19,4 +21,4 @@ fi
 python3 -m pip install -q -e '.[test]'
 python3 -m ruff check .
 python3 -m mypy
-python3 -m pytest -q "$@"
+python3 -m pytest -q -n 2 --dist loadgroup --durations=15 "$@"
