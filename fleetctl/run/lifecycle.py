@@ -20,7 +20,7 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from fleetctl.journal import Journal, run_dir_for, write_summary
 from fleetctl.mavlink.fleet import Fleet, connect_fleet
@@ -33,6 +33,11 @@ from fleetctl.run.resume import Resumption
 from fleetctl.run.resume_teams import TeamsResumption
 from fleetctl.run.sim import mission_uses_sim, sim_fleet_config
 from fleetctl.views.view import View
+
+if TYPE_CHECKING:
+    from fleetctl.bus.client import FleetBus
+    from fleetctl.bus.config import BusConfig
+    from sitl import SimFleet
 
 EXIT_OK = 0
 EXIT_FAILED = 1
@@ -62,11 +67,11 @@ class RunOptions:
     view: View | None = None
     connect_timeout: float = 10.0
     endpoints: dict[str, str] | None = None
-    on_sim: Callable[[Any], None] | None = None
+    on_sim: Callable[[SimFleet], None] | None = None
     on_run_dir: Callable[[Path], None] | None = None
-    sim: Any = None
+    sim: SimFleet | None = None  # an already running simulated fleet to fly against (tests, benchmarks)
     clock_speedup: float | None = None
-    mqtt: Any = None
+    mqtt: BusConfig | None = None  # the bus (default: the mission's mqtt: section)
     resume: Resumption | None = None  # a one-team run to finish
     teams_resume: TeamsResumption | None = None  # a run of several teams to finish
     team: str | None = None  # --team ID: the one team of a several-carrier mission flown (run record)
@@ -74,7 +79,7 @@ class RunOptions:
     force: bool = False  # fly although another controller seems to be in charge
     confirm: Callable[[list[str]], bool] | None = None  # asked before arming (real vehicles)
     fleet: Fleet | None = None  # an already connected fleet (a team's view of a teams run); not closed
-    bus: Any = None  # an already started FleetBus (a team's in a teams run): followed, not closed
+    bus: FleetBus | None = None  # an already started bus (a team's in a teams run): followed, not closed
 
 
 Emit = Callable[..., object]  # emit(kind, text, vehicle, **data): an event of the crew's
