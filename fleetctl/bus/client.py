@@ -36,7 +36,7 @@ import time
 from collections import deque
 from collections.abc import Callable, Iterable
 from dataclasses import asdict
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Protocol
 
 import aiomqtt
 
@@ -58,16 +58,23 @@ from fleetctl.bus.config import (
     parse_url,
 )
 from fleetctl.bus.reconnect import CONNECTION_ERRORS, Reconnector
-from fleetctl.journal import json_safe
+from fleetctl.journal import Journal, Record, json_safe
 from fleetctl.mission import MissionError, parse_mission
 from fleetctl.mission.limits import FAR_FACTOR, MIN_EXTENT
 
 if TYPE_CHECKING:
     from fleetctl.mission import Mission
     from fleetctl.run.state import FleetState
+    from fleetctl.views.view import View
     from planners.core.problem import Task
 
 log = logging.getLogger(__name__)
+
+
+class TaskChanges(Protocol):
+    """What task messages are handed to: the run's executor (:mod:`fleetctl.run.executor`)."""
+
+    def submit_task_change(self, add: list[Task], remove: list[str], source: str) -> None: ...
 
 def _dumps(data: Any) -> bytes:
     return json.dumps(json_safe(data), separators=(",", ":")).encode()
@@ -108,7 +115,7 @@ class FleetBus:
         self.disconnects = 0  # connections lost after they were up
         self.last_error: str | None = None  # why the last connect failed or the connection dropped
         self.state: FleetState | None = None
-        self.executor: Any = None
+        self.executor: TaskChanges | None = None
         self.record: Callable[..., None] = lambda kind, **data: None  # the journal's write
         self.tasks: list[Task] = list(mission.tasks)  # the task set task messages are checked against
         self._buf: deque[tuple[str, bytes, int]] = deque()
@@ -148,7 +155,7 @@ class FleetBus:
             self._buf.append((topic, data, qos))
         self._wake.set()
 
-    def on_record(self, rec: dict[str, Any]) -> None:
+    def on_record(self, rec: Record) -> None:
         """A :class:`fleetctl.journal.Journal` observer: every record to ``events``, plans to ``plan``."""
         self.publish("events", rec, qos=1)
         kind = rec.get("kind")
@@ -265,7 +272,7 @@ class FleetBus:
                 await t
             self._tasks.remove(t)
 
-    def attach_executor(self, executor: Any) -> None:
+    def attach_executor(self, executor: TaskChanges) -> None:
         """Task messages go to ``executor.submit_task_change`` from now on; changes queued before
         (a controller still connecting or planning) are handed on now, in order."""
         self.executor = executor
@@ -307,7 +314,7 @@ class FleetBus:
                 with contextlib.suppress(Exception):
                     cb(BusStatus.FAILED)
 
-    def show_in(self, view: Any) -> None:
+    def show_in(self, view: View | None) -> None:
         """Put :meth:`status_line` into a live view that shows status lines."""
         add = getattr(view, "add_status", None)
         if add is not None:
@@ -591,8 +598,8 @@ class FleetBus:
         return list(dict.fromkeys(ids))
 
 
-def start_bus(mission: Mission, config: BusConfig | None, journal: Any, state: FleetState,
-              view: Any = None, prepare: Callable[[FleetBus], None] | None = None) -> FleetBus | None:
+def start_bus(mission: Mission, config: BusConfig | None, journal: Journal, state: FleetState,
+              view: View | None = None, prepare: Callable[[FleetBus], None] | None = None) -> FleetBus | None:
     """Start the bus of a run (``config``, else the mission's ``mqtt:`` section; None when off):
     every journal record goes out on ``events``, telemetry from ``state``, the status line into
     ``view``; ``prepare`` is called with the bus before it starts (identity, subscriptions). A bad
