@@ -1,16 +1,18 @@
 """Options several commands share: ``--budget-ms``, the MQTT bus's ``--mqtt``/``--topic-prefix``
-and the views' ``--web``/``--tiles``/``--latlon``."""
+and the views' ``--web``/``--tiles``/``--latlon``. Building the parser imports no mission code:
+``fleetctl --help`` and a usage error load neither NumPy nor the mission loader."""
 
 from __future__ import annotations
 
 import argparse
 
-from fleetctl.mission.limits import MAX_BUDGET_MS
 from fleetctl.run.budget import DEFAULT_BUDGET_MS
 
 
 def budget_ms(text: str) -> float:
     """``--budget-ms N``: milliseconds of anytime improvement search after the quick plan."""
+    from fleetctl.mission.limits import MAX_BUDGET_MS  # the mission package (NumPy): only when given
+
     try:
         value = float(text)
     except ValueError:
