@@ -460,6 +460,29 @@ class FleetBus:
 
     def _handle_task_message(self, topic: str, payload: bytes) -> bool:
         op = topic.rsplit("/", 1)[-1]
+        data, force = self._decode_task_message(payload)
+        if op == "add":
+            add, remove = self.parse_add(data, topic), []
+        elif op == "remove":
+            add, remove = [], self.parse_remove(data)
+        else:
+            raise TaskMessageError(f"unknown topic {topic!r}")
+        if not force:
+            why = self.absurd_change(add, remove)
+            if why is not None:
+                raise TaskMessageError(f'{why}; nothing changed (send "force": true in the message to '
+                                       "apply it anyway)")
+        self._hand_over(add, remove, topic)
+        ids = {t.id for t in add}
+        self.tasks = [t for t in self.current_tasks() if t.id not in remove] + list(add)
+        self.record("bus_task_change", op=op, add=sorted(ids), remove=remove, topic=topic,
+                    **({"queued": True} if self.executor is None else {}),
+                    **({"force": True} if force else {}))
+        return True
+
+    def _decode_task_message(self, payload: bytes) -> tuple[Any, bool]:
+        """A task message's JSON and its ``force`` flag, once the mission accepts task changes and
+        the message is within the size and nesting limits (:class:`TaskMessageError` otherwise)."""
         if len(payload) > MAX_MESSAGE:
             raise TaskMessageError(f"message of {len(payload)} bytes is larger than {MAX_MESSAGE}")
         if self.refuse_tasks is not None:
@@ -482,19 +505,12 @@ class FleetBus:
             force = data.pop("force")
             if not isinstance(force, bool):
                 raise TaskMessageError('"force" must be true or false')
-        if op == "add":
-            add, remove = self.parse_add(data, topic), []
-        elif op == "remove":
-            add, remove = [], self.parse_remove(data)
-        else:
-            raise TaskMessageError(f"unknown topic {topic!r}")
-        if not force:
-            why = self.absurd_change(add, remove)
-            if why is not None:
-                raise TaskMessageError(f'{why}; nothing changed (send "force": true in the message to '
-                                       "apply it anyway)")
+        return data, force
+
+    def _hand_over(self, add: list[Task], remove: list[str], topic: str) -> None:
+        """The change to the controller, or queued for it while it is still connecting or planning."""
         submit = getattr(self.executor, "submit_task_change", None)
-        if self.executor is None:  # still connecting / planning: queue it for the controller
+        if self.executor is None:
             if len(self._pending) >= MAX_PENDING:
                 raise TaskMessageError(f"{MAX_PENDING} task changes are already waiting for the controller "
                                        "to start; try again when the plan is out")
@@ -507,12 +523,6 @@ class FleetBus:
                 submit(add=add, remove=remove, source=f"mqtt:{topic}")
             except Exception as exc:  # noqa: BLE001 - the replanner's refusal is the sender's answer
                 raise TaskMessageError(f"refused by the controller: {exc}") from None
-        ids = {t.id for t in add}
-        self.tasks = [t for t in self.current_tasks() if t.id not in remove] + list(add)
-        self.record("bus_task_change", op=op, add=sorted(ids), remove=remove, topic=topic,
-                    **({"queued": True} if self.executor is None else {}),
-                    **({"force": True} if force else {}))
-        return True
 
     def absurd_change(self, add: list[Task], remove: list[str]) -> str | None:
         """Why a valid change would make the mission absurd (None: it does not). Tasks outside
