@@ -112,7 +112,7 @@ class TeamControllerRun(Run):
 
     async def _connect(self) -> None:
         await super()._connect()
-        if self.link is not None:
+        if self.link is not None and self.executor is not None:
             self.link.attach_executor(self.executor)
 
     def _work_source(self) -> WorkSource:
