@@ -57,7 +57,7 @@ from fleetctl.bus.config import (
     client_kwargs,
     parse_url,
 )
-from fleetctl.bus.reconnect import CONNECTION_ERRORS, Reconnector
+from fleetctl.bus.reconnect import CONNECTION_ERRORS, ConnectionStatus, Reconnector
 from fleetctl.journal import Journal, Record, json_safe
 from fleetctl.mission import MissionError, parse_mission
 from fleetctl.mission.limits import FAR_FACTOR, MIN_EXTENT
@@ -101,19 +101,17 @@ class TaskMessageError(ValueError):
     """A task message that changes nothing; the text goes to ``<prefix>/errors``."""
 
 
-class FleetBus:
+class FleetBus(ConnectionStatus):
     """One run's connection to the broker (see the module docstring)."""
 
     def __init__(self, config: BusConfig, mission: Mission) -> None:
         self.config = config
         self.mission = mission
         self.prefix = config.topic_prefix
-        self.status = BusStatus.CONNECTING
         self.dropped = 0
         self.published = 0
         self.connects = 0
         self.disconnects = 0  # connections lost after they were up
-        self.last_error: str | None = None  # why the last connect failed or the connection dropped
         self.state: FleetState | None = None
         self.executor: TaskChanges | None = None
         self.record: Callable[..., None] = lambda kind, **data: None  # the journal's write
@@ -205,11 +203,9 @@ class FleetBus:
                 "rejected": self.rejected}
 
     def _set_status(self, status: BusStatus, error: BaseException | None = None) -> None:
-        if error is not None:
-            self.last_error = (str(error) or type(error).__name__)[:300]
-        if status == self.status:
+        old = self.change_status(status, error)
+        if old is None:
             return
-        old, self.status = self.status, status
         log.info("bus %s: %s", self.config.url, status)
         if self.state is not None:  # a broker that never answers is shown too (was silent)
             self.state.event("bus_" + status, self._status_text(old), None, url=self.config.url,
@@ -302,7 +298,7 @@ class FleetBus:
             kind = "bus_telemetry_failed"
         else:
             self.failed = why
-            self.status = BusStatus.FAILED
+            self.change_status(BusStatus.FAILED)
             text = f"bus: stopped ({why}); no telemetry or task changes over MQTT for the rest of the run"
             kind = "bus_failed"
         if self.state is not None:
@@ -339,7 +335,7 @@ class FleetBus:
             with contextlib.suppress(asyncio.CancelledError, Exception):
                 await t
         self._tasks.clear()
-        self.status = BusStatus.CLOSED
+        self.change_status(BusStatus.CLOSED)
 
     # -- the connection ---------------------------------------------------------------------------
     async def _run(self) -> None:

@@ -11,8 +11,9 @@ from collections.abc import Callable
 
 import aiomqtt
 
-from fleetctl.bus.config import BACKOFF_MAX, BACKOFF_MIN, CONNECT_TIMEOUT
+from fleetctl.bus.config import BACKOFF_MAX, BACKOFF_MIN, CONNECT_TIMEOUT, BusStatus
 
+MAX_ERROR_TEXT = 300  # characters of the last error kept for the status line and the summary
 CLOSE_TIMEOUT = 1.0  # s to wait for a clean DISCONNECT before dropping the client
 CONNECTION_ERRORS = (aiomqtt.MqttError, TimeoutError, OSError)  # a broker away, not a bug
 
@@ -51,3 +52,20 @@ class Reconnector:
         with contextlib.suppress(Exception):
             async with asyncio.timeout(CLOSE_TIMEOUT):
                 await client.__aexit__(None, None, None)
+
+
+class ConnectionStatus:
+    """Where a client's connection stands (:class:`BusStatus`) and why its last attempt failed or
+    its connection dropped; :meth:`change_status` is the one setter of both."""
+
+    status: BusStatus = BusStatus.CONNECTING
+    last_error: str | None = None
+
+    def change_status(self, status: BusStatus, error: BaseException | None = None) -> BusStatus | None:
+        """Record ``error`` and move to ``status``: the status before when it changed, else None."""
+        if error is not None:
+            self.last_error = (str(error) or type(error).__name__)[:MAX_ERROR_TEXT]
+        if status == self.status:
+            return None
+        old, self.status = self.status, status
+        return old

@@ -38,7 +38,7 @@ from fleetctl.bus.config import (
     BusStatus,
     client_kwargs,
 )
-from fleetctl.bus.reconnect import CONNECTION_ERRORS, Reconnector
+from fleetctl.bus.reconnect import CONNECTION_ERRORS, ConnectionStatus, Reconnector
 from fleetctl.run.state import Event, FleetState, VehicleState
 from fleetctl.views.dashboard import HeadlessView, LiveView, plain_text, render_teams
 from fleetctl.views.teams import MAX_TEAMS, ShownTeams
@@ -139,7 +139,7 @@ class RemoteFleetState(FleetState):
             self.remote_elapsed = float(data["elapsed"])
 
 
-class Watcher:
+class Watcher(ConnectionStatus):
     """Keeps a :class:`RemoteFleetState` up to date from the bus: the controller's
     (:attr:`state`) and each team's (:attr:`teams`)."""
 
@@ -152,8 +152,6 @@ class Watcher:
         self.shown.set_main(self.state)
         self.on_team: Callable[[str, RemoteFleetState], None] | None = None  # a team first heard of
         self.on_teams: Callable[[list[str]], None] | None = None  # the teams a run's status names
-        self.status = BusStatus.CONNECTING
-        self.last_error: str | None = None
         self.connects = 0
         self.messages = 0
         self.ignored = 0  # messages ignored (too large, a bad team id, too many teams or vehicles)
@@ -175,11 +173,9 @@ class Watcher:
 
     def _set_status(self, status: BusStatus, error: BaseException | None = None) -> None:
         """Track the connection; every change is an event (a dead broker is not silent)."""
-        if error is not None:
-            self.last_error = (str(error) or type(error).__name__)[:300]
-        if status == self.status:
+        old = self.change_status(status, error)
+        if old is None:
             return
-        old, self.status = self.status, status
         url, why = self.config.url, f" ({self.last_error})" if self.last_error else ""
         if status == BusStatus.CONNECTED:
             self.connects += 1
@@ -276,7 +272,7 @@ class Watcher:
                 log.debug("watch %s: connection lost: %s", self.config.url, exc)
                 self._set_status(BusStatus.RECONNECTING, exc)
             except asyncio.CancelledError:  # stopped while connected (not connected: the reason stays)
-                self.status = BusStatus.STOPPED
+                self.change_status(BusStatus.STOPPED)
                 raise
             finally:
                 await link.close(client)

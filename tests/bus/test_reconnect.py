@@ -13,7 +13,7 @@ import aiomqtt
 import pytest
 
 from fleetctl.bus.config import BACKOFF_MAX, BACKOFF_MIN, BusStatus
-from fleetctl.bus.reconnect import Reconnector
+from fleetctl.bus.reconnect import MAX_ERROR_TEXT, ConnectionStatus, Reconnector
 from tests.bus.test_bus import MOSQUITTO, Broker
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -64,3 +64,15 @@ def test_every_bus_status_is_documented() -> None:
     section = text[text.index("## Connection state"):]
     named = set(re.findall(r"`([a-z]+)`", section))
     assert {s.value for s in BusStatus} <= named, {s.value for s in BusStatus} - named
+
+
+def test_the_status_changes_through_one_setter_that_keeps_the_reason() -> None:
+    c = ConnectionStatus()
+    assert c.status == BusStatus.CONNECTING and c.last_error is None
+    assert c.change_status(BusStatus.RECONNECTING, ConnectionRefusedError("refused")) == BusStatus.CONNECTING
+    assert c.change_status(BusStatus.RECONNECTING, TimeoutError()) is None  # no change: no event
+    assert c.last_error == "TimeoutError"  # the latest reason, named by its type when it has no text
+    assert c.change_status(BusStatus.CONNECTED) == BusStatus.RECONNECTING
+    assert c.last_error == "TimeoutError"  # kept for the summary
+    c.change_status(BusStatus.RECONNECTING, OSError("x" * 1000))
+    assert c.last_error is not None and len(c.last_error) == MAX_ERROR_TEXT
