@@ -26,7 +26,7 @@ def web_view(args: argparse.Namespace, origin: Origin | None, headless: bool) ->
         raise CliError("--tiles needs --web HOST:PORT")
     if not getattr(args, "web", None):
         return None
-    from fleetctl.views.web import WebError, WebMapView, map_token, parse_address  # aiohttp
+    from fleetctl.views.web import TOKEN_ENV, WebError, WebMapView, map_token, parse_address  # aiohttp
 
     try:
         host, port = parse_address(args.web)
@@ -36,7 +36,7 @@ def web_view(args: argparse.Namespace, origin: Origin | None, headless: bool) ->
     if args.tiles and origin is None:
         raise CliError("--tiles needs the mission origin: watch has no mission file (use replay or the "
                        "flying commands)")
-    line = _link_line(token, from_env)
+    line = _link_line(token, from_env, TOKEN_ENV)
 
     def ready(link: str) -> None:
         if headless:
@@ -48,17 +48,17 @@ def web_view(args: argparse.Namespace, origin: Origin | None, headless: bool) ->
     return WebMapView(host, port, origin=origin, tiles=args.tiles, on_ready=ready, token=token)
 
 
-def _link_line(token: str | None, from_env: bool) -> Callable[[str], str]:
-    """The line that names the map's link (without the token when it came from the environment)."""
-    from fleetctl.views.web import TOKEN_ENV
+def _link_line(token: str | None, from_env: bool, env: str) -> Callable[[str], str]:
+    """The line that names the map's link (without the token when it came from the environment
+    variable ``env``)."""
 
     def line(link: str) -> str:
         if token is None:
             return f"web map: {link}"
         url = link.split("?", 1)[0]
         if from_env:
-            return f"web map: {url}?token=${TOKEN_ENV} (the token in {TOKEN_ENV}: bound beyond loopback)"
-        return f"web map: {link} (the token is required: bound beyond loopback; {TOKEN_ENV} sets your own)"
+            return f"web map: {url}?token=${env} (the token in {env}: bound beyond loopback)"
+        return f"web map: {link} (the token is required: bound beyond loopback; {env} sets your own)"
 
     return line
 
@@ -68,9 +68,7 @@ def with_web(args: argparse.Namespace, view: View, origin: Origin | None) -> Vie
     web = web_view(args, origin, isinstance(view, HeadlessView))
     if web is None:
         return view
-    from fleetctl.views.web import parse_address
-
-    any_port = parse_address(args.web)[1] == 0  # chosen when it listens: its link was not printed
+    any_port = web.server.port == 0  # chosen when it listens: its link was not printed
     add_status = getattr(view, "add_status", None)
     if add_status is not None:
         def line() -> str:
