@@ -1,6 +1,7 @@
 """``fleetctl deploy | collect | run`` and ``fleetctl resume``: check the options, build the
 :class:`~fleetctl.run.lifecycle.RunOptions`, fly (:func:`fleetctl.run.flight.fly`, or
-:func:`fleetctl.run.teams.own_controller.fly_team` for ``--team ID``) and print the outcome.
+:func:`fleetctl.run.teams.own_controller.fly_team_controller` for ``--team ID``) and print the
+outcome.
 
 Imported when a flying command runs (it loads asyncio, MAVLink and the terminal view).
 """
@@ -27,7 +28,7 @@ from fleetctl.run.lifecycle import EXIT_INTERRUPTED, RunOptions, RunOutcome
 from fleetctl.run.resume import ResumeError, load_resumption
 from fleetctl.run.resume_teams import is_teams_run, load_teams_resumption
 from fleetctl.run.sim import mission_uses_sim
-from fleetctl.run.teams.own_controller import TeamSpec, fly_team, prepare_team, team_bus_config
+from fleetctl.run.teams.own_controller import TeamSpec, fly_team_controller, prepare_team, team_bus_config
 from fleetctl.run.teams.own_resume import own_team_resumption
 from fleetctl.views.dashboard import make_view
 from fleetctl.views.outcome import outcome_lines
@@ -210,7 +211,7 @@ async def _with_sigterm(mission: Mission, command: str, opts: RunOptions,
         loop.add_signal_handler(signal.SIGTERM, on_term)
     try:
         if spec is not None:  # --team: one team of several (fleetctl.run.teams.own_controller)
-            outcome = await fly_team(mission, command, spec, opts)
+            outcome = await fly_team_controller(mission, command, spec, opts)
         else:
             outcome = await fly(mission, command, opts)
     finally:

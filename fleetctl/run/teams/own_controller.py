@@ -129,10 +129,12 @@ class TeamControllerRun(Run):
         return await super()._finish()
 
 
-async def fly_team(mission: Mission, command: str, spec: TeamSpec, opts: RunOptions) -> RunOutcome:
+async def fly_team_controller(mission: Mission, command: str, spec: TeamSpec,
+                              opts: RunOptions) -> RunOutcome:
     """:func:`fleetctl.run.flight.fly` for one team (``mission``: the team's own, from
     :func:`prepare_team`)."""
     return await TeamControllerRun(mission, command, opts, spec).fly()
 
 
-__all__ = ["TeamControllerRun", "TeamSpec", "fly_team", "prepare_team", "team_bus_config", "team_shares"]
+__all__ = ["TeamControllerRun", "TeamSpec", "fly_team_controller", "prepare_team", "team_bus_config",
+           "team_shares"]
