@@ -55,6 +55,8 @@ def run_dir_for(mission_name: str, base: str | Path = "runs") -> Path:
     raise FileExistsError(f"cannot create a run directory under {base}")
 
 
+Record = dict[str, Any]  # one journal line: {"t", "kind", ...} (docs/records.md)
+
 def json_safe(value: Any) -> Any:
     """JSON-safe: NaN/inf -> None, tuples -> lists, unknown objects -> str."""
     if isinstance(value, float):
@@ -79,9 +81,9 @@ class Journal(BackgroundFile[str]):
         self.summary_path = self.dir / "summary.json"
         self.tlog = TlogWriter(self.tlog_path, flush_interval=flush_interval)
         self.started = time.monotonic()
-        self._observers: list[Callable[[dict[str, Any]], None]] = []
+        self._observers: list[Callable[[Record], None]] = []
 
-    def add_observer(self, observer: Callable[[dict[str, Any]], None]) -> Callable[[], None]:
+    def add_observer(self, observer: Callable[[Record], None]) -> Callable[[], None]:
         """Call ``observer(record)`` with every record as it is written (e.g. the MQTT bus); it must
         not block and must not change the record. Returns a function that removes it."""
         self._observers.append(observer)
@@ -154,7 +156,7 @@ class JournalError(Exception):
     """A journal that cannot be read back (missing, or a line in the middle that does not parse)."""
 
 
-def read_journal(path: str | Path) -> list[dict[str, Any]]:
+def read_journal(path: str | Path) -> list[Record]:
     """The records of a journal file. A last line cut short (a crash while the disk was being
     written) is dropped; a bad line anywhere else raises :class:`JournalError`."""
     path = Path(path)
@@ -165,7 +167,7 @@ def read_journal(path: str | Path) -> list[dict[str, Any]]:
     return list(_parse_lines(path, lines))
 
 
-def _parse_lines(path: Path, lines: list[str]) -> Iterator[dict[str, Any]]:
+def _parse_lines(path: Path, lines: list[str]) -> Iterator[Record]:
     for n, line in enumerate(lines, 1):
         if not line.strip():
             continue
@@ -181,5 +183,5 @@ def _parse_lines(path: Path, lines: list[str]) -> Iterator[dict[str, Any]]:
         yield rec
 
 
-__all__ = ["JOURNAL_NAME", "MISSION_COPY", "SUMMARY_SCHEMA", "Journal", "JournalError", "read_journal",
-           "run_dir_for", "write_summary"]
+__all__ = ["JOURNAL_NAME", "MISSION_COPY", "SUMMARY_SCHEMA", "Journal", "JournalError", "Record",
+           "read_journal", "run_dir_for", "write_summary"]

@@ -36,15 +36,12 @@ import time
 from collections import deque
 from collections.abc import Callable, Iterable
 from dataclasses import asdict
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Protocol
 
 import aiomqtt
 
 from fleetctl.bus.config import (
-    BACKOFF_MAX,
-    BACKOFF_MIN,
     BUFFER_SIZE,
-    CONNECT_TIMEOUT,
     FINAL_STATES,
     MAX_JSON_DEPTH,
     MAX_MESSAGE,
@@ -54,21 +51,30 @@ from fleetctl.bus.config import (
     TELEMETRY_HZ,
     BusConfig,
     BusConfigError,
+    BusStatus,
     Secret,
     bus_config,
     client_kwargs,
     parse_url,
 )
-from fleetctl.journal import json_safe
+from fleetctl.bus.reconnect import CONNECTION_ERRORS, ConnectionStatus, Reconnector
+from fleetctl.journal import Journal, Record, json_safe
 from fleetctl.mission import MissionError, parse_mission
 from fleetctl.mission.limits import FAR_FACTOR, MIN_EXTENT
 
 if TYPE_CHECKING:
     from fleetctl.mission import Mission
     from fleetctl.run.state import FleetState
+    from fleetctl.views.view import View
     from planners.core.problem import Task
 
 log = logging.getLogger(__name__)
+
+
+class TaskChanges(Protocol):
+    """What task messages are handed to: the run's executor (:mod:`fleetctl.run.executor`)."""
+
+    def submit_task_change(self, add: list[Task], remove: list[str], source: str) -> None: ...
 
 def _dumps(data: Any) -> bytes:
     return json.dumps(json_safe(data), separators=(",", ":")).encode()
@@ -95,21 +101,19 @@ class TaskMessageError(ValueError):
     """A task message that changes nothing; the text goes to ``<prefix>/errors``."""
 
 
-class FleetBus:
+class FleetBus(ConnectionStatus):
     """One run's connection to the broker (see the module docstring)."""
 
     def __init__(self, config: BusConfig, mission: Mission) -> None:
         self.config = config
         self.mission = mission
         self.prefix = config.topic_prefix
-        self.status = "connecting"  # connecting | connected | reconnecting | closed
         self.dropped = 0
         self.published = 0
         self.connects = 0
         self.disconnects = 0  # connections lost after they were up
-        self.last_error: str | None = None  # why the last connect failed or the connection dropped
         self.state: FleetState | None = None
-        self.executor: Any = None
+        self.executor: TaskChanges | None = None
         self.record: Callable[..., None] = lambda kind, **data: None  # the journal's write
         self.tasks: list[Task] = list(mission.tasks)  # the task set task messages are checked against
         self._buf: deque[tuple[str, bytes, int]] = deque()
@@ -120,7 +124,7 @@ class FleetBus:
         self._last_status: tuple[Any, ...] | None = None
         self._last_status_t = 0.0
         self._final: str | None = None
-        self._on_status: list[Callable[[str], None]] = []
+        self._on_status: list[Callable[[BusStatus], None]] = []
         self.rejected = 0  # task messages answered on P/errors
         self.failed: str | None = None  # why the bus task stopped (it should never)
         self._pending: deque[tuple[list[Task], list[str], str]] = deque()  # before an executor exists
@@ -149,7 +153,7 @@ class FleetBus:
             self._buf.append((topic, data, qos))
         self._wake.set()
 
-    def on_record(self, rec: dict[str, Any]) -> None:
+    def on_record(self, rec: Record) -> None:
         """A :class:`fleetctl.journal.Journal` observer: every record to ``events``, plans to ``plan``."""
         self.publish("events", rec, qos=1)
         kind = rec.get("kind")
@@ -184,8 +188,8 @@ class FleetBus:
 
     def status_line(self) -> str:
         """``bus: connected`` / ``bus: reconnecting (12 dropped)`` for the live view."""
-        extra = [self.last_error] if self.status != "connected" and self.last_error else []
-        extra += [f"{len(self._buf)} queued"] if self.status != "connected" and self._buf else []
+        extra = [self.last_error] if self.status != BusStatus.CONNECTED and self.last_error else []
+        extra += [f"{len(self._buf)} queued"] if self.status != BusStatus.CONNECTED and self._buf else []
         if self.dropped:
             extra.append(f"{self.dropped} dropped")
         line = f"bus: {self.status} {self.config.url} {self.prefix}"
@@ -198,12 +202,10 @@ class FleetBus:
                 "published": self.published, "dropped": self.dropped, "queued": len(self._buf),
                 "rejected": self.rejected}
 
-    def _set_status(self, status: str, error: BaseException | None = None) -> None:
-        if error is not None:
-            self.last_error = (str(error) or type(error).__name__)[:300]
-        if status == self.status:
+    def _set_status(self, status: BusStatus, error: BaseException | None = None) -> None:
+        old = self.change_status(status, error)
+        if old is None:
             return
-        old, self.status = self.status, status
         log.info("bus %s: %s", self.config.url, status)
         if self.state is not None:  # a broker that never answers is shown too (was silent)
             self.state.event("bus_" + status, self._status_text(old), None, url=self.config.url,
@@ -211,16 +213,16 @@ class FleetBus:
         for cb in list(self._on_status):
             cb(status)
 
-    def _status_text(self, old: str) -> str:
+    def _status_text(self, old: BusStatus) -> str:
         url = self.config.url
-        if self.status == "connected":
+        if self.status == BusStatus.CONNECTED:
             return f"bus: connected to {url}" + (f" ({self.dropped} dropped)" if self.dropped else "")
         why = f" ({self.last_error})" if self.last_error else ""
-        if old == "connected":
+        if old == BusStatus.CONNECTED:
             return f"bus: connection to {url} lost{why}; reconnecting, messages are queued"
         return f"bus: cannot connect to {url}{why}; retrying, messages are queued (the mission flies on)"
 
-    def add_status_listener(self, cb: Callable[[str], None]) -> None:
+    def add_status_listener(self, cb: Callable[[BusStatus], None]) -> None:
         self._on_status.append(cb)
 
     # -- life cycle -------------------------------------------------------------------------------
@@ -245,8 +247,8 @@ class FleetBus:
         run per phase): telemetry and status from ``state`` from now on, task records to ``record``
         (started with :meth:`start` first)."""
         self.state, self.record, self.executor = state, record, None
-        if self.status in ("connected", "reconnecting", "failed"):  # the new run's records: where it stands
-            text = self._status_text("connected" if self.connects else "connecting")
+        if self.status in (BusStatus.CONNECTED, BusStatus.RECONNECTING, BusStatus.FAILED):  # where it stands
+            text = self._status_text(BusStatus.CONNECTED if self.connects else BusStatus.CONNECTING)
             state.event("bus_" + self.status, text, None, url=self.config.url, dropped=self.dropped,
                         error=self.last_error)
         if not any(t.get_name() == "mqtt telemetry" and not t.done() for t in self._tasks):
@@ -266,7 +268,7 @@ class FleetBus:
                 await t
             self._tasks.remove(t)
 
-    def attach_executor(self, executor: Any) -> None:
+    def attach_executor(self, executor: TaskChanges) -> None:
         """Task messages go to ``executor.submit_task_change`` from now on; changes queued before
         (a controller still connecting or planning) are handed on now, in order."""
         self.executor = executor
@@ -296,7 +298,7 @@ class FleetBus:
             kind = "bus_telemetry_failed"
         else:
             self.failed = why
-            self.status = "failed"
+            self.change_status(BusStatus.FAILED)
             text = f"bus: stopped ({why}); no telemetry or task changes over MQTT for the rest of the run"
             kind = "bus_failed"
         if self.state is not None:
@@ -306,9 +308,9 @@ class FleetBus:
         if kind == "bus_failed":
             for cb in list(self._on_status):
                 with contextlib.suppress(Exception):
-                    cb("failed")
+                    cb(BusStatus.FAILED)
 
-    def show_in(self, view: Any) -> None:
+    def show_in(self, view: View | None) -> None:
         """Put :meth:`status_line` into a live view that shows status lines."""
         add = getattr(view, "add_status", None)
         if add is not None:
@@ -320,11 +322,12 @@ class FleetBus:
             t.cancel()
         self._publish_telemetry()  # the final state of every vehicle
         deadline = time.monotonic() + flush_timeout
-        while self.status == "connected" and (self._dirty or self._buf) and time.monotonic() < deadline:
+        while (self.status == BusStatus.CONNECTED and (self._dirty or self._buf)
+               and time.monotonic() < deadline):
             await asyncio.sleep(0.02)  # the last events go out before the final status
         self._final = final if final in FINAL_STATES else "failed"
         self.publish("status", self.status_payload(), retain=True, qos=1)
-        while self.status == "connected" and self._dirty and time.monotonic() < deadline + 1.0:
+        while self.status == BusStatus.CONNECTED and self._dirty and time.monotonic() < deadline + 1.0:
             await asyncio.sleep(0.02)
         for t in self._tasks:
             t.cancel()
@@ -332,55 +335,54 @@ class FleetBus:
             with contextlib.suppress(asyncio.CancelledError, Exception):
                 await t
         self._tasks.clear()
-        self.status = "closed"
+        self.change_status(BusStatus.CLOSED)
 
     # -- the connection ---------------------------------------------------------------------------
     async def _run(self) -> None:
         ctx = await asyncio.to_thread(self.config.ssl_context)
-        delay = BACKOFF_MIN
         will = aiomqtt.Will(self.topic("status"),
                             _dumps({"status": "offline", "mission": self.mission.name, **self.identity}),
                             qos=1, retain=True)
+
+        def make() -> aiomqtt.Client:
+            return aiomqtt.Client(identifier=self.config.client_id, will=will,
+                                  max_queued_outgoing_messages=self.config.buffer_size,
+                                  **client_kwargs(self.config, ctx))
+
+        link = Reconnector(make, self._cannot_connect)
         while True:
-            client = aiomqtt.Client(identifier=self.config.client_id, will=will,
-                                    max_queued_outgoing_messages=self.config.buffer_size,
-                                    **client_kwargs(self.config, ctx))
-            try:
-                async with asyncio.timeout(CONNECT_TIMEOUT * 2):
-                    await client.__aenter__()
-            except (aiomqtt.MqttError, TimeoutError, OSError) as exc:
-                log.debug("bus %s: cannot connect: %s", self.config.url, exc)
-                self._set_status("reconnecting", exc)
-                await asyncio.sleep(delay)
-                delay = min(delay * 2, BACKOFF_MAX)
-                continue
+            client = await link.connect()
             self.connects += 1
-            delay = BACKOFF_MIN
             try:
-                self._dirty = list(self._retained)  # the broker may have lost them
-                await client.subscribe([(self.topic("tasks/add"), 1), (self.topic("tasks/remove"), 1)]
-                                       + [(f, 1) for f, _ in self._handlers], timeout=PUBLISH_TIMEOUT)
-                self._set_status("connected")
-                async with asyncio.TaskGroup() as tg:
-                    tg.create_task(self._send(client))
-                    tg.create_task(self._receive(client))
-            except* (aiomqtt.MqttError, TimeoutError, OSError) as eg:
+                await self._connected(client)
+            except* CONNECTION_ERRORS as eg:
                 log.debug("bus %s: connection lost: %s", self.config.url, eg.exceptions[0])
                 self.disconnects += 1
-                self._set_status("reconnecting", eg.exceptions[0])
+                self._set_status(BusStatus.RECONNECTING, eg.exceptions[0])
             except* Exception as eg:  # a bug must not end the bus: say so, reconnect
                 log.error("bus %s: unexpected error, reconnecting: %r", self.config.url, eg.exceptions[0],
                           exc_info=eg.exceptions[0])
                 with contextlib.suppress(Exception):
                     self.record("bus_error", error=f"{type(eg.exceptions[0]).__name__}: {eg.exceptions[0]}")
                 self.disconnects += 1
-                self._set_status("reconnecting", eg.exceptions[0])
-                await asyncio.sleep(delay)
-                delay = min(delay * 2, BACKOFF_MAX)
+                self._set_status(BusStatus.RECONNECTING, eg.exceptions[0])
+                await link.back_off()
             finally:
-                with contextlib.suppress(Exception):
-                    async with asyncio.timeout(1.0):
-                        await client.__aexit__(None, None, None)
+                await link.close(client)
+
+    def _cannot_connect(self, exc: BaseException) -> None:
+        log.debug("bus %s: cannot connect: %s", self.config.url, exc)
+        self._set_status(BusStatus.RECONNECTING, exc)
+
+    async def _connected(self, client: aiomqtt.Client) -> None:
+        """Subscribe, then send and receive until the connection drops."""
+        self._dirty = list(self._retained)  # the broker may have lost them
+        await client.subscribe([(self.topic("tasks/add"), 1), (self.topic("tasks/remove"), 1)]
+                               + [(f, 1) for f, _ in self._handlers], timeout=PUBLISH_TIMEOUT)
+        self._set_status(BusStatus.CONNECTED)
+        async with asyncio.TaskGroup() as tg:
+            tg.create_task(self._send(client))
+            tg.create_task(self._receive(client))
 
     async def _send(self, client: aiomqtt.Client) -> None:
         while True:
@@ -454,6 +456,29 @@ class FleetBus:
 
     def _handle_task_message(self, topic: str, payload: bytes) -> bool:
         op = topic.rsplit("/", 1)[-1]
+        data, force = self._decode_task_message(payload)
+        if op == "add":
+            add, remove = self.parse_add(data, topic), []
+        elif op == "remove":
+            add, remove = [], self.parse_remove(data)
+        else:
+            raise TaskMessageError(f"unknown topic {topic!r}")
+        if not force:
+            why = self.absurd_change(add, remove)
+            if why is not None:
+                raise TaskMessageError(f'{why}; nothing changed (send "force": true in the message to '
+                                       "apply it anyway)")
+        self._hand_over(add, remove, topic)
+        ids = {t.id for t in add}
+        self.tasks = [t for t in self.current_tasks() if t.id not in remove] + list(add)
+        self.record("bus_task_change", op=op, add=sorted(ids), remove=remove, topic=topic,
+                    **({"queued": True} if self.executor is None else {}),
+                    **({"force": True} if force else {}))
+        return True
+
+    def _decode_task_message(self, payload: bytes) -> tuple[Any, bool]:
+        """A task message's JSON and its ``force`` flag, once the mission accepts task changes and
+        the message is within the size and nesting limits (:class:`TaskMessageError` otherwise)."""
         if len(payload) > MAX_MESSAGE:
             raise TaskMessageError(f"message of {len(payload)} bytes is larger than {MAX_MESSAGE}")
         if self.refuse_tasks is not None:
@@ -476,19 +501,12 @@ class FleetBus:
             force = data.pop("force")
             if not isinstance(force, bool):
                 raise TaskMessageError('"force" must be true or false')
-        if op == "add":
-            add, remove = self.parse_add(data, topic), []
-        elif op == "remove":
-            add, remove = [], self.parse_remove(data)
-        else:
-            raise TaskMessageError(f"unknown topic {topic!r}")
-        if not force:
-            why = self.absurd_change(add, remove)
-            if why is not None:
-                raise TaskMessageError(f'{why}; nothing changed (send "force": true in the message to '
-                                       "apply it anyway)")
+        return data, force
+
+    def _hand_over(self, add: list[Task], remove: list[str], topic: str) -> None:
+        """The change to the controller, or queued for it while it is still connecting or planning."""
         submit = getattr(self.executor, "submit_task_change", None)
-        if self.executor is None:  # still connecting / planning: queue it for the controller
+        if self.executor is None:
             if len(self._pending) >= MAX_PENDING:
                 raise TaskMessageError(f"{MAX_PENDING} task changes are already waiting for the controller "
                                        "to start; try again when the plan is out")
@@ -501,12 +519,6 @@ class FleetBus:
                 submit(add=add, remove=remove, source=f"mqtt:{topic}")
             except Exception as exc:  # noqa: BLE001 - the replanner's refusal is the sender's answer
                 raise TaskMessageError(f"refused by the controller: {exc}") from None
-        ids = {t.id for t in add}
-        self.tasks = [t for t in self.current_tasks() if t.id not in remove] + list(add)
-        self.record("bus_task_change", op=op, add=sorted(ids), remove=remove, topic=topic,
-                    **({"queued": True} if self.executor is None else {}),
-                    **({"force": True} if force else {}))
-        return True
 
     def absurd_change(self, add: list[Task], remove: list[str]) -> str | None:
         """Why a valid change would make the mission absurd (None: it does not). Tasks outside
@@ -594,8 +606,8 @@ class FleetBus:
         return list(dict.fromkeys(ids))
 
 
-def start_bus(mission: Mission, config: BusConfig | None, journal: Any, state: FleetState,
-              view: Any = None, prepare: Callable[[FleetBus], None] | None = None) -> FleetBus | None:
+def start_bus(mission: Mission, config: BusConfig | None, journal: Journal, state: FleetState,
+              view: View | None = None, prepare: Callable[[FleetBus], None] | None = None) -> FleetBus | None:
     """Start the bus of a run (``config``, else the mission's ``mqtt:`` section; None when off):
     every journal record goes out on ``events``, telemetry from ``state``, the status line into
     ``view``; ``prepare`` is called with the bus before it starts (identity, subscriptions). A bad

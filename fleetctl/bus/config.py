@@ -6,6 +6,7 @@ import os
 import re
 import ssl
 from dataclasses import dataclass
+from enum import StrEnum
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
@@ -23,6 +24,18 @@ MAX_MESSAGE = 64 * 1024  # bytes of an incoming task message
 MAX_JSON_DEPTH = 16  # nesting of lists/objects in an incoming task message (a task message needs 4)
 MAX_PENDING = 32  # task changes queued before the controller can take them (oldest refused)
 FINAL_STATES = ("done", "failed", "interrupted", "offline")
+
+
+class BusStatus(StrEnum):
+    """Where a client's connection to the broker stands (docs/mqtt.md, connection state): the
+    ``bus`` field of ``P/status``, the summary's ``mqtt.state``, the ``bus_<status>`` events."""
+
+    CONNECTING = "connecting"  # the first attempt under way
+    CONNECTED = "connected"
+    RECONNECTING = "reconnecting"  # an attempt failed or the connection was lost; retrying
+    CLOSED = "closed"  # the run closed it
+    FAILED = "failed"  # the bus task ended on an error (a bug): no MQTT for the rest of the run
+    STOPPED = "stopped"  # fleetctl watch: stopped (Ctrl-C, --exit-on-done)
 
 _URL = re.compile(r"(?P<scheme>mqtts?)://(?P<host>[A-Za-z0-9_.-]+)(?::(?P<port>\d{1,5}))?/?")
 

@@ -1,4 +1,4 @@
-"""What the command line calls to fly: :func:`execute`.
+"""What the command line calls to fly: :func:`fly` (:func:`execute` takes the options as keywords).
 
 One lifecycle (:class:`~fleetctl.run.lifecycle.Session`) for every mission; the crew flying in it
 is chosen by the mission's data: its one team is a :class:`~fleetctl.run.runner.Run`, several
@@ -16,7 +16,7 @@ from fleetctl.run.runner import Run
 from fleetctl.run.teams.coordinator import TeamsRun
 
 
-async def execute(mission: Mission, command: str, **options: Any) -> RunOutcome:
+async def fly(mission: Mission, command: str, opts: RunOptions) -> RunOutcome:
     """Fly ``command`` (``deploy`` | ``collect`` | ``run``) of ``mission`` end to end: start the
     embedded simulator for ``connection: sim``, connect, fly, and write the records.
 
@@ -28,9 +28,14 @@ async def execute(mission: Mission, command: str, **options: Any) -> RunOutcome:
     told it first; ``resume`` - a :class:`~fleetctl.run.resume.Resumption` to finish."""
     if command not in COMMANDS:
         raise ValueError(f"unknown command {command!r}")
-    opts = RunOptions(**options)
     crew = TeamsRun if len(mission_teams(mission)) > 1 else Run
     return await crew(mission, command, opts).fly()
 
 
-__all__ = ["execute"]
+async def execute(mission: Mission, command: str, **options: Any) -> RunOutcome:
+    """:func:`fly` with the :class:`~fleetctl.run.lifecycle.RunOptions` given as keywords (tests,
+    benchmarks)."""
+    return await fly(mission, command, RunOptions(**options))
+
+
+__all__ = ["execute", "fly"]

@@ -17,10 +17,10 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import time
-from collections.abc import Callable
+from collections.abc import Awaitable, Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any, TypeVar
 
 from fleetctl.journal import Journal, run_dir_for, write_summary
 from fleetctl.mavlink.fleet import Fleet, connect_fleet
@@ -34,11 +34,17 @@ from fleetctl.run.resume_teams import TeamsResumption
 from fleetctl.run.sim import mission_uses_sim, sim_fleet_config
 from fleetctl.views.view import View
 
+if TYPE_CHECKING:
+    from fleetctl.bus.client import FleetBus
+    from fleetctl.bus.config import BusConfig
+    from sitl import FleetConfig, SimFleet
+
 EXIT_OK = 0
 EXIT_FAILED = 1
 EXIT_INTERRUPTED = 130
 COMMANDS = ("deploy", "collect", "run")
 ROUTE_CONFLICT_EVERY = 10.0  # s between route-conflict events from one source
+B = TypeVar("B")  # the bus a crew closes (one bus, or a team's buses)
 
 
 @dataclass
@@ -62,11 +68,11 @@ class RunOptions:
     view: View | None = None
     connect_timeout: float = 10.0
     endpoints: dict[str, str] | None = None
-    on_sim: Callable[[Any], None] | None = None
+    on_sim: Callable[[SimFleet], None] | None = None
     on_run_dir: Callable[[Path], None] | None = None
-    sim: Any = None
+    sim: SimFleet | None = None  # an already running simulated fleet to fly against (tests, benchmarks)
     clock_speedup: float | None = None
-    mqtt: Any = None
+    mqtt: BusConfig | None = None  # the bus (default: the mission's mqtt: section)
     resume: Resumption | None = None  # a one-team run to finish
     teams_resume: TeamsResumption | None = None  # a run of several teams to finish
     team: str | None = None  # --team ID: the one team of a several-carrier mission flown (run record)
@@ -74,7 +80,7 @@ class RunOptions:
     force: bool = False  # fly although another controller seems to be in charge
     confirm: Callable[[list[str]], bool] | None = None  # asked before arming (real vehicles)
     fleet: Fleet | None = None  # an already connected fleet (a team's view of a teams run); not closed
-    bus: Any = None  # an already started FleetBus (a team's in a teams run): followed, not closed
+    bus: FleetBus | None = None  # an already started bus (a team's in a teams run): followed, not closed
 
 
 Emit = Callable[..., object]  # emit(kind, text, vehicle, **data): an event of the crew's
@@ -96,17 +102,17 @@ class Session:
         self.mission = mission
         self.command = command
         self.opts = opts
-        self.sim: Any = opts.sim
+        self.sim: SimFleet | None = opts.sim
         self.endpoints = dict(opts.sim.endpoints) if opts.sim is not None else opts.endpoints
         self.uses_sim = opts.sim is None and self.endpoints is None and mission_uses_sim(mission)
-        self.sim_config: Any = (sim_fleet_config(mission, command, speedup=opts.speedup)
+        self.sim_config: FleetConfig | None = (sim_fleet_config(mission, command, speedup=opts.speedup)
                                 if self.uses_sim else None)
         self.clock, self.scale = self._clock()
         self.journal = Journal(self._run_dir())
         self.fleet: Fleet | None = None
         self.error: str | None = None
         self.interrupted = False
-        self._sim_cm: Any = None
+        self._sim_cm: contextlib.AbstractAsyncContextManager[SimFleet | None] | None = None
         self._conflicts: dict[tuple[str | None, int, str], float] = {}  # route conflicts told -> when
         self._emit: Emit | None = None
 
@@ -169,6 +175,7 @@ class Session:
 
         self._sim_cm = embedded_fleet(self.mission, config=self.sim_config)
         self.sim = sim = await self._sim_cm.__aenter__()
+        assert sim is not None  # started from its configuration whatever the connections say
         self.clock = lambda: float(sim.sim_time)
         self.endpoints = dict(sim.endpoints)
         self.journal.write(Ev.SIM_STARTED, endpoints=self.endpoints, speedup=self.scale)
@@ -227,7 +234,8 @@ class Session:
         self.journal.write(Ev.SUMMARY, **summary)
         write_summary(summary, self.journal.summary_path, self.opts.summary_path)
 
-    async def close(self, bus: Any = None, bus_final: Callable[[Any], Any] | None = None) -> None:
+    async def close(self, bus: B | None = None,
+                    bus_final: Callable[[B], Awaitable[object]] | None = None) -> None:
         """Close in order: the view, the fleet (unless borrowed), the bus (``bus_final(bus)``
         closes it), the journal, the simulator (unless borrowed)."""
         if self.opts.view is not None:
@@ -261,7 +269,7 @@ class OnSession:
         return self.session.scale
 
     @property
-    def sim(self) -> Any:
+    def sim(self) -> SimFleet | None:
         return self.session.sim
 
     @property

@@ -29,7 +29,7 @@ from fleetctl.mission.model import GeofenceConfig
 from fleetctl.run.context import ExecutionError
 from fleetctl.run.firmware_speeds import apply_firmware_speeds
 from fleetctl.run.kinds import Ev
-from fleetctl.run.preflight import PreflightRow, check_fleet
+from fleetctl.run.preflight import PreflightRow, check_connected, check_fleet
 
 GATHER_TIMEOUT = 3.0  # s to wait for the telemetry preflight checks read
 RTL_WARNING = ("RTL returns a rover to where it armed: a carrier stop the carrier will have left "
@@ -84,6 +84,24 @@ async def read_failsafe(v: Vehicle) -> PreflightFailsafe:
         return PreflightFailsafe({}, None, "link loss: unknown (no failsafe parameters for this autopilot)")
     params = await read_params(v, list(ap.failsafe_param_names), timeout=0.5, retries=2)
     return PreflightFailsafe(params, ap.failsafe_action(params), ap.describe_failsafe(params))
+
+
+def rtl_on_link_loss(fs: PreflightFailsafe) -> bool:
+    """Does the vehicle return to launch when its link is lost (a rover: :data:`RTL_WARNING`)?"""
+    return fs.action is not None and "rtl" in fs.action.lower()
+
+
+async def status_preflight(fleet: Fleet, mission: Mission, timeout: float) -> dict[str, PreflightRow]:
+    """``fleetctl status``: every vehicle's preflight row (the checks every flying command runs)
+    with its link-loss failsafe and, for a rover that returns to launch on link loss, the RTL
+    warning. Waits at most ``timeout`` (and :data:`GATHER_TIMEOUT`) s for the telemetry."""
+    failsafe = await gather(fleet, min(timeout, GATHER_TIMEOUT))
+    rows = check_connected(fleet, mission)
+    for vid, fs in failsafe.items():
+        rows[vid].link_loss = fs.text
+        if vid not in fleet.carrier_ids and rtl_on_link_loss(fs):
+            rows[vid].warnings.append(f"link loss {fs.text.removeprefix('link loss: ')}: {RTL_WARNING}")
+    return rows
 
 
 async def set_failsafe(v: Vehicle, action: str,
@@ -229,7 +247,7 @@ async def admit_safety(fleet: Fleet, mission: Mission, command: str, *, resuming
             rep.notes.append(("failsafe", f"{vid}: {fs.text}", vid))
         if fs is not None:
             rep.rows[vid].link_loss = fs.text
-            if vid != fleet.carrier_id and fs.action is not None and "rtl" in fs.action.lower():
+            if vid != fleet.carrier_id and rtl_on_link_loss(fs):
                 rep.rows[vid].warnings.append(RTL_WARNING)
                 rep.notes.append(("failsafe_warning", f"{vid}: link loss {fs.action}: {RTL_WARNING}", vid))
     await _set_speeds(fleet, mission, rep, [vid for vid in vehicles if vid not in rep.left_out], resuming)
@@ -285,4 +303,5 @@ def _fail(fleet: Fleet, rep: SafetyReport, vid: str, why: str, resuming: bool) -
 
 __all__ = ["RTL_WARNING", "PreflightFailsafe", "SafetyReport", "admit_safety", "check_plan", "download_fence",
            "fence_items", "gather", "gather_telemetry", "plan_violations", "prefetch_failsafes",
-           "read_failsafe", "read_failsafes", "set_failsafe", "upload_fence"]
+           "read_failsafe", "read_failsafes", "rtl_on_link_loss", "set_failsafe", "status_preflight",
+           "upload_fence"]

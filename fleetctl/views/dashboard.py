@@ -13,9 +13,9 @@ import contextlib
 import io
 import sys
 from collections.abc import Callable, Sequence
-from typing import IO, TYPE_CHECKING, Any
+from typing import IO, TYPE_CHECKING
 
-from rich.console import Console, Group, JustifyMethod
+from rich.console import Console, Group, JustifyMethod, RenderableType
 from rich.live import Live
 from rich.progress_bar import ProgressBar
 from rich.table import Table
@@ -64,7 +64,7 @@ def _header(state: FleetState) -> Table:
     stop = f"stop {state.stop_index}/{state.stop_count}" if state.stop_count else ""
     togo = mission_time_to_go(state)
     clock = tplus(state.mission_time) + ("" if togo is None else f"  to go {togo:.1f} s")
-    bar: Any = ProgressBar(total=max(planned or 1.0, 1e-6), completed=min(elapsed, planned or 0.0), width=24)
+    bar = ProgressBar(total=max(planned or 1.0, 1e-6), completed=min(elapsed, planned or 0.0), width=24)
     head.add_row(Text(f"{state.mission_name} · {state.phase}", style="bold"), Text(stop), Text(clock))
     phase = f"{state.phase} elapsed {elapsed:.1f} s" + (f" / planned {planned:.1f} s" if planned else "")
     if state.eta is not None and planned and abs(state.eta - planned) >= 0.05:
@@ -118,13 +118,13 @@ def _columns(width: int | None, latlon: bool) -> list[tuple[str, JustifyMethod]]
 
 
 def _cells(state: FleetState, v: VehicleState, cols: list[tuple[str, JustifyMethod]],
-           legs: dict[str, PlannedLeg]) -> list[Any]:
+           legs: dict[str, PlannedLeg]) -> list[RenderableType]:
     st = "lost" if v.lost else v.state
     batt = STYLE.get(battery_level(state, v), "")
     link = link_level(v)
     ttg = time_to_go(state, v, legs)
     ll = v.latlon
-    values: dict[str, Any] = {
+    values: dict[str, RenderableType] = {
         "id": Text(v.id, style="bold" if v.role == "carrier" else ""), "role": v.role,
         "state": Text(st, style=_STATE_STYLE.get(st, "")), "task": v.task or "",
         "E m": _num(v.enu[0] if v.enu else None), "N m": _num(v.enu[1] if v.enu else None),
@@ -160,7 +160,7 @@ def render(state: FleetState, max_rows: int | None = None, status: Sequence[str]
     legs = planned_legs(state.plan)
     for v in rows:
         table.add_row(*_cells(state, v, cols, legs))
-    parts: list[Any] = [_header(state)]
+    parts: list[RenderableType] = [_header(state)]
     parts += [Text(line, style="dim" if line.startswith("bus: connected") else "yellow", overflow="ellipsis",
                    no_wrap=True) for line in status]
     parts.append(table)
@@ -184,8 +184,8 @@ def _team_rows(teams: ShownTeams) -> Table:
         togo = mission_time_to_go(st)
         eta = "" if togo is None else f"ETA {tplus(st.mission_time + togo)}  to go {togo:.1f} s"
         planned = st.planned
-        bar: Any = ProgressBar(total=max(planned or 1.0, 1e-6), completed=min(st.elapsed, planned or 0.0),
-                               width=16, complete_style=t.colour or "bar.complete")
+        bar = ProgressBar(total=max(planned or 1.0, 1e-6), completed=min(st.elapsed, planned or 0.0),
+                          width=16, complete_style=t.colour or "bar.complete")
         replans = f"replans {st.replans}" if st.replans else ""
         grid.add_row(Text(f"■ {t.team}", style=f"bold {t.colour}"), Text(str(st.phase)), Text(stop),
                      Text(times, style="dim"), Text(eta + (f"  {replans}" if replans else "")), bar)
@@ -248,7 +248,7 @@ def render_teams(teams: ShownTeams, max_rows: int | None = None, status: Sequenc
     for team, v in rows:
         table.add_row(Text(team.team or "", style=f"bold {team.colour}"),
                       *_cells(team.state, v, cols, legs[team.team]))
-    parts: list[Any] = [_teams_header(teams), _team_rows(teams)]
+    parts: list[RenderableType] = [_teams_header(teams), _team_rows(teams)]
     link = _teams_link(teams)
     if link is not None:
         parts.append(Text.assemble(("link ", "bold"), (link.link_line, link.link_style)))
@@ -288,7 +288,7 @@ def fit(state: FleetState, height: int, status_lines: int) -> tuple[int, int]:
 PLAIN_WIDTH = 4000  # characters: "no terminal" output is laid out this wide, so that no cell is cut
 
 
-def plain_text(renderable: Any, width: int | None = None) -> str:
+def plain_text(renderable: RenderableType, width: int | None = None) -> str:
     """``renderable`` as plain text ``width`` wide; None = uncut lines (as wide as their content:
     for output without a terminal, where nobody's screen width applies)."""
     console = Console(width=width or PLAIN_WIDTH, record=True, file=io.StringIO(), color_system=None)
@@ -382,7 +382,7 @@ class HeadlessView(View):
     def __init__(self, out: IO[str] | None = None, prefix: str = "") -> None:
         self.out = out or sys.stdout
         self.prefix = prefix
-        self._unlisten: Any = None
+        self._unlisten: Callable[[], None] | None = None
         self._teams: dict[tuple[str, int], Callable[[], None]] = {}
 
     def start(self, state: FleetState, fleet: Fleet | None) -> None:

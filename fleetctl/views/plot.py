@@ -9,11 +9,15 @@ import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
+from matplotlib.axes import Axes  # noqa: E402
+from matplotlib.collections import LineCollection  # noqa: E402
 from matplotlib.patches import Circle  # noqa: E402
 from matplotlib.patches import Polygon as PolygonPatch  # noqa: E402
 
 from fleetctl.mission import Mission  # noqa: E402
-from planners.core.plan import Plan  # noqa: E402
+from planners.core.plan import Plan, RoverLeg, Stop  # noqa: E402
+
+Colour = tuple[float, float, float, float]  # a colour of the colour map (RGBA)
 
 
 def plot_plan(mission: Mission, plan: Plan, out: str | Path, lower_bound: float | None = None) -> Path:
@@ -33,13 +37,30 @@ def plot_plan(mission: Mission, plan: Plan, out: str | Path, lower_bound: float 
         fig, ax = plt.subplots(figsize=(9, 9))
         side = None
     cmap = plt.get_cmap("tab10" if len(plan.stops) <= 10 else "tab20")
+    _draw_world(ax, mission, plan)
+    _draw_route(ax, plan)
+    reach = {r.id: r.range for r in (mission.collection or ())}
+    for k, stop in enumerate(plan.stops):
+        colour = cmap(k % cmap.N)
+        _draw_stop(ax, k, stop, colour, mission.rovers.deploy_range if plan.kind == "deploy" else None)
+        for leg in stop.rovers:
+            _draw_leg(ax, side, plan.kind, leg, colour, three_d, reach)
+        if side is not None:
+            side.plot(stop.position[0], 0.0, marker="D", color=colour, mec="black", ls="none")
+    _label(ax, side, mission, plan, lower_bound)
+    fig.tight_layout()
+    out.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(out, dpi=110)
+    plt.close(fig)
+    return out
 
+
+def _draw_world(ax: Axes, mission: Mission, plan: Plan) -> None:
+    """Obstacles, the roadmap of a ch. 6 planner (light, under everything else), the bounds."""
     for poly in mission.obstacles:
         ax.add_patch(PolygonPatch(poly, closed=True, facecolor="0.6", edgecolor="0.3", alpha=0.6))
     rm = getattr(plan, "roadmap", None)
-    if rm is not None:  # ch. 6 roadmap planners: the graph, drawn light under everything else
-        from matplotlib.collections import LineCollection
-
+    if rm is not None:
         xy = rm.xy
         ax.add_collection(LineCollection(xy[rm.edges()], colors="0.85", linewidths=0.3, zorder=0))
         ax.plot(xy[:, 0], xy[:, 1], ".", color="0.7", ms=1.5, zorder=0,
@@ -48,6 +69,9 @@ def plot_plan(mission: Mission, plan: Plan, out: str | Path, lower_bound: float 
         (x0, y0), (x1, y1) = mission.bounds
         ax.plot([x0, x1, x1, x0, x0], [y0, y0, y1, y1, y0], color="0.8", lw=0.8)
 
+
+def _draw_route(ax: Axes, plan: Plan) -> None:
+    """The carrier's route from its start (with its heading) through every stop."""
     route_x = [plan.start[0]]
     route_y = [plan.start[1]]
     for stop in plan.stops:
@@ -59,41 +83,42 @@ def plot_plan(mission: Mission, plan: Plan, out: str | Path, lower_bound: float 
     tip = (plan.start[0] + 4 * math.cos(plan.heading), plan.start[1] + 4 * math.sin(plan.heading))
     ax.annotate("", xy=tip, xytext=plan.start[:2], arrowprops={"arrowstyle": "->", "color": "black"})
 
-    reach = {r.id: r for r in (mission.collection or ())}
-    for k, stop in enumerate(plan.stops):
-        colour = cmap(k % cmap.N)
-        sx, sy = stop.position[0], stop.position[1]
-        ax.plot(sx, sy, marker="D", color=colour, ms=9, mec="black", ls="none", zorder=5,
-                label="stops" if k == 0 else None)
-        ax.annotate(f"{k + 1}", (sx, sy), textcoords="offset points", xytext=(6, 6), fontsize=9,
-                    weight="bold")
-        if plan.kind == "deploy":
-            ax.add_patch(Circle((sx, sy), mission.rovers.deploy_range, fill=False, ls=":", color=colour,
-                                lw=1))
-        for leg in stop.rovers:
-            xs, ys = [p[0] for p in leg.path], [p[1] for p in leg.path]
-            ax.plot(xs, ys, "--", color=colour, lw=1.2, zorder=2)
-            if plan.kind == "deploy":
-                tx, ty, tz = leg.end
-                ax.plot(tx, ty, marker="o", color=colour, ms=7, mec="black", ls="none", zorder=4)
-                label = f"{leg.task}" + (f" ({tz:g} m)" if three_d else "")
-                ax.annotate(label, (tx, ty), textcoords="offset points", xytext=(4, -10), fontsize=7)
-            else:
-                fx, fy, fz = leg.start
-                ax.plot(fx, fy, marker="^", color=colour, ms=7, mec="black", ls="none", zorder=4)
-                ax.annotate(leg.rover, (fx, fy), textcoords="offset points", xytext=(4, -10), fontsize=7)
-                rov = reach.get(leg.rover)
-                if rov is not None:
-                    ground = math.sqrt(max(rov.range**2 - fz**2, 0.0))
-                    ax.add_patch(Circle((fx, fy), ground, fill=False, ls=":", color=colour, lw=1))
-            if side is not None:
-                side.plot([p[0] for p in leg.path], [p[2] for p in leg.path], "--", color=colour, lw=1.2)
-                end = leg.end if plan.kind == "deploy" else leg.start
-                side.plot(end[0], end[2], marker="o" if plan.kind == "deploy" else "^", color=colour,
-                          mec="black", ls="none")
-        if side is not None:
-            side.plot(sx, 0.0, marker="D", color=colour, mec="black", ls="none")
 
+def _draw_stop(ax: Axes, k: int, stop: Stop, colour: Colour, deploy_range: float | None) -> None:
+    """Stop ``k`` (numbered from 1) and, for a deployment, the rovers' range around it."""
+    sx, sy = stop.position[0], stop.position[1]
+    ax.plot(sx, sy, marker="D", color=colour, ms=9, mec="black", ls="none", zorder=5,
+            label="stops" if k == 0 else None)
+    ax.annotate(f"{k + 1}", (sx, sy), textcoords="offset points", xytext=(6, 6), fontsize=9, weight="bold")
+    if deploy_range is not None:
+        ax.add_patch(Circle((sx, sy), deploy_range, fill=False, ls=":", color=colour, lw=1))
+
+
+def _draw_leg(ax: Axes, side: Axes | None, kind: str, leg: RoverLeg, colour: Colour, three_d: bool,
+              reach: dict[str, float]) -> None:
+    """A rover's flight: to its task (deploy) or from where it is, with its reach (collect)."""
+    ax.plot([p[0] for p in leg.path], [p[1] for p in leg.path], "--", color=colour, lw=1.2, zorder=2)
+    if kind == "deploy":
+        tx, ty, tz = leg.end
+        ax.plot(tx, ty, marker="o", color=colour, ms=7, mec="black", ls="none", zorder=4)
+        label = f"{leg.task}" + (f" ({tz:g} m)" if three_d else "")
+        ax.annotate(label, (tx, ty), textcoords="offset points", xytext=(4, -10), fontsize=7)
+    else:
+        fx, fy, fz = leg.start
+        ax.plot(fx, fy, marker="^", color=colour, ms=7, mec="black", ls="none", zorder=4)
+        ax.annotate(leg.rover, (fx, fy), textcoords="offset points", xytext=(4, -10), fontsize=7)
+        if leg.rover in reach:
+            ground = math.sqrt(max(reach[leg.rover] ** 2 - fz**2, 0.0))
+            ax.add_patch(Circle((fx, fy), ground, fill=False, ls=":", color=colour, lw=1))
+    if side is not None:
+        side.plot([p[0] for p in leg.path], [p[2] for p in leg.path], "--", color=colour, lw=1.2)
+        end = leg.end if kind == "deploy" else leg.start
+        side.plot(end[0], end[2], marker="o" if kind == "deploy" else "^", color=colour,
+                  mec="black", ls="none")
+
+
+def _label(ax: Axes, side: Axes | None, mission: Mission, plan: Plan, lower_bound: float | None) -> None:
+    """The title (makespan, distance, stops, the lower bound), axes, grid and legend."""
     what = "deployment" if plan.kind == "deploy" else "collection"
     title = (f"{mission.name}: {what} by {plan.planner} — makespan {plan.makespan:.2f} s, "
              f"carrier {plan.carrier_distance:.1f} m, {len(plan.stops)} stops")
@@ -111,8 +136,3 @@ def plot_plan(mission: Mission, plan: Plan, out: str | Path, lower_bound: float 
         side.set_ylabel("height (m)")
         side.axhline(0.0, color="0.5", lw=0.8)
         side.grid(True, color="0.92")
-    fig.tight_layout()
-    out.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(out, dpi=110)
-    plt.close(fig)
-    return out

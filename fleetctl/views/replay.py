@@ -23,7 +23,7 @@ from pathlib import Path
 from typing import Any
 
 from fleetctl.geo import Origin, geodetic_to_local
-from fleetctl.journal import JOURNAL_NAME, MISSION_COPY, JournalError, read_journal
+from fleetctl.journal import JOURNAL_NAME, MISSION_COPY, JournalError, Record, read_journal
 from fleetctl.mission import Mission, MissionError, load_mission
 from fleetctl.mission.teams import mission_teams
 from fleetctl.run.energy import range_from_percent
@@ -60,7 +60,7 @@ class Sample:
 @dataclass(frozen=True)
 class Step:
     T: float  # mission seconds since the run started
-    record: dict[str, Any] | None = None
+    record: Record | None = None
     sample: Sample | None = None
 
 
@@ -70,7 +70,7 @@ class RunRecord:
 
     dir: Path
     mission: Mission
-    records: list[dict[str, Any]]
+    records: list[Record]
     samples: list[Sample]
     t0: float  # Unix time of the run record
     speedup: float  # mission seconds per wall second of that run
@@ -184,7 +184,7 @@ class MissionClock:
         f = (unix - ts[k - 1]) / span if span > 0 else 1.0
         return Ts[k - 1] + f * (Ts[k] - Ts[k - 1])
 
-    def of(self, rec: dict[str, Any]) -> float:
+    def of(self, rec: Record) -> float:
         """A record's mission time: its own ``T`` on the simulator, else by its Unix time. (Real
         vehicles' runs go by the wall clock: ``T`` starts again at 0 in a ``fleetctl resume``.)"""
         if self.ts and isinstance(rec.get("T"), int | float):
@@ -214,7 +214,7 @@ class ReplayState(FleetState):
         self.dwell: float | None = mission.dwell  # the run record's --dwell overrides it
         self.now = 0.0
         self.mission_clock = lambda: self.now
-        self._handlers: dict[str, Callable[[dict[str, Any]], None]] = {
+        self._handlers: dict[str, Callable[[Record], None]] = {
             Ev.RUN: self._run, Ev.PHASE: self._phase, Ev.PLAN: self._plan, Ev.REPLAN: self._replan,
             Ev.CARRIER_STARTED: self._carrier_started, Ev.STOP_REACHED: self._stop_reached,
             Ev.CARRIER_RELEASED: self._released, Ev.ROVER_LAUNCHED: self._launched,
@@ -242,7 +242,7 @@ class ReplayState(FleetState):
             if isinstance(rec.get("text"), str) and rec.get("kind") not in NOT_EVENTS:
                 self._tell(rec)
 
-    def _tell(self, rec: dict[str, Any]) -> None:
+    def _tell(self, rec: Record) -> None:
         data = {k: v for k, v in rec.items() if k not in ("t", "elapsed", "kind", "vehicle", "text", "T")}
         vid = rec.get("vehicle") if isinstance(rec.get("vehicle"), str) else None
         ev = Event(float(rec.get("elapsed") or 0.0), str(rec["kind"]), vid, rec["text"], data,
@@ -269,21 +269,21 @@ class ReplayState(FleetState):
             v.state = VehicleStatus.EN_ROUTE
 
     # -- records -------------------------------------------------------------------------------
-    def _run(self, rec: dict[str, Any]) -> None:
+    def _run(self, rec: Record) -> None:
         if isinstance(rec.get("mission"), str):
             self.mission_name = rec["mission"]
         if _number(rec.get("dwell")):
             self.dwell = float(rec["dwell"])
         self.set_state(self.carrier_id, VehicleStatus.IDLE)
 
-    def _phase(self, rec: dict[str, Any]) -> None:
+    def _phase(self, rec: Record) -> None:
         phase = str(rec.get("phase"))
         if phase == "dwell":
             self.set_phase(Phase.DWELL, self.dwell)
         else:
             self.set_phase(Phase.PLAN)
 
-    def _plan(self, rec: dict[str, Any]) -> None:
+    def _plan(self, rec: Record) -> None:
         plan = rec.get("plan")
         if not isinstance(plan, dict):
             return
@@ -294,49 +294,49 @@ class ReplayState(FleetState):
             self.planned, self.stop_count, self.stop_index = self.elapsed + makespan, stops, 0
         self.set_plan(plan, None)
 
-    def _replan(self, rec: dict[str, Any]) -> None:
+    def _replan(self, rec: Record) -> None:
         self.replans += 1
         self.last_replan = rec.get("text") if isinstance(rec.get("text"), str) else "replan"
         if isinstance(rec.get("new_plan"), dict):
             self.set_plan(rec["new_plan"], self.now)
 
-    def _carrier_started(self, rec: dict[str, Any]) -> None:
+    def _carrier_started(self, rec: Record) -> None:
         self.plan_started = self.phase_started = self.now
         self.stop_index = 1 if self.stop_count else 0
         self.set_state(self.carrier_id, VehicleStatus.DRIVING)
 
-    def _collection_started(self, rec: dict[str, Any]) -> None:
+    def _collection_started(self, rec: Record) -> None:
         if self.plan_started is None:
             self.plan_started = self.now
 
-    def _stop_reached(self, rec: dict[str, Any]) -> None:
+    def _stop_reached(self, rec: Record) -> None:
         if isinstance(rec.get("stop"), int):
             self.stop_index = rec["stop"]
         self.set_state(self.carrier_id, VehicleStatus.HOLDING)
 
-    def _released(self, rec: dict[str, Any]) -> None:
+    def _released(self, rec: Record) -> None:
         if isinstance(rec.get("stop"), int) and rec["stop"] < self.stop_count:
             self.stop_index = rec["stop"] + 1
         self.set_state(self.carrier_id, VehicleStatus.DRIVING)
 
-    def _launched(self, rec: dict[str, Any]) -> None:
+    def _launched(self, rec: Record) -> None:
         if isinstance(rec.get("vehicle"), str):
             self.set_state(rec["vehicle"], VehicleStatus.CLIMBING, task=rec.get("task"))
 
-    def _vehicle(self, status: VehicleStatus) -> Callable[[dict[str, Any]], None]:
-        def apply(rec: dict[str, Any]) -> None:
+    def _vehicle(self, status: VehicleStatus) -> Callable[[Record], None]:
+        def apply(rec: Record) -> None:
             if isinstance(rec.get("vehicle"), str):
                 self.set_state(rec["vehicle"], status)
         return apply
 
-    def _link(self, lost: bool) -> Callable[[dict[str, Any]], None]:
-        def apply(rec: dict[str, Any]) -> None:
+    def _link(self, lost: bool) -> Callable[[Record], None]:
+        def apply(rec: Record) -> None:
             v = self.vehicles.get(str(rec.get("vehicle")))
             if v is not None:
                 v.lost = lost
         return apply
 
-    def _command(self, rec: dict[str, Any]) -> None:
+    def _command(self, rec: Record) -> None:
         """Collection: a rover told to start its mission flies back; told to land, it lands."""
         if self.phase != Phase.COLLECT or not isinstance(rec.get("vehicle"), str):
             return
@@ -345,7 +345,7 @@ class ReplayState(FleetState):
         if status is not None and rec["vehicle"] != self.carrier_id:
             self.set_state(rec["vehicle"], status)
 
-    def _summary(self, rec: dict[str, Any]) -> None:
+    def _summary(self, rec: Record) -> None:
         result = rec.get("result")
         self.phase = Phase.DONE if result == "complete" else (
             Phase.INTERRUPTED if rec.get("interrupted") or result == "interrupted" else Phase.FAILED)

@@ -32,13 +32,13 @@ import aiomqtt
 
 from fleetctl.bus.client import iter_topics
 from fleetctl.bus.config import (
-    BACKOFF_MAX,
-    BACKOFF_MIN,
     CONNECT_TIMEOUT,
     FINAL_STATES,
     BusConfig,
+    BusStatus,
     client_kwargs,
 )
+from fleetctl.bus.reconnect import CONNECTION_ERRORS, ConnectionStatus, Reconnector
 from fleetctl.run.state import Event, FleetState, VehicleState
 from fleetctl.views.dashboard import HeadlessView, LiveView, plain_text, render_teams
 from fleetctl.views.teams import MAX_TEAMS, ShownTeams
@@ -139,7 +139,7 @@ class RemoteFleetState(FleetState):
             self.remote_elapsed = float(data["elapsed"])
 
 
-class Watcher:
+class Watcher(ConnectionStatus):
     """Keeps a :class:`RemoteFleetState` up to date from the bus: the controller's
     (:attr:`state`) and each team's (:attr:`teams`)."""
 
@@ -152,15 +152,13 @@ class Watcher:
         self.shown.set_main(self.state)
         self.on_team: Callable[[str, RemoteFleetState], None] | None = None  # a team first heard of
         self.on_teams: Callable[[list[str]], None] | None = None  # the teams a run's status names
-        self.status = "connecting"
-        self.last_error: str | None = None
         self.connects = 0
         self.messages = 0
         self.ignored = 0  # messages ignored (too large, a bad team id, too many teams or vehicles)
         self.finished = asyncio.Event()  # set when the controller's status is final
 
     def status_lines(self) -> list[str]:
-        why = f" ({self.last_error})" if self.last_error and self.status != "connected" else ""
+        why = f" ({self.last_error})" if self.last_error and self.status != BusStatus.CONNECTED else ""
         out = [f"bus: {self.status} {self.config.url} {self.prefix}{why}"
                + (f" · controller {self.state.remote_status}" if self.state.remote_status else
                   " · no controller status yet")]
@@ -173,18 +171,16 @@ class Watcher:
                                              for t in self.shown.order if t in self.teams))
         return out
 
-    def _set_status(self, status: str, error: BaseException | None = None) -> None:
+    def _set_status(self, status: BusStatus, error: BaseException | None = None) -> None:
         """Track the connection; every change is an event (a dead broker is not silent)."""
-        if error is not None:
-            self.last_error = (str(error) or type(error).__name__)[:300]
-        if status == self.status:
+        old = self.change_status(status, error)
+        if old is None:
             return
-        old, self.status = self.status, status
         url, why = self.config.url, f" ({self.last_error})" if self.last_error else ""
-        if status == "connected":
+        if status == BusStatus.CONNECTED:
             self.connects += 1
             text = f"bus: connected to {url}, watching {self.prefix}/#"
-        elif old == "connected":
+        elif old == BusStatus.CONNECTED:
             text = f"bus: connection to {url} lost{why}; reconnecting"
         else:
             text = f"bus: cannot connect to {url}{why}; retrying"
@@ -262,37 +258,37 @@ class Watcher:
     async def run(self) -> None:
         """Connect (retrying with backoff) and apply messages until cancelled."""
         ctx = await asyncio.to_thread(self.config.ssl_context)
-        delay = BACKOFF_MIN
         topics = [(t, 1) for t in iter_topics(self.prefix)]
+
+        def make() -> aiomqtt.Client:
+            return aiomqtt.Client(identifier=self.config.client_id, **client_kwargs(self.config, ctx))
+
+        link = Reconnector(make, self._cannot_connect)
         while True:
-            client = aiomqtt.Client(identifier=self.config.client_id, **client_kwargs(self.config, ctx))
+            client = await link.connect()
             try:
-                async with asyncio.timeout(CONNECT_TIMEOUT * 2):
-                    await client.__aenter__()
-            except (aiomqtt.MqttError, TimeoutError, OSError) as exc:
-                log.debug("watch %s: cannot connect: %s", self.config.url, exc)
-                self._set_status("reconnecting", exc)
-                await asyncio.sleep(delay)
-                delay = min(delay * 2, BACKOFF_MAX)
-                continue
-            delay = BACKOFF_MIN
-            try:
-                await client.subscribe(topics, timeout=CONNECT_TIMEOUT)
-                self._set_status("connected")
-                async for msg in client.messages:
-                    p = msg.payload
-                    data = bytes(p) if isinstance(p, bytes | bytearray) else str(p).encode()
-                    self.handle(msg.topic.value, data)
-            except (aiomqtt.MqttError, TimeoutError, OSError) as exc:
+                await self._follow(client, topics)
+            except CONNECTION_ERRORS as exc:
                 log.debug("watch %s: connection lost: %s", self.config.url, exc)
-                self._set_status("reconnecting", exc)
-            except asyncio.CancelledError:
-                self.status = "stopped"
+                self._set_status(BusStatus.RECONNECTING, exc)
+            except asyncio.CancelledError:  # stopped while connected (not connected: the reason stays)
+                self.change_status(BusStatus.STOPPED)
                 raise
             finally:
-                with contextlib.suppress(Exception):
-                    async with asyncio.timeout(1.0):
-                        await client.__aexit__(None, None, None)
+                await link.close(client)
+
+    def _cannot_connect(self, exc: BaseException) -> None:
+        log.debug("watch %s: cannot connect: %s", self.config.url, exc)
+        self._set_status(BusStatus.RECONNECTING, exc)
+
+    async def _follow(self, client: aiomqtt.Client, topics: list[tuple[str, int]]) -> None:
+        """Subscribe, then apply every message until the connection drops."""
+        await client.subscribe(topics, timeout=CONNECT_TIMEOUT)
+        self._set_status(BusStatus.CONNECTED)
+        async for msg in client.messages:
+            p = msg.payload
+            data = bytes(p) if isinstance(p, bytes | bytearray) else str(p).encode()
+            self.handle(msg.topic.value, data)
 
 
 def render_text(watcher: Watcher, width: int | None = None) -> str:

@@ -17,7 +17,7 @@
 
 * ``own_controller`` - :class:`~fleetctl.run.teams.own_controller.TeamControllerRun`, the run
   of this controller's team, and how its share and bus are set up (``prepare_team``,
-  ``team_bus_config``, ``execute_team``);
+  ``team_bus_config``, ``fly_team_controller``);
 * ``link`` - :class:`~fleetctl.run.teams.link.TeamLink`, the asyncio side of the coordination
   with the other teams' controllers (presence, claims, hand-over); the protocol and its rules are
   in :mod:`fleetctl.bus.teams`.

@@ -21,7 +21,7 @@ from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
 from fleetctl.bus.client import FleetBus
-from fleetctl.bus.config import BusConfig, BusConfigError, bus_config
+from fleetctl.bus.config import BusConfig, BusConfigError, BusStatus, bus_config
 from fleetctl.bus.teams.protocol import allocation_hash
 from fleetctl.mission import Mission
 from fleetctl.run.kinds import Ev
@@ -75,11 +75,12 @@ class TeamsBuses:
         if self.top is not None:
             self.top.on_record(rec)
 
-    def _on_connection(self, status: str) -> None:
-        if self.config is not None and status in ("connected", "reconnecting", "failed"):
-            error = self.top.last_error if self.top is not None and status != "connected" else None
+    def _on_connection(self, status: BusStatus) -> None:
+        told = (BusStatus.CONNECTED, BusStatus.RECONNECTING, BusStatus.FAILED)
+        if self.config is not None and status in told:
+            error = self.top.last_error if self.top is not None and status != BusStatus.CONNECTED else None
             text = f"bus: {status} {self.config.url}" + (f" ({error})" if error else "")
-            if status == "reconnecting":
+            if status == BusStatus.RECONNECTING:
                 text += "; messages are queued (the mission flies on)"
             self.record(f"bus_{status}", text=text, error=error)
 

@@ -22,10 +22,11 @@ import time
 import uuid
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import replace
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from fleetctl.bus.teams.board import HANDOVER_GRACE, ClaimBoard
 from fleetctl.bus.teams.protocol import (
+    Claim,
     ClaimState,
     PeerMessageError,
     TeamState,
@@ -40,6 +41,11 @@ from fleetctl.mission.teams import mission_teams, team_of
 from fleetctl.run.kinds import Ev, VehicleStatus
 from fleetctl.run.task_board import TaskStatus
 from planners.core.problem import CarrierSpec
+
+if TYPE_CHECKING:
+    from fleetctl.bus.client import FleetBus
+    from fleetctl.run.executor import Executor
+    from fleetctl.run.state import Event, FleetState
 
 log = logging.getLogger(__name__)
 
@@ -71,9 +77,9 @@ class TeamLink:
             carriers={k: _carrier_spec(mission, k) for k in teams},
             starts={k: _start(mission, k) for k in teams},
             targets={t.id: t.position for t in mission.tasks})
-        self.bus: Any = None
-        self.executor: Any = None
-        self.state: Any = None
+        self.bus: FleetBus | None = None
+        self.executor: Executor | None = None
+        self.state: FleetState | None = None
         self.record: Callable[..., None] = lambda kind, **data: None
         self.delivered: list[str] = []  # handed-over tasks given to our deployment, in order
         self._undelivered: list[str] = []  # held before the executor existed
@@ -95,7 +101,7 @@ class TeamLink:
     def session(self) -> str:
         return self.board.session
 
-    def prepare(self, bus: Any) -> None:
+    def prepare(self, bus: FleetBus) -> None:
         """Before the bus starts: the team's identity in its status and last will, the subscriptions."""
         self.bus = bus
         bus.identity = {"team": self.team, "session": self.session, "allocation": self.board.alloc_hash,
@@ -103,14 +109,14 @@ class TeamLink:
         for topic in (self.topics.status(), self.topics.progress(), self.topics.claim()):
             bus.subscribe(topic, self.on_message)
 
-    def start(self, state: Any, record: Callable[..., None]) -> None:
+    def start(self, state: FleetState, record: Callable[..., None]) -> None:
         """Publish the allocation and our share's claims; start the loop (needs a running loop)."""
         self.state, self.record = state, record
         state.add_listener(self._on_event)
         now, t = time.monotonic(), time.time()
-        self.bus.publish(self.topics.allocation, {"hash": self.board.alloc_hash, "mission": self.mission.name,
-                                                  "teams": self.shares, "t": round(t, 3)},
-                         retain=True, qos=1, absolute=True)
+        allocation = {"hash": self.board.alloc_hash, "mission": self.mission.name, "teams": self.shares,
+                      "t": round(t, 3)}
+        self._bus().publish(self.topics.allocation, allocation, retain=True, qos=1, absolute=True)
         for task in self.shares.get(self.team, []):
             if task not in self.released:
                 self._publish_claim(self.board.make_claim(task, 0, t, now, held=True))
@@ -139,7 +145,7 @@ class TeamLink:
                     self.resumed.pop(str(t), None)
                     self.released.append(str(t))
 
-    def attach_executor(self, executor: Any) -> None:
+    def attach_executor(self, executor: Executor) -> None:
         """The deployment to feed; tasks of our share that another team claimed better before it
         existed (e.g. it took them over while this controller was down) are taken out first."""
         self.executor = executor
@@ -197,7 +203,7 @@ class TeamLink:
             log.warning("team link: ignored %s: %s", topic, exc)
         self._wake.set()
 
-    def _on_event(self, ev: Any) -> None:
+    def _on_event(self, ev: Event) -> None:
         """A run event: progress goes out at once when a task is reached or a rover launched (a
         peer must not hand over a task this team has just reached)."""
         if ev.kind in (Ev.TASK_REACHED, Ev.ROVER_LAUNCHED, Ev.TASKS_CHANGED):
@@ -321,6 +327,7 @@ class TeamLink:
         self._sent[source] = list(ids)
         self._event("team_handover", f"team {self.team}: takes over {', '.join(ids)} (claimed)", None,
                     tasks=ids)
+        assert self.executor is not None  # delivered once the deployment exists (attach_executor)
         self.executor.submit_task_change(add=tasks, remove=[], source=source)
         self._wake.set()
 
@@ -338,12 +345,12 @@ class TeamLink:
     def _on_lost(self, task: str) -> None:
         best = self.board.best_claim(task)
         who = best.team if best is not None else "?"
-        board = self.executor.board if self.executor is not None else None
-        entry = board.entries.get(task) if board is not None else None
+        ex = self.executor
+        entry = ex.board.entries.get(task) if ex is not None else None
         if task in self._undelivered:
             self._undelivered.remove(task)
-        if entry is not None and entry.status == TaskStatus.POOLED:
-            self.executor.submit_task_change(add=[], remove=[task], source=f"team:{who}")
+        if ex is not None and entry is not None and entry.status == TaskStatus.POOLED:
+            ex.submit_task_change(add=[], remove=[task], source=f"team:{who}")
             self._event("team_claim_lost", f"team {self.team}: {task} is claimed by team {who}: "
                         "taken out of this deployment", None, task=task, by=who)
         elif entry is not None and entry.status in (TaskStatus.FLYING, TaskStatus.REACHED):
@@ -353,8 +360,12 @@ class TeamLink:
             self.record("team_claim", op="lost", task=task, by=who)
 
     # -- outgoing --------------------------------------------------------------------------------
-    def _publish_claim(self, claim: Any) -> None:
-        self.bus.publish(self.topics.claim(claim.task), claim.payload(), retain=True, qos=1, absolute=True)
+    def _bus(self) -> FleetBus:
+        assert self.bus is not None, "prepare(bus) comes first"
+        return self.bus
+
+    def _publish_claim(self, claim: Claim) -> None:
+        self._bus().publish(self.topics.claim(claim.task), claim.payload(), retain=True, qos=1, absolute=True)
 
     def progress(self) -> dict[str, Any]:
         """This team's reached, flying and pooled tasks and its rovers left on the deck."""

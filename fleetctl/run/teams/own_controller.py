@@ -28,7 +28,7 @@ from fleetctl.bus.config import BusConfig
 from fleetctl.journal import JOURNAL_NAME, read_journal
 from fleetctl.mission import Mission
 from fleetctl.mission.teams import team_mission, team_of
-from fleetctl.run.lifecycle import RunOptions
+from fleetctl.run.lifecycle import RunOptions, RunOutcome
 from fleetctl.run.rounds import NoMoreWork, WorkSource
 from fleetctl.run.runner import Run
 from fleetctl.run.sim import mission_uses_sim
@@ -112,7 +112,7 @@ class TeamControllerRun(Run):
 
     async def _connect(self) -> None:
         await super()._connect()
-        if self.link is not None:
+        if self.link is not None and self.executor is not None:
             self.link.attach_executor(self.executor)
 
     def _work_source(self) -> WorkSource:
@@ -129,10 +129,12 @@ class TeamControllerRun(Run):
         return await super()._finish()
 
 
-async def execute_team(mission: Mission, command: str, spec: TeamSpec, **options: Any) -> Any:
-    """:func:`fleetctl.run.flight.execute` for one team (``mission``: the team's own, from
+async def fly_team_controller(mission: Mission, command: str, spec: TeamSpec,
+                              opts: RunOptions) -> RunOutcome:
+    """:func:`fleetctl.run.flight.fly` for one team (``mission``: the team's own, from
     :func:`prepare_team`)."""
-    return await TeamControllerRun(mission, command, RunOptions(**options), spec).fly()
+    return await TeamControllerRun(mission, command, opts, spec).fly()
 
 
-__all__ = ["TeamControllerRun", "TeamSpec", "execute_team", "prepare_team", "team_bus_config", "team_shares"]
+__all__ = ["TeamControllerRun", "TeamSpec", "fly_team_controller", "prepare_team", "team_bus_config",
+           "team_shares"]

@@ -83,8 +83,10 @@ class TeamRun(Run):
         except TimeoutError:
             pass
         finally:
+            sim = self.sim  # a simulated fleet: see _scenario_batteries
             for cr in self.mission.collection or ():
-                self.sim.pin_battery(cr.id, None)
+                if sim is not None:
+                    sim.pin_battery(cr.id, None)
 
     def _planned_collection(self) -> bool:
         phase = self.executor.collect_phase if self.executor is not None else None
