@@ -234,9 +234,10 @@ EXIT_TERMINATED = 143  # SIGTERM: like Ctrl-C (airborne rovers hold, records wri
 def cmd_fly(args: argparse.Namespace) -> int:
     mission = load_mission(args.mission)
     _warn(mission, args.command == "collect")
-    if mission.operation:
-        raise CliError(f"{mission.path}: operation: flying a long operation is not supported yet; "
-                       f"'fleetctl plan --mission {args.mission}' plans it (docs/operations.md)")
+    if mission.operation and args.command != "run":
+        raise CliError(f"{mission.path}: operation: a long operation is flown whole, its sorties deploying and "
+                       f"collecting rovers in turn: fly it with 'fleetctl run --mission {args.mission}' "
+                       f"(docs/operations.md)")
     if args.command in ("deploy", "run") and not mission.tasks:
         raise CliError(f"{mission.path}: tasks: the mission has no tasks to deploy rovers to (a collection-"
                        f"only mission); fly it with 'fleetctl collect --mission {args.mission}'")

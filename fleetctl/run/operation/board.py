@@ -1,0 +1,61 @@
+"""Where an operation stands: every sortie (a :class:`SortieStatus`), every task's work and who
+worked it, the swaps done. Nothing here touches the fleet; the phase changes it."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from enum import StrEnum
+
+
+class SortieStatus(StrEnum):
+    PLANNED = "planned"
+    FLYING = "flying"  # launched, working its tasks
+    RETURNING = "returning"  # on its way back to its pick-up stop
+    ABOARD = "aboard"  # landed and loaded
+    LOST = "lost"  # its rover was lost in the air
+    FAILED = "failed"  # it did not take off
+
+
+@dataclass
+class TaskWorkState:
+    duration: float
+    rover: str | None = None
+    started: float | None = None  # mission s of the operation when the work began
+    done: float | None = None  # ... when the firmware reported it done
+
+    def worked(self, now: float) -> float:
+        """Seconds of work so far."""
+        if self.started is None:
+            return 0.0
+        return min((self.done if self.done is not None else now) - self.started, self.duration)
+
+
+@dataclass
+class SortieEntry:
+    index: int
+    rover: str
+    tasks: list[str]
+    status: SortieStatus = SortieStatus.PLANNED
+    launched: float | None = None
+    aboard: float | None = None
+
+
+@dataclass
+class OperationBoard:
+    tasks: dict[str, TaskWorkState] = field(default_factory=dict)
+    sorties: list[SortieEntry] = field(default_factory=list)
+    swaps: list[tuple[str, float]] = field(default_factory=list)  # (rover, mission s when done)
+    lost: list[str] = field(default_factory=list)
+
+    def done(self) -> list[str]:
+        return [t for t, w in self.tasks.items() if w.done is not None]
+
+    def left(self) -> list[str]:
+        return [t for t, w in self.tasks.items() if w.done is None]
+
+    def flying(self, rover: str) -> SortieEntry | None:
+        return next((s for s in self.sorties if s.rover == rover
+                     and s.status in (SortieStatus.FLYING, SortieStatus.RETURNING)), None)
+
+
+__all__ = ["OperationBoard", "SortieEntry", "SortieStatus", "TaskWorkState"]

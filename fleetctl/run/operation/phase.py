@@ -1,0 +1,224 @@
+"""The operation phase: plan the operation (``planners.operations``), then walk the plan's carrier
+stops. At each stop the carrier waits for the rovers it picks up (each above the stop on its way
+back, :class:`~fleetctl.run.operation.sortie.SortieFlight`), sends them down onto the deck, loads
+them (``load_time``), queues their battery swaps (:class:`~fleetctl.run.operation.swaps.SwapStation`),
+launches the stop's sorties (:class:`~fleetctl.run.launch.Launcher`: deck check, upload, arm,
+start when unloading ends, lift-off) and is released to the next stop. Every wait is a deadline
+in mission time; the operation's delay on its plan (measured at each stop) moves the rovers'
+leave times so that they meet the carrier when it is there."""
+
+from __future__ import annotations
+
+import asyncio
+import dataclasses
+import logging
+from collections.abc import Callable
+from typing import Any
+
+from fleetctl.mavlink.compile import RoverMission
+from fleetctl.mavlink.link import LinkError
+from fleetctl.mavlink.sortie import Visit, route_items, sortie_items
+from fleetctl.mavlink.vehicle import CommandRejected
+from fleetctl.run.carrier import upload
+from fleetctl.run.context import ExecutionError
+from fleetctl.run.kinds import Ev, Phase, VehicleStatus
+from fleetctl.run.launch import Launcher, Spares, rover_on_deck
+from fleetctl.run.operation.board import OperationBoard, SortieEntry, SortieStatus, TaskWorkState
+from fleetctl.run.operation.sortie import Pickup, SortieFlight, land_on_deck
+from fleetctl.run.operation.swaps import SwapStation
+from fleetctl.run.parts import PhaseParts
+from fleetctl.run.results import PhaseResult
+from fleetctl.run.task_board import TaskBoard
+from planners.operations import OperationPlan, OperationProblem, plan_operation
+from planners.operations.plan import OpStop, Sortie
+
+log = logging.getLogger(__name__)
+
+LANDING_TIMEOUT = 20.0  # mission s from the land command to the rover on the deck
+SWAP_EPS = 1e-6
+
+
+class OperationPhase:
+    """One long operation (see the module docstring)."""
+
+    def __init__(self, parts: PhaseParts, write_plan: Callable[[dict[str, Any]], None] | None = None) -> None:
+        self.ctx, self.carrier = parts.ctx, parts.carrier
+        self.write_plan = write_plan
+        self.board = OperationBoard()
+        self.plan: OperationPlan | None = None
+        self.t0: float | None = None
+        self.delay = 0.0  # operation s the flight is behind its plan (at the last stop reached)
+        self.flights: dict[str, SortieFlight] = {}  # rover -> its sortie in the air
+        self.swaps = SwapStation(self.ctx, self.board, self.now)
+        self.result = PhaseResult("operation")
+
+    def now(self) -> float:
+        """Operation seconds since the carrier started its route."""
+        return 0.0 if self.t0 is None else self.ctx.clock() - self.t0
+
+    # ============================================================================== the walk
+    async def run(self) -> PhaseResult:
+        ctx = self.ctx
+        ctx.state.set_phase(Phase.PLAN)
+        await ctx.wait_telemetry()
+        plan = self.plan = await asyncio.to_thread(plan_operation, self._problem())
+        self._start_board(plan)
+        ctx.record(Ev.PLAN, plan="operation", planner=plan.planner, makespan=round(plan.makespan, 3),
+                   stops=len(plan.stops), sorties=len(plan.sorties), swaps=len(plan.swaps))
+        if self.write_plan is not None:
+            self.write_plan(plan.to_json())
+        self.result.planned = plan.makespan
+        ctx.state.set_phase(Phase.OPERATION, plan.makespan, len(plan.stops))
+        seqs = await self._start_route(plan)
+        for k, stop in enumerate(plan.stops):
+            leg = stop.arrive - (plan.stops[k - 1].depart if k else 0.0)
+            await self.carrier.reach_stop(k, seqs[k][0], leg)
+            self.delay = max(self.now() - stop.arrive, 0.0)
+            await self._pick_up(k, stop)
+            await self._launch(k, stop)
+            if seqs[k][1] is not None:
+                await self.carrier.release(k, seqs[k][1])
+        return self._finish()
+
+    def _problem(self) -> OperationProblem:
+        """The mission's operation for the rovers that answered and are on the deck."""
+        ctx = self.ctx
+        problem = ctx.mission.operation_problem()
+        rovers = tuple(r for r in problem.rovers if rover_on_deck(ctx, ctx.fleet.rovers[r]))
+        if not rovers:
+            raise ExecutionError("no rover on the carrier's deck to fly the operation with")
+        return dataclasses.replace(problem, rovers=rovers)
+
+    def _start_board(self, plan: OperationPlan) -> None:
+        mission = self.ctx.mission
+        self.board.tasks = {t.id: TaskWorkState(mission.task_work(t.id).duration) for t in mission.tasks}
+        self.board.sorties = [SortieEntry(k, s.rover, [v.task for v in s.visits])
+                              for k, s in enumerate(plan.sorties)]
+
+    async def _start_route(self, plan: OperationPlan) -> list[tuple[int, int | None]]:
+        ctx, c = self.ctx, self.carrier.vehicle
+        if c.origin is None:
+            raise ExecutionError("the mission has no origin: mission items need WGS84 coordinates")
+        pose, _heading = self.carrier.pose()
+        items, stops = route_items([s.position for s in plan.stops], c.origin, pose, c.autopilot)
+        await upload(ctx, c, list(items))
+        try:
+            if not c.armed:
+                await ctx.command(c, "arm", c.arm())
+            await ctx.command(c, "start_mission", c.start_mission(0))
+        except (CommandRejected, LinkError, TimeoutError) as exc:
+            raise ExecutionError(f"the carrier {c.name} did not start its route: {exc}") from None
+        self.t0 = ctx.clock()
+        self.result.started = self.t0
+        ctx.record(Ev.CARRIER_STARTED, stops=len(stops))
+        return [(s.arrive_seq, s.release_seq) for s in stops]
+
+    # ============================================================================== pick-ups
+    async def _pick_up(self, k: int, stop: OpStop) -> None:
+        ctx = self.ctx
+        flights = [self.flights[r] for r in stop.pickups if r in self.flights]
+        for f in flights:
+            s = f.planned
+            try:
+                await ctx.wait_for(f.vehicle, f.above_stop, ctx.late(s.meet + self.delay - self.now()),
+                                   f"above stop {k + 1}")
+            except TimeoutError as exc:
+                f._lost(str(exc))
+        landed = await asyncio.gather(*(land_on_deck(ctx, f, LANDING_TIMEOUT) for f in flights
+                                        if f.entry.status is SortieStatus.RETURNING))
+        if any(landed):
+            await ctx.sleep_mission(ctx.mission.carrier.load_time)
+        for f in flights:
+            self.flights.pop(f.entry.rover, None)
+            if f.entry.status is SortieStatus.RETURNING and f.vehicle.on_ground:
+                self._aboard(f, stop)
+            elif f.entry.status is not SortieStatus.LOST:
+                f._lost("did not land on the deck")
+
+    def _aboard(self, f: SortieFlight, stop: OpStop) -> None:
+        rid = f.entry.rover
+        f.entry.status, f.entry.aboard = SortieStatus.ABOARD, self.now()
+        self.ctx.state.set_state(rid, VehicleStatus.LOADED)
+        self.ctx.state.event(Ev.SORTIE_BACK, f"{rid}: back on the deck from sortie {f.entry.index}", rid,
+                             sortie=f.entry.index, battery_pct=f.vehicle.battery_pct)
+        if self._swap_due(rid, f.planned.aboard):
+            self.swaps.start(rid)
+
+    def _swap_due(self, rover: str, aboard: float) -> bool:
+        """A planned swap of ``rover`` after this pick-up and before its next launch."""
+        assert self.plan is not None
+        nxt = min((s.takeoff for s in self.plan.sorties if s.rover == rover and s.takeoff > aboard),
+                  default=None)
+        return nxt is not None and any(w.rover == rover and aboard - SWAP_EPS <= w.start < nxt
+                                       for w in self.plan.swaps)
+
+    # ============================================================================== launches
+    async def _launch(self, k: int, stop: OpStop) -> None:
+        assert self.plan is not None
+        sorties = [(i, s) for i, s in enumerate(self.plan.sorties) if s.launch_stop == k]
+        if not sorties:
+            return
+        go_at = self.ctx.clock() + self.ctx.mission.carrier.unload_time
+        await asyncio.gather(*(self._launch_one(i, s, stop, go_at) for i, s in sorties))
+
+    async def _launch_one(self, i: int, s: Sortie, stop: OpStop, go_at: float) -> None:
+        ctx, plan = self.ctx, self.plan
+        assert plan is not None
+        entry = self.board.sorties[i]
+        if not await self.swaps.ready(s.rover, ctx.late(ctx.mission.carrier.swap_time)):
+            entry.status = SortieStatus.FAILED
+            return
+        v = ctx.fleet.rovers[s.rover]
+        if v.origin is None:
+            raise ExecutionError("the mission has no origin: mission items need WGS84 coordinates")
+        visits = [Visit(x.task, x.position, self.board.tasks[x.task].duration, x.ground) for x in s.visits]
+        items = sortie_items(s.rover, stop.position, visits, v.origin, v.autopilot)
+        slot = RoverMission(s.rover, s.launch_stop, items.items, items.work[0].arrive_seq,
+                            len(items.items) - 1, items.work[0].task)
+        launcher = Launcher(ctx, self.carrier, TaskBoard.of([]))
+        rid = await launcher.launch(slot, i, Spares([]), go_at)
+        if rid is None:
+            entry.status = SortieStatus.FAILED
+            ctx.state.event(Ev.ROVER_FAILED, f"{s.rover}: sortie {i} did not take off", s.rover, sortie=i)
+            return
+        entry.status, entry.launched = SortieStatus.FLYING, self.now()
+        ctx.state.set_state(rid, VehicleStatus.EN_ROUTE, entry.tasks[0])
+        ctx.state.event(Ev.SORTIE_LAUNCHED, f"{rid}: sortie {i} launched for {', '.join(entry.tasks)}", rid,
+                        sortie=i, tasks=entry.tasks, stop=s.launch_stop + 1)
+        back = plan.stops[s.pickup_stop]
+        flight = SortieFlight(ctx, self.board, entry, s, items,
+                              Pickup(s.pickup_stop, back.position, s.visits[-1].leave), self.now,
+                              lambda: self.delay)
+        self.flights[rid] = flight
+        ctx.spawn(flight.fly(), f"sortie {i} {rid}")
+
+    # ============================================================================== the end
+    def _finish(self) -> PhaseResult:
+        r, b = self.snapshot(), self.board
+        how = "complete" if r.complete else "incomplete"
+        text = (f"operation {how}: {len(r.tasks_done)}/{len(b.tasks)} tasks done, {len(b.swaps)} swaps, "
+                f"{r.flown or 0.0:.1f} s (planned {r.planned or 0.0:.1f} s)")
+        self.ctx.state.event(Ev.OPERATION_DONE, text, None, complete=r.complete, tasks_done=len(r.tasks_done),
+                             flown=r.flown)
+        return r
+
+    def snapshot(self) -> PhaseResult:
+        """What the operation achieved so far (also after an interruption or failure)."""
+        r, b, ctx = self.result, self.board, self.ctx
+        r.flown = round(self.now(), 3)
+        r.tasks_reached = [t for t, w in b.tasks.items() if w.started is not None]
+        r.tasks_done = b.done()
+        r.tasks_unserved = b.left()
+        r.unserved_reasons = {t: "its work was not done" for t in b.left()}
+        r.tasks_all = list(b.tasks)
+        r.rovers_lost = list(b.lost)
+        aboard = {s.rover for s in b.sorties if s.status is SortieStatus.ABOARD}
+        r.rovers_loaded = [rid for rid in ctx.fleet.rovers if rid in aboard]
+        r.launched = sorted({s.rover for s in b.sorties if s.launched is not None})
+        r.assignment = {t: w.rover for t, w in b.tasks.items() if w.rover is not None}
+        r.complete = not b.left() and not any(
+            s.status in (SortieStatus.FLYING, SortieStatus.RETURNING) for s in b.sorties)
+        return r
+
+
+__all__ = ["OperationPhase"]

@@ -1,0 +1,133 @@
+"""One rover's sortie in the air: its tasks' work (each reported done by the firmware's
+MISSION_ITEM_REACHED of the item that timed it) and its way back to the pick-up stop, started at
+the planned leave time moved by the operation's delay so far (:attr:`SortieFlight.leave_at`)."""
+
+from __future__ import annotations
+
+import contextlib
+from collections.abc import Callable
+from dataclasses import dataclass
+
+from fleetctl.mavlink.link import LinkError
+from fleetctl.mavlink.sortie import ReturnItems, SortieItems, return_items
+from fleetctl.mavlink.vehicle import CommandRejected, Vehicle
+from fleetctl.run.carrier import upload
+from fleetctl.run.context import ExecutionError, RunContext
+from fleetctl.run.kinds import Ev, VehicleStatus
+from fleetctl.run.operation.board import OperationBoard, SortieEntry, SortieStatus
+from planners.operations.plan import Sortie
+
+Vec3 = tuple[float, float, float]
+RECHECK = 1.0  # mission s between looks at the leave time while a rover waits at its last task
+
+
+@dataclass
+class Pickup:
+    """Where and when a rover is to come back: the stop's position and the planned leave time
+    (operation s, plan time)."""
+
+    stop: int
+    position: Vec3
+    leave: float
+
+
+class SortieFlight:
+    """Flies one launched sortie to its end on the deck's approach (see the module docstring)."""
+
+    def __init__(self, ctx: RunContext, board: OperationBoard, entry: SortieEntry, planned: Sortie,
+                 items: SortieItems, pickup: Pickup, now: Callable[[], float],
+                 delay: Callable[[], float]) -> None:
+        self.ctx, self.board, self.entry, self.planned = ctx, board, entry, planned
+        self.items, self.pickup = items, pickup
+        self.now, self.delay = now, delay  # operation clock; the operation's delay on its plan
+        self.back: ReturnItems | None = None  # its way back, once uploaded and started
+
+    @property
+    def vehicle(self) -> Vehicle:
+        return self.ctx.fleet.rovers[self.entry.rover]
+
+    def above_stop(self, v: Vehicle) -> bool:
+        """Waiting above its pick-up stop (or lost: nobody waits for it)."""
+        return v.lost or (self.back is not None and self.back.target_seq in v.items_reached)
+
+    async def fly(self) -> None:
+        try:
+            for w, visit in zip(self.items.work, self.planned.visits, strict=True):
+                await self._work(w.task, w.arrive_seq, w.done_seq, visit.arrive, visit.end)
+            await self._wait_leave()
+            await self._go_back()
+        except (TimeoutError, LinkError, CommandRejected, ExecutionError) as exc:
+            self._lost(str(exc))
+
+    async def _work(self, task: str, arrive_seq: int, done_seq: int, arrive: float, end: float) -> None:
+        ctx, v, st = self.ctx, self.vehicle, self.ctx.state
+        rid = v.name
+        await ctx.wait_for(v, lambda v: arrive_seq in v.items_reached or v.lost,
+                           ctx.late(arrive + self.delay() - self.now()), f"at task {task}")
+        self._check(v)
+        work = self.board.tasks[task]
+        work.rover, work.started = rid, self.now()
+        st.set_state(rid, VehicleStatus.ON_TASK, task)
+        ctx.record(Ev.TASK_STARTED, vehicle=rid, task=task, sortie=self.entry.index)
+        await ctx.wait_for(v, lambda v: done_seq in v.items_reached or v.lost,
+                           ctx.late(end - arrive), f"work at {task} done")
+        self._check(v)
+        work.done = self.now()
+        st.event(Ev.TASK_DONE, f"{rid}: task {task} done ({work.done - work.started:.1f} s of work, "
+                 f"{work.duration:g} s asked)", rid, task=task, sortie=self.entry.index,
+                 worked=round(work.done - work.started, 3), duration=work.duration)
+
+    async def _wait_leave(self) -> None:
+        while self.now() < self.pickup.leave + self.delay():
+            self._check(self.vehicle)
+            await self.ctx.sleep_mission(min(RECHECK, self.pickup.leave + self.delay() - self.now()))
+
+    async def _go_back(self) -> None:
+        ctx, v = self.ctx, self.vehicle
+        origin = v.origin
+        if origin is None or v.enu is None:
+            raise ExecutionError(f"{v.name}: no position to fly back from")
+        ground = v.on_ground is True
+        ret = return_items(v.enu, ground, self.pickup.position, origin, v.autopilot)
+        await upload(ctx, v, list(ret.items))
+        if not v.armed:  # a firmware that disarmed it landed at its task
+            await ctx.command(v, "arm", v.arm())
+        first = 1 if v.autopilot is not None and v.autopilot.home_is_item0 else 0
+        await ctx.command(v, "start_mission", v.start_mission(first))
+        self.back = ret
+        self.entry.status = SortieStatus.RETURNING
+        ctx.state.set_state(v.name, VehicleStatus.RETURNING)
+        ctx.record(Ev.SORTIE_RETURNING, vehicle=v.name, sortie=self.entry.index, stop=self.pickup.stop + 1)
+
+    def _check(self, v: Vehicle) -> None:
+        if v.lost:
+            raise ExecutionError(f"{v.name}: link lost")
+
+    def _lost(self, why: str) -> None:
+        rid = self.entry.rover
+        self.entry.status = SortieStatus.LOST
+        if rid not in self.board.lost:
+            self.board.lost.append(rid)
+        self.ctx.state.set_state(rid, VehicleStatus.LOST)
+        left = [t for t in self.entry.tasks if self.board.tasks[t].done is None]
+        self.ctx.state.event(Ev.SORTIE_LOST, f"{rid}: sortie {self.entry.index} lost ({why}); "
+                             f"work left: {', '.join(left) or 'none'}", rid, sortie=self.entry.index,
+                             tasks_left=left, reason=why)
+
+
+async def land_on_deck(ctx: RunContext, flight: SortieFlight, timeout: float) -> bool:
+    """Send a rover waiting above the stopped carrier down onto the deck; True once it is there."""
+    from fleetctl.run.launch import rover_on_deck
+
+    v, back = flight.vehicle, flight.back
+    if back is None or v.lost:
+        return False
+    with contextlib.suppress(CommandRejected, LinkError, TimeoutError):
+        await ctx.command(v, "land", v.set_current(back.land_seq), seq=back.land_seq)
+        await ctx.wait_for(v, lambda v: v.lost or (v.on_ground is True and rover_on_deck(ctx, v)), timeout,
+                           "on the deck")
+        return not v.lost
+    return False
+
+
+__all__ = ["Pickup", "SortieFlight", "land_on_deck"]
