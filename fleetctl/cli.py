@@ -235,9 +235,9 @@ def cmd_fly(args: argparse.Namespace) -> int:
     mission = load_mission(args.mission)
     _warn(mission, args.command == "collect")
     if mission.operation and args.command != "run":
-        raise CliError(f"{mission.path}: operation: a long operation is flown whole, its sorties deploying and "
-                       f"collecting rovers in turn: fly it with 'fleetctl run --mission {args.mission}' "
-                       f"(docs/operations.md)")
+        raise CliError(f"{mission.path}: operation: a long operation is flown whole, its sorties "
+                       f"deploying and collecting rovers in turn: fly it with "
+                       f"'fleetctl run --mission {args.mission}' (docs/operations.md)")
     if args.command in ("deploy", "run") and not mission.tasks:
         raise CliError(f"{mission.path}: tasks: the mission has no tasks to deploy rovers to (a collection-"
                        f"only mission); fly it with 'fleetctl collect --mission {args.mission}'")
