@@ -10,7 +10,7 @@ from dataclasses import dataclass
 
 from fleetctl.mavlink.link import LinkError
 from fleetctl.mavlink.sortie import ReturnItems, SortieItems, return_items
-from fleetctl.mavlink.vehicle import CommandRejected, Vehicle
+from fleetctl.mavlink.vehicle import CommandRejected, Vehicle, VehicleEvent
 from fleetctl.run.carrier import upload
 from fleetctl.run.context import ExecutionError, RunContext
 from fleetctl.run.kinds import Ev, VehicleStatus
@@ -41,6 +41,11 @@ class SortieFlight:
         self.items, self.pickup = items, pickup
         self.now, self.delay = now, delay  # operation clock; the operation's delay on its plan
         self.back: ReturnItems | None = None  # its way back, once uploaded and started
+        self.reached_at: dict[int, float] = {}  # item -> operation s its MISSION_ITEM_REACHED came in
+
+    def _on_event(self, ev: VehicleEvent) -> None:
+        if ev.kind == "item_reached" and self.back is None:
+            self.reached_at.setdefault(int(ev.data["seq"]), self.now())
 
     @property
     def vehicle(self) -> Vehicle:
@@ -51,6 +56,7 @@ class SortieFlight:
         return v.lost or (self.back is not None and self.back.target_seq in v.items_reached)
 
     async def fly(self) -> None:
+        unlisten = self.vehicle.add_listener(self._on_event)
         try:
             for w, visit in zip(self.items.work, self.planned.visits, strict=True):
                 await self._work(w.task, w.arrive_seq, w.done_seq, visit.arrive, visit.end)
@@ -58,6 +64,8 @@ class SortieFlight:
             await self._go_back()
         except (TimeoutError, LinkError, CommandRejected, ExecutionError) as exc:
             self._lost(str(exc))
+        finally:
+            unlisten()
 
     async def _work(self, task: str, arrive_seq: int, done_seq: int, arrive: float, end: float) -> None:
         ctx, v, st = self.ctx, self.vehicle, self.ctx.state
@@ -66,13 +74,13 @@ class SortieFlight:
                            ctx.late(arrive + self.delay() - self.now()), f"at task {task}")
         self._check(v)
         work = self.board.tasks[task]
-        work.rover, work.started = rid, self.now()
+        work.rover, work.started = rid, self.reached_at.get(arrive_seq, self.now())
         st.set_state(rid, VehicleStatus.ON_TASK, task)
         ctx.record(Ev.TASK_STARTED, vehicle=rid, task=task, sortie=self.entry.index)
         await ctx.wait_for(v, lambda v: done_seq in v.items_reached or v.lost,
                            ctx.late(end - arrive), f"work at {task} done")
         self._check(v)
-        work.done = self.now()
+        work.done = self.reached_at.get(done_seq, self.now())
         st.event(Ev.TASK_DONE, f"{rid}: task {task} done ({work.done - work.started:.1f} s of work, "
                  f"{work.duration:g} s asked)", rid, task=task, sortie=self.entry.index,
                  worked=round(work.done - work.started, 3), duration=work.duration)
