@@ -94,7 +94,7 @@ class Executor:
         self.collect_phase = CollectPhase(self.parts, resumed)
         return await self.collect_phase.run(rover_ids)
 
-    async def operate(self, write_plan: Callable[[dict[str, Any]], None] | None = None) -> PhaseResult:
+    async def operate(self, write_plan: Callable[[str, dict[str, Any]], None] | None = None) -> PhaseResult:
         """Plan and fly a long operation (sorties, pick-ups, battery swaps; docs/operations.md)."""
         from fleetctl.run.operation import OperationPhase
 

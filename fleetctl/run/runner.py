@@ -326,8 +326,8 @@ class Run(OnSession):
             raise ExecutionError(f"operation incomplete: work not done: {left}{lost}")
         await self.executor.carrier.park()
 
-    def _write_operation_plan(self, plan: dict[str, Any]) -> None:
-        self.journal.write_json("plan.json", plan)
+    def _write_operation_plan(self, name: str, plan: dict[str, Any]) -> None:
+        self.journal.write_json(name, plan)
 
     async def _collect(self) -> None:
         assert self.executor is not None

@@ -24,16 +24,19 @@ from fleetctl.run.context import ExecutionError
 from fleetctl.run.kinds import Ev, Phase, VehicleStatus
 from fleetctl.run.launch import Launcher, Spares, rover_on_deck
 from fleetctl.run.operation.board import OperationBoard, SortieEntry, SortieStatus, TaskWorkState
-from fleetctl.run.operation.sortie import Pickup, SortieFlight, land_on_deck
+from fleetctl.run.operation.live import live_problem
+from fleetctl.run.operation.sortie import FlightClock, Pickup, SortieFlight, land_on_deck
 from fleetctl.run.operation.swaps import SwapStation
 from fleetctl.run.parts import PhaseParts
 from fleetctl.run.results import PhaseResult
 from fleetctl.run.task_board import TaskBoard
+from planners.core.problem import PlanningError
 from planners.operations import OperationPlan, OperationProblem, plan_operation
 from planners.operations.plan import OpStop, Sortie
 
 log = logging.getLogger(__name__)
 
+PlanWriter = Callable[[str, dict[str, Any]], None]  # (file name in the run folder, plan JSON)
 LANDING_TIMEOUT = 20.0  # mission s from the land command to the rover on the deck
 SWAP_EPS = 1e-6
 
@@ -41,7 +44,7 @@ SWAP_EPS = 1e-6
 class OperationPhase:
     """One long operation (see the module docstring)."""
 
-    def __init__(self, parts: PhaseParts, write_plan: Callable[[dict[str, Any]], None] | None = None) -> None:
+    def __init__(self, parts: PhaseParts, write_plan: PlanWriter | None = None) -> None:
         self.ctx, self.carrier = parts.ctx, parts.carrier
         self.write_plan = write_plan
         self.board = OperationBoard()
@@ -49,6 +52,9 @@ class OperationPhase:
         self.t0: float | None = None
         self.delay = 0.0  # operation s the flight is behind its plan (at the last stop reached)
         self.flights: dict[str, SortieFlight] = {}  # rover -> its sortie in the air
+        self.base = 0.0  # operation s of the plan flown's time 0 (a replan's plan starts at its making)
+        self.entry_of: dict[int, SortieEntry] = {}  # the plan flown's sortie index -> its board entry
+        self.trouble: str | None = None  # why to replan at the next stop
         self.swaps = SwapStation(self.ctx, self.board, self.now)
         self.result = PhaseResult("operation")
 
@@ -61,24 +67,33 @@ class OperationPhase:
         ctx = self.ctx
         ctx.state.set_phase(Phase.PLAN)
         await ctx.wait_telemetry()
-        plan = self.plan = await asyncio.to_thread(plan_operation, self._problem())
-        self._start_board(plan)
+        plan: OperationPlan | None = await asyncio.to_thread(plan_operation, self._problem())
+        assert plan is not None
+        self.board.tasks = {t.id: TaskWorkState(ctx.mission.task_work(t.id).duration)
+                            for t in ctx.mission.tasks}
+        self._adopt(plan, "plan.json")
         ctx.record(Ev.PLAN, plan="operation", planner=plan.planner, makespan=round(plan.makespan, 3),
                    stops=len(plan.stops), sorties=len(plan.sorties), swaps=len(plan.swaps))
-        if self.write_plan is not None:
-            self.write_plan(plan.to_json())
         self.result.planned = plan.makespan
         ctx.state.set_phase(Phase.OPERATION, plan.makespan, len(plan.stops))
+        while plan is not None:
+            plan = await self._walk(plan)
+        return self._finish()
+
+    async def _walk(self, plan: OperationPlan) -> OperationPlan | None:
+        """Fly ``plan``'s stops; the plan of a replan made on the way (None: flown to its end)."""
         seqs = await self._start_route(plan)
         for k, stop in enumerate(plan.stops):
             leg = stop.arrive - (plan.stops[k - 1].depart if k else 0.0)
             await self.carrier.reach_stop(k, seqs[k][0], leg)
-            self.delay = max(self.now() - stop.arrive, 0.0)
+            self.delay = max(self.now() - (self.base + stop.arrive), 0.0)
             await self._pick_up(k, stop)
+            if self.trouble is not None and (new := await self._replan()) is not None:
+                return new
             await self._launch(k, stop)
             if seqs[k][1] is not None:
                 await self.carrier.release(k, seqs[k][1])
-        return self._finish()
+        return None
 
     def _problem(self) -> OperationProblem:
         """The mission's operation for the rovers that answered and are on the deck."""
@@ -89,11 +104,55 @@ class OperationPhase:
             raise ExecutionError("no rover on the carrier's deck to fly the operation with")
         return dataclasses.replace(problem, rovers=rovers)
 
-    def _start_board(self, plan: OperationPlan) -> None:
-        mission = self.ctx.mission
-        self.board.tasks = {t.id: TaskWorkState(mission.task_work(t.id).duration) for t in mission.tasks}
-        self.board.sorties = [SortieEntry(k, s.rover, [v.task for v in s.visits])
-                              for k, s in enumerate(plan.sorties)]
+    def _adopt(self, plan: OperationPlan, name: str) -> None:
+        """Fly ``plan`` from now on: its sorties on the board, the rovers in the air told their new
+        pick-up, the plan written to the run folder as ``name``."""
+        self.plan, self.base = plan, self.now()
+        self.entry_of = {}
+        for i, s in enumerate(plan.sorties):
+            if s.launch_stop >= 0:
+                entry = SortieEntry(len(self.board.sorties), s.rover, [v.task for v in s.visits])
+                self.board.sorties.append(entry)
+                self.entry_of[i] = entry
+            elif s.rover in self.flights:  # in the air before this plan
+                self.flights[s.rover].retarget(self._pickup(plan, s))
+        if self.write_plan is not None:
+            self.write_plan(name, plan.to_json())
+
+    def _pickup(self, plan: OperationPlan, s: Sortie) -> Pickup:
+        return Pickup(s.pickup_stop, plan.stops[s.pickup_stop].position, self.base + s.visits[-1].leave,
+                      self.base + s.meet, s.aboard)
+
+    def _on_trouble(self, cause: str) -> None:
+        """A rover lost, a task's work off its plan: replan at the next stop."""
+        if self.trouble is None:
+            self.trouble = cause
+
+    async def _replan(self) -> OperationPlan | None:
+        """The rest of the operation planned from the live state (None: nothing to plan, or no
+        plan keeps every battery: the plan flown so far goes on)."""
+        ctx, cause = self.ctx, self.trouble or ""
+        self.trouble = None
+        self.flights = {r: f for r, f in self.flights.items() if f.entry.status is not SortieStatus.LOST}
+        problem, state = live_problem(ctx, self.board, self.flights.values(), set(self.swaps.pending),
+                                      self.carrier.pose())
+        if not problem.tasks and not state.in_flight:
+            return None
+        try:
+            plan = await asyncio.to_thread(plan_operation, problem, state)
+        except PlanningError as exc:
+            ctx.state.event(Ev.REPLAN, f"replan after {cause} failed ({exc}); flying on with the plan", None,
+                            cause=cause, error=str(exc))
+            return None
+        st = ctx.state
+        st.replans += 1
+        end = round(self.now() + plan.makespan, 3)
+        text = (f"replan #{st.replans}: {cause} -> {len(problem.tasks)} tasks to launch, "
+                f"{len(state.in_flight)} rovers in the air; ends at {end:.0f} s")
+        st.last_replan = text
+        st.event(Ev.REPLAN, text, None, n=st.replans, cause=cause, makespan=end)
+        self._adopt(plan, f"plan-replan-{st.replans}.json")
+        return plan
 
     async def _start_route(self, plan: OperationPlan) -> list[tuple[int, int | None]]:
         ctx, c = self.ctx, self.carrier.vehicle
@@ -108,8 +167,9 @@ class OperationPhase:
             await ctx.command(c, "start_mission", c.start_mission(0))
         except (CommandRejected, LinkError, TimeoutError) as exc:
             raise ExecutionError(f"the carrier {c.name} did not start its route: {exc}") from None
-        self.t0 = ctx.clock()
-        self.result.started = self.t0
+        if self.t0 is None:
+            self.t0 = ctx.clock()
+            self.result.started = self.t0
         ctx.record(Ev.CARRIER_STARTED, stops=len(stops))
         return [(s.arrive_seq, s.release_seq) for s in stops]
 
@@ -118,9 +178,8 @@ class OperationPhase:
         ctx = self.ctx
         flights = [self.flights[r] for r in stop.pickups if r in self.flights]
         for f in flights:
-            s = f.planned
             try:
-                await ctx.wait_for(f.vehicle, f.above_stop, ctx.late(s.meet + self.delay - self.now()),
+                await ctx.wait_for(f.vehicle, f.above_stop, ctx.late(f.pickup.meet + self.delay - self.now()),
                                    f"above stop {k + 1}")
             except TimeoutError as exc:
                 f._lost(str(exc))
@@ -141,7 +200,7 @@ class OperationPhase:
         self.ctx.state.set_state(rid, VehicleStatus.LOADED)
         self.ctx.state.event(Ev.SORTIE_BACK, f"{rid}: back on the deck from sortie {f.entry.index}", rid,
                              sortie=f.entry.index, battery_pct=f.vehicle.battery_pct)
-        if self._swap_due(rid, f.planned.aboard):
+        if self._swap_due(rid, f.pickup.aboard):
             self.swaps.start(rid)
 
     def _swap_due(self, rover: str, aboard: float) -> bool:
@@ -155,7 +214,8 @@ class OperationPhase:
     # ============================================================================== launches
     async def _launch(self, k: int, stop: OpStop) -> None:
         assert self.plan is not None
-        sorties = [(i, s) for i, s in enumerate(self.plan.sorties) if s.launch_stop == k]
+        sorties = [(i, s) for i, s in enumerate(self.plan.sorties)
+                   if s.launch_stop == k and i in self.entry_of]
         if not sorties:
             return
         go_at = self.ctx.clock() + self.ctx.mission.carrier.unload_time
@@ -164,7 +224,7 @@ class OperationPhase:
     async def _launch_one(self, i: int, s: Sortie, stop: OpStop, go_at: float) -> None:
         ctx, plan = self.ctx, self.plan
         assert plan is not None
-        entry = self.board.sorties[i]
+        entry = self.entry_of[i]
         if not await self.swaps.ready(s.rover, ctx.late(ctx.mission.carrier.swap_time)):
             entry.status = SortieStatus.FAILED
             return
@@ -176,21 +236,22 @@ class OperationPhase:
         slot = RoverMission(s.rover, s.launch_stop, items.items, items.work[0].arrive_seq,
                             len(items.items) - 1, items.work[0].task)
         launcher = Launcher(ctx, self.carrier, TaskBoard.of([]))
-        rid = await launcher.launch(slot, i, Spares([]), go_at)
+        rid = await launcher.launch(slot, entry.index, Spares([]), go_at)
         if rid is None:
             entry.status = SortieStatus.FAILED
-            ctx.state.event(Ev.ROVER_FAILED, f"{s.rover}: sortie {i} did not take off", s.rover, sortie=i)
+            ctx.state.event(Ev.ROVER_FAILED, f"{s.rover}: sortie {entry.index} did not take off", s.rover,
+                            sortie=entry.index)
+            self._on_trouble(f"rover {s.rover} did not take off")
             return
         entry.status, entry.launched = SortieStatus.FLYING, self.now()
         ctx.state.set_state(rid, VehicleStatus.EN_ROUTE, entry.tasks[0])
-        ctx.state.event(Ev.SORTIE_LAUNCHED, f"{rid}: sortie {i} launched for {', '.join(entry.tasks)}", rid,
-                        sortie=i, tasks=entry.tasks, stop=s.launch_stop + 1)
-        back = plan.stops[s.pickup_stop]
-        flight = SortieFlight(ctx, self.board, entry, s, items,
-                              Pickup(s.pickup_stop, back.position, s.visits[-1].leave), self.now,
-                              lambda: self.delay)
+        ctx.state.event(Ev.SORTIE_LAUNCHED,
+                        f"{rid}: sortie {entry.index} launched for {', '.join(entry.tasks)}", rid,
+                        sortie=entry.index, tasks=entry.tasks, stop=s.launch_stop + 1)
+        flight = SortieFlight(ctx, self.board, entry, s, items, self._pickup(plan, s),
+                              FlightClock(self.base, self.now, lambda: self.delay), self._on_trouble)
         self.flights[rid] = flight
-        ctx.spawn(flight.fly(), f"sortie {i} {rid}")
+        ctx.spawn(flight.fly(), f"sortie {entry.index} {rid}")
 
     # ============================================================================== the end
     def _finish(self) -> PhaseResult:

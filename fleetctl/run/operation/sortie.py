@@ -19,27 +19,40 @@ from planners.operations.plan import Sortie
 
 Vec3 = tuple[float, float, float]
 RECHECK = 1.0  # mission s between looks at the leave time while a rover waits at its last task
+REPLAN_SLACK = 15.0  # mission s: a task's work done this much earlier or later than planned asks for a replan
+
+
+@dataclass(frozen=True)
+class FlightClock:
+    base: float  # operation s of the plan's time 0
+    now: Callable[[], float]  # the operation clock
+    delay: Callable[[], float]  # the operation's delay on its plan so far
 
 
 @dataclass
 class Pickup:
-    """Where and when a rover is to come back: the stop's position and the planned leave time
-    (operation s, plan time)."""
+    """Where and when a rover is to come back: the stop (index in the plan flown), its position,
+    and in operation seconds as planned: when the rover leaves its last task and is above the stop;
+    ``aboard`` in the plan's own time."""
 
     stop: int
     position: Vec3
     leave: float
+    meet: float
+    aboard: float
 
 
 class SortieFlight:
     """Flies one launched sortie to its end on the deck's approach (see the module docstring)."""
 
     def __init__(self, ctx: RunContext, board: OperationBoard, entry: SortieEntry, planned: Sortie,
-                 items: SortieItems, pickup: Pickup, now: Callable[[], float],
-                 delay: Callable[[], float]) -> None:
+                 items: SortieItems, pickup: Pickup, clock: FlightClock,
+                 trouble: Callable[[str], None]) -> None:
         self.ctx, self.board, self.entry, self.planned = ctx, board, entry, planned
         self.items, self.pickup = items, pickup
-        self.now, self.delay = now, delay  # operation clock; the operation's delay on its plan
+        self.base = clock.base  # operation s of the plan's time 0
+        self.now, self.delay = clock.now, clock.delay  # operation clock; the operation's delay on its plan
+        self.trouble = trouble  # told when a task's work ends further off its plan than REPLAN_SLACK
         self.back: ReturnItems | None = None  # its way back, once uploaded and started
         self.reached_at: dict[int, float] = {}  # item -> operation s its MISSION_ITEM_REACHED came in
 
@@ -59,7 +72,8 @@ class SortieFlight:
         unlisten = self.vehicle.add_listener(self._on_event)
         try:
             for w, visit in zip(self.items.work, self.planned.visits, strict=True):
-                await self._work(w.task, w.arrive_seq, w.done_seq, visit.arrive, visit.end)
+                b = self.base
+                await self._work(w.task, w.arrive_seq, w.done_seq, b + visit.arrive, b + visit.end)
             await self._wait_leave()
             await self._go_back()
         except (TimeoutError, LinkError, CommandRejected, ExecutionError) as exc:
@@ -81,6 +95,9 @@ class SortieFlight:
                            ctx.late(end - arrive), f"work at {task} done")
         self._check(v)
         work.done = self.reached_at.get(done_seq, self.now())
+        off = work.done - (end + self.delay())
+        if abs(off) > REPLAN_SLACK:
+            self.trouble(f"task {task} done {off:+.0f} s off its plan")
         st.event(Ev.TASK_DONE, f"{rid}: task {task} done ({work.done - work.started:.1f} s of work, "
                  f"{work.duration:g} s asked)", rid, task=task, sortie=self.entry.index,
                  worked=round(work.done - work.started, 3), duration=work.duration)
@@ -89,6 +106,25 @@ class SortieFlight:
         while self.now() < self.pickup.leave + self.delay():
             self._check(self.vehicle)
             await self.ctx.sleep_mission(min(RECHECK, self.pickup.leave + self.delay() - self.now()))
+
+    def work_left(self) -> list[tuple[str, float]]:
+        """Its tasks not done with their work left (the one being worked: what it still needs)."""
+        now = self.now()
+        return [(t, self.board.tasks[t].duration - self.board.tasks[t].worked(now))
+                for t in self.entry.tasks if self.board.tasks[t].done is None]
+
+    def retarget(self, pickup: Pickup) -> None:
+        """A replan's pick-up; a rover already on its way back is sent to the new stop."""
+        moved = pickup.position != self.pickup.position
+        self.pickup = pickup
+        if self.back is not None and moved:
+            self.ctx.spawn(self._resend(), f"back {self.entry.rover}")
+
+    async def _resend(self) -> None:
+        try:
+            await self._go_back()
+        except (TimeoutError, LinkError, CommandRejected, ExecutionError) as exc:
+            self._lost(str(exc))
 
     async def _go_back(self) -> None:
         ctx, v = self.ctx, self.vehicle
@@ -113,14 +149,19 @@ class SortieFlight:
 
     def _lost(self, why: str) -> None:
         rid = self.entry.rover
+        if self.entry.status is SortieStatus.LOST:
+            return
         self.entry.status = SortieStatus.LOST
         if rid not in self.board.lost:
             self.board.lost.append(rid)
         self.ctx.state.set_state(rid, VehicleStatus.LOST)
         left = [t for t in self.entry.tasks if self.board.tasks[t].done is None]
+        for t in left:  # the work of a lost rover is lost with it: another does the whole task again
+            self.board.tasks[t].started = self.board.tasks[t].rover = None
         self.ctx.state.event(Ev.SORTIE_LOST, f"{rid}: sortie {self.entry.index} lost ({why}); "
                              f"work left: {', '.join(left) or 'none'}", rid, sortie=self.entry.index,
                              tasks_left=left, reason=why)
+        self.trouble(f"rover {rid} lost")
 
 
 async def land_on_deck(ctx: RunContext, flight: SortieFlight, timeout: float) -> bool:
@@ -138,4 +179,4 @@ async def land_on_deck(ctx: RunContext, flight: SortieFlight, timeout: float) ->
     return False
 
 
-__all__ = ["Pickup", "SortieFlight", "land_on_deck"]
+__all__ = ["REPLAN_SLACK", "FlightClock", "Pickup", "SortieFlight", "land_on_deck"]
