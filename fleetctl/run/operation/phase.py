@@ -83,6 +83,7 @@ class OperationPhase:
     async def _walk(self, plan: OperationPlan) -> OperationPlan | None:
         """Fly ``plan``'s stops; the plan of a replan made on the way (None: flown to its end)."""
         seqs = await self._start_route(plan)
+        self.ctx.state.stop_count = len(plan.stops)
         for k, stop in enumerate(plan.stops):
             leg = stop.arrive - (plan.stops[k - 1].depart if k else 0.0)
             await self.carrier.reach_stop(k, seqs[k][0], leg)

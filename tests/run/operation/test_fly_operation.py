@@ -9,6 +9,8 @@ import json
 from pathlib import Path
 
 from fleetctl.run.flight import execute
+from sitl import SimFleet
+from sitl.world import Phase as BodyPhase
 from tests.run.ctl_helpers import mission_from
 from tests.run.operation.ops_helpers import journal, small_operation
 
@@ -26,7 +28,7 @@ async def test_a_small_operation_flies_to_complete(tmp_path: Path) -> None:
     done = [r for r in records if r["kind"] == "task_done"]
     assert sorted(r["task"] for r in done) == sorted(tasks)  # each task worked once
     for r in done:  # for its duration: the firmware timed it (a landed task counts its touch-down too)
-        assert r["worked"] >= tasks[r["task"]] - 0.2, r
+        assert r["worked"] >= tasks[r["task"]] - 0.5, r  # seen on the controller's clock: message timing
     launched = [r for r in records if r["kind"] == "sortie_launched"]
     back = [r for r in records if r["kind"] == "sortie_back"]
     assert len(launched) == len(back) > 2  # rovers fly again: more sorties than rovers
@@ -35,3 +37,37 @@ async def test_a_small_operation_flies_to_complete(tmp_path: Path) -> None:
     planned = [e for rows in plan["rovers"].values() for e in rows if e["kind"] == "swap"]
     assert len(swaps) == len(planned) >= 1  # every planned swap flown and journalled
     assert s["makespan_flown"] is not None and s["makespan_planned"] is not None
+
+
+async def test_a_rover_lost_mid_operation_is_replanned_around(tmp_path: Path) -> None:
+    d = small_operation()
+    d["links"] = {"heartbeat_timeout": 1.0}
+    mission = mission_from(d, tmp_path)
+    watchers: list[asyncio.Task[None]] = []
+
+    async def kill_r1_on_its_first_task(sim: SimFleet) -> None:
+        r1 = sim.rover("r1")
+        await sim.wait_for(lambda: r1.phase is BodyPhase.AIR, 60)
+        t = sim.sim_time
+        await sim.wait_sim_time(t + 20.0, 60)  # working its first task
+        sim.dropout("r1")  # never back
+
+    def on_sim(sim: SimFleet) -> None:
+        watchers.append(asyncio.ensure_future(kill_r1_on_its_first_task(sim)))
+
+    out = await asyncio.wait_for(execute(mission, "run", run_dir=tmp_path / "run", force=True, on_sim=on_sim),
+                                 150)
+    for w in watchers:
+        w.cancel()
+    s = out.summary
+    records = journal(tmp_path / "run")
+    lost = [r for r in records if r["kind"] == "sortie_lost"]
+    assert [r["vehicle"] for r in lost] == ["r1"] and lost[0]["tasks_left"], lost
+    replans = [r for r in records if r["kind"] == "replan" and "error" not in r]
+    assert replans and "r1 lost" in replans[0]["cause"]
+    assert s["rovers_lost"] == ["r1"] and s["rovers_loaded"] == ["r2"]
+    tasks = sorted(t.id for t in mission.tasks)
+    assert sorted(s["tasks_done"]) == tasks  # the lost rover's work was done by the other
+    done_by = {r["task"]: r["vehicle"] for r in records if r["kind"] == "task_done"}
+    assert all(done_by[t] == "r2" for t in lost[0]["tasks_left"])
+    assert (tmp_path / "run" / "plan-replan-1.json").exists()
