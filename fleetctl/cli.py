@@ -261,6 +261,9 @@ def cmd_resume(args: argparse.Namespace) -> int:
     except ResumeError as e:
         raise CliError(str(e)) from None
     mission = team[0] if team is not None else resumption.mission
+    if mission.operation:
+        raise CliError(f"{args.run}: resuming a long operation is not supported yet; fly it again with "
+                       f"'fleetctl run' once the rovers are back on the deck (docs/operations.md)")
     if team is None and several_teams(mission) and "resume" in extra:
         raise CliError(f"{args.run}: the mission has {len(mission.teams)} carriers and the journal's run "
                        "record names neither its teams (every team in one controller) nor the team it flew "
