@@ -6,6 +6,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from enum import StrEnum
 
+from fleetctl.run.state import OperationProgress
+
 
 class SortieStatus(StrEnum):
     PLANNED = "planned"
@@ -52,6 +54,14 @@ class OperationBoard:
 
     def left(self) -> list[str]:
         return [t for t, w in self.tasks.items() if w.done is None]
+
+    def progress(self, now: float, eta: float | None) -> OperationProgress:
+        """What the views show (``now``: operation s; ``eta``: mission s of the phase)."""
+        out = sum(1 for s in self.sorties if s.status in (SortieStatus.FLYING, SortieStatus.RETURNING))
+        back = sum(1 for s in self.sorties if s.status is SortieStatus.ABOARD)
+        tasks = {t: (round(w.worked(now), 1), w.duration, w.rover, w.done is not None)
+                 for t, w in self.tasks.items()}
+        return OperationProgress(out, back, len(self.sorties), tasks, eta)
 
     def flying(self, rover: str) -> SortieEntry | None:
         return next((s for s in self.sorties if s.rover == rover

@@ -29,6 +29,7 @@ from fleetctl.run.operation.sortie import FlightClock, Pickup, SortieFlight, lan
 from fleetctl.run.operation.swaps import SwapStation
 from fleetctl.run.parts import PhaseParts
 from fleetctl.run.results import PhaseResult
+from fleetctl.run.state import OperationProgress
 from fleetctl.run.task_board import TaskBoard
 from planners.core.problem import PlanningError
 from planners.operations import OperationPlan, OperationProblem, plan_operation
@@ -76,6 +77,7 @@ class OperationPhase:
                    stops=len(plan.stops), sorties=len(plan.sorties), swaps=len(plan.swaps))
         self.result.planned = plan.makespan
         ctx.state.set_phase(Phase.OPERATION, plan.makespan, len(plan.stops))
+        ctx.state.operation = self._progress
         while plan is not None:
             plan = await self._walk(plan)
         return self._finish()
@@ -88,6 +90,7 @@ class OperationPhase:
             leg = stop.arrive - (plan.stops[k - 1].depart if k else 0.0)
             await self.carrier.reach_stop(k, seqs[k][0], leg)
             self.delay = max(self.now() - (self.base + stop.arrive), 0.0)
+            self.ctx.state.eta = self._eta()
             await self._pick_up(k, stop)
             if self.trouble is not None and (new := await self._replan()) is not None:
                 return new
@@ -104,6 +107,17 @@ class OperationPhase:
         if not rovers:
             raise ExecutionError("no rover on the carrier's deck to fly the operation with")
         return dataclasses.replace(problem, rovers=rovers)
+
+    def _eta(self) -> float | None:
+        """The operation's end the flight heads for, in mission s of the phase: the plan's end
+        moved by the delay so far."""
+        st, plan = self.ctx.state, self.plan
+        if plan is None or st.phase_started is None or self.t0 is None:
+            return None
+        return self.t0 - st.phase_started + self.base + plan.makespan + self.delay
+
+    def _progress(self) -> OperationProgress:
+        return self.board.progress(self.now(), self._eta())
 
     def _adopt(self, plan: OperationPlan, name: str) -> None:
         """Fly ``plan`` from now on: its sorties on the board, the rovers in the air told their new
