@@ -40,6 +40,7 @@ log = logging.getLogger(__name__)
 PlanWriter = Callable[[str, dict[str, Any]], None]  # (file name in the run folder, plan JSON)
 LANDING_TIMEOUT = 20.0  # mission s from the land command to the rover on the deck
 SWAP_EPS = 1e-6
+BATTERY_SLACK = 0.05  # a rover back with this much less of its battery than planned asks for a replan
 
 
 class OperationPhase:
@@ -136,7 +137,7 @@ class OperationPhase:
 
     def _pickup(self, plan: OperationPlan, s: Sortie) -> Pickup:
         return Pickup(s.pickup_stop, plan.stops[s.pickup_stop].position, self.base + s.visits[-1].leave,
-                      self.base + s.meet, s.aboard)
+                      self.base + s.meet, s.aboard, s.battery_left)
 
     def _on_trouble(self, cause: str) -> None:
         """A rover lost, a task's work off its plan: replan at the next stop."""
@@ -217,6 +218,15 @@ class OperationPhase:
                              sortie=f.entry.index, battery_pct=f.vehicle.battery_pct)
         if self._swap_due(rid, f.pickup.aboard):
             self.swaps.start(rid)
+        else:
+            self._check_battery(f)
+
+    def _check_battery(self, f: SortieFlight) -> None:
+        """A rover back with less battery than planned flies its next sortie on it: replan."""
+        frac = f.vehicle.battery_fraction
+        if frac is not None and frac < f.pickup.battery_left - BATTERY_SLACK:
+            self._on_trouble(f"rover {f.entry.rover} back with {100 * frac:.0f} % of its battery, "
+                             f"{100 * f.pickup.battery_left:.0f} % planned")
 
     def _swap_due(self, rover: str, aboard: float) -> bool:
         """A planned swap of ``rover`` after this pick-up and before its next launch."""

@@ -33,13 +33,14 @@ class FlightClock:
 class Pickup:
     """Where and when a rover is to come back: the stop (index in the plan flown), its position,
     and in operation seconds as planned: when the rover leaves its last task and is above the stop;
-    ``aboard`` in the plan's own time."""
+    ``aboard`` in the plan's own time; ``battery_left``: the fraction planned at touch-down."""
 
     stop: int
     position: Vec3
     leave: float
     meet: float
     aboard: float
+    battery_left: float
 
 
 class SortieFlight:

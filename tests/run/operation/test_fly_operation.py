@@ -71,3 +71,16 @@ async def test_a_rover_lost_mid_operation_is_replanned_around(tmp_path: Path) ->
     done_by = {r["task"]: r["vehicle"] for r in records if r["kind"] == "task_done"}
     assert all(done_by[t] == "r2" for t in lost[0]["tasks_left"])
     assert (tmp_path / "run" / "plan-replan-1.json").exists()
+
+
+async def test_a_battery_lower_than_planned_is_replanned_from(tmp_path: Path) -> None:
+    d = small_operation()
+    d["sim"]["faults"] = [{"vehicle": "r1", "kind": "battery_drain", "factor": 1.3}]
+    mission = mission_from(d, tmp_path)
+    out = await asyncio.wait_for(execute(mission, "run", run_dir=tmp_path / "run", force=True), 150)
+    records = journal(tmp_path / "run")
+    replans = [r for r in records if r["kind"] == "replan" and "error" not in r]
+    assert replans and "rover r1 back with" in replans[0]["cause"], [r.get("text") for r in records
+                                                                     if r["kind"] == "replan"]
+    assert out.exit_code == 0, out.summary
+    assert sorted(out.summary["tasks_done"]) == sorted(t.id for t in mission.tasks)
