@@ -10,6 +10,7 @@ leave times so that they meet the carrier when it is there."""
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import dataclasses
 import logging
 from collections.abc import Callable
@@ -40,6 +41,7 @@ log = logging.getLogger(__name__)
 PlanWriter = Callable[[str, dict[str, Any]], None]  # (file name in the run folder, plan JSON)
 LANDING_TIMEOUT = 20.0  # mission s from the land command to the rover on the deck
 SWAP_EPS = 1e-6
+ROUTE_START_WAIT = 5.0  # mission s for a carrier to report the new route's first item current
 BATTERY_SLACK = 0.05  # a rover back with this much less of its battery than planned asks for a replan
 
 
@@ -186,6 +188,11 @@ class OperationPhase:
         if self.t0 is None:
             self.t0 = ctx.clock()
             self.result.started = self.t0
+        else:  # a replan's route: the old route's current item must not count as the new one's arrival
+            first = stops[0].arrive_seq
+            with contextlib.suppress(TimeoutError):
+                await ctx.wait_for(c, lambda v: first in v.items_reached or (
+                    v.mission_current is not None and v.mission_current <= first), ROUTE_START_WAIT, "new route")
         ctx.record(Ev.CARRIER_STARTED, stops=len(stops))
         return [(s.arrive_seq, s.release_seq) for s in stops]
 
