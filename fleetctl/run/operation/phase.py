@@ -192,7 +192,8 @@ class OperationPhase:
             first = stops[0].arrive_seq
             with contextlib.suppress(TimeoutError):
                 await ctx.wait_for(c, lambda v: first in v.items_reached or (
-                    v.mission_current is not None and v.mission_current <= first), ROUTE_START_WAIT, "new route")
+                    v.mission_current is not None and v.mission_current <= first), ROUTE_START_WAIT,
+                    "the new route started")
         ctx.record(Ev.CARRIER_STARTED, stops=len(stops))
         return [(s.arrive_seq, s.release_seq) for s in stops]
 
