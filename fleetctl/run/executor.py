@@ -98,7 +98,7 @@ class Executor:
         """Plan and fly a long operation (sorties, pick-ups, battery swaps; docs/operations.md)."""
         from fleetctl.run.operation import OperationPhase
 
-        self.operation_phase = OperationPhase(self.parts, write_plan)
+        self.operation_phase = OperationPhase(self.parts, write_plan, self.board)
         return await self.operation_phase.run()
 
     async def sleep_mission(self, seconds: float) -> None:

@@ -31,11 +31,12 @@ def in_flight(ctx: RunContext, f: SortieFlight, tasks: dict[str, OpTask], endura
                     v.on_ground is True)
 
 
-def live_problem(ctx: RunContext, board: OperationBoard, flights: Iterable[SortieFlight], swapping: set[str],
+def live_problem(ctx: RunContext, board: OperationBoard, tasks: dict[str, OpTask],
+                 flights: Iterable[SortieFlight], swapping: set[str],
                  carrier: tuple[Vec3, float]) -> tuple[OperationProblem, LiveState]:
-    """The rest of the operation from now (see the module docstring)."""
+    """The rest of the operation from now (see the module docstring); ``tasks``: every task of the
+    operation now (with changes)."""
     base = ctx.mission.operation_problem()
-    tasks = {t.id: t for t in base.tasks}
     air = [in_flight(ctx, f, tasks, base.endurance) for f in flights if not f.vehicle.lost]
     up = {f.rover for f in air}
     taken = {t.id for f in air for t in f.tasks}

@@ -22,9 +22,10 @@ from fleetctl.mavlink.sortie import Visit, route_items, sortie_items
 from fleetctl.mavlink.vehicle import CommandRejected
 from fleetctl.run.carrier import upload
 from fleetctl.run.context import ExecutionError
-from fleetctl.run.kinds import Ev, Phase, VehicleStatus
+from fleetctl.run.kinds import Ev, Phase, VehicleStatus, Watch
 from fleetctl.run.launch import Launcher, Spares, rover_on_deck
 from fleetctl.run.operation.board import OperationBoard, SortieEntry, SortieStatus, TaskWorkState
+from fleetctl.run.operation.changes import TaskChanges
 from fleetctl.run.operation.live import live_problem
 from fleetctl.run.operation.sortie import FlightClock, Pickup, SortieFlight, land_on_deck
 from fleetctl.run.operation.swaps import SwapStation
@@ -48,8 +49,10 @@ BATTERY_SLACK = 0.05  # a rover back with this much less of its battery than pla
 class OperationPhase:
     """One long operation (see the module docstring)."""
 
-    def __init__(self, parts: PhaseParts, write_plan: PlanWriter | None = None) -> None:
-        self.ctx, self.carrier = parts.ctx, parts.carrier
+    def __init__(self, parts: PhaseParts, write_plan: PlanWriter | None = None,
+                 live_tasks: TaskBoard | None = None) -> None:
+        self.ctx, self.carrier, self.supervisor = parts.ctx, parts.carrier, parts.supervisor
+        self.live_tasks = live_tasks if live_tasks is not None else TaskBoard.of(parts.ctx.mission.tasks)
         self.write_plan = write_plan
         self.board = OperationBoard()
         self.plan: OperationPlan | None = None
@@ -59,6 +62,7 @@ class OperationPhase:
         self.base = 0.0  # operation s of the plan flown's time 0 (a replan's plan starts at its making)
         self.entry_of: dict[int, SortieEntry] = {}  # the plan flown's sortie index -> its board entry
         self.trouble: str | None = None  # why to replan at the next stop
+        self.changes = TaskChanges(self.ctx, self.board, {}, self.live_tasks)
         self.swaps = SwapStation(self.ctx, self.board, self.now)
         self.result = PhaseResult("operation")
 
@@ -71,10 +75,12 @@ class OperationPhase:
         ctx = self.ctx
         ctx.state.set_phase(Phase.PLAN)
         await ctx.wait_telemetry()
-        plan: OperationPlan | None = await asyncio.to_thread(plan_operation, self._problem())
+        problem = self._problem()
+        plan: OperationPlan | None = await asyncio.to_thread(plan_operation, problem)
         assert plan is not None
-        self.board.tasks = {t.id: TaskWorkState(ctx.mission.task_work(t.id).duration)
-                            for t in ctx.mission.tasks}
+        self.board.tasks = {t.id: TaskWorkState(t.duration) for t in problem.tasks}
+        self.changes = TaskChanges(ctx, self.board, {t.id: t for t in problem.tasks}, self.live_tasks)
+        self.supervisor.start()  # task changes (the mission file, MQTT) come in on its queue
         self._adopt(plan, "plan.json")
         ctx.record(Ev.PLAN, plan="operation", planner=plan.planner, makespan=round(plan.makespan, 3),
                    stops=len(plan.stops), sorties=len(plan.sorties), swaps=len(plan.swaps))
@@ -95,6 +101,7 @@ class OperationPhase:
             self.delay = max(self.now() - (self.base + stop.arrive), 0.0)
             self.ctx.state.eta = self._eta()
             await self._pick_up(k, stop)
+            self._take_changes()
             if self.trouble is not None and (new := await self._replan()) is not None:
                 return new
             await self._launch(k, stop)
@@ -141,6 +148,16 @@ class OperationPhase:
         return Pickup(s.pickup_stop, plan.stops[s.pickup_stop].position, self.base + s.visits[-1].leave,
                       self.base + s.meet, s.aboard, s.battery_left)
 
+    def _take_changes(self) -> None:
+        """Task changes queued since the last stop (other supervision events are seen by the
+        sorties themselves)."""
+        flying = [t for f in self.flights.values() if f.entry.status is SortieStatus.FLYING
+                  for t, _w in f.work_left()]
+        while not self.supervisor.queue.empty():
+            ev = self.supervisor.queue.get_nowait()
+            if ev.kind == Watch.TASKS and self.changes.apply(ev, flying):
+                self._on_trouble(f"tasks changed by {ev.source}")
+
     def _on_trouble(self, cause: str) -> None:
         """A rover lost, a task's work off its plan: replan at the next stop."""
         if self.trouble is None:
@@ -152,8 +169,8 @@ class OperationPhase:
         ctx, cause = self.ctx, self.trouble or ""
         self.trouble = None
         self.flights = {r: f for r, f in self.flights.items() if f.entry.status is not SortieStatus.LOST}
-        problem, state = live_problem(ctx, self.board, self.flights.values(), set(self.swaps.pending),
-                                      self.carrier.pose())
+        problem, state = live_problem(ctx, self.board, self.changes.tasks, self.flights.values(),
+                                      set(self.swaps.pending), self.carrier.pose())
         if not problem.tasks and not state.in_flight:
             return None
         try:
@@ -264,7 +281,11 @@ class OperationPhase:
         v = ctx.fleet.rovers[s.rover]
         if v.origin is None:
             raise ExecutionError("the mission has no origin: mission items need WGS84 coordinates")
-        visits = [Visit(x.task, x.position, self.board.tasks[x.task].duration, x.ground) for x in s.visits]
+        visits = [Visit(x.task, x.position, self.board.tasks[x.task].duration, x.ground) for x in s.visits
+                  if x.task in self.board.tasks]  # a task removed since (a replan that found no plan)
+        if not visits:
+            entry.status = SortieStatus.FAILED
+            return
         items = sortie_items(s.rover, stop.position, visits, v.origin, v.autopilot)
         slot = RoverMission(s.rover, s.launch_stop, items.items, items.work[0].arrive_seq,
                             len(items.items) - 1, items.work[0].task)
@@ -305,6 +326,7 @@ class OperationPhase:
         r.tasks_unserved = b.left()
         r.unserved_reasons = {t: "its work was not done" for t in b.left()}
         r.tasks_all = list(b.tasks)
+        r.tasks_added, r.tasks_removed = list(self.changes.added), list(self.changes.removed)
         r.rovers_lost = list(b.lost)
         aboard = {s.rover for s in b.sorties if s.status is SortieStatus.ABOARD}
         r.rovers_loaded = [rid for rid in ctx.fleet.rovers if rid in aboard]

@@ -11,7 +11,7 @@ from pathlib import Path
 from fleetctl.run.flight import execute
 from sitl import SimFleet
 from sitl.world import Phase as BodyPhase
-from tests.run.ctl_helpers import mission_from
+from tests.run.ctl_helpers import mission_from, write_mission
 from tests.run.operation.ops_helpers import journal, small_operation
 
 
@@ -84,3 +84,33 @@ async def test_a_battery_lower_than_planned_is_replanned_from(tmp_path: Path) ->
                                                                      if r["kind"] == "replan"]
     assert out.exit_code == 0, out.summary
     assert sorted(out.summary["tasks_done"]) == sorted(t.id for t in mission.tasks)
+
+
+async def test_tasks_added_and_removed_in_the_mission_file_are_flown(tmp_path: Path) -> None:
+    d = small_operation()
+    mission = mission_from(d, tmp_path)
+    edited = small_operation()
+    edited["tasks"] = [t for t in edited["tasks"] if t["id"] != "t6"]
+    edited["tasks"].append({"id": "t7", "position": [30, -10, 4]})
+    watchers: list[asyncio.Task[None]] = []
+
+    async def edit_after_the_first_launch(sim: SimFleet) -> None:
+        r1 = sim.rover("r1")
+        await sim.wait_for(lambda: r1.phase is BodyPhase.AIR, 60)
+        write_mission(edited, tmp_path / "mission.yaml")
+
+    def on_sim(sim: SimFleet) -> None:
+        watchers.append(asyncio.ensure_future(edit_after_the_first_launch(sim)))
+
+    out = await asyncio.wait_for(execute(mission, "run", run_dir=tmp_path / "run", force=True, on_sim=on_sim),
+                                 150)
+    for w in watchers:
+        w.cancel()
+    s = out.summary
+    assert out.exit_code == 0, s
+    assert s["tasks_added"] == ["t7"] and s["tasks_removed"] == ["t6"]
+    assert sorted(s["tasks_done"]) == ["t1", "t2", "t3", "t4", "t5", "t7"]
+    records = journal(tmp_path / "run")
+    assert any(r["kind"] == "replan" and "tasks changed" in r.get("cause", "") for r in records)
+    done = {r["task"]: r["worked"] for r in records if r["kind"] == "task_done"}
+    assert done["t7"] >= mission.dwell - 0.5  # an added task's work: the mission's dwell
