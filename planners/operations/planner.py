@@ -50,10 +50,11 @@ def _perturbed(tour: list[int], rng: random.Random) -> list[int]:
     return tour[:i] + tour[i:j][::-1] + tour[j:]
 
 
-def plan_operation(problem: OperationProblem, start: LiveState | None = None) -> OperationPlan:
+def plan_operation(problem: OperationProblem, start: LiveState | None = None,
+                   rounds: int = ROUNDS) -> OperationPlan:
     """Schedule the whole operation, or (``start``) its rest from a live state: ``problem.tasks``
-    the work no rover has, ``problem.rovers`` every rover of the state (PlanningError when no
-    schedule keeps every battery)."""
+    the work no rover has, ``problem.rovers`` every rover of the state; ``rounds`` perturbed
+    tours after the policies (PlanningError when no schedule keeps every battery)."""
     t0 = time.perf_counter()
     if not problem.rovers:
         raise PlanningError("an operation needs at least one rover")
@@ -65,7 +66,7 @@ def plan_operation(problem: OperationProblem, start: LiveState | None = None) ->
                             "fly to, work and fly back from on one battery)")
     best, policy, best_tour = min(found, key=lambda f: f[0].makespan)
     rng = random.Random(problem.seed)
-    for _ in range(ROUNDS):
+    for _ in range(rounds):
         if time.perf_counter() - t0 > TIME_LIMIT:
             break
         trial_tour = _perturbed(best_tour, rng)

@@ -42,6 +42,7 @@ log = logging.getLogger(__name__)
 PlanWriter = Callable[[str, dict[str, Any]], None]  # (file name in the run folder, plan JSON)
 LANDING_TIMEOUT = 20.0  # mission s from the land command to the rover on the deck
 SWAP_EPS = 1e-6
+REPLAN_ROUNDS = 20  # the planner's perturbed rounds in a replan (rovers in the air fly on meanwhile)
 ROUTE_START_WAIT = 5.0  # mission s for a carrier to report the new route's first item current
 BATTERY_SLACK = 0.05  # a rover back with this much less of its battery than planned asks for a replan
 
@@ -174,7 +175,7 @@ class OperationPhase:
         if not problem.tasks and not state.in_flight:
             return None
         try:
-            plan = await asyncio.to_thread(plan_operation, problem, state)
+            plan = await asyncio.to_thread(plan_operation, problem, state, REPLAN_ROUNDS)
         except PlanningError as exc:
             ctx.state.event(Ev.REPLAN, f"replan after {cause} failed ({exc}); flying on with the plan", None,
                             cause=cause, error=str(exc))
