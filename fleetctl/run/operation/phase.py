@@ -77,7 +77,11 @@ class OperationPhase:
         ctx.state.set_phase(Phase.PLAN)
         await ctx.wait_telemetry()
         problem = self._problem()
-        plan: OperationPlan | None = await asyncio.to_thread(plan_operation, problem)
+        try:
+            plan: OperationPlan | None = await asyncio.to_thread(plan_operation, problem)
+        except PlanningError as exc:
+            raise ExecutionError(f"cannot plan the operation with the rovers on the deck "
+                                 f"({', '.join(problem.rovers)}): {exc}") from None
         assert plan is not None
         self.board.tasks = {t.id: TaskWorkState(t.duration) for t in problem.tasks}
         self.changes = TaskChanges(ctx, self.board, {t.id: t for t in problem.tasks}, self.live_tasks)
