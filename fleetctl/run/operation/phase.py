@@ -145,7 +145,7 @@ class OperationPhase:
                 self.board.sorties.append(entry)
                 self.entry_of[i] = entry
             elif s.rover in self.flights:  # in the air before this plan
-                self.flights[s.rover].retarget(self._pickup(plan, s))
+                self.flights[s.rover].retarget(self._pickup(plan, s), s, self.base)
         if self.write_plan is not None:
             self.write_plan(name, plan.to_json())
 
@@ -164,9 +164,11 @@ class OperationPhase:
                 self._on_trouble(f"tasks changed by {ev.source}")
 
     def _on_trouble(self, cause: str) -> None:
-        """A rover lost, a task's work off its plan: replan at the next stop."""
+        """A rover lost, a task's work off its plan, ...: replan at the next stop (every cause said)."""
         if self.trouble is None:
             self.trouble = cause
+        elif cause not in self.trouble:
+            self.trouble += f"; {cause}"
 
     async def _replan(self) -> OperationPlan | None:
         """The rest of the operation planned from the live state (None: nothing to plan, or no

@@ -14,6 +14,7 @@ from fleetctl.mavlink.vehicle import CommandRejected, Vehicle, VehicleEvent
 from fleetctl.run.carrier import upload
 from fleetctl.run.context import ExecutionError, RunContext
 from fleetctl.run.kinds import Ev, VehicleStatus
+from fleetctl.run.launch import rover_on_deck
 from fleetctl.run.operation.board import OperationBoard, SortieEntry, SortieStatus
 from planners.operations.plan import Sortie
 
@@ -51,8 +52,9 @@ class SortieFlight:
                  trouble: Callable[[str], None]) -> None:
         self.ctx, self.board, self.entry, self.planned = ctx, board, entry, planned
         self.items, self.pickup = items, pickup
-        self.base = clock.base  # operation s of the plan's time 0
         self.now, self.delay = clock.now, clock.delay  # operation clock; the operation's delay on its plan
+        # task -> its planned arrival and end of work, operation s
+        self.times = {v.task: (clock.base + v.arrive, clock.base + v.end) for v in planned.visits}
         self.trouble = trouble  # told when a task's work ends further off its plan than REPLAN_SLACK
         self.back: ReturnItems | None = None  # its way back, once uploaded and started
         self.reached_at: dict[int, float] = {}  # item -> operation s its MISSION_ITEM_REACHED came in
@@ -72,9 +74,8 @@ class SortieFlight:
     async def fly(self) -> None:
         unlisten = self.vehicle.add_listener(self._on_event)
         try:
-            for w, visit in zip(self.items.work, self.planned.visits, strict=True):
-                b = self.base
-                await self._work(w.task, w.arrive_seq, w.done_seq, b + visit.arrive, b + visit.end)
+            for w in self.items.work:
+                await self._work(w.task, w.arrive_seq, w.done_seq)
             await self._wait_leave()
             await self._go_back()
         except (TimeoutError, LinkError, CommandRejected, ExecutionError) as exc:
@@ -82,9 +83,9 @@ class SortieFlight:
         finally:
             unlisten()
 
-    async def _work(self, task: str, arrive_seq: int, done_seq: int, arrive: float, end: float) -> None:
+    async def _work(self, task: str, arrive_seq: int, done_seq: int) -> None:
         ctx, v, st = self.ctx, self.vehicle, self.ctx.state
-        rid = v.name
+        rid, arrive = v.name, self.times[task][0]
         await ctx.wait_for(v, lambda v: arrive_seq in v.items_reached or v.lost,
                            ctx.late(arrive + self.delay() - self.now()), f"at task {task}")
         self._check(v)
@@ -93,10 +94,10 @@ class SortieFlight:
         st.set_state(rid, VehicleStatus.ON_TASK, task)
         ctx.record(Ev.TASK_STARTED, vehicle=rid, task=task, sortie=self.entry.index)
         await ctx.wait_for(v, lambda v: done_seq in v.items_reached or v.lost,
-                           ctx.late(end - arrive), f"work at {task} done")
+                           ctx.late(work.duration), f"work at {task} done")
         self._check(v)
         work.done = self.reached_at.get(done_seq, self.now())
-        off = work.done - (end + self.delay())
+        off = work.done - (self.times[task][1] + self.delay())  # a replan on the way moved it
         if abs(off) > REPLAN_SLACK:
             self.trouble(f"task {task} done {off:+.0f} s off its plan")
         st.event(Ev.TASK_DONE, f"{rid}: task {task} done ({work.done - work.started:.1f} s of work, "
@@ -114,10 +115,12 @@ class SortieFlight:
         return [(t, self.board.tasks[t].duration - self.board.tasks[t].worked(now))
                 for t in self.entry.tasks if self.board.tasks[t].done is None]
 
-    def retarget(self, pickup: Pickup) -> None:
-        """A replan's pick-up; a rover already on its way back is sent to the new stop."""
+    def retarget(self, pickup: Pickup, planned: Sortie, base: float) -> None:
+        """A replan's pick-up and times (``planned``: its sortie in the new plan, whose time 0 is
+        ``base``); a rover already on its way back is sent to the new stop."""
         moved = pickup.position != self.pickup.position
         self.pickup = pickup
+        self.times.update({v.task: (base + v.arrive, base + v.end) for v in planned.visits if v.task})
         if self.back is not None and moved:
             self.ctx.spawn(self._resend(), f"back {self.entry.rover}")
 
@@ -167,8 +170,6 @@ class SortieFlight:
 
 async def land_on_deck(ctx: RunContext, flight: SortieFlight, timeout: float) -> bool:
     """Send a rover waiting above the stopped carrier down onto the deck; True once it is there."""
-    from fleetctl.run.launch import rover_on_deck
-
     v, back = flight.vehicle, flight.back
     if back is None or v.lost:
         return False
