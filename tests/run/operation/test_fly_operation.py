@@ -28,7 +28,8 @@ async def test_a_small_operation_flies_to_complete(tmp_path: Path) -> None:
     done = [r for r in records if r["kind"] == "task_done"]
     assert sorted(r["task"] for r in done) == sorted(tasks)  # each task worked once
     for r in done:  # for its duration: the firmware timed it (a landed task counts its touch-down too)
-        assert r["worked"] >= tasks[r["task"]] - 0.5, r  # seen on the controller's clock: message timing
+        # seen on the controller's clock as the messages came in: 1 s of mission time is 50 ms of wall time
+        assert r["worked"] >= tasks[r["task"]] - 1.0, r
     launched = [r for r in records if r["kind"] == "sortie_launched"]
     back = [r for r in records if r["kind"] == "sortie_back"]
     assert len(launched) == len(back) > 2  # rovers fly again: more sorties than rovers
