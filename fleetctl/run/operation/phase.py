@@ -42,6 +42,7 @@ log = logging.getLogger(__name__)
 PlanWriter = Callable[[str, dict[str, Any]], None]  # (file name in the run folder, plan JSON)
 LANDING_TIMEOUT = 20.0  # mission s from the land command to the rover on the deck
 SWAP_EPS = 1e-6
+BATTERY_READ_WAIT = 1.0  # wall s for each rover's fresh battery reading before a replan
 REPLAN_ROUNDS = 20  # the planner's perturbed rounds in a replan (rovers in the air fly on meanwhile)
 ROUTE_START_WAIT = 5.0  # mission s for a carrier to report the new route's first item current
 BATTERY_SLACK = 0.05  # a rover back with this much less of its battery than planned asks for a replan
@@ -176,6 +177,9 @@ class OperationPhase:
         ctx, cause = self.ctx, self.trouble or ""
         self.trouble = None
         self.flights = {r: f for r, f in self.flights.items() if f.entry.status is not SortieStatus.LOST}
+        # streamed battery readings are ~1 s of wall time old: many mission s on a fast simulated fleet
+        await asyncio.gather(*(v.refresh_battery(BATTERY_READ_WAIT) for v in ctx.fleet.rovers.values()
+                               if v.connected and not v.lost))
         problem, state = live_problem(ctx, self.board, self.changes.tasks, self.flights.values(),
                                       set(self.swaps.pending), self.carrier.pose())
         if not problem.tasks and not state.in_flight:
@@ -235,6 +239,8 @@ class OperationPhase:
                                         if f.entry.status is SortieStatus.RETURNING))
         if any(landed):
             await ctx.sleep_mission(ctx.mission.carrier.load_time)
+            await asyncio.gather(*(f.vehicle.refresh_battery(BATTERY_READ_WAIT) for f in flights
+                                   if not f.vehicle.lost))  # what they came back with
         for f in flights:
             self.flights.pop(f.entry.rover, None)
             if f.entry.status is SortieStatus.RETURNING and f.vehicle.on_ground:

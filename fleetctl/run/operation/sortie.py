@@ -5,13 +5,15 @@ the planned leave time moved by the operation's delay so far (:attr:`SortieFligh
 from __future__ import annotations
 
 import contextlib
+import math
 from collections.abc import Callable
 from dataclasses import dataclass
 
+from fleetctl.geo import local_to_geodetic
 from fleetctl.mavlink.link import LinkError
 from fleetctl.mavlink.sortie import ReturnItems, SortieItems, return_items
 from fleetctl.mavlink.vehicle import CommandRejected, Vehicle, VehicleEvent
-from fleetctl.run.carrier import upload
+from fleetctl.run.carrier import STAY_SPEED, upload
 from fleetctl.run.context import ExecutionError, RunContext
 from fleetctl.run.kinds import Ev, VehicleStatus
 from fleetctl.run.launch import rover_on_deck
@@ -20,6 +22,8 @@ from planners.operations.plan import Sortie
 
 Vec3 = tuple[float, float, float]
 RECHECK = 1.0  # mission s between looks at the leave time while a rover waits at its last task
+LAND_OFFSET = 1.0  # m: a rover waiting further off the stopped carrier lands at the carrier's position
+CARRIER_STOP_WAIT = 10.0  # mission s for the carrier at its stop to come to rest before rovers land on it
 REPLAN_SLACK = 15.0  # mission s: a task's work done this much earlier or later than planned asks for a replan
 
 
@@ -169,12 +173,21 @@ class SortieFlight:
 
 
 async def land_on_deck(ctx: RunContext, flight: SortieFlight, timeout: float) -> bool:
-    """Send a rover waiting above the stopped carrier down onto the deck; True once it is there."""
-    v, back = flight.vehicle, flight.back
+    """Send a rover waiting above the carrier down onto its deck once the carrier has stopped (its
+    stop's waypoint is reached before it has braked); a rover hovering more than ``LAND_OFFSET`` off
+    the carrier lands at the carrier's position instead of its stop's. True once it is on the deck."""
+    v, back, c = flight.vehicle, flight.back, ctx.fleet.carrier
     if back is None or v.lost:
         return False
+    with contextlib.suppress(TimeoutError):
+        await ctx.wait_for(c, lambda c: (c.ground_speed or 0.0) <= STAY_SPEED, CARRIER_STOP_WAIT, "stopped")
     with contextlib.suppress(CommandRejected, LinkError, TimeoutError):
-        await ctx.command(v, "land", v.set_current(back.land_seq), seq=back.land_seq)
+        if v.enu is not None and c.enu is not None and c.origin is not None and \
+                math.hypot(v.enu[0] - c.enu[0], v.enu[1] - c.enu[1]) > LAND_OFFSET:
+            lat, lon, _alt = local_to_geodetic(c.enu[0], c.enu[1], 0.0, c.origin)
+            await ctx.command(v, "land", v.land(lat, lon))
+        else:
+            await ctx.command(v, "land", v.set_current(back.land_seq), seq=back.land_seq)
         await ctx.wait_for(v, lambda v: v.lost or (v.on_ground is True and rover_on_deck(ctx, v)), timeout,
                            "on the deck")
         return not v.lost
