@@ -45,7 +45,7 @@ SWAP_EPS = 1e-6
 BATTERY_READ_WAIT = 1.0  # wall s for each rover's fresh battery reading before a replan
 REPLAN_ROUNDS = 20  # the planner's perturbed rounds in a replan (rovers in the air fly on meanwhile)
 ROUTE_START_WAIT = 5.0  # mission s for a carrier to report the new route's first item current
-BATTERY_SLACK = 0.05  # a rover back with this much less of its battery than planned asks for a replan
+BATTERY_SLACK = 0.02  # of a battery: a next sortie that would end this near the reserve asks for a replan
 
 
 class OperationPhase:
@@ -260,11 +260,18 @@ class OperationPhase:
             self._check_battery(f)
 
     def _check_battery(self, f: SortieFlight) -> None:
-        """A rover back with less battery than planned flies its next sortie on it: replan."""
-        frac = f.vehicle.battery_fraction
-        if frac is not None and frac < f.pickup.battery_left - BATTERY_SLACK:
-            self._on_trouble(f"rover {f.entry.rover} back with {100 * frac:.0f} % of its battery, "
-                             f"{100 * f.pickup.battery_left:.0f} % planned")
+        """A rover back with less battery than planned flies its next sortie on it: replan when
+        that sortie would take it below the reserve."""
+        assert self.plan is not None
+        frac, rid = f.vehicle.battery_fraction, f.entry.rover
+        if frac is None or frac >= f.pickup.battery_left:
+            return
+        nxt = min((s for s in self.plan.sorties if s.rover == rid and s.takeoff > f.pickup.aboard),
+                  key=lambda s: s.takeoff, default=None)
+        reserve = self.ctx.mission.rovers.reserve
+        if nxt is not None and nxt.battery_left - (f.pickup.battery_left - frac) < reserve + BATTERY_SLACK:
+            self._on_trouble(f"rover {rid} back with {100 * frac:.0f} % of its battery, "
+                             f"{100 * f.pickup.battery_left:.0f} % planned: too little for its next sortie")
 
     def _swap_due(self, rover: str, aboard: float) -> bool:
         """A planned swap of ``rover`` after this pick-up and before its next launch."""

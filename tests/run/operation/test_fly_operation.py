@@ -74,7 +74,7 @@ async def test_a_rover_lost_mid_operation_is_replanned_around(tmp_path: Path) ->
     assert (tmp_path / "run" / "plan-replan-1.json").exists()
 
 
-async def test_a_battery_lower_than_planned_is_replanned_from(tmp_path: Path) -> None:
+async def test_a_battery_too_low_for_the_next_sortie_is_replanned_from(tmp_path: Path) -> None:
     d = small_operation()
     d["sim"]["faults"] = [{"vehicle": "r1", "kind": "battery_drain", "factor": 1.3}]
     mission = mission_from(d, tmp_path)
