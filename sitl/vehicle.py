@@ -434,6 +434,20 @@ class SimVehicle:
             self.home = (x, y, max(z, 0.0))
         return M.MAV_RESULT_ACCEPTED
 
+    def _cmd_battery_reset(self, cmd: Command) -> int:
+        """MAV_CMD_BATTERY_RESET (param2: the percentage now left, default 100): a battery swapped
+        (or charged) on the carrier's deck. Refused in the air, armed, or off the deck."""
+        rover = self.rover
+        if rover is None:
+            return M.MAV_RESULT_UNSUPPORTED
+        if self.armed or not rover.loaded:
+            self.statustext("Battery swap denied: not disarmed on the deck", M.MAV_SEVERITY_WARNING)
+            return M.MAV_RESULT_DENIED
+        pct = cmd.p[1] if math.isfinite(cmd.p[1]) and 0.0 < cmd.p[1] <= 100.0 else 100.0
+        rover.battery = pct / 100.0
+        self.statustext(f"Battery swapped: {pct:.0f}%")
+        return M.MAV_RESULT_ACCEPTED
+
     def _cmd_request_message(self, cmd: Command) -> int | tuple[int, Callable[[], None]]:
         msgid = int(cmd.p[0]) if math.isfinite(cmd.p[0]) else -1
         if msgid not in REQUESTABLE:
@@ -634,12 +648,19 @@ class SimVehicle:
                 self._emit(M.MAVLINK_MSG_ID_EXTENDED_SYS_STATE)  # the landed state as it changes
                 self.statustext("Landed on carrier" if body.loaded else "Landed")
                 delay = self.flavour.disarm_delay()
-                if self.armed and delay >= 0:
+                if self.armed and delay >= 0 and not self._landing_mid_mission():
                     self._disarm_at = t + delay
             elif ev == "battery_empty":
                 self.statustext("Battery empty: landing", M.MAV_SEVERITY_CRITICAL)
                 if body.phase is Phase.AIR:
                     self._set_mode_raw(Mode.LAND)
+
+    def _landing_mid_mission(self) -> bool:
+        """A NAV_LAND of the mission that more items follow (a task worked landed, then a
+        NAV_DELAY and a NAV_TAKEOFF): the vehicle stays armed on the ground, as in a mission."""
+        cur = self.current
+        return (self.mode is Mode.MISSION and cur + 1 < len(self.mission)
+                and self.mission[cur].command == ms.NAV_LAND)
 
     # -- mission executor ------------------------------------------------------------------
     def _has_mission(self) -> bool:
@@ -679,6 +700,8 @@ class SimVehicle:
         if cmd == ms.NAV_RTL:
             self._rtl_phase = 0
             return self._rtl_step()
+        if cmd == ms.NAV_DELAY:  # wait where it is: hovering, or landed (a task worked on the ground)
+            return False
         if cmd == ms.NAV_TAKEOFF:
             if not self.is_rover:
                 return True
@@ -730,7 +753,7 @@ class SimVehicle:
             return self._rtl_step()
         if cmd == ms.NAV_LOITER_UNLIM:
             return False
-        if not body.arrived:
+        if cmd != ms.NAV_DELAY and not body.arrived:
             return False
         if self._hold_until is None:
             hold = item.param1 if math.isfinite(item.param1) and item.param1 > 0 else 0.0
@@ -1227,6 +1250,7 @@ _COMMANDS: dict[int, Callable[[SimVehicle, Command], Any]] = {
     M.MAV_CMD_DO_CHANGE_SPEED: SimVehicle._cmd_change_speed,
     M.MAV_CMD_DO_SET_HOME: SimVehicle._cmd_set_home,
     M.MAV_CMD_REQUEST_MESSAGE: SimVehicle._cmd_request_message,
+    M.MAV_CMD_BATTERY_RESET: SimVehicle._cmd_battery_reset,
     M.MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES: SimVehicle._cmd_request_capabilities,
     M.MAV_CMD_SET_MESSAGE_INTERVAL: SimVehicle._cmd_set_interval,
     M.MAV_CMD_GET_MESSAGE_INTERVAL: SimVehicle._cmd_get_interval,

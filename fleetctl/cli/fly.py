@@ -40,9 +40,10 @@ Confirm = Callable[[list[str]], bool]
 def cmd_fly(args: argparse.Namespace) -> int:
     mission = load_mission(args.mission)
     warn_mission(mission, args.command == "collect")
-    if mission.operation:
-        raise CliError(f"{mission.path}: operation: flying a long operation is not supported yet; "
-                       f"'fleetctl plan --mission {args.mission}' plans it (docs/operations.md)")
+    if mission.operation and args.command != "run":
+        raise CliError(f"{mission.path}: operation: a long operation is flown whole, its sorties "
+                       f"deploying and collecting rovers in turn: fly it with "
+                       f"'fleetctl run --mission {args.mission}' (docs/operations.md)")
     if args.command in ("deploy", "run") and not mission.tasks:
         raise CliError(f"{mission.path}: tasks: the mission has no tasks to deploy rovers to (a collection-"
                        f"only mission); fly it with 'fleetctl collect --mission {args.mission}'")
@@ -51,6 +52,9 @@ def cmd_fly(args: argparse.Namespace) -> int:
 
 def cmd_resume(args: argparse.Namespace) -> int:
     mission, command, where = _resumption(args)
+    if mission.operation:
+        raise CliError(f"{args.run}: resuming a long operation is not supported yet; fly it again with "
+                       f"'fleetctl run' once the rovers are back on the deck (docs/operations.md)")
     return _fly(args, mission, command, where)
 
 

@@ -739,6 +739,13 @@ class Vehicle:
                 return
         raise TimeoutError(f"{self.name}: MISSION_SET_CURRENT {seq} not confirmed")
 
+    async def swap_battery(self, percent: float = 100.0) -> None:
+        """Tell a rover on the deck that its battery was swapped (or charged) to ``percent``
+        (MAV_CMD_BATTERY_RESET, every battery of the mask): on the simulated fleet this fills it;
+        on real vehicles the swap is the operator's or a station's and this resets the autopilot's
+        battery estimate. The vehicle must be disarmed on the deck."""
+        await self.command(M.MAV_CMD_BATTERY_RESET, (255, percent))
+
     async def pause(self) -> None:
         """Hold position in the middle of a mission (DO_PAUSE_CONTINUE 0)."""
         await self.command(M.MAV_CMD_DO_PAUSE_CONTINUE, (0,))

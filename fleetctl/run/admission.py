@@ -47,6 +47,11 @@ class Admission:
     safety: Any = None  # set by admit: the fleetctl.run.safety.SafetyReport
 
 
+def _rovers_needed(mission: Mission) -> int:
+    """Rovers a deployment needs: one per task; a long operation's rovers fly several sorties."""
+    return 1 if mission.operation else len(mission.tasks)
+
+
 async def admit(fleet: Fleet, mission: Mission, command: str, adm: Admission) -> dict[str, str]:
     """Check the connected fleet (see the module docstring); returns the missing rovers -> why.
     Raises :class:`ExecutionError` when the run must not go ahead."""
@@ -59,7 +64,7 @@ async def admit(fleet: Fleet, mission: Mission, command: str, adm: Admission) ->
         raise ExecutionError(f"{len(missing)} vehicle(s) did not answer (--require-all; "
                              f"{CONNECT_HINT}):{lines}")
     answered = len(fleet.rovers) - len(missing)
-    if command in ("deploy", "run") and answered < len(mission.tasks):
+    if command in ("deploy", "run") and answered < _rovers_needed(mission):
         raise ExecutionError(f"only {answered} rover(s) answered for {len(mission.tasks)} tasks "
                              f"({CONNECT_HINT}):{lines}")
     params = prefetch_failsafes(fleet)  # read while listening for another controller
@@ -75,7 +80,7 @@ async def admit(fleet: Fleet, mission: Mission, command: str, adm: Admission) ->
     if adm.left_out and adm.require_all:
         raise ExecutionError(f"{len(adm.left_out)} rover(s) failed preflight (--require-all): {failed}")
     passed = answered - len(adm.left_out)
-    if command in ("deploy", "run") and not adm.resuming and passed < len(mission.tasks):
+    if command in ("deploy", "run") and not adm.resuming and passed < _rovers_needed(mission):
         raise ExecutionError(f"only {passed} rover(s) passed preflight for "
                              f"{len(mission.tasks)} tasks; failed: {failed}")
     if adm.confirm is not None:

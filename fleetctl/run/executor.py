@@ -14,6 +14,7 @@ from __future__ import annotations
 import asyncio
 import logging
 from collections.abc import Callable, Iterable
+from typing import TYPE_CHECKING, Any
 
 from fleetctl.mavlink.fleet import Fleet
 from fleetctl.mavlink.vehicle import Vehicle, VehicleEvent
@@ -33,6 +34,9 @@ from fleetctl.run.task_board import TaskBoard
 from fleetctl.run.vehicle_events import tell_vehicle_event
 from planners.core.plan import Plan
 from planners.core.problem import Task
+
+if TYPE_CHECKING:
+    from fleetctl.run.operation import OperationPhase
 
 log = logging.getLogger(__name__)
 
@@ -68,6 +72,7 @@ class Executor:
         self.parts = PhaseParts(self.ctx, self.carrier, self.supervisor, self.planning)
         self.deploy_phase: DeployPhase | None = None
         self.collect_phase: CollectPhase | None = None
+        self.operation_phase: OperationPhase | None = None
         self._unlisten = fleet.add_listener(self._on_vehicle_event)
         try:
             self._loop: asyncio.AbstractEventLoop | None = asyncio.get_running_loop()
@@ -88,6 +93,13 @@ class Executor:
         from live positions and batteries and fly it; ``resumed`` takes over an interrupted one."""
         self.collect_phase = CollectPhase(self.parts, resumed)
         return await self.collect_phase.run(rover_ids)
+
+    async def operate(self, write_plan: Callable[[str, dict[str, Any]], None] | None = None) -> PhaseResult:
+        """Plan and fly a long operation (sorties, pick-ups, battery swaps; docs/operations.md)."""
+        from fleetctl.run.operation import OperationPhase
+
+        self.operation_phase = OperationPhase(self.parts, write_plan, self.board)
+        return await self.operation_phase.run()
 
     async def sleep_mission(self, seconds: float) -> None:
         await self.ctx.sleep_mission(seconds)

@@ -36,6 +36,7 @@ class Phase(StrEnum):
     DEPLOY = "deploy"
     DWELL = "dwell"
     COLLECT = "collect"
+    OPERATION = "operation"  # a long operation: sorties, pick-ups and swaps
     DONE = "done"
     FAILED = "failed"
     INTERRUPTED = "interrupted"
@@ -97,6 +98,15 @@ class Ev(StrEnum):
     TASK_CHANGE_REJECTED = "task_change_rejected"
     COLLECTION_STARTED = "collection_started"
     NOTHING_TO_COLLECT = "nothing_to_collect"
+    # a long operation (fleetctl.run.operation, docs/operations.md)
+    SORTIE_LAUNCHED = "sortie_launched"  # a rover left the deck for a sortie (its tasks)
+    TASK_STARTED = "task_started"  # a rover is at its task: the work starts
+    TASK_DONE = "task_done"  # the firmware reported the task's duration of work done
+    SORTIE_RETURNING = "sortie_returning"  # a rover left its last task for its pick-up stop
+    SORTIE_BACK = "sortie_back"  # a rover of a sortie is loaded on the deck
+    SORTIE_LOST = "sortie_lost"  # a rover was lost during its sortie (its work left is replanned)
+    BATTERY_SWAPPED = "battery_swapped"  # a rover's battery swapped on the deck, back to full
+    OPERATION_DONE = "operation_done"  # every task worked, every rover back (or the operation ended short)
     # supervision
     LINK_LOST = "link_lost"
     LINK_BACK = "link_back"

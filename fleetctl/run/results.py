@@ -9,13 +9,14 @@ from planners.core.plan import Plan
 
 @dataclass
 class PhaseResult:
-    kind: str  # "deploy" | "collect"
+    kind: str  # "deploy" | "collect" | "operation"
     plan: Plan | None = None
     complete: bool = False
     planned: float | None = None  # planned makespan (mission seconds)
     flown: float | None = None  # flown makespan (mission seconds), None when not complete
     started: float | None = None  # mission clock when the carrier started
     tasks_reached: list[str] = field(default_factory=list)
+    tasks_done: list[str] = field(default_factory=list)  # operation: the task's duration of work done
     tasks_unserved: list[str] = field(default_factory=list)
     rovers_loaded: list[str] = field(default_factory=list)
     rovers_lost: list[str] = field(default_factory=list)

@@ -226,12 +226,18 @@ class Run(OnSession):
     # ============================================================================== the phases
     async def _phases(self) -> None:
         resume = self.opts.resume
-        todo = resume.phases_left(self.command) if resume is not None else _phases_of(self.command)
+        if resume is not None and self.mission.operation:
+            raise ExecutionError("resuming a long operation is not supported yet: fly it again with "
+                                 "'fleetctl run' (the rovers must be on the deck)")
+        todo = (resume.phases_left(self.command) if resume is not None
+                else ["operation"] if self.mission.operation else _phases_of(self.command))
         if resume is not None:
             self.results.update(resume.finished_results())
         for phase in todo:
             await self.journal.commit(Ev.PHASE, phase=phase)
-            if phase == "deploy":
+            if phase == "operation":
+                await self._operation()
+            elif phase == "deploy":
                 await self._deploy()
             elif phase == "dwell":
                 await self._dwell()
@@ -309,6 +315,20 @@ class Run(OnSession):
         await self.executor.sleep_mission(left)
         self.dwell_flown = (wait - left) + (self.clock() - td)
 
+    async def _operation(self) -> None:
+        """A long operation (docs/operations.md): one phase of sorties, pick-ups and swaps."""
+        assert self.executor is not None
+        r = await self.executor.operate(self._write_operation_plan)
+        self.results["operation"] = r
+        if not r.complete:
+            lost = f"; rovers lost: {', '.join(r.rovers_lost)}" if r.rovers_lost else ""
+            left = ", ".join(r.tasks_unserved) or "none"
+            raise ExecutionError(f"operation incomplete: work not done: {left}{lost}")
+        await self.executor.carrier.park()
+
+    def _write_operation_plan(self, name: str, plan: dict[str, Any]) -> None:
+        self.journal.write_json(name, plan)
+
     async def _collect(self) -> None:
         assert self.executor is not None
         resume = self.opts.resume
@@ -346,6 +366,8 @@ class Run(OnSession):
             return
         if ex.deploy_phase is not None and "deploy" not in self.results:
             self.results["deploy"] = ex.deploy_phase.snapshot()
+        if ex.operation_phase is not None and "operation" not in self.results:
+            self.results["operation"] = ex.operation_phase.snapshot()
         if ex.collect_phase is not None and "collect" not in self.results:
             self.results["collect"] = ex.collect_phase.snapshot()
 

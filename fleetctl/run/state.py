@@ -10,6 +10,7 @@ headless log) get every event as it happens.
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import math
 import time
@@ -97,6 +98,7 @@ class FleetState:
         self.replans = 0  # replans so far (fleetctl.run.executor)
         self.last_replan: str | None = None  # text of the latest replan event
         self.link: dict[str, int] = {}  # what the links refused (Fleet.link_rejections)
+        self.operation: Callable[[], OperationProgress] | None = None  # a long operation's progress (views)
         self.signing = False
 
     @property
@@ -225,9 +227,29 @@ class FleetState:
             "phase": self.phase, "stop": self.stop_index, "stops": self.stop_count, "planned": self.planned,
             "eta": self.eta,
             "elapsed": self.elapsed, "replans": self.replans, "last_replan": self.last_replan,
+            **({"operation": dataclasses.asdict(self.operation())} if self.operation is not None else {}),
             "vehicles": {vid: {"state": v.state, "task": v.task, "enu": v.enu, "battery_pct": v.battery_pct,
                                "lost": v.lost} for vid, v in self.vehicles.items()},
         }
+
+
+@dataclass(frozen=True)
+class OperationProgress:
+    """A long operation as the views show it: its sorties, each task's work and the end it heads for."""
+
+    sorties_out: int  # launched, not back yet
+    sorties_back: int
+    sorties_planned: int  # every sortie of the plans flown so far
+    tasks: dict[str, tuple[float, float, str | None, bool]]  # task -> (s worked, duration s, rover, done)
+    eta: float | None  # mission s of the phase: the plan's end moved by the delay so far
+
+    @property
+    def done(self) -> int:
+        return sum(1 for *_w, done in self.tasks.values() if done)
+
+    def working(self) -> list[tuple[str, float, float, str | None]]:
+        """Tasks being worked now: (task, s worked, duration s, rover)."""
+        return [(t, w, d, r) for t, (w, d, r, done) in self.tasks.items() if w > 0.0 and not done]
 
 
 DECK_RADIUS = 1.5  # m: a landed rover this close (horizontally) to the carrier is on its deck
@@ -253,4 +275,5 @@ def on_deck(pos: tuple[float, float, float] | None, carrier: tuple[float, float,
     return dz <= DECK_HEIGHT and (speed is None or speed < 0.2)
 
 
-__all__ = ["DECK_HEIGHT", "DECK_RADIUS", "LANDED_HEIGHT", "Event", "FleetState", "VehicleState", "on_deck"]
+__all__ = ["DECK_HEIGHT", "DECK_RADIUS", "LANDED_HEIGHT", "Event", "FleetState", "OperationProgress",
+           "VehicleState", "on_deck"]

@@ -35,7 +35,8 @@ class RunFacts:
 
 
 def build_summary(f: RunFacts) -> dict[str, Any]:
-    dep, col = f.results.get("deploy"), f.results.get("collect")
+    op = f.results.get("operation")  # a long operation: one phase that deploys and collects
+    dep, col = (op, op) if op is not None else (f.results.get("deploy"), f.results.get("collect"))
     task_ids = list(dep.tasks_all) if dep is not None and dep.tasks_all else [t.id for t in f.mission.tasks]
     reached = [] if f.command == "collect" else (dep.tasks_reached if dep else [])
     unserved = [] if f.command == "collect" else [t for t in task_ids if t not in reached]
@@ -60,6 +61,7 @@ def build_summary(f: RunFacts) -> dict[str, Any]:
         "phase": f.command,
         "result": "complete" if complete else ("interrupted" if f.interrupted else "incomplete"),
         "tasks_reached": reached,
+        "tasks_done": _tasks_done(f, op, reached, complete),
         "tasks_unserved": unserved,
         "rovers_loaded": col.rovers_loaded if col else [],
         "rovers_lost": lost,
@@ -89,9 +91,19 @@ def build_summary(f: RunFacts) -> dict[str, Any]:
     return out
 
 
+def _tasks_done(f: RunFacts, op: PhaseResult | None, reached: list[str], complete: bool) -> list[str]:
+    """Tasks whose work is done: an operation's, as its rovers reported them; a complete ``run``'s
+    reached tasks (the dwell was their work); none for ``deploy`` or ``collect`` alone."""
+    if op is not None:
+        return list(op.tasks_done)
+    return list(reached) if f.command == "run" and complete else []
+
+
 def _makespans(
     f: RunFacts, dep: PhaseResult | None, col: PhaseResult | None, complete: bool
 ) -> tuple[float | None, float | None]:
+    if dep is not None and dep is col:  # an operation
+        return dep.planned, dep.flown if complete else None
     if f.command == "deploy":
         return (dep.planned, dep.flown) if dep else (None, None)
     if f.command == "collect":

@@ -22,7 +22,7 @@ from rich.table import Table
 from rich.text import Text
 
 from fleetctl.run.kinds import Ev
-from fleetctl.run.state import Event, FleetState, VehicleState
+from fleetctl.run.state import Event, FleetState, OperationProgress, VehicleState
 from fleetctl.views.eta import FLYING, PlannedLeg, mission_time_to_go, planned_legs, time_to_go
 from fleetctl.views.levels import STYLE, battery_level, link_level
 from fleetctl.views.teams import ShownTeam, ShownTeams
@@ -76,6 +76,19 @@ def _header(state: FleetState) -> Table:
         head.add_row(Text(f"replans {state.replans}", style="bold magenta"),
                      Text(state.last_replan or "", style="magenta", overflow="ellipsis"), "")
     return head
+
+
+def _operation_line(op: OperationProgress, working: int = 4) -> Text:
+    """A long operation: sorties out and back, tasks done, the ETA, and the tasks being worked
+    with their work done / duration (at most ``working`` of them)."""
+    eta = "" if op.eta is None else f" · ETA {op.eta:.1f} s"
+    line = (f"sorties {op.sorties_out} out, {op.sorties_back} back of {op.sorties_planned} · "
+            f"tasks {op.done}/{len(op.tasks)} done{eta}")
+    now = op.working()
+    if now:
+        shown = ", ".join(f"{t} {w:.0f}/{d:.0f} s ({r})" for t, w, d, r in now[:working])
+        line += f" · working: {shown}" + (f" … {len(now) - working} more" if len(now) > working else "")
+    return Text(line, style="cyan", overflow="ellipsis", no_wrap=True)
 
 
 def _is_airborne(v: VehicleState) -> bool:
@@ -161,6 +174,8 @@ def render(state: FleetState, max_rows: int | None = None, status: Sequence[str]
     for v in rows:
         table.add_row(*_cells(state, v, cols, legs))
     parts: list[RenderableType] = [_header(state)]
+    if state.operation is not None:
+        parts.append(_operation_line(state.operation()))
     parts += [Text(line, style="dim" if line.startswith("bus: connected") else "yellow", overflow="ellipsis",
                    no_wrap=True) for line in status]
     parts.append(table)

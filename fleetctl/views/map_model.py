@@ -10,7 +10,8 @@
 
 The page's documents: ``plan`` = ``{"kind", "makespan", "tasks": [{id, e, n, u, team}],
 "teams": [{"team", "colour", "kind", "makespan", "route", "stops", "paths"}]}`` and ``frame`` =
-``{"mission", "T", "phase", "stop", "stops", "elapsed", "planned", "ttg", "replans", "teams":
+``{"mission", "T", "phase", "stop", "stops", "elapsed", "planned", "ttg", "replans", "operation" (a long
+operation: :func:`_operation`, else null; one team), "teams":
 [{"team", "colour", "phase", "stop", "stops", "elapsed", "planned", "ttg", "eta", "replans"}],
 "vehicles": [{..., "team"}], "events": [{"T", "kind", "text", "team"}]}``. One state (a one-team
 run, replay, a one-team watch) is one entry of ``teams`` whose ``team`` and ``colour`` are null,
@@ -84,10 +85,24 @@ def frame(state: FleetState) -> dict[str, Any]:
         "mission": state.mission_name, "T": _r(state.mission_time, 1), "phase": str(state.phase),
         "stop": state.stop_index, "stops": state.stop_count, "elapsed": _r(state.elapsed, 1),
         "planned": _r(state.planned, 1), "ttg": _r(mission_time_to_go(state), 1), "replans": state.replans,
+        "operation": _operation(state),
         "vehicles": vehicles,
         "events": [{"T": _r(ev.mission_time, 1), "kind": ev.kind, "text": ev.text}
                    for ev in list(state.events)[-EVENTS_SHOWN:]],
     }
+
+
+def _operation(state: FleetState) -> dict[str, Any] | None:
+    """A long operation's progress: sorties out, back and planned, tasks done of all, each task's
+    ``[work done s, duration s]``, and ``eta`` as ``T`` (mission s since the run started); None
+    for any other run."""
+    if state.operation is None:
+        return None
+    op = state.operation()
+    eta = None if op.eta is None else state.mission_time - state.elapsed + op.eta
+    return {"sorties_out": op.sorties_out, "sorties_back": op.sorties_back, "sorties": op.sorties_planned,
+            "done": op.done, "tasks": {t: [w, d] for t, (w, d, _r, _done) in op.tasks.items()},
+            "working": [t for t, *_rest in op.working()], "eta": _r(eta, 1)}
 
 
 def teams_plan(teams: ShownTeams) -> dict[str, Any]:

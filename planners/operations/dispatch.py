@@ -17,6 +17,7 @@ from dataclasses import dataclass
 
 from planners.core.problem import PlanningError, Vec3
 from planners.operations.chains import assign
+from planners.operations.live import LiveState, seed
 from planners.operations.plan import OperationPlan
 from planners.operations.problem import OperationProblem, OpTask
 from planners.operations.schedule import Chain, Schedule
@@ -33,9 +34,13 @@ class Policy:
     jitter: int = 0  # a seed: a task's duration counts up to 30 % more or less in the launch order (0: none)
 
 
-def dispatch(problem: OperationProblem, sites: list[Site], policy: Policy, name: str) -> OperationPlan:
-    """The schedule of the whole operation (PlanningError when a rover's battery cannot be kept)."""
+def dispatch(problem: OperationProblem, sites: list[Site], policy: Policy, name: str,
+             start: LiveState | None = None) -> OperationPlan:
+    """The schedule of the whole operation, or of its rest from ``start`` (PlanningError when a
+    rover's battery cannot be kept)."""
     sch = Schedule(problem, policy.swap_below)
+    if start is not None:
+        seed(sch, start)
     rng = random.Random(policy.jitter)
     weight = {t.id: 1.0 + (0.3 * rng.uniform(-1.0, 1.0) if policy.jitter else 0.0) for t in problem.tasks}
     for n, site in enumerate(sites):

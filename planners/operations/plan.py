@@ -91,7 +91,7 @@ class OperationPlan:
             "sorties": [_sortie_json(k, s) for k, s in enumerate(self.sorties)],
             "rovers": self.timelines(),
             "tasks": {v.task: {"rover": s.rover, "sortie": k, "start": _t(v.arrive), "end": _t(v.end)}
-                      for k, s in enumerate(self.sorties) for v in s.visits},
+                      for k, s in enumerate(self.sorties) for v in s.visits if v.task},
             "makespan": _t(self.makespan),
             "carrier_distance": round(self.carrier_distance, 4),
             "compute_ms": round(self.compute_ms, 3),

@@ -13,6 +13,7 @@ from dataclasses import replace
 
 from planners.core.problem import PlanningError
 from planners.operations.dispatch import Policy, dispatch
+from planners.operations.live import LiveState
 from planners.operations.plan import OperationPlan
 from planners.operations.problem import OperationProblem
 from planners.operations.sites import cut_sites, task_tour
@@ -33,9 +34,10 @@ def policies(problem: OperationProblem) -> list[Policy]:
             for r in RADII for cap in CAPS for below in SWAP_BELOW for chase in CHASE]
 
 
-def _try(problem: OperationProblem, tour: list[int], policy: Policy) -> OperationPlan | None:
+def _try(problem: OperationProblem, tour: list[int], policy: Policy,
+         start: LiveState | None = None) -> OperationPlan | None:
     try:
-        return dispatch(problem, cut_sites(problem, tour, policy.radius), policy, "operation")
+        return dispatch(problem, cut_sites(problem, tour, policy.radius), policy, "operation", start)
     except PlanningError:
         return None
 
@@ -48,24 +50,28 @@ def _perturbed(tour: list[int], rng: random.Random) -> list[int]:
     return tour[:i] + tour[i:j][::-1] + tour[j:]
 
 
-def plan_operation(problem: OperationProblem) -> OperationPlan:
-    """Schedule the whole operation (PlanningError when no schedule keeps every battery)."""
+def plan_operation(problem: OperationProblem, start: LiveState | None = None,
+                   rounds: int = ROUNDS) -> OperationPlan:
+    """Schedule the whole operation, or (``start``) its rest from a live state: ``problem.tasks``
+    the work no rover has, ``problem.rovers`` every rover of the state; ``rounds`` perturbed
+    tours after the policies (PlanningError when no schedule keeps every battery)."""
     t0 = time.perf_counter()
     if not problem.rovers:
         raise PlanningError("an operation needs at least one rover")
-    tour = task_tour(problem)
-    found = [(p, pol, tour) for pol in policies(problem) if (p := _try(problem, tour, pol)) is not None]
+    tour = task_tour(problem) if problem.tasks else []
+    found = [(p, pol, tour) for pol in policies(problem)
+             if (p := _try(problem, tour, pol, start)) is not None]
     if not found:
         raise PlanningError("no schedule keeps every rover's battery (a task too long or too far to "
                             "fly to, work and fly back from on one battery)")
     best, policy, best_tour = min(found, key=lambda f: f[0].makespan)
     rng = random.Random(problem.seed)
-    for _ in range(ROUNDS):
+    for _ in range(rounds):
         if time.perf_counter() - t0 > TIME_LIMIT:
             break
         trial_tour = _perturbed(best_tour, rng)
         trial_policy = replace(rng.choice([policy, *(f[1] for f in found)]), jitter=rng.randrange(1, 2**31))
-        plan = _try(problem, trial_tour, trial_policy)
+        plan = _try(problem, trial_tour, trial_policy, start)
         if plan is not None and plan.makespan < best.makespan:
             best, policy, best_tour = plan, trial_policy, trial_tour
     best.compute_ms = (time.perf_counter() - t0) * 1e3

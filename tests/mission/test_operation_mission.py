@@ -118,9 +118,11 @@ def test_plan_an_operation_mission(planner: str, capsys: pytest.CaptureFixture[s
         assert any(len(s["visits"]) > 1 for s in plan["sorties"])
 
 
-def test_plan_summary_and_the_flying_commands_refuse_an_operation(capsys: pytest.CaptureFixture[str]) -> None:
+def test_plan_summary_and_deploy_or_collect_alone_refuse_an_operation(
+        capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["plan", "--mission", str(OPERATION)]) == 0
     assert "operation ends" in capsys.readouterr().out
     assert main(["plan", "--mission", str(OPERATION), "--collect"]) == 2
-    assert main(["run", "--mission", str(OPERATION), "--headless"]) == 2
-    assert "flying a long operation is not supported yet" in capsys.readouterr().err
+    for command in ("deploy", "collect"):
+        assert main([command, "--mission", str(OPERATION), "--headless"]) == 2
+        assert f"fly it with 'fleetctl run --mission {OPERATION}'" in capsys.readouterr().err

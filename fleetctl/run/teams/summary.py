@@ -59,6 +59,7 @@ def teams_summary(tr: TeamsRun) -> dict[str, Any]:
         "phase": cmd,
         "result": "complete" if complete else ("interrupted" if tr.interrupted else "incomplete"),
         "tasks_reached": reached,
+        "tasks_done": list(reached) if cmd == "run" and complete else [],  # the dwell was their work
         "tasks_unserved": unserved,
         "tasks_unserved_reasons": {t: _reason(tr, t) for t in unserved},
         "rovers_loaded": loaded,

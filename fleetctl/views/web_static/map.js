@@ -206,6 +206,13 @@
     $("stop").textContent = f.stops ? `stop ${f.stop}/${f.stops}` : "";
     $("clock").textContent = tplus(f.T);
     $("ttg").textContent = f.ttg === null ? "" : `ETA T+${fmt(f.T + f.ttg)}s (${fmt(f.ttg)} s to go)`;
+    const op = f.operation;
+    if (op) {  // a long operation: sorties, tasks done, the tasks being worked (done / duration), its ETA
+      const work = op.working.map(t => `${t} ${fmt(op.tasks[t][0])}/${fmt(op.tasks[t][1])} s`).join(", ");
+      $("stop").textContent += ` · sorties ${op.sorties_out} out, ${op.sorties_back} back of ${op.sorties}`
+        + ` · tasks ${op.done}/${Object.keys(op.tasks).length} done` + (work ? ` · working ${work}` : "");
+      if (op.eta !== null) $("ttg").textContent = `ETA T+${fmt(op.eta)}s`;
+    }
     currentStops = {};
     for (const t of f.teams || []) currentStops[t.team || ""] = t.stop;
     drawTeams(f);

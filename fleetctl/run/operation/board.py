@@ -1,0 +1,71 @@
+"""Where an operation stands: every sortie (a :class:`SortieStatus`), every task's work and who
+worked it, the swaps done. Nothing here touches the fleet; the phase changes it."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from enum import StrEnum
+
+from fleetctl.run.state import OperationProgress
+
+
+class SortieStatus(StrEnum):
+    PLANNED = "planned"
+    FLYING = "flying"  # launched, working its tasks
+    RETURNING = "returning"  # on its way back to its pick-up stop
+    ABOARD = "aboard"  # landed and loaded
+    LOST = "lost"  # its rover was lost in the air
+    FAILED = "failed"  # it did not take off
+
+
+@dataclass
+class TaskWorkState:
+    duration: float
+    rover: str | None = None
+    started: float | None = None  # mission s of the operation when the work began
+    done: float | None = None  # ... when the firmware reported it done
+
+    def worked(self, now: float) -> float:
+        """Seconds of work so far."""
+        if self.started is None:
+            return 0.0
+        return min((self.done if self.done is not None else now) - self.started, self.duration)
+
+
+@dataclass
+class SortieEntry:
+    index: int
+    rover: str
+    tasks: list[str]
+    status: SortieStatus = SortieStatus.PLANNED
+    launched: float | None = None
+    aboard: float | None = None
+
+
+@dataclass
+class OperationBoard:
+    tasks: dict[str, TaskWorkState] = field(default_factory=dict)
+    sorties: list[SortieEntry] = field(default_factory=list)
+    swaps: list[tuple[str, float]] = field(default_factory=list)  # (rover, mission s when done)
+    lost: list[str] = field(default_factory=list)
+
+    def done(self) -> list[str]:
+        return [t for t, w in self.tasks.items() if w.done is not None]
+
+    def left(self) -> list[str]:
+        return [t for t, w in self.tasks.items() if w.done is None]
+
+    def progress(self, now: float, eta: float | None) -> OperationProgress:
+        """What the views show (``now``: operation s; ``eta``: mission s of the phase)."""
+        out = sum(1 for s in self.sorties if s.status in (SortieStatus.FLYING, SortieStatus.RETURNING))
+        back = sum(1 for s in self.sorties if s.status is SortieStatus.ABOARD)
+        tasks = {t: (round(w.worked(now), 1), w.duration, w.rover, w.done is not None)
+                 for t, w in self.tasks.items()}
+        return OperationProgress(out, back, len(self.sorties), tasks, eta)
+
+    def flying(self, rover: str) -> SortieEntry | None:
+        return next((s for s in self.sorties if s.rover == rover
+                     and s.status in (SortieStatus.FLYING, SortieStatus.RETURNING)), None)
+
+
+__all__ = ["OperationBoard", "SortieEntry", "SortieStatus", "TaskWorkState"]

@@ -1,0 +1,59 @@
+"""Tasks added or removed while an operation flies (the watched mission file, MQTT): applied at
+the carrier's next stop, then the rest of the operation is replanned. An added task gets the running
+mission's work for it (``Mission.task_work``: its ``dwell`` and ``rovers.work`` for a task it does not
+know; a ``duration`` given with the change is not read yet); a task a rover in the air still has is
+not removed (the change says so)."""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+
+from fleetctl.run.context import RunContext
+from fleetctl.run.kinds import Ev
+from fleetctl.run.operation.board import OperationBoard, TaskWorkState
+from fleetctl.run.supervisor import SupervisorEvent
+from fleetctl.run.task_board import TaskBoard
+from planners.operations import OpTask
+
+
+class TaskChanges:
+    """Applies task changes to the operation's tasks (see the module docstring)."""
+
+    def __init__(self, ctx: RunContext, board: OperationBoard, tasks: dict[str, OpTask],
+                 live: TaskBoard) -> None:
+        self.ctx, self.board, self.tasks, self.live = ctx, board, tasks, live
+        self.added: list[str] = []
+        self.removed: list[str] = []
+
+    def apply(self, ev: SupervisorEvent, flying: Iterable[str]) -> bool:
+        """Apply one change (``flying``: tasks a rover in the air still has); True when the tasks changed."""
+        busy = set(flying)
+        kept = [t for t in ev.remove if t in busy]
+        gone = [t for t in ev.remove if t in self.board.tasks and t not in busy]
+        for tid in gone:
+            del self.board.tasks[tid]
+            self.tasks.pop(tid, None)
+            if tid in self.live.entries:
+                self.live.remove(tid)
+            self.removed.append(tid)
+        new = [t for t in ev.add if t.id not in self.board.tasks]
+        for t in new:
+            w = self.ctx.mission.task_work(t.id)
+            self.tasks[t.id] = OpTask(t.id, t.position, w.duration, w.ground)
+            self.board.tasks[t.id] = TaskWorkState(w.duration)
+            self.live.add(t)
+            self.added.append(t.id)
+        if kept:
+            self.ctx.state.event(Ev.TASK_CHANGE_REJECTED, f"task change from {ev.source}: {', '.join(kept)} "
+                                 f"kept: a rover in the air is working it", None, source=ev.source,
+                                 reason="a rover in the air is working it", tasks=kept)
+        if not (gone or new):
+            return False
+        ids = [t.id for t in new]
+        text = (f"tasks changed by {ev.source}: added {', '.join(ids) or 'none'}, "
+                f"removed {', '.join(gone) or 'none'}")
+        self.ctx.state.event(Ev.TASKS_CHANGED, text, None, add=ids, remove=gone, source=ev.source, added=ids)
+        return True
+
+
+__all__ = ["TaskChanges"]

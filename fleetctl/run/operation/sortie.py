@@ -1,0 +1,197 @@
+"""One rover's sortie in the air: its tasks' work (each reported done by the firmware's
+MISSION_ITEM_REACHED of the item that timed it) and its way back to the pick-up stop, started at
+the planned leave time moved by the operation's delay so far (:attr:`SortieFlight.leave_at`)."""
+
+from __future__ import annotations
+
+import contextlib
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+
+from fleetctl.geo import local_to_geodetic
+from fleetctl.mavlink.link import LinkError
+from fleetctl.mavlink.sortie import ReturnItems, SortieItems, return_items
+from fleetctl.mavlink.vehicle import CommandRejected, Vehicle, VehicleEvent
+from fleetctl.run.carrier import STAY_SPEED, upload
+from fleetctl.run.context import ExecutionError, RunContext
+from fleetctl.run.kinds import Ev, VehicleStatus
+from fleetctl.run.launch import rover_on_deck
+from fleetctl.run.operation.board import OperationBoard, SortieEntry, SortieStatus
+from planners.operations.plan import Sortie
+
+Vec3 = tuple[float, float, float]
+RECHECK = 1.0  # mission s between looks at the leave time while a rover waits at its last task
+LAND_OFFSET = 1.0  # m: a rover waiting further off the stopped carrier lands at the carrier's position
+CARRIER_STOP_WAIT = 10.0  # mission s for the carrier at its stop to come to rest before rovers land on it
+REPLAN_SLACK = 15.0  # mission s: a task's work done this much earlier or later than planned asks for a replan
+
+
+@dataclass(frozen=True)
+class FlightClock:
+    base: float  # operation s of the plan's time 0
+    now: Callable[[], float]  # the operation clock
+    delay: Callable[[], float]  # the operation's delay on its plan so far
+
+
+@dataclass
+class Pickup:
+    """Where and when a rover is to come back: the stop (index in the plan flown), its position,
+    and in operation seconds as planned: when the rover leaves its last task and is above the stop;
+    ``aboard`` in the plan's own time; ``battery_left``: the fraction planned at touch-down."""
+
+    stop: int
+    position: Vec3
+    leave: float
+    meet: float
+    aboard: float
+    battery_left: float
+
+
+class SortieFlight:
+    """Flies one launched sortie to its end on the deck's approach (see the module docstring)."""
+
+    def __init__(self, ctx: RunContext, board: OperationBoard, entry: SortieEntry, planned: Sortie,
+                 items: SortieItems, pickup: Pickup, clock: FlightClock,
+                 trouble: Callable[[str], None]) -> None:
+        self.ctx, self.board, self.entry, self.planned = ctx, board, entry, planned
+        self.items, self.pickup = items, pickup
+        self.now, self.delay = clock.now, clock.delay  # operation clock; the operation's delay on its plan
+        # task -> its planned arrival and end of work, operation s
+        self.times = {v.task: (clock.base + v.arrive, clock.base + v.end) for v in planned.visits}
+        self.trouble = trouble  # told when a task's work ends further off its plan than REPLAN_SLACK
+        self.back: ReturnItems | None = None  # its way back, once uploaded and started
+        self.reached_at: dict[int, float] = {}  # item -> operation s its MISSION_ITEM_REACHED came in
+
+    def _on_event(self, ev: VehicleEvent) -> None:
+        if ev.kind == "item_reached" and self.back is None:
+            self.reached_at.setdefault(int(ev.data["seq"]), self.now())
+
+    @property
+    def vehicle(self) -> Vehicle:
+        return self.ctx.fleet.rovers[self.entry.rover]
+
+    def above_stop(self, v: Vehicle) -> bool:
+        """Waiting above its pick-up stop (or lost: nobody waits for it)."""
+        return v.lost or (self.back is not None and self.back.target_seq in v.items_reached)
+
+    async def fly(self) -> None:
+        unlisten = self.vehicle.add_listener(self._on_event)
+        try:
+            for w in self.items.work:
+                await self._work(w.task, w.arrive_seq, w.done_seq)
+            await self._wait_leave()
+            await self._go_back()
+        except (TimeoutError, LinkError, CommandRejected, ExecutionError) as exc:
+            self._lost(str(exc))
+        finally:
+            unlisten()
+
+    async def _work(self, task: str, arrive_seq: int, done_seq: int) -> None:
+        ctx, v, st = self.ctx, self.vehicle, self.ctx.state
+        rid, arrive = v.name, self.times[task][0]
+        await ctx.wait_for(v, lambda v: arrive_seq in v.items_reached or v.lost,
+                           ctx.late(arrive + self.delay() - self.now()), f"at task {task}")
+        self._check(v)
+        work = self.board.tasks[task]
+        work.rover, work.started = rid, self.reached_at.get(arrive_seq, self.now())
+        st.set_state(rid, VehicleStatus.ON_TASK, task)
+        ctx.record(Ev.TASK_STARTED, vehicle=rid, task=task, sortie=self.entry.index)
+        await ctx.wait_for(v, lambda v: done_seq in v.items_reached or v.lost,
+                           ctx.late(work.duration), f"work at {task} done")
+        self._check(v)
+        work.done = self.reached_at.get(done_seq, self.now())
+        off = work.done - (self.times[task][1] + self.delay())  # a replan on the way moved it
+        if abs(off) > REPLAN_SLACK:
+            self.trouble(f"task {task} done {off:+.0f} s off its plan")
+        st.event(Ev.TASK_DONE, f"{rid}: task {task} done ({work.done - work.started:.1f} s of work, "
+                 f"{work.duration:g} s asked)", rid, task=task, sortie=self.entry.index,
+                 worked=round(work.done - work.started, 3), duration=work.duration)
+
+    async def _wait_leave(self) -> None:
+        while self.now() < self.pickup.leave + self.delay():
+            self._check(self.vehicle)
+            await self.ctx.sleep_mission(min(RECHECK, self.pickup.leave + self.delay() - self.now()))
+
+    def work_left(self) -> list[tuple[str, float]]:
+        """Its tasks not done with their work left (the one being worked: what it still needs)."""
+        now = self.now()
+        return [(t, self.board.tasks[t].duration - self.board.tasks[t].worked(now))
+                for t in self.entry.tasks if self.board.tasks[t].done is None]
+
+    def retarget(self, pickup: Pickup, planned: Sortie, base: float) -> None:
+        """A replan's pick-up and times (``planned``: its sortie in the new plan, whose time 0 is
+        ``base``); a rover already on its way back is sent to the new stop."""
+        moved = pickup.position != self.pickup.position
+        self.pickup = pickup
+        self.times.update({v.task: (base + v.arrive, base + v.end) for v in planned.visits if v.task})
+        if self.back is not None and moved:
+            self.ctx.spawn(self._resend(), f"back {self.entry.rover}")
+
+    async def _resend(self) -> None:
+        try:
+            await self._go_back()
+        except (TimeoutError, LinkError, CommandRejected, ExecutionError) as exc:
+            self._lost(str(exc))
+
+    async def _go_back(self) -> None:
+        ctx, v = self.ctx, self.vehicle
+        origin = v.origin
+        if origin is None or v.enu is None:
+            raise ExecutionError(f"{v.name}: no position to fly back from")
+        ground = v.on_ground is True
+        ret = return_items(v.enu, ground, self.pickup.position, origin, v.autopilot)
+        await upload(ctx, v, list(ret.items))
+        if not v.armed:  # a firmware that disarmed it landed at its task
+            await ctx.command(v, "arm", v.arm())
+        first = 1 if v.autopilot is not None and v.autopilot.home_is_item0 else 0
+        await ctx.command(v, "start_mission", v.start_mission(first))
+        self.back = ret
+        self.entry.status = SortieStatus.RETURNING
+        ctx.state.set_state(v.name, VehicleStatus.RETURNING)
+        ctx.record(Ev.SORTIE_RETURNING, vehicle=v.name, sortie=self.entry.index, stop=self.pickup.stop + 1)
+
+    def _check(self, v: Vehicle) -> None:
+        if v.lost:
+            raise ExecutionError(f"{v.name}: link lost")
+
+    def _lost(self, why: str) -> None:
+        rid = self.entry.rover
+        if self.entry.status is SortieStatus.LOST:
+            return
+        self.entry.status = SortieStatus.LOST
+        if rid not in self.board.lost:
+            self.board.lost.append(rid)
+        self.ctx.state.set_state(rid, VehicleStatus.LOST)
+        left = [t for t in self.entry.tasks if self.board.tasks[t].done is None]
+        for t in left:  # the work of a lost rover is lost with it: another does the whole task again
+            self.board.tasks[t].started = self.board.tasks[t].rover = None
+        self.ctx.state.event(Ev.SORTIE_LOST, f"{rid}: sortie {self.entry.index} lost ({why}); "
+                             f"work left: {', '.join(left) or 'none'}", rid, sortie=self.entry.index,
+                             tasks_left=left, reason=why)
+        self.trouble(f"rover {rid} lost")
+
+
+async def land_on_deck(ctx: RunContext, flight: SortieFlight, timeout: float) -> bool:
+    """Send a rover waiting above the carrier down onto its deck once the carrier has stopped (its
+    stop's waypoint is reached before it has braked); a rover hovering more than ``LAND_OFFSET`` off
+    the carrier lands at the carrier's position instead of its stop's. True once it is on the deck."""
+    v, back, c = flight.vehicle, flight.back, ctx.fleet.carrier
+    if back is None or v.lost:
+        return False
+    with contextlib.suppress(TimeoutError):
+        await ctx.wait_for(c, lambda c: (c.ground_speed or 0.0) <= STAY_SPEED, CARRIER_STOP_WAIT, "stopped")
+    with contextlib.suppress(CommandRejected, LinkError, TimeoutError):
+        if v.enu is not None and c.enu is not None and c.origin is not None and \
+                math.hypot(v.enu[0] - c.enu[0], v.enu[1] - c.enu[1]) > LAND_OFFSET:
+            lat, lon, _alt = local_to_geodetic(c.enu[0], c.enu[1], 0.0, c.origin)
+            await ctx.command(v, "land", v.land(lat, lon))
+        else:
+            await ctx.command(v, "land", v.set_current(back.land_seq), seq=back.land_seq)
+        await ctx.wait_for(v, lambda v: v.lost or (v.on_ground is True and rover_on_deck(ctx, v)), timeout,
+                           "on the deck")
+        return not v.lost
+    return False
+
+
+__all__ = ["REPLAN_SLACK", "FlightClock", "Pickup", "SortieFlight", "land_on_deck"]

@@ -1,0 +1,71 @@
+"""Replanning an operation from a live state (docs/operations.md, "Replanning"): the carrier stopped
+where it is, rovers on the deck with what their batteries have left, rovers in the air with the
+tasks their sortie still has (the first one possibly partly worked) and the battery they have flown.
+
+:func:`seed` puts that state into a fresh :class:`~planners.operations.schedule.Schedule` (time 0
+is now); the dispatch then schedules the tasks no rover has, picking the rovers in the air up as it
+goes. Their sorties in the plan have ``launch_stop = -1`` (launched before the replan)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from planners.core.problem import Vec3
+from planners.operations.plan import Sortie, Visit
+from planners.operations.problem import OperationProblem, OpTask
+from planners.operations.schedule import Airborne, Schedule
+from planners.operations.timing import flight_time
+
+
+@dataclass(frozen=True)
+class InFlight:
+    """A rover in the air (or landed at a task) on its sortie."""
+
+    rover: str
+    position: Vec3
+    tasks: tuple[OpTask, ...]  # its work left, in order (durations: the work left of each)
+    flown: float  # air seconds of its battery used so far
+    on_ground: bool = False  # landed at a task worked on the ground
+
+
+@dataclass(frozen=True)
+class LiveState:
+    """The operation now: the carrier stopped at ``carrier`` heading ``heading``."""
+
+    carrier: Vec3
+    heading: float
+    on_deck: dict[str, float] = field(default_factory=dict)  # rover -> air s of its battery used (0: full)
+    in_flight: tuple[InFlight, ...] = ()
+
+
+def seed(sch: Schedule, state: LiveState) -> None:
+    """Make ``sch`` start from ``state`` (``sch`` fresh, for ``problem.rovers`` = every rover of the
+    state, on the deck or in the air)."""
+    sch.pos = (state.carrier[0], state.carrier[1], 0.0)
+    sch.heading = state.heading
+    for r, used in state.on_deck.items():
+        sch.used[r] = used
+    for f in state.in_flight:
+        sch.ready.pop(f.rover, None)
+        sch.used.pop(f.rover, None)
+        sch.air[f.rover] = _airborne(sch.p, f)
+        sch.sorties.append(sch.air[f.rover].sortie)
+
+
+def _airborne(problem: OperationProblem, f: InFlight) -> Airborne:
+    """A rover in the air as the schedule's :class:`Airborne`: its visits from now on."""
+    t, here, ground, air, visits = 0.0, f.position, f.on_ground, 0.0, []
+    for task in f.tasks:
+        fly = flight_time(here, task.position, problem, ground and here != task.position)
+        arrive = t + fly
+        t = arrive + task.duration
+        air += fly + (0.0 if task.ground else task.duration)
+        visits.append(Visit(task.id, task.position, arrive, t, t, task.ground))
+        here, ground = task.position, task.ground
+    if not visits:  # no work left: it flies back from where it is
+        visits.append(Visit("", here, 0.0, 0.0, 0.0, ground))
+    s = Sortie(f.rover, -1, 0.0, 0.0, visits, battery_start=1.0 - f.flown / problem.endurance)
+    return Airborne(s, here, t, ground, air, f.flown)
+
+
+__all__ = ["InFlight", "LiveState", "seed"]

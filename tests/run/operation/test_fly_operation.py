@@ -1,0 +1,117 @@
+"""`fleetctl run` flies a long operation on the embedded simulated fleet: sorties launched,
+tasks worked for their durations (timed by the firmware), rovers picked up, batteries swapped,
+every rover back on the deck."""
+
+from __future__ import annotations
+
+import asyncio
+import json
+from pathlib import Path
+
+from fleetctl.run.flight import execute
+from sitl import SimFleet
+from sitl.world import Phase as BodyPhase
+from tests.run.ctl_helpers import mission_from, write_mission
+from tests.run.operation.ops_helpers import journal, small_operation
+
+
+async def test_a_small_operation_flies_to_complete(tmp_path: Path) -> None:
+    mission = mission_from(small_operation(), tmp_path)
+    out = await asyncio.wait_for(execute(mission, "run", run_dir=tmp_path / "run", force=True), 120)
+    s = out.summary
+    assert out.exit_code == 0, s
+    assert s["result"] == "complete"
+    tasks = {t.id: mission.task_work(t.id).duration for t in mission.tasks}
+    assert sorted(s["tasks_done"]) == sorted(tasks) == sorted(s["tasks_reached"])
+    assert sorted(s["rovers_loaded"]) == ["r1", "r2"] and not s["rovers_lost"]
+    records = journal(tmp_path / "run")
+    done = [r for r in records if r["kind"] == "task_done"]
+    assert sorted(r["task"] for r in done) == sorted(tasks)  # each task worked once
+    for r in done:  # for its duration: the firmware timed it (a landed task counts its touch-down too)
+        # seen on the controller's clock as the messages came in: 1 s of mission time is 50 ms of wall time
+        assert r["worked"] >= tasks[r["task"]] - 1.0, r
+    launched = [r for r in records if r["kind"] == "sortie_launched"]
+    back = [r for r in records if r["kind"] == "sortie_back"]
+    assert len(launched) == len(back) > 2  # rovers fly again: more sorties than rovers
+    plan = json.loads((tmp_path / "run" / "plan.json").read_text())
+    swaps = [r for r in records if r["kind"] == "battery_swapped"]
+    planned = [e for rows in plan["rovers"].values() for e in rows if e["kind"] == "swap"]
+    assert len(swaps) == len(planned) >= 1  # every planned swap flown and journalled
+    assert s["makespan_flown"] is not None and s["makespan_planned"] is not None
+
+
+async def test_a_rover_lost_mid_operation_is_replanned_around(tmp_path: Path) -> None:
+    d = small_operation()
+    d["links"] = {"heartbeat_timeout": 1.0}
+    mission = mission_from(d, tmp_path)
+    watchers: list[asyncio.Task[None]] = []
+
+    async def kill_r1_on_its_first_task(sim: SimFleet) -> None:
+        r1 = sim.rover("r1")
+        await sim.wait_for(lambda: r1.phase is BodyPhase.AIR, 60)
+        t = sim.sim_time
+        await sim.wait_sim_time(t + 20.0, 60)  # working its first task
+        sim.dropout("r1")  # never back
+
+    def on_sim(sim: SimFleet) -> None:
+        watchers.append(asyncio.ensure_future(kill_r1_on_its_first_task(sim)))
+
+    out = await asyncio.wait_for(execute(mission, "run", run_dir=tmp_path / "run", force=True, on_sim=on_sim),
+                                 150)
+    for w in watchers:
+        w.cancel()
+    s = out.summary
+    records = journal(tmp_path / "run")
+    lost = [r for r in records if r["kind"] == "sortie_lost"]
+    assert [r["vehicle"] for r in lost] == ["r1"] and lost[0]["tasks_left"], lost
+    replans = [r for r in records if r["kind"] == "replan" and "error" not in r]
+    assert any("rover r1 lost" in r["cause"] for r in replans)
+    assert s["rovers_lost"] == ["r1"] and s["rovers_loaded"] == ["r2"]
+    tasks = sorted(t.id for t in mission.tasks)
+    assert sorted(s["tasks_done"]) == tasks  # the lost rover's work was done by the other
+    done_by = {r["task"]: r["vehicle"] for r in records if r["kind"] == "task_done"}
+    assert all(done_by[t] == "r2" for t in lost[0]["tasks_left"])
+    assert (tmp_path / "run" / "plan-replan-1.json").exists()
+
+
+async def test_a_battery_too_low_for_the_next_sortie_is_replanned_from(tmp_path: Path) -> None:
+    d = small_operation()
+    d["sim"]["faults"] = [{"vehicle": "r1", "kind": "battery_drain", "factor": 1.3}]
+    mission = mission_from(d, tmp_path)
+    out = await asyncio.wait_for(execute(mission, "run", run_dir=tmp_path / "run", force=True), 150)
+    records = journal(tmp_path / "run")
+    replans = [r for r in records if r["kind"] == "replan" and "error" not in r]
+    assert any("rover r1 back with" in r["cause"] for r in replans), [r.get("text") for r in records
+                                                                      if r["kind"] == "replan"]
+    assert out.exit_code == 0, out.summary
+    assert sorted(out.summary["tasks_done"]) == sorted(t.id for t in mission.tasks)
+
+
+async def test_tasks_added_and_removed_in_the_mission_file_are_flown(tmp_path: Path) -> None:
+    d = small_operation()
+    mission = mission_from(d, tmp_path)
+    edited = small_operation()
+    edited["tasks"] = [t for t in edited["tasks"] if t["id"] != "t6"]
+    edited["tasks"].append({"id": "t7", "position": [30, -10, 4]})
+    watchers: list[asyncio.Task[None]] = []
+
+    async def edit_after_the_first_launch(sim: SimFleet) -> None:
+        r1 = sim.rover("r1")
+        await sim.wait_for(lambda: r1.phase is BodyPhase.AIR, 60)
+        write_mission(edited, tmp_path / "mission.yaml")
+
+    def on_sim(sim: SimFleet) -> None:
+        watchers.append(asyncio.ensure_future(edit_after_the_first_launch(sim)))
+
+    out = await asyncio.wait_for(execute(mission, "run", run_dir=tmp_path / "run", force=True, on_sim=on_sim),
+                                 150)
+    for w in watchers:
+        w.cancel()
+    s = out.summary
+    assert out.exit_code == 0, s
+    assert s["tasks_added"] == ["t7"] and s["tasks_removed"] == ["t6"]
+    assert sorted(s["tasks_done"]) == ["t1", "t2", "t3", "t4", "t5", "t7"]
+    records = journal(tmp_path / "run")
+    assert any(r["kind"] == "replan" and "tasks changed" in r.get("cause", "") for r in records)
+    done = {r["task"]: r["worked"] for r in records if r["kind"] == "task_done"}
+    assert done["t7"] >= mission.dwell - 0.5  # an added task's work: the mission's dwell

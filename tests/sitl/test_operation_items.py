@@ -1,0 +1,65 @@
+"""What a long operation needs of the simulated fleet: a task worked landed (NAV_LAND, then
+NAV_DELAY for its duration while staying armed, then a take-off), a task worked hovering timed by
+NAV_LOITER_TIME, and a battery swap on the deck (MAV_CMD_BATTERY_RESET)."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+from pymavlink.dialects.v20 import ardupilotmega as M
+from sitl_helpers import Gcs, enu_to_latlon
+
+from sitl import SimFleet
+
+REL = M.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT
+PX4_MISSION = (1, 4, 4)
+
+
+def item(cmd: int, x: float = 0.0, y: float = 0.0, z: float = 0.0, p1: float = 0.0) -> tuple:
+    lat, lon = enu_to_latlon(x, y)
+    return (REL, cmd, p1, 0.0, 0.0, math.nan, lat, lon, z)
+
+
+def delay(seconds: float) -> tuple:
+    return (M.MAV_FRAME_MISSION, M.MAV_CMD_NAV_DELAY, seconds, -1.0, -1.0, -1.0, 0.0, 0.0, 0.0)
+
+
+async def reached_at(fleet: SimFleet, gcs: Gcs, seq: int, since: int) -> float:
+    await gcs.recv("MISSION_ITEM_REACHED", sysid=11, since=since, timeout=10.0, where=lambda m: m.seq == seq)
+    return fleet.sim_time
+
+
+async def test_a_task_worked_landed_then_one_hovering_are_timed_by_the_firmware(fleet: SimFleet,
+                                                                               gcs: Gcs) -> None:
+    items = [item(M.MAV_CMD_NAV_TAKEOFF, 0, 0, 1), item(M.MAV_CMD_NAV_WAYPOINT, 10, 0, 0.5),
+             item(M.MAV_CMD_NAV_LAND, 10, 0, 0), delay(6.0), item(M.MAV_CMD_NAV_TAKEOFF, 10, 0, 1),
+             item(M.MAV_CMD_NAV_WAYPOINT, 10, 10, 4), item(M.MAV_CMD_NAV_LOITER_TIME, 10, 10, 4, p1=5.0),
+             item(M.MAV_CMD_NAV_LOITER_UNLIM, 10, 10, 4)]
+    assert await gcs.upload(11, items) == M.MAV_MISSION_ACCEPTED
+    assert (await gcs.command(11, M.MAV_CMD_COMPONENT_ARM_DISARM, 1)).result == M.MAV_RESULT_ACCEPTED
+    since = gcs.mark()
+    assert (await gcs.command(11, M.MAV_CMD_DO_SET_MODE, *PX4_MISSION)).result == M.MAV_RESULT_ACCEPTED
+    rover, v = fleet.rover("r1"), fleet.vehicle("r1")
+    landed = await reached_at(fleet, gcs, 2, since)
+    assert rover.on_ground and not rover.loaded
+    battery = rover.battery
+    await fleet.wait_sim_time(landed + 3.0, timeout=5)
+    assert rover.on_ground and v.armed and rover.battery == battery  # waiting landed burns nothing
+    done = await reached_at(fleet, gcs, 3, since)
+    assert done - landed == pytest.approx(6.0, abs=1.0)  # the NAV_DELAY (seen here: 50 ms of wall time)
+    arrived = await reached_at(fleet, gcs, 5, since)
+    worked = await reached_at(fleet, gcs, 6, since)
+    assert worked - arrived == pytest.approx(5.0, abs=1.0)  # the NAV_LOITER_TIME
+    assert v.armed and rover.phase.value == "air" and v.current == 7  # waiting in the loiter
+
+
+async def test_a_battery_swap_fills_a_disarmed_rover_on_the_deck_only(fleet: SimFleet, gcs: Gcs) -> None:
+    rover, v = fleet.rover("r1"), fleet.vehicle("r1")
+    rover.battery = 0.3
+    ack = await gcs.command(11, M.MAV_CMD_BATTERY_RESET, 255, 100)
+    assert ack.result == M.MAV_RESULT_ACCEPTED and rover.battery == 1.0
+    assert (await gcs.command(11, M.MAV_CMD_COMPONENT_ARM_DISARM, 1)).result == M.MAV_RESULT_ACCEPTED
+    rover.battery = 0.3
+    assert (await gcs.command(11, M.MAV_CMD_BATTERY_RESET, 255, 100)).result == M.MAV_RESULT_DENIED
+    assert rover.battery == 0.3 and v.armed
