@@ -34,6 +34,7 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 from fleetctl.geo import Origin, geodetic_to_local, local_to_geodetic
 from fleetctl.mavlink.autopilots import Autopilot, autopilot_for
+from fleetctl.mavlink.command_protocol import COMMAND_RETRIES, COMMAND_TIMEOUT
 from fleetctl.mavlink.fence import FENCE
 from fleetctl.mavlink.link import (
     CommandAck,
@@ -54,6 +55,8 @@ FORCE_MAGIC = 21196.0  # MAV_CMD_COMPONENT_ARM_DISARM param2: force (ignore chec
 DEFAULT_POSITION_HZ = 10.0
 DEFAULT_BATTERY_HZ = 1.0
 MAX_BATTERY_TIME = 86_400  # s: a BATTERY_STATUS.time_remaining above a day is not believed
+SET_CURRENT_RESEND = 1.5  # s: MISSION_SET_CURRENT sent again when nothing says it was taken
+SET_CURRENT_PATIENCE = (COMMAND_RETRIES + 1) * COMMAND_TIMEOUT  # s in all: a command's patience
 _STATUS_REASON_S = 2.0  # a STATUSTEXT this recent explains a rejected command
 # position plausibility (field safety): a fix farther from the last applied one than
 # JUMP_FACTOR x max_speed x dt + JUMP_SLACK_M is held back until CONFIRM_FIXES consecutive fixes
@@ -731,11 +734,21 @@ class Vehicle:
                 return True
             return before is not None and cur is not None and before < seq < cur
 
-        for _attempt in range(3):
+        # sent again after each MISSION_CURRENT that does not show it (PX4 ignores the message a few
+        # milliseconds after the MISSION_ACK of an upload, before its navigator took the new mission:
+        # SITL v1.18), or after SET_CURRENT_RESEND of silence, within SET_CURRENT_PATIENCE in all
+        deadline = time.monotonic() + SET_CURRENT_PATIENCE
+
+        def answered(heard: int) -> Callable[[Vehicle], bool]:
+            return lambda v: taken(v) or v.mission_current_reports > heard
+
+        while (left := deadline - time.monotonic()) > 0:
+            heard = self.mission_current_reports
             msg = self.link.mav.mission_set_current_encode(self.sysid, self.compid, seq)
             self.link.send(msg, self.sysid)
             with contextlib.suppress(TimeoutError):
-                await self.wait_until(taken, 1.5, f"current item {seq}")
+                await self.wait_until(answered(heard), min(SET_CURRENT_RESEND, left), f"current item {seq}")
+            if taken(self):
                 return
         raise TimeoutError(f"{self.name}: MISSION_SET_CURRENT {seq} not confirmed")
 

@@ -8,6 +8,7 @@ from pathlib import Path
 
 import pytest
 
+import fleetctl.mavlink.vehicle as vehicle_module
 from fleetctl.mavlink.compile import compile_for_fleet
 from fleetctl.mavlink.fleet import Fleet, connect_fleet
 from fleetctl.mavlink.vehicle import CommandRejected, VehicleEvent
@@ -249,6 +250,7 @@ class _CountingPx4Link(_Px4SetCurrentLink):
         self.sent: list[str] = []
         self.reports = 0  # MISSION_CURRENT messages the vehicle got
         self.reports_when_sent: list[int] = []
+        self.deaf_until_report = 0  # MISSION_SET_CURRENT ignored until this many MISSION_CURRENT reports
 
     def feed(self, msg) -> None:  # type: ignore[no-untyped-def]
         self.reports += msg.get_type() == "MISSION_CURRENT"
@@ -267,6 +269,8 @@ class _CountingPx4Link(_Px4SetCurrentLink):
 
         self.sent.append(msg.get_type())
         self.reports_when_sent.append(self.reports)
+        if self.reports < self.deaf_until_report:  # PX4 right after an upload: the message is ignored
+            return
         loop = asyncio.get_running_loop()
         loop.call_soon(self.feed, self.M.MAVLink_mission_current_message(msg.seq, 4, 3, 1))
 
@@ -291,10 +295,12 @@ async def test_px4_current_item_set_by_message_without_asking_the_command_first(
     assert link.M.MAV_CMD_DO_SET_MISSION_CURRENT not in link.commands
 
 
-async def test_px4_new_mission_starts_at_its_first_item_by_one_mode_switch() -> None:
+async def test_px4_new_mission_starts_at_its_first_item_by_one_mode_switch(
+        monkeypatch: pytest.MonkeyPatch) -> None:
     """A mission uploaded to a PX4 vehicle that had another current item gets item 0 current right
-    after the upload - once PX4's next MISSION_CURRENT shows it took the new mission (it ignores
-    MISSION_SET_CURRENT until then) -; the start is then only the mode switch."""
+    after the upload. PX4 ignores MISSION_SET_CURRENT until its navigator took the new mission: the
+    message is sent again on the next MISSION_CURRENT that does not show it (not after a 1.5 s
+    silence). The start is then only the mode switch."""
     import asyncio
 
     link = _CountingPx4Link()
@@ -302,12 +308,14 @@ async def test_px4_new_mission_starts_at_its_first_item_by_one_mode_switch() -> 
     link.feed(link.M.MAVLink_mission_current_message(2, 4, 3, 1))  # the old mission's landing item
     assert v.autopilot is not None
     loop = asyncio.get_running_loop()
+    link.deaf_until_report = 2  # deaf until the report that follows the upload
+    monkeypatch.setattr(vehicle_module, "SET_CURRENT_RESEND", 3600.0)  # no resend by the clock
     loop.call_later(0.05, link.feed, link.M.MAVLink_mission_current_message(2, 3, 3, 1))  # index kept
     await v.autopilot.after_upload(v)
-    assert v.mission_current == 0 and link.sent == ["MISSION_SET_CURRENT"]
-    assert link.reports_when_sent == [2]  # sent after the report that followed the upload
-    loop.call_later(0.05, link.feed, link.M.MAVLink_mission_current_message(0, 3, 3, 1))
+    assert v.mission_current == 0 and link.sent == ["MISSION_SET_CURRENT", "MISSION_SET_CURRENT"]
+    assert link.reports_when_sent == [1, 2]  # sent at once, ignored, sent again after the next report
     await v.autopilot.after_upload(v)  # already at the first item: nothing sent
-    assert link.sent == ["MISSION_SET_CURRENT"]
+    assert link.sent == ["MISSION_SET_CURRENT", "MISSION_SET_CURRENT"]
     await v.start_mission()
-    assert link.sent == ["MISSION_SET_CURRENT"] and link.commands == [link.M.MAV_CMD_DO_SET_MODE]
+    assert link.sent == ["MISSION_SET_CURRENT", "MISSION_SET_CURRENT"]
+    assert link.commands == [link.M.MAV_CMD_DO_SET_MODE]

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import contextlib
 import math
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
@@ -72,7 +71,6 @@ ROVER_SPEED_PARAMS = (
 MC_TAKEOFF_OVERHEAD = 3.6  # s
 MC_LAND_OVERHEAD = 6.4  # s
 MC_LEG_OVERHEAD = 2.5  # s a waypoint leg from rest takes beyond S/v + v/a
-UPLOAD_SETTLE = 1.5  # s: the longest wait for the MISSION_CURRENT after an upload (streamed at 1 Hz)
 WAYPOINT_RADIUS = 1.0  # m: param2 of compiled waypoints ("reached" = at the point, not 10 m early)
 _WORDS = {"none": "no action", "hold": "hold", "rtl": "RTL", "land": "land",
           "terminate": "flight termination", "lockdown": "lockdown (motors off)"}
@@ -138,13 +136,8 @@ class Px4(Autopilot):
     async def after_upload(self, vehicle: Vehicle) -> None:
         # the first item made current at once (see start_mission), so that the start is only the
         # mode switch: a rover released to fly back at its timed release leaves a round trip earlier.
-        # PX4 ignores a MISSION_SET_CURRENT that comes a few milliseconds after its MISSION_ACK (its
-        # navigator has not taken the new mission yet: SITL v1.18): the next MISSION_CURRENT (1 Hz)
-        # says it has, and whether the index is already 0 (a landed vehicle starts at 0)
-        heard = vehicle.mission_current_reports
-        with contextlib.suppress(TimeoutError):
-            await vehicle.wait_until(lambda v: v.mission_current_reports > heard, UPLOAD_SETTLE,
-                                     "MISSION_CURRENT after the upload")
+        # PX4 ignores a MISSION_SET_CURRENT that comes right after its MISSION_ACK: the message is sent
+        # again on the next MISSION_CURRENT that does not show it (Vehicle.set_current)
         if vehicle.mission_current not in (None, 0):
             await vehicle.set_current(0)
 
