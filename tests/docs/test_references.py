@@ -19,8 +19,10 @@ THIS = Path(__file__).resolve()
 
 def _files() -> list[Path]:
     """Every source and doc file of the repository: the packages, bench/, scripts/, tests/, docs/,
-    the README and pyproject.toml (this test's own file excepted: it spells out what it looks for)."""
-    out = [ROOT / "README.md", ROOT / "pyproject.toml", *sorted((ROOT / "docs").glob("*.md"))]
+    the example missions, the README and pyproject.toml (this test's own file excepted: it spells
+    out what it looks for)."""
+    out = [ROOT / "README.md", ROOT / "pyproject.toml", *sorted((ROOT / "docs").glob("*.md")),
+           *sorted((ROOT / "missions").glob("*.yaml"))]
     for top in (*PACKAGES, "scripts", "tests"):
         out += sorted(p for p in (ROOT / top).rglob("*") if p.suffix in SOURCE_SUFFIXES | {".md"})
     return [p for p in out if p.resolve() != THIS and "__pycache__" not in p.parts]
