@@ -7,16 +7,16 @@ import dataclasses
 
 import pytest
 
-from planners.core.problem import PlanningError
 from planners.operations import InFlight, LiveState, OpTask, plan_operation
 from tests.planners.test_operations import instance
 
+# instances with a rover to put in the air and one on the deck
+SEEDS = [seed for seed in range(16) if len(instance(seed)[0].rovers) >= 2][:12]
 
-@pytest.mark.parametrize("seed", range(12))
+
+@pytest.mark.parametrize("seed", SEEDS)
 def test_the_rest_of_an_operation_is_planned_from_a_live_state(seed: int) -> None:
     problem, _spec = instance(seed)
-    if len(problem.rovers) < 2:
-        pytest.skip("needs a rover in the air and one on the deck")
     air, *deck = problem.rovers
     first, *rest = problem.tasks
     part = dataclasses.replace(first, duration=first.duration / 2)  # half of its work done
@@ -24,10 +24,7 @@ def test_the_rest_of_an_operation_is_planned_from_a_live_state(seed: int) -> Non
     flown = 0.2 * problem.endurance
     state = LiveState(problem.start, problem.heading, dict.fromkeys(deck, 0.0),
                       (InFlight(air, here, (part,), flown, first.ground),))
-    try:
-        plan = plan_operation(dataclasses.replace(problem, tasks=tuple(rest)), state)
-    except PlanningError:
-        pytest.skip("no schedule keeps the batteries of this state")
+    plan = plan_operation(dataclasses.replace(problem, tasks=tuple(rest)), state)
     worked = [v.task for s in plan.sorties for v in s.visits]
     assert sorted(worked) == sorted(t.id for t in problem.tasks)  # every task once, its own kept
     own = [s for s in plan.sorties if s.launch_stop == -1]
