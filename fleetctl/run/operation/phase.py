@@ -331,7 +331,8 @@ class OperationPhase:
     def _finish(self) -> PhaseResult:
         r, b = self.snapshot(), self.board
         how = "complete" if r.complete else "incomplete"
-        text = (f"operation {how}: {len(r.tasks_done)}/{len(b.tasks)} tasks done, {len(b.swaps)} swaps, "
+        swaps = f"{len(b.swaps)} swap{'' if len(b.swaps) == 1 else 's'}"
+        text = (f"operation {how}: {len(r.tasks_done)}/{len(b.tasks)} tasks done, {swaps}, "
                 f"{r.flown or 0.0:.1f} s (planned {r.planned or 0.0:.1f} s)")
         self.ctx.state.event(Ev.OPERATION_DONE, text, None, complete=r.complete, tasks_done=len(r.tasks_done),
                              flown=r.flown)
