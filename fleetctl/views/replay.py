@@ -17,13 +17,14 @@ import bisect
 import contextlib
 import logging
 from collections import Counter
-from collections.abc import Awaitable, Callable, Iterator
+from collections.abc import Awaitable, Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from fleetctl.geo import Origin, geodetic_to_local
 from fleetctl.journal import JOURNAL_NAME, MISSION_COPY, JournalError, Record, read_journal
+from fleetctl.mavlink.tlog import TlogBattery, TlogError, TlogPosition, read_telemetry
 from fleetctl.mission import Mission, MissionError, load_mission
 from fleetctl.mission.teams import mission_teams
 from fleetctl.run.energy import range_from_percent
@@ -112,23 +113,15 @@ def read_tlog(path: Path, mission: Mission) -> list[Sample]:
     """Vehicle positions and batteries from a ``.tlog`` (messages from the mission's system ids).
     The log does not say which link a message came on: a system id the mission uses on several
     links names no one vehicle, and its messages are left out."""
-    from pymavlink import mavutil
-
     ids = _vehicles_by_sysid(mission)
-    origin = mission.origin
     out: list[Sample] = []
     try:
-        mlog = mavutil.mavlink_connection(str(path))
-    except Exception as exc:  # noqa: BLE001 - pymavlink raises many kinds
-        raise ReplayError(f"{path}: cannot read the MAVLink log: {exc}") from None
-    try:
-        for msg in _messages(mlog, ("GLOBAL_POSITION_INT", "BATTERY_STATUS")):
-            vid = ids.get(msg.get_srcSystem())
-            if vid is not None and msg.get_srcComponent() == 1:
-                out.append(_sample(msg, vid, origin))
-    finally:
-        with contextlib.suppress(Exception):
-            mlog.close()
+        for item in read_telemetry(path):
+            vid = ids.get(item.sysid)
+            if vid is not None:
+                out.append(_sample(item, vid, mission.origin))
+    except TlogError as exc:
+        raise ReplayError(str(exc)) from None
     return out
 
 
@@ -141,23 +134,11 @@ def _vehicles_by_sysid(mission: Mission) -> dict[int, str]:
     return {sysid: vid for vid, sysid in sysids.items() if uses[sysid] == 1}
 
 
-def _messages(mlog: Any, types: tuple[str, ...]) -> Iterator[Any]:
-    while True:
-        msg = mlog.recv_match(type=list(types))
-        if msg is None:
-            return
-        yield msg
-
-
-def _sample(msg: Any, vid: str, origin: Origin | None) -> Sample:
-    t = float(getattr(msg, "_timestamp", 0.0))
-    if msg.get_type() == "BATTERY_STATUS":
-        rem = msg.battery_remaining
-        return Sample(t, vid, battery_pct=float(rem) if rem >= 0 else None)
-    lat, lon, alt = msg.lat / 1e7, msg.lon / 1e7, msg.alt / 1000.0
-    enu = geodetic_to_local(lat, lon, alt, origin) if origin is not None else None
-    speed = (msg.vx * msg.vx + msg.vy * msg.vy) ** 0.5 / 100.0
-    return Sample(t, vid, enu, (lat, lon), msg.relative_alt / 1000.0, speed)
+def _sample(item: TlogPosition | TlogBattery, vid: str, origin: Origin | None) -> Sample:
+    if isinstance(item, TlogBattery):
+        return Sample(item.t, vid, battery_pct=item.pct)
+    enu = geodetic_to_local(item.lat, item.lon, item.alt, origin) if origin is not None else None
+    return Sample(item.t, vid, enu, (item.lat, item.lon), item.relative_alt, item.speed)
 
 
 class MissionClock:

@@ -68,3 +68,28 @@ async def test_tlog_of_connect_fleet_records_the_connect_phase(sim: SimFleet, tm
     assert {m.target_system for m in intervals} >= {1, 11, 12}
     acks = [m for m in msgs if m.get_type() == "COMMAND_ACK" and m.command == 511]
     assert {m.get_srcSystem() for m in acks} >= {1, 11, 12}
+
+
+def test_read_telemetry_gives_the_autopilots_positions_and_batteries(tmp_path: Path) -> None:
+    """Positions and batteries of component 1 come back in order with their log times and units;
+    another component's messages and other message types are left out; -1 % is unknown."""
+    import pytest
+    from pymavlink.dialects.v20 import ardupilotmega as M
+
+    from fleetctl.mavlink.tlog import TlogBattery, TlogPosition, read_telemetry, tlog_record
+
+    def packed(msg: object, sysid: int, compid: int) -> bytes:
+        return msg.pack(M.MAVLink(None, srcSystem=sysid, srcComponent=compid))  # type: ignore[attr-defined]
+
+    pos = M.MAVLink_global_position_int_message(0, 473977420, 85455940, 498000, 10000, 300, 400, 0, 0)
+    bat = M.MAVLink_battery_status_message(0, 0, 0, 2500, [0] * 10, 0, 0, 0, -1)
+    path = tmp_path / "t.tlog"
+    path.write_bytes(tlog_record(100.0, packed(pos, 11, 1)) + tlog_record(100.5, packed(pos, 12, 190))
+                     + tlog_record(101.0, packed(M.MAVLink_heartbeat_message(2, 3, 0, 0, 4, 3), 11, 1))
+                     + tlog_record(101.5, packed(bat, 11, 1)))
+    got = list(read_telemetry(path))
+    assert len(got) == 2 and isinstance(got[0], TlogPosition) and isinstance(got[1], TlogBattery)
+    p = got[0]
+    assert (p.sysid, p.t) == (11, pytest.approx(100.0)) and p.lat == pytest.approx(47.397742)
+    assert (p.alt, p.relative_alt, p.speed) == (pytest.approx(498.0), pytest.approx(10.0), pytest.approx(5.0))
+    assert got[1].sysid == 11 and got[1].pct is None
