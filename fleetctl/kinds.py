@@ -96,6 +96,10 @@ class Ev(StrEnum):
     BATTERY_LOW = "battery_low"
     OFF_COURSE = "off_course"
     STATUSTEXT = "statustext"
+    ARMED = "armed"  # a vehicle's heartbeat shows it armed
+    DISARMED = "disarmed"
+    MODE = "mode"  # a vehicle's flight mode changed
+    LANDED_STATE = "landed_state"  # a vehicle's EXTENDED_SYS_STATE landed state changed
     ROUTE_CONFLICT = "route_conflict"
     # field safety (docs/field-safety.md)
     PREFLIGHT_FAILED = "preflight_failed"  # a rover left out of the run

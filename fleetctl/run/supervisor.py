@@ -32,7 +32,7 @@ from pathlib import Path
 from typing import Any
 
 from fleetctl.mavlink.fleet import Fleet
-from fleetctl.mavlink.vehicle import VehicleEvent
+from fleetctl.mavlink.vehicle import VehicleEvent, VehicleEventKind
 from fleetctl.mission import Mission, MissionError, load_mission
 from fleetctl.mission.limits import MAX_FILE_BYTES
 from fleetctl.run.kinds import Ev
@@ -152,7 +152,7 @@ class Supervisor:
 
     # -- sources -----------------------------------------------------------------------------------
     def _on_vehicle_event(self, ev: VehicleEvent) -> None:
-        if ev.kind in ("lost", "back"):
+        if ev.kind in (VehicleEventKind.LOST, VehicleEventKind.BACK):
             self.put(SupervisorEvent(ev.kind, ev.vehicle, data=dict(ev.data)))
 
     async def _check_loop(self) -> None:
