@@ -22,6 +22,8 @@ class Ev(StrEnum):
     PHASE = "phase"
     SUMMARY = "summary"
     BUS = "bus"
+    BUS_CONNECTED = "bus_connected"  # the bus's connection state (BusStatus) changed
+    BUS_RECONNECTING = "bus_reconnecting"
     BUS_TELEMETRY_FAILED = "bus_telemetry_failed"  # the MQTT telemetry task stopped; the bus goes on
     BUS_FAILED = "bus_failed"  # the MQTT bus stopped for the rest of the run
     BUS_TASK_CHANGE = "bus_task_change"

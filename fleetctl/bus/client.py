@@ -47,6 +47,7 @@ from fleetctl.bus.config import (
     MAX_MESSAGE,
     MAX_PENDING,
     PUBLISH_TIMEOUT,
+    STATUS_EVENT,
     STATUS_INTERVAL,
     TELEMETRY_HZ,
     BusConfig,
@@ -209,7 +210,7 @@ class FleetBus(ConnectionStatus):
             return
         log.info("bus %s: %s", self.config.url, status)
         if self.state is not None:  # a broker that never answers is shown too (was silent)
-            self.state.event("bus_" + status, self._status_text(old), None, url=self.config.url,
+            self.state.event(STATUS_EVENT[status], self._status_text(old), None, url=self.config.url,
                              dropped=self.dropped, error=self.last_error)
         for cb in list(self._on_status):
             cb(status)
@@ -250,7 +251,7 @@ class FleetBus(ConnectionStatus):
         self.state, self.record, self.executor = state, record, None
         if self.status in (BusStatus.CONNECTED, BusStatus.RECONNECTING, BusStatus.FAILED):  # where it stands
             text = self._status_text(BusStatus.CONNECTED if self.connects else BusStatus.CONNECTING)
-            state.event("bus_" + self.status, text, None, url=self.config.url, dropped=self.dropped,
+            state.event(STATUS_EVENT[self.status], text, None, url=self.config.url, dropped=self.dropped,
                         error=self.last_error)
         if not any(t.get_name() == "mqtt telemetry" and not t.done() for t in self._tasks):
             tel = asyncio.get_running_loop().create_task(self._telemetry(), name="mqtt telemetry")
