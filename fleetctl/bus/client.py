@@ -47,6 +47,7 @@ from fleetctl.bus.config import (
     MAX_MESSAGE,
     MAX_PENDING,
     PUBLISH_TIMEOUT,
+    STATUS_EVENT,
     STATUS_INTERVAL,
     TELEMETRY_HZ,
     BusConfig,
@@ -59,6 +60,7 @@ from fleetctl.bus.config import (
 )
 from fleetctl.bus.reconnect import CONNECTION_ERRORS, ConnectionStatus, Reconnector
 from fleetctl.journal import Journal, Record, json_safe
+from fleetctl.kinds import Ev
 from fleetctl.mission import MissionError, parse_mission
 from fleetctl.mission.limits import FAR_FACTOR, MIN_EXTENT
 
@@ -208,7 +210,7 @@ class FleetBus(ConnectionStatus):
             return
         log.info("bus %s: %s", self.config.url, status)
         if self.state is not None:  # a broker that never answers is shown too (was silent)
-            self.state.event("bus_" + status, self._status_text(old), None, url=self.config.url,
+            self.state.event(STATUS_EVENT[status], self._status_text(old), None, url=self.config.url,
                              dropped=self.dropped, error=self.last_error)
         for cb in list(self._on_status):
             cb(status)
@@ -249,7 +251,7 @@ class FleetBus(ConnectionStatus):
         self.state, self.record, self.executor = state, record, None
         if self.status in (BusStatus.CONNECTED, BusStatus.RECONNECTING, BusStatus.FAILED):  # where it stands
             text = self._status_text(BusStatus.CONNECTED if self.connects else BusStatus.CONNECTING)
-            state.event("bus_" + self.status, text, None, url=self.config.url, dropped=self.dropped,
+            state.event(STATUS_EVENT[self.status], text, None, url=self.config.url, dropped=self.dropped,
                         error=self.last_error)
         if not any(t.get_name() == "mqtt telemetry" and not t.done() for t in self._tasks):
             tel = asyncio.get_running_loop().create_task(self._telemetry(), name="mqtt telemetry")
@@ -283,7 +285,7 @@ class FleetBus(ConnectionStatus):
             except Exception as exc:  # noqa: BLE001 - the sender's answer, never the bus's end
                 self._answer_error(topic, b"", f"queued change refused by the controller: {exc}")
                 continue
-            self.record("bus_task_change", op="queued", add=sorted(t.id for t in add), remove=remove,
+            self.record(Ev.BUS_TASK_CHANGE, op="queued", add=sorted(t.id for t in add), remove=remove,
                         topic=topic)
 
     def _on_run_done(self, task: asyncio.Task[None]) -> None:
@@ -295,12 +297,12 @@ class FleetBus(ConnectionStatus):
         log.error("bus %s: %s stopped: %s", self.config.url, task.get_name(), why, exc_info=exc)
         if task.get_name() != "mqtt bus":  # telemetry: the connection itself goes on
             text = f"bus: telemetry stopped ({why}); events and task changes still go over MQTT"
-            kind = "bus_telemetry_failed"
+            kind = Ev.BUS_TELEMETRY_FAILED
         else:
             self.failed = why
             self.change_status(BusStatus.FAILED)
             text = f"bus: stopped ({why}); no telemetry or task changes over MQTT for the rest of the run"
-            kind = "bus_failed"
+            kind = Ev.BUS_FAILED
         if self.state is not None:
             self.state.event(kind, text, None, url=self.config.url)
         with contextlib.suppress(Exception):
@@ -363,7 +365,7 @@ class FleetBus(ConnectionStatus):
                 log.error("bus %s: unexpected error, reconnecting: %r", self.config.url, eg.exceptions[0],
                           exc_info=eg.exceptions[0])
                 with contextlib.suppress(Exception):
-                    self.record("bus_error", error=f"{type(eg.exceptions[0]).__name__}: {eg.exceptions[0]}")
+                    self.record(Ev.BUS_ERROR, error=f"{type(eg.exceptions[0]).__name__}: {eg.exceptions[0]}")
                 self.disconnects += 1
                 self._set_status(BusStatus.RECONNECTING, eg.exceptions[0])
                 await link.back_off()
@@ -471,7 +473,7 @@ class FleetBus(ConnectionStatus):
         self._hand_over(add, remove, topic)
         ids = {t.id for t in add}
         self.tasks = [t for t in self.current_tasks() if t.id not in remove] + list(add)
-        self.record("bus_task_change", op=op, add=sorted(ids), remove=remove, topic=topic,
+        self.record(Ev.BUS_TASK_CHANGE, op=op, add=sorted(ids), remove=remove, topic=topic,
                     **({"queued": True} if self.executor is None else {}),
                     **({"force": True} if force else {}))
         return True
@@ -549,7 +551,7 @@ class FleetBus(ConnectionStatus):
         text = payload[:500].decode("utf-8", "replace")
         self.publish("errors", {"topic": topic, "error": error, "payload": text, "t": round(time.time(), 3)},
                      qos=1)
-        self.record("bus_rejected", topic=topic, error=error)
+        self.record(Ev.BUS_REJECTED, topic=topic, error=error)
 
     def current_tasks(self) -> list[Task]:
         """The live task set: the executor's (it changes with replans), else the bus's own view."""
@@ -616,7 +618,7 @@ def start_bus(mission: Mission, config: BusConfig | None, journal: Journal, stat
         try:
             config = bus_config(mission)
         except BusConfigError as exc:
-            state.event("bus_error", f"bus: off ({exc})")
+            state.event(Ev.BUS_ERROR, f"bus: off ({exc})")
             return None
     if config is None:
         return None
@@ -626,7 +628,7 @@ def start_bus(mission: Mission, config: BusConfig | None, journal: Journal, stat
     journal.add_observer(bus.on_record)
     bus.show_in(view)
     bus.start(state, journal.write)
-    journal.write("bus", url=config.url, topic_prefix=config.topic_prefix, username=config.username,
+    journal.write(Ev.BUS, url=config.url, topic_prefix=config.topic_prefix, username=config.username,
                   tls=config.tls)
     return bus
 

@@ -9,6 +9,8 @@ from dataclasses import dataclass
 from enum import StrEnum
 from typing import TYPE_CHECKING, Any
 
+from fleetctl.kinds import Ev
+
 if TYPE_CHECKING:
     from fleetctl.mission import Mission, MqttConfig
 
@@ -36,6 +38,10 @@ class BusStatus(StrEnum):
     CLOSED = "closed"  # the run closed it
     FAILED = "failed"  # the bus task ended on an error (a bug): no MQTT for the rest of the run
     STOPPED = "stopped"  # fleetctl watch: stopped (Ctrl-C, --exit-on-done)
+
+# the event told when the connection moves to one of these states (the others are not told)
+STATUS_EVENT = {BusStatus.CONNECTED: Ev.BUS_CONNECTED, BusStatus.RECONNECTING: Ev.BUS_RECONNECTING,
+                BusStatus.FAILED: Ev.BUS_FAILED}
 
 _URL = re.compile(r"(?P<scheme>mqtts?)://(?P<host>[A-Za-z0-9_.-]+)(?::(?P<port>\d{1,5}))?/?")
 

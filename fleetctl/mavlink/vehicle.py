@@ -28,6 +28,7 @@ import time
 from collections import deque
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
+from enum import StrEnum
 from typing import Any
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
@@ -90,9 +91,26 @@ class CommandRejected(Exception):
         super().__init__(f"{text}: {reason}" if reason else text)
 
 
+class VehicleEventKind(StrEnum):
+    """Kinds of :class:`VehicleEvent`: what a vehicle's own messages told (not journal kinds; the
+    run journals some of them under :class:`fleetctl.kinds.Ev` kinds, e.g. ``lost`` as ``link_lost``)."""
+
+    CONNECTED = "connected"  # its first heartbeat
+    LOST = "lost"  # no heartbeat for heartbeat_timeout
+    BACK = "back"  # a heartbeat after it was lost
+    ARMED = "armed"
+    DISARMED = "disarmed"
+    MODE = "mode"
+    LANDED_STATE = "landed_state"
+    GEOFENCE_BREACH = "geofence_breach"
+    MISSION_CURRENT = "mission_current"
+    ITEM_REACHED = "item_reached"
+    STATUSTEXT = "statustext"
+
+
 @dataclass(frozen=True)
 class VehicleEvent:
-    kind: str
+    kind: VehicleEventKind
     vehicle: str
     sysid: int
     time: float  # time.monotonic()
@@ -311,7 +329,7 @@ class Vehicle:
         self.add_listener(lambda ev: put_event(q, ev))
         return q
 
-    def _emit(self, kind: str, **data: Any) -> None:
+    def _emit(self, kind: VehicleEventKind, **data: Any) -> None:
         ev = VehicleEvent(kind, self.name, self.sysid, time.monotonic(), data)
         log.debug("%s: %s %s", self.name, kind, data or "")
         for listener in list(self._listeners):
@@ -373,21 +391,21 @@ class Vehicle:
         self.system_status = msg.system_status
         self._arm_lost_timer()
         if first:
-            self._emit("connected", autopilot=self.autopilot.name)
+            self._emit(VehicleEventKind.CONNECTED, autopilot=self.autopilot.name)
         elif self.lost:
             self.lost = False
-            self._emit("back")
+            self._emit(VehicleEventKind.BACK)
         self.base_mode, self.custom_mode = msg.base_mode, msg.custom_mode
         armed = bool(msg.base_mode & M.MAV_MODE_FLAG_SAFETY_ARMED)
         if armed != self.armed:
             self.armed = armed
             if not first:
-                self._emit("armed" if armed else "disarmed")
+                self._emit(VehicleEventKind.ARMED if armed else VehicleEventKind.DISARMED)
         mode = self.autopilot.mode_name(msg.base_mode, msg.custom_mode)
         self.mode_firmware = self.autopilot.firmware_mode(msg.base_mode, msg.custom_mode)
         if mode != self.mode:
             previous, self.mode = self.mode, mode
-            self._emit("mode", mode=mode, previous=previous)
+            self._emit(VehicleEventKind.MODE, mode=mode, previous=previous)
 
     def use_clock(self, now: Callable[[], float], rate: float) -> None:
         """Measure silences on the mission clock ``now`` (``rate`` mission seconds per wall second):
@@ -435,7 +453,7 @@ class Vehicle:
             self.lost = True
             log.warning("%s (sysid %d): nothing heard for %.1f s of mission time", self.name, self.sysid,
                         self.heartbeat_timeout)
-            self._emit("lost", timeout=self.heartbeat_timeout)
+            self._emit(VehicleEventKind.LOST, timeout=self.heartbeat_timeout)
             self._wake()
 
     def _on_position(self, msg: Any) -> None:
@@ -499,7 +517,7 @@ class Vehicle:
         self.telemetry_at = time.monotonic()
         if msg.landed_state != self.landed_state:
             self.landed_state = msg.landed_state
-            self._emit("landed_state", state=self.landed_state_name)
+            self._emit(VehicleEventKind.LANDED_STATE, state=self.landed_state_name)
 
     def _on_battery(self, msg: Any) -> None:
         if msg.battery_remaining >= 0:
@@ -524,7 +542,7 @@ class Vehicle:
         new = breached and (not self.fence_breached or msg.breach_count > self.fence_breach_count)
         self.fence_breached, self.fence_breach_count = breached, msg.breach_count
         if new and time.monotonic() - self._breach_text_at > 5.0:  # not told by a STATUSTEXT just now
-            self._emit("geofence_breach", breach=enum_name("FENCE_BREACH", msg.breach_type),
+            self._emit(VehicleEventKind.GEOFENCE_BREACH, breach=enum_name("FENCE_BREACH", msg.breach_type),
                        count=msg.breach_count)
 
     def _on_mission_current(self, msg: Any) -> None:
@@ -533,7 +551,7 @@ class Vehicle:
         self.mission_state = getattr(msg, "mission_state", None)
         if msg.seq != self.mission_current:
             self.mission_current = msg.seq
-            self._emit("mission_current", seq=msg.seq)
+            self._emit(VehicleEventKind.MISSION_CURRENT, seq=msg.seq)
 
     def _on_item_reached(self, msg: Any) -> None:
         far = self._far_from_item(msg.seq)
@@ -544,7 +562,7 @@ class Vehicle:
             return
         if msg.seq not in self.items_reached:
             self.items_reached.add(msg.seq)
-            self._emit("item_reached", seq=msg.seq)
+            self._emit(VehicleEventKind.ITEM_REACHED, seq=msg.seq)
 
     def _far_from_item(self, seq: int) -> float | None:
         """The distance to item ``seq`` when the last fix contradicts reaching it, else None."""
@@ -565,13 +583,13 @@ class Vehicle:
         text = msg.text if isinstance(msg.text, str) else msg.text.decode("utf-8", "replace")
         text = text.split("\x00", 1)[0]
         self.statustexts.append((time.monotonic(), msg.severity, text))
-        self._emit("statustext", text=text, severity=msg.severity)
+        self._emit(VehicleEventKind.STATUSTEXT, text=text, severity=msg.severity)
         low = text.lower()
         if "fence" in low and "breach" in low and not self.fence_breached:  # no FENCE_STATUS (yet)
             now = time.monotonic()
             if now - self._breach_text_at > 5.0:
                 self._breach_text_at = now
-                self._emit("geofence_breach", breach="STATUSTEXT", text=text)
+                self._emit(VehicleEventKind.GEOFENCE_BREACH, breach="STATUSTEXT", text=text)
 
     # -- commands --------------------------------------------------------------------------------------------
     def _require_autopilot(self) -> Autopilot:
@@ -824,4 +842,4 @@ def put_event(q: asyncio.Queue[VehicleEvent], ev: VehicleEvent) -> None:
         q.put_nowait(ev)
 
 
-__all__ = ["CommandRejected", "Listener", "Vehicle", "VehicleEvent"]
+__all__ = ["CommandRejected", "Listener", "Vehicle", "VehicleEvent", "VehicleEventKind"]

@@ -17,7 +17,7 @@ from collections.abc import Callable, Iterable
 from typing import TYPE_CHECKING, Any
 
 from fleetctl.mavlink.fleet import Fleet
-from fleetctl.mavlink.vehicle import Vehicle, VehicleEvent
+from fleetctl.mavlink.vehicle import Vehicle, VehicleEvent, VehicleEventKind
 from fleetctl.mission import Mission
 from fleetctl.run.carrier import CarrierControl
 from fleetctl.run.collect import CollectPhase, ResumedCollect
@@ -119,7 +119,7 @@ class Executor:
             self._loop.call_soon_threadsafe(self.supervisor.put, ev)
 
     def _on_vehicle_event(self, ev: VehicleEvent) -> None:
-        if ev.kind == "lost":
+        if ev.kind == VehicleEventKind.LOST:
             self.ctx.state.set_state(ev.vehicle, VehicleStatus.LOST)
         tell_vehicle_event(ev, self.ctx.state.event, self.ctx.record)
 

@@ -1,5 +1,7 @@
 """The names of a run: vehicle states, phases, journal/event kinds and supervisor event kinds.
 
+:class:`Ev` is defined in :mod:`fleetctl.kinds` (the bus writes journal records too) and re-exported here.
+
 Each is a :class:`~enum.StrEnum` whose values are the strings the journal, the summary, the MQTT
 bus and the views have always used, so ``json.dumps`` writes them unchanged.
 """
@@ -7,6 +9,8 @@ bus and the views have always used, so ``json.dumps`` writes them unchanged.
 from __future__ import annotations
 
 from enum import StrEnum
+
+from fleetctl.kinds import Ev
 
 
 class VehicleStatus(StrEnum):
@@ -39,97 +43,6 @@ class Phase(StrEnum):
     OPERATION = "operation"  # a long operation: sorties, pick-ups and swaps
     DONE = "done"
     FAILED = "failed"
-    INTERRUPTED = "interrupted"
-
-
-class Ev(StrEnum):
-    """Kinds of journal records and operator events (``journal.jsonl`` ``kind``)."""
-
-    # records of the run itself
-    RUN = "run"
-    RESUMED = "resumed"
-    SIM_STARTED = "sim_started"
-    CONNECTED = "connected"
-    MISSING = "missing"
-    PHASE = "phase"
-    SUMMARY = "summary"
-    BUS = "bus"
-    WEB_FAILED = "web_failed"  # the web map (--web) could not listen; the run flies on without it
-    # several teams (fleetctl.run.teams, docs/teams.md)
-    TEAMS_PLAN = "teams_plan"  # how the tasks (or rovers to collect) were shared between the teams
-    TEAM = "team"  # a team's run started or ended (its records: RUN/teams/<carrier>/<phase>/)
-    HANDOVER = "handover"  # tasks handed from one team to another
-    # planning and commands
-    PLAN = "plan"
-    REPLAN = "replan"
-    PLAN_BUDGET = "plan_budget"  # collection: one plan-and-check attempt's cost in mission s (batteries burn)
-    COMMAND = "command"
-    ACK = "ack"
-    SPARES = "spares"
-    LAUNCH = "launch"  # write-ahead: a rover is about to be armed for a task
-    ROVER_STATE = "rover_state"
-    # carrier
-    CARRIER_STARTED = "carrier_started"
-    STOP_REACHED = "stop_reached"
-    CARRIER_RELEASED = "carrier_released"
-    CARRIER_PARKED = "carrier_parked"  # collection complete: the carrier in HOLD and disarmed
-    ETA = "eta"  # the live makespan prediction at a stop (mission s of the phase)
-    CARRIER_LOST = "carrier_lost"
-    CARRIER_BACK = "carrier_back"
-    HOLD = "hold"
-    # rovers and tasks
-    ROVER_LAUNCHED = "rover_launched"
-    ROVER_REFUSED = "rover_refused"
-    ROVER_FAILED = "rover_failed"
-    ROVER_SKIPPED = "rover_skipped"
-    ROVER_UNUSABLE = "rover_unusable"
-    ROVER_REJOINED = "rover_rejoined"
-    ROVER_RELEASED = "rover_released"
-    ROVER_LANDING = "rover_landing"
-    ROVER_LOADED = "rover_loaded"
-    ROVER_UNREACHABLE = "rover_unreachable"
-    ROVER_LET_GO = "rover_let_go"  # collection: it cannot arrive (battery empty, failsafe, down short): left
-    TASK_REACHED = "task_reached"
-    TASK_RETURNED = "task_returned"
-    TASK_TIMEOUT = "task_timeout"
-    TASK_UNSERVED = "task_unserved"
-    REASSIGN_PENDING = "reassign_pending"  # a flying rover is lost: its task waits links.reassign_after
-    TASKS_CHANGED = "tasks_changed"
-    TASK_CHANGE_REJECTED = "task_change_rejected"
-    COLLECTION_STARTED = "collection_started"
-    NOTHING_TO_COLLECT = "nothing_to_collect"
-    # a long operation (fleetctl.run.operation, docs/operations.md)
-    SORTIE_LAUNCHED = "sortie_launched"  # a rover left the deck for a sortie (its tasks)
-    TASK_STARTED = "task_started"  # a rover is at its task: the work starts
-    TASK_DONE = "task_done"  # the firmware reported the task's duration of work done
-    SORTIE_RETURNING = "sortie_returning"  # a rover left its last task for its pick-up stop
-    SORTIE_BACK = "sortie_back"  # a rover of a sortie is loaded on the deck
-    SORTIE_LOST = "sortie_lost"  # a rover was lost during its sortie (its work left is replanned)
-    BATTERY_SWAPPED = "battery_swapped"  # a rover's battery swapped on the deck, back to full
-    OPERATION_DONE = "operation_done"  # every task worked, every rover back (or the operation ended short)
-    # supervision
-    LINK_LOST = "link_lost"
-    LINK_BACK = "link_back"
-    BATTERY_LOW = "battery_low"
-    OFF_COURSE = "off_course"
-    STATUSTEXT = "statustext"
-    ROUTE_CONFLICT = "route_conflict"
-    # field safety (docs/field-safety.md)
-    PREFLIGHT_FAILED = "preflight_failed"  # a rover left out of the run
-    PREFLIGHT_WARNING = "preflight_warning"
-    FAILSAFE = "failsafe"  # what a vehicle does on link loss
-    FAILSAFE_SET = "failsafe_set"  # links.failsafe set it
-    FAILSAFE_WARNING = "failsafe_warning"  # rovers with RTL on link loss
-    GEOFENCE = "geofence"  # uploaded
-    GEOFENCE_WARNING = "geofence_warning"
-    GEOFENCE_BREACH = "geofence_breach"
-    FIRMWARE_SPEEDS = "firmware_speeds"  # the mission's speeds written to an autopilot (docs/autopilots.md)
-    # the end of a phase or run
-    DEPLOYED = "deployed"
-    DEPLOY_INCOMPLETE = "deploy_incomplete"
-    DWELL = "dwell"
-    COLLECTED = "collected"
-    ERROR = "error"
     INTERRUPTED = "interrupted"
 
 

@@ -242,14 +242,14 @@ async def admit_safety(fleet: Fleet, mission: Mission, command: str, *, resuming
             except (ParamError, ModeError, LinkError) as exc:
                 _fail(fleet, rep, vid, f"links.failsafe {action} not set: {exc}", resuming)
                 continue
-            rep.notes.append(("failsafe_set", f"{vid}: {fs.text} (links.failsafe: {action})", vid))
+            rep.notes.append((Ev.FAILSAFE_SET, f"{vid}: {fs.text} (links.failsafe: {action})", vid))
         elif fs is not None:
-            rep.notes.append(("failsafe", f"{vid}: {fs.text}", vid))
+            rep.notes.append((Ev.FAILSAFE, f"{vid}: {fs.text}", vid))
         if fs is not None:
             rep.rows[vid].link_loss = fs.text
             if vid != fleet.carrier_id and rtl_on_link_loss(fs):
                 rep.rows[vid].warnings.append(RTL_WARNING)
-                rep.notes.append(("failsafe_warning", f"{vid}: link loss {fs.action}: {RTL_WARNING}", vid))
+                rep.notes.append((Ev.FAILSAFE_WARNING, f"{vid}: link loss {fs.action}: {RTL_WARNING}", vid))
     await _set_speeds(fleet, mission, rep, [vid for vid in vehicles if vid not in rep.left_out], resuming)
     fence = mission.geofence
     if fence is not None and mission.origin is not None:
@@ -261,12 +261,12 @@ async def admit_safety(fleet: Fleet, mission: Mission, command: str, *, resuming
             except (ParamError, ModeError, LinkError) as exc:
                 _fail(fleet, rep, vid, f"geofence not uploaded: {exc}", resuming)
                 continue
-            rep.notes.append(("geofence", f"{vid}: geofence uploaded ({len(fence.polygon)} vertices, "
+            rep.notes.append((Ev.GEOFENCE, f"{vid}: geofence uploaded ({len(fence.polygon)} vertices, "
                               f"{len(fence.exclusions)} exclusion zones, alt_max "
                               f"{'-' if fence.alt_max is None else f'{fence.alt_max:g} m'}, "
                               f"action {fence.action})", vid))
             if fence.action == "rtl" and vid != fleet.carrier_id:
-                rep.notes.append(("geofence_warning", f"{vid}: geofence action rtl: {RTL_WARNING}", vid))
+                rep.notes.append((Ev.GEOFENCE_WARNING, f"{vid}: geofence action rtl: {RTL_WARNING}", vid))
     return rep
 
 

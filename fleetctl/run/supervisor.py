@@ -32,9 +32,10 @@ from pathlib import Path
 from typing import Any
 
 from fleetctl.mavlink.fleet import Fleet
-from fleetctl.mavlink.vehicle import VehicleEvent
+from fleetctl.mavlink.vehicle import VehicleEvent, VehicleEventKind
 from fleetctl.mission import Mission, MissionError, load_mission
 from fleetctl.mission.limits import MAX_FILE_BYTES
+from fleetctl.run.kinds import Ev
 from fleetctl.run.state import FleetState
 from planners.core.problem import Task, Vec3
 
@@ -151,7 +152,7 @@ class Supervisor:
 
     # -- sources -----------------------------------------------------------------------------------
     def _on_vehicle_event(self, ev: VehicleEvent) -> None:
-        if ev.kind in ("lost", "back"):
+        if ev.kind in (VehicleEventKind.LOST, VehicleEventKind.BACK):
             self.put(SupervisorEvent(ev.kind, ev.vehicle, data=dict(ev.data)))
 
     async def _check_loop(self) -> None:
@@ -220,7 +221,7 @@ class Supervisor:
 
     def reject(self, why: str, source: str) -> None:
         """An invalid task change: say so; the running plan is kept."""
-        self.state.event("task_change_rejected", f"task change from {source} rejected, plan kept: {why}",
+        self.state.event(Ev.TASK_CHANGE_REJECTED, f"task change from {source} rejected, plan kept: {why}",
                          None, source=source, reason=why)
 
 

@@ -34,6 +34,7 @@ from fleetctl.bus.client import iter_topics
 from fleetctl.bus.config import (
     CONNECT_TIMEOUT,
     FINAL_STATES,
+    STATUS_EVENT,
     BusConfig,
     BusStatus,
     client_kwargs,
@@ -184,7 +185,7 @@ class Watcher(ConnectionStatus):
             text = f"bus: connection to {url} lost{why}; reconnecting"
         else:
             text = f"bus: cannot connect to {url}{why}; retrying"
-        self.state.event(f"bus_{status}", text, None, url=url, error=self.last_error)
+        self.state.event(STATUS_EVENT[status], text, None, url=url, error=self.last_error)
 
     def handle(self, topic: str, payload: bytes) -> None:
         """Apply one message of the bus to the state (the controller's, or a team's)."""

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 from fleetctl.geo import local_to_geodetic
 from fleetctl.mavlink.link import LinkError
 from fleetctl.mavlink.sortie import ReturnItems, SortieItems, return_items
-from fleetctl.mavlink.vehicle import CommandRejected, Vehicle, VehicleEvent
+from fleetctl.mavlink.vehicle import CommandRejected, Vehicle, VehicleEvent, VehicleEventKind
 from fleetctl.run.carrier import STAY_SPEED, upload
 from fleetctl.run.context import ExecutionError, RunContext
 from fleetctl.run.kinds import Ev, VehicleStatus
@@ -64,7 +64,7 @@ class SortieFlight:
         self.reached_at: dict[int, float] = {}  # item -> operation s its MISSION_ITEM_REACHED came in
 
     def _on_event(self, ev: VehicleEvent) -> None:
-        if ev.kind == "item_reached" and self.back is None:
+        if ev.kind == VehicleEventKind.ITEM_REACHED and self.back is None:
             self.reached_at.setdefault(int(ev.data["seq"]), self.now())
 
     @property

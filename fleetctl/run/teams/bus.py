@@ -21,7 +21,7 @@ from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
 from fleetctl.bus.client import FleetBus
-from fleetctl.bus.config import BusConfig, BusConfigError, BusStatus, bus_config
+from fleetctl.bus.config import STATUS_EVENT, BusConfig, BusConfigError, BusStatus, bus_config
 from fleetctl.bus.teams.protocol import allocation_hash
 from fleetctl.mission import Mission
 from fleetctl.run.kinds import Ev
@@ -82,7 +82,7 @@ class TeamsBuses:
             text = f"bus: {status} {self.config.url}" + (f" ({error})" if error else "")
             if status == BusStatus.RECONNECTING:
                 text += "; messages are queued (the mission flies on)"
-            self.record(f"bus_{status}", text=text, error=error)
+            self.record(STATUS_EVENT[status], text=text, error=error)
 
     def start_teams(self, shares: Mapping[str, Sequence[str]]) -> None:
         """Every team's bus (first call only): ``shares`` (team -> its tasks or rovers) gives the

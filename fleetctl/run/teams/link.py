@@ -123,9 +123,9 @@ class TeamLink:
         for task, epoch in self.resumed.items():  # re-joining: the claims held when the controller stopped
             self._publish_claim(self.board.make_claim(task, epoch, t, now, held=True))
             self.delivered.append(task)
-            record("team_claim", op="resumed", task=task, epoch=epoch)
+            record(Ev.TEAM_CLAIM, op="resumed", task=task, epoch=epoch)
         self._publish_progress()
-        record("team", team=self.team, session=self.session, allocation=self.board.alloc_hash,
+        record(Ev.TEAM, team=self.team, session=self.session, allocation=self.board.alloc_hash,
                share=self.shares.get(self.team, []), teams=list(self.board.order), prefix=self.topics.prefix)
         self._task = asyncio.get_running_loop().create_task(self._loop(), name="team link")
 
@@ -153,7 +153,7 @@ class TeamLink:
                 if mc.state == ClaimState.LOST and t in executor.board.entries]
         if lost:
             executor.submit_task_change(add=[], remove=lost, source=f"team:{self.team}")
-            self._event("team_claim_lost", f"team {self.team}: {', '.join(lost)} claimed by another team: "
+            self._event(Ev.TEAM_CLAIM_LOST, f"team {self.team}: {', '.join(lost)} claimed by another team: "
                         "taken out of this deployment", None, tasks=lost)
         held, self._undelivered = self._undelivered, []
         self._deliver(held)
@@ -165,7 +165,7 @@ class TeamLink:
             await asyncio.wait({self._task}, timeout=CLOSE_TIMEOUT)
             self._task = None
         self._publish_progress()
-        self.record("team_summary", **self.stats())
+        self.record(Ev.TEAM_SUMMARY, **self.stats())
 
     def stats(self) -> dict[str, Any]:
         return {"team": self.team, "session": self.session, "allocation": self.board.alloc_hash,
@@ -190,7 +190,7 @@ class TeamLink:
                 b.on_claim(parse_claim(name, payload, b.order, self.task_ids), now)
             elif what == "status":
                 if b.on_status(parse_status(name, payload, b.order), now):
-                    self._event("team_mismatch", f"team {name}: runs another allocation of the tasks "
+                    self._event(Ev.TEAM_MISMATCH, f"team {name}: runs another allocation of the tasks "
                                 "(another mission file, seed or planner?); its claims and status are ignored",
                                 name)
             elif name != self.team:
@@ -198,7 +198,7 @@ class TeamLink:
         except PeerMessageError as exc:
             self.rejected += 1
             if self.rejected <= MAX_REJECT_RECORDS:
-                self.record("team_message_rejected", topic=topic, error=str(exc),
+                self.record(Ev.TEAM_MESSAGE_REJECTED, topic=topic, error=str(exc),
                             payload=payload[:200].decode("utf-8", "replace"))
             log.warning("team link: ignored %s: %s", topic, exc)
         self._wake.set()
@@ -208,7 +208,7 @@ class TeamLink:
         peer must not hand over a task this team has just reached)."""
         if ev.kind in (Ev.TASK_REACHED, Ev.ROVER_LAUNCHED, Ev.TASKS_CHANGED):
             self._publish_progress()
-        elif ev.kind == "task_change_rejected" and ev.data.get("source") in self._sent:
+        elif ev.kind == Ev.TASK_CHANGE_REJECTED and ev.data.get("source") in self._sent:
             ids = self._sent.pop(ev.data["source"])  # e.g. no rover left on the deck for them
             self._give_up(ids, f"its deployment refused them ({ev.data.get('reason')})")
             self._publish_progress()
@@ -253,7 +253,7 @@ class TeamLink:
             if p.state.gone and not p.seen_going:
                 why += (" - not seen online by this controller (an earlier run, or it ended before this "
                         "one started): its tasks are not handed over")
-            self._event("team_peer", f"team {team}: {p.state}{why}", team, state=p.state.value)
+            self._event(Ev.TEAM_PEER, f"team {team}: {p.state}{why}", team, state=p.state.value)
 
     def _handover(self, now: float) -> None:
         b = self.board
@@ -279,7 +279,7 @@ class TeamLink:
             entry = {"task": task, "from": gone, "epoch": epoch + 1, "claimed_t": round(t, 3),
                      "gone_t": _gone_unix(b.peers[gone].gone_since, now, t)}
             self.handovers.append(entry)
-            self.record("team_claim", op="claimed", **entry)
+            self.record(Ev.TEAM_CLAIM, op="claimed", **entry)
 
     def carrier_lost(self) -> bool:
         st = self.state
@@ -311,7 +311,7 @@ class TeamLink:
         for h in self.handovers:
             if h["task"] == task and h["epoch"] == mc.claim.epoch:
                 h["held_t"] = round(time.time(), 3)
-        self.record("team_claim", op="held", task=task, epoch=mc.claim.epoch)
+        self.record(Ev.TEAM_CLAIM, op="held", task=task, epoch=mc.claim.epoch)
         if self.executor is None:
             self._undelivered.append(task)
         else:
@@ -325,7 +325,7 @@ class TeamLink:
         self._batches += 1
         source = f"team:{self.team}#{self._batches}"  # a rejection of this batch names it
         self._sent[source] = list(ids)
-        self._event("team_handover", f"team {self.team}: takes over {', '.join(ids)} (claimed)", None,
+        self._event(Ev.TEAM_HANDOVER, f"team {self.team}: takes over {', '.join(ids)} (claimed)", None,
                     tasks=ids)
         assert self.executor is not None  # delivered once the deployment exists (attach_executor)
         self.executor.submit_task_change(add=tasks, remove=[], source=source)
@@ -339,7 +339,7 @@ class TeamLink:
                 self.delivered.remove(task)
             self._publish_claim(b.make_claim(task, b.owner(task)[1] + 1, t, now, released=True))
         self.released.extend(ids)
-        self._event("team_release", f"team {self.team}: {why}: gives up {', '.join(ids)} to the other teams",
+        self._event(Ev.TEAM_RELEASE, f"team {self.team}: {why}: gives up {', '.join(ids)} to the other teams",
                     None, tasks=ids)
 
     def _on_lost(self, task: str) -> None:
@@ -351,13 +351,13 @@ class TeamLink:
             self._undelivered.remove(task)
         if ex is not None and entry is not None and entry.status == TaskStatus.POOLED:
             ex.submit_task_change(add=[], remove=[task], source=f"team:{who}")
-            self._event("team_claim_lost", f"team {self.team}: {task} is claimed by team {who}: "
+            self._event(Ev.TEAM_CLAIM_LOST, f"team {self.team}: {task} is claimed by team {who}: "
                         "taken out of this deployment", None, task=task, by=who)
         elif entry is not None and entry.status in (TaskStatus.FLYING, TaskStatus.REACHED):
-            self._event("team_claim_conflict", f"team {self.team}: {task} is claimed by team {who} but a "
+            self._event(Ev.TEAM_CLAIM_CONFLICT, f"team {self.team}: {task} is claimed by team {who} but a "
                         f"rover of this team is {entry.status} to it; it flies on", None, task=task, by=who)
         else:
-            self.record("team_claim", op="lost", task=task, by=who)
+            self.record(Ev.TEAM_CLAIM, op="lost", task=task, by=who)
 
     # -- outgoing --------------------------------------------------------------------------------
     def _bus(self) -> FleetBus:

@@ -28,6 +28,7 @@ from fleetctl.bus.config import BusConfig
 from fleetctl.journal import JOURNAL_NAME, read_journal
 from fleetctl.mission import Mission
 from fleetctl.mission.teams import team_mission, team_of
+from fleetctl.run.kinds import Ev
 from fleetctl.run.lifecycle import RunOptions, RunOutcome
 from fleetctl.run.rounds import NoMoreWork, WorkSource
 from fleetctl.run.runner import Run
@@ -105,8 +106,8 @@ class TeamControllerRun(Run):
             self.link = None
         if self.link is None:
             share = ", ".join(t.id for t in self.mission.tasks) or "none"
-            self.state.event("team_alone", f"team {self.spec.team}: no MQTT bus, so no coordination with the "
-                             f"other teams: flying this team's share ({share}) only; its tasks are not "
+            self.state.event(Ev.TEAM_ALONE, f"team {self.spec.team}: no MQTT bus, so no coordination with "
+                             f"the other teams: flying this team's share ({share}) only; its tasks are not "
                              "handed over if it fails", None)
         return bus
 
