@@ -63,6 +63,7 @@ from fleetctl.journal import Journal, Record, json_safe
 from fleetctl.kinds import Ev
 from fleetctl.mission import MissionError, parse_mission
 from fleetctl.mission.limits import FAR_FACTOR, MIN_EXTENT
+from fleetctl.mission.model import TaskWork
 
 if TYPE_CHECKING:
     from fleetctl.mission import Mission
@@ -76,7 +77,8 @@ log = logging.getLogger(__name__)
 class TaskChanges(Protocol):
     """What task messages are handed to: the run's executor (:mod:`fleetctl.run.executor`)."""
 
-    def submit_task_change(self, add: list[Task], remove: list[str], source: str) -> None: ...
+    def submit_task_change(self, add: list[Task], remove: list[str], source: str,
+                           work: dict[str, TaskWork] | None = None) -> None: ...
 
 def _dumps(data: Any) -> bytes:
     return json.dumps(json_safe(data), separators=(",", ":")).encode()
@@ -129,7 +131,8 @@ class FleetBus(ConnectionStatus):
         self._on_status: list[Callable[[BusStatus], None]] = []
         self.rejected = 0  # task messages answered on P/errors
         self.failed: str | None = None  # why the bus task stopped (it should never)
-        self._pending: deque[tuple[list[Task], list[str], str]] = deque()  # before an executor exists
+        # changes (add, remove, topic, added tasks' work) before an executor exists
+        self._pending: deque[tuple[list[Task], list[str], str, dict[str, TaskWork]]] = deque()
         self.identity: dict[str, Any] = {}  # fields of every status, the last will too (a team's id, session)
         self._handlers: list[tuple[str, Callable[[str, bytes], None]]] = []  # extra subscriptions
         self.refuse_tasks: str | None = None  # why every task message is refused (None: they are handled)
@@ -276,12 +279,12 @@ class FleetBus(ConnectionStatus):
         self.executor = executor
         pending, self._pending = list(self._pending), deque()
         submit = getattr(executor, "submit_task_change", None)
-        for add, remove, topic in pending:
+        for add, remove, topic, work in pending:
             try:
                 if submit is None:
                     raise TaskMessageError("task changes are not supported by this controller "
                                            "(no replanner); nothing changed")
-                submit(add=add, remove=remove, source=f"mqtt:{topic}")
+                submit(add=add, remove=remove, source=f"mqtt:{topic}", work=work)
             except Exception as exc:  # noqa: BLE001 - the sender's answer, never the bus's end
                 self._answer_error(topic, b"", f"queued change refused by the controller: {exc}")
                 continue
@@ -459,8 +462,9 @@ class FleetBus(ConnectionStatus):
     def _handle_task_message(self, topic: str, payload: bytes) -> bool:
         op = topic.rsplit("/", 1)[-1]
         data, force = self._decode_task_message(payload)
+        work: dict[str, TaskWork] = {}
         if op == "add":
-            add, remove = self.parse_add(data, topic), []
+            (add, work), remove = self.parse_add_work(data, topic), []
         elif op == "remove":
             add, remove = [], self.parse_remove(data)
         else:
@@ -470,7 +474,7 @@ class FleetBus(ConnectionStatus):
             if why is not None:
                 raise TaskMessageError(f'{why}; nothing changed (send "force": true in the message to '
                                        "apply it anyway)")
-        self._hand_over(add, remove, topic)
+        self._hand_over(add, remove, topic, work)
         ids = {t.id for t in add}
         self.tasks = [t for t in self.current_tasks() if t.id not in remove] + list(add)
         self.record(Ev.BUS_TASK_CHANGE, op=op, add=sorted(ids), remove=remove, topic=topic,
@@ -505,20 +509,20 @@ class FleetBus(ConnectionStatus):
                 raise TaskMessageError('"force" must be true or false')
         return data, force
 
-    def _hand_over(self, add: list[Task], remove: list[str], topic: str) -> None:
+    def _hand_over(self, add: list[Task], remove: list[str], topic: str, work: dict[str, TaskWork]) -> None:
         """The change to the controller, or queued for it while it is still connecting or planning."""
         submit = getattr(self.executor, "submit_task_change", None)
         if self.executor is None:
             if len(self._pending) >= MAX_PENDING:
                 raise TaskMessageError(f"{MAX_PENDING} task changes are already waiting for the controller "
                                        "to start; try again when the plan is out")
-            self._pending.append((add, remove, topic))
+            self._pending.append((add, remove, topic, work))
         elif submit is None:
             raise TaskMessageError("task changes are not supported by this controller (no replanner); "
                                    "nothing changed")
         else:
             try:
-                submit(add=add, remove=remove, source=f"mqtt:{topic}")
+                submit(add=add, remove=remove, source=f"mqtt:{topic}", work=work)
             except Exception as exc:  # noqa: BLE001 - the replanner's refusal is the sender's answer
                 raise TaskMessageError(f"refused by the controller: {exc}") from None
 
@@ -561,8 +565,14 @@ class FleetBus(ConnectionStatus):
         return list(self.tasks)
 
     def parse_add(self, data: Any, source: str) -> list[Task]:
-        """The tasks of an add message, checked like the mission file against the current task set
-        and the fleet (ids unique, heights within the deploy range, outside obstacles, a rover each)."""
+        """The tasks of an add message (see :meth:`parse_add_work`)."""
+        return self.parse_add_work(data, source)[0]
+
+    def parse_add_work(self, data: Any, source: str) -> tuple[list[Task], dict[str, TaskWork]]:
+        """The tasks of an add message and each one's work (its optional ``duration`` and ``work``,
+        validated by the mission loader; default the mission's ``dwell`` and ``rovers.work``),
+        checked like the mission file against the current task set and the fleet (ids unique,
+        heights within the deploy range, outside obstacles, a rover each)."""
         if isinstance(data, dict) and "tasks" in data and set(data) == {"tasks"}:
             data = data["tasks"]
         entries = data if isinstance(data, list) else [data]
@@ -592,7 +602,8 @@ class FleetBus(ConnectionStatus):
             m = parse_mission(raw, f"mqtt {source}")
         except MissionError as exc:
             raise TaskMessageError(str(exc)) from None
-        return list(m.tasks[: len(entries)])
+        added = list(m.tasks[: len(entries)])
+        return added, {t.id: m.task_work(t.id) for t in added}
 
     def parse_remove(self, data: Any) -> list[str]:
         if isinstance(data, dict) and set(data) in ({"tasks"}, {"id"}):

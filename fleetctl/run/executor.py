@@ -19,6 +19,7 @@ from typing import TYPE_CHECKING, Any
 from fleetctl.mavlink.fleet import Fleet
 from fleetctl.mavlink.vehicle import Vehicle, VehicleEvent, VehicleEventKind
 from fleetctl.mission import Mission
+from fleetctl.mission.model import TaskWork
 from fleetctl.run.carrier import CarrierControl
 from fleetctl.run.collect import CollectPhase, ResumedCollect
 from fleetctl.run.context import Committer, Recorder, RunContext
@@ -105,10 +106,13 @@ class Executor:
         await self.ctx.sleep_mission(seconds)
 
     # -- from outside ------------------------------------------------------------------------------
-    def submit_task_change(self, add: list[Task], remove: list[str], source: str) -> None:
-        """Add and/or remove tasks of the running mission. Safe to call from the event loop or
-        from another thread; applied by the running phase."""
-        ev = SupervisorEvent(Watch.TASKS, None, add=tuple(add), remove=tuple(remove), source=source)
+    def submit_task_change(self, add: list[Task], remove: list[str], source: str,
+                           work: dict[str, TaskWork] | None = None) -> None:
+        """Add and/or remove tasks of the running mission (``work``: an added task's duration and
+        work mode, when the change gives them). Safe to call from the event loop or from another
+        thread; applied by the running phase."""
+        ev = SupervisorEvent(Watch.TASKS, None, add=tuple(add), remove=tuple(remove), source=source,
+                             work=dict(work or {}))
         try:
             running: asyncio.AbstractEventLoop | None = asyncio.get_running_loop()
         except RuntimeError:

@@ -35,6 +35,7 @@ from fleetctl.mavlink.fleet import Fleet
 from fleetctl.mavlink.vehicle import VehicleEvent, VehicleEventKind
 from fleetctl.mission import Mission, MissionError, load_mission
 from fleetctl.mission.limits import MAX_FILE_BYTES
+from fleetctl.mission.model import TaskWork
 from fleetctl.run.kinds import Ev
 from fleetctl.run.state import FleetState
 from planners.core.problem import Task, Vec3
@@ -55,6 +56,7 @@ class SupervisorEvent:
     remove: tuple[str, ...] = ()
     source: str = ""
     data: dict[str, Any] = field(default_factory=dict)
+    work: dict[str, TaskWork] = field(default_factory=dict)  # an added task's work, when the change gives it
 
 
 def distance_to_path(p: Sequence[float], path: Sequence[Vec3]) -> float:
@@ -217,7 +219,8 @@ class Supervisor:
                        if i not in newt or tuple(newt[i].position) != tuple(t.position))
         add = tuple(t for i, t in newt.items() if i not in current or i in remove)
         if add or remove:
-            self.put(SupervisorEvent("tasks", None, add=add, remove=remove, source=f"file {path}"))
+            self.put(SupervisorEvent("tasks", None, add=add, remove=remove, source=f"file {path}",
+                                     work={t.id: new.task_work(t.id) for t in add}))
 
     def reject(self, why: str, source: str) -> None:
         """An invalid task change: say so; the running plan is kept."""

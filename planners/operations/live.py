@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 from planners.core.problem import Vec3
 from planners.operations.plan import Sortie, Visit
 from planners.operations.problem import OperationProblem, OpTask
-from planners.operations.schedule import Airborne, Schedule
+from planners.operations.schedule import Airborne, Schedule, return_air
 from planners.operations.timing import flight_time
 
 
@@ -68,4 +68,11 @@ def _airborne(problem: OperationProblem, f: InFlight) -> Airborne:
     return Airborne(s, here, t, ground, air, f.flown)
 
 
-__all__ = ["InFlight", "LiveState", "seed"]
+def air_needed(problem: OperationProblem, f: InFlight, stop: Vec3) -> float:
+    """Air seconds a rover in the air still needs: the flights to its tasks left and their work
+    (hovering), then the way back to touch-down at ``stop``, leaving its last task at once."""
+    a = _airborne(problem, f)
+    return a.air_to_end + return_air(a.last, a.ground, stop, problem)
+
+
+__all__ = ["InFlight", "LiveState", "air_needed", "seed"]

@@ -23,6 +23,7 @@ import pytest
 
 from fleetctl.bus.client import FleetBus, bus_config  # noqa: E402
 from fleetctl.mission import Mission  # noqa: E402
+from fleetctl.mission.model import TaskWork
 from fleetctl.run.state import FleetState  # noqa: E402
 from tests.bus.test_bus import MOSQUITTO, WAIT, Broker, Subscriber, free_tcp_port  # noqa: E402
 from tests.run.ctl_helpers import mission_dict, mission_from
@@ -31,9 +32,12 @@ from tests.run.ctl_helpers import mission_dict, mission_from
 class FakeExecutor:
     def __init__(self) -> None:
         self.changes: list[tuple[list[str], list[str], str]] = []
+        self.work: dict[str, TaskWork] = {}
 
-    def submit_task_change(self, add: list[Any], remove: list[str], source: str) -> None:
+    def submit_task_change(self, add: list[Any], remove: list[str], source: str,
+                           work: dict[str, TaskWork] | None = None) -> None:
         self.changes.append(([t.id for t in add], list(remove), source))
+        self.work.update(work or {})
 
 
 def make_mission(tmp_path: Path, port: int = 1883, prefix: str = "test/hard", accept: bool = True,
@@ -155,6 +159,27 @@ def test_changes_before_the_controller_are_queued(tmp_path: Path) -> None:
     assert records[0][1].get("queued") is True
     bus.attach_executor(ex := FakeExecutor())
     assert ex.changes == [(["t9"], [], f"mqtt:{ADD}")]
+
+
+def test_an_added_task_carries_its_duration_and_work_mode(tmp_path: Path) -> None:
+    mission = make_mission(tmp_path, rovers=6)
+    bus, errors, _ = make_bus(mission)
+    assert bus.handle_task_message(ADD, msg({"tasks": [{"id": "t8", "position": [5, 5, 2], "duration": 45}]}))
+    bus.attach_executor(ex := FakeExecutor())  # a queued change keeps its work
+    assert bus.handle_task_message(ADD, msg({"tasks": [{"id": "t9", "position": [6, 5, 0], "work": "ground"},
+                                                       {"id": "t10", "position": [7, 5, 2]}]})), errors
+    assert ex.work["t8"] == TaskWork(45.0, ground=mission.rovers.work == "ground")
+    assert ex.work["t9"] == TaskWork(mission.dwell, ground=True)
+    assert ex.work["t10"] == mission.task_work("t10")  # none given: the mission's dwell and rovers.work
+
+
+@pytest.mark.parametrize("bad", [{"duration": -1}, {"duration": "long"}, {"duration": 1e9},
+                                 {"work": "swimming"}, {"duration": True}])
+def test_a_bad_duration_or_work_mode_is_refused(tmp_path: Path, bad: dict[str, Any]) -> None:
+    bus, errors, _ = make_bus(make_mission(tmp_path))
+    bus.attach_executor(ex := FakeExecutor())
+    assert not bus.handle_task_message(ADD, msg({"tasks": [{"id": "t9", "position": [5, 5, 2]} | bad]}))
+    assert ex.changes == [] and "tasks[0]." + next(iter(bad)) in errors[-1]["error"]
 
 
 def test_bus_task_end_is_reported(tmp_path: Path) -> None:

@@ -7,7 +7,7 @@ import dataclasses
 
 import pytest
 
-from planners.operations import InFlight, LiveState, OpTask, plan_operation
+from planners.operations import InFlight, LiveState, OpTask, air_needed, plan_operation
 from tests.planners.test_operations import instance
 
 # instances with a rover to put in the air and one on the deck
@@ -42,3 +42,18 @@ def test_a_rover_in_the_air_with_no_work_left_is_picked_up() -> None:
     plan = plan_operation(dataclasses.replace(problem, tasks=(), rovers=problem.rovers[:1]), state)
     assert len(plan.sorties) == 1 and plan.sorties[0].pickup_stop == 0
     assert isinstance(problem.tasks[0], OpTask)
+
+
+def test_the_air_a_rover_still_needs_counts_hovering_work_and_the_way_back() -> None:
+    problem, _spec = instance(3)
+    rover, here, stop = problem.rovers[0], (40.0, 60.0, 5.0), (0.0, 0.0, 0.0)
+    back = air_needed(problem, InFlight(rover, here, (), 0.0), stop)
+    assert back > 0.0
+    hover = OpTask("a", here, 100.0, ground=False)
+    assert air_needed(problem, InFlight(rover, here, (hover,), 0.0), stop) == pytest.approx(back + 100.0)
+    landed = OpTask("a", (here[0], here[1], 0.0), 100.0, ground=True)  # landed there: work costs nothing
+    on_ground = air_needed(problem, InFlight(rover, landed.position, (landed,), 0.0, True), stop)
+    idle = air_needed(problem, InFlight(rover, landed.position, (), 0.0, True), stop)
+    assert on_ground == pytest.approx(idle)
+    far = OpTask("b", (here[0] + 100.0, here[1], 5.0), 0.0)
+    assert air_needed(problem, InFlight(rover, here, (far,), 0.0), stop) > back

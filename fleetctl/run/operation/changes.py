@@ -1,8 +1,8 @@
 """Tasks added or removed while an operation flies (the watched mission file, MQTT): applied at
-the carrier's next stop, then the rest of the operation is replanned. An added task gets the running
-mission's work for it (``Mission.task_work``: its ``dwell`` and ``rovers.work`` for a task it does not
-know; a ``duration`` given with the change is not read yet); a task a rover in the air still has is
-not removed (the change says so)."""
+the carrier's next stop, then the rest of the operation is replanned. An added task gets the work the
+change gives it (its ``duration`` and ``work``, read by the mission loader from the edited file or the
+MQTT message), else the running mission's (``Mission.task_work``: ``dwell`` and ``rovers.work``); a
+task a rover in the air still has is not removed (the change says so)."""
 
 from __future__ import annotations
 
@@ -38,7 +38,7 @@ class TaskChanges:
             self.removed.append(tid)
         new = [t for t in ev.add if t.id not in self.board.tasks]
         for t in new:
-            w = self.ctx.mission.task_work(t.id)
+            w = ev.work.get(t.id) or self.ctx.mission.task_work(t.id)
             self.tasks[t.id] = OpTask(t.id, t.position, w.duration, w.ground)
             self.board.tasks[t.id] = TaskWorkState(w.duration)
             self.live.add(t)

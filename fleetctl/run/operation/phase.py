@@ -108,6 +108,7 @@ class OperationPhase:
             self.ctx.state.eta = self._eta()
             await self._pick_up(k, stop)
             self._take_changes()
+            await self._check_batteries()
             if self.trouble is not None and (new := await self._replan()) is not None:
                 return new
             await self._launch(k, stop)
@@ -164,6 +165,15 @@ class OperationPhase:
             if ev.kind == Watch.TASKS and self.changes.apply(ev, flying):
                 self._on_trouble(f"tasks changed by {ev.source}")
 
+    async def _check_batteries(self) -> None:
+        """The rovers in the air with a fresh battery reading each (a streamed one is a second of
+        wall time old): one reading lower than the rest of its sortie needs asks for a replan."""
+        flights = [f for f in self.flights.values() if f.entry.status is SortieStatus.FLYING
+                   and not f.vehicle.lost]
+        await asyncio.gather(*(f.vehicle.refresh_battery(BATTERY_READ_WAIT) for f in flights))
+        for f in flights:
+            f.check_battery()
+
     def _on_trouble(self, cause: str) -> None:
         """A rover lost, a task's work off its plan, ...: replan at the next stop (every cause said)."""
         if self.trouble is None:
@@ -198,7 +208,15 @@ class OperationPhase:
         st.last_replan = text
         st.event(Ev.REPLAN, text, None, n=st.replans, cause=cause, makespan=end)
         self._adopt(plan, f"plan-replan-{st.replans}.json")
+        self._start_planned_swaps()
         return plan
+
+    def _start_planned_swaps(self) -> None:
+        """The swaps a new plan gives the rovers already on the deck (before their next launch)."""
+        for rid, v in self.ctx.fleet.rovers.items():
+            if rid not in self.flights and rid not in self.swaps.pending and not v.lost \
+                    and rover_on_deck(self.ctx, v) and self._swap_due(rid, 0.0):
+                self.swaps.start(rid)
 
     async def _start_route(self, plan: OperationPlan) -> list[tuple[int, int | None]]:
         ctx, c = self.ctx, self.carrier.vehicle

@@ -18,6 +18,7 @@ from fleetctl.run.context import ExecutionError, RunContext
 from fleetctl.run.kinds import Ev, VehicleStatus
 from fleetctl.run.launch import rover_on_deck
 from fleetctl.run.operation.board import OperationBoard, SortieEntry, SortieStatus
+from planners.operations import InFlight, OperationProblem, OpTask, air_needed
 from planners.operations.plan import Sortie
 
 Vec3 = tuple[float, float, float]
@@ -62,6 +63,8 @@ class SortieFlight:
         self.trouble = trouble  # told when a task's work ends further off its plan than REPLAN_SLACK
         self.back: ReturnItems | None = None  # its way back, once uploaded and started
         self.reached_at: dict[int, float] = {}  # item -> operation s its MISSION_ITEM_REACHED came in
+        self.problem: OperationProblem | None = None  # the mission's operation (its energy model), once asked
+        self.battery_said = False  # a battery too low for the rest of the sortie was told (once a sortie)
 
     def _on_event(self, ev: VehicleEvent) -> None:
         if ev.kind == VehicleEventKind.ITEM_REACHED and self.back is None:
@@ -93,6 +96,7 @@ class SortieFlight:
         await ctx.wait_for(v, lambda v: arrive_seq in v.items_reached or v.lost,
                            ctx.late(arrive + self.delay() - self.now()), f"at task {task}")
         self._check(v)
+        self.check_battery()
         work = self.board.tasks[task]
         work.rover, work.started = rid, self.reached_at.get(arrive_seq, self.now())
         st.set_state(rid, VehicleStatus.ON_TASK, task)
@@ -101,6 +105,7 @@ class SortieFlight:
                            ctx.late(work.duration), f"work at {task} done")
         self._check(v)
         work.done = self.reached_at.get(done_seq, self.now())
+        self.check_battery()
         off = work.done - (self.times[task][1] + self.delay())  # a replan on the way moved it
         if abs(off) > REPLAN_SLACK:
             self.trouble(f"task {task} done {off:+.0f} s off its plan")
@@ -111,6 +116,7 @@ class SortieFlight:
     async def _wait_leave(self) -> None:
         while self.now() < self.pickup.leave + self.delay():
             self._check(self.vehicle)
+            self.check_battery()
             await self.ctx.sleep_mission(min(RECHECK, self.pickup.leave + self.delay() - self.now()))
 
     def work_left(self) -> list[tuple[str, float]]:
@@ -118,6 +124,35 @@ class SortieFlight:
         now = self.now()
         return [(t, self.board.tasks[t].duration - self.board.tasks[t].worked(now))
                 for t in self.entry.tasks if self.board.tasks[t].done is None]
+
+    def battery_needed(self) -> float | None:
+        """The battery fraction the rest of the sortie needs from here, its reserve included: the
+        flights to its tasks left and their work, the way back to its pick-up stop leaving the last
+        task at once (None: no position to reckon from)."""
+        v = self.vehicle
+        if v.enu is None:
+            return None
+        if self.problem is None:
+            self.problem = self.ctx.mission.operation_problem()
+        p, visits = self.problem, {x.task: x for x in self.planned.visits}
+        left = tuple(OpTask(t, visits[t].position, max(w, 0.0), visits[t].ground)
+                     for t, w in self.work_left())
+        here = (v.enu[0], v.enu[1], max(v.enu[2], 0.0))
+        need = air_needed(p, InFlight(v.name, here, left, 0.0, v.on_ground is True), self.pickup.position)
+        return need / p.endurance + p.reserve
+
+    def check_battery(self) -> None:
+        """A battery reading below what the rest of the sortie needs asks the phase for a replan
+        from the live state (once a sortie)."""
+        frac = self.vehicle.battery_fraction
+        if self.battery_said or frac is None:
+            return
+        need = self.battery_needed()
+        if need is not None and frac < need:
+            self.battery_said = True
+            self.trouble(f"rover {self.entry.rover} at {100 * frac:.0f} % of its battery in the air, "
+                         f"{100 * need:.0f} % needed for the rest of its sortie, the way back and "
+                         "the reserve")
 
     def retarget(self, pickup: Pickup, planned: Sortie, base: float) -> None:
         """A replan's pick-up and times (``planned``: its sortie in the new plan, whose time 0 is

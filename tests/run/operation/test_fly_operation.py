@@ -87,12 +87,39 @@ async def test_a_battery_too_low_for_the_next_sortie_is_replanned_from(tmp_path:
     assert sorted(out.summary["tasks_done"]) == sorted(t.id for t in mission.tasks)
 
 
+async def test_a_battery_reading_low_in_the_air_asks_for_a_replan(tmp_path: Path) -> None:
+    """r2's battery drops to 55 % just after its launch on a sortie (t2, t1) planned for a full one:
+    the replan at the next stop (r1's pick-up) is asked for by r2's reading in the air, before r2
+    is back (on the deck only, its reading would not be seen before it lands)."""
+    mission = mission_from(small_operation(), tmp_path)
+    watchers: list[asyncio.Task[None]] = []
+
+    async def drop_r2_battery(sim: SimFleet) -> None:
+        r2 = sim.rover("r2")
+        await sim.wait_for(lambda: r2.phase is BodyPhase.AIR, 60)
+        sim.pin_battery("r2", 0.55)
+        sim.pin_battery("r2", None)  # drains on from there
+
+    def on_sim(sim: SimFleet) -> None:
+        watchers.append(asyncio.ensure_future(drop_r2_battery(sim)))
+
+    await asyncio.wait_for(execute(mission, "run", run_dir=tmp_path / "run", force=True, on_sim=on_sim), 150)
+    for w in watchers:
+        w.cancel()
+    records = journal(tmp_path / "run")
+    asked = [i for i, r in enumerate(records) if r["kind"] == "replan"
+             and "rover r2 at" in r["cause"] and "in the air" in r["cause"]]
+    back = [i for i, r in enumerate(records) if r["kind"] in ("sortie_back", "sortie_lost")
+            and r.get("vehicle") == "r2"]
+    assert asked and back and asked[0] < back[0], [r.get("text") for r in records if r["kind"] == "replan"]
+
+
 async def test_tasks_added_and_removed_in_the_mission_file_are_flown(tmp_path: Path) -> None:
     d = small_operation()
     mission = mission_from(d, tmp_path)
     edited = small_operation()
     edited["tasks"] = [t for t in edited["tasks"] if t["id"] != "t6"]
-    edited["tasks"].append({"id": "t7", "position": [30, -10, 4]})
+    edited["tasks"].append({"id": "t7", "position": [30, -10, 4], "duration": 45})  # dwell: 20
     watchers: list[asyncio.Task[None]] = []
 
     async def edit_after_the_first_launch(sim: SimFleet) -> None:
@@ -114,4 +141,4 @@ async def test_tasks_added_and_removed_in_the_mission_file_are_flown(tmp_path: P
     records = journal(tmp_path / "run")
     assert any(r["kind"] == "replan" and "tasks changed" in r.get("cause", "") for r in records)
     done = {r["task"]: r["worked"] for r in records if r["kind"] == "task_done"}
-    assert done["t7"] >= mission.dwell - 0.5  # an added task's work: the mission's dwell
+    assert done["t7"] >= 45 - 0.5  # an added task's work: the duration the edit gives it, not the dwell
