@@ -467,6 +467,27 @@ def _wait_records(ctl: Any, run_dir: Path, until: Callable[[Records], bool], wha
     return _records(run_dir)
 
 
+
+def check_team_controller_resumed(p: Problems, codes: tuple[int, int], out: str, dirs: tuple[Path, Path],
+                                  killed: Records) -> tuple[Records, Records, Records]:
+    """What a ``--team c1`` controller killed and resumed beside a running c2 must show: both exit 0
+    without a traceback, one ``resumed`` record after the kill, c1's link under a new session beside
+    the killed one, every task reached once by the two teams, no launch rule broken. Returns c1's and
+    c2's journals and c1's records after the kill."""
+    rc, rc2 = codes
+    p.check(rc == 0 and rc2 == 0, f"resume of c1 exited {rc}, c2 exited {rc2}")
+    p.check("Traceback" not in out, "a traceback in the output of resume")
+    r1, r2 = parse_journal_strict(dirs[0]), parse_journal_strict(dirs[1])
+    after = r1[len(killed):]
+    p.check(len(of_kind(after, "resumed")) == 1, "no single 'resumed' record appended to c1's journal")
+    sessions = {r.get("session") for r in of_kind(r1, "team") if r.get("session")}
+    p.check(len(sessions) == 2, f"c1's link sessions {sessions}: want the killed one and a new one")
+    reached = Counter(r["task"] for r in of_kind(r1 + r2, "task_reached"))
+    p.check(reached == Counter(dict.fromkeys(TASKS, 1)), f"tasks reached (both teams) {dict(reached)}")
+    for v in launch_violations(r1) + launch_violations(r2):
+        p.check(False, v)
+    return r1, r2, after
+
 def _check_team_killed(recs: Records, rovers: list[str]) -> None:
     launched = {r["vehicle"] for r in of_kind(recs, "rover_launched")}
     assert 1 <= len(launched) < len(rovers), f"{sorted(launched)} launched when killed (test timing)"
@@ -574,21 +595,11 @@ def test_a_resumed_team_controller_rejoins_the_bus(tmp_path: Path) -> None:
     finally:
         broker.stop()
     p = Problems()
-    p.check(rc == 0 and rc2 == 0, f"resume of c1 exited {rc}, c2 exited {rc2}")
-    p.check("Traceback" not in out, "a traceback in the output of resume")
-    r1, r2 = parse_journal_strict(d1), parse_journal_strict(d2)
-    after = r1[len(killed):]
-    p.check(len(of_kind(after, "resumed")) == 1, "no single 'resumed' record appended to c1's journal")
-    sessions = [r.get("session") for r in of_kind(r1, "team") if r.get("session")]
-    p.check(len(set(sessions)) == 2, f"c1's link sessions {sessions}: want the killed one and a new one")
+    r1, r2, after = check_team_controller_resumed(p, (rc, rc2), out, (d1, d2), killed)
     rejoined = [r for r in of_kind(after, "team") if r.get("session")]
     p.check(bool(rejoined) and rejoined[0].get("share") == ["t1", "t2"], f"c1 re-joined with {rejoined}")
-    reached = Counter(r["task"] for r in of_kind(r1 + r2, "task_reached"))
-    p.check(reached == Counter({t: 1 for t in TASKS}), f"tasks reached (both teams) {dict(reached)}")
     launched = Counter(r["vehicle"] for r in of_kind(r1 + r2, "rover_launched"))
     p.check(all(n == 1 for n in launched.values()), f"a rover launched twice: {dict(launched)}")
-    for v in launch_violations(r1) + launch_violations(r2):
-        p.check(False, v)
     on_task = _on_tasks(seen, d)
     p.check(all(len(v) == 1 for v in on_task.values()), f"the world: rovers on each task {on_task}")
     p.assert_none(f"the world:\n{describe(seen)}", f"resume output:\n{out[-2000:]}")
