@@ -6,7 +6,7 @@
 # rerun fast), then pytest. Either check failing fails the script before any test runs. Extra
 # arguments go to pytest, e.g. scripts/test.sh tests/bus/test_bus.py. The tests run on two pytest-xdist
 # workers (most of a test's time is a simulated flight waiting on its clock); the firmware tests are
-# one group flown by one worker in turn (tests/conftest.py).
+# one group flown by one worker in turn (tests/conftest.py). `-rs` names every skipped test and its reason.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 SUDO=""
@@ -21,4 +21,4 @@ fi
 python3 -m pip install -q -e '.[test]'
 python3 -m ruff check .
 python3 -m mypy
-python3 -m pytest -q -n 2 --dist loadgroup --durations=15 "$@"
+python3 -m pytest -q -rs -n 2 --dist loadgroup --durations=15 "$@"
