@@ -138,3 +138,33 @@ def test_the_command_line_loads_no_planner_or_heavy_library_before_it_needs_one(
     assert "planners.deploy.lee" in planned
     unneeded = ("planners.collect", "planners.roadmap", "scipy", "shapely")
     assert not {m for m in planned if m.startswith(unneeded)}
+
+
+def test_plan_shows_a_spinner_on_a_terminal_only(tmp_path: Path) -> None:
+    """Planning a large mission takes seconds: a terminal's stderr says what is being planned; a pipe
+    gets nothing but the result."""
+    import os
+    import pty
+
+    argv = [sys.executable, "-m", "fleetctl.cli", "plan", "-m", str(ROOT / "missions" / "recon.yaml"),
+            "--budget-ms", "300"]
+    env = dict(os.environ, PYTHONPATH=str(ROOT), TERM="xterm")
+    main_fd, tty_fd = pty.openpty()
+    try:
+        done = subprocess.run(argv, env=env, stdout=subprocess.PIPE, stderr=tty_fd, timeout=60)
+        os.close(tty_fd)
+        shown = b""
+        while True:
+            try:
+                chunk = os.read(main_fd, 65536)
+            except OSError:  # the terminal's other end is closed: everything is read
+                break
+            if not chunk:
+                break
+            shown += chunk
+    finally:
+        os.close(main_fd)
+    assert done.returncode == 0
+    assert b"planning 16 tasks with " in shown, shown[-500:]
+    piped = subprocess.run(argv, env=env, capture_output=True, text=True, timeout=60)
+    assert piped.returncode == 0 and "planning" not in piped.stderr, piped.stderr

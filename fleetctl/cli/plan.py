@@ -13,6 +13,7 @@ import dataclasses
 import json
 import sys
 from collections.abc import Callable
+from contextlib import AbstractContextManager
 from pathlib import Path
 from typing import Any
 
@@ -64,8 +65,9 @@ def _plan_one(args: argparse.Namespace, mission: Mission, planner: Planner, name
     except ValueError as e:
         raise CliError(str(e)) from None
     try:
-        plan = planner(problem)
-        bound = _lower_bound(problem)
+        with _planning(mission, name):
+            plan = planner(problem)
+            bound = _lower_bound(problem)
     except PlanningError as e:
         raise CliError(f"{args.mission}: cannot plan with {name!r}: {e}") from None
 
@@ -93,7 +95,8 @@ def _plan_operation(args: argparse.Namespace, mission: Mission) -> int:
         raise CliError(f"unknown planner {name!r} for an operation; choose one of: "
                        f"{', '.join(sorted(OPERATION_PLANNERS))}")
     try:
-        plan, bound = plan_for_operation(mission, name)
+        with _planning(mission, name):
+            plan, bound = plan_for_operation(mission, name)
     except PlanningError as e:
         raise CliError(f"{args.mission}: cannot plan the operation with {name!r}: {e}") from None
     _report(args, plan.to_json(), lambda: print_operation_summary(mission, plan, bound), lambda out: out)
@@ -106,7 +109,8 @@ def _plan_teams(args: argparse.Namespace, mission: Mission, planner: Planner, na
         raise CliError(f"{args.mission}: --export writes one carrier's plan; exporting several teams "
                        "is not supported yet")
     try:
-        plan, bound = plan_for_teams(mission, args.collect, planner, name)
+        with _planning(mission, name):
+            plan, bound = plan_for_teams(mission, args.collect, planner, name)
     except PlanningError as e:
         raise CliError(f"{args.mission}: cannot plan with {name!r}: {e}") from None
 
@@ -117,6 +121,15 @@ def _plan_teams(args: argparse.Namespace, mission: Mission, planner: Planner, na
 
     _report(args, plan.to_json(), lambda: print_teams_summary(mission, plan, bound), draw)
     return 0
+
+
+def _planning(mission: Mission, name: str) -> AbstractContextManager[object]:
+    """A spinner on a terminal's stderr while the planner works (a 1,000-task mission takes seconds);
+    nothing when stderr is a pipe or a file."""
+    from rich.console import Console
+
+    n = len(mission.tasks)
+    return Console(stderr=True).status(f"planning {n} task{'s' if n != 1 else ''} with {name}…")
 
 
 def _report(args: argparse.Namespace, doc: dict[str, Any], summary: Callable[[], None],

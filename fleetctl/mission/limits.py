@@ -20,8 +20,8 @@ MAX_DATA_FILE_BYTES = 2 * 1024 * 1024  # a .plan/.geojson/.kml/.csv (5000 vertic
 MAX_DATA_FILE_ENTRIES = 10_000  # features, mission items, placemarks or rows looked at in one file
 
 # --------------------------------------------------------------------------- list lengths
-MAX_TASKS = 254  # MAVLink system ids 1..255 of one link: one carrier + 254 rovers, one rover per task
-MAX_ROVERS = 254
+MAX_TASKS = 1000  # one team flies at most MAX_ROVERS: more tasks need several carriers or an operation
+MAX_ROVERS = 254  # MAVLink system ids 1..255 of one link: one carrier + 254 rovers
 MAX_CARRIERS = 16  # teams of one mission (carriers:)
 MAX_OBSTACLES = 500
 MAX_OBSTACLE_VERTICES = 200  # per polygon

@@ -123,9 +123,28 @@ def test_too_many_tasks(tmp_path: Path) -> None:
 
 
 def test_max_tasks_is_accepted(tmp_path: Path) -> None:
-    d = with_("rovers", fleet={"count": L.MAX_TASKS, "sysid_start": 2})
+    """More tasks than one team's rovers (MAX_ROVERS): an operation serves them in sorties."""
+    assert L.MAX_TASKS > L.MAX_ROVERS
+    d = with_("rovers", fleet={"count": 20, "sysid_start": 2})
+    d["operation"] = True
     d["tasks"] = _tasks(L.MAX_TASKS)
     assert len(load(tmp_path, d).tasks) == L.MAX_TASKS
+
+
+def test_the_documented_limits_are_the_loaders() -> None:
+    """Every ``N (`MAX_NAME`)`` of docs/mission-limits.md is the value in fleetctl.mission.limits."""
+    import re
+
+    text = (Path(__file__).parents[2] / "docs" / "mission-limits.md").read_text()
+    units = {"KiB": 1024, "MiB": 1024 * 1024}
+    found = 0
+    for m in re.finditer(r"([\d,.]+)\s*(KiB|MiB|polygons|m)?\s*\(`(MAX_[A-Z_]+)`\)", text):
+        if not hasattr(L, m.group(3)):
+            continue  # a planner's own bound, e.g. MAX_NODES
+        value = float(m.group(1).replace(",", "").split("..")[-1]) * units.get(m.group(2) or "", 1)
+        assert value == getattr(L, m.group(3)), (m.group(0), getattr(L, m.group(3)))
+        found += 1
+    assert found >= 15
 
 
 def _squares(n: int, k: int = 4) -> list[list[list[float]]]:
