@@ -4,7 +4,8 @@
   (plan, each command and its ack, stop reached, rover launched, task reached, rover loaded,
   link lost/back, replans);
 * ``traffic.tlog`` - every MAVLink message in and out (:class:`fleetctl.mavlink.tlog.TlogWriter` on the
-  links' tap), readable by pymavlink / ``mavlogdump.py``;
+  links' tap), readable by pymavlink / ``mavlogdump.py``; one per MAVLink link, ``traffic-<id>.tlog``
+  for each link after the first (:meth:`Journal.link_tlog`);
 * ``plan.json`` (``plan-collect.json`` for the collection of ``run``) - the plan JSON contract;
 * ``summary.json`` - the run summary (``schema fleetctl.summary/1``).
 
@@ -80,6 +81,8 @@ class Journal(BackgroundFile[str]):
         self.tlog_path = self.dir / "traffic.tlog"
         self.summary_path = self.dir / "summary.json"
         self.tlog = TlogWriter(self.tlog_path, flush_interval=flush_interval)
+        self._link_tlogs: dict[str, TlogWriter] = {}  # file name -> the log of a further link
+        self._flushing = False
         self.started = time.monotonic()
         self._observers: list[Callable[[Record], None]] = []
 
@@ -123,6 +126,19 @@ class Journal(BackgroundFile[str]):
         """The link tap writing the ``.tlog``."""
         return self.tlog
 
+    def link_tlog(self, name: str) -> TlogWriter:
+        """The ``.tlog`` called ``name`` in the run folder (one per link,
+        :func:`fleetctl.mission.links.link_tlogs`): ``traffic.tlog`` is :attr:`tlog`; another is made
+        on first use and flushed and closed with the journal."""
+        if name == self.tlog_path.name:
+            return self.tlog
+        writer = self._link_tlogs.get(name)
+        if writer is None:
+            writer = self._link_tlogs[name] = TlogWriter(self.dir / name, flush_interval=self.flush_interval)
+            if self._flushing:
+                writer.start()
+        return writer
+
     def write_json(self, name: str, data: Any) -> Path:
         """Write a whole JSON file into the run directory (small; plan and summary)."""
         path = self.dir / name
@@ -131,12 +147,15 @@ class Journal(BackgroundFile[str]):
 
     # -- background ----------------------------------------------------------------------------
     def start(self) -> None:
-        """Flush journal and tlog in the background (needs a running loop)."""
-        self.tlog.start()
+        """Flush journal and tlogs in the background (needs a running loop)."""
+        self._flushing = True
+        for writer in (self.tlog, *self._link_tlogs.values()):
+            writer.start()
         super().start()
 
     async def aclose(self) -> None:
-        await self.tlog.aclose()
+        for writer in (self.tlog, *self._link_tlogs.values()):
+            await writer.aclose()
         await super().aclose()
 
 

@@ -14,8 +14,9 @@ their 'range' implies; the others stay on the deck) and refuses a mission withou
 fly 'run' to deploy, dwell and collect in one go.
 
 Records: runs/<mission>-<timestamp>/ (or --run-dir DIR, named on the first output line) holds
-journal.jsonl (written ahead of every command), traffic.tlog (all MAVLink traffic), mission.yaml
-(a copy of the mission), plan.json, export/ (the plan as QGroundControl .plan files and GeoJSON)
+journal.jsonl (written ahead of every command), traffic.tlog (all MAVLink traffic;
+traffic-<id>.tlog for each further link), mission.yaml (a copy of the mission), plan.json,
+export/ (the plan as QGroundControl .plan files and GeoJSON)
 and summary.json (schema fleetctl.summary/1; also --summary).
 Exit status: 0 mission complete, 1 not complete (or a vehicle did not answer, an upload was
 rejected), 2 bad mission file or option, 130 interrupted by Ctrl-C, 143 by SIGTERM (airborne

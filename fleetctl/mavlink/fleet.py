@@ -10,6 +10,7 @@ from typing import TYPE_CHECKING, Any
 from fleetctl.mavlink.link import Link, LinkError
 from fleetctl.mavlink.signing import REJECTION_KEYS, SigningKey, SigningKeyError
 from fleetctl.mavlink.vehicle import DEFAULT_POSITION_HZ, Listener, Vehicle, VehicleEvent, put_event
+from fleetctl.mission.links import vehicle_links
 
 if TYPE_CHECKING:
     from fleetctl.mission import Mission
@@ -184,10 +185,21 @@ def fleet_urls(mission: Mission, endpoints: Mapping[str, str] | None = None) -> 
     return urls
 
 
+def _link_taps(mission: Mission, urls: Mapping[str, str],
+               tap: Tap | Mapping[str, Tap] | None) -> dict[str, Tap]:
+    """URL -> the tap of that link (``tap`` for every link, or ``tap[link key]``)."""
+    if tap is None:
+        return {}
+    if not isinstance(tap, Mapping):
+        return dict.fromkeys(urls.values(), tap)
+    keys = vehicle_links(mission)
+    return {url: tap[keys[vid]] for vid, url in urls.items() if keys.get(vid) in tap}
+
+
 async def connect_fleet(
     mission: Mission, endpoints: Mapping[str, str] | None = None, *, timeout: float = 10.0,
     require_all: bool = True, gcs_sysid: int = 255, configure_streams: bool = True,
-    position_hz: float = DEFAULT_POSITION_HZ, tap: Tap | None = None,
+    position_hz: float = DEFAULT_POSITION_HZ, tap: Tap | Mapping[str, Tap] | None = None,
     signing_key: SigningKey | None = None, signing_state: str | Path | None | bool = None,
 ) -> Fleet:
     """Open the links the mission names and wait up to ``timeout`` s for every vehicle's first
@@ -197,7 +209,8 @@ async def connect_fleet(
     pass ``SimFleet.endpoints``). With ``require_all`` a missing vehicle raises
     :class:`FleetConnectError` naming each one and its URL (and closes everything); otherwise the
     fleet is returned with ``fleet.missing()``/``fleet.errors`` filled in. ``tap`` sees every
-    datagram from before the first heartbeat on (the ``.tlog`` records the connect phase).
+    datagram from before the first heartbeat on (the ``.tlog`` records the connect phase): one tap for
+    every link, or one per link keyed by link (:func:`fleetctl.mission.links.vehicle_links`).
 
     Signing: with the mission's ``links.signing`` (or ``signing_key``) every link signs with the
     key read from the environment variable ``links.signing.key_env`` (:class:`LinkError` naming it
@@ -221,9 +234,10 @@ async def connect_fleet(
     all_links = {url: Link(url, sysid=gcs_sysid, signing_key=key, link_id=k, signing_state=signing_state,
                            route_timeout=hb_timeout)
                  for k, url in enumerate(dict.fromkeys(urls.values()))}  # URL errors raise
+    taps = _link_taps(mission, urls, tap)
     for url, link in all_links.items():
-        if tap is not None:
-            link.add_tap(tap)
+        if url in taps:
+            link.add_tap(taps[url])
         try:
             await link.open(timeout=min(timeout, 5.0))
             links[url] = link

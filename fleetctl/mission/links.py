@@ -10,12 +10,15 @@ vehicles on several links.
 
 from __future__ import annotations
 
+import re
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
     from fleetctl.mission.model import Mission
 
 SIM = "sim"
+TLOG = "traffic.tlog"  # the MAVLink log of a run's first (most often only) link
+_FILE_SAFE = re.compile(r"[A-Za-z0-9_-]{1,64}")
 
 
 def link_key(connection: str | None, owner: str, carrier_link: str | None = None) -> str:
@@ -53,4 +56,17 @@ def several_links(mission: Mission) -> bool:
     return len(set(vehicle_links(mission).values())) > 1
 
 
-__all__ = ["SIM", "link_key", "several_links", "shown_link", "vehicle_links"]
+def link_tlogs(mission: Mission) -> dict[str, str]:
+    """Link key -> the file name of its MAVLink log in the run folder: ``traffic.tlog`` for the first
+    link (the only one of most missions), ``traffic-<id>.tlog`` for each further link, after the
+    first vehicle on it (``traffic-link<k>.tlog``, the link's ordinal, when that id is no plain
+    file name). Each log holds one link's traffic, so system ids that links share stay apart."""
+    names: dict[str, str] = {}
+    for vid, key in vehicle_links(mission).items():
+        if key not in names:
+            tail = vid if _FILE_SAFE.fullmatch(vid) else f"link{len(names) + 1}"
+            names[key] = TLOG if not names else f"traffic-{tail}.tlog"
+    return names
+
+
+__all__ = ["SIM", "TLOG", "link_key", "link_tlogs", "several_links", "shown_link", "vehicle_links"]

@@ -25,8 +25,10 @@ from typing import TYPE_CHECKING, Any, TypeVar
 from fleetctl.journal import Journal, run_dir_for, write_summary
 from fleetctl.mavlink.fleet import Fleet, connect_fleet
 from fleetctl.mavlink.link import LinkError
+from fleetctl.mavlink.tlog import TlogWriter
 from fleetctl.mission import Mission
 from fleetctl.mission.formats import copy_data_files
+from fleetctl.mission.links import link_tlogs
 from fleetctl.run.context import ExecutionError
 from fleetctl.run.kinds import Ev
 from fleetctl.run.resume import Resumption
@@ -192,13 +194,17 @@ class Session:
             return self.fleet
         try:
             fleet = await connect_fleet(self.mission, self.endpoints, timeout=self.opts.connect_timeout,
-                                        tap=self.journal.tlog, require_all=False)
+                                        tap=self._link_tlogs(), require_all=False)
         except LinkError as exc:
             raise ExecutionError(f"cannot open the link: {exc}") from None
         fleet.on_route_conflict(self.route_conflict)
         self._mission_silences(fleet)
         self.fleet = fleet
         return fleet
+
+    def _link_tlogs(self) -> dict[str, TlogWriter]:
+        """Link key -> the run folder's ``.tlog`` of that link (``traffic.tlog`` for the first)."""
+        return {key: self.journal.link_tlog(name) for key, name in link_tlogs(self.mission).items()}
 
     def _mission_silences(self, fleet: Fleet) -> None:
         """A vehicle is lost after ``links.heartbeat_timeout`` of mission time (the run's clock)."""

@@ -1,7 +1,8 @@
 """``fleetctl replay RUN_DIR``: a run's records played back into the views, in mission time.
 
 :func:`load_run` reads the run folder (``journal.jsonl``, ``mission.yaml`` and, when there,
-``traffic.tlog``: the vehicles' positions and batteries as the controller heard them);
+``traffic.tlog`` and one ``traffic-<id>.tlog`` per further link: the vehicles' positions and
+batteries as the controller heard them);
 :func:`timeline` merges them into :class:`Step` s in mission seconds since the run started (on
 the embedded simulator a record's ``T`` when it has one, else its Unix time from the run's start
 times the run's speedup);
@@ -26,6 +27,7 @@ from fleetctl.geo import Origin, geodetic_to_local
 from fleetctl.journal import JOURNAL_NAME, MISSION_COPY, JournalError, Record, read_journal
 from fleetctl.mavlink.tlog import TlogBattery, TlogError, TlogPosition, read_telemetry
 from fleetctl.mission import Mission, MissionError, load_mission
+from fleetctl.mission.links import TLOG, link_tlogs, vehicle_links
 from fleetctl.mission.teams import mission_teams
 from fleetctl.run.energy import range_from_percent
 from fleetctl.run.kinds import Ev, Phase, VehicleStatus
@@ -34,7 +36,7 @@ from fleetctl.views.view import View
 
 log = logging.getLogger(__name__)
 
-TLOG_NAME = "traffic.tlog"
+TLOG_NAME = TLOG
 CHUNK = 0.25  # wall s: the longest single wait, so the views see the clock move
 YIELD_EVERY = 200  # steps between yields to the loop when playing as fast as possible
 EN_ROUTE_SPEED = 0.3  # m/s: a climbing rover moving this fast horizontally is on its way
@@ -103,17 +105,33 @@ def load_run(run_dir: str | Path) -> RunRecord:
     except MissionError as exc:
         raise ReplayError(f"{d / MISSION_COPY}: {exc}") from None
     speedup = records[0].get("speedup")
-    samples = read_tlog(d / TLOG_NAME, mission) if (d / TLOG_NAME).is_file() else []
+    samples = read_telemetry_logs(d, mission)
     return RunRecord(d, mission, records, samples, float(records[0]["t"]),
                      float(speedup) if isinstance(speedup, int | float) and speedup > 0 else 1.0,
                      records[0].get("sim") is True)
 
 
-def read_tlog(path: Path, mission: Mission) -> list[Sample]:
+def read_telemetry_logs(d: Path, mission: Mission) -> list[Sample]:
+    """The samples of every link's ``.tlog`` in run folder ``d``, in time order
+    (:func:`fleetctl.mission.links.link_tlogs` names them). A run of several links recorded
+    before the logs were split has only ``traffic.tlog``, with every link in it: read as one log."""
+    names = link_tlogs(mission)
+    split = len(names) == 1 or any((d / n).is_file() for n in names.values() if n != TLOG_NAME)
+    if not split:
+        return read_tlog(d / TLOG_NAME, mission) if (d / TLOG_NAME).is_file() else []
+    samples: list[Sample] = []
+    for key, name in names.items():
+        if (d / name).is_file():
+            samples += read_tlog(d / name, mission, link=key)
+    return sorted(samples, key=lambda s: s.t)
+
+
+def read_tlog(path: Path, mission: Mission, link: str | None = None) -> list[Sample]:
     """Vehicle positions and batteries from a ``.tlog`` (messages from the mission's system ids).
-    The log does not say which link a message came on: a system id the mission uses on several
-    links names no one vehicle, and its messages are left out."""
-    ids = _vehicles_by_sysid(mission)
+    ``link``: the log is that link's alone (its vehicles' system ids). Without it the log does not
+    say which link a message came on: a system id the mission uses on several links names no one
+    vehicle, and its messages are left out."""
+    ids = _vehicles_by_sysid(mission) if link is None else _vehicles_on_link(mission, link)
     out: list[Sample] = []
     try:
         for item in read_telemetry(path):
@@ -132,6 +150,14 @@ def _vehicles_by_sysid(mission: Mission) -> dict[int, str]:
     sysids |= {u.id: u.sysid for u in mission.rovers.units}
     uses = Counter(sysids.values())
     return {sysid: vid for vid, sysid in sysids.items() if uses[sysid] == 1}
+
+
+def _vehicles_on_link(mission: Mission, link: str) -> dict[int, str]:
+    """System id -> vehicle id of the carriers and rovers on ``link``."""
+    on_link = {vid for vid, key in vehicle_links(mission).items() if key == link}
+    sysids = {t.carrier.id: t.carrier.sysid for t in mission_teams(mission)}
+    sysids |= {u.id: u.sysid for u in mission.rovers.units}
+    return {sysid: vid for vid, sysid in sysids.items() if vid in on_link}
 
 
 def _sample(item: TlogPosition | TlogBattery, vid: str, origin: Origin | None) -> Sample:
@@ -382,5 +408,5 @@ async def replay(run: RunRecord, view: View | None, *, speed: float = 1.0, linge
     return state
 
 
-__all__ = ["Player", "ReplayError", "ReplayState", "RunRecord", "Sample", "Step", "load_run", "read_tlog",
-           "replay", "timeline"]
+__all__ = ["Player", "ReplayError", "ReplayState", "RunRecord", "Sample", "Step", "load_run",
+           "read_telemetry_logs", "read_tlog", "replay", "timeline"]

@@ -190,3 +190,31 @@ def test_a_system_id_used_on_two_links_is_not_taken_from_the_log(tmp_path: Path)
     (tmp_path / "t.tlog").write_bytes(log)
     placed = [s.vehicle for s in read_tlog(tmp_path / "t.tlog", m)]
     assert placed == ["c1", "c2", "r2", "r4"]
+
+
+def test_each_links_log_places_the_vehicles_of_that_link(tmp_path: Path) -> None:
+    """A run of several links logs each link apart (traffic.tlog, traffic-c2.tlog): a system id that
+    both links use names the vehicle of the log's link."""
+    from views_helpers import ORIGIN, position_msg
+
+    from fleetctl.mavlink.tlog import tlog_record
+    from fleetctl.mission import load_mission
+    from fleetctl.mission.links import link_tlogs
+    from fleetctl.views.replay import read_telemetry_logs
+
+    team = {"connection": "sim", "max_speed": 10.0}
+    mission = {"origin": ORIGIN, "rovers": {"max_speed": 5.0, "deploy_range": 40.0},
+               "carriers": [{"id": "c1", "sysid": 1, "position": [0, 0], **team,
+                             "units": [{"id": "r1", "sysid": 11}, {"id": "r2", "sysid": 12}]},
+                            {"id": "c2", "sysid": 1, "position": [80, 0], **team,
+                             "units": [{"id": "r3", "sysid": 11}, {"id": "r4", "sysid": 13}]}],
+               "tasks": [{"id": "t1", "position": [5, 20, 3]}]}
+    (tmp_path / "m.yaml").write_text(json.dumps(mission))
+    m = load_mission(tmp_path / "m.yaml")
+    assert list(link_tlogs(m).values()) == ["traffic.tlog", "traffic-c2.tlog"]
+    for k, (name, sysids) in enumerate((("traffic.tlog", (1, 11, 12)), ("traffic-c2.tlog", (1, 11, 13)))):
+        log = b"".join(tlog_record(1000.0 + 2 * j + k, position_msg(sysid, 10.0 * j, 0, 0))
+                       for j, sysid in enumerate(sysids))
+        (tmp_path / name).write_bytes(log)
+    placed = [s.vehicle for s in read_telemetry_logs(tmp_path, m)]
+    assert placed == ["c1", "c2", "r1", "r3", "r2", "r4"]

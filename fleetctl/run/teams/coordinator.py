@@ -14,7 +14,7 @@ that ends its deployment with tasks unserved (no usable rover left, timeouts) or
 fails hands those; the receiving teams are chosen by planning the handed tasks over the teams
 that can still take them (the time model), and get them as a task change while they deploy or
 as a further deployment round once they finished. The run's own records (``RUN/journal.jsonl``,
-``RUN/traffic.tlog`` with every link, ``RUN/plan.json``, ``RUN/summary.json``) combine the teams.
+``RUN/traffic*.tlog``, one per link, ``RUN/plan.json``, ``RUN/summary.json``) combine the teams.
 With an MQTT bus every team publishes under ``P/teams/<carrier>`` and the run under ``P``
 (:mod:`fleetctl.run.teams.bus`).
 """

@@ -52,3 +52,10 @@ async def test_two_links_reusing_system_ids_fly_deploy_dwell_collect(tmp_path: P
         assert reached == planned and planned
     world = sims[0].world
     assert all(world.rovers[rid].loaded for rid in ("r1", "r2", "r3", "r4"))  # every rover back on a deck
+    # each link has a MAVLink log of its own, so the replay tells the namesakes apart
+    from fleetctl.views.replay import load_run
+
+    logs = sorted(p.name for p in (tmp_path / "run").glob("*.tlog"))
+    assert logs == ["traffic-c2.tlog", "traffic.tlog"], logs
+    heard = {sample.vehicle for sample in load_run(tmp_path / "run").samples}
+    assert heard == {"c1", "r1", "r2", "c2", "r3", "r4"}, heard
