@@ -38,6 +38,7 @@ from planners.core.problem import Task
 
 if TYPE_CHECKING:
     from fleetctl.run.operation import OperationPhase
+    from fleetctl.run.operation.resume import OperationReplay
 
 log = logging.getLogger(__name__)
 
@@ -95,11 +96,15 @@ class Executor:
         self.collect_phase = CollectPhase(self.parts, resumed)
         return await self.collect_phase.run(rover_ids)
 
-    async def operate(self, write_plan: Callable[[str, dict[str, Any]], None] | None = None) -> PhaseResult:
-        """Plan and fly a long operation (sorties, pick-ups, battery swaps; docs/operations.md)."""
+    async def operate(self, write_plan: Callable[[str, dict[str, Any]], None] | None = None,
+                      resumed: OperationReplay | None = None) -> PhaseResult:
+        """Plan and fly a long operation (sorties, pick-ups, battery swaps; docs/operations.md), or
+        (``resumed``) finish an interrupted one."""
         from fleetctl.run.operation import OperationPhase
 
         self.operation_phase = OperationPhase(self.parts, write_plan, self.board)
+        if resumed is not None:
+            return await self.operation_phase.resume(resumed)
         return await self.operation_phase.run()
 
     async def sleep_mission(self, seconds: float) -> None:

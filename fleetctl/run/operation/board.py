@@ -24,6 +24,7 @@ class TaskWorkState:
     rover: str | None = None
     started: float | None = None  # mission s of the operation when the work began
     done: float | None = None  # ... when the firmware reported it done
+    seen_start: bool = True  # False: it started while the controller was down (resume): started is a bound
 
     def worked(self, now: float) -> float:
         """Seconds of work so far."""
@@ -48,6 +49,18 @@ class OperationBoard:
     sorties: list[SortieEntry] = field(default_factory=list)
     swaps: list[tuple[str, float]] = field(default_factory=list)  # (rover, mission s when done)
     lost: list[str] = field(default_factory=list)
+    next_index: int = 0  # the next sortie's index (journalled: a resumed run goes on counting)
+
+    def new_sortie(self, rover: str, tasks: list[str]) -> SortieEntry:
+        entry = SortieEntry(self.next_index, rover, tasks)
+        self.next_index += 1
+        self.sorties.append(entry)
+        return entry
+
+    def restore(self, other: OperationBoard) -> None:
+        """Take ``other``'s state (a resumed run's, rebuilt from its journal) in place."""
+        self.tasks, self.sorties, self.swaps = other.tasks, other.sorties, other.swaps
+        self.lost, self.next_index = other.lost, other.next_index
 
     def done(self) -> list[str]:
         return [t for t, w in self.tasks.items() if w.done is not None]

@@ -52,7 +52,10 @@ class TaskChanges:
         ids = [t.id for t in new]
         text = (f"tasks changed by {ev.source}: added {', '.join(ids) or 'none'}, "
                 f"removed {', '.join(gone) or 'none'}")
-        self.ctx.state.event(Ev.TASKS_CHANGED, text, None, add=ids, remove=gone, source=ev.source, added=ids)
+        added = [{"id": t.id, "position": list(t.position), "duration": self.tasks[t.id].duration,
+                  "work": "ground" if self.tasks[t.id].ground else "hover"} for t in new]
+        self.ctx.state.event(Ev.TASKS_CHANGED, text, None, add=ids, remove=gone, source=ev.source,
+                             added=added)
         return True
 
 

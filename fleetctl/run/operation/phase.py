@@ -13,12 +13,13 @@ import asyncio
 import contextlib
 import dataclasses
 import logging
+import time
 from collections.abc import Callable
 from typing import Any
 
 from fleetctl.mavlink.compile import RoverMission
 from fleetctl.mavlink.link import LinkError
-from fleetctl.mavlink.sortie import Visit, route_items, sortie_items
+from fleetctl.mavlink.sortie import SortieItems, Visit, route_items, sortie_items
 from fleetctl.mavlink.vehicle import CommandRejected
 from fleetctl.run.carrier import upload
 from fleetctl.run.context import ExecutionError
@@ -27,6 +28,7 @@ from fleetctl.run.launch import Launcher, Spares, rover_on_deck
 from fleetctl.run.operation.board import OperationBoard, SortieEntry, SortieStatus, TaskWorkState
 from fleetctl.run.operation.changes import TaskChanges
 from fleetctl.run.operation.live import live_problem
+from fleetctl.run.operation.resume import OperationReplay
 from fleetctl.run.operation.sortie import FlightClock, Pickup, SortieFlight, land_on_deck
 from fleetctl.run.operation.swaps import SwapStation
 from fleetctl.run.parts import PhaseParts
@@ -36,6 +38,7 @@ from fleetctl.run.task_board import TaskBoard
 from planners.core.problem import PlanningError
 from planners.operations import OperationPlan, OperationProblem, plan_operation
 from planners.operations.plan import OpStop, Sortie
+from planners.operations.plan import Visit as PlanVisit
 
 log = logging.getLogger(__name__)
 
@@ -97,6 +100,50 @@ class OperationPhase:
             plan = await self._walk(plan)
         return self._finish()
 
+    async def resume(self, rep: OperationReplay) -> PhaseResult:
+        """Finish an interrupted operation (``fleetctl resume``): the journal's board, reconciled
+        with the live fleet (:mod:`.resume`), replanned from the live state and flown on."""
+        ctx = self.ctx
+        if rep.started_unix is None:  # the carrier never started: nothing flew, plan it afresh
+            return await self.run()
+        ctx.state.set_phase(Phase.PLAN)
+        await ctx.wait_telemetry()
+        self.board.restore(rep.board)
+        self.t0 = ctx.clock() - rep.elapsed(time.time())
+        self.result.started, self.result.planned = self.t0, rep.planned
+        self.changes = TaskChanges(ctx, self.board, dict(rep.tasks), self.live_tasks)
+        self.changes.added, self.changes.removed = list(rep.added), list(rep.removed)
+        self.supervisor.start()
+        ctx.state.replans = rep.replans
+        for rid, entry in rep.in_air.items():
+            self.flights[rid] = self._resumed_flight(entry, rep)
+        ctx.state.set_phase(Phase.OPERATION, rep.planned, 0)
+        ctx.state.operation = self._progress
+        self.trouble = "resumed after the controller restarted"
+        plan = await self._replan()
+        if plan is None and (self.flights or self.board.left()):
+            raise ExecutionError("cannot plan the rest of the interrupted operation from the live state")
+        for rid, f in self.flights.items():
+            ctx.spawn(f.fly(), f"sortie {f.entry.index} {rid}")
+        while plan is not None:
+            plan = await self._walk(plan)
+        return self._finish()
+
+    def _resumed_flight(self, entry: SortieEntry, rep: OperationReplay) -> SortieFlight:
+        """A sortie found in the air on resume, flying the mission its rover holds (its new
+        pick-up comes with the replan)."""
+        visits = [PlanVisit(t, self.changes.tasks[t].position, 0.0, 0.0, 0.0, self.changes.tasks[t].ground)
+                  for t in entry.tasks if t in self.changes.tasks]
+        here = self.carrier.pose()[0]
+        items = SortieItems(entry.rover, (), 0, rep.work.get(entry.index, ()))
+        pickup = Pickup(0, here, self.now(), self.now(), 0.0, 0.0)
+        flight = SortieFlight(self.ctx, self.board, entry, Sortie(entry.rover, -1, 0.0, 0.0, visits), items,
+                              pickup, FlightClock(self.base, self.now, lambda: self.delay), self._on_trouble)
+        flight.resumed = True
+        self.ctx.state.set_state(entry.rover, VehicleStatus.EN_ROUTE if entry.status is SortieStatus.FLYING
+                                 else VehicleStatus.RETURNING)
+        return flight
+
     async def _walk(self, plan: OperationPlan) -> OperationPlan | None:
         """Fly ``plan``'s stops; the plan of a replan made on the way (None: flown to its end)."""
         seqs = await self._start_route(plan)
@@ -143,9 +190,7 @@ class OperationPhase:
         self.entry_of = {}
         for i, s in enumerate(plan.sorties):
             if s.launch_stop >= 0:
-                entry = SortieEntry(len(self.board.sorties), s.rover, [v.task for v in s.visits])
-                self.board.sorties.append(entry)
-                self.entry_of[i] = entry
+                self.entry_of[i] = self.board.new_sortie(s.rover, [v.task for v in s.visits])
             elif s.rover in self.flights:  # in the air before this plan
                 self.flights[s.rover].retarget(self._pickup(plan, s), s, self.base)
         if self.write_plan is not None:
@@ -339,7 +384,8 @@ class OperationPhase:
         ctx.state.set_state(rid, VehicleStatus.EN_ROUTE, entry.tasks[0])
         ctx.state.event(Ev.SORTIE_LAUNCHED,
                         f"{rid}: sortie {entry.index} launched for {', '.join(entry.tasks)}", rid,
-                        sortie=entry.index, tasks=entry.tasks, stop=s.launch_stop + 1)
+                        sortie=entry.index, tasks=entry.tasks, stop=s.launch_stop + 1,
+                        work=[[w.task, w.arrive_seq, w.done_seq] for w in items.work])
         flight = SortieFlight(ctx, self.board, entry, s, items, self._pickup(plan, s),
                               FlightClock(self.base, self.now, lambda: self.delay), self._on_trouble)
         self.flights[rid] = flight

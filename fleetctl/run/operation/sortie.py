@@ -26,6 +26,14 @@ RECHECK = 1.0  # mission s between looks at the leave time while a rover waits a
 LAND_OFFSET = 1.0  # m: a rover waiting further off the stopped carrier lands at the carrier's position
 CARRIER_STOP_WAIT = 10.0  # mission s for the carrier at its stop to come to rest before rovers land on it
 REPLAN_SLACK = 15.0  # mission s: a task's work done this much earlier or later than planned asks for a replan
+MISSION_STATE_COMPLETE = 3  # MAVLink MISSION_STATE: the mission's last item is done
+
+
+def item_passed(v: Vehicle, seq: int) -> bool:
+    """Mission item ``seq`` is behind the firmware: its current item is past it, or it is the last
+    one and the mission is complete (what a controller that was down can still learn)."""
+    cur = v.mission_current
+    return cur is not None and (cur > seq or (cur == seq and v.mission_state == MISSION_STATE_COMPLETE))
 
 
 @dataclass(frozen=True)
@@ -65,6 +73,7 @@ class SortieFlight:
         self.reached_at: dict[int, float] = {}  # item -> operation s its MISSION_ITEM_REACHED came in
         self.problem: OperationProblem | None = None  # the mission's operation (its energy model), once asked
         self.battery_said = False  # a battery too low for the rest of the sortie was told (once a sortie)
+        self.resumed = False  # flying the mission it had when the controller restarted (resume)
 
     def _on_event(self, ev: VehicleEvent) -> None:
         if ev.kind == VehicleEventKind.ITEM_REACHED and self.back is None:
@@ -82,7 +91,8 @@ class SortieFlight:
         unlisten = self.vehicle.add_listener(self._on_event)
         try:
             for w in self.items.work:
-                await self._work(w.task, w.arrive_seq, w.done_seq)
+                if w.task in self.board.tasks and self.board.tasks[w.task].done is None:
+                    await self._work(w.task, w.arrive_seq, w.done_seq)
             await self._wait_leave()
             await self._go_back()
         except (TimeoutError, LinkError, CommandRejected, ExecutionError) as exc:
@@ -93,15 +103,16 @@ class SortieFlight:
     async def _work(self, task: str, arrive_seq: int, done_seq: int) -> None:
         ctx, v, st = self.ctx, self.vehicle, self.ctx.state
         rid, arrive = v.name, self.times[task][0]
-        await ctx.wait_for(v, lambda v: arrive_seq in v.items_reached or v.lost,
+        await ctx.wait_for(v, lambda v: self._reached(v, arrive_seq) or v.lost,
                            ctx.late(arrive + self.delay() - self.now()), f"at task {task}")
         self._check(v)
         self.check_battery()
         work = self.board.tasks[task]
-        work.rover, work.started = rid, self.reached_at.get(arrive_seq, self.now())
         st.set_state(rid, VehicleStatus.ON_TASK, task)
-        ctx.record(Ev.TASK_STARTED, vehicle=rid, task=task, sortie=self.entry.index)
-        await ctx.wait_for(v, lambda v: done_seq in v.items_reached or v.lost,
+        if work.started is None or work.rover != rid:  # (a resumed sortie's work may have started before)
+            work.rover, work.started, work.seen_start = rid, self.reached_at.get(arrive_seq, self.now()), True
+            ctx.record(Ev.TASK_STARTED, vehicle=rid, task=task, sortie=self.entry.index)
+        await ctx.wait_for(v, lambda v: self._reached(v, done_seq) or v.lost,
                            ctx.late(work.duration), f"work at {task} done")
         self._check(v)
         work.done = self.reached_at.get(done_seq, self.now())
@@ -109,9 +120,15 @@ class SortieFlight:
         off = work.done - (self.times[task][1] + self.delay())  # a replan on the way moved it
         if abs(off) > REPLAN_SLACK:
             self.trouble(f"task {task} done {off:+.0f} s off its plan")
-        st.event(Ev.TASK_DONE, f"{rid}: task {task} done ({work.done - work.started:.1f} s of work, "
-                 f"{work.duration:g} s asked)", rid, task=task, sortie=self.entry.index,
-                 worked=round(work.done - work.started, 3), duration=work.duration)
+        worked = round(work.done - work.started, 3) if work.seen_start else None  # None: firmware-timed
+        how = f"{worked:.1f} s of work" if worked is not None else "started while the controller was down"
+        st.event(Ev.TASK_DONE, f"{rid}: task {task} done ({how}, {work.duration:g} s asked)", rid, task=task,
+                 sortie=self.entry.index, worked=worked, duration=work.duration)
+
+    def _reached(self, v: Vehicle, seq: int) -> bool:
+        """Item ``seq`` of its sortie's mission reached (a resumed sortie also trusts the current
+        item: its MISSION_ITEM_REACHED may have come while the controller was down)."""
+        return seq in v.items_reached or (self.resumed and self.back is None and item_passed(v, seq))
 
     async def _wait_leave(self) -> None:
         while self.now() < self.pickup.leave + self.delay():
@@ -229,4 +246,4 @@ async def land_on_deck(ctx: RunContext, flight: SortieFlight, timeout: float) ->
     return False
 
 
-__all__ = ["REPLAN_SLACK", "FlightClock", "Pickup", "SortieFlight", "land_on_deck"]
+__all__ = ["REPLAN_SLACK", "item_passed", "FlightClock", "Pickup", "SortieFlight", "land_on_deck"]
