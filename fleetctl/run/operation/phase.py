@@ -20,7 +20,7 @@ from typing import Any
 from fleetctl.mavlink.compile import RoverMission
 from fleetctl.mavlink.link import LinkError
 from fleetctl.mavlink.sortie import SortieItems, Visit, route_items, sortie_items
-from fleetctl.mavlink.vehicle import CommandRejected
+from fleetctl.mavlink.vehicle import CommandRejected, Vehicle
 from fleetctl.run.carrier import upload
 from fleetctl.run.context import ExecutionError
 from fleetctl.run.kinds import Ev, Phase, VehicleStatus, Watch
@@ -67,6 +67,7 @@ class OperationPhase:
         self.base = 0.0  # operation s of the plan flown's time 0 (a replan's plan starts at its making)
         self.entry_of: dict[int, SortieEntry] = {}  # the plan flown's sortie index -> its board entry
         self.trouble: str | None = None  # why to replan at the next stop
+        self.urgent = False  # a rover in the air short of battery: replan, not waiting for pick-ups
         self.changes = TaskChanges(self.ctx, self.board, {}, self.live_tasks)
         self.swaps = SwapStation(self.ctx, self.board, self.now)
         self.result = PhaseResult("operation")
@@ -140,6 +141,8 @@ class OperationPhase:
         flight = SortieFlight(self.ctx, self.board, entry, Sortie(entry.rover, -1, 0.0, 0.0, visits), items,
                               pickup, FlightClock(self.base, self.now, lambda: self.delay), self._on_trouble)
         flight.resumed = True
+        flight.dropped = {w.task for w in items.work if w.task not in entry.tasks}  # called back before
+        flight.low_battery = self._on_low_battery
         self.ctx.state.set_state(entry.rover, VehicleStatus.EN_ROUTE if entry.status is SortieStatus.FLYING
                                  else VehicleStatus.RETURNING)
         return flight
@@ -153,11 +156,13 @@ class OperationPhase:
             await self.carrier.reach_stop(k, seqs[k][0], leg)
             self.delay = max(self.now() - (self.base + stop.arrive), 0.0)
             self.ctx.state.eta = self._eta()
-            await self._pick_up(k, stop)
+            waiting = await self._pick_up(k, stop, interruptible=True)
             self._take_changes()
             await self._check_batteries()
             if self.trouble is not None and (new := await self._replan()) is not None:
                 return new
+            if waiting:  # a replan that found no plan: the stop's pick-ups as planned
+                await self._pick_up(k, stop, interruptible=False)
             await self._launch(k, stop)
             if seqs[k][1] is not None:
                 await self.carrier.release(k, seqs[k][1])
@@ -192,6 +197,7 @@ class OperationPhase:
             if s.launch_stop >= 0:
                 self.entry_of[i] = self.board.new_sortie(s.rover, [v.task for v in s.visits])
             elif s.rover in self.flights:  # in the air before this plan
+                self.flights[s.rover].drop(plan.called_back.get(s.rover, []), s.pickup_stop)
                 self.flights[s.rover].retarget(self._pickup(plan, s), s, self.base)
         if self.write_plan is not None:
             self.write_plan(name, plan.to_json())
@@ -219,6 +225,18 @@ class OperationPhase:
         for f in flights:
             f.check_battery()
 
+    def _interrupt(self, interruptible: bool) -> bool:
+        return self.urgent and interruptible
+
+    def _above_or_urgent(self, f: SortieFlight, interruptible: bool) -> Callable[[Vehicle], bool]:
+        return lambda v: f.above_stop(v) or self._interrupt(interruptible)
+
+    def _on_low_battery(self, cause: str) -> None:
+        """A rover in the air short of battery for the rest of its sortie: replan at once (a stop
+        waiting for its pick-ups stops waiting), so that it can be called back early."""
+        self.urgent = True
+        self._on_trouble(cause)
+
     def _on_trouble(self, cause: str) -> None:
         """A rover lost, a task's work off its plan, ...: replan at the next stop (every cause said)."""
         if self.trouble is None:
@@ -230,7 +248,7 @@ class OperationPhase:
         """The rest of the operation planned from the live state (None: nothing to plan, or no
         plan keeps every battery: the plan flown so far goes on)."""
         ctx, cause = self.ctx, self.trouble or ""
-        self.trouble = None
+        self.trouble, self.urgent = None, False
         self.flights = {r: f for r, f in self.flights.items() if f.entry.status is not SortieStatus.LOST}
         # streamed battery readings are ~1 s of wall time old: many mission s on a fast simulated fleet
         await asyncio.gather(*(v.refresh_battery(BATTERY_READ_WAIT) for v in ctx.fleet.rovers.values()
@@ -289,15 +307,22 @@ class OperationPhase:
         return [(s.arrive_seq, s.release_seq) for s in stops]
 
     # ============================================================================== pick-ups
-    async def _pick_up(self, k: int, stop: OpStop) -> None:
+    async def _pick_up(self, k: int, stop: OpStop, interruptible: bool) -> bool:
+        """Wait for the stop's returning rovers, land and load them; ``interruptible``: a rover
+        short of battery in the air (:attr:`urgent`) ends the wait. True when rovers of the stop
+        were left waiting for."""
         ctx = self.ctx
         flights = [self.flights[r] for r in stop.pickups if r in self.flights]
         for f in flights:
+            if self._interrupt(interruptible):
+                break
             try:
-                await ctx.wait_for(f.vehicle, f.above_stop, ctx.late(f.pickup.meet + self.delay - self.now()),
-                                   f"above stop {k + 1}")
+                await ctx.wait_for(f.vehicle, self._above_or_urgent(f, interruptible),
+                                   ctx.late(f.pickup.meet + self.delay - self.now()), f"above stop {k + 1}")
             except TimeoutError as exc:
                 f._lost(str(exc))
+        left = [f for f in flights if f.entry.status is not SortieStatus.LOST and not f.above_stop(f.vehicle)]
+        flights = [f for f in flights if f not in left]
         landed = await asyncio.gather(*(land_on_deck(ctx, f, LANDING_TIMEOUT) for f in flights
                                         if f.entry.status is SortieStatus.RETURNING))
         if any(landed):
@@ -310,6 +335,7 @@ class OperationPhase:
                 self._aboard(f, stop)
             elif f.entry.status is not SortieStatus.LOST:
                 f._lost("did not land on the deck")
+        return bool(left)
 
     def _aboard(self, f: SortieFlight, stop: OpStop) -> None:
         rid = f.entry.rover
@@ -388,6 +414,7 @@ class OperationPhase:
                         work=[[w.task, w.arrive_seq, w.done_seq] for w in items.work])
         flight = SortieFlight(ctx, self.board, entry, s, items, self._pickup(plan, s),
                               FlightClock(self.base, self.now, lambda: self.delay), self._on_trouble)
+        flight.low_battery = self._on_low_battery
         self.flights[rid] = flight
         ctx.spawn(flight.fly(), f"sortie {entry.index} {rid}")
 

@@ -124,6 +124,13 @@ def _replay_sortie(rep: OperationReplay, kind: str, r: dict[str, Any]) -> None:
         entry.status, entry.aboard = SortieStatus.ABOARD, rep.op_time(float(r["t"]))
     elif kind == Ev.SORTIE_LOST and entry is not None:
         _lose(rep, entry)
+    elif kind == Ev.SORTIE_CALLED_BACK and entry is not None:
+        dropped = [str(t) for t in r.get("tasks") or []]
+        entry.tasks = [t for t in entry.tasks if t not in dropped]
+        for t in dropped:
+            w = rep.board.tasks.get(t)
+            if w is not None and w.done is None:
+                w.started = w.rover = None
     elif kind == Ev.BATTERY_SWAPPED and isinstance(rid, str):
         b.swaps.append((rid, float(r.get("done") or 0.0)))
 

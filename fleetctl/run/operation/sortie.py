@@ -74,6 +74,8 @@ class SortieFlight:
         self.problem: OperationProblem | None = None  # the mission's operation (its energy model), once asked
         self.battery_said = False  # a battery too low for the rest of the sortie was told (once a sortie)
         self.resumed = False  # flying the mission it had when the controller restarted (resume)
+        self.dropped: set[str] = set()  # tasks a replan took off its sortie (called back early)
+        self.low_battery: Callable[[str], None] = trouble  # told when its battery is too low for the rest
 
     def _on_event(self, ev: VehicleEvent) -> None:
         if ev.kind == VehicleEventKind.ITEM_REACHED and self.back is None:
@@ -91,9 +93,11 @@ class SortieFlight:
         unlisten = self.vehicle.add_listener(self._on_event)
         try:
             for w in self.items.work:
-                if w.task in self.board.tasks and self.board.tasks[w.task].done is None:
+                if w.task in self.entry.tasks and w.task in self.board.tasks \
+                        and self.board.tasks[w.task].done is None:
                     await self._work(w.task, w.arrive_seq, w.done_seq)
-            await self._wait_leave()
+            if not self.dropped:  # called back: its firmware would fly on to a task dropped
+                await self._wait_leave()
             await self._go_back()
         except (TimeoutError, LinkError, CommandRejected, ExecutionError) as exc:
             self._lost(str(exc))
@@ -103,18 +107,22 @@ class SortieFlight:
     async def _work(self, task: str, arrive_seq: int, done_seq: int) -> None:
         ctx, v, st = self.ctx, self.vehicle, self.ctx.state
         rid, arrive = v.name, self.times[task][0]
-        await ctx.wait_for(v, lambda v: self._reached(v, arrive_seq) or v.lost,
+        await ctx.wait_for(v, lambda v: self._reached(v, arrive_seq) or v.lost or task in self.dropped,
                            ctx.late(arrive + self.delay() - self.now()), f"at task {task}")
         self._check(v)
+        if task in self.dropped:
+            return
         self.check_battery()
         work = self.board.tasks[task]
         st.set_state(rid, VehicleStatus.ON_TASK, task)
         if work.started is None or work.rover != rid:  # (a resumed sortie's work may have started before)
             work.rover, work.started, work.seen_start = rid, self.reached_at.get(arrive_seq, self.now()), True
             ctx.record(Ev.TASK_STARTED, vehicle=rid, task=task, sortie=self.entry.index)
-        await ctx.wait_for(v, lambda v: self._reached(v, done_seq) or v.lost,
+        await ctx.wait_for(v, lambda v: self._reached(v, done_seq) or v.lost or task in self.dropped,
                            ctx.late(work.duration), f"work at {task} done")
         self._check(v)
+        if task in self.dropped:
+            return
         work.done = self.reached_at.get(done_seq, self.now())
         self.check_battery()
         off = work.done - (self.times[task][1] + self.delay())  # a replan on the way moved it
@@ -167,9 +175,28 @@ class SortieFlight:
         need = self.battery_needed()
         if need is not None and frac < need:
             self.battery_said = True
-            self.trouble(f"rover {self.entry.rover} at {100 * frac:.0f} % of its battery in the air, "
+            self.low_battery(f"rover {self.entry.rover} at {100 * frac:.0f} % of its battery in the air, "
                          f"{100 * need:.0f} % needed for the rest of its sortie, the way back and "
                          "the reserve")
+
+    def drop(self, tasks: list[str], stop: int) -> None:
+        """A replan called it back early: ``tasks`` are no longer its own (work on them stops and
+        is done again in full by others); it flies back to its pick-up ``stop`` once the tasks it
+        keeps are done."""
+        tasks = [t for t in tasks if t in self.entry.tasks]
+        if not tasks:
+            return
+        for t in tasks:
+            self.entry.tasks.remove(t)
+            w = self.board.tasks.get(t)
+            if w is not None and w.done is None:
+                w.started = w.rover = None
+        self.dropped.update(tasks)
+        rid = self.entry.rover
+        self.ctx.state.event(Ev.SORTIE_CALLED_BACK, f"{rid}: called back early from sortie "
+                             f"{self.entry.index} (battery too low): dropped {', '.join(tasks)}; keeps "
+                             f"{', '.join(self.entry.tasks) or 'none'}", rid, sortie=self.entry.index,
+                             tasks=tasks, kept=list(self.entry.tasks), stop=stop + 1)
 
     def retarget(self, pickup: Pickup, planned: Sortie, base: float) -> None:
         """A replan's pick-up and times (``planned``: its sortie in the new plan, whose time 0 is

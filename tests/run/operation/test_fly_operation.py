@@ -142,3 +142,41 @@ async def test_tasks_added_and_removed_in_the_mission_file_are_flown(tmp_path: P
     assert any(r["kind"] == "replan" and "tasks changed" in r.get("cause", "") for r in records)
     done = {r["task"]: r["worked"] for r in records if r["kind"] == "task_done"}
     assert done["t7"] >= 45 - 0.5  # an added task's work: the duration the edit gives it, not the dwell
+
+
+async def test_a_rover_short_of_battery_in_the_air_is_called_back_early(tmp_path: Path) -> None:
+    """r2's battery drops to 50 % just after its launch on a sortie (t2, t1) that needs about two
+    thirds of a battery: the carrier, waiting at its stop for r1, stops waiting and replans at once;
+    the replan calls r2 back early (its tasks dropped from its sortie), r2 lands before r1's pick-up,
+    and the tasks it dropped are worked in full by later sorties, once each."""
+    mission = mission_from(small_operation(), tmp_path)
+    watchers: list[asyncio.Task[None]] = []
+
+    async def drop_r2_battery(sim: SimFleet) -> None:
+        r2 = sim.rover("r2")
+        await sim.wait_for(lambda: r2.phase is BodyPhase.AIR, 60)
+        sim.pin_battery("r2", 0.5)
+        sim.pin_battery("r2", None)  # drains on from there
+
+    def on_sim(sim: SimFleet) -> None:
+        watchers.append(asyncio.ensure_future(drop_r2_battery(sim)))
+
+    out = await asyncio.wait_for(execute(mission, "run", run_dir=tmp_path / "run", force=True, on_sim=on_sim),
+                                 150)
+    for w in watchers:
+        w.cancel()
+    records = journal(tmp_path / "run")
+    called = [r for r in records if r["kind"] == "sortie_called_back"]
+    assert [r["vehicle"] for r in called] == ["r2"] and called[0]["tasks"], [r.get("text") for r in records
+                                                                              if r["kind"] == "replan"]
+    plan = json.loads((tmp_path / "run" / "plan-replan-1.json").read_text())
+    assert plan["called_back"] == {"r2": called[0]["tasks"]}
+    back = [r["vehicle"] for r in records if r["kind"] == "sortie_back"]
+    assert back[0] == "r2"  # called back: on the deck before r1 ends its first sortie
+    assert out.exit_code == 0, out.summary
+    durations = {t.id: mission.task_work(t.id).duration for t in mission.tasks}
+    done = [r for r in records if r["kind"] == "task_done"]
+    assert sorted(r["task"] for r in done) == sorted(durations)  # each task's work done once
+    for r in done:
+        if r["task"] in called[0]["tasks"]:  # dropped by r2: worked in full by another sortie
+            assert r["sortie"] != called[0]["sortie"] and r["worked"] >= durations[r["task"]] - 1.0, r
