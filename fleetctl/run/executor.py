@@ -112,12 +112,13 @@ class Executor:
 
     # -- from outside ------------------------------------------------------------------------------
     def submit_task_change(self, add: list[Task], remove: list[str], source: str,
-                           work: dict[str, TaskWork] | None = None) -> None:
+                           work: dict[str, TaskWork] | None = None,
+                           retime: dict[str, TaskWork] | None = None) -> None:
         """Add and/or remove tasks of the running mission (``work``: an added task's duration and
-        work mode, when the change gives them). Safe to call from the event loop or from another
-        thread; applied by the running phase."""
+        work mode, when the change gives them; ``retime``: a kept task's new work, a long operation's).
+        Safe to call from the event loop or from another thread; applied by the running phase."""
         ev = SupervisorEvent(Watch.TASKS, None, add=tuple(add), remove=tuple(remove), source=source,
-                             work=dict(work or {}))
+                             work=dict(work or {}), retime=dict(retime or {}))
         try:
             running: asyncio.AbstractEventLoop | None = asyncio.get_running_loop()
         except RuntimeError:

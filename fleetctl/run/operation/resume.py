@@ -94,6 +94,12 @@ def _replay_change(rep: OperationReplay, r: dict[str, Any]) -> None:
             del rep.tasks[tid]
             rep.board.tasks.pop(tid, None)
             rep.removed.append(tid)
+    for t in r.get("retimed") or []:
+        if isinstance(t, dict) and t.get("id") in rep.tasks:
+            old = rep.tasks[t["id"]]
+            rep.tasks[old.id] = OpTask(old.id, old.position, float(t.get("duration") or 0.0),
+                                       t.get("work") == "ground")
+            rep.board.tasks[old.id].duration = rep.tasks[old.id].duration
     for t in r.get("added") or []:
         if isinstance(t, dict) and isinstance(t.get("id"), str) and t["id"] not in rep.tasks:
             p = [float(x) for x in t.get("position") or (0.0, 0.0, 0.0)]
