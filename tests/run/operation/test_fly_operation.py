@@ -180,3 +180,35 @@ async def test_a_rover_short_of_battery_in_the_air_is_called_back_early(tmp_path
     for r in done:
         if r["task"] in called[0]["tasks"]:  # dropped by r2: worked in full by another sortie
             assert r["sortie"] != called[0]["sortie"] and r["worked"] >= durations[r["task"]] - 1.0, r
+
+
+async def test_a_task_s_duration_alone_edited_in_the_mission_file_is_replanned(tmp_path: Path) -> None:
+    """t4's duration goes from 15 s to 40 s in the mission file after the first launch (t4 is not in
+    a sortie yet): the edit is a task change, the rest is replanned, t4 is worked for 40 s."""
+    mission = mission_from(small_operation(), tmp_path)
+    edited = small_operation()
+    next(t for t in edited["tasks"] if t["id"] == "t4")["duration"] = 40
+    watchers: list[asyncio.Task[None]] = []
+
+    async def edit_after_the_first_launch(sim: SimFleet) -> None:
+        r1 = sim.rover("r1")
+        await sim.wait_for(lambda: r1.phase is BodyPhase.AIR, 60)
+        write_mission(edited, tmp_path / "mission.yaml")
+
+    def on_sim(sim: SimFleet) -> None:
+        watchers.append(asyncio.ensure_future(edit_after_the_first_launch(sim)))
+
+    out = await asyncio.wait_for(execute(mission, "run", run_dir=tmp_path / "run", force=True, on_sim=on_sim),
+                                 150)
+    for w in watchers:
+        w.cancel()
+    s = out.summary
+    assert out.exit_code == 0, s
+    assert not s["tasks_added"] and not s["tasks_removed"]
+    records = journal(tmp_path / "run")
+    changed = [r for r in records if r["kind"] == "tasks_changed"]
+    assert [[t["id"], t["duration"]] for r in changed for t in r["retimed"]] == [["t4", 40.0]]
+    assert any(r["kind"] == "replan" and "tasks changed" in r.get("cause", "") for r in records)
+    done = {r["task"]: r for r in records if r["kind"] == "task_done"}
+    assert sorted(done) == sorted(t.id for t in mission.tasks)
+    assert done["t4"]["duration"] == 40.0 and done["t4"]["worked"] >= 40 - 1.0  # the new duration, not 15 s
