@@ -6,7 +6,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from enum import StrEnum
 
-from fleetctl.run.state import OperationProgress
+from fleetctl.run.state import OperationProgress, SortieShown
 
 
 class SortieStatus(StrEnum):
@@ -27,10 +27,13 @@ class TaskWorkState:
     seen_start: bool = True  # False: it started while the controller was down (resume): started is a bound
 
     def worked(self, now: float) -> float:
-        """Seconds of work so far."""
+        """Seconds of work so far: its duration once done (the firmware timed it; the seconds the
+        controller saw between the two reports are the journal's ``worked``)."""
+        if self.done is not None:
+            return self.duration
         if self.started is None:
             return 0.0
-        return min((self.done if self.done is not None else now) - self.started, self.duration)
+        return min(now - self.started, self.duration)
 
 
 @dataclass
@@ -74,7 +77,9 @@ class OperationBoard:
         back = sum(1 for s in self.sorties if s.status is SortieStatus.ABOARD)
         tasks = {t: (round(w.worked(now), 1), w.duration, w.rover, w.done is not None)
                  for t, w in self.tasks.items()}
-        return OperationProgress(out, back, len(self.sorties), tasks, eta)
+        shown = tuple(SortieShown(s.index, s.rover, str(s.status), tuple(s.tasks)) for s in self.sorties
+                      if s.status in (SortieStatus.FLYING, SortieStatus.RETURNING))
+        return OperationProgress(out, back, len(self.sorties), tasks, eta, shown)
 
     def flying(self, rover: str) -> SortieEntry | None:
         return next((s for s in self.sorties if s.rover == rover
