@@ -1,10 +1,11 @@
 """``fleetctl resume`` finishes a long operation whose controller was killed (``kill -9``) while a
-rover worked a task: the simulated fleet is served by ``fleetctl sim`` in its own process (it
-outlives the controller, as a real fleet does) and the controller runs as a subprocess against it,
-as in tests/run/test_resume.py. After the resume, the journal must show every task's work done
-exactly once in total (never a task done twice), each for its full duration (measured by the
-controller, or timed by the firmware while the controller was down), every sortie launched back
-on the deck, a complete summary, and the simulated world every rover on the deck."""
+rover worked a task, or while one flew back to its pick-up: the simulated fleet is served by
+``fleetctl sim`` in its own process (it outlives the controller, as a real fleet does) and the
+controller runs as a subprocess against it, as in tests/run/test_resume.py. After the resume, the
+journal must show every task's work done exactly once in total (never a task done twice), each for
+its full duration (measured by the controller, or timed by the firmware while the controller was
+down), every sortie launched back on the deck, a complete summary, and the simulated world every
+rover on the deck."""
 
 from __future__ import annotations
 
@@ -54,6 +55,16 @@ def _working_after_a_task_done(recs: Records) -> bool:
     return bool(done) and bool(started - done)
 
 
+def _returning(recs: Records) -> bool:
+    """A rover on its way back to its pick-up stop (not loaded yet)."""
+    back = {r["sortie"] for r in of_kind(recs, "sortie_back")}
+    return any(r["sortie"] not in back for r in of_kind(recs, "sortie_returning"))
+
+
+KILL_AT = {"working": (_working_after_a_task_done, "a task being worked after a task_done"),
+           "returning": (_returning, "a sortie_returning record of a sortie not back")}
+
+
 def _check_resumed_operation(p: Problems, recs: Records, killed: Records, d: dict[str, Any],
                              summary: dict[str, Any]) -> None:
     durations = {t["id"]: float(t.get("duration", d["dwell"])) for t in d["tasks"]}
@@ -84,14 +95,15 @@ def _check_resumed_operation(p: Problems, recs: Records, killed: Records, d: dic
             "a task done before the kill was done again after it")
 
 
-def test_kill_9_mid_operation_then_resume_finishes_it(tmp_path: Path) -> None:
+@pytest.mark.parametrize("moment", list(KILL_AT))
+def test_kill_9_mid_operation_then_resume_finishes_it(tmp_path: Path, moment: str) -> None:
+    until, what = KILL_AT[moment]
     mission, d = _operation(tmp_path)
     run_dir = tmp_path / "run"
     with sim_process(mission, tmp_path / "sim.log", speedup=SPEEDUP, vehicles=3) as sim:
         with controller(["run", "--mission", str(mission), "--run-dir", str(run_dir), "--headless", "--yes",
                          "--speedup", str(SPEEDUP)], tmp_path / "fly.log") as fly:
-            wait_journal(fly, run_dir, _working_after_a_task_done, "a task being worked after a task_done",
-                         timeout=CTL_TIMEOUT)
+            wait_journal(fly, run_dir, until, what, timeout=CTL_TIMEOUT)
             rc = fly.kill9()
         assert rc == -signal.SIGKILL
         killed_lines = journal_lines(run_dir)
