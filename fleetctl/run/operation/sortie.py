@@ -4,6 +4,7 @@ the planned leave time moved by the operation's delay so far (:attr:`SortieFligh
 
 from __future__ import annotations
 
+import asyncio
 import contextlib
 import math
 from collections.abc import Callable
@@ -22,7 +23,7 @@ from planners.operations import InFlight, OperationProblem, OpTask, air_needed
 from planners.operations.plan import Sortie
 
 Vec3 = tuple[float, float, float]
-RECHECK = 1.0  # mission s between looks at the leave time while a rover waits at its last task
+RECHECK = 1.0  # mission s between looks at the leave time (or the battery) while a rover waits (or works)
 LAND_OFFSET = 1.0  # m: a rover waiting further off the stopped carrier lands at the carrier's position
 CARRIER_STOP_WAIT = 10.0  # mission s for the carrier at its stop to come to rest before rovers land on it
 REPLAN_SLACK = 15.0  # mission s: a task's work done this much earlier or later than planned asks for a replan
@@ -118,8 +119,14 @@ class SortieFlight:
         if work.started is None or work.rover != rid:  # (a resumed sortie's work may have started before)
             work.rover, work.started, work.seen_start = rid, self.reached_at.get(arrive_seq, self.now()), True
             ctx.record(Ev.TASK_STARTED, vehicle=rid, task=task, sortie=self.entry.index)
-        await ctx.wait_for(v, lambda v: self._reached(v, done_seq) or v.lost or task in self.dropped,
-                           ctx.late(work.duration), f"work at {task} done")
+        watch = asyncio.create_task(self._watch_battery(), name=f"battery {rid} at {task}")
+        try:  # the battery looked at while it works, not only at the task's arrival and end
+            await ctx.wait_for(v, lambda v: self._reached(v, done_seq) or v.lost or task in self.dropped,
+                               ctx.late(work.duration), f"work at {task} done")
+        finally:
+            watch.cancel()
+            with contextlib.suppress(asyncio.CancelledError):
+                await watch
         self._check(v)
         if task in self.dropped:
             return
@@ -132,6 +139,11 @@ class SortieFlight:
         how = f"{worked:.1f} s of work" if worked is not None else "started while the controller was down"
         st.event(Ev.TASK_DONE, f"{rid}: task {task} done ({how}, {work.duration:g} s asked)", rid, task=task,
                  sortie=self.entry.index, worked=worked, duration=work.duration)
+
+    async def _watch_battery(self) -> None:
+        while not self.battery_said:
+            await self.ctx.sleep_mission(RECHECK)
+            self.check_battery()
 
     def _reached(self, v: Vehicle, seq: int) -> bool:
         """Item ``seq`` of its sortie's mission reached (a resumed sortie also trusts the current

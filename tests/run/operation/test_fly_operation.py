@@ -212,3 +212,35 @@ async def test_a_task_s_duration_alone_edited_in_the_mission_file_is_replanned(t
     done = {r["task"]: r for r in records if r["kind"] == "task_done"}
     assert sorted(done) == sorted(t.id for t in mission.tasks)
     assert done["t4"]["duration"] == 40.0 and done["t4"]["worked"] >= 40 - 1.0  # the new duration, not 15 s
+
+
+async def test_a_battery_dropping_while_a_rover_works_is_seen_before_the_work_ends(tmp_path: Path) -> None:
+    """r2's battery drops to 35 % halfway through its first task (t2, 30 s of hovering, then t1):
+    the reading is looked at while it works, so the replan is asked for (and r2 called back) before
+    r2 reports any task done."""
+    mission = mission_from(small_operation(), tmp_path)
+    watchers: list[asyncio.Task[None]] = []
+
+    async def drop_r2_battery_mid_task(sim: SimFleet) -> None:
+        r2 = sim.rover("r2")
+        await sim.wait_for(lambda: r2.phase is BodyPhase.AIR, 60)
+        await sim.wait_sim_time(sim.sim_time + 19.0, 60)  # at t2 (arrives ~4 s after take-off), working
+        sim.pin_battery("r2", 0.35)
+        sim.pin_battery("r2", None)
+
+    def on_sim(sim: SimFleet) -> None:
+        watchers.append(asyncio.ensure_future(drop_r2_battery_mid_task(sim)))
+
+    out = await asyncio.wait_for(execute(mission, "run", run_dir=tmp_path / "run", force=True, on_sim=on_sim),
+                                 150)
+    for w in watchers:
+        w.cancel()
+    records = journal(tmp_path / "run")
+    started = [i for i, r in enumerate(records) if r["kind"] == "task_started" and r["vehicle"] == "r2"]
+    asked = [i for i, r in enumerate(records)
+             if r["kind"] == "replan" and "rover r2 at" in r.get("cause", "")]
+    done = [i for i, r in enumerate(records) if r["kind"] == "task_done" and r["vehicle"] == "r2"]
+    assert started and asked and started[0] < asked[0] < done[0], [r.get("text") for r in records]
+    assert any(r["kind"] == "sortie_called_back" and r["vehicle"] == "r2" for r in records)
+    assert out.exit_code == 0, out.summary
+    assert sorted(out.summary["tasks_done"]) == sorted(t.id for t in mission.tasks)
