@@ -90,6 +90,7 @@ class Ev(StrEnum):
     SORTIE_RETURNING = "sortie_returning"  # a rover left its last task for its pick-up stop
     SORTIE_BACK = "sortie_back"  # a rover of a sortie is loaded on the deck
     SORTIE_LOST = "sortie_lost"  # a rover was lost during its sortie (its work left is replanned)
+    SORTIE_CALLED_BACK = "sortie_called_back"  # a replan called a rover in the air back early (tasks dropped)
     BATTERY_SWAPPED = "battery_swapped"  # a rover's battery swapped on the deck, back to full
     OPERATION_DONE = "operation_done"  # every task worked, every rover back (or the operation ended short)
     # supervision

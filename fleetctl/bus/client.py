@@ -11,8 +11,9 @@ Topics under the mission's prefix ``P`` (default ``fleetctl/<mission name>``):
 * ``P/events`` (QoS 1) - every journal record as written to ``journal.jsonl``;
 * ``P/errors`` (QoS 1) - answers to rejected task messages;
 * in: ``P/tasks/add`` (``{"tasks": [{"id", "position" | "lat"/"lon"/"alt"}, ...]}``, a list of
-  tasks or one task) and ``P/tasks/remove`` (``{"tasks": ["t1", ...]}``, a list of ids or one id),
-  validated like the mission file and handed to ``Executor.submit_task_change``.
+  tasks or one task), ``P/tasks/remove`` (``{"tasks": ["t1", ...]}``, a list of ids or one id) and,
+  for a long operation, ``P/tasks/update`` (``{"tasks": [{"id", "duration", "work"}, ...]}``: a
+  task's new work), validated like the mission file and handed to ``Executor.submit_task_change``.
 * more topics a caller subscribes with :meth:`FleetBus.subscribe` (the team coordination,
   :mod:`fleetctl.run.teams.link`) and publishes with ``publish(..., absolute=True)``.
 
@@ -78,7 +79,8 @@ class TaskChanges(Protocol):
     """What task messages are handed to: the run's executor (:mod:`fleetctl.run.executor`)."""
 
     def submit_task_change(self, add: list[Task], remove: list[str], source: str,
-                           work: dict[str, TaskWork] | None = None) -> None: ...
+                           work: dict[str, TaskWork] | None = None,
+                           retime: dict[str, TaskWork] | None = None) -> None: ...
 
 def _dumps(data: Any) -> bytes:
     return json.dumps(json_safe(data), separators=(",", ":")).encode()
@@ -132,7 +134,8 @@ class FleetBus(ConnectionStatus):
         self.rejected = 0  # task messages answered on P/errors
         self.failed: str | None = None  # why the bus task stopped (it should never)
         # changes (add, remove, topic, added tasks' work) before an executor exists
-        self._pending: deque[tuple[list[Task], list[str], str, dict[str, TaskWork]]] = deque()
+        self._pending: deque[tuple[list[Task], list[str], str, dict[str, TaskWork], dict[str, TaskWork]]] = \
+            deque()
         self.identity: dict[str, Any] = {}  # fields of every status, the last will too (a team's id, session)
         self._handlers: list[tuple[str, Callable[[str, bytes], None]]] = []  # extra subscriptions
         self.refuse_tasks: str | None = None  # why every task message is refused (None: they are handled)
@@ -279,12 +282,13 @@ class FleetBus(ConnectionStatus):
         self.executor = executor
         pending, self._pending = list(self._pending), deque()
         submit = getattr(executor, "submit_task_change", None)
-        for add, remove, topic, work in pending:
+        for add, remove, topic, work, retime in pending:
             try:
                 if submit is None:
                     raise TaskMessageError("task changes are not supported by this controller "
                                            "(no replanner); nothing changed")
-                submit(add=add, remove=remove, source=f"mqtt:{topic}", work=work)
+                submit(add=add, remove=remove, source=f"mqtt:{topic}", work=work,
+                       **({"retime": retime} if retime else {}))
             except Exception as exc:  # noqa: BLE001 - the sender's answer, never the bus's end
                 self._answer_error(topic, b"", f"queued change refused by the controller: {exc}")
                 continue
@@ -382,7 +386,8 @@ class FleetBus(ConnectionStatus):
     async def _connected(self, client: aiomqtt.Client) -> None:
         """Subscribe, then send and receive until the connection drops."""
         self._dirty = list(self._retained)  # the broker may have lost them
-        await client.subscribe([(self.topic("tasks/add"), 1), (self.topic("tasks/remove"), 1)]
+        await client.subscribe([(self.topic("tasks/add"), 1), (self.topic("tasks/remove"), 1),
+                                (self.topic("tasks/update"), 1)]
                                + [(f, 1) for f, _ in self._handlers], timeout=PUBLISH_TIMEOUT)
         self._set_status(BusStatus.CONNECTED)
         async with asyncio.TaskGroup() as tg:
@@ -463,10 +468,15 @@ class FleetBus(ConnectionStatus):
         op = topic.rsplit("/", 1)[-1]
         data, force = self._decode_task_message(payload)
         work: dict[str, TaskWork] = {}
+        retime: dict[str, TaskWork] = {}
+        add: list[Task] = []
+        remove: list[str] = []
         if op == "add":
-            (add, work), remove = self.parse_add_work(data, topic), []
+            add, work = self.parse_add_work(data, topic)
         elif op == "remove":
-            add, remove = [], self.parse_remove(data)
+            remove = self.parse_remove(data)
+        elif op == "update":
+            retime = self.parse_update(data, topic)
         else:
             raise TaskMessageError(f"unknown topic {topic!r}")
         if not force:
@@ -474,10 +484,11 @@ class FleetBus(ConnectionStatus):
             if why is not None:
                 raise TaskMessageError(f'{why}; nothing changed (send "force": true in the message to '
                                        "apply it anyway)")
-        self._hand_over(add, remove, topic, work)
+        self._hand_over(add, remove, topic, work, retime)
         ids = {t.id for t in add}
         self.tasks = [t for t in self.current_tasks() if t.id not in remove] + list(add)
         self.record(Ev.BUS_TASK_CHANGE, op=op, add=sorted(ids), remove=remove, topic=topic,
+                    **({"update": sorted(retime)} if retime else {}),
                     **({"queued": True} if self.executor is None else {}),
                     **({"force": True} if force else {}))
         return True
@@ -509,20 +520,22 @@ class FleetBus(ConnectionStatus):
                 raise TaskMessageError('"force" must be true or false')
         return data, force
 
-    def _hand_over(self, add: list[Task], remove: list[str], topic: str, work: dict[str, TaskWork]) -> None:
+    def _hand_over(self, add: list[Task], remove: list[str], topic: str, work: dict[str, TaskWork],
+                   retime: dict[str, TaskWork]) -> None:
         """The change to the controller, or queued for it while it is still connecting or planning."""
         submit = getattr(self.executor, "submit_task_change", None)
         if self.executor is None:
             if len(self._pending) >= MAX_PENDING:
                 raise TaskMessageError(f"{MAX_PENDING} task changes are already waiting for the controller "
                                        "to start; try again when the plan is out")
-            self._pending.append((add, remove, topic, work))
+            self._pending.append((add, remove, topic, work, retime))
         elif submit is None:
             raise TaskMessageError("task changes are not supported by this controller (no replanner); "
                                    "nothing changed")
         else:
             try:
-                submit(add=add, remove=remove, source=f"mqtt:{topic}", work=work)
+                submit(add=add, remove=remove, source=f"mqtt:{topic}", work=work,
+                       **({"retime": retime} if retime else {}))
             except Exception as exc:  # noqa: BLE001 - the replanner's refusal is the sender's answer
                 raise TaskMessageError(f"refused by the controller: {exc}") from None
 
@@ -604,6 +617,50 @@ class FleetBus(ConnectionStatus):
             raise TaskMessageError(str(exc)) from None
         added = list(m.tasks[: len(entries)])
         return added, {t.id: m.task_work(t.id) for t in added}
+
+    def parse_update(self, data: Any, source: str) -> dict[str, TaskWork]:
+        """A long operation's ``tasks/update`` message: each named task's new work (``duration``,
+        ``work``; what it does not give stays as it is), checked by the mission loader."""
+        if not self.mission.operation:
+            raise TaskMessageError("tasks/update changes a task's work in a long operation (operation: "
+                                   "true); this mission is not one: nothing changed")
+        if isinstance(data, dict) and "tasks" in data and set(data) == {"tasks"}:
+            data = data["tasks"]
+        entries = data if isinstance(data, list) else [data]
+        if not entries or not all(isinstance(e, dict) and isinstance(e.get("id"), str) for e in entries):
+            raise TaskMessageError('expected {"tasks": [{"id": "t3", "duration": 60}]} (an id and the work '
+                                   'to change: "duration" in s, "work": "hover" or "ground")')
+        current = {t.id: t for t in self.current_tasks()}
+        for i, e in enumerate(entries):
+            if e["id"] not in current:
+                raise TaskMessageError(f"tasks[{i}].id: unknown task {e['id']!r}; current tasks: "
+                                       f"{', '.join(sorted(current)) or 'none'}")
+            if not set(e) - {"id"} or set(e) - {"id", "duration", "work"}:
+                raise TaskMessageError(f'tasks[{i}]: give "duration" and/or "work" (and nothing else) with '
+                                       f"the id")
+        raw = copy.deepcopy(self.mission.raw)
+        raw["tasks"] = [dict(e) for e in entries]
+        raw.pop("mqtt", None)
+        if isinstance(raw.get("obstacles"), dict):  # {file: PATH}: the obstacles as loaded, no file I/O here
+            raw["obstacles"] = [[list(v) for v in poly] for poly in self.mission.obstacles]
+        for e in raw["tasks"]:
+            e["position"] = [float(c) for c in current[e["id"]].position]
+            old = self._work_of(e["id"])
+            e.setdefault("duration", old.duration)
+            e.setdefault("work", "ground" if old.ground else "hover")
+        try:
+            m = parse_mission(raw, f"mqtt {source}")
+        except MissionError as exc:
+            raise TaskMessageError(str(exc)) from None
+        return {t.id: m.task_work(t.id) for t in m.tasks}
+
+    def _work_of(self, task: str) -> TaskWork:
+        """A task's work now: the running operation's (it changes), else the mission's."""
+        live = getattr(getattr(self.executor, "operation_phase", None), "changes", None)
+        tasks = getattr(live, "tasks", None)
+        if isinstance(tasks, dict) and task in tasks:
+            return TaskWork(tasks[task].duration, tasks[task].ground)
+        return self.mission.task_work(task)
 
     def parse_remove(self, data: Any) -> list[str]:
         if isinstance(data, dict) and set(data) in ({"tasks"}, {"id"}):

@@ -52,9 +52,6 @@ def cmd_fly(args: argparse.Namespace) -> int:
 
 def cmd_resume(args: argparse.Namespace) -> int:
     mission, command, where = _resumption(args)
-    if mission.operation:
-        raise CliError(f"{args.run}: resuming a long operation is not supported yet; fly it again with "
-                       f"'fleetctl run' once the rovers are back on the deck (docs/operations.md)")
     return _fly(args, mission, command, where)
 
 

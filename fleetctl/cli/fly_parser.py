@@ -96,7 +96,9 @@ against telemetry (rovers on the deck, flying to their task, holding on it, land
 lost; where the carrier is), then finishes the interrupted phase - and for a 'run' the dwell and
 the collection - with the same planners and replanning. It never launches a rover that is flying
 and never serves a reached task again; it appends to the same journal (a 'resumed' record) and
-writes DIR/summary.json for the whole run.
+writes DIR/summary.json for the whole run. A long operation (operation: true) is replanned from
+the live state: work done is not done again, rovers in the air go on with their sorties
+(docs/operations.md#resuming-an-operation).
 
 Several teams (carriers:) in one controller: each team's deployment goes on from its own journal
 (DIR/teams/<carrier>/deploy/) over the tasks it owns now (its share and the hand-overs recorded in

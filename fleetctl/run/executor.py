@@ -38,6 +38,7 @@ from planners.core.problem import Task
 
 if TYPE_CHECKING:
     from fleetctl.run.operation import OperationPhase
+    from fleetctl.run.operation.resume import OperationReplay
 
 log = logging.getLogger(__name__)
 
@@ -95,11 +96,15 @@ class Executor:
         self.collect_phase = CollectPhase(self.parts, resumed)
         return await self.collect_phase.run(rover_ids)
 
-    async def operate(self, write_plan: Callable[[str, dict[str, Any]], None] | None = None) -> PhaseResult:
-        """Plan and fly a long operation (sorties, pick-ups, battery swaps; docs/operations.md)."""
+    async def operate(self, write_plan: Callable[[str, dict[str, Any]], None] | None = None,
+                      resumed: OperationReplay | None = None) -> PhaseResult:
+        """Plan and fly a long operation (sorties, pick-ups, battery swaps; docs/operations.md), or
+        (``resumed``) finish an interrupted one."""
         from fleetctl.run.operation import OperationPhase
 
         self.operation_phase = OperationPhase(self.parts, write_plan, self.board)
+        if resumed is not None:
+            return await self.operation_phase.resume(resumed)
         return await self.operation_phase.run()
 
     async def sleep_mission(self, seconds: float) -> None:
@@ -107,12 +112,13 @@ class Executor:
 
     # -- from outside ------------------------------------------------------------------------------
     def submit_task_change(self, add: list[Task], remove: list[str], source: str,
-                           work: dict[str, TaskWork] | None = None) -> None:
+                           work: dict[str, TaskWork] | None = None,
+                           retime: dict[str, TaskWork] | None = None) -> None:
         """Add and/or remove tasks of the running mission (``work``: an added task's duration and
-        work mode, when the change gives them). Safe to call from the event loop or from another
-        thread; applied by the running phase."""
+        work mode, when the change gives them; ``retime``: a kept task's new work, a long operation's).
+        Safe to call from the event loop or from another thread; applied by the running phase."""
         ev = SupervisorEvent(Watch.TASKS, None, add=tuple(add), remove=tuple(remove), source=source,
-                             work=dict(work or {}))
+                             work=dict(work or {}), retime=dict(retime or {}))
         try:
             running: asyncio.AbstractEventLoop | None = asyncio.get_running_loop()
         except RuntimeError:

@@ -32,6 +32,7 @@ from fleetctl.mission.teams import mission_teams
 from fleetctl.run.collect import ResumedCollect
 from fleetctl.run.deploy import HOLD_SPEED, REACH_RADIUS, ResumedDeploy
 from fleetctl.run.kinds import Ev
+from fleetctl.run.operation.resume import OperationReplay, reconcile_operation, replay_operation
 from fleetctl.run.results import PhaseResult
 from fleetctl.run.sim import mission_uses_sim
 from fleetctl.run.state import FleetState, on_deck
@@ -64,6 +65,7 @@ class Resumption:
     dwell_started: float | None = None  # unix time
     options: dict[str, Any] = field(default_factory=dict)  # planner, dwell of the interrupted run
     found: dict[str, Any] = field(default_factory=dict)
+    operation: OperationReplay | None = None  # a long operation's story (fleetctl.run.operation.resume)
 
     # -- for the runner ----------------------------------------------------------------------------
     def finished_results(self) -> dict[str, PhaseResult]:
@@ -111,6 +113,10 @@ class Resumption:
         reached are journalled as such; a rover armed on the deck by a launch the crash cut
         short is disarmed (``disarm``) and may fly again."""
         await asyncio.gather(*(_settle(v) for v in fleet.vehicles.values() if v.connected))
+        if self.operation is not None:
+            self.found = await reconcile_operation(self.operation, fleet, state, disarm,
+                                                   lambda v: _on_deck(fleet, v), time.time())
+            return
         found: dict[str, Any] = {"reached": self.board.with_status(TaskStatus.REACHED), "flying": {},
                                  "holding_on_task": [], "landed_elsewhere": [], "back_on_deck": [],
                                  "lost": [], "loaded": sorted(self.loaded)}
@@ -243,6 +249,8 @@ def resumption_of(d: Path, records: list[dict[str, Any]], command: str, mission:
     res = Resumption(d, command, mission, TaskBoard.of(mission.tasks),
                      "collect" if command == "collect" else "deploy", scale, options=dict(options or {}))
     _replay(res, records)
+    if mission.operation:
+        res.operation = replay_operation(records, mission, scale)
     return res
 
 
@@ -286,7 +294,9 @@ def _replay(res: Resumption, records: list[dict[str, Any]]) -> None:
     board, phase = res.board, res.phase
     for r in records:
         kind, rid, task = r["kind"], r.get("vehicle"), r.get("task")
-        if kind == Ev.PHASE and r.get("phase") in PHASES:
+        if kind == Ev.PHASE and r.get("phase") == "operation":
+            res.phase = "operation"
+        elif kind == Ev.PHASE and r.get("phase") in PHASES:
             phase = res.phase = str(r["phase"])
             if phase == "dwell":
                 res.dwell_started = float(r["t"])

@@ -226,11 +226,8 @@ class Run(OnSession):
     # ============================================================================== the phases
     async def _phases(self) -> None:
         resume = self.opts.resume
-        if resume is not None and self.mission.operation:
-            raise ExecutionError("resuming a long operation is not supported yet: fly it again with "
-                                 "'fleetctl run' (the rovers must be on the deck)")
-        todo = (resume.phases_left(self.command) if resume is not None
-                else ["operation"] if self.mission.operation else _phases_of(self.command))
+        todo = (["operation"] if self.mission.operation else resume.phases_left(self.command)
+                if resume is not None else _phases_of(self.command))
         if resume is not None:
             self.results.update(resume.finished_results())
         for phase in todo:
@@ -318,7 +315,9 @@ class Run(OnSession):
     async def _operation(self) -> None:
         """A long operation (docs/operations.md): one phase of sorties, pick-ups and swaps."""
         assert self.executor is not None
-        r = await self.executor.operate(self._write_operation_plan)
+        resume = self.opts.resume
+        r = await self.executor.operate(self._write_operation_plan,
+                                        resume.operation if resume is not None else None)
         self.results["operation"] = r
         if not r.complete:
             lost = f"; rovers lost: {', '.join(r.rovers_lost)}" if r.rovers_lost else ""

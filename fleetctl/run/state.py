@@ -234,6 +234,16 @@ class FleetState:
 
 
 @dataclass(frozen=True)
+class SortieShown:
+    """A sortie out (launched, not back): its index, rover, state (flying or returning) and tasks."""
+
+    index: int
+    rover: str
+    status: str
+    tasks: tuple[str, ...]
+
+
+@dataclass(frozen=True)
 class OperationProgress:
     """A long operation as the views show it: its sorties, each task's work and the end it heads for."""
 
@@ -242,6 +252,7 @@ class OperationProgress:
     sorties_planned: int  # every sortie of the plans flown so far
     tasks: dict[str, tuple[float, float, str | None, bool]]  # task -> (s worked, duration s, rover, done)
     eta: float | None  # mission s of the phase: the plan's end moved by the delay so far
+    out: tuple[SortieShown, ...] = ()  # the sorties out now
 
     @property
     def done(self) -> int:

@@ -57,6 +57,7 @@ class SupervisorEvent:
     source: str = ""
     data: dict[str, Any] = field(default_factory=dict)
     work: dict[str, TaskWork] = field(default_factory=dict)  # an added task's work, when the change gives it
+    retime: dict[str, TaskWork] = field(default_factory=dict)  # a kept task's new work (a long operation)
 
 
 def distance_to_path(p: Sequence[float], path: Sequence[Vec3]) -> float:
@@ -117,6 +118,7 @@ class Supervisor:
         self._unlisten: Callable[[], None] | None = None
         self._watch_file = watch_file and mission.path is not None
         self._mtime: float | None = None
+        self._work = {t.id: mission.task_work(t.id) for t in mission.tasks}  # each task's work, as last read
 
     # -- lifecycle ---------------------------------------------------------------------------------
     def start(self) -> None:
@@ -218,9 +220,12 @@ class Supervisor:
         remove = tuple(i for i, t in current.items()
                        if i not in newt or tuple(newt[i].position) != tuple(t.position))
         add = tuple(t for i, t in newt.items() if i not in current or i in remove)
-        if add or remove:
+        retime = {i: new.task_work(i) for i in newt if i in current and i not in remove
+                  and self.mission.operation and new.task_work(i) != self._work.get(i)}
+        self._work.update({i: new.task_work(i) for i in newt})
+        if add or remove or retime:
             self.put(SupervisorEvent("tasks", None, add=add, remove=remove, source=f"file {path}",
-                                     work={t.id: new.task_work(t.id) for t in add}))
+                                     work={t.id: new.task_work(t.id) for t in add}, retime=retime))
 
     def reject(self, why: str, source: str) -> None:
         """An invalid task change: say so; the running plan is kept."""

@@ -94,15 +94,17 @@ def frame(state: FleetState) -> dict[str, Any]:
 
 def _operation(state: FleetState) -> dict[str, Any] | None:
     """A long operation's progress: sorties out, back and planned, tasks done of all, each task's
-    ``[work done s, duration s]``, and ``eta`` as ``T`` (mission s since the run started); None
-    for any other run."""
+    ``[work done s, duration s, rover, done]``, the sorties out (``out``: index, rover, status and
+    tasks each), and ``eta`` as ``T`` (mission s since the run started); None for any other run."""
     if state.operation is None:
         return None
     op = state.operation()
     eta = None if op.eta is None else state.mission_time - state.elapsed + op.eta
     return {"sorties_out": op.sorties_out, "sorties_back": op.sorties_back, "sorties": op.sorties_planned,
-            "done": op.done, "tasks": {t: [w, d] for t, (w, d, _r, _done) in op.tasks.items()},
-            "working": [t for t, *_rest in op.working()], "eta": _r(eta, 1)}
+            "done": op.done, "tasks": {t: [w, d, r, done] for t, (w, d, r, done) in op.tasks.items()},
+            "working": [t for t, *_rest in op.working()], "eta": _r(eta, 1),
+            "out": [{"sortie": s.index, "rover": s.rover, "status": s.status, "tasks": list(s.tasks)}
+                    for s in op.out]}
 
 
 def teams_plan(teams: ShownTeams) -> dict[str, Any]:

@@ -5,7 +5,7 @@ sorties with pick-ups timed to the work, battery swaps on the deck. Pure maths, 
 swap, repeat) and ``operation_lower_bound``.
 """
 
-from planners.operations.live import InFlight, LiveState, air_needed
+from planners.operations.live import CallBack, InFlight, LiveState, air_needed, call_back
 from planners.operations.lower_bound import operation_lower_bound
 from planners.operations.plan import OperationPlan
 from planners.operations.planner import plan_operation
@@ -14,5 +14,6 @@ from planners.operations.waves import plan_waves
 
 OPERATION_PLANNERS = {"operation": plan_operation, "waves": plan_waves}
 
-__all__ = ["OPERATION_PLANNERS", "InFlight", "LiveState", "OpTask", "OperationPlan", "OperationProblem",
-           "air_needed", "operation_lower_bound", "plan_operation", "plan_waves"]
+__all__ = ["OPERATION_PLANNERS", "CallBack", "InFlight", "LiveState", "OpTask", "OperationPlan",
+           "OperationProblem", "air_needed", "call_back", "operation_lower_bound", "plan_operation",
+           "plan_waves"]

@@ -41,6 +41,8 @@ def dispatch(problem: OperationProblem, sites: list[Site], policy: Policy, name:
     sch = Schedule(problem, policy.swap_below)
     if start is not None:
         seed(sch, start)
+        if sites:  # rovers in the air that could not wait for the carrier at the first site: here first
+            _before_leaving(sch, sch.pos, sites[0].point, policy)
     rng = random.Random(policy.jitter)
     weight = {t.id: 1.0 + (0.3 * rng.uniform(-1.0, 1.0) if policy.jitter else 0.0) for t in problem.tasks}
     for n, site in enumerate(sites):

@@ -8,7 +8,7 @@ goes. Their sorties in the plan have ``launch_stop = -1`` (launched before the r
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 from planners.core.problem import Vec3
 from planners.operations.plan import Sortie, Visit
@@ -26,6 +26,7 @@ class InFlight:
     tasks: tuple[OpTask, ...]  # its work left, in order (durations: the work left of each)
     flown: float  # air seconds of its battery used so far
     on_ground: bool = False  # landed at a task worked on the ground
+    worked_first: float = 0.0  # s of work its first task has had (a task left is done again in full)
 
 
 @dataclass(frozen=True)
@@ -75,4 +76,48 @@ def air_needed(problem: OperationProblem, f: InFlight, stop: Vec3) -> float:
     return a.air_to_end + return_air(a.last, a.ground, stop, problem)
 
 
-__all__ = ["InFlight", "LiveState", "air_needed", "seed"]
+def short_of_battery(problem: OperationProblem, f: InFlight, stop: Vec3, margin: float = 0.0) -> bool:
+    """The rover's battery does not last for its work left and the way back to ``stop`` (with
+    ``margin`` air seconds to spare)."""
+    return f.flown + air_needed(problem, f, stop) + margin > problem.air_budget + 1e-9
+
+
+def call_margin(problem: OperationProblem) -> float:
+    """Air seconds a rover called back keeps for waiting to be picked up (the dispatch's margin)."""
+    return 2.0 * (problem.carrier.deploy_stop_time + problem.carrier.collect_stop_time)
+
+
+@dataclass(frozen=True)
+class CallBack:
+    """A live state with rovers called back early: each rover short of battery keeps the longest
+    prefix of its tasks that its battery allows with the way back to the carrier where it stands
+    and :func:`call_margin` (``keep=False``, or none fits: it comes back at once); the tasks it
+    drops go to the others, with their full work."""
+
+    state: LiveState
+    dropped: tuple[OpTask, ...]
+    called_back: dict[str, list[str]]  # rover -> the tasks dropped from its sortie
+
+
+def call_back(problem: OperationProblem, state: LiveState, keep: bool = True) -> CallBack | None:
+    """``state`` with the rovers short of battery called back (None: no rover is short)."""
+    air, dropped, called = [], [], {}
+    margin = call_margin(problem)
+    for f in state.in_flight:
+        if not f.tasks or not short_of_battery(problem, f, state.carrier, margin):
+            air.append(f)
+            continue
+        k = len(f.tasks) - 1 if keep else 0
+        while k > 0 and short_of_battery(problem, replace(f, tasks=f.tasks[:k]), state.carrier, margin):
+            k -= 1
+        air.append(replace(f, tasks=f.tasks[:k], worked_first=f.worked_first if k else 0.0))
+        for i, t in enumerate(f.tasks[k:], start=k):
+            dropped.append(replace(t, duration=t.duration + f.worked_first) if i == 0 else t)
+        called[f.rover] = [t.id for t in f.tasks[k:]]
+    if not called:
+        return None
+    return CallBack(replace(state, in_flight=tuple(air)), tuple(dropped), called)
+
+
+__all__ = ["CallBack", "InFlight", "LiveState", "air_needed", "call_back", "call_margin", "seed",
+           "short_of_battery"]

@@ -78,6 +78,7 @@ class OperationPlan:
     compute_ms: float = 0.0
     time_model: dict[str, float | bool] = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
+    called_back: dict[str, list[str]] = field(default_factory=dict)  # a replan's rover -> tasks dropped
 
     kind = "operation"
 
@@ -96,6 +97,7 @@ class OperationPlan:
             "carrier_distance": round(self.carrier_distance, 4),
             "compute_ms": round(self.compute_ms, 3),
             "time_model": dict(self.time_model),
+            "called_back": {r: list(ts) for r, ts in sorted(self.called_back.items())},
         }
 
     def timelines(self) -> dict[str, list[dict[str, Any]]]:

@@ -13,7 +13,7 @@ from dataclasses import replace
 
 from planners.core.problem import PlanningError
 from planners.operations.dispatch import Policy, dispatch
-from planners.operations.live import LiveState
+from planners.operations.live import LiveState, call_back
 from planners.operations.plan import OperationPlan
 from planners.operations.problem import OperationProblem
 from planners.operations.sites import cut_sites, task_tour
@@ -54,10 +54,37 @@ def plan_operation(problem: OperationProblem, start: LiveState | None = None,
                    rounds: int = ROUNDS) -> OperationPlan:
     """Schedule the whole operation, or (``start``) its rest from a live state: ``problem.tasks``
     the work no rover has, ``problem.rovers`` every rover of the state; ``rounds`` perturbed
-    tours after the policies (PlanningError when no schedule keeps every battery)."""
+    tours after the policies (PlanningError when no schedule keeps every battery). From a live
+    state where a rover in the air is short of battery for its work left, the rest is also planned
+    with that rover called back early (:func:`~planners.operations.live.call_back`: keeping the
+    tasks that fit, and keeping none); the earliest end is kept."""
     t0 = time.perf_counter()
     if not problem.rovers:
         raise PlanningError("an operation needs at least one rover")
+    variants: list[tuple[OperationProblem, LiveState | None, dict[str, list[str]]]] = [(problem, start, {})]
+    for keep in (True, False) if start is not None else ():
+        cb = call_back(problem, start, keep) if start is not None else None
+        if cb is not None and all(cb.called_back != v[2] for v in variants):
+            variants.append((replace(problem, tasks=problem.tasks + cb.dropped), cb.state, cb.called_back))
+    best: OperationPlan | None = None
+    error = PlanningError("no schedule")
+    for p, state, called in variants:
+        try:
+            plan = _search(p, state, rounds, t0)
+        except PlanningError as exc:
+            error = exc
+            continue
+        plan.called_back = called
+        if best is None or plan.makespan < best.makespan:
+            best = plan
+    if best is None:
+        raise error
+    best.compute_ms = (time.perf_counter() - t0) * 1e3
+    return best
+
+
+def _search(problem: OperationProblem, start: LiveState | None, rounds: int, t0: float) -> OperationPlan:
+    """The policies, then ``rounds`` perturbed tours and launch orders: the earliest end."""
     tour = task_tour(problem) if problem.tasks else []
     found = [(p, pol, tour) for pol in policies(problem)
              if (p := _try(problem, tour, pol, start)) is not None]
@@ -74,5 +101,4 @@ def plan_operation(problem: OperationProblem, start: LiveState | None = None,
         plan = _try(problem, trial_tour, trial_policy, start)
         if plan is not None and plan.makespan < best.makespan:
             best, policy, best_tour = plan, trial_policy, trial_tour
-    best.compute_ms = (time.perf_counter() - t0) * 1e3
     return best

@@ -33,11 +33,14 @@ class FakeExecutor:
     def __init__(self) -> None:
         self.changes: list[tuple[list[str], list[str], str]] = []
         self.work: dict[str, TaskWork] = {}
+        self.retime: dict[str, TaskWork] = {}
 
     def submit_task_change(self, add: list[Any], remove: list[str], source: str,
-                           work: dict[str, TaskWork] | None = None) -> None:
+                           work: dict[str, TaskWork] | None = None,
+                           retime: dict[str, TaskWork] | None = None) -> None:
         self.changes.append(([t.id for t in add], list(remove), source))
         self.work.update(work or {})
+        self.retime.update(retime or {})
 
 
 def make_mission(tmp_path: Path, port: int = 1883, prefix: str = "test/hard", accept: bool = True,
@@ -171,6 +174,52 @@ def test_an_added_task_carries_its_duration_and_work_mode(tmp_path: Path) -> Non
     assert ex.work["t8"] == TaskWork(45.0, ground=mission.rovers.work == "ground")
     assert ex.work["t9"] == TaskWork(mission.dwell, ground=True)
     assert ex.work["t10"] == mission.task_work("t10")  # none given: the mission's dwell and rovers.work
+
+
+UPDATE = "test/hard/tasks/update"
+
+
+def make_operation(tmp_path: Path) -> Mission:
+    d = mission_dict(rovers=2)
+    d["operation"] = True
+    d["carrier"]["swap_time"] = 10.0
+    d["tasks"] = [{"id": "t1", "position": [20, 10, 3], "duration": 30},
+                  {"id": "t2", "position": [30, 10, 0], "duration": 20, "work": "ground"},
+                  {"id": "t3", "position": [40, 10, 3]}]
+    d["mqtt"] = {"url": "mqtt://127.0.0.1:1883", "topic_prefix": "test/hard", "accept_task_changes": True}
+    return mission_from(d, tmp_path)
+
+
+def test_an_operation_task_s_work_is_changed_over_mqtt(tmp_path: Path) -> None:
+    mission = make_operation(tmp_path)
+    bus, errors, records = make_bus(mission)
+    assert bus.handle_task_message(UPDATE, msg({"tasks": [{"id": "t1", "duration": 75}]})), errors
+    bus.attach_executor(ex := FakeExecutor())  # a queued change keeps its new work
+    both = [{"id": "t2", "work": "hover"}, {"id": "t3", "duration": 12, "work": "ground"}]
+    assert bus.handle_task_message(UPDATE, msg({"tasks": both})), errors
+    assert ex.retime == {"t1": TaskWork(75.0, ground=False), "t2": TaskWork(20.0, ground=False),
+                         "t3": TaskWork(12.0, ground=True)}  # what a message does not give stays
+    assert [c[:2] for c in ex.changes] == [([], []), ([], [])]
+    updates = [d["update"] for k, d in records if k == "bus_task_change" and "update" in d]
+    assert updates == [["t1"], ["t2", "t3"]]
+
+
+@pytest.mark.parametrize(("update", "why"), [
+    ({"id": "t9", "duration": 10}, "unknown task"), ({"id": "t1"}, "duration"),
+    ({"id": "t1", "position": [1, 1, 1]}, "nothing else"),
+    ({"id": "t1", "duration": -5}, "tasks[0].duration"), ({"id": "t1", "work": "swimming"}, "tasks[0].work")])
+def test_a_bad_task_update_is_refused(tmp_path: Path, update: dict[str, Any], why: str) -> None:
+    bus, errors, _ = make_bus(make_operation(tmp_path))
+    bus.attach_executor(ex := FakeExecutor())
+    assert not bus.handle_task_message(UPDATE, msg({"tasks": [update]}))
+    assert ex.changes == [] and why in errors[-1]["error"], errors
+
+
+def test_a_task_update_is_refused_outside_an_operation(tmp_path: Path) -> None:
+    bus, errors, _ = make_bus(make_mission(tmp_path))
+    bus.attach_executor(ex := FakeExecutor())
+    assert not bus.handle_task_message(UPDATE, msg({"tasks": [{"id": "t1", "duration": 10}]}))
+    assert ex.changes == [] and "long operation" in errors[-1]["error"]
 
 
 @pytest.mark.parametrize("bad", [{"duration": -1}, {"duration": "long"}, {"duration": 1e9},

@@ -7,7 +7,8 @@ import dataclasses
 
 import pytest
 
-from planners.operations import InFlight, LiveState, OpTask, air_needed, plan_operation
+from planners.operations import InFlight, LiveState, OpTask, air_needed, call_back, plan_operation
+from planners.operations.live import call_margin, short_of_battery
 from tests.planners.test_operations import instance
 
 # instances with a rover to put in the air and one on the deck
@@ -57,3 +58,69 @@ def test_the_air_a_rover_still_needs_counts_hovering_work_and_the_way_back() -> 
     assert on_ground == pytest.approx(idle)
     far = OpTask("b", (here[0] + 100.0, here[1], 5.0), 0.0)
     assert air_needed(problem, InFlight(rover, here, (far,), 0.0), stop) > back
+
+
+def _short_rover(seed: int, spare: float) -> tuple:
+    """A problem with a rover in the air at its first task (half worked, hovering) with two more
+    hovering tasks left, its battery flown so that the first task and the way back to the carrier
+    fit with ``spare`` air seconds to spare (negative: they do not)."""
+    problem, _spec = instance(seed)
+    air, *deck = problem.rovers
+    t1, t2, t3, *rest = (dataclasses.replace(t, ground=False) for t in problem.tasks)
+    part = dataclasses.replace(t1, duration=t1.duration / 2)
+    here = t1.position
+    first_only = InFlight(air, here, (part,), 0.0, worked_first=t1.duration / 2)
+    flown = problem.air_budget - air_needed(problem, first_only, problem.start) - call_margin(problem) - spare
+    f = dataclasses.replace(first_only, tasks=(part, t2, t3), flown=flown)
+    state = LiveState(problem.start, problem.heading, dict.fromkeys(deck, 0.0), (f,))
+    return dataclasses.replace(problem, tasks=tuple(rest)), state, (t1, t2, t3)
+
+
+@pytest.mark.parametrize("seed", SEEDS[:6])
+def test_a_rover_short_of_battery_in_the_air_is_called_back_keeping_what_fits(seed: int) -> None:
+    problem, state, (t1, t2, t3) = _short_rover(seed, spare=1.0)
+    f = state.in_flight[0]
+    assert short_of_battery(problem, f, state.carrier)  # its whole sortie does not fit any more
+    cb = call_back(problem, state)
+    assert cb is not None and cb.called_back == {f.rover: [t2.id, t3.id]}  # it keeps the task it is at
+    assert [t.id for t in cb.state.in_flight[0].tasks] == [t1.id]
+    plan = plan_operation(problem, state)  # called back keeping t1, or keeping none: the earlier end
+    dropped = plan.called_back[f.rover]
+    assert dropped in ([t2.id, t3.id], [t1.id, t2.id, t3.id])
+    own = [s for s in plan.sorties if s.launch_stop == -1]
+    kept = [t.id for t in (t1, t2, t3) if t.id not in dropped]
+    assert [v.task for v in own[0].visits if v.task] == kept
+    worked = [v.task for s in plan.sorties for v in s.visits if v.task]
+    assert sorted(worked) == sorted([t1.id, t2.id, t3.id, *(t.id for t in problem.tasks)])  # each once
+    others = {v.task: v for s in plan.sorties if s.launch_stop >= 0 for v in s.visits}
+    for t in (t1, t2, t3):  # a task dropped is done again in full by another sortie
+        if t.id in dropped:
+            assert others[t.id].end - others[t.id].arrive == pytest.approx(t.duration)
+    assert all(s.battery_left >= problem.reserve - 1e-9 for s in plan.sorties)
+    assert plan.to_json()["called_back"] == {f.rover: dropped}
+
+
+@pytest.mark.parametrize("seed", SEEDS[:6])
+def test_a_rover_too_short_even_for_its_task_comes_back_at_once_and_the_task_is_redone_in_full(
+        seed: int) -> None:
+    problem, state, (t1, t2, t3) = _short_rover(seed, spare=-5.0)
+    f = state.in_flight[0]
+    cb = call_back(problem, state)
+    assert cb is not None and cb.called_back == {f.rover: [t1.id, t2.id, t3.id]}
+    assert cb.state.in_flight[0].tasks == ()
+    assert [t.duration for t in cb.dropped] == pytest.approx([t1.duration, t2.duration, t3.duration])
+    plan = plan_operation(problem, state)
+    own = [s for s in plan.sorties if s.launch_stop == -1]
+    assert [v.task for v in own[0].visits] == [""]  # no work: it flies back
+    others = {v.task: v for s in plan.sorties if s.launch_stop >= 0 for v in s.visits}
+    assert others[t1.id].end - others[t1.id].arrive == pytest.approx(t1.duration)  # its half lost
+    assert all(s.battery_left >= problem.reserve - 1e-9 for s in plan.sorties)
+
+
+def test_no_rover_short_of_battery_is_not_called_back() -> None:
+    problem, state, _tasks = _short_rover(SEEDS[0], spare=1.0)
+    f = state.in_flight[0]
+    fine = dataclasses.replace(state, in_flight=(dataclasses.replace(f, flown=0.0, tasks=f.tasks[:1]),))
+    assert not short_of_battery(problem, fine.in_flight[0], fine.carrier, call_margin(problem))
+    assert call_back(problem, fine) is None
+    assert plan_operation(problem, fine).called_back == {}

@@ -73,11 +73,12 @@ def _wait_for_url(lines: queue.Queue[str], proc: subprocess.Popen[str]) -> str:
     raise AssertionError("no 'web map:' line from fleetctl:\n" + "".join(seen))
 
 
-def _watch_page(start: Any, user_dir: Path) -> tuple[list[list[dict[str, Any]]], subprocess.Popen[str]]:
-    """Start the browser, then the deployment (``start()`` -> (url, process)); what the page's
-    vehicle elements said, every POLL s until the deployment is over."""
+def _watch_page(start: Any, user_dir: Path,
+                read: str = READ_VEHICLES) -> tuple[list[Any], subprocess.Popen[str]]:
+    """Start the browser, then the run (``start()`` -> (url, process)); what the page said
+    (``read``: by default its vehicle elements), every POLL s until the run is over."""
     sync_api = pytest.importorskip("playwright.sync_api", reason="the playwright package is not installed")
-    looks: list[list[dict[str, Any]]] = []
+    looks: list[Any] = []
     with sync_api.sync_playwright() as p:
         browser = p.chromium.launch_persistent_context(str(user_dir), executable_path=CHROMIUM, headless=True,
                                                        args=CHROMIUM_FLAGS)
@@ -88,9 +89,9 @@ def _watch_page(start: Any, user_dir: Path) -> tuple[list[list[dict[str, Any]]],
             page.wait_for_selector("[data-vehicle]", timeout=30_000)
             deadline = time.monotonic() + RUN_TIMEOUT
             while proc.poll() is None and time.monotonic() < deadline:
-                looks.append(page.evaluate(READ_VEHICLES))
+                looks.append(page.evaluate(read))
                 page.wait_for_timeout(POLL * 1000)
-            looks.append(page.evaluate(READ_VEHICLES))  # the last frame stays on the page
+            looks.append(page.evaluate(read))  # the last frame stays on the page
         finally:
             browser.close()
     return looks, proc
@@ -146,6 +147,62 @@ def test_deploy_shows_vehicles_moving_to_their_tasks(tmp_path: Path) -> None:
     assert ends == {"t1", "t2"}  # each at its own task
     carrier = _changes([v["state"] for v in _history(looks, "carrier")])
     assert "driving" in carrier and "holding" in carrier
+
+
+# -- a long operation: each task's work on its marker, the sorties out -------------------------------
+
+READ_OPERATION = """() => ({
+    tasks: [...document.querySelectorAll('#tasks [data-task]')].map(g => {
+        const bar = g.querySelector('.work-done'), bg = g.querySelector('.work-bg');
+        return {id: g.dataset.task, worked: g.dataset.worked, duration: g.dataset.duration,
+                progress: g.dataset.progress, rover: g.dataset.rover, done: g.classList.contains('done'),
+                working: g.classList.contains('working'),
+                bar: bar ? Number(bar.getAttribute('width')) / Number(bg.getAttribute('width')) : null};
+    }),
+    sorties: [...document.querySelectorAll('#sorties [data-sortie]')].map(s => ({
+        sortie: s.dataset.sortie, rover: s.dataset.rover, tasks: s.dataset.tasks,
+        points: s.getAttribute('points').trim().split(/\\s+/).filter(Boolean).length}))})"""
+
+
+def test_an_operation_shows_each_task_s_work_and_the_sorties_out(tmp_path: Path) -> None:
+    from tests.run.operation.ops_helpers import small_operation
+
+    d = small_operation()
+    mission = write_mission(d, tmp_path / "mission.yaml")
+    durations = {t["id"]: float(t["duration"]) for t in d["tasks"]}
+    port = _free_port()
+    procs: list[subprocess.Popen[str]] = []
+
+    def start() -> tuple[str, subprocess.Popen[str]]:
+        proc = subprocess.Popen(
+            [sys.executable, "-m", "fleetctl.cli", "run", "--mission", str(mission), "--headless",
+             "--run-dir", str(tmp_path / "run"), "--web", f"127.0.0.1:{port}"],
+            cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+        procs.append(proc)
+        return _wait_for_url(_lines(proc), proc), proc
+
+    try:
+        looks, proc = _watch_page(start, tmp_path / "chromium-profile", READ_OPERATION)
+        assert proc.wait(timeout=60) == 0
+    finally:
+        for proc in procs:
+            if proc.poll() is None:
+                proc.kill()
+                proc.wait(timeout=10)
+    marks = [t for look in looks for t in look["tasks"] if t["progress"] is not None]
+    working = [t for t in marks if t["working"]]
+    assert working, "no task marker ever showed work in progress"
+    for t in working:  # work done / duration on the marker: its text, its bar, the rover at it
+        assert 0.0 < float(t["progress"]) < 1.0 and t["rover"] in ("r1", "r2"), t
+        assert float(t["duration"]) == durations[t["id"]], t
+        assert t["bar"] == pytest.approx(float(t["progress"]), abs=0.01), t
+    sorties = [s for look in looks for s in look["sorties"]]
+    assert {s["rover"] for s in sorties} == {"r1", "r2"}  # every rover's sortie drawn while out
+    assert any(s["tasks"] and s["points"] >= 2 for s in sorties), sorties  # rover -> its tasks left
+    last = looks[-1]
+    assert sorted(t["id"] for t in last["tasks"]) == sorted(durations) and not last["sorties"]
+    for t in last["tasks"]:  # the end: every task done, its whole duration worked
+        assert t["done"] and t["progress"] == "1.000" and float(t["worked"]) == durations[t["id"]], t
 
 
 # -- two teams, bound beyond loopback: every team drawn, and the token ------------------------------

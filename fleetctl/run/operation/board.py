@@ -6,7 +6,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from enum import StrEnum
 
-from fleetctl.run.state import OperationProgress
+from fleetctl.run.state import OperationProgress, SortieShown
 
 
 class SortieStatus(StrEnum):
@@ -24,12 +24,16 @@ class TaskWorkState:
     rover: str | None = None
     started: float | None = None  # mission s of the operation when the work began
     done: float | None = None  # ... when the firmware reported it done
+    seen_start: bool = True  # False: it started while the controller was down (resume): started is a bound
 
     def worked(self, now: float) -> float:
-        """Seconds of work so far."""
+        """Seconds of work so far: its duration once done (the firmware timed it; the seconds the
+        controller saw between the two reports are the journal's ``worked``)."""
+        if self.done is not None:
+            return self.duration
         if self.started is None:
             return 0.0
-        return min((self.done if self.done is not None else now) - self.started, self.duration)
+        return min(now - self.started, self.duration)
 
 
 @dataclass
@@ -48,6 +52,18 @@ class OperationBoard:
     sorties: list[SortieEntry] = field(default_factory=list)
     swaps: list[tuple[str, float]] = field(default_factory=list)  # (rover, mission s when done)
     lost: list[str] = field(default_factory=list)
+    next_index: int = 0  # the next sortie's index (journalled: a resumed run goes on counting)
+
+    def new_sortie(self, rover: str, tasks: list[str]) -> SortieEntry:
+        entry = SortieEntry(self.next_index, rover, tasks)
+        self.next_index += 1
+        self.sorties.append(entry)
+        return entry
+
+    def restore(self, other: OperationBoard) -> None:
+        """Take ``other``'s state (a resumed run's, rebuilt from its journal) in place."""
+        self.tasks, self.sorties, self.swaps = other.tasks, other.sorties, other.swaps
+        self.lost, self.next_index = other.lost, other.next_index
 
     def done(self) -> list[str]:
         return [t for t, w in self.tasks.items() if w.done is not None]
@@ -61,7 +77,9 @@ class OperationBoard:
         back = sum(1 for s in self.sorties if s.status is SortieStatus.ABOARD)
         tasks = {t: (round(w.worked(now), 1), w.duration, w.rover, w.done is not None)
                  for t, w in self.tasks.items()}
-        return OperationProgress(out, back, len(self.sorties), tasks, eta)
+        shown = tuple(SortieShown(s.index, s.rover, str(s.status), tuple(s.tasks)) for s in self.sorties
+                      if s.status in (SortieStatus.FLYING, SortieStatus.RETURNING))
+        return OperationProgress(out, back, len(self.sorties), tasks, eta, shown)
 
     def flying(self, rover: str) -> SortieEntry | None:
         return next((s for s in self.sorties if s.rover == rover

@@ -2,7 +2,8 @@
 the carrier's next stop, then the rest of the operation is replanned. An added task gets the work the
 change gives it (its ``duration`` and ``work``, read by the mission loader from the edited file or the
 MQTT message), else the running mission's (``Mission.task_work``: ``dwell`` and ``rovers.work``); a
-task a rover in the air still has is not removed (the change says so)."""
+kept task's work may change too (``retime``); a task a rover in the air still has is neither removed
+nor changed (the change says so)."""
 
 from __future__ import annotations
 
@@ -43,17 +44,44 @@ class TaskChanges:
             self.board.tasks[t.id] = TaskWorkState(w.duration)
             self.live.add(t)
             self.added.append(t.id)
+        retimed = self._retime(ev, busy)
         if kept:
             self.ctx.state.event(Ev.TASK_CHANGE_REJECTED, f"task change from {ev.source}: {', '.join(kept)} "
                                  f"kept: a rover in the air is working it", None, source=ev.source,
                                  reason="a rover in the air is working it", tasks=kept)
-        if not (gone or new):
+        if not (gone or new or retimed):
             return False
         ids = [t.id for t in new]
         text = (f"tasks changed by {ev.source}: added {', '.join(ids) or 'none'}, "
-                f"removed {', '.join(gone) or 'none'}")
-        self.ctx.state.event(Ev.TASKS_CHANGED, text, None, add=ids, remove=gone, source=ev.source, added=ids)
+                f"removed {', '.join(gone) or 'none'}"
+                + (f", work changed {', '.join(retimed)}" if retimed else ""))
+        self.ctx.state.event(Ev.TASKS_CHANGED, text, None, add=ids, remove=gone, source=ev.source,
+                             added=[self._json(t) for t in ids], retimed=[self._json(t) for t in retimed])
         return True
+
+    def _retime(self, ev: SupervisorEvent, busy: set[str]) -> list[str]:
+        """Kept tasks given a new duration or work mode: changed, unless a rover in the air has it
+        (its firmware times the work it was given) or its work is done (both said); the changed ones."""
+        changed, refused = [], {}
+        for tid, w in ev.retime.items():
+            state, task = self.board.tasks.get(tid), self.tasks.get(tid)
+            if state is None or task is None or (task.duration, task.ground) == (w.duration, w.ground):
+                continue
+            if tid in busy or state.done is not None:
+                refused[tid] = "a rover in the air has it" if tid in busy else "its work is done"
+                continue
+            self.tasks[tid] = OpTask(tid, task.position, w.duration, w.ground)
+            state.duration, state.started, state.rover = w.duration, None, None
+            changed.append(tid)
+        for tid, why in refused.items():
+            self.ctx.state.event(Ev.TASK_CHANGE_REJECTED, f"task change from {ev.source}: {tid}'s work "
+                                 f"not changed: {why}", None, source=ev.source, reason=why, tasks=[tid])
+        return changed
+
+    def _json(self, tid: str) -> dict[str, object]:
+        t = self.tasks[tid]
+        return {"id": t.id, "position": list(t.position), "duration": t.duration,
+                "work": "ground" if t.ground else "hover"}
 
 
 __all__ = ["TaskChanges"]

@@ -26,9 +26,11 @@ def flown(ctx: RunContext, rover: str, endurance: float) -> float:
 def in_flight(ctx: RunContext, f: SortieFlight, tasks: dict[str, OpTask], endurance: float) -> InFlight:
     v = f.vehicle
     pos = v.enu or f.pickup.position
-    left = tuple(dataclasses.replace(tasks[t], duration=max(w, 0.0)) for t, w in f.work_left())
+    work = f.work_left()
+    left = tuple(dataclasses.replace(tasks[t], duration=max(w, 0.0)) for t, w in work)
+    first = max(tasks[work[0][0]].duration - work[0][1], 0.0) if work else 0.0  # its work so far
     return InFlight(v.name, (pos[0], pos[1], max(pos[2], 0.0)), left, flown(ctx, v.name, endurance),
-                    v.on_ground is True)
+                    v.on_ground is True, first)
 
 
 def live_problem(ctx: RunContext, board: OperationBoard, tasks: dict[str, OpTask],

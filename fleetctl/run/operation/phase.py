@@ -13,13 +13,14 @@ import asyncio
 import contextlib
 import dataclasses
 import logging
+import time
 from collections.abc import Callable
 from typing import Any
 
 from fleetctl.mavlink.compile import RoverMission
 from fleetctl.mavlink.link import LinkError
-from fleetctl.mavlink.sortie import Visit, route_items, sortie_items
-from fleetctl.mavlink.vehicle import CommandRejected
+from fleetctl.mavlink.sortie import SortieItems, Visit, route_items, sortie_items
+from fleetctl.mavlink.vehicle import CommandRejected, Vehicle
 from fleetctl.run.carrier import upload
 from fleetctl.run.context import ExecutionError
 from fleetctl.run.kinds import Ev, Phase, VehicleStatus, Watch
@@ -27,6 +28,7 @@ from fleetctl.run.launch import Launcher, Spares, rover_on_deck
 from fleetctl.run.operation.board import OperationBoard, SortieEntry, SortieStatus, TaskWorkState
 from fleetctl.run.operation.changes import TaskChanges
 from fleetctl.run.operation.live import live_problem
+from fleetctl.run.operation.resume import OperationReplay
 from fleetctl.run.operation.sortie import FlightClock, Pickup, SortieFlight, land_on_deck
 from fleetctl.run.operation.swaps import SwapStation
 from fleetctl.run.parts import PhaseParts
@@ -36,6 +38,7 @@ from fleetctl.run.task_board import TaskBoard
 from planners.core.problem import PlanningError
 from planners.operations import OperationPlan, OperationProblem, plan_operation
 from planners.operations.plan import OpStop, Sortie
+from planners.operations.plan import Visit as PlanVisit
 
 log = logging.getLogger(__name__)
 
@@ -64,6 +67,7 @@ class OperationPhase:
         self.base = 0.0  # operation s of the plan flown's time 0 (a replan's plan starts at its making)
         self.entry_of: dict[int, SortieEntry] = {}  # the plan flown's sortie index -> its board entry
         self.trouble: str | None = None  # why to replan at the next stop
+        self.urgent = False  # a rover in the air short of battery: replan, not waiting for pick-ups
         self.changes = TaskChanges(self.ctx, self.board, {}, self.live_tasks)
         self.swaps = SwapStation(self.ctx, self.board, self.now)
         self.result = PhaseResult("operation")
@@ -97,6 +101,52 @@ class OperationPhase:
             plan = await self._walk(plan)
         return self._finish()
 
+    async def resume(self, rep: OperationReplay) -> PhaseResult:
+        """Finish an interrupted operation (``fleetctl resume``): the journal's board, reconciled
+        with the live fleet (:mod:`.resume`), replanned from the live state and flown on."""
+        ctx = self.ctx
+        if rep.started_unix is None:  # the carrier never started: nothing flew, plan it afresh
+            return await self.run()
+        ctx.state.set_phase(Phase.PLAN)
+        await ctx.wait_telemetry()
+        self.board.restore(rep.board)
+        self.t0 = ctx.clock() - rep.elapsed(time.time())
+        self.result.started, self.result.planned = self.t0, rep.planned
+        self.changes = TaskChanges(ctx, self.board, dict(rep.tasks), self.live_tasks)
+        self.changes.added, self.changes.removed = list(rep.added), list(rep.removed)
+        self.supervisor.start()
+        ctx.state.replans = rep.replans
+        for rid, entry in rep.in_air.items():
+            self.flights[rid] = self._resumed_flight(entry, rep)
+        ctx.state.set_phase(Phase.OPERATION, rep.planned, 0)
+        ctx.state.operation = self._progress
+        self.trouble = "resumed after the controller restarted"
+        plan = await self._replan()
+        if plan is None and (self.flights or self.board.left()):
+            raise ExecutionError("cannot plan the rest of the interrupted operation from the live state")
+        for rid, f in self.flights.items():
+            ctx.spawn(f.fly(), f"sortie {f.entry.index} {rid}")
+        while plan is not None:
+            plan = await self._walk(plan)
+        return self._finish()
+
+    def _resumed_flight(self, entry: SortieEntry, rep: OperationReplay) -> SortieFlight:
+        """A sortie found in the air on resume, flying the mission its rover holds (its new
+        pick-up comes with the replan)."""
+        visits = [PlanVisit(t, self.changes.tasks[t].position, 0.0, 0.0, 0.0, self.changes.tasks[t].ground)
+                  for t in entry.tasks if t in self.changes.tasks]
+        here = self.carrier.pose()[0]
+        items = SortieItems(entry.rover, (), 0, rep.work.get(entry.index, ()))
+        pickup = Pickup(0, here, self.now(), self.now(), 0.0, 0.0)
+        flight = SortieFlight(self.ctx, self.board, entry, Sortie(entry.rover, -1, 0.0, 0.0, visits), items,
+                              pickup, FlightClock(self.base, self.now, lambda: self.delay), self._on_trouble)
+        flight.resumed = True
+        flight.dropped = {w.task for w in items.work if w.task not in entry.tasks}  # called back before
+        flight.low_battery = self._on_low_battery
+        self.ctx.state.set_state(entry.rover, VehicleStatus.EN_ROUTE if entry.status is SortieStatus.FLYING
+                                 else VehicleStatus.RETURNING)
+        return flight
+
     async def _walk(self, plan: OperationPlan) -> OperationPlan | None:
         """Fly ``plan``'s stops; the plan of a replan made on the way (None: flown to its end)."""
         seqs = await self._start_route(plan)
@@ -106,11 +156,13 @@ class OperationPhase:
             await self.carrier.reach_stop(k, seqs[k][0], leg)
             self.delay = max(self.now() - (self.base + stop.arrive), 0.0)
             self.ctx.state.eta = self._eta()
-            await self._pick_up(k, stop)
+            waiting = await self._pick_up(k, stop, interruptible=True)
             self._take_changes()
             await self._check_batteries()
             if self.trouble is not None and (new := await self._replan()) is not None:
                 return new
+            if waiting:  # a replan that found no plan: the stop's pick-ups as planned
+                await self._pick_up(k, stop, interruptible=False)
             await self._launch(k, stop)
             if seqs[k][1] is not None:
                 await self.carrier.release(k, seqs[k][1])
@@ -143,10 +195,9 @@ class OperationPhase:
         self.entry_of = {}
         for i, s in enumerate(plan.sorties):
             if s.launch_stop >= 0:
-                entry = SortieEntry(len(self.board.sorties), s.rover, [v.task for v in s.visits])
-                self.board.sorties.append(entry)
-                self.entry_of[i] = entry
+                self.entry_of[i] = self.board.new_sortie(s.rover, [v.task for v in s.visits])
             elif s.rover in self.flights:  # in the air before this plan
+                self.flights[s.rover].drop(plan.called_back.get(s.rover, []), s.pickup_stop)
                 self.flights[s.rover].retarget(self._pickup(plan, s), s, self.base)
         if self.write_plan is not None:
             self.write_plan(name, plan.to_json())
@@ -174,6 +225,18 @@ class OperationPhase:
         for f in flights:
             f.check_battery()
 
+    def _interrupt(self, interruptible: bool) -> bool:
+        return self.urgent and interruptible
+
+    def _above_or_urgent(self, f: SortieFlight, interruptible: bool) -> Callable[[Vehicle], bool]:
+        return lambda v: f.above_stop(v) or self._interrupt(interruptible)
+
+    def _on_low_battery(self, cause: str) -> None:
+        """A rover in the air short of battery for the rest of its sortie: replan at once (a stop
+        waiting for its pick-ups stops waiting), so that it can be called back early."""
+        self.urgent = True
+        self._on_trouble(cause)
+
     def _on_trouble(self, cause: str) -> None:
         """A rover lost, a task's work off its plan, ...: replan at the next stop (every cause said)."""
         if self.trouble is None:
@@ -185,7 +248,7 @@ class OperationPhase:
         """The rest of the operation planned from the live state (None: nothing to plan, or no
         plan keeps every battery: the plan flown so far goes on)."""
         ctx, cause = self.ctx, self.trouble or ""
-        self.trouble = None
+        self.trouble, self.urgent = None, False
         self.flights = {r: f for r, f in self.flights.items() if f.entry.status is not SortieStatus.LOST}
         # streamed battery readings are ~1 s of wall time old: many mission s on a fast simulated fleet
         await asyncio.gather(*(v.refresh_battery(BATTERY_READ_WAIT) for v in ctx.fleet.rovers.values()
@@ -244,15 +307,22 @@ class OperationPhase:
         return [(s.arrive_seq, s.release_seq) for s in stops]
 
     # ============================================================================== pick-ups
-    async def _pick_up(self, k: int, stop: OpStop) -> None:
+    async def _pick_up(self, k: int, stop: OpStop, interruptible: bool) -> bool:
+        """Wait for the stop's returning rovers, land and load them; ``interruptible``: a rover
+        short of battery in the air (:attr:`urgent`) ends the wait. True when rovers of the stop
+        were left waiting for."""
         ctx = self.ctx
         flights = [self.flights[r] for r in stop.pickups if r in self.flights]
         for f in flights:
+            if self._interrupt(interruptible):
+                break
             try:
-                await ctx.wait_for(f.vehicle, f.above_stop, ctx.late(f.pickup.meet + self.delay - self.now()),
-                                   f"above stop {k + 1}")
+                await ctx.wait_for(f.vehicle, self._above_or_urgent(f, interruptible),
+                                   ctx.late(f.pickup.meet + self.delay - self.now()), f"above stop {k + 1}")
             except TimeoutError as exc:
                 f._lost(str(exc))
+        left = [f for f in flights if f.entry.status is not SortieStatus.LOST and not f.above_stop(f.vehicle)]
+        flights = [f for f in flights if f not in left]
         landed = await asyncio.gather(*(land_on_deck(ctx, f, LANDING_TIMEOUT) for f in flights
                                         if f.entry.status is SortieStatus.RETURNING))
         if any(landed):
@@ -265,6 +335,7 @@ class OperationPhase:
                 self._aboard(f, stop)
             elif f.entry.status is not SortieStatus.LOST:
                 f._lost("did not land on the deck")
+        return bool(left)
 
     def _aboard(self, f: SortieFlight, stop: OpStop) -> None:
         rid = f.entry.rover
@@ -339,9 +410,11 @@ class OperationPhase:
         ctx.state.set_state(rid, VehicleStatus.EN_ROUTE, entry.tasks[0])
         ctx.state.event(Ev.SORTIE_LAUNCHED,
                         f"{rid}: sortie {entry.index} launched for {', '.join(entry.tasks)}", rid,
-                        sortie=entry.index, tasks=entry.tasks, stop=s.launch_stop + 1)
+                        sortie=entry.index, tasks=entry.tasks, stop=s.launch_stop + 1,
+                        work=[[w.task, w.arrive_seq, w.done_seq] for w in items.work])
         flight = SortieFlight(ctx, self.board, entry, s, items, self._pickup(plan, s),
                               FlightClock(self.base, self.now, lambda: self.delay), self._on_trouble)
+        flight.low_battery = self._on_low_battery
         self.flights[rid] = flight
         ctx.spawn(flight.fly(), f"sortie {entry.index} {rid}")
 

@@ -4,6 +4,7 @@ the planned leave time moved by the operation's delay so far (:attr:`SortieFligh
 
 from __future__ import annotations
 
+import asyncio
 import contextlib
 import math
 from collections.abc import Callable
@@ -22,10 +23,18 @@ from planners.operations import InFlight, OperationProblem, OpTask, air_needed
 from planners.operations.plan import Sortie
 
 Vec3 = tuple[float, float, float]
-RECHECK = 1.0  # mission s between looks at the leave time while a rover waits at its last task
+RECHECK = 1.0  # mission s between looks at the leave time (or the battery) while a rover waits (or works)
 LAND_OFFSET = 1.0  # m: a rover waiting further off the stopped carrier lands at the carrier's position
 CARRIER_STOP_WAIT = 10.0  # mission s for the carrier at its stop to come to rest before rovers land on it
 REPLAN_SLACK = 15.0  # mission s: a task's work done this much earlier or later than planned asks for a replan
+MISSION_STATE_COMPLETE = 3  # MAVLink MISSION_STATE: the mission's last item is done
+
+
+def item_passed(v: Vehicle, seq: int) -> bool:
+    """Mission item ``seq`` is behind the firmware: its current item is past it, or it is the last
+    one and the mission is complete (what a controller that was down can still learn)."""
+    cur = v.mission_current
+    return cur is not None and (cur > seq or (cur == seq and v.mission_state == MISSION_STATE_COMPLETE))
 
 
 @dataclass(frozen=True)
@@ -65,6 +74,9 @@ class SortieFlight:
         self.reached_at: dict[int, float] = {}  # item -> operation s its MISSION_ITEM_REACHED came in
         self.problem: OperationProblem | None = None  # the mission's operation (its energy model), once asked
         self.battery_said = False  # a battery too low for the rest of the sortie was told (once a sortie)
+        self.resumed = False  # flying the mission it had when the controller restarted (resume)
+        self.dropped: set[str] = set()  # tasks a replan took off its sortie (called back early)
+        self.low_battery: Callable[[str], None] = trouble  # told when its battery is too low for the rest
 
     def _on_event(self, ev: VehicleEvent) -> None:
         if ev.kind == VehicleEventKind.ITEM_REACHED and self.back is None:
@@ -82,8 +94,11 @@ class SortieFlight:
         unlisten = self.vehicle.add_listener(self._on_event)
         try:
             for w in self.items.work:
-                await self._work(w.task, w.arrive_seq, w.done_seq)
-            await self._wait_leave()
+                if w.task in self.entry.tasks and w.task in self.board.tasks \
+                        and self.board.tasks[w.task].done is None:
+                    await self._work(w.task, w.arrive_seq, w.done_seq)
+            if not self.dropped:  # called back: its firmware would fly on to a task dropped
+                await self._wait_leave()
             await self._go_back()
         except (TimeoutError, LinkError, CommandRejected, ExecutionError) as exc:
             self._lost(str(exc))
@@ -93,25 +108,47 @@ class SortieFlight:
     async def _work(self, task: str, arrive_seq: int, done_seq: int) -> None:
         ctx, v, st = self.ctx, self.vehicle, self.ctx.state
         rid, arrive = v.name, self.times[task][0]
-        await ctx.wait_for(v, lambda v: arrive_seq in v.items_reached or v.lost,
+        await ctx.wait_for(v, lambda v: self._reached(v, arrive_seq) or v.lost or task in self.dropped,
                            ctx.late(arrive + self.delay() - self.now()), f"at task {task}")
         self._check(v)
+        if task in self.dropped:
+            return
         self.check_battery()
         work = self.board.tasks[task]
-        work.rover, work.started = rid, self.reached_at.get(arrive_seq, self.now())
         st.set_state(rid, VehicleStatus.ON_TASK, task)
-        ctx.record(Ev.TASK_STARTED, vehicle=rid, task=task, sortie=self.entry.index)
-        await ctx.wait_for(v, lambda v: done_seq in v.items_reached or v.lost,
-                           ctx.late(work.duration), f"work at {task} done")
+        if work.started is None or work.rover != rid:  # (a resumed sortie's work may have started before)
+            work.rover, work.started, work.seen_start = rid, self.reached_at.get(arrive_seq, self.now()), True
+            ctx.record(Ev.TASK_STARTED, vehicle=rid, task=task, sortie=self.entry.index)
+        watch = asyncio.create_task(self._watch_battery(), name=f"battery {rid} at {task}")
+        try:  # the battery looked at while it works, not only at the task's arrival and end
+            await ctx.wait_for(v, lambda v: self._reached(v, done_seq) or v.lost or task in self.dropped,
+                               ctx.late(work.duration), f"work at {task} done")
+        finally:
+            watch.cancel()
+            with contextlib.suppress(asyncio.CancelledError):
+                await watch
         self._check(v)
+        if task in self.dropped:
+            return
         work.done = self.reached_at.get(done_seq, self.now())
         self.check_battery()
         off = work.done - (self.times[task][1] + self.delay())  # a replan on the way moved it
         if abs(off) > REPLAN_SLACK:
             self.trouble(f"task {task} done {off:+.0f} s off its plan")
-        st.event(Ev.TASK_DONE, f"{rid}: task {task} done ({work.done - work.started:.1f} s of work, "
-                 f"{work.duration:g} s asked)", rid, task=task, sortie=self.entry.index,
-                 worked=round(work.done - work.started, 3), duration=work.duration)
+        worked = round(work.done - work.started, 3) if work.seen_start else None  # None: firmware-timed
+        how = f"{worked:.1f} s of work" if worked is not None else "started while the controller was down"
+        st.event(Ev.TASK_DONE, f"{rid}: task {task} done ({how}, {work.duration:g} s asked)", rid, task=task,
+                 sortie=self.entry.index, worked=worked, duration=work.duration)
+
+    async def _watch_battery(self) -> None:
+        while not self.battery_said:
+            await self.ctx.sleep_mission(RECHECK)
+            self.check_battery()
+
+    def _reached(self, v: Vehicle, seq: int) -> bool:
+        """Item ``seq`` of its sortie's mission reached (a resumed sortie also trusts the current
+        item: its MISSION_ITEM_REACHED may have come while the controller was down)."""
+        return seq in v.items_reached or (self.resumed and self.back is None and item_passed(v, seq))
 
     async def _wait_leave(self) -> None:
         while self.now() < self.pickup.leave + self.delay():
@@ -150,9 +187,28 @@ class SortieFlight:
         need = self.battery_needed()
         if need is not None and frac < need:
             self.battery_said = True
-            self.trouble(f"rover {self.entry.rover} at {100 * frac:.0f} % of its battery in the air, "
+            self.low_battery(f"rover {self.entry.rover} at {100 * frac:.0f} % of its battery in the air, "
                          f"{100 * need:.0f} % needed for the rest of its sortie, the way back and "
                          "the reserve")
+
+    def drop(self, tasks: list[str], stop: int) -> None:
+        """A replan called it back early: ``tasks`` are no longer its own (work on them stops and
+        is done again in full by others); it flies back to its pick-up ``stop`` once the tasks it
+        keeps are done."""
+        tasks = [t for t in tasks if t in self.entry.tasks]
+        if not tasks:
+            return
+        for t in tasks:
+            self.entry.tasks.remove(t)
+            w = self.board.tasks.get(t)
+            if w is not None and w.done is None:
+                w.started = w.rover = None
+        self.dropped.update(tasks)
+        rid = self.entry.rover
+        self.ctx.state.event(Ev.SORTIE_CALLED_BACK, f"{rid}: called back early from sortie "
+                             f"{self.entry.index} (battery too low): dropped {', '.join(tasks)}; keeps "
+                             f"{', '.join(self.entry.tasks) or 'none'}", rid, sortie=self.entry.index,
+                             tasks=tasks, kept=list(self.entry.tasks), stop=stop + 1)
 
     def retarget(self, pickup: Pickup, planned: Sortie, base: float) -> None:
         """A replan's pick-up and times (``planned``: its sortie in the new plan, whose time 0 is
@@ -229,4 +285,4 @@ async def land_on_deck(ctx: RunContext, flight: SortieFlight, timeout: float) ->
     return False
 
 
-__all__ = ["REPLAN_SLACK", "FlightClock", "Pickup", "SortieFlight", "land_on_deck"]
+__all__ = ["REPLAN_SLACK", "item_passed", "FlightClock", "Pickup", "SortieFlight", "land_on_deck"]

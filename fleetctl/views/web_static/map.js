@@ -113,6 +113,46 @@
     for (const g of $("tasks").children) g.querySelector("rect").classList.toggle("reached", reached.has(g.dataset.task));
   }
 
+  // -- a long operation: each task's work (done / duration) on its marker; the sorties out -------
+  function drawWork(g, w) {
+    const u = unit();
+    let bar = g.querySelector(".work");
+    if (!w) {
+      if (bar) bar.remove();
+      g.classList.remove("working", "done");
+      for (const k of ["worked", "duration", "rover", "progress"]) delete g.dataset[k];
+      return;
+    }
+    if (!bar) {
+      bar = el("g", { class: "work" }, g);
+      el("rect", { class: "work-bg", x: -2 * u, y: u * 1.8, width: 4 * u, height: u * 0.7 }, bar);
+      el("rect", { class: "work-done", x: -2 * u, y: u * 1.8, width: 0, height: u * 0.7 }, bar);
+      el("text", { class: "work-text", x: -2 * u, y: u * 4.2, "font-size": u * 1.4 }, bar);
+    }
+    const [done, dur, rover, finished] = w;
+    const frac = dur > 0 ? Math.min(1, done / dur) : (finished ? 1 : 0);
+    bar.querySelector(".work-done").setAttribute("width", (4 * u * frac).toFixed(3));
+    bar.querySelector(".work-text").textContent = `${fmt(done)}/${fmt(dur)} s` + (rover && !finished ? ` ${rover}` : "");
+    Object.assign(g.dataset, { worked: fmt(done), duration: fmt(dur), rover: rover || "", progress: frac.toFixed(3) });
+    g.classList.toggle("done", !!finished);
+    g.classList.toggle("working", !finished && done > 0);
+  }
+  function drawOperation(op, vehicles) {
+    for (const g of $("tasks").children) drawWork(g, op ? op.tasks[g.dataset.task] : undefined);
+    const box = $("sorties"); box.innerHTML = "";
+    if (!op || !plan) return;
+    const at = {}, pos = {};
+    for (const t of plan.tasks) at[t.id] = t;
+    for (const v of vehicles) pos[v.id] = v;
+    for (const s of op.out || []) {  // its rover, then its tasks not done yet
+      const v = pos[s.rover], left = s.tasks.filter((t) => at[t] && !(op.tasks[t] && op.tasks[t][3]));
+      const pts = (v && v.e !== null ? [[v.e, v.n]] : []).concat(left.map((t) => [at[t].e, at[t].n]));
+      const line = el("polyline", { class: "sortie " + s.status, "data-sortie": s.sortie, "data-rover": s.rover,
+        "data-tasks": left.join(" "), points: pts.map((q) => q[0] + "," + -q[1]).join(" ") }, box);
+      el("title", {}, line).textContent = `sortie ${s.sortie}: ${s.rover} (${s.status}) ${s.tasks.join(", ")}`;
+    }
+  }
+
   // -- trails ----------------------------------------------------------------------------------
   function trailLine(v) {
     let line = $("trails").querySelector(`[data-trail="${v.id}"]`);
@@ -219,6 +259,7 @@
     for (const v of f.vehicles) { v.colour = colours[v.team] || null; include(v.e, v.n); }
     if (applyExtent() && plan) drawPlan(plan);
     for (const v of f.vehicles) { drawVehicle(v); row(v); }
+    drawOperation(op, f.vehicles);
     markStops();
     const ol = $("events"); ol.innerHTML = "";
     for (const ev of f.events.slice().reverse()) {

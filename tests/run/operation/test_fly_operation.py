@@ -142,3 +142,105 @@ async def test_tasks_added_and_removed_in_the_mission_file_are_flown(tmp_path: P
     assert any(r["kind"] == "replan" and "tasks changed" in r.get("cause", "") for r in records)
     done = {r["task"]: r["worked"] for r in records if r["kind"] == "task_done"}
     assert done["t7"] >= 45 - 0.5  # an added task's work: the duration the edit gives it, not the dwell
+
+
+async def test_a_rover_short_of_battery_in_the_air_is_called_back_early(tmp_path: Path) -> None:
+    """r2's battery drops to 50 % just after its launch on a sortie (t2, t1) that needs about two
+    thirds of a battery: the carrier, waiting at its stop for r1, stops waiting and replans at once;
+    the replan calls r2 back early (its tasks dropped from its sortie), r2 lands before r1's pick-up,
+    and the tasks it dropped are worked in full by later sorties, once each."""
+    mission = mission_from(small_operation(), tmp_path)
+    watchers: list[asyncio.Task[None]] = []
+
+    async def drop_r2_battery(sim: SimFleet) -> None:
+        r2 = sim.rover("r2")
+        await sim.wait_for(lambda: r2.phase is BodyPhase.AIR, 60)
+        sim.pin_battery("r2", 0.5)
+        sim.pin_battery("r2", None)  # drains on from there
+
+    def on_sim(sim: SimFleet) -> None:
+        watchers.append(asyncio.ensure_future(drop_r2_battery(sim)))
+
+    out = await asyncio.wait_for(execute(mission, "run", run_dir=tmp_path / "run", force=True, on_sim=on_sim),
+                                 150)
+    for w in watchers:
+        w.cancel()
+    records = journal(tmp_path / "run")
+    called = [r for r in records if r["kind"] == "sortie_called_back"]
+    assert [r["vehicle"] for r in called] == ["r2"] and called[0]["tasks"], [r.get("text") for r in records
+                                                                              if r["kind"] == "replan"]
+    plan = json.loads((tmp_path / "run" / "plan-replan-1.json").read_text())
+    assert plan["called_back"] == {"r2": called[0]["tasks"]}
+    back = [r["vehicle"] for r in records if r["kind"] == "sortie_back"]
+    assert back[0] == "r2"  # called back: on the deck before r1 ends its first sortie
+    assert out.exit_code == 0, out.summary
+    durations = {t.id: mission.task_work(t.id).duration for t in mission.tasks}
+    done = [r for r in records if r["kind"] == "task_done"]
+    assert sorted(r["task"] for r in done) == sorted(durations)  # each task's work done once
+    for r in done:
+        if r["task"] in called[0]["tasks"]:  # dropped by r2: worked in full by another sortie
+            assert r["sortie"] != called[0]["sortie"] and r["worked"] >= durations[r["task"]] - 1.0, r
+
+
+async def test_a_task_s_duration_alone_edited_in_the_mission_file_is_replanned(tmp_path: Path) -> None:
+    """t4's duration goes from 15 s to 40 s in the mission file after the first launch (t4 is not in
+    a sortie yet): the edit is a task change, the rest is replanned, t4 is worked for 40 s."""
+    mission = mission_from(small_operation(), tmp_path)
+    edited = small_operation()
+    next(t for t in edited["tasks"] if t["id"] == "t4")["duration"] = 40
+    watchers: list[asyncio.Task[None]] = []
+
+    async def edit_after_the_first_launch(sim: SimFleet) -> None:
+        r1 = sim.rover("r1")
+        await sim.wait_for(lambda: r1.phase is BodyPhase.AIR, 60)
+        write_mission(edited, tmp_path / "mission.yaml")
+
+    def on_sim(sim: SimFleet) -> None:
+        watchers.append(asyncio.ensure_future(edit_after_the_first_launch(sim)))
+
+    out = await asyncio.wait_for(execute(mission, "run", run_dir=tmp_path / "run", force=True, on_sim=on_sim),
+                                 150)
+    for w in watchers:
+        w.cancel()
+    s = out.summary
+    assert out.exit_code == 0, s
+    assert not s["tasks_added"] and not s["tasks_removed"]
+    records = journal(tmp_path / "run")
+    changed = [r for r in records if r["kind"] == "tasks_changed"]
+    assert [[t["id"], t["duration"]] for r in changed for t in r["retimed"]] == [["t4", 40.0]]
+    assert any(r["kind"] == "replan" and "tasks changed" in r.get("cause", "") for r in records)
+    done = {r["task"]: r for r in records if r["kind"] == "task_done"}
+    assert sorted(done) == sorted(t.id for t in mission.tasks)
+    assert done["t4"]["duration"] == 40.0 and done["t4"]["worked"] >= 40 - 1.0  # the new duration, not 15 s
+
+
+async def test_a_battery_dropping_while_a_rover_works_is_seen_before_the_work_ends(tmp_path: Path) -> None:
+    """r2's battery drops to 35 % halfway through its first task (t2, 30 s of hovering, then t1):
+    the reading is looked at while it works, so the replan is asked for (and r2 called back) before
+    r2 reports any task done."""
+    mission = mission_from(small_operation(), tmp_path)
+    watchers: list[asyncio.Task[None]] = []
+
+    async def drop_r2_battery_mid_task(sim: SimFleet) -> None:
+        r2 = sim.rover("r2")
+        await sim.wait_for(lambda: r2.phase is BodyPhase.AIR, 60)
+        await sim.wait_sim_time(sim.sim_time + 19.0, 60)  # at t2 (arrives ~4 s after take-off), working
+        sim.pin_battery("r2", 0.35)
+        sim.pin_battery("r2", None)
+
+    def on_sim(sim: SimFleet) -> None:
+        watchers.append(asyncio.ensure_future(drop_r2_battery_mid_task(sim)))
+
+    out = await asyncio.wait_for(execute(mission, "run", run_dir=tmp_path / "run", force=True, on_sim=on_sim),
+                                 150)
+    for w in watchers:
+        w.cancel()
+    records = journal(tmp_path / "run")
+    started = [i for i, r in enumerate(records) if r["kind"] == "task_started" and r["vehicle"] == "r2"]
+    asked = [i for i, r in enumerate(records)
+             if r["kind"] == "replan" and "rover r2 at" in r.get("cause", "")]
+    done = [i for i, r in enumerate(records) if r["kind"] == "task_done" and r["vehicle"] == "r2"]
+    assert started and asked and started[0] < asked[0] < done[0], [r.get("text") for r in records]
+    assert any(r["kind"] == "sortie_called_back" and r["vehicle"] == "r2" for r in records)
+    assert out.exit_code == 0, out.summary
+    assert sorted(out.summary["tasks_done"]) == sorted(t.id for t in mission.tasks)
