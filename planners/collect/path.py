@@ -5,11 +5,13 @@ from __future__ import annotations
 
 import itertools
 import math
+from collections.abc import Sequence
 
 import numpy as np
 
 from planners.collect.instance import CollectInstance
 from planners.collect.reach import Point2, Region
+from planners.collect.screen import screen
 from planners.core.geometry import minimize_1d
 from planners.core.timing import carrier_hopper, carrier_stepper, leg_timer
 
@@ -248,3 +250,8 @@ class Route:
             t = self._finish(m, prev, t, h)
             positions = positions + self.positions[m:]
         return t, clusters, positions, lo, hi, m
+
+    def screen(self, changes: Sequence[tuple[int, list[list[int]], int]]) -> np.ndarray:
+        """A lower bound of ``replace(*change)[0]`` for every change at once (numpy; −inf where it
+        has none; ``planners.collect.screen``)."""
+        return screen(self, changes)
