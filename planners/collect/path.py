@@ -61,7 +61,7 @@ class PathBuilder:
             return self.local_time(region, p, prev, t, heading, nxt)
 
         if level == 0:
-            return min(region.quick_candidates(prev, nxt), key=cost)
+            return self.quick_place(region, prev, t, heading, nxt)[0]
         cands = region.candidates(prev, nxt)
         vals = [cost(p) for p in cands]
         j = min(range(len(cands)), key=vals.__getitem__)
@@ -81,19 +81,48 @@ class PathBuilder:
                 best, best_v = (a[0] + s * (q[0] - a[0]), a[1] + s * (q[1] - a[1])), v
         return best
 
+    def quick_place(self, region: Region, prev: Point2, t: float, heading: float,
+                    nxt: Point2 | None) -> tuple[Point2, float, float, float]:
+        """``place`` at level 0 with what it timed on the way: the stop, the hop into it (time and
+        heading on arrival) and when the cluster's last rover lands there (``local_time`` of
+        each quick candidate, the first fastest kept; the same floats)."""
+        drive, leg, load = self.drive, self.leg, self.load
+        best: tuple[Point2, float, float, float] | None = None
+        best_eta = math.inf
+        for p in region.quick_candidates(prev, nxt):
+            dt, h = drive(prev, p, heading)
+            ready = leg(region.farthest_flight(p))
+            eta = max(t + dt, ready) + load
+            if nxt is not None:
+                eta += drive(p, nxt, h)[0]
+            if best is None or eta < best_eta:
+                best, best_eta = (p, dt, h, ready), eta
+        assert best is not None  # the time centre is always a candidate
+        return best
+
     def route(self, clusters: list[list[int]], level: int = 0) -> Route:
         """GET_COLLECT_PATH for every cluster in order, then the route's times (CALC_TIME)."""
         regions = [self.inst.region(c) for c in clusters]
         positions: list[Point2] = []
+        hops: list[float] = []
+        headings: list[float] = []
+        readies: list[float] = []
         prev, t, heading = self.start, 0.0, self.heading0
         for k, reg in enumerate(regions):
             nxt = regions[k + 1].center if k + 1 < len(regions) else None  # next stop not known yet
-            pos = self.place(reg, prev, t, heading, nxt, level)
-            dt, heading = self.drive(prev, pos, heading)
-            t = max(t + dt, self.ready(reg, pos)) + self.load
+            if level == 0:
+                pos, dt, heading, ready = self.quick_place(reg, prev, t, heading, nxt)
+            else:
+                pos = self.place(reg, prev, t, heading, nxt, level)
+                ready = self.ready(reg, pos)
+                dt, heading = self.drive(prev, pos, heading)
+            t = max(t + dt, ready) + self.load
             positions.append(pos)
+            hops.append(dt)
+            headings.append(heading)
+            readies.append(ready)
             prev = pos
-        return Route(self, clusters, regions, positions)
+        return Route(self, clusters, regions, positions, (hops, headings, readies))
 
 
 NUMPY_FROM = 24  # stops: from this many on, a route's times are summed with numpy
@@ -111,11 +140,17 @@ class Route:
     """
 
     def __init__(self, b: PathBuilder, clusters: list[list[int]], regions: list[Region],
-                 positions: list[Point2]) -> None:
+                 positions: list[Point2], timed: tuple[list[float], list[float], list[float]] | None = None,
+                 ) -> None:
+        """``timed``: ``hop``, ``heading`` and ``ready`` when the caller drove the route already."""
         self.b, self.clusters, self.regions, self.positions = b, clusters, regions, positions
-        self.hop: list[float] = []
-        self.heading: list[float] = []
-        self.ready: list[float] = []
+        if timed is not None:
+            self.hop, self.heading, self.ready = timed
+            self._times()
+            return
+        self.hop = []
+        self.heading = []
+        self.ready = []
         prev, h = b.start, b.heading0
         for reg, pos in zip(regions, positions, strict=True):
             dt, h = b.drive(prev, pos, h)
@@ -241,9 +276,8 @@ class Route:
                 nxt: Point2 | None = regions[k + 1].center
             else:
                 nxt = self.positions[m] if m < len(old) else None
-            pos = b.place(regions[k], prev, t, h, nxt)
-            dt, h = b.drive(prev, pos, h)
-            t = max(t + dt, b.ready(regions[k], pos)) + b.load
+            pos, dt, h, ready = b.quick_place(regions[k], prev, t, h, nxt)
+            t = max(t + dt, ready) + b.load
             positions.append(pos)
             prev = pos
         if m < len(old):
