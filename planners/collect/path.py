@@ -127,9 +127,9 @@ class PathBuilder:
 
 NUMPY_FROM = 24  # stops: from this many on, a route's times are summed with numpy
 
-# a scored change: makespan, clusters, stops, first re-placed stop, end of the re-placed stops,
-# the old index of the first kept stop
-Candidate = tuple[float, list[list[int]], list[Point2], int, int, int]
+# a scored change: makespan, the change (i, pieces, count), the first re-placed stop, the regions
+# and stops placed afresh (the route's lists are built only when the change is accepted)
+Candidate = tuple[float, int, list[list[int]], int, int, list[Region], list[Point2]]
 
 
 class Route:
@@ -236,11 +236,14 @@ class Route:
         """The route of a scored change: stops before ``lo`` and from old stop ``m`` on keep their
         hops and rovers' times; only the changed stops (and the hops whose heading changed) are
         driven again, so a long route accepts a local change in a few hops."""
-        _, clusters, positions, lo, hi, m = cand
+        _, i, pieces, count, lo, window, placed = cand
+        hi, m = i + len(pieces), i + count  # new stops lo..hi−1, the first kept stop's old index
         b = self.b
         r = object.__new__(type(self))
-        r.b, r.clusters, r.positions = b, clusters, positions
-        r.regions = [*self.regions[:lo], *(b.inst.region(c) for c in clusters[lo:hi]), *self.regions[m:]]
+        r.b = b
+        r.clusters = self.clusters[:i] + pieces + self.clusters[m:]
+        r.positions = positions = self.positions[:lo] + placed + self.positions[m:]
+        r.regions = self.regions[:lo] + window + self.regions[m:]
         r.hop, r.heading, r.ready = self.hop[:lo], self.heading[:lo], self.ready[:lo]
         prev, h = (b.start, b.heading0) if lo == 0 else (positions[lo - 1], self.heading[lo - 1])
         for j in range(lo, len(positions)):
@@ -262,28 +265,25 @@ class Route:
         """Makespan after clusters i..i+count-1 are replaced by ``pieces``: the stop before (unless
         the builder's ``replace_before`` is off), the pieces and their stops are placed afresh; later
         stops keep their places and are re-timed."""
-        b, old = self.b, self.clusters
-        clusters = old[:i] + pieces + old[i + count:]
-        near = old[i:i + count]
-        regions = self.regions[:i] + [b.inst.region(p, near) for p in pieces] + self.regions[i + count:]
+        b, n = self.b, len(self.clusters)
+        near = self.clusters[i:i + count]
         lo = max(i - 1, 0) if b.replace_before else i
-        hi = min(i + len(pieces), len(clusters))  # new indices lo..hi-1 are placed afresh
-        m = hi - len(pieces) + count  # old index of the first kept stop
+        m = i + count  # old index of the first kept stop
+        window = [*self.regions[lo:i], *(b.inst.region(p, near) for p in pieces)]  # stops lo..hi−1
         prev, t, h = self.state_before(lo)
-        positions = self.positions[:lo]
-        for k in range(lo, hi):
-            if k + 1 < hi:
-                nxt: Point2 | None = regions[k + 1].center
+        placed: list[Point2] = []
+        for k, reg in enumerate(window):
+            if k + 1 < len(window):
+                nxt: Point2 | None = window[k + 1].center
             else:
-                nxt = self.positions[m] if m < len(old) else None
-            pos, dt, h, ready = b.quick_place(regions[k], prev, t, h, nxt)
+                nxt = self.positions[m] if m < n else None
+            pos, dt, h, ready = b.quick_place(reg, prev, t, h, nxt)
             t = max(t + dt, ready) + b.load
-            positions.append(pos)
+            placed.append(pos)
             prev = pos
-        if m < len(old):
+        if m < n:
             t = self._finish(m, prev, t, h)
-            positions = positions + self.positions[m:]
-        return t, clusters, positions, lo, hi, m
+        return t, i, pieces, count, lo, window, placed
 
     def screen(self, changes: Sequence[tuple[int, list[list[int]], int]]) -> np.ndarray:
         """A lower bound of ``replace(*change)[0]`` for every change at once (numpy; −inf where it
