@@ -12,6 +12,7 @@ from collections.abc import Callable
 from typing import Any
 
 from planners.core.approach import WithApproach, WithTakeoff
+from planners.core.collector import fewer_collections
 from planners.core.lower_bound import deploy_lower_bound
 from planners.core.plan import Plan
 from planners.core.problem import CollectProblem, DeployProblem, PlanningError
@@ -26,7 +27,8 @@ def collect_lower_bound(problem: CollectProblem) -> float:
 
 
 class LazyPlanner:
-    """A registry entry: ``module.attr``, imported on the first call."""
+    """A registry entry: ``module.attr``, imported on the first call; each call runs with fewer
+    garbage-collector passes (``planners.core.collector``)."""
 
     def __init__(self, module: str, attr: str) -> None:
         self.module, self.attr = module, attr
@@ -38,7 +40,8 @@ class LazyPlanner:
         return self._fn
 
     def __call__(self, problem: Any) -> Plan:
-        return self.load()(problem)
+        with fewer_collections():  # the garbage collector walks the planner's caches less often
+            return self.load()(problem)
 
     def __repr__(self) -> str:
         return f"<planner {self.module}.{self.attr}>"

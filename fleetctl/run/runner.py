@@ -116,6 +116,9 @@ class Run(OnSession):
                 if load is not None:
                     load()
             importlib.import_module("scipy.optimize")  # the placement searches use it on their first call
+            # the re-sequencing of routes of more than 80 stops (planners.core.routing) uses its k-d tree:
+            # its import costs some 280 ms of CPU, which a first plan or replan would otherwise pay
+            importlib.import_module("scipy.spatial")
 
         await asyncio.to_thread(warm)
 

@@ -135,7 +135,11 @@ def lee_route(problem: CollectProblem, improve: bool = True, t0: float | None = 
         return divide_cluster(route.clusters[idx], inst.pts2, prev)  # Algorithm 3.1
 
     rejected: set[tuple] = set()
+    # long routes: a division's score leaves the stop before it in place (as the quick descent's
+    # changes do), which lets the screen (planners.collect.screen) rule most divisions out
+    builder.replace_before = len(problem.rovers) < QD_KEEP_BEFORE_FROM
     route = split_loop(builder.route(_initial_clusters(builder)), divide, rejected, accept_ties=False)
+    builder.replace_before = True
     trace("dissertation", route.makespan)
     for _ in range(3 if improve else 0):  # improvement search beyond the dissertation
         better = reorder(route, route.positions, builder.start, builder.route)

@@ -5,11 +5,13 @@ from __future__ import annotations
 
 import itertools
 import math
+from collections.abc import Sequence
 
 import numpy as np
 
 from planners.collect.instance import CollectInstance
 from planners.collect.reach import Point2, Region
+from planners.collect.screen import screen
 from planners.core.geometry import minimize_1d
 from planners.core.timing import carrier_hopper, carrier_stepper, leg_timer
 
@@ -59,7 +61,7 @@ class PathBuilder:
             return self.local_time(region, p, prev, t, heading, nxt)
 
         if level == 0:
-            return min(region.quick_candidates(prev, nxt), key=cost)
+            return self.quick_place(region, prev, t, heading, nxt)[0]
         cands = region.candidates(prev, nxt)
         vals = [cost(p) for p in cands]
         j = min(range(len(cands)), key=vals.__getitem__)
@@ -79,26 +81,55 @@ class PathBuilder:
                 best, best_v = (a[0] + s * (q[0] - a[0]), a[1] + s * (q[1] - a[1])), v
         return best
 
+    def quick_place(self, region: Region, prev: Point2, t: float, heading: float,
+                    nxt: Point2 | None) -> tuple[Point2, float, float, float]:
+        """``place`` at level 0 with what it timed on the way: the stop, the hop into it (time and
+        heading on arrival) and when the cluster's last rover lands there (``local_time`` of
+        each quick candidate, the first fastest kept; the same floats)."""
+        drive, leg, load = self.drive, self.leg, self.load
+        best: tuple[Point2, float, float, float] | None = None
+        best_eta = math.inf
+        for p in region.quick_candidates(prev, nxt):
+            dt, h = drive(prev, p, heading)
+            ready = leg(region.farthest_flight(p))
+            eta = max(t + dt, ready) + load
+            if nxt is not None:
+                eta += drive(p, nxt, h)[0]
+            if best is None or eta < best_eta:
+                best, best_eta = (p, dt, h, ready), eta
+        assert best is not None  # the time centre is always a candidate
+        return best
+
     def route(self, clusters: list[list[int]], level: int = 0) -> Route:
         """GET_COLLECT_PATH for every cluster in order, then the route's times (CALC_TIME)."""
         regions = [self.inst.region(c) for c in clusters]
         positions: list[Point2] = []
+        hops: list[float] = []
+        headings: list[float] = []
+        readies: list[float] = []
         prev, t, heading = self.start, 0.0, self.heading0
         for k, reg in enumerate(regions):
             nxt = regions[k + 1].center if k + 1 < len(regions) else None  # next stop not known yet
-            pos = self.place(reg, prev, t, heading, nxt, level)
-            dt, heading = self.drive(prev, pos, heading)
-            t = max(t + dt, self.ready(reg, pos)) + self.load
+            if level == 0:
+                pos, dt, heading, ready = self.quick_place(reg, prev, t, heading, nxt)
+            else:
+                pos = self.place(reg, prev, t, heading, nxt, level)
+                ready = self.ready(reg, pos)
+                dt, heading = self.drive(prev, pos, heading)
+            t = max(t + dt, ready) + self.load
             positions.append(pos)
+            hops.append(dt)
+            headings.append(heading)
+            readies.append(ready)
             prev = pos
-        return Route(self, clusters, regions, positions)
+        return Route(self, clusters, regions, positions, (hops, headings, readies))
 
 
 NUMPY_FROM = 24  # stops: from this many on, a route's times are summed with numpy
 
-# a scored change: makespan, clusters, stops, first re-placed stop, end of the re-placed stops,
-# the old index of the first kept stop
-Candidate = tuple[float, list[list[int]], list[Point2], int, int, int]
+# a scored change: makespan, the change (i, pieces, count), the first re-placed stop, the regions
+# and stops placed afresh (the route's lists are built only when the change is accepted)
+Candidate = tuple[float, int, list[list[int]], int, int, list[Region], list[Point2]]
 
 
 class Route:
@@ -109,11 +140,17 @@ class Route:
     """
 
     def __init__(self, b: PathBuilder, clusters: list[list[int]], regions: list[Region],
-                 positions: list[Point2]) -> None:
+                 positions: list[Point2], timed: tuple[list[float], list[float], list[float]] | None = None,
+                 ) -> None:
+        """``timed``: ``hop``, ``heading`` and ``ready`` when the caller drove the route already."""
         self.b, self.clusters, self.regions, self.positions = b, clusters, regions, positions
-        self.hop: list[float] = []
-        self.heading: list[float] = []
-        self.ready: list[float] = []
+        if timed is not None:
+            self.hop, self.heading, self.ready = timed
+            self._times()
+            return
+        self.hop = []
+        self.heading = []
+        self.ready = []
         prev, h = b.start, b.heading0
         for reg, pos in zip(regions, positions, strict=True):
             dt, h = b.drive(prev, pos, h)
@@ -199,11 +236,14 @@ class Route:
         """The route of a scored change: stops before ``lo`` and from old stop ``m`` on keep their
         hops and rovers' times; only the changed stops (and the hops whose heading changed) are
         driven again, so a long route accepts a local change in a few hops."""
-        _, clusters, positions, lo, hi, m = cand
+        _, i, pieces, count, lo, window, placed = cand
+        hi, m = i + len(pieces), i + count  # new stops lo..hi−1, the first kept stop's old index
         b = self.b
         r = object.__new__(type(self))
-        r.b, r.clusters, r.positions = b, clusters, positions
-        r.regions = [*self.regions[:lo], *(b.inst.region(c) for c in clusters[lo:hi]), *self.regions[m:]]
+        r.b = b
+        r.clusters = self.clusters[:i] + pieces + self.clusters[m:]
+        r.positions = positions = self.positions[:lo] + placed + self.positions[m:]
+        r.regions = self.regions[:lo] + window + self.regions[m:]
         r.hop, r.heading, r.ready = self.hop[:lo], self.heading[:lo], self.ready[:lo]
         prev, h = (b.start, b.heading0) if lo == 0 else (positions[lo - 1], self.heading[lo - 1])
         for j in range(lo, len(positions)):
@@ -225,26 +265,27 @@ class Route:
         """Makespan after clusters i..i+count-1 are replaced by ``pieces``: the stop before (unless
         the builder's ``replace_before`` is off), the pieces and their stops are placed afresh; later
         stops keep their places and are re-timed."""
-        b, old = self.b, self.clusters
-        clusters = old[:i] + pieces + old[i + count:]
-        near = old[i:i + count]
-        regions = self.regions[:i] + [b.inst.region(p, near) for p in pieces] + self.regions[i + count:]
+        b, n = self.b, len(self.clusters)
+        near = self.clusters[i:i + count]
         lo = max(i - 1, 0) if b.replace_before else i
-        hi = min(i + len(pieces), len(clusters))  # new indices lo..hi-1 are placed afresh
-        m = hi - len(pieces) + count  # old index of the first kept stop
+        m = i + count  # old index of the first kept stop
+        window = [*self.regions[lo:i], *(b.inst.region(p, near) for p in pieces)]  # stops lo..hi−1
         prev, t, h = self.state_before(lo)
-        positions = self.positions[:lo]
-        for k in range(lo, hi):
-            if k + 1 < hi:
-                nxt: Point2 | None = regions[k + 1].center
+        placed: list[Point2] = []
+        for k, reg in enumerate(window):
+            if k + 1 < len(window):
+                nxt: Point2 | None = window[k + 1].center
             else:
-                nxt = self.positions[m] if m < len(old) else None
-            pos = b.place(regions[k], prev, t, h, nxt)
-            dt, h = b.drive(prev, pos, h)
-            t = max(t + dt, b.ready(regions[k], pos)) + b.load
-            positions.append(pos)
+                nxt = self.positions[m] if m < n else None
+            pos, dt, h, ready = b.quick_place(reg, prev, t, h, nxt)
+            t = max(t + dt, ready) + b.load
+            placed.append(pos)
             prev = pos
-        if m < len(old):
+        if m < n:
             t = self._finish(m, prev, t, h)
-            positions = positions + self.positions[m:]
-        return t, clusters, positions, lo, hi, m
+        return t, i, pieces, count, lo, window, placed
+
+    def screen(self, changes: Sequence[tuple[int, list[list[int]], int]]) -> np.ndarray:
+        """A lower bound of ``replace(*change)[0]`` for every change at once (numpy; −inf where it
+        has none; ``planners.collect.screen``)."""
+        return screen(self, changes)
