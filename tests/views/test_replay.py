@@ -10,6 +10,7 @@ import pytest
 from views_helpers import write_run
 
 from fleetctl.cli import main
+from fleetctl.mission import Mission
 from fleetctl.views.replay import CHUNK, Player, ReplayError, ReplayState, load_run, replay, timeline
 
 SPEEDUP = 2.0  # the recorded run's mission seconds per wall second
@@ -167,24 +168,32 @@ def test_a_runs_dwell_is_its_planned_time(tmp_path: Path) -> None:
     assert state.phase == "dwell" and state.planned == 30.0  # the run's --dwell, not the mission's
 
 
-def test_a_system_id_used_on_two_links_is_not_taken_from_the_log(tmp_path: Path) -> None:
-    """The .tlog does not say which link a message came on: a system id two links use names no
-    one vehicle, so its positions are left out; every other vehicle (every carrier too) is placed."""
-    from views_helpers import ORIGIN, position_msg
+def two_links_sharing_sysid_11(tmp_path: Path, c2_sysid: int) -> Mission:
+    """Two carriers on simulated links of their own: r1 (c1's) and r3 (c2's) are both system id 11."""
+    from views_helpers import ORIGIN
 
-    from fleetctl.mavlink.tlog import tlog_record
     from fleetctl.mission import load_mission
-    from fleetctl.views.replay import read_tlog
 
     team = {"connection": "sim", "max_speed": 10.0}
     mission = {"origin": ORIGIN, "rovers": {"max_speed": 5.0, "deploy_range": 40.0},
                "carriers": [{"id": "c1", "sysid": 1, "position": [0, 0], **team,
                              "units": [{"id": "r1", "sysid": 11}, {"id": "r2", "sysid": 12}]},
-                            {"id": "c2", "sysid": 2, "position": [80, 0], **team,
+                            {"id": "c2", "sysid": c2_sysid, "position": [80, 0], **team,
                              "units": [{"id": "r3", "sysid": 11}, {"id": "r4", "sysid": 13}]}],
                "tasks": [{"id": "t1", "position": [5, 20, 3]}]}
     (tmp_path / "m.yaml").write_text(json.dumps(mission))
-    m = load_mission(tmp_path / "m.yaml")
+    return load_mission(tmp_path / "m.yaml")
+
+
+def test_a_system_id_used_on_two_links_is_not_taken_from_the_log(tmp_path: Path) -> None:
+    """The .tlog does not say which link a message came on: a system id two links use names no
+    one vehicle, so its positions are left out; every other vehicle (every carrier too) is placed."""
+    from views_helpers import position_msg
+
+    from fleetctl.mavlink.tlog import tlog_record
+    from fleetctl.views.replay import read_tlog
+
+    m = two_links_sharing_sysid_11(tmp_path, c2_sysid=2)
     log = b"".join(tlog_record(1000.0 + k, position_msg(sysid, 10.0 * k, 0, 0))
                    for k, sysid in enumerate((1, 2, 11, 12, 13)))
     (tmp_path / "t.tlog").write_bytes(log)
@@ -195,22 +204,13 @@ def test_a_system_id_used_on_two_links_is_not_taken_from_the_log(tmp_path: Path)
 def test_each_links_log_places_the_vehicles_of_that_link(tmp_path: Path) -> None:
     """A run of several links logs each link apart (traffic.tlog, traffic-c2.tlog): a system id that
     both links use names the vehicle of the log's link."""
-    from views_helpers import ORIGIN, position_msg
+    from views_helpers import position_msg
 
     from fleetctl.mavlink.tlog import tlog_record
-    from fleetctl.mission import load_mission
     from fleetctl.mission.links import link_tlogs
     from fleetctl.views.replay import read_telemetry_logs
 
-    team = {"connection": "sim", "max_speed": 10.0}
-    mission = {"origin": ORIGIN, "rovers": {"max_speed": 5.0, "deploy_range": 40.0},
-               "carriers": [{"id": "c1", "sysid": 1, "position": [0, 0], **team,
-                             "units": [{"id": "r1", "sysid": 11}, {"id": "r2", "sysid": 12}]},
-                            {"id": "c2", "sysid": 1, "position": [80, 0], **team,
-                             "units": [{"id": "r3", "sysid": 11}, {"id": "r4", "sysid": 13}]}],
-               "tasks": [{"id": "t1", "position": [5, 20, 3]}]}
-    (tmp_path / "m.yaml").write_text(json.dumps(mission))
-    m = load_mission(tmp_path / "m.yaml")
+    m = two_links_sharing_sysid_11(tmp_path, c2_sysid=1)
     assert list(link_tlogs(m).values()) == ["traffic.tlog", "traffic-c2.tlog"]
     for k, (name, sysids) in enumerate((("traffic.tlog", (1, 11, 12)), ("traffic-c2.tlog", (1, 11, 13)))):
         log = b"".join(tlog_record(1000.0 + 2 * j + k, position_msg(sysid, 10.0 * j, 0, 0))

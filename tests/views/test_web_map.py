@@ -20,6 +20,7 @@ import threading
 import time
 import urllib.error
 import urllib.request
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -105,19 +106,27 @@ def _changes(seq: list[str]) -> list[str]:
     return [s for k, s in enumerate(seq) if k == 0 or seq[k - 1] != s]
 
 
+def _controller(command: str, mission: Path, tmp_path: Path, port: int,
+                procs: list[subprocess.Popen[str]]) -> Callable[[], tuple[str, subprocess.Popen[str]]]:
+    """Starts ``fleetctl COMMAND`` with the web map on ``port`` (kept in ``procs``) and returns the
+    map's URL once printed, and the process."""
+    def start() -> tuple[str, subprocess.Popen[str]]:
+        proc = subprocess.Popen(
+            [sys.executable, "-m", "fleetctl.cli", command, "--mission", str(mission), "--headless",
+             "--run-dir", str(tmp_path / "run"), "--web", f"127.0.0.1:{port}"],
+            cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+        procs.append(proc)
+        return _wait_for_url(_lines(proc), proc), proc
+    return start
+
+
 def test_deploy_shows_vehicles_moving_to_their_tasks(tmp_path: Path) -> None:
     d = mission_dict(rovers=2, speedup=2.0)
     mission = write_mission(d, tmp_path / "mission.yaml")
     port = _free_port()
     procs: list[subprocess.Popen[str]] = []
 
-    def start() -> tuple[str, subprocess.Popen[str]]:
-        proc = subprocess.Popen(
-            [sys.executable, "-m", "fleetctl.cli", "deploy", "--mission", str(mission), "--headless",
-             "--run-dir", str(tmp_path / "run"), "--web", f"127.0.0.1:{port}"],
-            cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
-        procs.append(proc)
-        return _wait_for_url(_lines(proc), proc), proc
+    start = _controller("deploy", mission, tmp_path, port, procs)
 
     try:
         looks, proc = _watch_page(start, tmp_path / "chromium-profile")
@@ -173,13 +182,7 @@ def test_an_operation_shows_each_task_s_work_and_the_sorties_out(tmp_path: Path)
     port = _free_port()
     procs: list[subprocess.Popen[str]] = []
 
-    def start() -> tuple[str, subprocess.Popen[str]]:
-        proc = subprocess.Popen(
-            [sys.executable, "-m", "fleetctl.cli", "run", "--mission", str(mission), "--headless",
-             "--run-dir", str(tmp_path / "run"), "--web", f"127.0.0.1:{port}"],
-            cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
-        procs.append(proc)
-        return _wait_for_url(_lines(proc), proc), proc
+    start = _controller("run", mission, tmp_path, port, procs)
 
     try:
         looks, proc = _watch_page(start, tmp_path / "chromium-profile", READ_OPERATION)

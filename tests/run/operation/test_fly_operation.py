@@ -7,8 +7,11 @@ from __future__ import annotations
 import asyncio
 import json
 from pathlib import Path
+from typing import Any
 
+from fleetctl.mission import Mission
 from fleetctl.run.flight import execute
+from fleetctl.run.lifecycle import RunOutcome
 from sitl import SimFleet
 from sitl.world import Phase as BodyPhase
 from tests.run.ctl_helpers import mission_from, write_mission
@@ -114,12 +117,10 @@ async def test_a_battery_reading_low_in_the_air_asks_for_a_replan(tmp_path: Path
     assert asked and back and asked[0] < back[0], [r.get("text") for r in records if r["kind"] == "replan"]
 
 
-async def test_tasks_added_and_removed_in_the_mission_file_are_flown(tmp_path: Path) -> None:
-    d = small_operation()
-    mission = mission_from(d, tmp_path)
-    edited = small_operation()
-    edited["tasks"] = [t for t in edited["tasks"] if t["id"] != "t6"]
-    edited["tasks"].append({"id": "t7", "position": [30, -10, 4], "duration": 45})  # dwell: 20
+async def run_editing_after_the_first_launch(mission: Mission, edited: dict[str, Any],
+                                             tmp_path: Path) -> RunOutcome:
+    """Fly ``run`` of ``mission`` (its file in ``tmp_path``), writing ``edited`` over the mission file
+    once r1 is first in the air."""
     watchers: list[asyncio.Task[None]] = []
 
     async def edit_after_the_first_launch(sim: SimFleet) -> None:
@@ -130,10 +131,21 @@ async def test_tasks_added_and_removed_in_the_mission_file_are_flown(tmp_path: P
     def on_sim(sim: SimFleet) -> None:
         watchers.append(asyncio.ensure_future(edit_after_the_first_launch(sim)))
 
-    out = await asyncio.wait_for(execute(mission, "run", run_dir=tmp_path / "run", force=True, on_sim=on_sim),
-                                 150)
-    for w in watchers:
-        w.cancel()
+    try:
+        return await asyncio.wait_for(execute(mission, "run", run_dir=tmp_path / "run", force=True,
+                                              on_sim=on_sim), 150)
+    finally:
+        for w in watchers:
+            w.cancel()
+
+
+async def test_tasks_added_and_removed_in_the_mission_file_are_flown(tmp_path: Path) -> None:
+    d = small_operation()
+    mission = mission_from(d, tmp_path)
+    edited = small_operation()
+    edited["tasks"] = [t for t in edited["tasks"] if t["id"] != "t6"]
+    edited["tasks"].append({"id": "t7", "position": [30, -10, 4], "duration": 45})  # dwell: 20
+    out = await run_editing_after_the_first_launch(mission, edited, tmp_path)
     s = out.summary
     assert out.exit_code == 0, s
     assert s["tasks_added"] == ["t7"] and s["tasks_removed"] == ["t6"]
@@ -188,20 +200,7 @@ async def test_a_task_s_duration_alone_edited_in_the_mission_file_is_replanned(t
     mission = mission_from(small_operation(), tmp_path)
     edited = small_operation()
     next(t for t in edited["tasks"] if t["id"] == "t4")["duration"] = 40
-    watchers: list[asyncio.Task[None]] = []
-
-    async def edit_after_the_first_launch(sim: SimFleet) -> None:
-        r1 = sim.rover("r1")
-        await sim.wait_for(lambda: r1.phase is BodyPhase.AIR, 60)
-        write_mission(edited, tmp_path / "mission.yaml")
-
-    def on_sim(sim: SimFleet) -> None:
-        watchers.append(asyncio.ensure_future(edit_after_the_first_launch(sim)))
-
-    out = await asyncio.wait_for(execute(mission, "run", run_dir=tmp_path / "run", force=True, on_sim=on_sim),
-                                 150)
-    for w in watchers:
-        w.cancel()
+    out = await run_editing_after_the_first_launch(mission, edited, tmp_path)
     s = out.summary
     assert out.exit_code == 0, s
     assert not s["tasks_added"] and not s["tasks_removed"]
