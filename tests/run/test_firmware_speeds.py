@@ -40,7 +40,9 @@ def test_the_plan_takes_the_copters_measured_handling_where_the_file_is_silent(t
     assert fitted is not None
     r = fitted.rovers
     assert r.takeoff_time == pytest.approx(TAKEOFF_HEIGHT / 5.0 + apm.COPTER_TAKEOFF_OVERHEAD)
-    assert r.land_time == pytest.approx(MEET_HEIGHT / 1.0 + apm.COPTER_LAND_OVERHEAD)
+    # the carrier's load_time (2 s, from the touch-down) covers most of the auto-disarm
+    disarm_left = max(0.0, apm.COPTER_DISARM_DELAY - m.carrier.load_time)
+    assert r.land_time == pytest.approx(MEET_HEIGHT / 1.0 + apm.COPTER_TOUCHDOWN_OVERHEAD + disarm_left)
     assert r.accel == pytest.approx(5.0 / (5.0 / 2.5 + apm.COPTER_LEG_OVERHEAD)) and r.accel < 2.5
     d["rovers"].update(takeoff_time=1.5, land_time=2.5)  # given in the file: kept
     kept = fitted_handling(mission_from(d, tmp_path), [ArduPilot()])
@@ -51,6 +53,25 @@ def test_the_plan_takes_the_copters_measured_handling_where_the_file_is_silent(t
     c = m.carrier
     expected = c.max_speed / (c.max_speed / c.accel + apm.ROVER_LEG_OVERHEAD)
     assert carrier.carrier.accel == pytest.approx(expected)
+
+
+def test_the_copters_touch_down_term_holds_the_auto_disarm_only_where_load_time_does_not_cover_it(
+        tmp_path: Path) -> None:
+    # the run loads a rover from its touch-down on while its autopilot disarms it: the plan's
+    # land_time + load_time is the landing plus the longer of the two, never their sum
+    d = mission_dict(carrier_connection="udpin://127.0.0.1:14599")
+    d["rovers"].update(land_speed=2.0)
+    lands = {}
+    for load in (0.0, 1.0, 2.0, 5.0):
+        d["carrier"]["load_time"] = load
+        fitted = fitted_handling(mission_from(d, tmp_path), [ArduPilot()])
+        assert fitted is not None
+        lands[load] = fitted.rovers.land_time
+    down = MEET_HEIGHT / 2.0 + apm.COPTER_TOUCHDOWN_OVERHEAD
+    assert lands[0.0] == pytest.approx(down + apm.COPTER_DISARM_DELAY)
+    assert lands[1.0] + 1.0 == pytest.approx(down + apm.COPTER_DISARM_DELAY)
+    assert lands[5.0] == pytest.approx(down)  # the disarm is over long before the loading
+    assert lands[2.0] + 2.0 == pytest.approx(down + max(2.0, apm.COPTER_DISARM_DELAY))
 
 
 def test_firmware_speeds_default_to_set_on_real_links_and_keep_on_the_sim(tmp_path: Path) -> None:
@@ -75,7 +96,8 @@ def documented_params(text: str) -> set[str]:
 def test_docs_autopilots_states_the_measured_constants_and_every_parameter() -> None:
     text = DOC.read_text()
     assert f"+ {apm.COPTER_TAKEOFF_OVERHEAD:.1f} s" in text
-    assert f"+ {apm.COPTER_LAND_OVERHEAD:.1f} s" in text
+    assert (f"+ {apm.COPTER_TOUCHDOWN_OVERHEAD:.1f} s + max(0, {apm.COPTER_DISARM_DELAY:.1f} s − load_time)"
+            in text)
     assert f"(v/a + {apm.COPTER_LEG_OVERHEAD:.1f} s)" in text
     assert f"(v/a + {apm.ROVER_LEG_OVERHEAD:.1f} s)" in text
     assert f"more than {HOME_ALT_TOLERANCE:g} m off" in text

@@ -149,7 +149,9 @@ class Px4(Autopilot):
             return accel
         return speed / (speed / accel + MC_LEG_OVERHEAD)
 
-    def handling_times(self, climb_rate: float, land_speed: float) -> tuple[float, float] | None:
+    def handling_times(self, climb_rate: float, land_speed: float,
+                       load_time: float = 0.0) -> tuple[float, float] | None:
+        # the touch-down term as measured to the rover disarmed, whatever load_time (not split)
         if self.ground:
             return None
         return (TAKEOFF_HEIGHT / climb_rate + MC_TAKEOFF_OVERHEAD,
