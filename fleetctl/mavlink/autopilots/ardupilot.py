@@ -60,7 +60,7 @@ ROVER_SPEEDS = (SpeedParam("WP_SPEED", "max_speed", 1.0, 0.0, 100.0),
 # carrier's load_time runs from the touch-down (fleetctl.run.collect), alongside the auto-disarm: the
 # touch-down term counts only the part of the disarm that load_time does not cover.
 COPTER_TAKEOFF_OVERHEAD = 2.6  # s
-COPTER_TOUCHDOWN_OVERHEAD = 1.2  # s from the approach waypoint to at rest on the deck, beyond 3 m / LAND_SPEED
+COPTER_TOUCHDOWN_OVERHEAD = 1.2  # s approach waypoint -> at rest on the deck, beyond 3 m / LAND_SPEED
 COPTER_DISARM_DELAY = 2.2  # s from the touch-down to the auto-disarm seen (its HEARTBEAT)
 COPTER_LEG_OVERHEAD = 3.4  # s a waypoint leg takes beyond S/v + v/a (jerk-limited S-curve, stop at the end)
 # ArduRover: a leg takes this much beyond S/v + v/a and the turn on the spot the time model charges
