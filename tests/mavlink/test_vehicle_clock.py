@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from fleetctl.mavlink.vehicle_clock import STEP_FACTOR, STEP_SLACK, VehicleTimeClock
+from fleetctl.mavlink.vehicle_clock import SILENCE_GAP, STEP_FACTOR, STEP_SLACK, VehicleTimeClock
 from fleetctl.run.lifecycle import RunOptions, Session
 from tests.run.ctl_helpers import mission_dict, mission_from, sim_fleet
 
@@ -117,3 +117,9 @@ async def test_a_run_on_real_links_counts_the_time_of_physics_slower_than_its_sp
     assert physics == pytest.approx(4.0, abs=1.0)  # 2 wall s at 2x
     assert c1 - c0 == pytest.approx(physics, abs=0.6)  # the physics' time, within a report or two
     assert session.vehicle_clock.readings > 0
+
+
+def test_docs_autopilots_states_the_clock_on_the_vehicles_time() -> None:
+    text = (Path(__file__).resolve().parents[2] / "docs" / "autopilots.md").read_text()
+    assert "fleetctl/mavlink/vehicle_clock.py" in text
+    assert f"a silence of {SILENCE_GAP:g} wall s" in text
