@@ -47,22 +47,33 @@ def test_the_clock_counts_the_seconds_of_firmware_slower_than_its_speedup() -> N
     assert clock.readings > 0
 
 
-def test_the_clock_follows_the_most_advanced_vehicle_and_never_goes_back() -> None:
+def test_the_clock_follows_its_reference_vehicle_then_another_when_it_stops_and_never_goes_back() -> None:
+    # two SITL instances each on its own lockstep clock: 1 at 3x, 2 at 3.3x; 1 is the reference (the
+    # carrier): the clock counts its seconds, not the faster one's, until its time stops (it hangs)
     wall = Wall()
     clock = VehicleTimeClock(4.0, wall)
-    boot = fly(clock, wall, 3.0, 0.1, sysids=(1, 2))
-    t0, seen = clock(), []
-    for _ in range(50):
+    clock.reference = 1
+    boot = {1: 100.0, 2: 7.0}
+    t0, seen, t_stop = clock(), [], None
+    for _ in range(100):
         wall.t += 0.1
-        boot[1] += 0.3
-        boot[2] += 0.3 if wall.t < 1003.0 else 0.0  # vehicle 2's clock stops (it hangs)
-        clock.observe(1, round(boot[1] * 1000))
+        if wall.t < 1005.0:
+            boot[1] += 0.3
+        elif t_stop is None:
+            t_stop = clock()
+        boot[2] += 0.33
         clock.observe(2, round(boot[2] * 1000))
+        clock.observe(1, round(boot[1] * 1000))
         for _ in range(3):  # looked at between the reports too: it runs on, never back
             wall.t += 0.001
             seen.append(clock())
     assert seen == sorted(seen)
-    assert clock() - t0 == pytest.approx(15.0, abs=0.5)  # vehicle 1: 5 wall s at 3x
+    assert t_stop is not None and t_stop - t0 == pytest.approx(15.0, abs=0.5)  # vehicle 1: 5 wall s at 3x
+    assert clock.leaders == [2, 1, 2]  # the first heard, the reference, the other once 1 stopped
+    # vehicle 1 stopped: SILENCE_GAP wall s (the clock holding then running on at the speed-up)
+    # and the rest at vehicle 2's 3.3x
+    after = clock() - t_stop
+    assert 3.3 * (5.3 - SILENCE_GAP) - 0.5 <= after <= 4.0 * SILENCE_GAP + 3.3 * 5.3 + 0.5
 
 
 def test_silent_vehicles_leave_the_clock_on_the_wall_clock_times_the_speedup() -> None:
@@ -122,4 +133,4 @@ async def test_a_run_on_real_links_counts_the_time_of_physics_slower_than_its_sp
 def test_docs_autopilots_states_the_clock_on_the_vehicles_time() -> None:
     text = " ".join((Path(__file__).resolve().parents[2] / "docs" / "autopilots.md").read_text().split())
     assert "fleetctl/mavlink/vehicle_clock.py" in text
-    assert f"a silence of {SILENCE_GAP:g} wall s" in text
+    assert f"while its time stands still for {SILENCE_GAP:g} wall s" in text
