@@ -124,12 +124,15 @@ def test_px4_handling_is_planned_and_documented(tmp_path: Path) -> None:
     assert fitted is not None
     r = fitted.rovers
     assert r.takeoff_time == pytest.approx(TAKEOFF_HEIGHT / 1.5 + px4.MC_TAKEOFF_OVERHEAD)
-    assert r.land_time == pytest.approx(MEET_HEIGHT / 0.7 + px4.MC_LAND_OVERHEAD)
+    m = mission_from(d, tmp_path)
+    disarm_left = max(0.0, px4.MC_DISARM_DELAY - m.carrier.load_time)
+    assert r.land_time == pytest.approx(MEET_HEIGHT / 0.7 + px4.MC_TOUCHDOWN_OVERHEAD + disarm_left)
     assert r.accel == pytest.approx(5.0 / (5.0 / 3.0 + px4.MC_LEG_OVERHEAD))
     assert px4.Px4(M.MAV_TYPE_GROUND_ROVER).handling_times(1.5, 0.7) is None  # a carrier: none
     text = DOC.read_text()
     assert f"`TAKEOFF_HEIGHT / climb_rate + {px4.MC_TAKEOFF_OVERHEAD:.1f} s`" in text
-    assert f"`MEET_HEIGHT / land_speed + {px4.MC_LAND_OVERHEAD:.1f} s`" in text
+    assert (f"`MEET_HEIGHT / land_speed + {px4.MC_TOUCHDOWN_OVERHEAD:.1f} s + "
+            f"max(0, {px4.MC_DISARM_DELAY:.1f} s − load_time)`") in text
     assert f"`v / (v/a + {px4.MC_LEG_OVERHEAD:.1f} s)`" in text
     names = documented_params(text)
     for p in (*px4.MC_SPEED_PARAMS, *px4.ROVER_SPEED_PARAMS):
