@@ -14,6 +14,7 @@ from fleetctl.mavlink.autopilots import ardupilot as apm
 from fleetctl.mavlink.vehicle import HOME_ALT_TOLERANCE
 from fleetctl.mission import MissionError
 from fleetctl.mission.flight import MEET_HEIGHT, TAKEOFF_HEIGHT
+from fleetctl.run.collect import RETARGET_OFFSET
 from fleetctl.run.firmware_speeds import fitted_handling, quantities
 from tests.run.ctl_helpers import mission_dict, mission_from
 
@@ -98,6 +99,7 @@ def test_docs_autopilots_states_the_measured_constants_and_every_parameter() -> 
     assert f"+ {apm.COPTER_TAKEOFF_OVERHEAD:.1f} s" in text
     assert (f"+ {apm.COPTER_TOUCHDOWN_OVERHEAD:.1f} s + max(0, {apm.COPTER_DISARM_DELAY:.1f} s − load_time)"
             in text)
+    assert f"more than {RETARGET_OFFSET:g} m off the stop" in text  # the re-target the term includes
     assert f"(v/a + {apm.COPTER_LEG_OVERHEAD:.1f} s)" in text
     assert f"(v/a + {apm.ROVER_LEG_OVERHEAD:.1f} s)" in text
     assert f"more than {HOME_ALT_TOLERANCE:g} m off" in text
