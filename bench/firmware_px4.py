@@ -3,10 +3,10 @@
 One PX4 fleet (an Ackermann rover carrier, three quadcopters at its home: ``tests/firmware/px4_fleet``)
 is started; ``fleetctl deploy`` and ``fleetctl collect`` are flown through the command line at the
 firmware's speed factor, ``--rounds`` times in a row. For each command the table gives the
-summaries' ``makespan_planned`` and ``makespan_flown`` (mission seconds: wall seconds times
-``--speedup``) and the flown makespan in the vehicles' own seconds (the carrier's ``time_boot_ms``
-over the same span, from the run's ``traffic.tlog``): lockstep firmware that falls behind its speed
-factor on a loaded machine makes the mission-time figure longer, not the vehicle-time one.
+summaries' ``makespan_planned`` and ``makespan_flown`` (mission seconds: fleetctl's clock, which
+follows the carrier's own time on SITL firmware) and the flown makespan in the carrier's own
+seconds measured apart (its ``time_boot_ms`` in the run's ``traffic.tlog`` from the journal record
+the makespan starts at to the one it ends at: the last task reached, the park command).
 
     FLEETCTL_PX4_DIR=/path/to/px4 python bench/firmware_px4.py [--rounds 3] [--json OUT]
 
@@ -33,6 +33,14 @@ sys.path.insert(0, str(ROOT / "tests" / "firmware"))
 from px4_fleet import SPEEDUP, mission_yaml, port_free, px4_fleet  # noqa: E402
 
 STARTS = ("carrier_started", "collection_started")  # the journal record a command's makespan counts from
+
+
+def end_of(rows: list[dict[str, Any]]) -> float | None:
+    """The wall time (unix) a command's flown makespan ends at: a deployment's last task reached, a
+    complete collection's park command (sent as soon as its last stop's loading is over)."""
+    ends = [r["t"] for r in rows if r["kind"] == "task_reached"
+            or (r["kind"] == "command" and r.get("command") == "hold_and_disarm")]
+    return ends[-1] if ends else None
 
 
 def fleetctl(mission: Path, runs: Path, *args: str,
@@ -81,8 +89,8 @@ def fly(mission: Path, runs: Path, command: str) -> dict[str, Any]:
         run_dir = Path(s["journal"]).parent
         rows = [json.loads(line) for line in (run_dir / "journal.jsonl").read_text().splitlines() if line]
         start = next((r["t"] for r in rows if r["kind"] in STARTS), None)
-        if start is not None:
-            end = start + float(s["makespan_flown"]) / SPEEDUP
+        end = end_of(rows)
+        if start is not None and end is not None:
             row["vehicle"] = vehicle_seconds(run_dir, start, end)
     return row
 

@@ -2,8 +2,9 @@
 messages) for ``links.heartbeat_timeout`` seconds of **mission time**, and for at least
 :data:`LOST_WALL_FLOOR` wall seconds (never more than ``heartbeat_timeout`` itself).
 
-Mission time is the run's clock (the simulator's time, or the wall clock times the vehicles'
-speed-up; the wall clock when no run gives one). The silence in mission time is the lesser of what
+Mission time is the run's clock (the simulator's time, or the vehicles' own time on SITL firmware
+run faster than real time: :mod:`fleetctl.mavlink.vehicle_clock`; the wall clock when no run gives
+one). The silence in mission time is the lesser of what
 that clock and the wall clock times the nominal speed-up say: a simulator lagging behind its
 speed-up, or catching up after a pause, does not make a vehicle lost sooner.
 

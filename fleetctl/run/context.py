@@ -2,7 +2,8 @@
 mission clock, the journal and the background tasks the run owns.
 
 * **Clock.** ``clock()`` is the mission clock (simulated seconds on the embedded simulated fleet,
-  else ``time.monotonic`` scaled by the vehicles' speed-up). Every wait on the fleet is a deadline
+  the vehicles' own seconds on SITL firmware run faster than real time -
+  :mod:`fleetctl.mavlink.vehicle_clock` -, else ``time.monotonic``). Every wait on the fleet is a deadline
   in mission time, :meth:`RunContext.late` (the planned duration from the live plan, times
   ``TIMEOUT_FACTOR``, plus ``TIMEOUT_MARGIN`` mission seconds), waited by :meth:`RunContext.wait_for`,
   so a mission takes the same decisions at any speed-up; :meth:`RunContext.wall` (that deadline in

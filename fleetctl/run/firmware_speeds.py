@@ -93,7 +93,8 @@ def fitted_handling(mission: Mission, autopilots: list[Autopilot],
     and the carrier's leg acceleration as its ``carrier`` firmware drives; None when nothing changes."""
     out = mission
     r = mission.rovers
-    fits = [t for ap in autopilots if (t := ap.handling_times(r.climb_rate, r.land_speed)) is not None]
+    load = mission.carrier.load_time
+    fits = [t for ap in autopilots if (t := ap.handling_times(r.climb_rate, r.land_speed, load)) is not None]
     if fits:
         takeoff_given, land_given = r.handling_given
         takeoff = r.takeoff_time if takeoff_given else max(t for t, _ in fits)

@@ -26,6 +26,7 @@ from fleetctl.journal import Journal, run_dir_for, write_summary
 from fleetctl.mavlink.fleet import Fleet, connect_fleet
 from fleetctl.mavlink.link import LinkError
 from fleetctl.mavlink.tlog import TlogWriter
+from fleetctl.mavlink.vehicle_clock import VehicleTimeClock
 from fleetctl.mission import Mission
 from fleetctl.mission.formats import copy_data_files
 from fleetctl.mission.links import link_tlogs
@@ -73,7 +74,8 @@ class RunOptions:
     on_sim: Callable[[SimFleet], None] | None = None
     on_run_dir: Callable[[Path], None] | None = None
     sim: SimFleet | None = None  # an already running simulated fleet to fly against (tests, benchmarks)
-    clock_speedup: float | None = None
+    clock_speedup: float | None = None  # real links to SITL firmware run that much faster: the vehicles' time
+    vehicle_clock: VehicleTimeClock | None = None  # that clock, already followed (a team's of a teams run)
     mqtt: BusConfig | None = None  # the bus (default: the mission's mqtt: section)
     resume: Resumption | None = None  # a one-team run to finish
     teams_resume: TeamsResumption | None = None  # a run of several teams to finish
@@ -109,6 +111,7 @@ class Session:
         self.uses_sim = opts.sim is None and self.endpoints is None and mission_uses_sim(mission)
         self.sim_config: FleetConfig | None = (sim_fleet_config(mission, command, speedup=opts.speedup)
                                 if self.uses_sim else None)
+        self.vehicle_clock: VehicleTimeClock | None = None  # the mission clock on the vehicles' time
         self.clock, self.scale = self._clock()
         self.journal = Journal(self._run_dir())
         self.fleet: Fleet | None = None
@@ -132,8 +135,10 @@ class Session:
         return d
 
     def _clock(self) -> tuple[Callable[[], float], float]:
-        """The mission clock: the simulator's time, else the wall clock times ``clock_speedup``
-        (vehicles that run that much faster), else the wall clock."""
+        """The mission clock: the simulator's time; else, for vehicles that run ``clock_speedup``
+        times faster (lockstep SITL firmware), their own time (``time_boot_ms``,
+        :class:`~fleetctl.mavlink.vehicle_clock.VehicleTimeClock`: the wall clock times
+        ``clock_speedup`` until they report, and where they are silent); else the wall clock."""
         if self.sim is not None:
             sim = self.sim
             return (lambda: float(sim.sim_time)), float(sim.speedup)
@@ -141,7 +146,8 @@ class Session:
             return time.monotonic, float(self.sim_config.speedup)  # until the simulator runs
         if self.opts.clock_speedup is not None:
             scale = float(self.opts.clock_speedup)
-            return (lambda: time.monotonic() * scale), scale
+            self.vehicle_clock = self.opts.vehicle_clock or VehicleTimeClock(scale)
+            return self.vehicle_clock, scale
         return time.monotonic, 1.0
 
     # -- the way in ------------------------------------------------------------------------------
@@ -207,8 +213,13 @@ class Session:
         return {key: self.journal.link_tlog(name) for key, name in link_tlogs(self.mission).items()}
 
     def _mission_silences(self, fleet: Fleet) -> None:
-        """A vehicle is lost after ``links.heartbeat_timeout`` of mission time (the run's clock)."""
+        """A vehicle is lost after ``links.heartbeat_timeout`` of mission time (the run's clock);
+        a clock on the vehicles' time hears each vehicle's."""
+        if self.vehicle_clock is not None and self.vehicle_clock.reference is None:
+            self.vehicle_clock.reference = fleet.carrier.sysid  # the carrier's time, while it is heard
         for v in fleet.vehicles.values():
+            if self.vehicle_clock is not None:
+                v.follow_time(self.vehicle_clock.observe)
             v.use_clock(self.clock, self.scale)
 
     def route_conflict(self, vid: str | None, sysid: int, old: Any, new: Any) -> None:
@@ -247,6 +258,9 @@ class Session:
         if self.opts.view is not None:
             with contextlib.suppress(Exception):
                 await self.opts.view.stop()
+        if self.fleet is not None and self.vehicle_clock is not None and self.opts.vehicle_clock is None:
+            for v in self.fleet.vehicles.values():  # a borrowed fleet outlives the session
+                v.unfollow_time(self.vehicle_clock.observe)
         if self.fleet is not None and self.opts.fleet is None:
             with contextlib.suppress(Exception):
                 await self.fleet.close()

@@ -11,7 +11,10 @@ PX4's measured handling (``Px4.handling_times``, ``Px4.planned_accel``). The fau
 firmware killed in flight, link loss after the controller is gone) fly a fleet of four
 quadcopters first; then the tests run in file order on one fleet of three: status, deploy (the
 rovers end at their tasks), collect (they land on the deck, the carrier is disarmed, status passes
-again)."""
+again). A run killed with SIGKILL during its dwell and finished by ``resume`` flies a fleet of its
+own before them (SIH cannot carry a rover: after a collection the rovers stand on the ground beside
+the carrier, whose position drifts by most of a metre while it is parked, so a ``run`` on that
+fleet finds a rover off the 1.5 m deck - docs/autopilots.md)."""
 
 from __future__ import annotations
 
@@ -131,6 +134,45 @@ def test_a_killed_rover_is_replaced_and_link_loss_lands_the_rovers(tmp_path: Pat
             assert v.custom_mode == LAND_MODE or v.landed_state == 1, (rid, v)  # AUTO.LAND or on the ground
             assert v.enu is not None and math.dist(v.enu[:2], tasks[task][:2]) < TASK_M, (rid, v.enu, task)
 
+
+
+def test_a_run_killed_with_sigkill_is_finished_by_resume(tmp_path: Path) -> None:
+    """``run`` killed (SIGKILL) while the rovers wait at their tasks; ``resume --run`` finishes it:
+    every rover collected onto the deck, disarmed."""
+    if not port_free():
+        pytest.skip("UDP port 14550 (PX4's ground-station port) is in use")
+    mission = tmp_path / "mission.yaml"
+    mission.write_text(mission_yaml())
+    with px4_fleet(speedup=SPEEDUP):
+        wait_ready(mission)
+        run_dir = tmp_path / "runs" / "killed"
+        argv = [sys.executable, "-m", "fleetctl.cli", "run", "-m", str(mission), "--speedup", str(SPEEDUP),
+                "--dwell", "20", "--yes", "--headless", "--run-dir", str(run_dir)]
+        env = dict(os.environ, PYTHONPATH=str(ROOT), PYTHONUNBUFFERED="1")
+        proc = subprocess.Popen(argv, cwd=ROOT, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                                text=True)
+        lines: list[str] = []
+        try:
+            assert proc.stdout is not None
+            for line in proc.stdout:
+                lines.append(line)
+                if "deployed" in line:  # every rover at its task, the dwell begins
+                    proc.kill()  # the controller dies: no records written on the way out
+                    break
+            proc.wait(30)
+        finally:
+            if proc.poll() is None:
+                proc.kill()
+        assert proc.returncode == -9, "".join(lines)[-3000:]
+        out = tmp_path / "resumed.json"
+        resumed = cli("resume", "--run", str(run_dir), "--yes", "--headless", "--speedup", str(SPEEDUP),
+                      "--summary", str(out), timeout=180.0)
+        assert resumed.returncode == 0, resumed.stdout[-3000:] + resumed.stderr[-2000:]
+        s = json.loads(out.read_text())
+        assert s["result"] == "complete" and sorted(s["rovers_loaded"]) == ["r1", "r2", "r3"], s
+        positions = where_landed({"mission": mission})
+        for rid in ("r1", "r2", "r3"):  # on the ground next to the carrier, disarmed
+            assert math.dist(positions[rid][:2], positions["carrier"][:2]) < DECK_M, (rid, positions)
 
 
 def wait_ready(mission: Path, timeout: float = 40.0) -> subprocess.CompletedProcess[str]:

@@ -14,6 +14,7 @@ from fleetctl.mavlink.autopilots import ardupilot as apm
 from fleetctl.mavlink.vehicle import HOME_ALT_TOLERANCE
 from fleetctl.mission import MissionError
 from fleetctl.mission.flight import MEET_HEIGHT, TAKEOFF_HEIGHT
+from fleetctl.run.collect import RETARGET_OFFSET
 from fleetctl.run.firmware_speeds import fitted_handling, quantities
 from tests.run.ctl_helpers import mission_dict, mission_from
 
@@ -40,7 +41,9 @@ def test_the_plan_takes_the_copters_measured_handling_where_the_file_is_silent(t
     assert fitted is not None
     r = fitted.rovers
     assert r.takeoff_time == pytest.approx(TAKEOFF_HEIGHT / 5.0 + apm.COPTER_TAKEOFF_OVERHEAD)
-    assert r.land_time == pytest.approx(MEET_HEIGHT / 1.0 + apm.COPTER_LAND_OVERHEAD)
+    # the carrier's load_time (2 s, from the touch-down) covers most of the auto-disarm
+    disarm_left = max(0.0, apm.COPTER_DISARM_DELAY - m.carrier.load_time)
+    assert r.land_time == pytest.approx(MEET_HEIGHT / 1.0 + apm.COPTER_TOUCHDOWN_OVERHEAD + disarm_left)
     assert r.accel == pytest.approx(5.0 / (5.0 / 2.5 + apm.COPTER_LEG_OVERHEAD)) and r.accel < 2.5
     d["rovers"].update(takeoff_time=1.5, land_time=2.5)  # given in the file: kept
     kept = fitted_handling(mission_from(d, tmp_path), [ArduPilot()])
@@ -51,6 +54,25 @@ def test_the_plan_takes_the_copters_measured_handling_where_the_file_is_silent(t
     c = m.carrier
     expected = c.max_speed / (c.max_speed / c.accel + apm.ROVER_LEG_OVERHEAD)
     assert carrier.carrier.accel == pytest.approx(expected)
+
+
+def test_the_copters_touch_down_term_holds_the_auto_disarm_only_where_load_time_does_not_cover_it(
+        tmp_path: Path) -> None:
+    # the run loads a rover from its touch-down on while its autopilot disarms it: the plan's
+    # land_time + load_time is the landing plus the longer of the two, never their sum
+    d = mission_dict(carrier_connection="udpin://127.0.0.1:14599")
+    d["rovers"].update(land_speed=2.0)
+    lands = {}
+    for load in (0.0, 1.0, 2.0, 5.0):
+        d["carrier"]["load_time"] = load
+        fitted = fitted_handling(mission_from(d, tmp_path), [ArduPilot()])
+        assert fitted is not None
+        lands[load] = fitted.rovers.land_time
+    down = MEET_HEIGHT / 2.0 + apm.COPTER_TOUCHDOWN_OVERHEAD
+    assert lands[0.0] == pytest.approx(down + apm.COPTER_DISARM_DELAY)
+    assert lands[1.0] + 1.0 == pytest.approx(down + apm.COPTER_DISARM_DELAY)
+    assert lands[5.0] == pytest.approx(down)  # the disarm is over long before the loading
+    assert lands[2.0] + 2.0 == pytest.approx(down + max(2.0, apm.COPTER_DISARM_DELAY))
 
 
 def test_firmware_speeds_default_to_set_on_real_links_and_keep_on_the_sim(tmp_path: Path) -> None:
@@ -75,7 +97,9 @@ def documented_params(text: str) -> set[str]:
 def test_docs_autopilots_states_the_measured_constants_and_every_parameter() -> None:
     text = DOC.read_text()
     assert f"+ {apm.COPTER_TAKEOFF_OVERHEAD:.1f} s" in text
-    assert f"+ {apm.COPTER_LAND_OVERHEAD:.1f} s" in text
+    assert (f"+ {apm.COPTER_TOUCHDOWN_OVERHEAD:.1f} s + max(0, {apm.COPTER_DISARM_DELAY:.1f} s − load_time)"
+            in text)
+    assert f"more than {RETARGET_OFFSET:g} m off the stop" in text  # the re-target the term includes
     assert f"(v/a + {apm.COPTER_LEG_OVERHEAD:.1f} s)" in text
     assert f"(v/a + {apm.ROVER_LEG_OVERHEAD:.1f} s)" in text
     assert f"more than {HOME_ALT_TOLERANCE:g} m off" in text
@@ -102,12 +126,15 @@ def test_px4_handling_is_planned_and_documented(tmp_path: Path) -> None:
     assert fitted is not None
     r = fitted.rovers
     assert r.takeoff_time == pytest.approx(TAKEOFF_HEIGHT / 1.5 + px4.MC_TAKEOFF_OVERHEAD)
-    assert r.land_time == pytest.approx(MEET_HEIGHT / 0.7 + px4.MC_LAND_OVERHEAD)
+    m = mission_from(d, tmp_path)
+    disarm_left = max(0.0, px4.MC_DISARM_DELAY - m.carrier.load_time)
+    assert r.land_time == pytest.approx(MEET_HEIGHT / 0.7 + px4.MC_TOUCHDOWN_OVERHEAD + disarm_left)
     assert r.accel == pytest.approx(5.0 / (5.0 / 3.0 + px4.MC_LEG_OVERHEAD))
     assert px4.Px4(M.MAV_TYPE_GROUND_ROVER).handling_times(1.5, 0.7) is None  # a carrier: none
     text = DOC.read_text()
     assert f"`TAKEOFF_HEIGHT / climb_rate + {px4.MC_TAKEOFF_OVERHEAD:.1f} s`" in text
-    assert f"`MEET_HEIGHT / land_speed + {px4.MC_LAND_OVERHEAD:.1f} s`" in text
+    assert (f"`MEET_HEIGHT / land_speed + {px4.MC_TOUCHDOWN_OVERHEAD:.1f} s + "
+            f"max(0, {px4.MC_DISARM_DELAY:.1f} s − load_time)`") in text
     assert f"`v / (v/a + {px4.MC_LEG_OVERHEAD:.1f} s)`" in text
     names = documented_params(text)
     for p in (*px4.MC_SPEED_PARAMS, *px4.ROVER_SPEED_PARAMS):

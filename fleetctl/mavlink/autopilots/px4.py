@@ -66,10 +66,13 @@ ROVER_SPEED_PARAMS = (
 #   clearance is that less the leg: 1 m / 1.5 m/s of climb + 3.6 s (take-off detection, the
 #   MPC_TKO_RAMP_T velocity ramp, less the start of the leg the rover flies while it climbs);
 # - sent down from its approach waypoint 3 m above the carrier (MISSION_ITEM_REACHED) -> loaded
-#   (landed, auto-disarmed COM_DISARM_LAND 2 s later, seen by fleetctl): 9.7 - 11.6 s, mean 10.7 s
-#   (6 landings; touch-down -> "Landing detected" alone takes 1 - 4 s on SIH): 3 m / 0.7 m/s + 6.4 s
+#   (landed, auto-disarmed COM_DISARM_LAND 2 s later, seen by fleetctl): 9.7 - 15.0 s, mean 11.4 s
+#   (15 landings, load_time 0; touch-down -> "Landing detected" alone takes 1 - 9 s on SIH):
+#   3 m / 0.7 m/s + 5.1 s to the landing detected, and the auto-disarm 2 s later; the carrier's
+#   load_time runs from the touch-down alongside the auto-disarm (as on ArduPilot)
 MC_TAKEOFF_OVERHEAD = 3.6  # s
-MC_LAND_OVERHEAD = 6.4  # s
+MC_TOUCHDOWN_OVERHEAD = 5.1  # s approach waypoint -> landed, beyond 3 m / MPC_LAND_SPEED
+MC_DISARM_DELAY = 2.0  # s landed -> disarmed (COM_DISARM_LAND)
 MC_LEG_OVERHEAD = 2.5  # s a waypoint leg from rest takes beyond S/v + v/a
 WAYPOINT_RADIUS = 1.0  # m: param2 of compiled waypoints ("reached" = at the point, not 10 m early)
 _WORDS = {"none": "no action", "hold": "hold", "rtl": "RTL", "land": "land",
@@ -149,11 +152,13 @@ class Px4(Autopilot):
             return accel
         return speed / (speed / accel + MC_LEG_OVERHEAD)
 
-    def handling_times(self, climb_rate: float, land_speed: float) -> tuple[float, float] | None:
+    def handling_times(self, climb_rate: float, land_speed: float,
+                       load_time: float = 0.0) -> tuple[float, float] | None:
         if self.ground:
             return None
+        disarm_left = max(0.0, MC_DISARM_DELAY - load_time)  # what load_time does not cover
         return (TAKEOFF_HEIGHT / climb_rate + MC_TAKEOFF_OVERHEAD,
-                MEET_HEIGHT / land_speed + MC_LAND_OVERHEAD)
+                MEET_HEIGHT / land_speed + MC_TOUCHDOWN_OVERHEAD + disarm_left)
 
     # -- telemetry rates ------------------------------------------------------------------------------
     def stream_rates(self, position_hz: float, status_hz: float) -> dict[str, float]:

@@ -452,6 +452,7 @@ class TeamsRun(OnSession):
             endpoints=self.endpoints,
             sim=self.sim,
             clock_speedup=o.clock_speedup if self.sim is None else None,
+            vehicle_clock=self.session.vehicle_clock,  # one mission clock for every team
             require_all=o.require_all,
             force=o.force,
             confirm=self._confirm(),
