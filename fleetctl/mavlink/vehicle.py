@@ -194,7 +194,7 @@ class Vehicle:
         self._held: list[tuple[Any, float]] = []  # fixes held back (msg, wall time)
         self._rate_anchor: tuple[int, float] | None = None  # (boot ms, wall) to measure the clock rate
         self._rate: float | None = None  # vehicle seconds per wall second
-        self._time_followers: list[Callable[[int, int], None]] = []  # (sysid, time_boot_ms) of each position
+        self._time_followers: list[Callable[[str, int], None]] = []  # (name, time_boot_ms) of each position
         self._held_logged = -math.inf
         self.statustexts: deque[tuple[float, int, str]] = deque(maxlen=50)
         self._enu_key: tuple[float, float, float] | None = None
@@ -418,13 +418,13 @@ class Vehicle:
         if self._lost_timer is not None:
             self._arm_lost_timer()
 
-    def follow_time(self, observe: Callable[[int, int], None]) -> None:
-        """Tell ``observe(sysid, time_boot_ms)`` the vehicle's own clock with each of its positions
+    def follow_time(self, observe: Callable[[str, int], None]) -> None:
+        """Tell ``observe(name, time_boot_ms)`` the vehicle's own clock with each of its positions
         (a mission clock on the vehicles' time: :mod:`fleetctl.mavlink.vehicle_clock`)."""
         if observe not in self._time_followers:
             self._time_followers.append(observe)
 
-    def unfollow_time(self, observe: Callable[[int, int], None]) -> None:
+    def unfollow_time(self, observe: Callable[[str, int], None]) -> None:
         if observe in self._time_followers:
             self._time_followers.remove(observe)
 
@@ -470,7 +470,7 @@ class Vehicle:
     def _on_position(self, msg: Any) -> None:
         now = time.monotonic()
         for observe in self._time_followers:
-            observe(self.sysid, int(msg.time_boot_ms))
+            observe(self.name, int(msg.time_boot_ms))
         fix = self._fix
         if fix is not None and not self._plausible(fix, msg, now):
             held = self._held

@@ -25,7 +25,7 @@ flight looks longer than its plan. :class:`VehicleTimeClock` counts the vehicles
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Hashable
 
 STEP_FACTOR = 2.0  # a vehicle's time may advance at most this many times `rate` times the wall time ...
 STEP_SLACK = 1.0  # ... plus this many seconds between two of its readings; further is a jump, not followed
@@ -34,25 +34,26 @@ SILENCE_GAP = 1.0  # wall s without its time advancing after which the leader ha
 
 class VehicleTimeClock:
     """Mission seconds following the vehicles' ``time_boot_ms`` (see the module docstring); call it
-    for the time, :meth:`observe` with each vehicle's boot time; ``reference``: the system id to
-    follow while it is heard (the carrier)."""
+    for the time, :meth:`observe` with each vehicle's boot time; ``reference``: the vehicle to
+    follow while it is heard (the carrier; a vehicle is named by its id, which unlike its system id
+    is unique across links)."""
 
     def __init__(self, rate: float, wall: Callable[[], float] = time.monotonic) -> None:
         if not rate > 0:
             raise ValueError(f"rate must be > 0, got {rate}")
         self.rate = float(rate)
-        self.reference: int | None = None
+        self.reference: Hashable | None = None
         self._wall = wall
         now = wall()
         self._mission, self._at = now * self.rate, now  # the last reading: mission s at wall s
         self._shown = self._mission  # the latest time told: the clock never goes back
-        self._leader: int | None = None
+        self._leader: Hashable | None = None
         self._boot = 0.0  # the leader's last time_boot_ms, s
         self._heard = -float("inf")  # wall s its time last advanced
         self._offset = 0.0  # mission s = its boot s + offset
         self._reference_boot: float | None = None  # the reference's last time_boot_ms, s
         self.readings = 0  # readings the clock followed
-        self.leaders: list[int] = []  # the vehicles it followed, in order
+        self.leaders: list[Hashable] = []  # the vehicles it followed, in order
 
     def __call__(self) -> float:
         t = self._mission + (self._wall() - self._at) * self.rate
@@ -60,8 +61,8 @@ class VehicleTimeClock:
             self._shown = t
         return self._shown
 
-    def observe(self, source: int, time_boot_ms: int) -> None:
-        """A vehicle (``source``: its system id) says its clock reads ``time_boot_ms``."""
+    def observe(self, source: Hashable, time_boot_ms: int) -> None:
+        """A vehicle (``source``: its id) says its clock reads ``time_boot_ms``."""
         boot, wall = time_boot_ms / 1000.0, self._wall()
         reference = source == self.reference and boot != self._reference_boot  # its time goes on
         if source == self.reference:
@@ -83,7 +84,7 @@ class VehicleTimeClock:
             self._mission, self._at = reading, wall
             self.readings += 1
 
-    def _lead(self, source: int, boot: float, wall: float) -> None:
+    def _lead(self, source: Hashable, boot: float, wall: float) -> None:
         """Follow ``source`` from now on, its time lined up with the clock as it stands."""
         if source != self._leader:
             self.leaders.append(source)

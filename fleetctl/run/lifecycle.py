@@ -216,7 +216,7 @@ class Session:
         """A vehicle is lost after ``links.heartbeat_timeout`` of mission time (the run's clock);
         a clock on the vehicles' time hears each vehicle's."""
         if self.vehicle_clock is not None and self.vehicle_clock.reference is None:
-            self.vehicle_clock.reference = fleet.carrier.sysid  # the carrier's time, while it is heard
+            self.vehicle_clock.reference = fleet.carrier.name  # the carrier's time, while it is heard
         for v in fleet.vehicles.values():
             if self.vehicle_clock is not None:
                 v.follow_time(self.vehicle_clock.observe)
