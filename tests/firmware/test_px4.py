@@ -42,6 +42,9 @@ if find_px4() is None:
 ROOT = Path(__file__).resolve().parents[2]
 SPEEDUP = 4
 DECK_M = 1.5  # a rover "on the deck": this near the carrier, horizontally (fleetctl's deck radius)
+# read after the run, up to ~30 s after the rover was loaded: the parked SIH carrier's position estimate
+# drifts ~0.5 m/min (docs/autopilots.md) and the rover's own estimate does not move with it
+NEAR_DECK_M = DECK_M + 0.5
 TASK_M = 2.0  # a rover "at its task": this near it
 LAND_MODE = (6 << 24) | (4 << 16)  # PX4 AUTO.LAND custom mode
 
@@ -172,7 +175,7 @@ def test_a_run_killed_with_sigkill_is_finished_by_resume(tmp_path: Path) -> None
         assert s["result"] == "complete" and sorted(s["rovers_loaded"]) == ["r1", "r2", "r3"], s
         positions = where_landed({"mission": mission})
         for rid in ("r1", "r2", "r3"):  # on the ground next to the carrier, disarmed
-            assert math.dist(positions[rid][:2], positions["carrier"][:2]) < DECK_M, (rid, positions)
+            assert math.dist(positions[rid][:2], positions["carrier"][:2]) < NEAR_DECK_M, (rid, positions)
 
 
 def wait_ready(mission: Path, timeout: float = 40.0) -> subprocess.CompletedProcess[str]:
@@ -218,7 +221,7 @@ def test_collect_lands_every_rover_on_the_deck(px4: dict[str, Any]) -> None:
     deck = [e for e in events if e["kind"] == "stop_reached"][-1]["position"]
     positions = where_landed(px4)
     for rid in ("r1", "r2", "r3"):  # on the ground next to the carrier, nowhere else
-        assert math.dist(positions[rid][:2], positions["carrier"][:2]) < DECK_M, (rid, positions, deck)
+        assert math.dist(positions[rid][:2], positions["carrier"][:2]) < NEAR_DECK_M, (rid, positions, deck)
     print(f"collect: flown {s['makespan_flown']:.1f} s vs planned {s['makespan_planned']:.1f} s "
           f"({ratio(s) - 1:+.0%})")
     parked = [e for e in events if e["kind"] == "carrier_parked"]
