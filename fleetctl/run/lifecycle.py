@@ -2,11 +2,11 @@
 
 A session owns what a run needs once - the run folder and its write-ahead journal, the mission
 clock, the embedded simulated fleet (:func:`fleetctl.run.sim.embedded_fleet`), the links to the
-fleet with one route-conflict policy, the exit status, and closing everything in order. What
-flies inside it is a *crew*: :class:`fleetctl.run.runner.Run` for one team,
-:class:`fleetctl.run.teams.coordinator.TeamsRun` for several (each team of which is a ``Run`` on a
-session that borrows the fleet, the simulator and the bus of its owner). :func:`fleetctl.run.flight.execute`
-picks the crew from the mission's teams.
+fleet with one route-conflict policy, the exit status, and closing everything in order. The one
+class that goes through it, in one order, is :class:`fleetctl.run.crew.Crew`; what flies in it (one
+team's flight, or several teams') is chosen by :func:`fleetctl.run.flight.fly` from the mission's
+teams. A team of a several-team run is a crew of its own whose session borrows the fleet, the
+simulator and the bus of its owner.
 
 The shared vocabulary of a run lives here too: :class:`RunOptions` (the command line's options),
 :class:`RunOutcome` and the exit codes.
@@ -20,7 +20,7 @@ import time
 from collections.abc import Awaitable, Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, TypeVar
+from typing import TYPE_CHECKING, Any
 
 from fleetctl.journal import Journal, run_dir_for, write_summary
 from fleetctl.mavlink.fleet import Fleet, connect_fleet
@@ -44,7 +44,6 @@ EXIT_FAILED = 1
 EXIT_INTERRUPTED = 130
 COMMANDS = ("deploy", "collect", "run")
 ROUTE_CONFLICT_EVERY = 10.0  # s between route-conflict events from one source
-B = TypeVar("B")  # the bus a crew closes (one bus, or a team's buses)
 
 
 @dataclass
@@ -218,7 +217,7 @@ class Session:
 
     # -- the flight ------------------------------------------------------------------------------
     def was_interrupted(self) -> None:
-        """Called in the ``except CancelledError`` of the crew's flight: the run goes on to write its
+        """Called in the ``except CancelledError`` of the crew's run: the run goes on to write its
         records (the cancellation is absorbed) and ends with :data:`EXIT_INTERRUPTED`."""
         task = asyncio.current_task()
         if task is not None:
@@ -234,19 +233,18 @@ class Session:
         self.journal.write(Ev.SUMMARY, **summary)
         write_summary(summary, self.journal.summary_path, self.opts.summary_path)
 
-    async def close(self, bus: B | None = None,
-                    bus_final: Callable[[B], Awaitable[object]] | None = None) -> None:
-        """Close in order: the view, the fleet (unless borrowed), the bus (``bus_final(bus)``
-        closes it), the journal, the simulator (unless borrowed)."""
+    async def close(self, close_bus: Callable[[], Awaitable[object]] | None = None) -> None:
+        """Close in order: the view, the fleet (unless borrowed), the bus (``close_bus()``), the
+        journal, the simulator (unless borrowed)."""
         if self.opts.view is not None:
             with contextlib.suppress(Exception):
                 await self.opts.view.stop()
         if self.fleet is not None and self.opts.fleet is None:
             with contextlib.suppress(Exception):
                 await self.fleet.close()
-        if bus is not None and bus_final is not None:
+        if close_bus is not None:
             with contextlib.suppress(Exception):
-                await bus_final(bus)
+                await close_bus()
         await self.journal.aclose()
         if self._sim_cm is not None:
             with contextlib.suppress(Exception):
@@ -254,8 +252,8 @@ class Session:
 
 
 class OnSession:
-    """What a crew (:class:`~fleetctl.run.runner.Run`, :class:`~fleetctl.run.teams.coordinator.TeamsRun`)
-    reads from its :attr:`session`: the mission clock and its scale, the simulator, the endpoints, the
+    """What a crew and its flight (:mod:`fleetctl.run.crew`) read from their :attr:`session`: the
+    mission clock and its scale, the simulator, the endpoints, the
     error and whether it was interrupted."""
 
     session: Session

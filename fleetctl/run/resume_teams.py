@@ -1,6 +1,6 @@
 """``fleetctl resume --run DIR`` of a run of several teams (docs/teams.md#resume).
 
-A run of several teams (:class:`~fleetctl.run.teams.coordinator.TeamsRun`) keeps two kinds of
+A run of several teams (:class:`~fleetctl.run.teams.coordinator.TeamsFlight`) keeps two kinds of
 records: the run's journal ``RUN/journal.jsonl`` (the ``run`` record naming the teams, the
 ``teams_plan`` records of how the work was shared, each team's run ``started`` and ``ended``, the
 ``handover`` records, the ``dwell``) and one journal per team and phase,

@@ -25,7 +25,7 @@ from planners.core.problem import Task
 
 
 class Coordinator(Protocol):
-    """What a team's run asks the run of every team (:class:`fleetctl.run.teams.coordinator.TeamsRun`).
+    """What a team's run asks the run of every team (:class:`fleetctl.run.teams.coordinator.TeamsFlight`).
 
     ``more_work`` is awaited after each deployment round with its result (``tasks_unserved``: what
     the team could not serve); it returns the tasks handed to the team (one more round), or ``[]``
