@@ -35,7 +35,13 @@ if TYPE_CHECKING:
 
 
 class Flight(Protocol):
-    """What flies in a :class:`Crew`, asked in this order (see the module docstring)."""
+    """What flies in a :class:`Crew`, asked in this order (see the module docstring).
+
+    ``warm_planners``: the crew imports the mission's planners before the fleet runs (a flight
+    whose first plan is made while rovers hover; a run of several teams shares its work before
+    any rover flies and each team's crew warms its own)."""
+
+    warm_planners: bool
 
     async def begin(self) -> None:
         """The records are open: start the bus and write the run's first records
@@ -88,7 +94,8 @@ class Crew(OnSession, Generic[F]):
         s.open_records()
         await f.begin()
         try:
-            await self._warm_planners()
+            if f.warm_planners:
+                await self._warm_planners()
             await s.start_sim()
             f.ready()
             await f.connected(await s.connect(f.emit))

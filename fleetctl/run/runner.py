@@ -44,6 +44,8 @@ log = logging.getLogger(__name__)
 class TeamFlight(OnSession):
     """One team's flight in its crew (see the module docstring)."""
 
+    warm_planners = True  # its first plan is made while rovers may hover
+
     def __init__(self, crew: Crew[Any]) -> None:
         if crew.opts.teams_resume is not None:
             raise ExecutionError("the records are of a run of several teams and the mission has one carrier")

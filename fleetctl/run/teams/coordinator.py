@@ -62,6 +62,8 @@ CLOCK_STEP = 0.05  # wall s between looks at the mission clock while dwelling
 class TeamsFlight(OnSession):
     """The flight of several teams in their crew (see the module docstring)."""
 
+    warm_planners = False  # each team's crew warms its own
+
     def __init__(self, crew: Crew[Any]) -> None:
         mission, opts = crew.mission, crew.opts
         if opts.resume is not None:
