@@ -3,9 +3,9 @@
 A crew owns the :class:`~fleetctl.run.lifecycle.Session` of its run (the run folder and its
 write-ahead journal, the mission clock, the embedded simulated fleet, the links, the exit status,
 the summary) and goes through it in one order: the first records, the planners warmed, the
-simulator, the links, the phases, and the way out - a failure is recorded, an interruption
-(Ctrl-C, SIGTERM) holds every airborne rover, and in every case the summary is written and
-everything closed in order.
+simulator (a collection scenario's batteries held), the links, the phases, and the way out - a
+failure is recorded, an interruption (Ctrl-C, SIGTERM) holds every airborne rover, and in every
+case the summary is written and everything closed in order.
 
 What flies in it is the crew's :class:`Flight`, chosen by the mission's data
 (:func:`fleetctl.run.flight.fly`):
@@ -97,6 +97,7 @@ class Crew(OnSession, Generic[F]):
             if f.warm_planners:
                 await self._warm_planners()
             await s.start_sim()
+            s.pin_scenario_batteries(True)  # the flight lets them drain (after its connect or first plan)
             f.ready()
             await f.connected(await s.connect(f.emit))
             await f.phases()

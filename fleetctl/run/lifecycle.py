@@ -181,6 +181,18 @@ class Session:
         if self.opts.on_sim is not None:
             self.opts.on_sim(sim)
 
+    def pin_scenario_batteries(self, pinned: bool) -> None:
+        """A collection on a simulated fleet: each rover of the ``collection:`` section has its
+        ``range`` left (``range = (remaining - reserve) x endurance_range``) when the collection
+        starts; ``pinned``, the simulator holds it there (while the fleet connects and the first
+        plan is made), else it drains as usual."""
+        if self.sim is None or self.command != "collect" or not self.mission.collection:
+            return
+        rp = self.mission.rovers
+        for cr in self.mission.collection:
+            level = min(1.0, rp.reserve + cr.range / rp.endurance_range)
+            self.sim.pin_battery(cr.id, level if pinned else None)
+
     async def connect(self, emit: Emit) -> Fleet:
         """The fleet: the one given, or every vehicle of the mission on its links, with the route
         conflict policy (:meth:`route_conflict`) telling conflicts through ``emit``."""

@@ -26,7 +26,7 @@ from fleetctl.run.admission import Admission, admit
 from fleetctl.run.context import ExecutionError
 from fleetctl.run.deploy import ResumedDeploy
 from fleetctl.run.executor import Executor
-from fleetctl.run.kinds import Ev, Phase, VehicleStatus
+from fleetctl.run.kinds import Ev, Phase, VehicleStatus, phases_of
 from fleetctl.run.lifecycle import OnSession
 from fleetctl.run.results import PhaseResult
 from fleetctl.run.rounds import NO_MORE_WORK, DeployRounds, Unserved, WorkSource
@@ -88,10 +88,8 @@ class TeamFlight(OnSession):
         await self.session.begin_records()
 
     def ready(self) -> None:
-        """T+ counts on the simulator's clock once it runs; a collection scenario's batteries are
-        held while the fleet connects."""
+        """T+ counts on the simulator's clock once it runs."""
         self.state.mission_clock = self.session.clock
-        self._scenario_batteries(hold=True)
         self.state.phase = Phase.CONNECT
         if self.opts.view is not None:
             self.opts.view.start(self.state, None)
@@ -104,19 +102,9 @@ class TeamFlight(OnSession):
         self.state.phase = Phase.FAILED
         self.state.event(Ev.ERROR, error)
 
-    def _scenario_batteries(self, hold: bool) -> None:
-        """A collection on a simulated fleet: each rover of the ``collection:`` section has its
-        ``range`` left (``range = (remaining - reserve) x endurance_range``) when the collection
-        starts; while the fleet connects (``hold``) the simulator holds it there, after that it
-        drains as usual."""
-        if self.sim is None or self.command != "collect" or not self.mission.collection:
-            return
-        rp = self.mission.rovers
-        for cr in self.mission.collection:
-            level = min(1.0, rp.reserve + cr.range / rp.endurance_range)
-            self.sim.pin_battery(cr.id, level)
-            if not hold:
-                self.sim.pin_battery(cr.id, None)
+    def _release_batteries(self) -> None:
+        """A collection scenario's batteries, held while the fleet connected, drain from now on."""
+        self.session.pin_scenario_batteries(False)
 
     async def connected(self, fleet: Fleet) -> None:
         """Admit the vehicles the links found, take up a resumed run, record the connections."""
@@ -137,7 +125,7 @@ class TeamFlight(OnSession):
             st.event(Ev.PREFLIGHT_FAILED, f"{vid}: {why}; flying without it", vid, reason=why)
         for kind, text, vid in adm.safety.notes if adm.safety is not None else ():
             st.event(kind, text, vid)
-        self._scenario_batteries(hold=False)
+        self._release_batteries()
         if self.opts.resume is not None:
             await self.opts.resume.reconcile(fleet, st, self._disarm)
             await self.journal.commit(Ev.RESUMED, **self.opts.resume.record())
@@ -212,7 +200,7 @@ class TeamFlight(OnSession):
             raise ExecutionError("resuming a long operation is not supported yet: fly it again with "
                                  "'fleetctl run' (the rovers must be on the deck)")
         todo = (resume.phases_left(self.command) if resume is not None
-                else ["operation"] if self.mission.operation else _phases_of(self.command))
+                else ["operation"] if self.mission.operation else phases_of(self.command))
         if resume is not None:
             self.results.update(resume.finished_results())
         for phase in todo:
@@ -388,10 +376,6 @@ class TeamFlight(OnSession):
             await self.bus.aclose(self.state.phase)
         else:  # its owner closes it
             await self.bus.unfollow()
-
-
-def _phases_of(command: str) -> list[str]:
-    return {"deploy": ["deploy"], "collect": ["collect"], "run": ["deploy", "dwell", "collect"]}[command]
 
 
 __all__ = ["TeamFlight"]

@@ -36,7 +36,7 @@ from fleetctl.mission import Mission
 from fleetctl.mission.teams import mission_teams, team_mission, teams_problem
 from fleetctl.run.context import ExecutionError
 from fleetctl.run.crew import Crew
-from fleetctl.run.kinds import Ev
+from fleetctl.run.kinds import Ev, phases_of
 from fleetctl.run.lifecycle import EXIT_FAILED, EXIT_INTERRUPTED, EXIT_OK, OnSession, RunOptions, RunOutcome
 from fleetctl.run.results import PhaseResult
 from fleetctl.run.resume import Resumption
@@ -106,8 +106,7 @@ class TeamsFlight(OnSession):
         self.buses.start(list(self.board.teams))
 
     def ready(self) -> None:
-        """T+ = 0 for every team; a collection scenario's batteries are held."""
-        self._hold_scenario_batteries()
+        """T+ = 0 for every team (each team's crew lets a collection scenario's batteries drain)."""
         self.t0 = self.clock()
 
     async def connected(self, fleet: Fleet) -> None:
@@ -139,9 +138,7 @@ class TeamsFlight(OnSession):
     def _phases(self) -> list[str]:
         if self.resume is not None:
             return self.resume.phases_left()
-        return {"deploy": ["deploy"], "collect": ["collect"], "run": ["deploy", "dwell", "collect"]}[
-            self.command
-        ]
+        return phases_of(self.command)
 
     def _resumed_records(self, resume: TeamsResumption) -> None:
         """A resumed run: the hand-overs recorded before the restart stand (a task handed to a team
@@ -170,17 +167,6 @@ class TeamsFlight(OnSession):
             for entry in board.teams.values():
                 entry.status, entry.finished = TeamStatus.DONE, True
             self.loaded_before = resume.loaded()
-
-    def _hold_scenario_batteries(self) -> None:
-        """``collect`` on the simulated fleet: each rover of the ``collection:`` section has its
-        ``range`` left when the collection starts; the simulator holds it there while the fleet
-        connects and the work is shared (each team's run then lets it drain after its own
-        connect, as a one-carrier collection does)."""
-        if self.sim is None or self.command != "collect" or not self.mission.collection:
-            return
-        rp = self.mission.rovers
-        for cr in self.mission.collection:
-            self.sim.pin_battery(cr.id, min(1.0, rp.reserve + cr.range / rp.endurance_range))
 
     def emit(self, kind: str, text: str, vehicle: str | None = None, **data: Any) -> None:
         """An event of the run of every team (its journal: the teams' views show their own)."""

@@ -60,13 +60,12 @@ class TeamRun(TeamFlight):
         for tid, flown in phase.board.reached().items():
             self.reached_at.setdefault(tid, phase.t0 + flown)
 
-    def _scenario_batteries(self, hold: bool) -> None:
+    def _release_batteries(self) -> None:
         """A ``collection:`` scenario on the simulated fleet: the batteries are held at the
         scenario's ranges until the team's first collection plan is made (sharing and planning
         several teams takes seconds of wall time, minutes of hover at a high speedup), then
         drain."""
-        if hold or self.sim is None or self.command != "collect" or not self.mission.collection:
-            super()._scenario_batteries(hold)
+        if self.sim is None or self.command != "collect" or not self.mission.collection:
             return
         self._release = asyncio.create_task(self._release_after_plan(), name=f"team {self.team}: batteries")
 
@@ -78,10 +77,7 @@ class TeamRun(TeamFlight):
         except TimeoutError:
             pass
         finally:
-            sim = self.sim  # a simulated fleet: see _scenario_batteries
-            for cr in self.mission.collection or ():
-                if sim is not None:
-                    sim.pin_battery(cr.id, None)
+            self.session.pin_scenario_batteries(False)
 
     def _planned_collection(self) -> bool:
         phase = self.executor.collect_phase if self.executor is not None else None
