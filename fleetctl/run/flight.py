@@ -30,10 +30,8 @@ async def fly(mission: Mission, command: str, opts: RunOptions) -> RunOutcome:
     told it first; ``resume`` - a :class:`~fleetctl.run.resume.Resumption` to finish."""
     if command not in COMMANDS:
         raise ValueError(f"unknown command {command!r}")
-    several = len(mission_teams(mission)) > 1
-    crew: Crew[TeamFlight] | Crew[TeamsFlight] = (Crew(mission, command, opts, TeamsFlight) if several
-                                                  else Crew(mission, command, opts, TeamFlight))
-    return await crew.fly()
+    flight: type[TeamFlight | TeamsFlight] = TeamsFlight if len(mission_teams(mission)) > 1 else TeamFlight
+    return await Crew(mission, command, opts, flight).fly()
 
 
 async def execute(mission: Mission, command: str, **options: Any) -> RunOutcome:
