@@ -1,8 +1,9 @@
 """What the command line calls to fly: :func:`fly` (:func:`execute` takes the options as keywords).
 
-One lifecycle (:class:`~fleetctl.run.lifecycle.Session`) for every mission; the crew flying in it
-is chosen by the mission's data: its one team is a :class:`~fleetctl.run.runner.Run`, several
-teams a :class:`~fleetctl.run.teams.coordinator.TeamsRun` of one ``Run`` per team (docs/teams.md).
+Every mission flies through one :class:`~fleetctl.run.crew.Crew` (the lifecycle, once); what flies
+in it is chosen by the mission's data: one team is a :class:`~fleetctl.run.runner.TeamFlight`,
+several teams a :class:`~fleetctl.run.teams.coordinator.TeamsFlight`, which flies each team as a
+crew of one team on its share (docs/teams.md).
 """
 
 from __future__ import annotations
@@ -11,9 +12,10 @@ from typing import Any
 
 from fleetctl.mission import Mission
 from fleetctl.mission.teams import mission_teams
+from fleetctl.run.crew import Crew
 from fleetctl.run.lifecycle import COMMANDS, RunOptions, RunOutcome
-from fleetctl.run.runner import Run
-from fleetctl.run.teams.coordinator import TeamsRun
+from fleetctl.run.runner import TeamFlight
+from fleetctl.run.teams.coordinator import TeamsFlight
 
 
 async def fly(mission: Mission, command: str, opts: RunOptions) -> RunOutcome:
@@ -28,8 +30,8 @@ async def fly(mission: Mission, command: str, opts: RunOptions) -> RunOutcome:
     told it first; ``resume`` - a :class:`~fleetctl.run.resume.Resumption` to finish."""
     if command not in COMMANDS:
         raise ValueError(f"unknown command {command!r}")
-    crew = TeamsRun if len(mission_teams(mission)) > 1 else Run
-    return await crew(mission, command, opts).fly()
+    flight: type[TeamFlight | TeamsFlight] = TeamsFlight if len(mission_teams(mission)) > 1 else TeamFlight
+    return await Crew(mission, command, opts, flight).fly()
 
 
 async def execute(mission: Mission, command: str, **options: Any) -> RunOutcome:

@@ -58,4 +58,12 @@ class Watch(StrEnum):
     REASSIGN = "reassign"  # a lost rover's grace (links.reassign_after) is over
 
 
-__all__ = ["Ev", "Phase", "VehicleStatus", "Watch"]
+PHASES = ("deploy", "dwell", "collect")  # the phases of a run, in order
+
+
+def phases_of(command: str) -> list[str]:
+    """The phases ``command`` (``deploy`` | ``collect`` | ``run``) flies, in order."""
+    return {"deploy": ["deploy"], "collect": ["collect"], "run": list(PHASES)}[command]
+
+
+__all__ = ["PHASES", "Ev", "Phase", "VehicleStatus", "Watch", "phases_of"]

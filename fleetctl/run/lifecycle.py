@@ -2,11 +2,11 @@
 
 A session owns what a run needs once - the run folder and its write-ahead journal, the mission
 clock, the embedded simulated fleet (:func:`fleetctl.run.sim.embedded_fleet`), the links to the
-fleet with one route-conflict policy, the exit status, and closing everything in order. What
-flies inside it is a *crew*: :class:`fleetctl.run.runner.Run` for one team,
-:class:`fleetctl.run.teams.coordinator.TeamsRun` for several (each team of which is a ``Run`` on a
-session that borrows the fleet, the simulator and the bus of its owner). :func:`fleetctl.run.flight.execute`
-picks the crew from the mission's teams.
+fleet with one route-conflict policy, the exit status, and closing everything in order. The one
+class that goes through it, in one order, is :class:`fleetctl.run.crew.Crew`; what flies in it (one
+team's flight, or several teams') is chosen by :func:`fleetctl.run.flight.fly` from the mission's
+teams. A team of a several-team run is a crew of its own whose session borrows the fleet, the
+simulator and the bus of its owner.
 
 The shared vocabulary of a run lives here too: :class:`RunOptions` (the command line's options),
 :class:`RunOutcome` and the exit codes.
@@ -20,7 +20,7 @@ import time
 from collections.abc import Awaitable, Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, TypeVar
+from typing import TYPE_CHECKING, Any
 
 from fleetctl.journal import Journal, run_dir_for, write_summary
 from fleetctl.mavlink.fleet import Fleet, connect_fleet
@@ -47,7 +47,6 @@ EXIT_FAILED = 1
 EXIT_INTERRUPTED = 130
 COMMANDS = ("deploy", "collect", "run")
 ROUTE_CONFLICT_EVERY = 10.0  # s between route-conflict events from one source
-B = TypeVar("B")  # the bus a crew closes (one bus, or a team's buses)
 
 
 @dataclass
@@ -190,6 +189,18 @@ class Session:
         if self.opts.on_sim is not None:
             self.opts.on_sim(sim)
 
+    def pin_scenario_batteries(self, pinned: bool) -> None:
+        """A collection on a simulated fleet: each rover of the ``collection:`` section has its
+        ``range`` left (``range = (remaining - reserve) x endurance_range``) when the collection
+        starts; ``pinned``, the simulator holds it there (while the fleet connects and the first
+        plan is made), else it drains as usual."""
+        if self.sim is None or self.command != "collect" or not self.mission.collection:
+            return
+        rp = self.mission.rovers
+        for cr in self.mission.collection:
+            level = min(1.0, rp.reserve + cr.range / rp.endurance_range)
+            self.sim.pin_battery(cr.id, level if pinned else None)
+
     async def connect(self, emit: Emit) -> Fleet:
         """The fleet: the one given, or every vehicle of the mission on its links, with the route
         conflict policy (:meth:`route_conflict`) telling conflicts through ``emit``."""
@@ -235,7 +246,7 @@ class Session:
 
     # -- the flight ------------------------------------------------------------------------------
     def was_interrupted(self) -> None:
-        """Called in the ``except CancelledError`` of the crew's flight: the run goes on to write its
+        """Called in the ``except CancelledError`` of the crew's run: the run goes on to write its
         records (the cancellation is absorbed) and ends with :data:`EXIT_INTERRUPTED`."""
         task = asyncio.current_task()
         if task is not None:
@@ -251,10 +262,9 @@ class Session:
         self.journal.write(Ev.SUMMARY, **summary)
         write_summary(summary, self.journal.summary_path, self.opts.summary_path)
 
-    async def close(self, bus: B | None = None,
-                    bus_final: Callable[[B], Awaitable[object]] | None = None) -> None:
-        """Close in order: the view, the fleet (unless borrowed), the bus (``bus_final(bus)``
-        closes it), the journal, the simulator (unless borrowed)."""
+    async def close(self, close_bus: Callable[[], Awaitable[object]] | None = None) -> None:
+        """Close in order: the view, the fleet (unless borrowed), the bus (``close_bus()``), the
+        journal, the simulator (unless borrowed)."""
         if self.opts.view is not None:
             with contextlib.suppress(Exception):
                 await self.opts.view.stop()
@@ -264,9 +274,9 @@ class Session:
         if self.fleet is not None and self.opts.fleet is None:
             with contextlib.suppress(Exception):
                 await self.fleet.close()
-        if bus is not None and bus_final is not None:
+        if close_bus is not None:
             with contextlib.suppress(Exception):
-                await bus_final(bus)
+                await close_bus()
         await self.journal.aclose()
         if self._sim_cm is not None:
             with contextlib.suppress(Exception):
@@ -274,8 +284,8 @@ class Session:
 
 
 class OnSession:
-    """What a crew (:class:`~fleetctl.run.runner.Run`, :class:`~fleetctl.run.teams.coordinator.TeamsRun`)
-    reads from its :attr:`session`: the mission clock and its scale, the simulator, the endpoints, the
+    """What a crew and its flight (:mod:`fleetctl.run.crew`) read from their :attr:`session`: the
+    mission clock and its scale, the simulator, the endpoints, the
     error and whether it was interrupted."""
 
     session: Session

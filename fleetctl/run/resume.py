@@ -31,7 +31,7 @@ from fleetctl.mission import Mission, MissionError, load_mission
 from fleetctl.mission.teams import mission_teams
 from fleetctl.run.collect import ResumedCollect
 from fleetctl.run.deploy import HOLD_SPEED, REACH_RADIUS, ResumedDeploy
-from fleetctl.run.kinds import Ev
+from fleetctl.run.kinds import PHASES, Ev, phases_of
 from fleetctl.run.operation.resume import OperationReplay, reconcile_operation, replay_operation
 from fleetctl.run.results import PhaseResult
 from fleetctl.run.sim import mission_uses_sim
@@ -39,7 +39,6 @@ from fleetctl.run.state import FleetState, on_deck
 from fleetctl.run.task_board import TaskBoard, TaskStatus
 from planners.core.problem import Task
 
-PHASES = ("deploy", "dwell", "collect")
 Disarm = Callable[[Vehicle], Awaitable[None]]
 SETTLE_TIMEOUT = 5.0  # wall s to wait for every vehicle's position before reconciling
 
@@ -75,7 +74,7 @@ class Resumption:
         return {}
 
     def phases_left(self, command: str) -> list[str]:
-        order = {"deploy": ["deploy"], "collect": ["collect"], "run": list(PHASES)}[command]
+        order = phases_of(command)
         return order[order.index(self.phase) :] if self.phase in order else order
 
     def _elapsed(self, phase: str) -> float:

@@ -1,6 +1,6 @@
 """``fleetctl resume --run DIR`` of a run of several teams (docs/teams.md#resume).
 
-A run of several teams (:class:`~fleetctl.run.teams.coordinator.TeamsRun`) keeps two kinds of
+A run of several teams (:class:`~fleetctl.run.teams.coordinator.TeamsFlight`) keeps two kinds of
 records: the run's journal ``RUN/journal.jsonl`` (the ``run`` record naming the teams, the
 ``teams_plan`` records of how the work was shared, each team's run ``started`` and ``ended``, the
 ``handover`` records, the ``dwell``) and one journal per team and phase,
@@ -33,10 +33,9 @@ from typing import Any
 from fleetctl.journal import JOURNAL_NAME
 from fleetctl.mission import Mission
 from fleetctl.mission.teams import mission_teams, several_teams, team_mission
-from fleetctl.run.kinds import Ev
+from fleetctl.run.kinds import Ev, phases_of
 from fleetctl.run.resume import ResumeError, Resumption, read_records, read_run, resumption_of
 
-PHASES = ("deploy", "dwell", "collect")
 TEAMS_FOLDER = "teams"  # RUN/teams/<carrier>/<phase>/: each team's records
 
 
@@ -116,7 +115,7 @@ class TeamsResumption:
 
     # -- for the run ---------------------------------------------------------------------------------
     def phases_left(self) -> list[str]:
-        order = {"deploy": ["deploy"], "collect": ["collect"], "run": list(PHASES)}[self.command]
+        order = phases_of(self.command)
         return order[order.index(self.phase):] if self.phase in order else order
 
     def dwell_left(self, wait: float) -> float:

@@ -2,7 +2,7 @@
 :class:`WorkSource` may hand the deployment more tasks, each batch one more round on the same
 :class:`~fleetctl.run.task_board.TaskBoard` with the rovers left on the deck.
 
-:meth:`fleetctl.run.runner.Run._deploy` is the one loop; the source says whether there is more
+:meth:`fleetctl.run.runner.TeamFlight._deploy` is the one loop; the source says whether there is more
 work, and how a round that leaves tasks unserved is judged (:class:`Unserved`). A one-carrier run
 has no source of more work (:data:`NO_MORE_WORK`); the several-carrier sources are in
 :mod:`fleetctl.run.teams.rounds`.

@@ -1,24 +1,22 @@
-"""One team's run of ``deploy``, ``collect`` or ``run``: connect, the phases, and the way out,
-inside the :class:`~fleetctl.run.lifecycle.Session` that owns the records, the clock, the
-simulated fleet and the links.
+"""One team's flight of ``deploy``, ``collect`` or ``run``: :class:`TeamFlight`, what flies in a
+:class:`~fleetctl.run.crew.Crew` of one team (the crew owns the lifecycle: records, clock,
+simulated fleet, links, summary, closing).
 
-The run folder (``--run-dir``, default ``runs/<mission>-<timestamp>/``) holds the write-ahead
-journal, the ``.tlog``, the plans, the summary and a copy of the mission file. Cancelling the run
-(Ctrl-C, SIGTERM) commands airborne rovers to hold, writes the journal and a summary built from what
-the phases saw, and returns :data:`~fleetctl.run.lifecycle.EXIT_INTERRUPTED`. ``fleetctl resume``
-(:mod:`fleetctl.run.resume`) runs the same :class:`Run` with a
-:class:`~fleetctl.run.resume.Resumption` of an interrupted one. :func:`fleetctl.run.flight.execute`
-is what the command line calls.
+The flight starts the team's bus, admits the vehicles the links found (preflight, the deck), takes
+up a resumed run (:class:`~fleetctl.run.resume.Resumption`: ``fleetctl resume``), flies the phases
+(deployment rounds, dwell, collection, or a long operation) and, on its way out, builds the summary
+from what the phases saw. Interrupted (Ctrl-C, SIGTERM), it commands airborne rovers to hold. The
+run folder (``--run-dir``, default ``runs/<mission>-<timestamp>/``) holds the write-ahead journal,
+the ``.tlog``, the plans, the summary and a copy of the mission file.
 """
 
 from __future__ import annotations
 
 import asyncio
 import contextlib
-import importlib
 import logging
 import time
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from fleetctl.mavlink.fleet import Fleet
 from fleetctl.mavlink.link import LinkError
@@ -28,8 +26,8 @@ from fleetctl.run.admission import Admission, admit
 from fleetctl.run.context import ExecutionError
 from fleetctl.run.deploy import ResumedDeploy
 from fleetctl.run.executor import Executor
-from fleetctl.run.kinds import Ev, Phase, VehicleStatus
-from fleetctl.run.lifecycle import OnSession, RunOptions, RunOutcome, Session
+from fleetctl.run.kinds import Ev, Phase, VehicleStatus, phases_of
+from fleetctl.run.lifecycle import OnSession
 from fleetctl.run.results import PhaseResult
 from fleetctl.run.rounds import NO_MORE_WORK, DeployRounds, Unserved, WorkSource
 from fleetctl.run.state import FleetState
@@ -37,21 +35,27 @@ from fleetctl.run.summary import RunFacts, build_summary
 from planners.core.plan import Plan
 from planners.core.problem import Task
 
+if TYPE_CHECKING:
+    from fleetctl.run.crew import Crew
+
 log = logging.getLogger(__name__)
 
 
-class Run(OnSession):
-    """One run of a command (see the module docstring)."""
+class TeamFlight(OnSession):
+    """One team's flight in its crew (see the module docstring)."""
 
-    def __init__(self, mission: Mission, command: str, opts: RunOptions) -> None:
-        if opts.teams_resume is not None:
+    warm_planners = True  # its first plan is made while rovers may hover
+
+    def __init__(self, crew: Crew[Any]) -> None:
+        if crew.opts.teams_resume is not None:
             raise ExecutionError("the records are of a run of several teams and the mission has one carrier")
-        self.session = Session(mission, command, opts)
-        self.mission = mission
-        self.command = command
-        self.opts = opts
-        self.journal = self.session.journal
-        self.state = FleetState(mission)
+        self.crew = crew
+        self.session = crew.session
+        self.mission: Mission = crew.mission
+        self.command = crew.command
+        self.opts = crew.opts
+        self.journal = crew.journal
+        self.state = FleetState(self.mission)
         self.state.mission_clock = self.session.clock
         self.results: dict[str, PhaseResult] = {}
         self.deploy_rounds = DeployRounds()
@@ -65,7 +69,7 @@ class Run(OnSession):
         self._opened = 0.0
         self._refresher: asyncio.Task[None] | None = None
 
-    # ============================================================================== the run
+    # ============================================================================== the way in
     def _start_bus(self) -> Any:
         from fleetctl.bus.client import start_bus
 
@@ -77,72 +81,35 @@ class Run(OnSession):
             return bus
         return start_bus(self.mission, self.opts.mqtt, self.journal, self.state, self.opts.view)
 
-    async def fly(self) -> RunOutcome:
-        self.session.open_records()
+    async def begin(self) -> None:
+        """The team's events go to the journal, its bus starts, then the run's first records."""
         self.state.add_listener(self.journal.on_event)
         self.bus = self._start_bus()
         await self.session.begin_records()
-        try:
-            await self._warm_planners()
-            await self.session.start_sim()
-            self.state.mission_clock = self.session.clock  # the simulator's time once it runs: T+ from 0
-            self._scenario_batteries(hold=True)
-            await self._connect()
-            await self._phases()
-            self.state.phase = Phase.DONE
-        except ExecutionError as exc:
-            self.error = str(exc)
-            self.state.phase = Phase.FAILED
-            self.state.event(Ev.ERROR, self.error)
-        except asyncio.CancelledError:
-            await self._interrupted()
-        finally:
-            summary = await self._finish()
-        return self.session.outcome(summary)
 
-    async def _warm_planners(self) -> None:
-        """Import the mission's planners (and the SciPy/shapely they need) before the fleet runs:
-        a first plan would otherwise pay the import while rovers hover (seconds of battery on a
-        fast simulated fleet)."""
-        from planners import COLLECT_PLANNERS, DEPLOY_PLANNERS
-
-        names: dict[str, dict[str, Any]] = {"deploy": DEPLOY_PLANNERS, "collect": COLLECT_PLANNERS}
-        kinds = ("deploy", "collect") if self.command == "run" else (self.command,)
-        loaders = [getattr(names[k].get(self.opts.planner or self.mission.planner_for(k)), "load", None)
-                   for k in kinds]
-
-        def warm() -> None:
-            for load in loaders:
-                if load is not None:
-                    load()
-            importlib.import_module("scipy.optimize")  # the placement searches use it on their first call
-            # the re-sequencing of routes of more than 80 stops (planners.core.routing) uses its k-d tree:
-            # its import costs some 280 ms of CPU, which a first plan or replan would otherwise pay
-            importlib.import_module("scipy.spatial")
-
-        await asyncio.to_thread(warm)
-
-    def _scenario_batteries(self, hold: bool) -> None:
-        """A collection on a simulated fleet: each rover of the ``collection:`` section has its
-        ``range`` left (``range = (remaining - reserve) x endurance_range``) when the collection
-        starts; while the fleet connects (``hold``) the simulator holds it there, after that it
-        drains as usual."""
-        if self.sim is None or self.command != "collect" or not self.mission.collection:
-            return
-        rp = self.mission.rovers
-        for cr in self.mission.collection:
-            level = min(1.0, rp.reserve + cr.range / rp.endurance_range)
-            self.sim.pin_battery(cr.id, level)
-            if not hold:
-                self.sim.pin_battery(cr.id, None)
-
-    async def _connect(self) -> None:
-        st, view = self.state, self.opts.view
-        st.phase = Phase.CONNECT
-        if view is not None:
-            view.start(st, None)
+    def ready(self) -> None:
+        """T+ counts on the simulator's clock once it runs."""
+        self.state.mission_clock = self.session.clock
+        self.state.phase = Phase.CONNECT
+        if self.opts.view is not None:
+            self.opts.view.start(self.state, None)
         self._opened = time.monotonic()
-        fleet = self.fleet = await self.session.connect(self.state.event)
+
+    def emit(self, kind: str, text: str, vehicle: str | None = None, **data: Any) -> object:
+        return self.state.event(kind, text, vehicle, **data)
+
+    def failed(self, error: str) -> None:
+        self.state.phase = Phase.FAILED
+        self.state.event(Ev.ERROR, error)
+
+    def _release_batteries(self) -> None:
+        """A collection scenario's batteries, held while the fleet connected, drain from now on."""
+        self.session.pin_scenario_batteries(False)
+
+    async def connected(self, fleet: Fleet) -> None:
+        """Admit the vehicles the links found, take up a resumed run, record the connections."""
+        st, view = self.state, self.opts.view
+        self.fleet = fleet
         self._refresher = asyncio.create_task(self._refresh(fleet), name="state refresh")
         adm = self._admission()
         self.missing = await admit(fleet, self.mission, self.command, adm)
@@ -158,7 +125,7 @@ class Run(OnSession):
             st.event(Ev.PREFLIGHT_FAILED, f"{vid}: {why}; flying without it", vid, reason=why)
         for kind, text, vid in adm.safety.notes if adm.safety is not None else ():
             st.event(kind, text, vid)
-        self._scenario_batteries(hold=False)
+        self._release_batteries()
         if self.opts.resume is not None:
             await self.opts.resume.reconcile(fleet, st, self._disarm)
             await self.journal.commit(Ev.RESUMED, **self.opts.resume.record())
@@ -227,10 +194,10 @@ class Run(OnSession):
             log.warning("could not write %s/: %s", folder, exc)
 
     # ============================================================================== the phases
-    async def _phases(self) -> None:
+    async def phases(self) -> None:
         resume = self.opts.resume
         todo = (["operation"] if self.mission.operation else resume.phases_left(self.command)
-                if resume is not None else _phases_of(self.command))
+                if resume is not None else phases_of(self.command))
         if resume is not None:
             self.results.update(resume.finished_results())
         for phase in todo:
@@ -243,6 +210,7 @@ class Run(OnSession):
                 await self._dwell()
             else:
                 await self._collect()
+        self.state.phase = Phase.DONE
 
     async def _deploy(self) -> None:
         """The deployment: a first round flies the mission's tasks, then one more round per batch
@@ -353,8 +321,7 @@ class Run(OnSession):
         )
 
     # ============================================================================== the way out
-    async def _interrupted(self) -> None:
-        self.session.was_interrupted()
+    async def cancelled(self) -> None:
         self.state.phase = Phase.INTERRUPTED
         self.state.event(Ev.INTERRUPTED, "interrupted: holding airborne rovers")
         if self.executor is not None:
@@ -373,7 +340,7 @@ class Run(OnSession):
         if ex.collect_phase is not None and "collect" not in self.results:
             self.results["collect"] = ex.collect_phase.snapshot()
 
-    async def _finish(self) -> dict[str, Any]:
+    async def end(self) -> dict[str, Any]:
         if self._refresher is not None:
             self._refresher.cancel()
             with contextlib.suppress(asyncio.CancelledError):
@@ -399,19 +366,15 @@ class Run(OnSession):
                 mqtt=self.bus.stats() if self.bus is not None else None,
             )
         )
-        self.session.write_summary(summary)
-        await self.session.close(self.bus, self._close_bus)
         return summary
 
-    async def _close_bus(self, bus: Any) -> None:
+    async def close_bus(self) -> None:
+        if self.bus is None:
+            return
         if self.opts.bus is None:
-            await bus.aclose(self.state.phase)
+            await self.bus.aclose(self.state.phase)
         else:  # its owner closes it
-            await bus.unfollow()
+            await self.bus.unfollow()
 
 
-def _phases_of(command: str) -> list[str]:
-    return {"deploy": ["deploy"], "collect": ["collect"], "run": ["deploy", "dwell", "collect"]}[command]
-
-
-__all__ = ["Run"]
+__all__ = ["TeamFlight"]

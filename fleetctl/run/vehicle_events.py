@@ -1,7 +1,7 @@
 """What the controller tells of a vehicle's own events (its link lost or back, its text messages,
 a geofence breach, arming, mode and landed-state changes): one wording for every run, one team's
 (:class:`fleetctl.run.executor.Executor`) or the rovers several teams leave on task while they dwell
-(:class:`fleetctl.run.teams.coordinator.TeamsRun`)."""
+(:class:`fleetctl.run.teams.coordinator.TeamsFlight`)."""
 
 from __future__ import annotations
 

@@ -1,12 +1,13 @@
 """``deploy``, ``collect`` and ``run`` of a mission with several carriers, in one controller.
 
-:class:`TeamsRun` starts one simulated fleet serving every carrier (``connection: sim``), opens
-the links of every vehicle once, shares the work between the teams with ``planners.teams`` (from
-the carriers' live poses) and flies one :class:`~fleetctl.run.teams.team_run.TeamRun` per team
-concurrently, each a one-team run of its share on its own view of the fleet, with its own
-records in ``RUN/teams/<carrier>/<phase>/``. ``run`` deploys every team, dwells, then shares the
-collection out again from the rovers' live positions and batteries: a rover may land on another
-team's carrier.
+:class:`TeamsFlight` is what flies in the :class:`~fleetctl.run.crew.Crew` of such a mission (the
+crew owns the lifecycle: one simulated fleet serving every carrier for ``connection: sim``, the
+links of every vehicle opened once, the records, the summary). It shares the work between the
+teams with ``planners.teams`` (from the carriers' live poses) and flies each team concurrently as a
+crew of one team (:func:`~fleetctl.run.teams.team_run.team_crew`) on its share, on its own view
+of the fleet, with its own records in ``RUN/teams/<carrier>/<phase>/``. ``run`` deploys every
+team, dwells, then shares the collection out again from the rovers' live positions and batteries:
+a rover may land on another team's carrier.
 
 Cross-team replanning (:class:`~fleetctl.run.teams.handover.Handovers`): a team whose carrier
 stays lost longer than ``links.reassign_after`` hands its unlaunched tasks over, and a team
@@ -34,16 +35,9 @@ from fleetctl.mavlink.fleet import Fleet
 from fleetctl.mission import Mission
 from fleetctl.mission.teams import mission_teams, team_mission, teams_problem
 from fleetctl.run.context import ExecutionError
-from fleetctl.run.kinds import Ev
-from fleetctl.run.lifecycle import (
-    EXIT_FAILED,
-    EXIT_INTERRUPTED,
-    EXIT_OK,
-    OnSession,
-    RunOptions,
-    RunOutcome,
-    Session,
-)
+from fleetctl.run.crew import Crew
+from fleetctl.run.kinds import Ev, phases_of
+from fleetctl.run.lifecycle import EXIT_FAILED, EXIT_INTERRUPTED, EXIT_OK, OnSession, RunOptions, RunOutcome
 from fleetctl.run.results import PhaseResult
 from fleetctl.run.resume import Resumption
 from fleetctl.run.resume_teams import TeamsResumption
@@ -52,7 +46,7 @@ from fleetctl.run.teams.bus import TeamsBuses
 from fleetctl.run.teams.handover import Handovers
 from fleetctl.run.teams.live import live_mission, rovers_in_the_field
 from fleetctl.run.teams.summary import teams_summary
-from fleetctl.run.teams.team_run import TeamRun
+from fleetctl.run.teams.team_run import TeamRun, team_crew
 from fleetctl.run.teams.views import team_views
 from fleetctl.run.vehicle_events import battery_low_text, tell_vehicle_event
 from fleetctl.teams_plan import share_teams
@@ -65,18 +59,21 @@ WATCH_EVERY = 0.2  # wall s between looks at the carriers' links while the teams
 CLOCK_STEP = 0.05  # wall s between looks at the mission clock while dwelling
 
 
-class TeamsRun(OnSession):
-    """A run of several teams (see the module docstring)."""
+class TeamsFlight(OnSession):
+    """The flight of several teams in their crew (see the module docstring)."""
 
-    def __init__(self, mission: Mission, command: str, opts: RunOptions) -> None:
+    warm_planners = False  # each team's crew warms its own
+
+    def __init__(self, crew: Crew[Any]) -> None:
+        mission, opts = crew.mission, crew.opts
         if opts.resume is not None:
             raise ExecutionError("the records are of a run of one carrier and the mission has several")
         self.resume = opts.teams_resume  # a run of several teams to finish (fleetctl.run.resume_teams)
-        self.session = Session(mission, command, opts)
+        self.session = crew.session
         self.mission = mission
-        self.command = command
+        self.command = crew.command
         self.opts = opts
-        self.journal = self.session.journal
+        self.journal = crew.journal
         self.board = TeamsBoard(
             {t.carrier.id: TeamEntry(t.carrier.id, t.rovers) for t in mission_teams(mission)}
         )
@@ -94,46 +91,54 @@ class TeamsRun(OnSession):
         self.dwell_planned: float | None = None
         self.dwell_flown: float | None = None
         self.t0 = 0.0  # mission clock when the run of every team started (T+ = 0)
+        self.summary: dict[str, Any] = {}  # once built on the way out
         self._confirm_lock = threading.Lock()
         self._low: set[str] = set()  # rovers told at their reserve while dwelling
         self.buses = TeamsBuses.configure(mission, opts.mqtt, self.journal.write,
                                           "sim" if self.session.uses_sim else "real")
 
-    # ============================================================================== the run
-    async def fly(self) -> RunOutcome:
-        self.session.open_records()
-        await self._begin_records()
-        try:
-            await self.session.start_sim()
-            self._hold_scenario_batteries()
-            self.t0 = self.clock()
-            await self._connect()
-            if self.resume is not None:
-                self._resumed_records(self.resume)
-                await self.journal.commit(Ev.RESUMED, **self.resume.record())
-            for phase in self._phases():
-                if phase == "deploy":
-                    await self._deploy()
-                elif phase == "dwell":
-                    await self._dwell()
-                else:
-                    await self._collect()
-        except ExecutionError as exc:
-            self.error = str(exc)
-            self.journal.write(Ev.ERROR, text=self.error)
-        except asyncio.CancelledError:
-            self.session.was_interrupted()
-            self.journal.write(Ev.INTERRUPTED, text="interrupted: every team holds its airborne rovers")
-        finally:
-            summary = await self._finish()
-        return self.session.outcome(summary)
+    # ============================================================================== the way in
+    async def begin(self) -> None:
+        """The ``run`` record names every team; then the buses (the run's and each team's) start."""
+        teams = {cid: list(e.rovers) for cid, e in self.board.teams.items()}
+        await self.session.begin_records(teams=teams)
+        self.journal.add_observer(self.buses.on_record)
+        self.buses.start(list(self.board.teams))
+
+    def ready(self) -> None:
+        """T+ = 0 for every team (each team's crew lets a collection scenario's batteries drain)."""
+        self.t0 = self.clock()
+
+    async def connected(self, fleet: Fleet) -> None:
+        """Every vehicle of every team on one set of links (each team flies a view of it)."""
+        self.fleet = fleet
+        for vid, v in fleet.vehicles.items():
+            if v.connected:
+                self.journal.write(Ev.CONNECTED, vehicle=vid, url=fleet.urls.get(vid), sysid=v.sysid)
+        if self.resume is not None:
+            self._resumed_records(self.resume)
+            await self.journal.commit(Ev.RESUMED, **self.resume.record())
+
+    async def phases(self) -> None:
+        for phase in self._phases():
+            if phase == "deploy":
+                await self._deploy()
+            elif phase == "dwell":
+                await self._dwell()
+            else:
+                await self._collect()
+
+    def failed(self, error: str) -> None:
+        self.journal.write(Ev.ERROR, text=error)
+
+    async def cancelled(self) -> None:
+        """Each team's run, cancelled with this one, holds its own airborne rovers."""
+        self.journal.write(Ev.INTERRUPTED, text="interrupted: every team holds its airborne rovers")
 
     def _phases(self) -> list[str]:
         if self.resume is not None:
             return self.resume.phases_left()
-        return {"deploy": ["deploy"], "collect": ["collect"], "run": ["deploy", "dwell", "collect"]}[
-            self.command
-        ]
+        return phases_of(self.command)
 
     def _resumed_records(self, resume: TeamsResumption) -> None:
         """A resumed run: the hand-overs recorded before the restart stand (a task handed to a team
@@ -163,31 +168,7 @@ class TeamsRun(OnSession):
                 entry.status, entry.finished = TeamStatus.DONE, True
             self.loaded_before = resume.loaded()
 
-    async def _begin_records(self) -> None:
-        teams = {cid: list(e.rovers) for cid, e in self.board.teams.items()}
-        await self.session.begin_records(teams=teams)
-        self.journal.add_observer(self.buses.on_record)
-        self.buses.start(list(self.board.teams))
-
-    def _hold_scenario_batteries(self) -> None:
-        """``collect`` on the simulated fleet: each rover of the ``collection:`` section has its
-        ``range`` left when the collection starts; the simulator holds it there while the fleet
-        connects and the work is shared (each team's run then lets it drain after its own
-        connect, as a one-carrier collection does)."""
-        if self.sim is None or self.command != "collect" or not self.mission.collection:
-            return
-        rp = self.mission.rovers
-        for cr in self.mission.collection:
-            self.sim.pin_battery(cr.id, min(1.0, rp.reserve + cr.range / rp.endurance_range))
-
-    async def _connect(self) -> None:
-        """Every vehicle of every team on one set of links (each team flies a view of it)."""
-        fleet = self.fleet = await self.session.connect(self._emit)
-        for vid, v in fleet.vehicles.items():
-            if v.connected:
-                self.journal.write(Ev.CONNECTED, vehicle=vid, url=fleet.urls.get(vid), sysid=v.sysid)
-
-    def _emit(self, kind: str, text: str, vehicle: str | None = None, **data: Any) -> None:
+    def emit(self, kind: str, text: str, vehicle: str | None = None, **data: Any) -> None:
         """An event of the run of every team (its journal: the teams' views show their own)."""
         self.journal.write(kind, vehicle=vehicle, text=text, **data)
 
@@ -203,14 +184,14 @@ class TeamsRun(OnSession):
             self.buses.start_teams({cid: resume.team_tasks(cid) for cid in self.board.teams})
         self.views = team_views(self.opts.view, list(self.board.teams))
         runs = {
-            cid: TeamRun(
+            cid: team_crew(
                 self._team_mission(cid, tasks=resume.team_tasks(cid) if resume is not None else e.tasks),
                 "deploy",
                 self._team_opts(cid, "deploy", resume=None if resume is None else resume.team_deploy(cid)),
                 cid,
                 self,
                 self.t0,
-            )
+            ).flight
             for cid, e in self.board.teams.items()
         }
         self.runs["deploy"] = runs
@@ -343,7 +324,7 @@ class TeamsRun(OnSession):
     def _listen_to_rovers(self) -> Callable[[], None]:
         """Tell every rover's own events while no team's run is flying (the dwell)."""
         assert self.fleet is not None
-        removers = [v.add_listener(lambda ev: tell_vehicle_event(ev, self._emit, self.journal.write))
+        removers = [v.add_listener(lambda ev: tell_vehicle_event(ev, self.emit, self.journal.write))
                     for v in self.fleet.rovers.values()]
 
         def unlisten() -> None:
@@ -360,7 +341,7 @@ class TeamsRun(OnSession):
             pct = v.battery_pct
             if pct is not None and pct / 100.0 <= reserve and rid not in self._low:
                 self._low.add(rid)
-                self._emit(Ev.BATTERY_LOW, battery_low_text(rid, pct), rid, battery_pct=pct)
+                self.emit(Ev.BATTERY_LOW, battery_low_text(rid, pct), rid, battery_pct=pct)
 
     # ============================================================================== collection
     async def _collect(self) -> None:
@@ -392,7 +373,7 @@ class TeamsRun(OnSession):
             own = team_mission(live, cid, tasks=(), rovers=rovers)
             own = dataclasses.replace(own, mqtt=None, collection=own.collection if keep else None)
             opts = self._team_opts(cid, "collect", rovers, resume=self._collect_resumption(cid))
-            runs[cid] = TeamRun(own, "collect", opts, cid, None, self.t0)
+            runs[cid] = team_crew(own, "collect", opts, cid, None, self.t0).flight
             self.board.set_status(cid, TeamStatus.COLLECTING)
         self.runs["collect"] = runs
         await self._fly_all("collect", runs, self._collect_ended)
@@ -512,7 +493,7 @@ class TeamsRun(OnSession):
 
         async def one(cid: str, run: TeamRun) -> None:
             self.journal.write(Ev.TEAM, team=cid, phase=phase, status="started", run_dir=str(run.journal.dir))
-            flying = self.flying[cid] = asyncio.create_task(run.fly(), name=f"team {cid} {phase} run")
+            flying = self.flying[cid] = asyncio.create_task(run.crew.fly(), name=f"team {cid} {phase} run")
             try:
                 outcome = await flying
             except asyncio.CancelledError:
@@ -560,14 +541,15 @@ class TeamsRun(OnSession):
         teams = {cid: "failed" if cid in failed else "done" for cid in self.board.teams}
         return ("done" if summary["result"] == "complete" else "failed"), teams
 
-    async def _finish(self) -> dict[str, Any]:
-        summary = teams_summary(self)
+    async def end(self) -> dict[str, Any]:
+        summary = self.summary = teams_summary(self)
         mqtt = self.buses.stats()
         if mqtt is not None:
             summary["mqtt"] = mqtt
-        self.session.write_summary(summary)
-        await self.session.close(self.buses, lambda buses: buses.aclose(*self._bus_finals(summary)))
         return summary
 
+    async def close_bus(self) -> None:
+        await self.buses.aclose(*self._bus_finals(self.summary))
 
-__all__ = ["TeamsRun"]
+
+__all__ = ["TeamsFlight"]

@@ -6,7 +6,7 @@ lost), each from its carrier's live pose with the rovers it has left on its deck
 needed by its own pooled tasks; a team still starting - connecting, preflight - from its start
 with the rovers of its roster its share leaves over). A team still deploying gets its share as a task change
 (:meth:`~fleetctl.run.executor.Executor.submit_task_change`, source ``team <from>``); a team
-that finished deploying flies it in a further round (:meth:`TeamsRun.more_work`). Tasks no team
+that finished deploying flies it in a further round (:meth:`TeamsFlight.more_work`). Tasks no team
 can take stay unserved, owned by the team that gave them up. Every hand-over is journalled
 (``handover``: tasks, from, to, why).
 """
@@ -27,13 +27,13 @@ from planners.core.problem import Task
 from planners.teams import TeamsProblem
 
 if TYPE_CHECKING:
-    from fleetctl.run.teams.coordinator import TeamsRun
+    from fleetctl.run.teams.coordinator import TeamsFlight
 
 
 class Handovers:
     """The hand-overs of one run of several teams (see the module docstring)."""
 
-    def __init__(self, teams: TeamsRun) -> None:
+    def __init__(self, teams: TeamsFlight) -> None:
         self.teams = teams
         self.lock = asyncio.Lock()  # one hand-over at a time (each reads the decks left)
 

@@ -1,12 +1,13 @@
 """``deploy|run --team ID``: one team of a several-carrier mission, one controller per team.
 
 (Not to be confused with :class:`fleetctl.run.teams.team_run.TeamRun`: one team's run *inside*
-the controller that flies every team, :class:`~fleetctl.run.teams.coordinator.TeamsRun`.)
+the controller that flies every team, :class:`~fleetctl.run.teams.coordinator.TeamsFlight`.)
 
 Every controller computes the same allocation of the tasks to the teams (:func:`team_shares`:
 the mission's deploy planner, its seed, the quick plan only, so the same file gives the same
-shares everywhere) and flies its own share with :class:`TeamControllerRun`, an ordinary
-:class:`~fleetctl.run.runner.Run` of :func:`~fleetctl.mission.teams.team_mission` (its carrier,
+shares everywhere) and flies its own share in a :class:`~fleetctl.run.crew.Crew` of one team
+whose flight is :class:`TeamControllerRun`, an ordinary
+:class:`~fleetctl.run.runner.TeamFlight` of :func:`~fleetctl.mission.teams.team_mission` (its carrier,
 the rovers on its deck; the embedded simulator of ``connection: sim`` runs that team only). With
 a bus, a :class:`~fleetctl.run.teams.link.TeamLink` coordinates it with the other teams'
 controllers; when its own share is done the team stands by while another team may still hand
@@ -26,12 +27,14 @@ from typing import Any
 
 from fleetctl.bus.config import BusConfig
 from fleetctl.journal import JOURNAL_NAME, read_journal
+from fleetctl.mavlink.fleet import Fleet
 from fleetctl.mission import Mission
 from fleetctl.mission.teams import team_mission, team_of
+from fleetctl.run.crew import Crew
 from fleetctl.run.kinds import Ev
 from fleetctl.run.lifecycle import RunOptions, RunOutcome
 from fleetctl.run.rounds import NoMoreWork, WorkSource
-from fleetctl.run.runner import Run
+from fleetctl.run.runner import TeamFlight
 from fleetctl.run.sim import mission_uses_sim
 from fleetctl.run.teams.link import TeamLink
 from fleetctl.run.teams.rounds import LinkWork
@@ -78,11 +81,12 @@ def prepare_team(mission: Mission, team: str, planner: str | None,
     return own, spec, team_bus_config(config, team)
 
 
-class TeamControllerRun(Run):
-    """A :class:`Run` of one team's share with a :class:`TeamLink` (see the module docstring)."""
+class TeamControllerRun(TeamFlight):
+    """A :class:`TeamFlight` of one team's share with a :class:`TeamLink` (see the module docstring)."""
 
-    def __init__(self, mission: Mission, command: str, opts: RunOptions, spec: TeamSpec) -> None:
-        super().__init__(mission, command, opts)
+    def __init__(self, crew: Crew[Any], spec: TeamSpec) -> None:
+        super().__init__(crew)
+        mission, opts = self.mission, self.opts
         self.spec = spec
         rovers = team_of(spec.mission, spec.team).rovers
         self.link: TeamLink | None = None
@@ -111,8 +115,8 @@ class TeamControllerRun(Run):
                              "handed over if it fails", None)
         return bus
 
-    async def _connect(self) -> None:
-        await super()._connect()
+    async def connected(self, fleet: Fleet) -> None:
+        await super().connected(fleet)
         if self.link is not None and self.executor is not None:
             self.link.attach_executor(self.executor)
 
@@ -122,19 +126,19 @@ class TeamControllerRun(Run):
             return NoMoreWork(self.spec.team, flies_empty_share=False)
         return LinkWork(self.link, self.executor.board)
 
-    async def _finish(self) -> dict[str, Any]:
+    async def end(self) -> dict[str, Any]:
         if self.link is not None:
             await self.link.close()
             with contextlib.suppress(OSError):  # the records must never stop the way out
                 await asyncio.to_thread(self.journal.write_json, "team.json", self.link.stats())
-        return await super()._finish()
+        return await super().end()
 
 
 async def fly_team_controller(mission: Mission, command: str, spec: TeamSpec,
                               opts: RunOptions) -> RunOutcome:
     """:func:`fleetctl.run.flight.fly` for one team (``mission``: the team's own, from
     :func:`prepare_team`)."""
-    return await TeamControllerRun(mission, command, opts, spec).fly()
+    return await Crew(mission, command, opts, lambda crew: TeamControllerRun(crew, spec)).fly()
 
 
 __all__ = ["TeamControllerRun", "TeamSpec", "fly_team_controller", "prepare_team", "team_bus_config",

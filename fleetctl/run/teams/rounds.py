@@ -1,6 +1,6 @@
 """Where a team of a several-carrier mission gets its further deployment rounds from: the two
 :class:`~fleetctl.run.rounds.WorkSource` of the teams (the rounds loop is
-:meth:`fleetctl.run.runner.Run._deploy`).
+:meth:`fleetctl.run.runner.TeamFlight._deploy`).
 
 * :class:`CoordinatorWork` - a team inside the controller that flies every team
   (:class:`~fleetctl.run.teams.team_run.TeamRun`): the run of every team is asked after each round;
@@ -25,7 +25,7 @@ from planners.core.problem import Task
 
 
 class Coordinator(Protocol):
-    """What a team's run asks the run of every team (:class:`fleetctl.run.teams.coordinator.TeamsRun`).
+    """What a team's run asks the run of every team (:class:`fleetctl.run.teams.coordinator.TeamsFlight`).
 
     ``more_work`` is awaited after each deployment round with its result (``tasks_unserved``: what
     the team could not serve); it returns the tasks handed to the team (one more round), or ``[]``

@@ -10,11 +10,11 @@ from typing import TYPE_CHECKING, Any
 from fleetctl.run.summary import SUMMARY_SCHEMA
 
 if TYPE_CHECKING:
-    from fleetctl.run.teams.coordinator import TeamsRun
+    from fleetctl.run.teams.coordinator import TeamsFlight
     from fleetctl.run.teams.team_run import TeamRun
 
 
-def teams_summary(tr: TeamsRun) -> dict[str, Any]:
+def teams_summary(tr: TeamsFlight) -> dict[str, Any]:
     m, board, cmd = tr.mission, tr.board, tr.command
     deploys, collects = tr.runs.get("deploy", {}), tr.runs.get("collect", {})
     order = [t.id for t in m.tasks]
@@ -88,7 +88,7 @@ def teams_summary(tr: TeamsRun) -> dict[str, Any]:
     return out
 
 
-def _team(tr: TeamsRun, cid: str, dep: TeamRun | None, col: TeamRun | None) -> dict[str, Any]:
+def _team(tr: TeamsFlight, cid: str, dep: TeamRun | None, col: TeamRun | None) -> dict[str, Any]:
     e, board = tr.board.teams[cid], tr.board
     dep_plan, col_plan = tr.plans.get("deploy"), tr.plans.get("collect")
     out: dict[str, Any] = {"carrier": cid, "status": e.status, "lost": e.lost, "rovers": list(e.rovers)}
@@ -136,7 +136,7 @@ def _planned(run: TeamRun, phase: str) -> float | None:
     return None if r is None else r.planned
 
 
-def _deploy_flown(tr: TeamsRun, cid: str, run: TeamRun) -> float | None:
+def _deploy_flown(tr: TeamsFlight, cid: str, run: TeamRun) -> float | None:
     """From the team's carrier's start to the last task it reached (handed-over ones included)."""
     return _span([run.started_at], [t for team, t in tr.board.reached.values() if team == cid])
 
@@ -156,7 +156,7 @@ def _span(starts: list[float | None], ends: list[float]) -> float | None:
 
 
 def _makespans(
-    tr: TeamsRun,
+    tr: TeamsFlight,
     dep_planned: float | None,
     col_planned: float | None,
     dep_flown: float | None,
@@ -174,7 +174,7 @@ def _makespans(
     return planned, flown
 
 
-def _reason(tr: TeamsRun, task: str) -> str:
+def _reason(tr: TeamsFlight, task: str) -> str:
     owner = tr.board.owner.get(task)
     s = tr.outcomes.get("deploy", {}).get(owner or "")
     why = (s.summary.get("tasks_unserved_reasons") or {}).get(task) if s is not None else None

@@ -1,5 +1,6 @@
-"""One team's run: today's :class:`~fleetctl.run.runner.Run` on the team's mission
-(:func:`fleetctl.mission.teams.team_mission`), with what a run of several teams adds: after its
+"""One team's run in a run of several teams: a :class:`~fleetctl.run.crew.Crew` of the team's
+mission (:func:`fleetctl.mission.teams.team_mission`) whose flight, :class:`TeamRun`, is a
+:class:`~fleetctl.run.runner.TeamFlight` with what a run of several teams adds: after its
 deployment it may be handed tasks of another team and fly further rounds, and it keeps the
 mission-clock times its tasks were reached and its rovers loaded (the teams' common clock).
 
@@ -16,28 +17,22 @@ from typing import Any
 
 from fleetctl.mission import Mission
 from fleetctl.mission.teams import team_mission
+from fleetctl.run.crew import Crew
 from fleetctl.run.lifecycle import RunOptions, RunOutcome
 from fleetctl.run.results import PhaseResult
 from fleetctl.run.rounds import NO_MORE_WORK, WorkSource
-from fleetctl.run.runner import Run
+from fleetctl.run.runner import TeamFlight
 from fleetctl.run.teams.rounds import Coordinator, CoordinatorWork
 
 PLAN_WAIT = 120.0  # wall s a collection scenario's batteries are held at most, waiting for the first plan
 
 
-class TeamRun(Run):
-    """A team's run (see the module docstring)."""
+class TeamRun(TeamFlight):
+    """A team's flight in a run of several teams (see the module docstring)."""
 
-    def __init__(
-        self,
-        mission: Mission,
-        command: str,
-        opts: RunOptions,
-        team: str,
-        coordinator: Coordinator | None = None,
-        t0: float | None = None,
-    ) -> None:
-        super().__init__(mission, command, opts)
+    def __init__(self, crew: Crew[Any], team: str, coordinator: Coordinator | None = None,
+                 t0: float | None = None) -> None:
+        super().__init__(crew)
         if t0 is not None:  # T+ of the run of every team
             self.state.count_from(t0)
         self.team = team
@@ -65,13 +60,12 @@ class TeamRun(Run):
         for tid, flown in phase.board.reached().items():
             self.reached_at.setdefault(tid, phase.t0 + flown)
 
-    def _scenario_batteries(self, hold: bool) -> None:
+    def _release_batteries(self) -> None:
         """A ``collection:`` scenario on the simulated fleet: the batteries are held at the
         scenario's ranges until the team's first collection plan is made (sharing and planning
         several teams takes seconds of wall time, minutes of hover at a high speedup), then
         drain."""
-        if hold or self.sim is None or self.command != "collect" or not self.mission.collection:
-            super()._scenario_batteries(hold)
+        if self.sim is None or self.command != "collect" or not self.mission.collection:
             return
         self._release = asyncio.create_task(self._release_after_plan(), name=f"team {self.team}: batteries")
 
@@ -83,22 +77,19 @@ class TeamRun(Run):
         except TimeoutError:
             pass
         finally:
-            sim = self.sim  # a simulated fleet: see _scenario_batteries
-            for cr in self.mission.collection or ():
-                if sim is not None:
-                    sim.pin_battery(cr.id, None)
+            self.session.pin_scenario_batteries(False)
 
     def _planned_collection(self) -> bool:
         phase = self.executor.collect_phase if self.executor is not None else None
         return phase is not None and phase.plan is not None
 
-    async def _finish(self) -> dict[str, Any]:
+    async def end(self) -> dict[str, Any]:
         release, self._release = self._release, None
         if release is not None:  # lets the batteries drain if the collection never got to a plan
             release.cancel()
             with contextlib.suppress(asyncio.CancelledError):
                 await release
-        return await super()._finish()
+        return await super().end()
 
     async def _collect(self) -> None:
         try:
@@ -128,7 +119,13 @@ async def fly_team(
     teams' controllers) is asked after each deployment round for tasks handed to it. Options as
     :func:`fleetctl.run.flight.execute`."""
     own = team_mission(mission, team_id, tasks=tasks, rovers=rovers)
-    return await TeamRun(own, command, RunOptions(**options), team_id, coordinator).fly()
+    return await team_crew(own, command, RunOptions(**options), team_id, coordinator).fly()
 
 
-__all__ = ["Coordinator", "TeamRun", "fly_team"]
+def team_crew(mission: Mission, command: str, opts: RunOptions, team: str,
+              coordinator: Coordinator | None = None, t0: float | None = None) -> Crew[TeamRun]:
+    """The crew of one team's run (:class:`TeamRun`) of its own ``mission``."""
+    return Crew(mission, command, opts, lambda crew: TeamRun(crew, team, coordinator, t0))
+
+
+__all__ = ["Coordinator", "TeamRun", "fly_team", "team_crew"]

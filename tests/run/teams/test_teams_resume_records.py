@@ -14,10 +14,11 @@ from typing import Any
 import pytest
 import yaml
 
+from fleetctl.run.crew import Crew
 from fleetctl.run.lifecycle import RunOptions
 from fleetctl.run.resume import ResumeError
 from fleetctl.run.resume_teams import is_teams_run, load_teams_resumption
-from fleetctl.run.teams.coordinator import TeamsRun
+from fleetctl.run.teams.coordinator import TeamsFlight
 from tests.run.teams.teams_helpers import two_teams
 
 TEAMS = {"c1": ["r1", "r2"], "c2": ["r3", "r4"]}
@@ -91,7 +92,7 @@ def test_a_recorded_handover_is_honoured(tmp_path: Path) -> None:
     assert res.reached() == {"t3": ("c2", 4.0)}
     assert res.launched() == ["r1", "r3"]
     # the run of every team takes the records over: owners, who gave what up, what was handed to whom
-    tr = TeamsRun(res.mission, "deploy", RunOptions(teams_resume=res))
+    tr = Crew(res.mission, "deploy", RunOptions(teams_resume=res), TeamsFlight).flight
     tr._resumed_records(res)
     assert tr.board.owner == res.owner()
     assert tr.board.gave_up == {"t4": {"c2"}}
@@ -143,7 +144,7 @@ def test_a_lost_carrier_stays_lost(tmp_path: Path) -> None:
     assert res.lost == ["c1"]
     assert res.record()["lost"] == ["c1"]
     assert res.team_tasks("c1") == [] and res.team_tasks("c2") == ["t1", "t2", "t3", "t4"]
-    tr = TeamsRun(res.mission, "deploy", RunOptions(teams_resume=res))
+    tr = Crew(res.mission, "deploy", RunOptions(teams_resume=res), TeamsFlight).flight
     tr._resumed_records(res)
     assert tr.board.teams["c1"].lost and not tr.board.teams["c1"].can_receive
     assert not tr.board.teams["c2"].lost
@@ -158,6 +159,6 @@ def test_a_resumed_collection_has_a_deployment_only_in_a_run(tmp_path: Path, com
     records.append({"kind": "teams_plan", "phase": "collect", "shares": TEAMS})
     res = load_teams_resumption(_folder(tmp_path, _mission(tmp_path), command, records))
     assert res.phase == "collect"
-    tr = TeamsRun(res.mission, command, RunOptions(teams_resume=res))
+    tr = Crew(res.mission, command, RunOptions(teams_resume=res), TeamsFlight).flight
     tr._resumed_records(res)
     assert tr.deployed_before is deployed_before
