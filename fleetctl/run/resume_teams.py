@@ -18,6 +18,8 @@ records: the run's journal ``RUN/journal.jsonl`` (the ``run`` record naming the 
   launched and where to, refused or unusable rovers. The resumed run flies each team's
   deployment on from there (reconciled against the live fleet by the team's run, as one team's
   resume is);
+* the teams whose deployment run had ended (a carrier that failed its preflight, a team whose work
+  was over): they are not flown again, what they reached counts and their run's summary stands;
 * the dwell's start (what is left of it is dwelt), and for the collection the rovers every
   team launched (the collection is shared again from the live fleet: rovers already on a deck
   are not collected again) and those already loaded.
@@ -25,6 +27,7 @@ records: the run's journal ``RUN/journal.jsonl`` (the ``run`` record naming the 
 
 from __future__ import annotations
 
+import json
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -66,6 +69,7 @@ class TeamsResumption:
     collect: dict[str, Resumption] = field(default_factory=dict)  # team -> its collection's journal
     dwell_started: float | None = None  # unix time
     lost: list[str] = field(default_factory=list)  # teams whose carrier was lost (they take no more tasks)
+    deploy_ended: dict[str, str] = field(default_factory=dict)  # team -> its deployment run's result, if over
 
     # -- who owns what ---------------------------------------------------------------------------
     def owner(self) -> dict[str, str]:
@@ -123,6 +127,18 @@ class TeamsResumption:
             return wait
         return max(0.0, wait - (time.time() - self.dwell_started) * self.scale)
 
+    def deploy_summary(self, team: str) -> dict[str, Any]:
+        """The summary a team's ended deployment run wrote (its folder's ``summary.json``), or its
+        result alone when that file is missing or unreadable."""
+        path = team_folder(self.run_dir, team, "deploy") / "summary.json"
+        try:
+            summary = json.loads(path.read_text(encoding="utf-8"))
+        except (OSError, ValueError):
+            summary = None
+        if not isinstance(summary, dict):
+            summary = {"result": self.deploy_ended.get(team, "incomplete")}
+        return summary
+
     def record(self) -> dict[str, Any]:
         """The run journal's ``resumed`` record: what the journals told."""
         return {
@@ -136,6 +152,7 @@ class TeamsResumption:
             "loaded": self.loaded(),
             "teams_resumed": sorted(self.deploy) if self.phase == "deploy" else sorted(self.collect),
             "lost": self.lost,
+            "deploy_ended": self.deploy_ended,
         }
 
 
@@ -217,6 +234,9 @@ def _replay(res: TeamsResumption, records: list[dict[str, Any]]) -> None:
         elif kind == Ev.DWELL and res.phase == "deploy" and res.command == "run":
             res.phase = "dwell"
             res.dwell_started = float(r["t"])
+        elif kind == Ev.TEAM and r.get("phase") == "deploy" and r.get("status") == "ended" and \
+                isinstance(r.get("team"), str):
+            res.deploy_ended[r["team"]] = str(r.get("result") or "incomplete")
         elif (kind == Ev.TEAM and r.get("phase") == "collect") or kind == Ev.NOTHING_TO_COLLECT:
             res.phase = "collect"
 

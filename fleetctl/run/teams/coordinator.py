@@ -40,7 +40,7 @@ from fleetctl.run.kinds import Ev, phases_of
 from fleetctl.run.lifecycle import EXIT_FAILED, EXIT_INTERRUPTED, EXIT_OK, OnSession, RunOptions, RunOutcome
 from fleetctl.run.results import PhaseResult
 from fleetctl.run.resume import Resumption
-from fleetctl.run.resume_teams import TeamsResumption
+from fleetctl.run.resume_teams import TeamsResumption, team_folder
 from fleetctl.run.teams.board import ACTIVE, Handover, TeamEntry, TeamsBoard, TeamStatus
 from fleetctl.run.teams.bus import TeamsBuses
 from fleetctl.run.teams.handover import Handovers
@@ -155,6 +155,8 @@ class TeamsFlight(OnSession):
         for cid in resume.lost:  # a team whose carrier was lost takes no more tasks
             if cid in board.teams:
                 board.teams[cid].lost = True
+        if resume.phase == "deploy":
+            self._ended_deployments(resume)
         for h in resume.handovers:  # T before the resumed run's start: negative
             board.handovers.append(Handover(h.tasks, h.from_team, h.to_team, h.why,
                                             self.t0 - max(0.0, now - h.t) * self.scale))
@@ -167,6 +169,26 @@ class TeamsFlight(OnSession):
             for entry in board.teams.values():
                 entry.status, entry.finished = TeamStatus.DONE, True
             self.loaded_before = resume.loaded()
+
+    def _ended_deployments(self, resume: TeamsResumption) -> None:
+        """Teams whose deployment run was over before the kill (a carrier that failed its preflight,
+        a team with nothing left) stay over: what they reached counts, their run's summary stands,
+        and they are not flown again nor handed tasks."""
+        board = self.board
+        reached = resume.reached()
+        for cid in resume.deploy_ended:
+            if cid not in board.teams:
+                continue
+            for tid, (team, _) in reached.items():
+                if team == cid:
+                    board.reached.setdefault(tid, (cid, self.t0))
+            summary = resume.deploy_summary(cid)
+            result = str(summary.get("result") or resume.deploy_ended[cid])
+            self.outcomes.setdefault("deploy", {})[cid] = RunOutcome(
+                EXIT_OK if result == "complete" else EXIT_FAILED, summary,
+                team_folder(resume.run_dir, cid, "deploy"), summary.get("error"))
+            board.teams[cid].finished = True
+            board.set_status(cid, TeamStatus.FAILED if board.owned_unreached(cid) else TeamStatus.DONE)
 
     def emit(self, kind: str, text: str, vehicle: str | None = None, **data: Any) -> None:
         """An event of the run of every team (its journal: the teams' views show their own)."""
@@ -193,6 +215,7 @@ class TeamsFlight(OnSession):
                 self.t0,
             ).flight
             for cid, e in self.board.teams.items()
+            if resume is None or cid not in resume.deploy_ended  # a deployment over before the kill: over
         }
         self.runs["deploy"] = runs
         for cid in runs:

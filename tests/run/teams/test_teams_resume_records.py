@@ -162,3 +162,29 @@ def test_a_resumed_collection_has_a_deployment_only_in_a_run(tmp_path: Path, com
     tr = Crew(res.mission, command, RunOptions(teams_resume=res), TeamsFlight).flight
     tr._resumed_records(res)
     assert tr.deployed_before is deployed_before
+
+
+def test_a_team_whose_deployment_was_over_is_not_flown_again(tmp_path: Path) -> None:
+    """c1's carrier failed its preflight: its deployment run ended (a ``team`` record, its summary
+    written) and its tasks went to c2; the run was killed while c2 flew on. Resumed, c1 stays over:
+    handed nothing, its run's summary stands, only c2 is flown again."""
+    ended = {"kind": "team", "team": "c1", "phase": "deploy", "status": "ended", "result": "incomplete",
+             "error": "c1: preflight: carrier c1: battery 12 % below the 30 % needed"}
+    handed = {"kind": "handover", "tasks": ["t1", "t2"], "from_team": "c1", "to_team": "c2",
+              "why": "c1: preflight failed"}
+    run_dir = _folder(tmp_path, _mission(tmp_path), "deploy", [SHARES, ended, handed],
+                      {"c1/deploy": [{"kind": "phase", "phase": "preflight"}], "c2/deploy": C2_DEPLOY})
+    c1_summary = {"schema": "fleetctl.summary/1", "result": "incomplete", "error": ended["error"],
+                  "tasks_reached": []}
+    (run_dir / "teams" / "c1" / "deploy" / "summary.json").write_text(json.dumps(c1_summary))
+    res = load_teams_resumption(run_dir)
+    assert res.deploy_ended == {"c1": "incomplete"}
+    assert res.record()["deploy_ended"] == {"c1": "incomplete"}
+    assert res.team_tasks("c1") == [] and res.team_tasks("c2") == ["t1", "t2", "t3", "t4"]
+    tr = Crew(res.mission, "deploy", RunOptions(teams_resume=res), TeamsFlight).flight
+    tr._resumed_records(res)
+    c1 = tr.board.teams["c1"]
+    assert c1.finished and c1.status == "done" and not c1.can_receive  # its tasks are c2's now
+    assert tr.outcomes["deploy"]["c1"].summary == c1_summary
+    assert tr.outcomes["deploy"]["c1"].exit_code == 1
+    assert "c2" not in tr.outcomes.get("deploy", {})  # c2 is flown on
