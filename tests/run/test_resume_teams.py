@@ -413,6 +413,46 @@ def test_kill_9_after_a_handover_then_resume_honours_it(tmp_path: Path) -> None:
     p.assert_none(f"the world:\n{describe(seen)}", f"resume output:\n{out[-2000:]}")
 
 
+def test_kill_9_after_a_carrier_failed_preflight_then_resume_leaves_its_team_over(tmp_path: Path) -> None:
+    """c1's carrier reports no GPS (a simulated fault): its preflight fails, its deployment run ends
+    and its tasks go to c2 (4 rovers). The controller is killed once c1's run has ended; resumed,
+    c1 is not flown again (its journal untouched, no second preflight) and c2 flies every task once."""
+    mission, d = write_two_teams(tmp_path)
+    d["carriers"][1]["fleet"] = {"count": 4, "sysid_start": 31}
+    d["sim"]["faults"] = [{"kind": "no_gps", "vehicle": "c1"}]
+    mission.write_text(yaml.safe_dump(d, sort_keys=False), encoding="utf-8")
+    rovers = ["r1", "r2", "r3", "r4", "r5", "r6"]
+    run_dir = tmp_path / "run"
+
+    def c1_over(js: dict[str, Records]) -> bool:
+        return any(r.get("team") == "c1" and r.get("status") == "ended" for r in of_kind(js["run"], "team"))
+
+    with sim_process(mission, tmp_path / "sim.log", speedup=5.0, vehicles=2 + len(rovers)) as sim:
+        with controller(["deploy", "--mission", str(mission), "--run-dir", str(run_dir), "--headless",
+                         "--yes"], tmp_path / "fly.log") as fly:
+            wait_journals(fly, run_dir, c1_over, "c1's deployment run ended")
+            assert fly.kill9() == -signal.SIGKILL
+        before = journal_texts(run_dir)
+        rc, out = run_ctl(["resume", "--run", str(run_dir), "--headless", "--yes"], tmp_path / "resume.log")
+        assert sim.proc.poll() is None, sim.output()
+    p = Problems()
+    p.check(rc == 0, f"resume exited {rc}")
+    p.check("Traceback" not in out, "a traceback in the output of resume")
+    after = journal_texts(run_dir)
+    c1_journal = next(name for name in before if "c1" in name and "deploy" in name)
+    p.check(after[c1_journal] == before[c1_journal], "resume flew c1 again (its deployment journal grew)")
+    js = journals(run_dir)
+    (resumed,) = of_kind(js["run"], "resumed")
+    p.check(set(resumed.get("deploy_ended", {})) == {"c1"}, f"resumed record {resumed}")
+    reached = Counter(r["task"] for r in of_kind(team_records(js, "deploy"), "task_reached"))
+    p.check(reached == Counter({t: 1 for t in TASKS}), f"tasks reached {dict(reached)} (each once)")
+    by_c1 = {r["task"] for r in of_kind(js.get("c1/deploy", []), "task_reached")}
+    p.check(not by_c1, f"c1 reached {by_c1}")
+    summary = read_summary(run_dir)
+    p.check(summary.get("result") == "complete", f"summary result {summary.get('result')}")
+    p.assert_none(f"resume output:\n{out[-2000:]}")
+
+
 # ---------------------------------------------------------------------------------------------------
 # what resume refuses, in one line
 # ---------------------------------------------------------------------------------------------------
