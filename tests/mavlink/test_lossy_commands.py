@@ -146,3 +146,17 @@ def test_only_a_heartbeat_heard_after_the_command_shows_its_effect() -> None:
     assert armed(v)
     v.armed = False
     assert not armed(v)
+
+
+def test_the_numbers_docs_mavlink_states() -> None:
+    from fleetctl.mavlink.mission_protocol import EARLY_RESENDS
+    from fleetctl.mavlink.rtt import MIN_RTO
+    from fleetctl.mavlink.vehicle import SET_CURRENT_PATIENCE, SET_CURRENT_RESEND
+
+    text = " ".join((Path(__file__).parents[2] / "docs" / "mavlink.md").read_text().split())
+    words = {8: "eight"}
+    assert f"{words[EARLY_RESENDS]} times in a row at that wait" in text
+    assert f"without one ({SET_CURRENT_RESEND:g} s before a round trip is known), for " \
+           f"{SET_CURRENT_PATIENCE:g} s in all" in text
+    assert f"{MIN_RTO:g} s to" in text
+    assert "confirmed_by_telemetry" in text
