@@ -51,3 +51,14 @@ def test_a_rover_at_rest_on_its_hold_has_arrived_not_one_still_descending() -> N
     assert not hovering_on_item(v, 1)
     v.velocity = (0.0, 0.0, 0.0)
     assert not hovering_on_item(v, 2)  # another item
+
+
+def test_docs_mavlink_states_the_arrival_rules() -> None:
+    from pathlib import Path
+
+    from fleetctl.run.collect import GROUND_SNAP
+
+    text = (Path(__file__).parents[2] / "docs" / "mavlink.md").read_text()
+    assert f"stopped (at most {STAY_SPEED:g} m/s) within {STAY_RADIUS:g} m of its stop's item" in text
+    assert (f"at rest in the air (at most {STAY_SPEED:g} m/s horizontally and vertically, more than "
+            f"{GROUND_SNAP:g} m up) within {STAY_RADIUS:g} m of its hold") in text
