@@ -11,6 +11,7 @@ command                     done when
 COMPONENT_ARM_DISARM        a HEARTBEAT shows the vehicle armed (param1 = 1) or disarmed (0)
 DO_SET_MODE                 a HEARTBEAT shows the mode asked for (:meth:`Vehicle.set_mode`)
 MISSION_START               a HEARTBEAT shows the mission mode (only when it was not in it)
+NAV_LAND                    a HEARTBEAT shows the landing mode (only when it was not in it)
 DO_SET_MISSION_CURRENT      MISSION_CURRENT shows the item, or MISSION_ITEM_REACHED of it, or
                             MISSION_CURRENT past it (:func:`current_taken`)
 ==========================  ===================================================================
@@ -30,6 +31,7 @@ from typing import Any, Protocol
 from pymavlink.dialects.v20 import ardupilotmega as M
 
 MISSION_MODE = "MISSION"  # the generic mode a vehicle flies its mission in
+LAND_MODE = "LAND"  # the generic mode a vehicle lands in (NAV_LAND switches to it)
 
 
 class Reports(Protocol):
@@ -81,9 +83,12 @@ def effect_of(v: Reports, command: int, params: Sequence[float]) -> Effect | Non
         return heartbeat_shows(v, lambda x: bool(x.armed) == want)
     if command == M.MAV_CMD_MISSION_START and v.mode != MISSION_MODE:
         return heartbeat_shows(v, in_mode(MISSION_MODE))
+    if command == M.MAV_CMD_NAV_LAND and v.mode != LAND_MODE:
+        return heartbeat_shows(v, in_mode(LAND_MODE))
     if command == M.MAV_CMD_DO_SET_MISSION_CURRENT and params:
         return current_taken(v, int(params[0]))
     return None
 
 
-__all__ = ["MISSION_MODE", "Effect", "Reports", "current_taken", "effect_of", "heartbeat_shows", "in_mode"]
+__all__ = ["LAND_MODE", "MISSION_MODE", "Effect", "Reports", "current_taken", "effect_of", "heartbeat_shows",
+           "in_mode"]

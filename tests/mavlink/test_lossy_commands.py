@@ -48,14 +48,16 @@ def acks_of(sysid: int) -> Callable[[Any], bool]:
     return lambda m: m.get_type() == "COMMAND_ACK" and m.get_srcSystem() == sysid
 
 
-async def test_arm_and_disarm_done_by_the_heartbeat_when_every_ack_is_lost(fleet: Fleet) -> None:
+async def test_arm_land_and_disarm_done_by_the_heartbeat_when_every_ack_is_lost(fleet: Fleet) -> None:
     r1 = fleet.rovers["r1"]
     await r1.wait_until(lambda v: v.armed is False and v.mode is not None, 3.0, "telemetry")
     with losing(r1.link, acks_of(r1.sysid)) as dropped:
         await r1.arm()
         assert r1.armed and r1.confirmed_by_telemetry == 1
+        await r1.land()
+        assert r1.mode == "LAND" and r1.confirmed_by_telemetry == 2
         await r1.disarm()
-        assert not r1.armed and r1.confirmed_by_telemetry == 2
+        assert not r1.armed and r1.confirmed_by_telemetry == 3
     assert "COMMAND_ACK" in dropped  # the vehicle did answer; its answers were lost
 
 
