@@ -153,7 +153,7 @@ def test_only_a_heartbeat_heard_after_the_command_shows_its_effect() -> None:
 def test_the_numbers_docs_mavlink_states() -> None:
     from fleetctl.mavlink.mission_protocol import EARLY_RESENDS
     from fleetctl.mavlink.rtt import MIN_RTO
-    from fleetctl.mavlink.vehicle import SET_CURRENT_PATIENCE, SET_CURRENT_RESEND
+    from fleetctl.mavlink.vehicle import DEFAULT_POSITION_HZ, SET_CURRENT_PATIENCE, SET_CURRENT_RESEND
 
     text = " ".join((Path(__file__).parents[2] / "docs" / "mavlink.md").read_text().split())
     words = {8: "eight"}
@@ -161,4 +161,7 @@ def test_the_numbers_docs_mavlink_states() -> None:
     assert f"without one ({SET_CURRENT_RESEND:g} s before a round trip is known), for " \
            f"{SET_CURRENT_PATIENCE:g} s in all" in text
     assert f"{MIN_RTO:g} s to" in text
+    assert (f"the floor, {MIN_RTO:g} wall s, sets it - at speed-up 10 that is {MIN_RTO * 10:g} "
+            "mission s") in text
+    assert f"positions at {DEFAULT_POSITION_HZ:g} Hz" in text
     assert "confirmed_by_telemetry" in text
