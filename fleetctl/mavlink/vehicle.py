@@ -671,7 +671,7 @@ class Vehicle:
             raise exc if exc is not None else LinkTimeout(f"{self.name}: {command_name(command)} unanswered")
         self.confirmed_by_telemetry += 1
         log.debug("%s: %s seen done in telemetry (ACK lost)", self.name, command_name(command))
-        return CommandAck(self.sysid, command, M.MAV_RESULT_ACCEPTED, 0)
+        return CommandAck(self.sysid, command, M.MAV_RESULT_ACCEPTED, 0, by_effect=True)
 
     async def arm(self, force: bool = False) -> None:
         """Arm, in the mode the firmware takes off from (ArduCopter: GUIDED)."""

@@ -13,6 +13,7 @@ from types import SimpleNamespace
 from typing import Any
 
 import pytest
+from pymavlink.dialects.v20 import ardupilotmega as M
 
 from fleetctl.mavlink import vehicle as vehicle_module
 from fleetctl.mavlink.effects import heartbeat_shows
@@ -54,10 +55,12 @@ async def test_arm_land_and_disarm_done_by_the_heartbeat_when_every_ack_is_lost(
     with losing(r1.link, acks_of(r1.sysid)) as dropped:
         await r1.arm()
         assert r1.armed and r1.confirmed_by_telemetry == 1
+        ack = await r1.command(M.MAV_CMD_COMPONENT_ARM_DISARM, (1, 0))  # armed already: its HEARTBEAT
+        assert ack.by_effect and ack.attempts == 0 and r1.confirmed_by_telemetry == 2
         await r1.land()
-        assert r1.mode == "LAND" and r1.confirmed_by_telemetry == 2
+        assert r1.mode == "LAND" and r1.confirmed_by_telemetry == 3
         await r1.disarm()
-        assert not r1.armed and r1.confirmed_by_telemetry == 3
+        assert not r1.armed and r1.confirmed_by_telemetry == 4
     assert "COMMAND_ACK" in dropped  # the vehicle did answer; its answers were lost
 
 
