@@ -76,7 +76,9 @@ class MissionItem:
 
 @dataclass(frozen=True)
 class CommandAck:
-    """The final COMMAND_ACK of a command (after retries)."""
+    """The final COMMAND_ACK of a command (after retries), or - ``by_effect`` - no ACK at all but
+    the vehicle's telemetry showing the command done (:mod:`fleetctl.mavlink.effects`; then
+    ``result`` is MAV_RESULT_ACCEPTED and ``attempts`` 0)."""
 
     sysid: int
     command: int
@@ -84,6 +86,7 @@ class CommandAck:
     attempts: int
     progress: int = 0
     result_param2: int = 0
+    by_effect: bool = False
 
     @property
     def accepted(self) -> bool:

@@ -36,11 +36,13 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 from fleetctl.geo import Origin, geodetic_to_local, local_to_geodetic
 from fleetctl.mavlink.autopilots import Autopilot, autopilot_for
 from fleetctl.mavlink.command_protocol import COMMAND_RETRIES, COMMAND_TIMEOUT
+from fleetctl.mavlink.effects import Effect, current_taken, effect_of, heartbeat_shows, in_mode
 from fleetctl.mavlink.fence import FENCE
 from fleetctl.mavlink.link import (
     CommandAck,
     Link,
     LinkError,
+    LinkTimeout,
     MissionItem,
     MissionRejected,
     command_name,
@@ -56,8 +58,10 @@ FORCE_MAGIC = 21196.0  # MAV_CMD_COMPONENT_ARM_DISARM param2: force (ignore chec
 DEFAULT_POSITION_HZ = 10.0
 DEFAULT_BATTERY_HZ = 1.0
 MAX_BATTERY_TIME = 86_400  # s: a BATTERY_STATUS.time_remaining above a day is not believed
-SET_CURRENT_RESEND = 1.5  # s: MISSION_SET_CURRENT sent again when nothing says it was taken
+SET_CURRENT_RESEND = 1.5  # s: MISSION_SET_CURRENT sent again when nothing says it was taken (at most:
+# once the link's round trips are measured, after its retransmission timeout)
 SET_CURRENT_PATIENCE = (COMMAND_RETRIES + 1) * COMMAND_TIMEOUT  # s in all: a command's patience
+WATCH_EFFECT = 3600.0  # s: a command's effect is watched while its exchange runs (the exchange ends it)
 _STATUS_REASON_S = 2.0  # a STATUSTEXT this recent explains a rejected command
 # position plausibility (field safety): a fix farther from the last applied one than
 # JUMP_FACTOR x max_speed x dt + JUMP_SLACK_M is held back until CONFIRM_FIXES consecutive fixes
@@ -157,6 +161,8 @@ class Vehicle:
         self.connected = False  # a heartbeat was ever heard
         self.lost = False
         self.last_heartbeat: float | None = None  # time.monotonic()
+        self.heartbeats = 0  # autopilot HEARTBEATs heard (a command's effect: fleetctl.mavlink.effects)
+        self.confirmed_by_telemetry = 0  # commands ended by their effect in telemetry, their ACK lost
         # position
         self.lat: float | None = None
         self.lon: float | None = None
@@ -389,6 +395,7 @@ class Vehicle:
             self.compid = msg.get_srcComponent()
         self.connected = True
         self.last_heartbeat = now
+        self.heartbeats += 1
         self.system_status = msg.system_status
         self._arm_lost_timer()
         if first:
@@ -613,29 +620,71 @@ class Vehicle:
     async def refresh_battery(self, timeout: float = 2.0) -> float | None:
         """Ask for a BATTERY_STATUS now (REQUEST_MESSAGE) and wait for it: streamed battery
         messages come at ~1 Hz, too stale to plan a collection from (and a simulated fleet running
-        faster than real time drains more between two). Returns the battery %, the last known one
-        when the vehicle does not answer within ``timeout`` s (the whole budget, retries included)."""
+        faster than real time drains more between two). The reading is the request's effect: a
+        request whose ACK or whose BATTERY_STATUS is lost is sent again after the link's
+        retransmission timeout until a reading heard after the first request comes (any
+        BATTERY_STATUS: the streamed one too). Returns the battery %, the last known one when none
+        comes within ``timeout`` s (the whole budget, retries included) or the vehicle refuses."""
         asked = time.monotonic()
         with contextlib.suppress(LinkError, CommandRejected, TimeoutError):
             async with asyncio.timeout(timeout):
-                await self.command(mavlink2.MAV_CMD_REQUEST_MESSAGE,
-                                   [float(mavlink2.MAVLINK_MSG_ID_BATTERY_STATUS)], timeout=timeout / 4)
-                await self.wait_until(lambda v: v.battery_at > asked, timeout, "a fresh battery reading")
+                await self.request_until(mavlink2.MAVLINK_MSG_ID_BATTERY_STATUS,
+                                         lambda v: v.battery_at > asked, timeout / 4)
         return self.battery_pct
 
+    async def request_until(self, msgid: int, fresh: Effect, timeout: float) -> None:
+        """REQUEST_MESSAGE ``msgid`` until ``fresh(vehicle)`` holds (the message arrived), asking
+        again after each ACK that is not followed by it within the link's retransmission timeout
+        (at most ``timeout``). Bound it with ``asyncio.timeout``: it asks for as long as it runs.
+        :class:`CommandRejected` when the vehicle refuses to send it."""
+        while not fresh(self):
+            await self.command(M.MAV_CMD_REQUEST_MESSAGE, [float(msgid)], timeout=timeout, effect=fresh)
+            with contextlib.suppress(TimeoutError):
+                await self.wait_until(fresh, self.link.rtt.timeout(timeout), "the message asked for")
+
     async def command(self, command: int, params: Iterable[float] = (), *, frame: int | None = None,
-                      check: bool = True, timeout: float | None = None) -> CommandAck:
+                      check: bool = True, timeout: float | None = None,
+                      effect: Effect | None = None) -> CommandAck:
         """Send a command (COMMAND_LONG, or COMMAND_INT when ``frame`` is given; see
-        :meth:`Link.command`) with retries. ``check``: raise :class:`CommandRejected` unless accepted."""
+        :meth:`Link.command`) with retries. ``check``: raise :class:`CommandRejected` unless accepted.
+
+        A command whose effect shows in telemetry (``effect``, default
+        :func:`fleetctl.mavlink.effects.effect_of`: arming, the mission start, the current item)
+        is done, accepted, as soon as a report shows it, even when every ACK is lost: attempts go
+        on at the link's retransmission timeout until the ACK or the effect comes (counted in
+        :attr:`confirmed_by_telemetry` when the effect came first)."""
+        p = list(params)
         kw: dict[str, Any] = {} if timeout is None else {"timeout": timeout}
+        shown = effect if effect is not None else effect_of(self, command, p)
         sent = time.monotonic()
-        ack = await self.link.command(self.sysid, command, params, compid=self.compid, frame=frame, **kw)
+        send = self.link.command(self.sysid, command, p, compid=self.compid, frame=frame, **kw)
+        ack = await send if shown is None else await self._ack_or_effect(command, send, shown)
         if check and not ack.accepted:
             reason = next((t for ts, _sev, t in reversed(self.statustexts)
                            if ts >= sent - _STATUS_REASON_S), None)
             raise CommandRejected(self.name, ack, reason)
         log.debug("%s: %s -> %s", self.name, command_name(command), ack.result_name)
         return ack
+
+    async def _ack_or_effect(self, command: int, send: Any, shown: Effect) -> CommandAck:
+        """The ACK of ``send`` (the command's exchange, not started), or an accepted one as soon as
+        ``shown`` holds on a report of this vehicle (the exchange is then cancelled)."""
+        exchange = asyncio.ensure_future(send)
+        seen = asyncio.ensure_future(self.wait_until(shown, WATCH_EFFECT, f"{command_name(command)} done"))
+        try:
+            await asyncio.wait({exchange, seen}, return_when=asyncio.FIRST_COMPLETED)
+        finally:
+            for t in (exchange, seen):
+                t.cancel()
+            await asyncio.gather(exchange, seen, return_exceptions=True)
+        if exchange.done() and not exchange.cancelled() and exchange.exception() is None:
+            return exchange.result()  # the ACK (it may have come with the effect: the ACK wins)
+        if not shown(self):
+            exc = None if exchange.cancelled() else exchange.exception()
+            raise exc if exc is not None else LinkTimeout(f"{self.name}: {command_name(command)} unanswered")
+        self.confirmed_by_telemetry += 1
+        log.debug("%s: %s seen done in telemetry (ACK lost)", self.name, command_name(command))
+        return CommandAck(self.sysid, command, M.MAV_RESULT_ACCEPTED, 0, by_effect=True)
 
     async def arm(self, force: bool = False) -> None:
         """Arm, in the mode the firmware takes off from (ArduCopter: GUIDED)."""
@@ -657,9 +706,9 @@ class Vehicle:
 
     async def set_mode(self, mode: str) -> None:
         """Switch to a generic mode (HOLD, GUIDED, MISSION, TAKEOFF, LAND, RTL, MANUAL) or a
-        firmware mode name, with DO_SET_MODE."""
+        firmware mode name, with DO_SET_MODE; done when the ACK or a HEARTBEAT showing the mode comes."""
         params = self._require_autopilot().set_mode_params(mode)
-        await self.command(M.MAV_CMD_DO_SET_MODE, params)
+        await self.command(M.MAV_CMD_DO_SET_MODE, params, effect=heartbeat_shows(self, in_mode(mode)))
 
     async def takeoff(self, height: float) -> None:
         """Take off to ``height`` metres above home (arm first)."""
@@ -756,18 +805,12 @@ class Vehicle:
 
     async def _set_current_message(self, seq: int) -> None:
         """MISSION_SET_CURRENT ``seq`` (no ACK: confirmed from the telemetry, see :meth:`set_current`)."""
-        before = self.mission_current
-        reached = seq in self.items_reached
-
-        def taken(v: Vehicle) -> bool:
-            cur = v.mission_current
-            if cur == seq or (not reached and seq in v.items_reached):
-                return True
-            return before is not None and cur is not None and before < seq < cur
+        taken = current_taken(self, seq)
 
         # sent again after each MISSION_CURRENT that does not show it (PX4 ignores the message a few
         # milliseconds after the MISSION_ACK of an upload, before its navigator took the new mission:
-        # SITL v1.18), or after SET_CURRENT_RESEND of silence, within SET_CURRENT_PATIENCE in all
+        # SITL v1.18), or after the link's retransmission timeout (SET_CURRENT_RESEND until a round
+        # trip is known) without an answer, within SET_CURRENT_PATIENCE in all
         deadline = time.monotonic() + SET_CURRENT_PATIENCE
 
         def answered(heard: int) -> Callable[[Vehicle], bool]:
@@ -777,8 +820,9 @@ class Vehicle:
             heard = self.mission_current_reports
             msg = self.link.mav.mission_set_current_encode(self.sysid, self.compid, seq)
             self.link.send(msg, self.sysid)
+            wait = min(self.link.rtt.timeout(SET_CURRENT_RESEND), left)
             with contextlib.suppress(TimeoutError):
-                await self.wait_until(answered(heard), min(SET_CURRENT_RESEND, left), f"current item {seq}")
+                await self.wait_until(answered(heard), wait, f"current item {seq}")
             if taken(self):
                 return
         raise TimeoutError(f"{self.name}: MISSION_SET_CURRENT {seq} not confirmed")

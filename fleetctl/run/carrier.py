@@ -54,6 +54,15 @@ def stopped_on_item(v: Vehicle, seq: int) -> bool:
     return math.hypot(p[0] - x, p[1] - y) <= STAY_RADIUS
 
 
+def hovering_on_item(v: Vehicle, seq: int) -> bool:
+    """A rover's telemetry shows it at rest in the air (horizontal and vertical speed at most
+    ``STAY_SPEED``) within ``STAY_RADIUS`` of its mission item ``seq`` (its hold above a meeting
+    point): its arrival there when the MISSION_ITEM_REACHED that tells it at once was lost (the next
+    MISSION_CURRENT comes about a wall second later: ten mission seconds at speed-up 10)."""
+    vel = v.velocity
+    return vel is not None and abs(vel[2]) <= STAY_SPEED and stopped_on_item(v, seq)
+
+
 class CarrierControl:
     """The carrier of one run (see the module docstring)."""
 

@@ -39,7 +39,7 @@ from fleetctl.mavlink.link import LinkError, MissionItem
 from fleetctl.mavlink.vehicle import CommandRejected, Vehicle
 from fleetctl.mission.flight import GROUND_HEIGHT, MEET_HEIGHT
 from fleetctl.mission.model import any_on_ground
-from fleetctl.run.carrier import STAY_SPEED, upload
+from fleetctl.run.carrier import STAY_SPEED, hovering_on_item, upload
 from fleetctl.run.collect_timing import (
     CarrierNow,
     RoundClock,
@@ -665,9 +665,10 @@ class CollectPhase:
     async def _wait_meeting_point(self, rnd: _Round, v: Vehicle, leg_arrive: float) -> None:
         """Wait until ``v`` holds above its stop - its hold is the current item, or its autopilot
         reported the approach waypoint before it reached (MISSION_ITEM_REACHED comes at once,
-        MISSION_CURRENT at its 1 Hz stream rate) -: until it was due there (its release plus its
-        planned flight) and the stated slack (:meth:`RunContext.late`), in mission time; a rover
-        let go on the way ends the wait at once."""
+        MISSION_CURRENT at its 1 Hz stream rate), or its position shows it at rest in the air on its
+        hold (:func:`fleetctl.run.carrier.hovering_on_item`: the reached message lost) -: until it
+        was due there (its release plus its planned flight) and the stated slack
+        (:meth:`RunContext.late`), in mission time; a rover let go on the way ends the wait at once."""
         ctx, rid = self.ctx, v.name
         hold = rnd.hold_seq[rid]
         while True:
@@ -677,6 +678,7 @@ class CollectPhase:
                     v,
                     lambda v: (
                         (v.mission_current or 0) >= hold or hold - 1 in v.items_reached
+                        or (hovering_on_item(v, hold) and (v.height or 0.0) > GROUND_SNAP)
                         or rover_on_deck(ctx, v) or v.lost or self._gone(rnd, v)
                     ),
                     ctx.late(max(rnd.due.get(rid, rnd.start + leg_arrive) - ctx.clock(), 0.0)),

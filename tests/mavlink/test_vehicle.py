@@ -203,6 +203,9 @@ class _Px4SetCurrentLink:
         self.mav = mav.MAVLink(None, srcSystem=255, srcComponent=190)
         self.url = "fake://px4"
         self.last_heard: dict[int, float] = {}
+        from fleetctl.mavlink.rtt import RoundTrip
+
+        self.rtt = RoundTrip()  # no round trip measured: waits are the protocols' own timeouts
         self.handlers: list = []
 
     def subscribe(self, handler, *, sysid=None):  # type: ignore[no-untyped-def]
