@@ -234,7 +234,7 @@ class CarrierControl:
                 c = self.vehicle
                 off = _off(c, seq)
                 self.ctx.record(Ev.CARRIER_OFF_STOP, vehicle=c.name, stop=k + 1, offset=off,
-                                speed=c.ground_speed, restop=restops + 1)
+                                speed=c.ground_speed, attempt=restops + 1)
                 budget = RESTOP_SETTLE
                 if off is None or off > PARK_RADIUS:  # else it is still coming to a stop on it
                     await self._restop(k, seq)
@@ -264,7 +264,7 @@ class CarrierControl:
         drives there and holds on the stop's loiter)."""
         c = self.vehicle
         try:
-            await self.ctx.command(c, "set_current", c.set_current(seq), seq=seq, stop=k + 1)
+            await self.ctx.command(c, "return_to_stop", c.set_current(seq), seq=seq, stop=k + 1)
         except (CommandRejected, LinkError, TimeoutError) as exc:
             log.warning("%s: could not send the carrier back onto stop %d: %s", c.name, k + 1, exc)
 

@@ -636,6 +636,8 @@ class CollectPhase:
         moving = c.ground_speed is None or c.ground_speed > STAY_SPEED  # it is still coming to its stop
         if off is None or c.position is None or not (over_carrier or (off > RETARGET_OFFSET and not moving)):
             if over_carrier:  # out of its mission, the carrier's position unknown: down where it hovers
+                if (trouble := rnd.trouble.get(rid)) is not None:
+                    trouble.commanded("LAND")
                 await ctx.command(v, "land", v.land())
             else:
                 await ctx.command(v, "set_current", v.set_current(rnd.land_seq[rid]), seq=rnd.land_seq[rid])
