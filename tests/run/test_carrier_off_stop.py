@@ -8,6 +8,7 @@ its landing off (it climbs back and hovers) before it is brought down over the c
 from __future__ import annotations
 
 import asyncio
+import math
 from pathlib import Path
 from typing import Any
 
@@ -86,3 +87,38 @@ def test_a_carrier_driving_off_its_second_stop_is_sent_back(tmp_path: Path) -> N
     assert fired
     recs = _check_loaded_on_deck(s, sim)
     assert all(r["stop"] == 2 for r in recs if r["kind"] == "carrier_off_stop")
+
+
+def test_an_operation_pick_up_waits_for_the_carrier_back_on_its_stop(tmp_path: Path) -> None:
+    """A long operation (tests/run/operation): the carrier drives off its stop as the first rover
+    back waits above it to be picked up (a watch on the simulated bodies: a rover hovering within
+    4 m of the stopped carrier); the rover hovers until the carrier is back, and the operation
+    completes with every rover on the deck."""
+    from tests.run.operation.ops_helpers import small_operation
+    fired: list[float] = []
+    watch: list[asyncio.Task[None]] = []
+
+    async def watcher(sim: SimFleet) -> None:
+        carrier = sim.world.body("carrier")
+        while not fired:
+            await asyncio.sleep(0.005)
+            cx, cy, _ = carrier.position
+            for rid in ("r1", "r2"):
+                x, y, z = sim.rover(rid).position
+                if z > 1.0 and math.hypot(x - cx, y - cy) < 4.0 and carrier.speed == 0.0 and sim.sim_time > 40:
+                    fired.append(sim.sim_time)
+                    sim.inject(Fault("drive_off", vehicle="carrier", at=sim.sim_time, until=sim.sim_time + DRIVE))
+                    break
+
+    def action(ev: Event, sim: SimFleet, state: FleetState) -> None:
+        if not watch:
+            watch.append(asyncio.get_running_loop().create_task(watcher(sim)))
+
+    s, _trig, sim, _path = asyncio.run(fly(tmp_path, small_operation(), "run", action))
+    assert fired
+    assert s["_exit"] == 0 and s["result"] == "complete", s
+    assert sorted(s["rovers_loaded"]) == ["r1", "r2"] and not s["rovers_lost"], s
+    assert sorted(sim.world.loaded_rovers()) == ["r1", "r2"]
+    recs = journal(s)
+    assert any(r["kind"] == "carrier_off_stop" and r["offset"] > PARK_RADIUS for r in recs)
+    assert any(r["kind"] == "command" and r.get("command") == "return_to_stop" for r in recs)
