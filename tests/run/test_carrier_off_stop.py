@@ -105,9 +105,10 @@ def test_an_operation_pick_up_waits_for_the_carrier_back_on_its_stop(tmp_path: P
             cx, cy, _ = carrier.position
             for rid in ("r1", "r2"):
                 x, y, z = sim.rover(rid).position
-                if z > 1.0 and math.hypot(x - cx, y - cy) < 4.0 and carrier.speed == 0.0 and sim.sim_time > 40:
-                    fired.append(sim.sim_time)
-                    sim.inject(Fault("drive_off", vehicle="carrier", at=sim.sim_time, until=sim.sim_time + DRIVE))
+                t = sim.sim_time
+                if z > 1.0 and math.hypot(x - cx, y - cy) < 4.0 and carrier.speed == 0.0 and t > 40:
+                    fired.append(t)
+                    sim.inject(Fault("drive_off", vehicle="carrier", at=t, until=t + DRIVE))
                     break
 
     def action(ev: Event, sim: SimFleet, state: FleetState) -> None:
