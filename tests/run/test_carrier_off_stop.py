@@ -123,3 +123,13 @@ def test_an_operation_pick_up_waits_for_the_carrier_back_on_its_stop(tmp_path: P
     recs = journal(s)
     assert any(r["kind"] == "carrier_off_stop" and r["offset"] > PARK_RADIUS for r in recs)
     assert any(r["kind"] == "command" and r.get("command") == "return_to_stop" for r in recs)
+
+
+def test_the_docs_state_the_park_terms() -> None:
+    from fleetctl.run.carrier import DRIVE_OFF_SPEED, RESTOP_SETTLE, RESTOPS_MAX, STAY_SPEED
+    text = (Path(__file__).resolve().parents[2] / "docs" / "operations.md").read_text(encoding="utf-8")
+    section = " ".join(text[text.index("### A carrier that leaves its stop"):].split())
+    for phrase in (f"at most {STAY_SPEED:g} m/s", f"within {PARK_RADIUS:g} m of the stop",
+                   f"plus {RESTOP_SETTLE:g} s", f"after {RESTOPS_MAX} waits",
+                   f"faster than {DRIVE_OFF_SPEED:g} m/s", "`return_to_stop`"):
+        assert phrase in section, phrase
