@@ -23,8 +23,8 @@ def operation_mission() -> dict[str, Any]:
     m = mission_yaml(GCS_PORT, 2, tasks=TASKS, extra={
         "operation": True,
         "carrier": {"max_speed": 3.0, "accel": 1.0, "swap_time": 5.0},
-        # a battery for about one sortie: the second needs a swap on the deck
-        "rovers": {"deploy_range": 60.0, "endurance_range": 150.0},
+        # a battery for a sortie or two: the planner may swap one on the deck
+        "rovers": {"deploy_range": 60.0, "endurance_range": 300.0},
     })
     for t in m["tasks"]:
         t["duration"] = DURATIONS[t["id"]]
