@@ -57,6 +57,7 @@ class Ev(StrEnum):
     CARRIER_STARTED = "carrier_started"
     STOP_REACHED = "stop_reached"
     CARRIER_RELEASED = "carrier_released"
+    CARRIER_OFF_STOP = "carrier_off_stop"  # collection: the carrier is not parked at its stop; rovers hover
     CARRIER_PARKED = "carrier_parked"  # collection complete: the carrier in HOLD and disarmed
     ETA = "eta"  # the live makespan prediction at a stop (mission s of the phase)
     CARRIER_LOST = "carrier_lost"

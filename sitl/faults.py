@@ -14,7 +14,7 @@ from dataclasses import dataclass
 from typing import Any
 
 KINDS = ("dropout", "packet_loss", "latency", "battery_drain", "refuse_arm", "reject_mission",
-         "no_gps", "unhealthy", "low_battery")
+         "no_gps", "unhealthy", "low_battery", "drive_off")
 _KIND_KEYS: dict[str, set[str]] = {
     "dropout": set(),
     "packet_loss": {"rate"},
@@ -25,6 +25,7 @@ _KIND_KEYS: dict[str, set[str]] = {
     "no_gps": set(),
     "unhealthy": set(),
     "low_battery": {"level"},
+    "drive_off": set(),
 }
 _COMMON_KEYS = {"kind", "vehicle", "at", "until"}
 
@@ -44,7 +45,12 @@ class Fault:
     GLOBAL_POSITION_INT keeps streaming (the simulated estimator still knows where it is, so only
     the GPS check fails) and arming is denied. ``unhealthy`` - the magnetometer is present but not
     healthy in SYS_STATUS (arming denied). ``low_battery`` - the battery reads at most ``level``
-    (0..1) while the fault is active (a rover's battery is drained down to it)."""
+    (0..1) while the fault is active (a rover's battery is drained down to it).
+
+    ``drive_off`` (a carrier): while active it drives on along its heading at its cruise speed,
+    whatever its mission or commands say (as PX4's SIH Ackermann carrier once drove 57 m on from a
+    stop it had reported reached); when the fault ends it stops where it is and stays there until
+    its mission is moved on (a current item set again)."""
 
     kind: str
     vehicle: str | None = None
@@ -177,6 +183,10 @@ class FaultBook:
     def unhealthy(self, vehicle: str, t: float) -> bool:
         """The magnetometer is present but unhealthy in SYS_STATUS."""
         return bool(self._faults) and bool(self._active("unhealthy", vehicle, t))
+
+    def drives_off(self, vehicle: str, t: float) -> bool:
+        """The carrier drives on along its heading, deaf to its mission (``drive_off``)."""
+        return bool(self._faults) and bool(self._active("drive_off", vehicle, t))
 
     def battery_level(self, vehicle: str, t: float) -> float | None:
         """The cap on the battery (0..1) of an active low_battery fault, None without one."""

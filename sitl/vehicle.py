@@ -131,6 +131,7 @@ class SimVehicle:
         self._hold_until: float | None = None
         self._rtl_phase = 0
         self._takeoff_pending = False
+        self._drive_off_state = 0  # drive_off fault: 1 driving on, 2 stopped off its mission (to set_current)
         self._disarm_at: float | None = None
         self._upload: Upload | None = None
         self._last_upload: tuple[tuple[int, int], int, int] | None = None  # partner, count, mission_type
@@ -568,6 +569,9 @@ class SimVehicle:
                 self._emit_heartbeat_now()
         if not self.armed:
             return
+        if rover is None and (self._drive_off_state or self.faults.drives_off(self.id, t)):
+            self._drive_off(t)
+            return
         mode = self.mode
         if mode is Mode.MISSION:
             if not self.paused:
@@ -581,6 +585,18 @@ class SimVehicle:
         elif mode is Mode.RTL:
             if self._rtl_step() and not self.is_rover:
                 self._set_mode_raw(Mode.HOLD)
+
+    def _drive_off(self, t: float) -> None:
+        """The ``drive_off`` fault: on along the heading while it lasts; then a stop where it is,
+        holding there until a current item is set again (:meth:`set_current`)."""
+        body = self.body
+        if self.faults.drives_off(self.id, t):
+            self._drive_off_state = 1
+            x, y, _z = body.position
+            body.target = (x + 10.0 * math.cos(body.heading), y + 10.0 * math.sin(body.heading), 0.0)
+        elif self._drive_off_state == 1:
+            body.target = None  # the fault is over: it brakes to a stop where it is
+            self._drive_off_state = 2
 
     # -- geofence and link loss ----------------------------------------------------------------
     def _check_fence(self, t: float) -> None:
@@ -778,6 +794,7 @@ class SimVehicle:
         self.current = seq
         self.finished = False
         self._item_key = None
+        self._drive_off_state = 0
         self._emit(M.MAVLINK_MSG_ID_MISSION_CURRENT)
         return True
 

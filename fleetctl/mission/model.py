@@ -25,7 +25,7 @@ Vec2 = tuple[float, float]
 Vec3 = tuple[float, float, float]
 
 FAULT_KINDS = ("dropout", "packet_loss", "latency", "battery_drain", "refuse_arm", "reject_mission",
-               "no_gps", "unhealthy", "low_battery")
+               "no_gps", "unhealthy", "low_battery", "drive_off")
 FAILSAFE_ACTIONS = ("keep", "hold", "land", "rtl")  # links.failsafe
 FENCE_ACTIONS = ("report", "hold", "rtl", "land")  # geofence.action
 

@@ -28,6 +28,15 @@ log = logging.getLogger(__name__)
 STAY_RADIUS = 1.0  # m: a stopped carrier this near its new route's first stop stays on it
 STAY_SPEED = 0.3  # m/s: a carrier this slow is stopped
 CARRIER_OUTAGE_MAX = 600.0  # mission s the controller waits for a lost carrier to come back
+# A collection lands rovers only on a carrier parked at their stop: stopped (STAY_SPEED) within
+# PARK_RADIUS of it - beyond an ArduRover's WP_RADIUS (2 m), within which it stops, and the
+# estimator's drift; the rovers are moved over the carrier's live position first when it stands
+# more than fleetctl.run.collect.RETARGET_OFFSET off the stop. A carrier seen beyond PARK_RADIUS or
+# faster than DRIVE_OFF_SPEED has left its stop: a landing under way is broken off.
+PARK_RADIUS = 3.0  # m
+DRIVE_OFF_SPEED = 1.0  # m/s
+RESTOP_SETTLE = 10.0  # mission s on top of the drive back onto the stop (braking, turning, settling)
+RESTOPS_MAX = 3  # waits for the carrier to park (each sending it back onto the stop when it is off it)
 
 Vec3 = tuple[float, float, float]
 
@@ -47,11 +56,8 @@ def stopped_on_item(v: Vehicle, seq: int) -> bool:
     """Telemetry shows ``v`` stopped (at most ``STAY_SPEED``) within ``STAY_RADIUS`` of its uploaded
     mission item ``seq``: its arrival there when both the MISSION_ITEM_REACHED and the MISSION_CURRENT
     that tell it at once were lost (the next MISSION_CURRENT comes about a wall second later)."""
-    items, origin, p, speed = v.mission_items, v.origin, v.enu, v.ground_speed
-    if p is None or origin is None or speed is None or speed > STAY_SPEED or not 0 <= seq < len(items):
-        return False
-    x, y, _z = item_position(items[seq], origin)
-    return math.hypot(p[0] - x, p[1] - y) <= STAY_RADIUS
+    off, speed = _off(v, seq), v.ground_speed
+    return off is not None and off <= STAY_RADIUS and speed is not None and speed <= STAY_SPEED
 
 
 def hovering_on_item(v: Vehicle, seq: int) -> bool:
@@ -61,6 +67,30 @@ def hovering_on_item(v: Vehicle, seq: int) -> bool:
     MISSION_CURRENT comes about a wall second later: ten mission seconds at speed-up 10)."""
     vel = v.velocity
     return vel is not None and abs(vel[2]) <= STAY_SPEED and stopped_on_item(v, seq)
+
+
+def _off(v: Vehicle, seq: int) -> float | None:
+    """How far (m, horizontally) ``v`` is from its uploaded mission item ``seq``; None unknown."""
+    items, origin, p = v.mission_items, v.origin, v.enu
+    if p is None or origin is None or not 0 <= seq < len(items):
+        return None
+    x, y, _z = item_position(items[seq], origin)
+    return math.hypot(p[0] - x, p[1] - y)
+
+
+def parked_on_item(v: Vehicle, seq: int) -> bool:
+    """Telemetry shows the carrier ``v`` parked at its mission item ``seq``: stopped (at most
+    ``STAY_SPEED``) within ``PARK_RADIUS`` of it - where rovers may be sent down onto it."""
+    off = _off(v, seq)
+    speed = v.ground_speed
+    return off is not None and off <= PARK_RADIUS and speed is not None and speed <= STAY_SPEED
+
+
+def left_item(v: Vehicle, seq: int) -> bool:
+    """The carrier ``v`` has left its mission item ``seq`` (beyond ``PARK_RADIUS`` or faster than
+    ``DRIVE_OFF_SPEED``): a rover landing there must break off."""
+    off = _off(v, seq)
+    return (off is not None and off > PARK_RADIUS) or (v.ground_speed or 0.0) > DRIVE_OFF_SPEED
 
 
 class CarrierControl:
@@ -73,6 +103,7 @@ class CarrierControl:
         self.losses = 0  # carrier link losses so far (a wait that timed out during one is retried)
         self.held: set[str] = set()  # rovers paused while the carrier is lost
         self._stayed: int | None = None  # the first stop's arrive item when the route started there
+        self._parking = asyncio.Lock()  # one re-stop at a time, shared by the rovers of the stop
 
     @property
     def vehicle(self) -> Vehicle:
@@ -191,6 +222,58 @@ class CarrierControl:
         )
         return t
 
+    async def parked(self, k: int, seq: int) -> None:
+        """Return once the carrier is parked at stop ``k`` (its arrive item ``seq``:
+        :func:`parked_on_item`); a carrier not parked there is journalled (``carrier_off_stop``) and,
+        when it is beyond ``PARK_RADIUS`` of the stop, sent back onto it (the stop's item made current
+        again; once more when it stands still off the stop or is not back in time). Each wait is
+        bounded in mission time: the drive back at the carrier's speed plus ``RESTOP_SETTLE``, with the
+        stated slack (:meth:`RunContext.late`); after ``RESTOPS_MAX`` re-stops a ``TimeoutError``.
+        The rovers of the stop call this at once: one of them does the waiting, the rest find it done."""
+        async with self._parking:
+            for restops in range(RESTOPS_MAX + 1):
+                if parked_on_item(self.vehicle, seq):
+                    return
+                if restops == RESTOPS_MAX:
+                    break
+                await self.ready()
+                c = self.vehicle
+                off = _off(c, seq)
+                self.ctx.record(Ev.CARRIER_OFF_STOP, vehicle=c.name, stop=k + 1, offset=off,
+                                speed=c.ground_speed, attempt=restops + 1)
+                budget = RESTOP_SETTLE
+                if off is None or off > PARK_RADIUS:  # else it is still coming to a stop on it
+                    await self._restop(k, seq)
+                    budget += (off or 0.0) / max(self.ctx.mission.carrier.max_speed, 0.1)
+                await self._wait_parked(k, seq, budget)
+            raise TimeoutError(f"the carrier is not parked at stop {k + 1} after {RESTOPS_MAX} re-stops")
+
+    async def _wait_parked(self, k: int, seq: int, budget: float) -> None:
+        """Wait (``budget`` mission s with the stated slack) for the carrier parked at the stop, lost,
+        or - after it moved - standing still off the stop (it is sent back again)."""
+        moved = False
+
+        def done(v: Vehicle) -> bool:
+            nonlocal moved
+            speed = v.ground_speed or 0.0
+            moved = moved or speed > STAY_SPEED
+            off = _off(v, seq)
+            return parked_on_item(v, seq) or v.lost or (moved and speed <= STAY_SPEED and off is not None
+                                                        and off > PARK_RADIUS)
+
+        with contextlib.suppress(TimeoutError):
+            await self.ctx.wait_for(self.vehicle, done, self.ctx.late(budget),
+                                    f"the carrier parked at stop {k + 1}")
+
+    async def _restop(self, k: int, seq: int) -> None:
+        """Send the carrier back onto stop ``k``: its arrive item ``seq`` made current again (it
+        drives there and holds on the stop's loiter)."""
+        c = self.vehicle
+        try:
+            await self.ctx.command(c, "return_to_stop", c.set_current(seq), seq=seq, stop=k + 1)
+        except (CommandRejected, LinkError, TimeoutError) as exc:
+            log.warning("%s: could not send the carrier back onto stop %d: %s", c.name, k + 1, exc)
+
     async def ready(self) -> None:
         """Wait (bounded) until the carrier's link is up."""
         if self.ok.is_set() and not self.lost:
@@ -264,4 +347,5 @@ class CarrierControl:
             await self.ctx.command(v, "resume", v.resume())
 
 
-__all__ = ["CARRIER_OUTAGE_MAX", "CarrierControl", "stopped_on_item", "upload"]
+__all__ = ["CARRIER_OUTAGE_MAX", "PARK_RADIUS", "CarrierControl", "left_item", "parked_on_item",
+           "stopped_on_item", "upload"]

@@ -39,7 +39,7 @@ from fleetctl.mavlink.link import LinkError, MissionItem
 from fleetctl.mavlink.vehicle import CommandRejected, Vehicle
 from fleetctl.mission.flight import GROUND_HEIGHT, MEET_HEIGHT
 from fleetctl.mission.model import any_on_ground
-from fleetctl.run.carrier import STAY_SPEED, hovering_on_item, upload
+from fleetctl.run.carrier import RESTOPS_MAX, STAY_SPEED, hovering_on_item, left_item, upload
 from fleetctl.run.collect_timing import (
     CarrierNow,
     RoundClock,
@@ -433,7 +433,8 @@ class CollectPhase:
                 continue
             prev = stop.depart
             self._at_stop(rnd, k)
-            await asyncio.gather(*(self._bring_in(rnd, leg.rover, leg.arrive) for leg in stop.rovers))
+            await asyncio.gather(*(self._bring_in(rnd, leg.rover, leg.arrive, k, items.arrive_seq)
+                                   for leg in stop.rovers))
             await ctx.sleep_mission(self._load_left(rnd, [leg.rover for leg in stop.rovers]))
             assert self.t0 is not None
             self.result.flown = ctx.clock() - self.t0
@@ -555,8 +556,9 @@ class CollectPhase:
         with contextlib.suppress(CommandRejected, LinkError, TimeoutError):
             await self.ctx.command(v, "arm", v.arm())
 
-    async def _bring_in(self, rnd: _Round, rid: str, leg_arrive: float) -> None:
-        """Wait for ``rid`` above the stop, send it down onto the carrier, wait until loaded."""
+    async def _bring_in(self, rnd: _Round, rid: str, leg_arrive: float, k: int, seq: int) -> None:
+        """Wait for ``rid`` above stop ``k`` (the carrier's arrive item ``seq``), send it down onto
+        the carrier parked there, wait until loaded."""
         ctx, st = self.ctx, self.ctx.state
         v = ctx.fleet.rovers[rid]
         going = rnd.going.get(rid)
@@ -568,16 +570,7 @@ class CollectPhase:
             await self._wait_meeting_point(rnd, v, leg_arrive)
             if v.lost or not self.board.in_round(rid):
                 return
-            if not rover_on_deck(ctx, v):
-                await self._send_down(rnd, v)
-                st.set_state(rid, VehicleStatus.LANDED)
-            landing = max(LANDING_TIMEOUT, 3.0 * ctx.mission.rovers.land_time)
-            await ctx.wait_for(
-                v,
-                lambda v: rover_on_deck(ctx, v) or self._down_on_deck(rnd, v) or v.lost or self._gone(rnd, v),
-                landing,
-                "landing on the carrier",
-            )
+            await self._land_on_parked(rnd, v, k, seq)
             if v.lost or not self.board.in_round(rid):
                 return
             rnd.touched[rid] = ctx.clock()
@@ -593,17 +586,61 @@ class CollectPhase:
         st.set_state(rid, VehicleStatus.LOADED)
         st.event(Ev.ROVER_LOADED, f"{rid}: loaded on the carrier at {flown:.1f} s", rid, flown=flown)
 
-    async def _send_down(self, rnd: _Round, v: Vehicle) -> None:
+    async def _land_on_parked(self, rnd: _Round, v: Vehicle, k: int, seq: int) -> None:
+        """Land ``v`` on the carrier once it is parked at stop ``k`` (:meth:`CarrierControl.parked`:
+        the rover hovers meanwhile). A carrier that leaves the stop during the descent
+        (:func:`left_item`) breaks the landing off: the rover climbs back to ``MEET_HEIGHT`` where it
+        is, the carrier is sent back onto the stop, and the rover is brought down over it again."""
+        ctx, c, rid = self.ctx, self.ctx.fleet.carrier, v.name
+        landing = max(LANDING_TIMEOUT, 3.0 * ctx.mission.rovers.land_time)
+        broken_off = False
+        for _ in range(RESTOPS_MAX):
+            await self.carrier.parked(k, seq)
+            if not rover_on_deck(ctx, v):
+                await self._send_down(rnd, v, over_carrier=broken_off)
+                ctx.state.set_state(rid, VehicleStatus.LANDED)
+
+            def down_or_left(v: Vehicle) -> bool:
+                return (rover_on_deck(ctx, v) or self._down_on_deck(rnd, v) or v.lost or self._gone(rnd, v)
+                        or (left_item(c, seq) and v.on_ground is not True))
+
+            await ctx.wait_for(v, down_or_left, landing, "landing on the carrier")
+            if rover_on_deck(ctx, v) or self._down_on_deck(rnd, v) or v.lost or not self.board.in_round(rid):
+                return
+            await self._climb_back(rnd, v, k)  # the carrier left the stop
+            broken_off = True
+        raise TimeoutError(f"the carrier left stop {k + 1} {RESTOPS_MAX} times")
+
+    async def _climb_back(self, rnd: _Round, v: Vehicle, k: int) -> None:
+        """The carrier left stop ``k`` under a landing ``v``: it climbs back to ``MEET_HEIGHT``
+        where it is and hovers."""
+        ctx = self.ctx
+        text = f"{v.name}: the carrier left stop {k + 1}: landing broken off, hovering"
+        ctx.record(Ev.ROVER_STATE, vehicle=v.name, text=text)
+        ctx.state.set_state(v.name, VehicleStatus.WAITING)
+        if v.position is None:
+            return
+        lat, lon, _alt = v.position
+        await ctx.command(v, "goto", v.goto(lat, lon, MEET_HEIGHT))
+
+    async def _send_down(self, rnd: _Round, v: Vehicle, over_carrier: bool = False) -> None:
         """Land ``v`` on the carrier: its mission's landing straight below it, or - when it hovers
         more than ``RETARGET_OFFSET`` off the stopped carrier (autopilots stop within their acceptance
         radius, an Ackermann carrier may overshoot its stop) - over the carrier's live position
-        first (DO_REPOSITION), then straight down, so that a rover lands on the deck, never beside it."""
+        first (DO_REPOSITION), then straight down, so that a rover lands on the deck, never beside it.
+        ``over_carrier``: always over the carrier first (a rover whose landing was broken off flies
+        a DO_REPOSITION, out of its mission)."""
         ctx, rid = self.ctx, v.name
         c = ctx.fleet.carrier
         off = None if c.enu is None or v.enu is None else math.hypot(c.enu[0] - v.enu[0], c.enu[1] - v.enu[1])
         moving = c.ground_speed is None or c.ground_speed > STAY_SPEED  # it is still coming to its stop
-        if off is None or off <= RETARGET_OFFSET or c.position is None or moving:
-            await ctx.command(v, "set_current", v.set_current(rnd.land_seq[rid]), seq=rnd.land_seq[rid])
+        if off is None or c.position is None or not (over_carrier or (off > RETARGET_OFFSET and not moving)):
+            if over_carrier:  # out of its mission, the carrier's position unknown: down where it hovers
+                if (trouble := rnd.trouble.get(rid)) is not None:
+                    trouble.commanded("LAND")
+                await ctx.command(v, "land", v.land())
+            else:
+                await ctx.command(v, "set_current", v.set_current(rnd.land_seq[rid]), seq=rnd.land_seq[rid])
             return
         lat, lon, _alt = c.position
         height = v.height if v.height is not None else MEET_HEIGHT

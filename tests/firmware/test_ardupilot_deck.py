@@ -62,9 +62,10 @@ def deck_mission(n_rovers: int) -> dict[str, Any]:
 
 
 @contextmanager
-def deck_team(tmp_path: Path, n_rovers: int = 4) -> Iterator[tuple[Team, JsonWorld]]:
+def deck_team(tmp_path: Path, n_rovers: int = 4,
+              mission: dict[str, Any] | None = None) -> Iterator[tuple[Team, JsonWorld]]:
     """The world (carrier at the origin heading north, copters on its deck), its firmware and the
-    mission file; ready when fleetctl's preflight passes."""
+    mission file (``mission``, else :func:`deck_mission`); ready when fleetctl's preflight passes."""
     b = build()
     world = JsonWorld(ORIGIN, instance_base=INSTANCE_BASE)
     world.add_carrier("carrier", 1, deck=DECK, firmware_params=FIRMWARE)
@@ -73,7 +74,7 @@ def deck_team(tmp_path: Path, n_rovers: int = 4) -> Iterator[tuple[Team, JsonWor
         fwd, right = SEATS[k]
         world.add_copter(r, 11 + k, north=fwd, east=right, on_deck_of="carrier", firmware_params=FIRMWARE)
     path = tmp_path / "mission.yaml"
-    path.write_text(yaml.safe_dump(deck_mission(n_rovers), sort_keys=False))
+    path.write_text(yaml.safe_dump(mission or deck_mission(n_rovers), sort_keys=False))
     fleet = FirmwareFleet(b, world.firmware_vehicles(), gcs_port=GCS_PORT, speedup=SPEEDUP,
                           instance_base=INSTANCE_BASE, workdir=tmp_path / "firmware")
     with world, fleet:

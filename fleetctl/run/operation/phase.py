@@ -156,13 +156,13 @@ class OperationPhase:
             await self.carrier.reach_stop(k, seqs[k][0], leg)
             self.delay = max(self.now() - (self.base + stop.arrive), 0.0)
             self.ctx.state.eta = self._eta()
-            waiting = await self._pick_up(k, stop, interruptible=True)
+            waiting = await self._pick_up(k, seqs[k][0], stop, interruptible=True)
             self._take_changes()
             await self._check_batteries()
             if self.trouble is not None and (new := await self._replan()) is not None:
                 return new
             if waiting:  # a replan that found no plan: the stop's pick-ups as planned
-                await self._pick_up(k, stop, interruptible=False)
+                await self._pick_up(k, seqs[k][0], stop, interruptible=False)
             await self._launch(k, stop)
             if seqs[k][1] is not None:
                 await self.carrier.release(k, seqs[k][1])
@@ -307,10 +307,11 @@ class OperationPhase:
         return [(s.arrive_seq, s.release_seq) for s in stops]
 
     # ============================================================================== pick-ups
-    async def _pick_up(self, k: int, stop: OpStop, interruptible: bool) -> bool:
-        """Wait for the stop's returning rovers, land and load them; ``interruptible``: a rover
-        short of battery in the air (:attr:`urgent`) ends the wait. True when rovers of the stop
-        were left waiting for."""
+    async def _pick_up(self, k: int, seq: int, stop: OpStop, interruptible: bool) -> bool:
+        """Wait for the stop's returning rovers, then for the carrier parked at the stop (its arrive
+        item ``seq``: :meth:`CarrierControl.parked`; they hover meanwhile), land and load them;
+        ``interruptible``: a rover short of battery in the air (:attr:`urgent`) ends the wait. True
+        when rovers of the stop were left waiting for."""
         ctx = self.ctx
         flights = [self.flights[r] for r in stop.pickups if r in self.flights]
         for f in flights:
@@ -323,6 +324,13 @@ class OperationPhase:
                 f._lost(str(exc))
         left = [f for f in flights if f.entry.status is not SortieStatus.LOST and not f.above_stop(f.vehicle)]
         flights = [f for f in flights if f not in left]
+        if any(f.entry.status is SortieStatus.RETURNING for f in flights):
+            try:
+                await self.carrier.parked(k, seq)
+            except TimeoutError as exc:  # not sent down onto a carrier that is not there: they hover
+                for f in flights:
+                    if f.entry.status is SortieStatus.RETURNING:
+                        f._lost(f"not landed: {exc}")
         landed = await asyncio.gather(*(land_on_deck(ctx, f, LANDING_TIMEOUT) for f in flights
                                         if f.entry.status is SortieStatus.RETURNING))
         if any(landed):

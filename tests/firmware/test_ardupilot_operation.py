@@ -1,0 +1,54 @@
+"""A long operation on real ArduPilot firmware: a small one (2 ArduCopter rovers on an ArduRover
+carrier's ``sitl.json_physics`` deck, 4 tasks worked hovering for short durations, battery swaps on
+the deck) flown with ``fleetctl run`` as a user flies it. The firmware times each task's work
+(NAV_LOITER_TIME). Skipped with one line without ``FLEETCTL_ARDUPILOT_DIR``.
+
+Work on the ground is not flown here: ArduCopter disarms under a sortie's NAV_LAND (0.8 s after
+its "Land") and restarts its mission at item 1, so the NAV_DELAY that times the work never runs
+(``operation_mission(ground=...)`` builds such a mission; docs/autopilots.md)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import pytest
+from ardupilot_team import journal, mission_yaml
+from test_ardupilot_deck import GCS_PORT, deck_team
+
+pytestmark = pytest.mark.firmware
+
+TASKS = (("o1", (20.0, 10.0, 5.0)), ("o2", (25.0, -10.0, 5.0)), ("o3", (10.0, 30.0, 5.0)),
+         ("o4", (-15.0, 25.0, 5.0)))
+DURATIONS = {"o1": 10.0, "o2": 15.0, "o3": 10.0, "o4": 15.0}
+
+
+def operation_mission(ground: tuple[str, ...] = ()) -> dict[str, Any]:
+    m = mission_yaml(GCS_PORT, 2, tasks=TASKS, extra={
+        "operation": True,
+        "carrier": {"max_speed": 3.0, "accel": 1.0, "swap_time": 5.0},
+        # a battery for a sortie or two: the planner may swap one on the deck
+        "rovers": {"deploy_range": 60.0, "endurance_range": 300.0},
+    })
+    for t in m["tasks"]:
+        t["duration"] = DURATIONS[t["id"]]
+        if t["id"] in ground:
+            t["work"] = "ground"
+            t["position"][2] = 0.0
+    return m
+
+
+def test_a_small_operation_flies_on_ardupilot(tmp_path: Path) -> None:
+    with deck_team(tmp_path, n_rovers=2, mission=operation_mission()) as (team, _world):
+        proc, run = team.fly("run", timeout=900)
+        assert proc.returncode == 0, proc.stdout[-4000:] + proc.stderr[-2000:] + team.firmware_tail()
+        assert run["result"] == "complete", run
+        assert sorted(run["tasks_done"]) == sorted(DURATIONS), run
+        assert sorted(run["rovers_loaded"]) == team.rovers, run
+        rows = journal(Path(run["journal"]).parent)
+        done = [r for r in rows if r.get("kind") == "task_done"]
+        assert sorted(r["task"] for r in done) == sorted(DURATIONS)
+        swaps = [r for r in rows if r.get("kind") == "battery_swapped"]
+        print(f"\nArduPilot operation: flown {run['makespan_flown']:.1f} s vs planned "
+              f"{run['makespan_planned']:.1f} s; swaps {len(swaps)}; worked "
+              f"{ {r['task']: r.get('worked') for r in done} }")

@@ -1,0 +1,135 @@
+"""Rovers are sent down only onto a carrier parked at their stop (fleetctl.run.carrier.parked_on_item:
+stopped within PARK_RADIUS of it). Through the simulated fleet over real UDP, a ``drive_off`` fault
+makes the carrier drive on from a collection stop it has reached (as PX4's SIH Ackermann carrier
+once did for 57 m): the rovers hover, the carrier is sent back onto the stop (``carrier_off_stop``),
+and every rover is loaded on the deck, none on the ground. A drive-off while a rover descends breaks
+its landing off (it climbs back and hovers) before it is brought down over the carrier again."""
+
+from __future__ import annotations
+
+import asyncio
+import math
+from pathlib import Path
+from typing import Any
+
+from fleetctl.geo import Origin, local_to_geodetic
+from fleetctl.mavlink.link import Link, MissionItem
+from fleetctl.mavlink.vehicle import Vehicle
+from fleetctl.run.carrier import PARK_RADIUS, left_item, parked_on_item
+from fleetctl.run.kinds import Phase
+from fleetctl.run.state import Event, FleetState
+from sitl import Fault, SimFleet
+from tests.run.test_replan import fly, journal
+from tests.run.test_supervision import mission_dict
+
+ORIGIN = Origin(47.397742, 8.545594, 488.0)
+DRIVE = 2.0  # simulated s the carrier drives on from its stop
+
+
+def _carrier(x: float, speed: float) -> Vehicle:
+    from pymavlink.dialects.v20 import ardupilotmega as M
+    v = Vehicle(Link("udp://127.0.0.1:9"), 1, name="carrier", origin=ORIGIN)  # never opened
+    v.lat, v.lon, v.alt = local_to_geodetic(x, 0.0, 0.0, ORIGIN)
+    v.velocity = (speed, 0.0, 0.0)
+    lat, lon, _ = local_to_geodetic(0.0, 0.0, 0.0, ORIGIN)
+    v.mission_items = [MissionItem(M.MAV_CMD_NAV_WAYPOINT, x=int(round(lat * 1e7)), y=int(round(lon * 1e7)))]
+    return v
+
+
+def test_parked_means_stopped_within_the_park_radius() -> None:
+    assert parked_on_item(_carrier(0.6, 0.0), 0)  # PX4's 0.6 m off, standing: parked
+    assert not parked_on_item(_carrier(0.6, 2.0), 0)  # driving: not parked
+    assert not parked_on_item(_carrier(PARK_RADIUS + 0.5, 0.0), 0)  # standing off the stop
+    assert left_item(_carrier(0.6, 2.0), 0) and left_item(_carrier(PARK_RADIUS + 0.5, 0.0), 0)
+    assert not left_item(_carrier(0.6, 0.1), 0)
+
+
+def _drive_off_at_collect_stop(delay: float, stop: int = 1) -> tuple[Any, list[float]]:
+    """An action: the carrier drives on for ``DRIVE`` simulated s, ``delay`` simulated s after the
+    collection's stop ``stop`` is reached - stop 0: after the collection starts (the carrier stands
+    on its first stop: the route starts on that stop's hold, as in PX4's drive-off)."""
+    fired: list[float] = []
+
+    def action(ev: Event, sim: SimFleet, state: FleetState) -> None:
+        if fired or state.phase != Phase.COLLECT:
+            return
+        if (ev.kind == "stop_reached" and state.stop_index == stop) or (
+                ev.kind == "collection_started" and stop == 0):
+            at = sim.sim_time + delay
+            fired.append(at)
+            sim.inject(Fault("drive_off", vehicle="carrier", at=at, until=at + DRIVE))
+    return action, fired
+
+
+def _check_loaded_on_deck(s: dict[str, Any], sim: SimFleet) -> list[dict[str, Any]]:
+    assert s["_exit"] == 0, s
+    assert sorted(s["rovers_loaded"]) == ["r1", "r2"], s
+    assert sorted(sim.world.loaded_rovers()) == ["r1", "r2"]  # on the deck, not on the ground
+    recs = journal(s)
+    off = [r for r in recs if r["kind"] == "carrier_off_stop"]
+    assert any(r["offset"] > PARK_RADIUS for r in off), off
+    restops = [r for r in recs if r["kind"] == "command" and r.get("vehicle") == "carrier"
+               and r.get("command") == "return_to_stop"]
+    assert restops, "the carrier was not sent back onto its stop"
+    return recs
+
+
+def test_rovers_hover_until_the_carrier_is_back_on_its_stop(tmp_path: Path) -> None:
+    action, fired = _drive_off_at_collect_stop(0.0, stop=0)
+    s, _trig, sim, _path = asyncio.run(fly(tmp_path, mission_dict(rovers=2), "run", action))
+    assert fired
+    _check_loaded_on_deck(s, sim)
+
+
+def test_a_carrier_driving_off_its_second_stop_is_sent_back(tmp_path: Path) -> None:
+    action, fired = _drive_off_at_collect_stop(0.5, stop=2)
+    s, _trig, sim, _path = asyncio.run(fly(tmp_path, mission_dict(rovers=2), "run", action))
+    assert fired
+    recs = _check_loaded_on_deck(s, sim)
+    assert all(r["stop"] == 2 for r in recs if r["kind"] == "carrier_off_stop")
+
+
+def test_an_operation_pick_up_waits_for_the_carrier_back_on_its_stop(tmp_path: Path) -> None:
+    """A long operation (tests/run/operation): the carrier drives off its stop as the first rover
+    back waits above it to be picked up (a watch on the simulated bodies: a rover hovering within
+    4 m of the stopped carrier); the rover hovers until the carrier is back, and the operation
+    completes with every rover on the deck."""
+    from tests.run.operation.ops_helpers import small_operation
+    fired: list[float] = []
+    watch: list[asyncio.Task[None]] = []
+
+    async def watcher(sim: SimFleet) -> None:
+        carrier = sim.world.body("carrier")
+        while not fired:
+            await asyncio.sleep(0.005)
+            cx, cy, _ = carrier.position
+            for rid in ("r1", "r2"):
+                x, y, z = sim.rover(rid).position
+                t = sim.sim_time
+                if z > 1.0 and math.hypot(x - cx, y - cy) < 4.0 and carrier.speed == 0.0 and t > 40:
+                    fired.append(t)
+                    sim.inject(Fault("drive_off", vehicle="carrier", at=t, until=t + DRIVE))
+                    break
+
+    def action(ev: Event, sim: SimFleet, state: FleetState) -> None:
+        if not watch:
+            watch.append(asyncio.get_running_loop().create_task(watcher(sim)))
+
+    s, _trig, sim, _path = asyncio.run(fly(tmp_path, small_operation(), "run", action))
+    assert fired
+    assert s["_exit"] == 0 and s["result"] == "complete", s
+    assert sorted(s["rovers_loaded"]) == ["r1", "r2"] and not s["rovers_lost"], s
+    assert sorted(sim.world.loaded_rovers()) == ["r1", "r2"]
+    recs = journal(s)
+    assert any(r["kind"] == "carrier_off_stop" and r["offset"] > PARK_RADIUS for r in recs)
+    assert any(r["kind"] == "command" and r.get("command") == "return_to_stop" for r in recs)
+
+
+def test_the_docs_state_the_park_terms() -> None:
+    from fleetctl.run.carrier import DRIVE_OFF_SPEED, RESTOP_SETTLE, RESTOPS_MAX, STAY_SPEED
+    text = (Path(__file__).resolve().parents[2] / "docs" / "operations.md").read_text(encoding="utf-8")
+    section = " ".join(text[text.index("### A carrier that leaves its stop"):].split())
+    for phrase in (f"at most {STAY_SPEED:g} m/s", f"within {PARK_RADIUS:g} m of the stop",
+                   f"plus {RESTOP_SETTLE:g} s", f"after {RESTOPS_MAX} waits",
+                   f"faster than {DRIVE_OFF_SPEED:g} m/s", "`return_to_stop`"):
+        assert phrase in section, phrase
