@@ -192,6 +192,29 @@ class Seen:
     texts: list[str] = field(default_factory=list)
 
 
+def kill_run_once_deployed(argv: list[str], env: Mapping[str, str] | None = None,
+                           cwd: Path | None = None) -> str:
+    """Start ``fleetctl run`` (``argv``) and SIGKILL it once it prints that every rover is at its task
+    (the dwell begins): the controller dies with no records written on the way out. Returns its
+    output up to then."""
+    proc = subprocess.Popen(argv, cwd=cwd, env=None if env is None else dict(env), stdout=subprocess.PIPE,
+                            stderr=subprocess.STDOUT, text=True)
+    lines: list[str] = []
+    try:
+        assert proc.stdout is not None
+        for line in proc.stdout:
+            lines.append(line)
+            if "deployed" in line:  # every rover at its task, the dwell begins
+                proc.kill()
+                break
+        proc.wait(30)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == -9, "".join(lines)[-3000:]
+    return "".join(lines)
+
+
 def probe(port: int, seconds: float = 3.0, *, sysids: Sequence[int] = (),
           beat: bool = True) -> dict[int, Seen]:
     """Listen on the team's ground-station port (no controller running) for ``seconds``: each

@@ -21,6 +21,7 @@ from ardupilot_team import (
     Team,
     ardupilot_team,
     horizontal,
+    kill_run_once_deployed,
     mission_yaml,
     param_answered,
     probe,
@@ -136,20 +137,7 @@ def test_run_killed_with_sigkill_is_finished_by_resume(tmp_path: Path) -> None:
         run_dir = tmp_path / "runs" / "killed"
         argv = [sys.executable, "-m", "fleetctl.cli", "run", "--mission", str(team.mission), "--speedup", "4",
                 "--dwell", "20", "--yes", "--headless", "--run-dir", str(run_dir)]
-        proc = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
-        try:
-            assert proc.stdout is not None
-            lines = []
-            for line in proc.stdout:
-                lines.append(line)
-                if "deployed" in line:  # every rover at its task, the dwell begins
-                    proc.kill()  # the controller dies: SIGKILL, no records written on the way out
-                    break
-            proc.wait(30)
-        finally:
-            if proc.poll() is None:
-                proc.kill()
-        assert proc.returncode == -9, "".join(lines)[-3000:]
+        kill_run_once_deployed(argv)
         out = tmp_path / "resumed.json"
         resumed = team.fleetctl("resume", "--run", str(run_dir), "--yes", "--headless", "--speedup", "4",
                                 "--summary", str(out), timeout=300)

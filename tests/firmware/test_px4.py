@@ -29,7 +29,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from ardupilot_team import probe
+from ardupilot_team import kill_run_once_deployed, probe
 from px4_fleet import GCS_PORT, SKIP_REASON, TASKS, mission_yaml, port_free, px4_fleet
 
 from sitl.firmware import find_px4
@@ -152,21 +152,7 @@ def test_a_run_killed_with_sigkill_is_finished_by_resume(tmp_path: Path) -> None
         argv = [sys.executable, "-m", "fleetctl.cli", "run", "-m", str(mission), "--speedup", str(SPEEDUP),
                 "--dwell", "20", "--yes", "--headless", "--run-dir", str(run_dir)]
         env = dict(os.environ, PYTHONPATH=str(ROOT), PYTHONUNBUFFERED="1")
-        proc = subprocess.Popen(argv, cwd=ROOT, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
-                                text=True)
-        lines: list[str] = []
-        try:
-            assert proc.stdout is not None
-            for line in proc.stdout:
-                lines.append(line)
-                if "deployed" in line:  # every rover at its task, the dwell begins
-                    proc.kill()  # the controller dies: no records written on the way out
-                    break
-            proc.wait(30)
-        finally:
-            if proc.poll() is None:
-                proc.kill()
-        assert proc.returncode == -9, "".join(lines)[-3000:]
+        kill_run_once_deployed(argv, env, ROOT)
         out = tmp_path / "resumed.json"
         resumed = cli("resume", "--run", str(run_dir), "--yes", "--headless", "--speedup", str(SPEEDUP),
                       "--summary", str(out), timeout=180.0)
