@@ -330,12 +330,8 @@ class CollectPhase:
             # mission s the airborne rovers will have burnt when the round starts, as foreseen now
             ahead = began - read_at + self._attempt_cost + self._start_cost
             planned = [self._burnt(c, airborne, ahead) for c in crs]
-            for c in planned:  # the controller's own time leaves it too little to reach the ground
-                if c.id in airborne and c.range < max(c.position[2], _to_approach(c.position[2])):
-                    self._short_of_energy(c.id, ahead, battery[c.id] / speed, why=(
-                        f"{c.id}: {c.range:.1f} m of range left once the round starts ({ahead:.1f} s of "
-                        f"the controller's own time from now), too little to come down from "
-                        f"{c.position[2]:.1f} m: not collected"))
+            for c in planned:  # too little range for any plan: let it go, collect the others
+                self._let_go_if_hopeless(c, c.id in airborne, ahead, battery[c.id] / speed)
             planned = [c for c in planned if self.board.in_round(c.id)]
             crs = [c for c in crs if self.board.in_round(c.id)]
             if not crs:
@@ -363,6 +359,21 @@ class CollectPhase:
                 break
             ctx.record(Ev.ROVER_STATE, text="replanned: rovers short of energy", rovers=sorted(short))
         return Plan("collect", "none", start, heading, [])  # nobody left to collect this round
+
+    def _let_go_if_hopeless(self, c: CollectRover, up: bool, ahead: float, allowed: float) -> None:
+        """Leave ``c`` out when its planned range cannot even take it to the approach height above a
+        stop (nor, in the air, down from where it hovers): the controller's own time (``ahead`` mission
+        s) or a landed rover's take-off and landing leave it too little, and no plan could hold it."""
+        z = c.position[2]
+        need = max(z, _to_approach(z)) if up else _to_approach(z)
+        if c.range >= need:
+            return
+        why = (f"{c.id}: {c.range:.1f} m of range left once the round starts ({ahead:.1f} s of the "
+               f"controller's own time from now), too little to come down from {z:.1f} m: not collected"
+               if up else
+               f"{c.id}: {c.range:.1f} m of range left after its take-off and landing, less than the "
+               f"{need:.1f} m climb to the approach height above a stop: not collected")
+        self._short_of_energy(c.id, ahead, allowed, why=why)
 
     def _burnt(self, c: CollectRover, airborne: set[str], seconds: float) -> CollectRover:
         """``c`` with the range an airborne rover burns in ``seconds`` of mission time taken off."""

@@ -171,3 +171,19 @@ async def test_no_rover_below_its_reserve_and_one_that_would_be_is_reported(tmp_
         # too little range left to reach any stop
         assert r["airborne"] > r["allowed"] if "airborne" in r else "cannot reach" in r["text"], r
         assert r["text"].startswith(f"{rid}: ") and "not collected" in r["text"], r
+
+
+async def test_a_landed_rover_without_range_for_its_take_off_is_let_go_and_the_others_collected(
+        tmp_path: Path) -> None:
+    """r2 sits on the ground with a few metres of range: less than its take-off, climb and landing
+    take. No plan can collect it; the round lets it go (``rover_unreachable``, the reason) and
+    collects r1, instead of refusing the whole collection."""
+    mission = collect_mission(tmp_path, [{"id": "r1", "position": [20, 10], "range": 60.0},
+                                         {"id": "r2", "position": [40, -10], "range": 5.0}])
+    out, _plan = await fly(mission, tmp_path, Recorder())  # a plan.json: the round was planned
+    s = out.summary
+    assert s["rovers_loaded"] == ["r1"], s
+    records = read_journal(Path(out.run_dir) / "journal.jsonl")
+    gone = [r for r in records if r["kind"] == "rover_unreachable" and r.get("vehicle") == "r2"]
+    assert gone and "not collected" in gone[0]["text"], [r for r in records if r["kind"] == "error"]
+    assert not [r for r in records if r["kind"] == "error"]
