@@ -120,22 +120,26 @@ def _controller(command: str, mission: Path, tmp_path: Path, port: int,
     return start
 
 
-def test_deploy_shows_vehicles_moving_to_their_tasks(tmp_path: Path) -> None:
-    d = mission_dict(rovers=2, speedup=2.0)
-    mission = write_mission(d, tmp_path / "mission.yaml")
-    port = _free_port()
+def _watch_controller(command: str, mission: Path, tmp_path: Path, *read: str) -> list[Any]:
+    """``fleetctl COMMAND`` with the web map, watched in the browser (``read``: the page script,
+    :func:`_watch_page`) until it exits 0; what the page showed, look by look."""
     procs: list[subprocess.Popen[str]] = []
-
-    start = _controller("deploy", mission, tmp_path, port, procs)
-
     try:
-        looks, proc = _watch_page(start, tmp_path / "chromium-profile")
+        looks, proc = _watch_page(_controller(command, mission, tmp_path, _free_port(), procs),
+                                  tmp_path / "chromium-profile", *read)
         assert proc.wait(timeout=60) == 0
     finally:
         for proc in procs:
             if proc.poll() is None:
                 proc.kill()
                 proc.wait(timeout=10)
+    return looks
+
+
+def test_deploy_shows_vehicles_moving_to_their_tasks(tmp_path: Path) -> None:
+    d = mission_dict(rovers=2, speedup=2.0)
+    mission = write_mission(d, tmp_path / "mission.yaml")
+    looks = _watch_controller("deploy", mission, tmp_path)
     assert {v["id"] for v in looks[-1]} == {"carrier", "r1", "r2"}
     tasks = {t["id"]: t["position"] for t in d["tasks"]}
     for rid in ("r1", "r2"):
@@ -179,19 +183,7 @@ def test_an_operation_shows_each_task_s_work_and_the_sorties_out(tmp_path: Path)
     d = small_operation()
     mission = write_mission(d, tmp_path / "mission.yaml")
     durations = {t["id"]: float(t["duration"]) for t in d["tasks"]}
-    port = _free_port()
-    procs: list[subprocess.Popen[str]] = []
-
-    start = _controller("run", mission, tmp_path, port, procs)
-
-    try:
-        looks, proc = _watch_page(start, tmp_path / "chromium-profile", READ_OPERATION)
-        assert proc.wait(timeout=60) == 0
-    finally:
-        for proc in procs:
-            if proc.poll() is None:
-                proc.kill()
-                proc.wait(timeout=10)
+    looks = _watch_controller("run", mission, tmp_path, READ_OPERATION)
     marks = [t for look in looks for t in look["tasks"] if t["progress"] is not None]
     working = [t for t in marks if t["working"]]
     assert working, "no task marker ever showed work in progress"
