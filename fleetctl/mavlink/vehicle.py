@@ -781,8 +781,14 @@ class Vehicle:
         self.mission_items = []
 
     async def start_mission(self, first: int = 0) -> None:
-        """Fly the uploaded mission (from item ``first`` when > 0). Arm first."""
+        """Fly the uploaded mission (from item ``first`` when > 0). Arm first.
+
+        The current item known before the start is forgotten: it may be the index of the mission
+        flown before (a stock ArduPilot carrier reports its old index until it takes the new
+        mission), which would make a later item look passed at once; the next MISSION_CURRENT
+        sets it again."""
         await self._require_autopilot().start_mission(self, first)
+        self.mission_current = None
 
     async def set_current(self, seq: int) -> None:
         """Make mission item ``seq`` current (MAV_CMD_DO_SET_MISSION_CURRENT; falls back to the

@@ -298,6 +298,20 @@ async def test_px4_current_item_set_by_message_without_asking_the_command_first(
     assert link.M.MAV_CMD_DO_SET_MISSION_CURRENT not in link.commands
 
 
+async def test_started_mission_forgets_the_current_item_of_the_mission_before() -> None:
+    """After the start the current item is unknown until the vehicle reports it: an index of the
+    mission flown before (as a stock ArduPilot carrier reports until it takes the new mission) must
+    not make a later item of the new one look passed."""
+    link = _CountingPx4Link()
+    v = _px4_vehicle(link)
+    link.feed(link.M.MAVLink_mission_current_message(0, 4, 3, 1))
+    link.feed(link.M.MAVLink_mission_current_message(5, 4, 3, 1))  # the old mission's index
+    await v.start_mission(5)
+    assert v.mission_current is None
+    link.feed(link.M.MAVLink_mission_current_message(1, 4, 3, 1))
+    assert v.mission_current == 1
+
+
 async def test_px4_new_mission_starts_at_its_first_item_by_one_mode_switch(
         monkeypatch: pytest.MonkeyPatch) -> None:
     """A mission uploaded to a PX4 vehicle that had another current item gets item 0 current right
