@@ -2,7 +2,9 @@
 
 One task ticks at ``tick_hz`` wall-clock: it advances the world in fixed steps of ``step``
 simulated seconds up to ``speedup`` x the elapsed wall time, runs every autopilot after each
-step, then sends the telemetry that is due.
+step, then sends the telemetry that is due. Streams are scheduled on :meth:`SimFleet.stream_time`:
+their rates hold per simulated second (a position at 10 Hz is ten per simulated second at any
+speed-up, up to one per tick), and per wall second when the simulation runs slower than real time.
 """
 
 from __future__ import annotations
@@ -41,6 +43,9 @@ class SimFleet:
         self.world = World(config.carrier, config.rovers, config.more_carriers)
         self.frame = LocalFrame(*config.origin)
         self.faults = FaultBook(config.faults)
+        self._stream_t = 0.0  # the streams' clock (stream_time)
+        self._stream_wall = time.monotonic()  # wall time and simulated time it was last advanced at
+        self._stream_sim = 0.0
         self.vehicles: dict[str, SimVehicle] = {}
         for spec in config.vehicles:
             body = self.world.body(spec.id)
@@ -81,6 +86,17 @@ class SimFleet:
     def wall(self) -> float:
         return time.monotonic()
 
+    def stream_time(self) -> float:
+        """The telemetry streams' clock: it advances by the simulated time of each tick, or by the
+        wall time when that is longer (a simulation slower than real time still sends its
+        heartbeats every wall second)."""
+        return self._stream_t
+
+    def _advance_stream_time(self, now: float) -> None:
+        sim = self.world.time
+        self._stream_t += max(now - self._stream_wall, sim - self._stream_sim, 0.0)
+        self._stream_wall, self._stream_sim = now, sim
+
     @property
     def speedup(self) -> float:
         return self._speedup
@@ -109,6 +125,7 @@ class SimFleet:
             self._endpoints.clear()
             raise
         self._wall0, self._steps0 = time.monotonic(), self.steps
+        self._stream_wall = self._wall0
         self._task = asyncio.get_running_loop().create_task(self._run(), name=f"sitl-{self.config.name}")
         for v in self.vehicles.values():
             v.statustext("Simulated autopilot ready")
@@ -270,13 +287,15 @@ class SimFleet:
             t = world.time
             for v in vehicles:
                 v.update(t)
-        due = [v for v in vehicles if now >= v.next_due and v.geodetic_stale()]
+        self._advance_stream_time(now)
+        st = self._stream_t
+        due = [v for v in vehicles if st >= v.next_due and v.geodetic_stale()]
         if len(due) > 1:
             positions = [v.body.position for v in due]
             for v, geo in zip(due, self.frame.to_geodetic_many(positions), strict=True):
                 v.set_geodetic(geo, v.body.pos_key())
         for v in vehicles:
-            v.service(now)
+            v.service(now, st)
 
     @property
     def behind(self) -> float:

@@ -2,8 +2,9 @@
 protocol, the mission executor and telemetry streams.
 
 Timing: physics, mission hold times and auto-disarm run on simulated time (``clock.sim_time``);
-telemetry rates and protocol timeouts run on wall time (``clock.wall()``), like the ground
-station's own timeouts.
+telemetry streams run at their rates per simulated second, as a firmware in software-in-the-loop
+sends them at a speed-up, and never slower than per wall second (``clock.stream_time``); protocol
+timeouts run on wall time (``clock.wall()``), like the ground station's own timeouts.
 """
 
 from __future__ import annotations
@@ -70,6 +71,10 @@ class Clock(Protocol):
     def sim_time(self) -> float: ...
 
     def wall(self) -> float: ...
+
+    def stream_time(self) -> float:
+        """The clock of the telemetry streams: simulated seconds, never slower than wall seconds."""
+        ...
 
 
 class Link(Protocol):
@@ -151,7 +156,7 @@ class SimVehicle:
         self._home_geo: tuple[tuple[float, float, float], tuple[float, float, float]] | None = None
         self._geo_key: object = None
 
-        now = clock.wall()
+        now = clock.stream_time()
         phase = (spec.sysid * 0.6180339887) % 1.0  # spread the vehicles' streams over time
         self.streams: dict[int, list[float]] = {}
         for msgid, hz in STREAM_DEFAULTS_HZ.items():
@@ -463,7 +468,7 @@ class SimVehicle:
         if msgid not in STREAMABLE:
             return M.MAV_RESULT_UNSUPPORTED
         us = cmd.p[1]
-        now = self.clock.wall()
+        now = self.clock.stream_time()
         if us == -1:
             self.streams.pop(msgid, None)
         elif us == 0:
@@ -921,8 +926,8 @@ class SimVehicle:
         self.fence = build_fence(self.fence_items, self.frame)
         self.fence_breach = 0
         if items and M.MAVLINK_MSG_ID_FENCE_STATUS not in self.streams:
-            self.streams[M.MAVLINK_MSG_ID_FENCE_STATUS] = [1.0, self.clock.wall()]
-            self.next_due = min(self.next_due, self.clock.wall())
+            self.streams[M.MAVLINK_MSG_ID_FENCE_STATUS] = [1.0, self.clock.stream_time()]
+            self.next_due = min(self.next_due, self.clock.stream_time())
         self.statustext(f"Geofence: {len(items)} items" if items else "Geofence cleared")
 
     def _on_mission_ack(self, msg: Any, addr: Any) -> None:
@@ -1055,8 +1060,9 @@ class SimVehicle:
     def set_geodetic(self, geo: tuple[float, float, float], key: object) -> None:
         self._geo, self._geo_key = geo, key
 
-    def service(self, now: float) -> None:
-        """Send what is due at wall time ``now`` and run the mission upload timer."""
+    def service(self, now: float, stream_now: float | None = None) -> None:
+        """Run the mission upload timer and the link check at wall time ``now`` and send the
+        telemetry due at ``stream_now`` (:meth:`Clock.stream_time`; default ``now``)."""
         up = self._upload
         if up is not None and now >= up.deadline:
             up.retries += 1
@@ -1068,6 +1074,8 @@ class SimVehicle:
                 self._request_item(up)
         if self.gcs_heard is not None:
             self._check_link(now)
+        if stream_now is not None:
+            now = stream_now
         if now < self.next_due:
             return
         nxt = math.inf

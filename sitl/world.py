@@ -38,15 +38,27 @@ class Phase(Enum):
 
 
 def _approach(speed: float, vmax: float, accel: float | None, dist: float, dt: float) -> float:
-    """Speed for the next step on a leg of remaining length ``dist``: accelerate up to ``vmax``,
-    brake so that the vehicle stops at the end of the leg."""
+    """Speed at the end of the next step on a leg of remaining length ``dist``: accelerate up to
+    ``vmax``, and brake so that the vehicle comes to rest at the end of the leg: the fastest end
+    speed ``v`` from which a stop at ``accel`` still fits in what the step leaves,
+    ``v²/(2·accel) + (speed + v)·dt/2 <= dist`` (a step covers the mean of its speeds:
+    :func:`_travelled`). A leg so flown takes eq. 4.2's time within a step."""
     if accel is None:
         return vmax
-    return max(0.0, min(vmax, speed + accel * dt, math.sqrt(2.0 * accel * dist)))
+    room = dist - speed * dt / 2.0
+    ad = accel * dt
+    fits = 0.0 if room <= 0.0 else (math.sqrt(ad * ad + 8.0 * accel * room) - ad) / 2.0
+    return max(0.0, min(vmax, speed + ad, fits))
 
 
 def _brake(speed: float, accel: float | None, dt: float) -> float:
     return 0.0 if accel is None else max(0.0, speed - accel * dt)
+
+
+def _travelled(before: float, after: float, accel: float | None, dt: float) -> float:
+    """Metres covered in a step whose speed goes from ``before`` to ``after`` at a constant
+    acceleration: the mean of the two (the speed jumps at once when ``accel`` is None)."""
+    return after * dt if accel is None else (before + after) * dt / 2.0
 
 
 class Body:
@@ -128,20 +140,22 @@ class Carrier(Body):
         self._advance(speed, dt, (dx / dist, dy / dist, dist))
 
     def _advance(self, speed: float, dt: float, leg: tuple[float, float, float] | None) -> None:
+        travelled = _travelled(self.speed, speed, self.spec.accel, dt)
         self.speed = speed
         if speed <= 0.0:
             self.speed = 0.0
             self.vel = (0.0, 0.0, 0.0)
+        if travelled <= 0.0:
             return
         if leg is None:
             ux, uy = math.cos(self.heading), math.sin(self.heading)
-            step = speed * dt
+            step = travelled
         else:
             ux, uy, dist = leg
-            step = min(dist, speed * dt)
+            step = min(dist, travelled)
         self._pos[0] += ux * step
         self._pos[1] += uy * step
-        self.vel = (ux * speed, uy * speed, 0.0)
+        self.vel = (ux * self.speed, uy * self.speed, 0.0)
         self.odometer += step
         self.moves += 1
         if leg is not None and step >= leg[2] - _EPS:
@@ -285,11 +299,12 @@ class Rover(Body):
         vmax = self.cruise_speed
         if abs(dz) > _EPS:
             vmax = min(vmax, self.climb_rate * dist / abs(dz))
+        accel = self.spec.accel
         if self.through:  # no braking for a waypoint flown through
-            speed = vmax if self.spec.accel is None else min(vmax, self.speed + self.spec.accel * dt)
+            speed = vmax if accel is None else min(vmax, self.speed + accel * dt)
         else:
-            speed = _approach(self.speed, vmax, self.spec.accel, dist, dt)
-        step = min(dist, speed * dt)
+            speed = _approach(self.speed, vmax, accel, dist, dt)
+        step = min(dist, _travelled(self.speed, speed, accel, dt))
         ux, uy, uz = dx / dist, dy / dist, dz / dist
         p[0] += ux * step
         p[1] += uy * step
@@ -321,21 +336,25 @@ class Rover(Body):
             self._touchdown()
 
     def _coast(self, speed: float, dt: float) -> None:
+        """Brake along the current velocity (no target left) to ``speed`` at the end of the step."""
         vx, vy, vz = self.vel
         norm = math.sqrt(vx * vx + vy * vy + vz * vz)
-        self.speed = speed
-        if speed <= 0.0 or norm <= 0.0:
+        step = _travelled(self.speed, speed, self.spec.accel, dt)
+        self.speed = max(speed, 0.0)
+        if norm <= 0.0:
             self.speed = 0.0
             self.vel = (0.0, 0.0, 0.0)
             return
-        k = speed / norm
-        self.vel = (vx * k, vy * k, vz * k)
-        step = speed * dt
-        self._pos[0] += self.vel[0] * dt
-        self._pos[1] += self.vel[1] * dt
-        self._pos[2] = max(0.0, self._pos[2] + self.vel[2] * dt)
-        self.flown += step
-        self.moves += 1
+        ux, uy, uz = vx / norm, vy / norm, vz / norm
+        self.vel = (ux * self.speed, uy * self.speed, uz * self.speed)
+        if self.speed == 0.0:  # the direction is kept for the part of the step still moving
+            self.vel = (0.0, 0.0, 0.0)
+        if step > 0.0:
+            self._pos[0] += ux * step
+            self._pos[1] += uy * step
+            self._pos[2] = max(0.0, self._pos[2] + uz * step)
+            self.flown += step
+            self.moves += 1
 
     def _descend(self, dt: float) -> None:
         z = self._pos[2]

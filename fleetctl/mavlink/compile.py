@@ -250,6 +250,11 @@ def compile_for_fleet(plan: Plan, fleet: Fleet, **kw: float) -> CompiledPlan:
                         home_height=home_heights(fleet), **kw)
 
 
+def is_waypoint(item: MissionItem) -> bool:
+    """A NAV_WAYPOINT item: a vertex of a carrier path (or ArduPilot's home placeholder, item 0)."""
+    return item.command == M.MAV_CMD_NAV_WAYPOINT
+
+
 def item_position(item: MissionItem, origin: Origin, home_height: float = 0.0) -> tuple[float, float, float]:
     """The mission-frame (ENU) point of a compiled item: the inverse of the conversion above."""
     if item.frame == M.MAV_FRAME_GLOBAL:
@@ -273,4 +278,5 @@ def _e7(deg: float) -> int:
 
 
 __all__ = ["HOME_HEIGHT_LIMIT", "CompileError", "CompiledPlan", "RoverMission", "StopItems",
-           "compile_for_fleet", "compile_plan", "home_heights", "item_position", "with_meeting_hold"]
+           "compile_for_fleet", "compile_plan", "home_heights", "is_waypoint", "item_position",
+           "with_meeting_hold"]

@@ -4,13 +4,18 @@ the defaults of ``rovers.takeoff_time`` and ``rovers.land_time``.
 
 The defaults are the vertical legs at the rover's climb and landing speeds plus a settle time
 measured on the simulated fleet (``bench/flight.py``: mode change, the autopilot's take-off and
-landing detection, the controller seeing it in telemetry):
+landing detection, the controller seeing it in telemetry). The climb is a rest-to-rest leg at the
+rover's acceleration (eq. 4.2, ``T``); the landing descends at ``land_speed``:
 
-    takeoff_time = TAKEOFF_HEIGHT / climb_rate + TAKEOFF_SETTLE
+    takeoff_time = T(TAKEOFF_HEIGHT; climb_rate, accel) + TAKEOFF_SETTLE
+                   (TAKEOFF_HEIGHT / climb_rate + TAKEOFF_SETTLE when accel is None)
     land_time    = MEET_HEIGHT / land_speed + LAND_SETTLE
 """
 
 from __future__ import annotations
+
+from planners.core.problem import Motion
+from planners.core.timing import travel_time
 
 GROUND_HEIGHT = 0.2  # m: a rover this low is on the ground (a collection flight from there takes off first)
 TAKEOFF_HEIGHT = 1.0  # m above the deck: a launched rover climbs this high before it turns onto its line
@@ -20,9 +25,10 @@ TAKEOFF_SETTLE = 0.1  # s beyond the climb: take-off detection and the turn onto
 LAND_SETTLE = 0.1  # s beyond the descent: touch-down detection, disarm, the controller seeing it (measured)
 
 
-def default_takeoff_time(climb_rate: float) -> float:
-    """Seconds from a rover's start command to it being clear of the deck."""
-    return TAKEOFF_HEIGHT / climb_rate + TAKEOFF_SETTLE
+def default_takeoff_time(climb_rate: float, accel: float | None = None) -> float:
+    """Seconds from a rover's start command to it being clear of the deck: its climb of
+    ``TAKEOFF_HEIGHT`` from rest to rest at ``climb_rate`` and ``accel`` (None: instant), settled."""
+    return travel_time(TAKEOFF_HEIGHT, Motion(climb_rate, accel)) + TAKEOFF_SETTLE
 
 
 def default_land_time(land_speed: float) -> float:

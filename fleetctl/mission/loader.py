@@ -887,11 +887,11 @@ def _tasks_and_collection(
 
 
 def _flight_times(r: dict[str, Any]) -> dict[str, float]:
-    """Climb and landing speeds (default: the cruise speed) and the time model's take-off and
-    touch-down times (default: fleetctl.mission.flight)."""
+    """Climb and landing speeds (default: the cruise speed) and the time model's take-off (a climb at
+    the rovers' acceleration) and touch-down times (default: fleetctl.mission.flight)."""
     climb = r["climb_rate"] if r["climb_rate"] is not None else r["max_speed"]
     land = r["land_speed"] if r["land_speed"] is not None else climb
-    takeoff = r["takeoff_time"] if r["takeoff_time"] is not None else default_takeoff_time(climb)
+    takeoff = r["takeoff_time"] if r["takeoff_time"] is not None else default_takeoff_time(climb, r["accel"])
     touch = r["land_time"] if r["land_time"] is not None else default_land_time(land)
     return {"climb_rate": climb, "land_speed": land, "takeoff_time": takeoff, "land_time": touch}
 

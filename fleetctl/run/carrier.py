@@ -16,7 +16,7 @@ import logging
 import math
 from collections.abc import Callable
 
-from fleetctl.mavlink.compile import CompiledPlan, item_position
+from fleetctl.mavlink.compile import CompiledPlan, is_waypoint, item_position
 from fleetctl.mavlink.link import LinkError, MissionItem, MissionRejected
 from fleetctl.mavlink.vehicle import CommandRejected, Vehicle
 from fleetctl.run.context import ExecutionError, RunContext
@@ -55,9 +55,16 @@ async def upload(ctx: RunContext, v: Vehicle, items: list[MissionItem]) -> None:
 def stopped_on_item(v: Vehicle, seq: int) -> bool:
     """Telemetry shows ``v`` stopped (at most ``STAY_SPEED``) within ``STAY_RADIUS`` of its uploaded
     mission item ``seq``: its arrival there when both the MISSION_ITEM_REACHED and the MISSION_CURRENT
-    that tell it at once were lost (the next MISSION_CURRENT comes about a wall second later)."""
+    that tell it at once were lost (the next MISSION_CURRENT comes about a wall second later).
+
+    Not while it is nearer the waypoint before ``seq``: a carrier stops at every vertex of a roadmap
+    path, and one of them may lie within ``STAY_RADIUS`` of the stop."""
     off, speed = _off(v, seq), v.ground_speed
-    return off is not None and off <= STAY_RADIUS and speed is not None and speed <= STAY_SPEED
+    if off is None or off > STAY_RADIUS or speed is None or speed > STAY_SPEED:
+        return False
+    items = v.mission_items
+    before = _off(v, seq - 1) if 0 < seq < len(items) and is_waypoint(items[seq - 1]) else None
+    return before is None or off <= before
 
 
 def hovering_on_item(v: Vehicle, seq: int) -> bool:

@@ -27,11 +27,14 @@ from dataclasses import dataclass, field
 
 from planners.core.plan import Plan
 from planners.core.problem import CarrierSpec, Vec3
-from planners.core.timing import path_length, remaining_leg_time, turn_time
+from planners.core.timing import carrier_leg, path_length, remaining_leg_time, turn_time
 
 RELEASE_LEAD = 1.0  # mission s: a rover is released this much early (its commands take time)
 TURN_TOLERANCE = 0.05  # rad: a carrier at rest pointing within this of its leg does not turn
 SLOW = 0.5  # m/s: a carrier slower than this is starting or stopping, not cruising
+# mission s of flight a collection keeps beyond its plan: the touch-down and the carrier's arrival
+# are told by telemetry up to a position sample late, and a rover burns its battery meanwhile
+ENERGY_SLACK = 0.2
 
 
 @dataclass
@@ -93,33 +96,51 @@ class RoundClock:
         planned = self.start + self.plan.stops[j].arrive
         if carrier is None:
             return max(planned, now)
-        target = self.plan.stops[j].position
-        rest = _remaining_path(carrier.position, self.plan.stops[j].carrier_path, target)
+        stop = self.plan.stops[j]
+        ahead = points_ahead(carrier.position, stop.carrier_path, stop.position)
+        first = ahead[0]
+        rest = math.hypot(first[0] - carrier.position[0], first[1] - carrier.position[1])
+        if not self.carrier.vertex_stops:  # one leg over the rest of the path
+            rest += path_length(ahead)
+            ahead = ahead[-1:]
         rest = max(rest - carrier.speed * carrier.age, 0.0)  # where it is by now
         motion = self.carrier.motion
         if not carrier.accelerating and carrier.speed > SLOW:  # cruising below its top speed
             motion = dataclasses.replace(motion, max_speed=min(carrier.speed, motion.max_speed))
         t = now + remaining_leg_time(rest, carrier.speed, motion)
-        if carrier.speed < 0.1 and rest > 0.5:  # at rest: turns onto its leg first
-            want = math.atan2(target[1] - carrier.position[1], target[0] - carrier.position[0])
-            if abs(math.remainder(want - carrier.heading, math.tau)) > TURN_TOLERANCE:
-                t += turn_time(carrier.heading, want, self.carrier.turn_rate)
-        return t
+        heading = carrier.heading
+        if rest > 0.5:
+            want = math.atan2(first[1] - carrier.position[1], first[0] - carrier.position[0])
+            if carrier.speed < 0.1 and abs(math.remainder(want - heading, math.tau)) > TURN_TOLERANCE:
+                t += turn_time(heading, want, self.carrier.turn_rate)  # at rest: turns onto its leg first
+            heading = want
+        # then every segment after that vertex, from rest to rest with its turn (carrier_leg)
+        return t + carrier_leg(ahead, heading, self.carrier)[0]
 
 
-def _remaining_path(pos: Vec3, path: list[Vec3], target: Vec3) -> float:
-    """Ground length still to drive to ``target``: to the nearest vertex ahead of ``pos`` on the
-    stop's carrier path, then along it (a straight leg: the distance to the stop)."""
-    pts = [p for p in path[1:]] if len(path) > 1 else [target]
+def points_ahead(pos: Vec3, path: list[Vec3], target: Vec3) -> list[Vec3]:
+    """The vertices of a stop's carrier path still ahead of a carrier at ``pos``, the stop last:
+    the end of the path's segment nearest to ``pos`` onward (a straight leg: the stop). A carrier
+    at a vertex is on the segment that leaves it."""
+    pts = [*path, target] if path else [pos, target]
+    if math.dist(pts[-1][:2], pts[-2][:2]) < 1e-9:
+        pts.pop()
+    if len(pts) < 2:
+        return [target]
     best, at = math.inf, len(pts) - 1
-    for i, p in enumerate(pts):
-        d = math.hypot(p[0] - pos[0], p[1] - pos[1])
-        if d < best:
+    for i, (a, b) in enumerate(zip(pts, pts[1:], strict=False), start=1):
+        d = _to_segment(pos, a, b)
+        if d <= best + 1e-9:
             best, at = d, i
-    rest = math.hypot(pts[at][0] - pos[0], pts[at][1] - pos[1])
-    for a, b in zip(pts[at:], pts[at + 1 :], strict=False):
-        rest += math.hypot(b[0] - a[0], b[1] - a[1])
-    return rest
+    return pts[at:]
+
+
+def _to_segment(p: Vec3, a: Vec3, b: Vec3) -> float:
+    """Ground distance from ``p`` to the segment a-b."""
+    dx, dy = b[0] - a[0], b[1] - a[1]
+    n = dx * dx + dy * dy
+    u = 0.0 if n <= 0.0 else min(max(((p[0] - a[0]) * dx + (p[1] - a[1]) * dy) / n, 0.0), 1.0)
+    return math.hypot(a[0] + u * dx - p[0], a[1] + u * dy - p[1])
 
 
 def release_delay(eta: float, flight: float, now: float) -> float:
@@ -141,20 +162,20 @@ def handling_range(max_speed: float, accel: float | None, land_time: float, take
                    on_ground: bool = False) -> float:
     """Metres of a rover's range that a collection flight spends beyond its path, all at cruise
     speed: the touch-down (``land_time``), a rest-to-rest leg's acceleration (``v²/a``) and, for a
-    rover on the ground, its release lead and take-off (``takeoff_time``) - what
-    :func:`energy_shortfalls` counts as time in the air. The planner is given the range less this,
-    so a flight it plans can be flown within the battery (waiting for the carrier aside)."""
+    rover on the ground, its release lead and take-off (``takeoff_time``), and ``ENERGY_SLACK`` -
+    what :func:`energy_shortfalls` counts as time in the air. The planner is given the range less
+    this, so a flight it plans can be flown within the battery (waiting for the carrier aside)."""
     ramp = 0.0 if accel is None else max_speed ** 2 / accel
     start = RELEASE_LEAD + takeoff_time if on_ground else 0.0
-    return max_speed * (land_time + start) + ramp
+    return max_speed * (land_time + start + ENERGY_SLACK) + ramp
 
 
 def energy_shortfalls(plan: Plan, battery: Mapping[str, float], airborne: set[str],
                       carrier: CarrierSpec, max_speed: float) -> list[Shortfall]:
     """Rovers that would be below their reserve on the deck: a rover already in the air burns its
     battery from now until it is down (``max(carrier there, rover there) + land_time``), a rover
-    on the ground only from its release. ``battery[rover]`` (metres above the reserve at cruise
-    speed, from its live reading) / ``max_speed`` is the time it has."""
+    on the ground only from its release, each ``ENERGY_SLACK`` more. ``battery[rover]`` (metres
+    above the reserve at cruise speed, from its live reading) / ``max_speed`` is the time it has."""
     out = []
     for stop in plan.stops:
         for leg in stop.rovers:
@@ -162,11 +183,12 @@ def energy_shortfalls(plan: Plan, battery: Mapping[str, float], airborne: set[st
                 continue
             down = max(stop.arrive, leg.arrive) + carrier.land_time
             air = down if leg.rover in airborne else leg.arrive + RELEASE_LEAD + carrier.land_time
+            air += ENERGY_SLACK
             allowed = battery[leg.rover] / max_speed
             if air > allowed + 1e-6:
                 out.append(Shortfall(leg.rover, air, allowed, path_length(leg.path)))
     return out
 
 
-__all__ = ["RELEASE_LEAD", "CarrierNow", "RoundClock", "Shortfall", "energy_shortfalls", "handling_range",
-           "release_delay"]
+__all__ = ["ENERGY_SLACK", "RELEASE_LEAD", "CarrierNow", "RoundClock", "Shortfall", "energy_shortfalls",
+           "handling_range", "points_ahead", "release_delay"]

@@ -24,7 +24,10 @@ from fleetctl.run.state import on_deck
 from fleetctl.run.task_board import TaskBoard
 
 AIRBORNE_HEIGHT = 0.3  # m above home: a launched rover is off the deck
-CLEAR_HEIGHT = 0.8 * TAKEOFF_HEIGHT  # m above home: a launched rover is clear of the deck, the carrier may go
+# m above home: a launched rover is clear of the deck, the carrier may go (with the take-off item
+# reached, whichever comes first): the top of its take-off, which the time model's takeoff_time
+# climbs to (an autopilot may report the item reached a little below it)
+CLEAR_HEIGHT = TAKEOFF_HEIGHT - 0.05
 DECK_CHECK_TIMEOUT = 2.0  # wall s for fresh telemetry to show a rover on the (stopped) carrier's deck
 RANGE_TOLERANCE = 1e-4  # m: a flight this much over a spare's range is within it (rounding)
 LIFTOFF_TIMEOUT = 5.0  # mission s from start_mission to clear of the deck (at least; 3x takeoff_time)

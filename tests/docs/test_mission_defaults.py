@@ -8,6 +8,7 @@ names out of the documented default and checks them against a loaded mission."""
 from __future__ import annotations
 
 import ast
+import math
 import re
 from collections.abc import Callable
 from pathlib import Path
@@ -54,10 +55,18 @@ def _numbers(pattern: str, cell: str) -> list[float]:
 
 
 def _takeoff_time(cell: str) -> None:
-    height, settle = _numbers(r"^([\d.]+) m / `climb_rate` \+ ([\d.]+) s", cell)
+    height, again, settle = _numbers(
+        r"^([\d.]+) m climbed from rest to rest at `climb_rate` and `accel` \(eq\. 4\.2; ([\d.]+) m / "
+        r"`climb_rate` when `accel` is null\) \+ ([\d.]+) s", cell)
+    assert again == height
     for climb in (0.5, 2.0):
-        m = _load(rovers={"climb_rate": climb})
+        m = _load(rovers={"climb_rate": climb, "accel": None})
         assert m.rovers.takeoff_time == pytest.approx(height / climb + settle)
+    # with an acceleration, eq. 4.2 from rest to rest: 2·sqrt(S/a) when the top speed is not reached
+    m = _load(rovers={"climb_rate": 2.0, "accel": 1.0})
+    assert m.rovers.takeoff_time == pytest.approx(2.0 * math.sqrt(height / 1.0) + settle)
+    m = _load(rovers={"climb_rate": 0.5, "accel": 4.0})  # top speed reached: S/v + v/a
+    assert m.rovers.takeoff_time == pytest.approx(height / 0.5 + 0.5 / 4.0 + settle)
 
 
 def _land_time(cell: str) -> None:
@@ -274,3 +283,16 @@ def test_constants_quoted_in_the_docs_are_the_codes() -> None:
     wrong = [(doc, name, value, constants.get(name)) for doc, name, value in quoted
              if value not in constants.get(name, [])]
     assert not wrong, f"(doc, constant, quoted, the code's): {wrong}"
+
+
+def test_the_documented_release_height_is_the_launchers() -> None:
+    """docs/time-model.md: the carrier leaves a deployment stop once its rovers are 0.95 m up (the
+    top of the take-off the time model's takeoff_time climbs, less 5 cm) or their take-off item is
+    reached."""
+    from fleetctl.mission.flight import TAKEOFF_HEIGHT
+    from fleetctl.run.launch import CLEAR_HEIGHT
+
+    text = " ".join((DOCS / "time-model.md").read_text(encoding="utf-8").split())
+    assert CLEAR_HEIGHT == pytest.approx(TAKEOFF_HEIGHT - 0.05)
+    assert f"its take-off item reached, or {CLEAR_HEIGHT:g} m above it" in text
+    assert f"`CLEAR_HEIGHT = TAKEOFF_HEIGHT - {TAKEOFF_HEIGHT - CLEAR_HEIGHT:g}` m" in text

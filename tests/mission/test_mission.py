@@ -297,7 +297,7 @@ def test_deploy_problem(tmp_path: Path) -> None:
     p = load(tmp_path, data).deploy_problem()
     assert isinstance(p, DeployProblem)
     # the time model's take-off and touch-down times default to fleetctl.mission.flight's
-    times = default_takeoff_time(1.0), default_land_time(1.0)
+    times = default_takeoff_time(1.0, 4.0), default_land_time(1.0)
     assert p.carrier == CarrierSpec(15.0, 2.0, 1.5, 3.0, 2.0, *times, vertex_stops=True)
     assert p.rover == Motion(1.0, 4.0) and p.deploy_range == 25.0
     assert p.start == (5.0, 6.0, 0.0) and p.heading == pytest.approx(compass_to_math(90)) == pytest.approx(

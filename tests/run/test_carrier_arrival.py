@@ -43,6 +43,16 @@ def test_driving_through_or_stopped_short_is_not_an_arrival() -> None:
     assert not stopped_on_item(_carrier(40.0, 10.0, 0.0), 7)  # no such item
 
 
+def test_a_carrier_stopped_at_a_vertex_next_to_its_stop_has_not_arrived() -> None:
+    """A roadmap path's last vertex may lie within STAY_RADIUS of the stop: the carrier stops there
+    too (a rest-to-rest segment), nearer that waypoint than the stop - not an arrival."""
+    v = _carrier(39.4, 10.0, 0.0)
+    v.mission_items = [_item(0.0, 0.0), _item(39.4, 10.0), _item(40.0, 10.0)]  # a vertex 0.6 m short
+    assert not stopped_on_item(v, 2)
+    v.lat, v.lon, v.alt = local_to_geodetic(39.9, 10.0, 0.0, ORIGIN)  # then on the stop
+    assert stopped_on_item(v, 2)
+
+
 def test_a_rover_at_rest_on_its_hold_has_arrived_not_one_still_descending() -> None:
     v = _carrier(40.1, 9.9, 0.05)  # a rover's telemetry: same fields
     v.velocity = (0.05, 0.0, -0.05)

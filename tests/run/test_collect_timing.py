@@ -7,15 +7,18 @@ import math
 import pytest
 
 from fleetctl.run.collect_timing import (
+    ENERGY_SLACK,
     RELEASE_LEAD,
     CarrierNow,
     RoundClock,
     energy_shortfalls,
+    points_ahead,
     release_delay,
 )
 from planners import COLLECT_PLANNERS
+from planners.core.plan import Plan, RoverLeg, Stop
 from planners.core.problem import CarrierSpec, CollectProblem, CollectRover, Motion
-from planners.core.timing import remaining_leg_time
+from planners.core.timing import carrier_leg, remaining_leg_time
 
 CARRIER = CarrierSpec(10.0, 5.0, None, 0.0, 2.0, takeoff_time=1.5, land_time=3.5)
 ROVER = Motion(2.0)
@@ -82,10 +85,53 @@ def test_reserve_check_counts_the_hover_of_a_rover_in_the_air():
     assert energy_shortfalls(plan, rich, {"near", "far"}, CARRIER, speed) == []
     # exactly the flight's range: in the air it also hovers until the carrier is there -> short;
     # on the ground it waits for free
-    tight = {leg.rover: (leg.arrive + RELEASE_LEAD + CARRIER.land_time) * speed
+    tight = {leg.rover: (leg.arrive + RELEASE_LEAD + CARRIER.land_time + ENERGY_SLACK) * speed
              for stop in plan.stops for leg in stop.rovers}
     in_air = energy_shortfalls(plan, tight, {"near", "far"}, CARRIER, speed)
     assert {s.rover for s in in_air} == {leg.rover for s in plan.stops for leg in s.rovers
                                          if max(s.arrive, leg.arrive) > leg.arrive + RELEASE_LEAD}
     assert all(s.airborne > s.allowed for s in in_air)
     assert energy_shortfalls(plan, tight, set(), CARRIER, speed) == []
+    # ENERGY_SLACK is kept in hand: a battery just short of it is short
+    short = {r: m - 0.5 * ENERGY_SLACK * speed for r, m in tight.items()}
+    assert {s.rover for s in energy_shortfalls(plan, short, set(), CARRIER, speed)} == set(tight)
+
+
+ROAD = CarrierSpec(10.0, 5.0, 1.0, 0.0, 2.0, takeoff_time=1.5, land_time=3.5, vertex_stops=True)
+
+
+def _roadmap_plan() -> Plan:
+    """One stop reached along a roadmap path with two corners: the carrier stops at each vertex
+    and turns there (docs/time-model.md)."""
+    path = [(0.0, 0.0, 0.0), (20.0, 0.0, 0.0), (20.0, 15.0, 0.0), (28.0, 15.0, 0.0)]
+    arrive, _ = carrier_leg(path, 0.0, ROAD)
+    leg = RoverLeg("r1", [(28.0, 20.0, 4.0), (28.0, 15.0, 3.0)], arrive - 1.0)
+    stop = Stop(path[-1], path, [leg], arrive, arrive + ROAD.collect_stop_time)
+    return Plan("collect", "test", path[0], 0.0, [stop], makespan=stop.depart)
+
+
+def test_on_a_roadmap_the_eta_counts_a_stop_and_a_turn_at_every_vertex_ahead():
+    plan = _roadmap_plan()
+    clock = RoundClock(plan, ROAD, start=5.0)
+    rest_of_path = carrier_leg([(20.0, 0.0, 0.0), (20.0, 15.0, 0.0), (28.0, 15.0, 0.0)], 0.0, ROAD)[0]
+    after_corner = carrier_leg([(20.0, 15.0, 0.0), (28.0, 15.0, 0.0)], math.pi / 2, ROAD)[0]
+    # at rest at the start: the planned arrival
+    at_start = clock.eta(0, 5.0, CarrierNow((0.0, 0.0, 0.0), 0.0, 0.0))
+    assert at_start == pytest.approx(5.0 + plan.stops[0].arrive)
+    # half-way along the first segment at full speed: brakes into the first corner, then the rest
+    moving = clock.eta(0, 9.0, CarrierNow((10.0, 0.0, 0.0), 10.0, 0.0))
+    assert moving == pytest.approx(9.0 + remaining_leg_time(10.0, 10.0, ROAD.motion) + rest_of_path)
+    # just past the first corner, heading north: not back to the corner behind it
+    past = clock.eta(0, 12.0, CarrierNow((20.0, 1.0, 0.0), 2.0, math.pi / 2))
+    assert past == pytest.approx(12.0 + remaining_leg_time(14.0, 2.0, ROAD.motion) + after_corner)
+    # at rest on the first corner, still facing east: turns north, then drives on
+    corner = clock.eta(0, 12.0, CarrierNow((20.0, 0.0, 0.0), 0.0, 0.0))
+    assert corner == pytest.approx(12.0 + rest_of_path)
+
+
+def test_the_vertices_ahead_of_a_carrier():
+    path = [(0.0, 0.0, 0.0), (20.0, 0.0, 0.0), (20.0, 15.0, 0.0)]
+    assert points_ahead((5.0, 0.2, 0.0), path, path[-1]) == path[1:]
+    assert points_ahead((20.0, 0.0, 0.0), path, path[-1]) == path[2:]  # at a vertex: the segment leaving it
+    assert points_ahead((19.0, 9.0, 0.0), path, path[-1]) == path[2:]
+    assert points_ahead((3.0, 4.0, 0.0), [], (9.0, 9.0, 0.0)) == [(9.0, 9.0, 0.0)]  # a straight leg

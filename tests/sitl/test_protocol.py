@@ -228,3 +228,51 @@ async def test_ping_and_mission_set_current(fleet: SimFleet, gcs: Gcs) -> None:
     assert ack.result == M.MAV_RESULT_DENIED
     ack = await gcs.command(11, M.MAV_CMD_DO_SET_MISSION_CURRENT, 1)
     assert ack.result == M.MAV_RESULT_ACCEPTED and fleet.vehicle("r1").current == 1
+
+
+def _per_second(gcs: Gcs, since: int, mtype: str, sysid: int, seconds: float) -> float:
+    n = sum(1 for m in gcs.received[since:] if m.get_type() == mtype and m.get_srcSystem() == sysid)
+    return n / seconds
+
+
+async def test_streams_keep_their_rates_per_simulated_second(fleet: SimFleet, gcs: Gcs) -> None:
+    """At speed-up 20 a rover's 1 Hz streams come about once per simulated second and its 10 Hz
+    positions once per tick of the loop (2.5 per simulated second at 50 ticks per wall second), as
+    a firmware in software-in-the-loop sends them: not once per wall second (0.05 per simulated
+    second)."""
+    since, t0 = gcs.mark(), fleet.sim_time
+    await fleet.wait_sim_time(t0 + 20.0, timeout=10.0)
+    span = fleet.sim_time - t0
+    assert 0.5 <= _per_second(gcs, since, "HEARTBEAT", 11, span) <= 1.2
+    assert 0.5 <= _per_second(gcs, since, "MISSION_CURRENT", 11, span) <= 1.2
+    assert _per_second(gcs, since, "GLOBAL_POSITION_INT", 11, span) >= 1.0
+
+
+async def test_a_slow_simulation_streams_at_least_per_wall_second() -> None:
+    """Below real time (speed-up 0.25) the streams keep their rates per wall second: a ground
+    station still hears a heartbeat every second."""
+    import asyncio
+    import time
+
+    from sitl_helpers import make_config, open_gcs
+
+    async with SimFleet(make_config(speedup=0.25)) as slow:
+        g = await open_gcs(slow.endpoints["carrier"])
+        try:
+            await g.recv("HEARTBEAT", sysid=11)
+            since, w0 = g.mark(), time.monotonic()
+            await asyncio.sleep(3.0)
+            assert _per_second(g, since, "HEARTBEAT", 11, time.monotonic() - w0) >= 0.6
+        finally:
+            g.close()
+
+
+def test_the_documented_tick_rate() -> None:
+    """docs/mavlink.md: the simulated fleet sends a stream at most once per tick of its loop."""
+    from pathlib import Path
+
+    from sitl import FleetConfig
+
+    text = " ".join((Path(__file__).parents[2] / "docs" / "mavlink.md").read_text().split())
+    tick = FleetConfig.__dataclass_fields__["tick_hz"].default
+    assert f"(`tick_hz`, {tick:g} wall Hz)" in text

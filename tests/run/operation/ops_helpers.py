@@ -18,7 +18,9 @@ SMALL_OPERATION: dict[str, Any] = {
                 "max_speed": 10.0, "accel": 2.0, "turn_rate": 1.0, "unload_time": 2.0, "load_time": 2.0,
                 "swap_time": 10.0},
     "rovers": {"max_speed": 5.0, "accel": 3.0, "deploy_range": 80.0, "endurance_range": 600.0, "reserve": 0.1,
-               "fleet": {"count": 2, "sysid_start": 11}},
+               # the take-off clearance these scenarios' batteries were set against (the default,
+               # a 1 m climb at accel 3, is 1.25 s)
+               "takeoff_time": 0.3, "fleet": {"count": 2, "sysid_start": 11}},
     "dwell": 20.0,
     "tasks": [
         {"id": "t1", "position": [20, 30, 4], "duration": 20},
