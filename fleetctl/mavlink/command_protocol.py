@@ -15,7 +15,7 @@ from fleetctl.mavlink.errors import LinkTimeout
 from fleetctl.mavlink.messages import CommandAck, command_name, deg_e7
 
 if TYPE_CHECKING:
-    from fleetctl.mavlink.link import Link
+    from fleetctl.mavlink.channel import Channel
 
 log = logging.getLogger(__name__)
 
@@ -26,7 +26,7 @@ COMMAND_PROGRESS_TIMEOUT = 10.0  # s to wait for the final ACK after MAV_RESULT_
 
 
 async def send_command(
-    link: Link, sysid: int, command: int, params: Iterable[float] = (), *, compid: int = 1,
+    link: Channel, sysid: int, command: int, params: Iterable[float] = (), *, compid: int = 1,
     frame: int | None = None, timeout: float = COMMAND_TIMEOUT, retries: int = COMMAND_RETRIES,
     progress_timeout: float = COMMAND_PROGRESS_TIMEOUT,
 ) -> CommandAck:
@@ -78,7 +78,7 @@ async def send_command(
     raise LinkTimeout(f"system {sysid} did not acknowledge {name} "
                       f"({attempts} attempts in {(retries + 1) * timeout:g} s) on {link.url}")
 
-async def set_message_interval(link: Link, sysid: int, msgid: int, hz: float, *, compid: int = 1,
+async def set_message_interval(link: Channel, sysid: int, msgid: int, hz: float, *, compid: int = 1,
                                retries: int = COMMAND_RETRIES) -> CommandAck:
     """MAV_CMD_SET_MESSAGE_INTERVAL: stream ``msgid`` at ``hz`` (0 = the default rate, < 0 = off)."""
     interval = 0.0 if hz == 0 else (-1.0 if hz < 0 else 1e6 / hz)

@@ -22,7 +22,8 @@ Layers, bottom up, a module each:
    request is sent;
 3. the protocols with their retries: commands (:mod:`fleetctl.mavlink.command_protocol`, behind
    :meth:`Link.command`) and missions (:mod:`fleetctl.mavlink.mission_protocol`, behind
-   :meth:`Link.upload_mission`, :meth:`Link.download_mission`, :meth:`Link.clear_mission`);
+   :meth:`Link.upload_mission`, :meth:`Link.download_mission`, :meth:`Link.clear_mission`), which
+   see the link only as a :class:`fleetctl.mavlink.channel.Channel`;
    signing (:mod:`fleetctl.mavlink.signing`); the values they carry
    (:mod:`fleetctl.mavlink.messages`) and the errors (:mod:`fleetctl.mavlink.errors`).
 

@@ -17,7 +17,7 @@ from fleetctl.mavlink.expectations import Inbox
 from fleetctl.mavlink.messages import MissionItem
 
 if TYPE_CHECKING:
-    from fleetctl.mavlink.link import Link
+    from fleetctl.mavlink.channel import Channel
 
 log = logging.getLogger(__name__)
 
@@ -34,7 +34,7 @@ def _mission_match(mission_type: int) -> Callable[[Any], bool]:
     return lambda m: getattr(m, "mission_type", 0) == mission_type
 
 async def upload_mission(
-    link: Link, sysid: int, items: list[MissionItem], *, compid: int = 1, mission_type: int = 0,
+    link: Channel, sysid: int, items: list[MissionItem], *, compid: int = 1, mission_type: int = 0,
     timeout: float = MISSION_TIMEOUT, item_timeout: float = MISSION_ITEM_TIMEOUT,
     retries: int = MISSION_RETRIES,
 ) -> None:
@@ -113,7 +113,7 @@ async def upload_mission(
                 wait = link.rtt.timeout(first if link.rtt.srtt is None else timeout)
 
 async def download_mission(
-    link: Link, sysid: int, *, compid: int = 1, mission_type: int = 0, timeout: float = MISSION_TIMEOUT,
+    link: Channel, sysid: int, *, compid: int = 1, mission_type: int = 0, timeout: float = MISSION_TIMEOUT,
     item_timeout: float = MISSION_ITEM_TIMEOUT, retries: int = MISSION_RETRIES,
 ) -> list[MissionItem]:
     """Download the vehicle's mission (MISSION_REQUEST_LIST → COUNT → REQUEST_INT → ITEM_INT → ACK).
@@ -142,7 +142,7 @@ async def download_mission(
                 link.send(link.mav.mission_ack_encode(sysid, compid, ok, mission_type), sysid)
             return items
 
-async def clear_mission(link: Link, sysid: int, *, compid: int = 1, mission_type: int = 0,
+async def clear_mission(link: Channel, sysid: int, *, compid: int = 1, mission_type: int = 0,
                         timeout: float = MISSION_TIMEOUT, retries: int = MISSION_RETRIES) -> None:
     """MISSION_CLEAR_ALL → MISSION_ACK."""
     async with link.lock(("mission", sysid)):
@@ -150,7 +150,7 @@ async def clear_mission(link: Link, sysid: int, *, compid: int = 1, mission_type
             await _exchange(link, inbox, link.mav.mission_clear_all_encode(sysid, compid, mission_type),
                                  sysid, lambda m: True, link.rtt.timeout(timeout), timeout, retries, "clear")
 
-async def _exchange(link: Link, inbox: Inbox, msg: Any, sysid: int, accept: Callable[[Any], bool],
+async def _exchange(link: Channel, inbox: Inbox, msg: Any, sysid: int, accept: Callable[[Any], bool],
                     first_wait: float, max_wait: float, retries: int, operation: str) -> Any:
     """Send ``msg`` until a message passing ``accept`` arrives; an error MISSION_ACK is final. The
     wait doubles from ``first_wait`` to ``max_wait``; ``retries`` counts the resends after a
