@@ -1,5 +1,9 @@
 """Mission files: load and validate the YAML contract of docs/mission-file.md, build the planners' problems.
 
+The schema (every key of every section) is :mod:`fleetctl.mission.schema`, the parsers of single
+values :mod:`fleetctl.mission.values`; this module reads the file, applies the schema and the rules
+across keys below, and builds the typed :class:`~fleetctl.mission.model.Mission`.
+
 Every error a user can make in a mission file raises :class:`MissionError` whose message names
 the file (and line, when the file was read from disk), the key path (``rovers.max_speed``,
 ``tasks[3].position``; list indices count from 0), what is wrong and what to change.
@@ -37,49 +41,40 @@ Decisions beyond the contract:
 from __future__ import annotations
 
 import copy
-import difflib
 import logging
 import math
-import re
-from collections.abc import Callable, Mapping
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, NoReturn
+from typing import TYPE_CHECKING, Any
 
 import yaml
 
 import fleetctl.mission.formats as formats
 import fleetctl.mission.limits as L
 from fleetctl.geo import Origin, geodetic_to_local
-from fleetctl.mission.connections import ConnectionSpellingError, normalize_connection
 from fleetctl.mission.flight import (
     DEFAULT_ENDURANCE,
-    FIRMWARE_SPEEDS,
     default_land_time,
     default_takeoff_time,
 )
 from fleetctl.mission.links import link_key, shown_link
 from fleetctl.mission.model import (
-    FAILSAFE_ACTIONS,
-    FAULT_KINDS,
-    FENCE_ACTIONS,
     CarrierConfig,
     EnergyConfig,
     Fault,
     GeofenceConfig,
-    LinksConfig,
     Mission,
     MissionError,
     MqttConfig,
-    PlannerConfig,
-    RoadmapConfig,
     RoversConfig,
     RoverUnit,
-    SigningConfig,
     SimConfig,
     TeamConfig,
     TlsConfig,
+    Vec2,
 )
-from fleetctl.mission.operation import WORK_MODES, check_one_carrier, check_operation, task_work
+from fleetctl.mission.operation import check_one_carrier, check_operation, task_work
+from fleetctl.mission.schema import FAULT_PARAM, OBSTACLE_LIST, TASK_LIST, TOP
+from fleetctl.mission.values import Ctx, FileRef, KeyPath, fmt_path, point
 from fleetctl.mission.yaml_safe import YamlError, read_yaml
 from planners.core.problem import (
     CollectRover,
@@ -92,442 +87,14 @@ if TYPE_CHECKING:
 
 log = logging.getLogger(__name__)
 
-from fleetctl.mission.model import Vec2, Vec3  # noqa: E402
 
-KeyPath = tuple[str | int, ...]
-
-# --------------------------------------------------------------------------- schema helper
-
-_REQUIRED = object()
-Parser = Callable[["_Ctx", Any, KeyPath], Any]
-
-
-def _fmt_path(path: KeyPath) -> str:
-    out = ""
-    for p in path:
-        out += f"[{p}]" if isinstance(p, int) else (f".{p}" if out else str(p))
-    return out or "(top level)"
-
-
-def _short(text: str, n: int = 60) -> str:
-    """``repr`` of a string, cut to about ``n`` characters for a message."""
-    return repr(text) if len(text) <= n else repr(text[:n]) + f"... ({len(text)} characters)"
-
-
-def _type_name(value: Any) -> str:
-    if value is None:
-        return "null"
-    if isinstance(value, bool):
-        return f"a boolean ({str(value).lower()})"
-    if isinstance(value, int) and value.bit_length() > 64:
-        return f"an integer of about {int(value.bit_length() * 0.30103) + 1} digits"
-    if isinstance(value, int | float):
-        return f"a number ({value})"
-    if isinstance(value, str):
-        return f"a string ({_short(value)})"
-    if isinstance(value, list):
-        return "a list"
-    if isinstance(value, dict):
-        return "a mapping"
-    return type(value).__name__
-
-
-class _Ctx:
-    def __init__(self, source: str, lines: Mapping[KeyPath, int] | None = None) -> None:
-        self.source = source
-        self.lines = lines or {}
-        self.raw: Any = None
-        self.notes: dict[KeyPath, str] = {}  # key path -> where it came from (a task file's feature)
-
-    def fail(self, path: KeyPath, message: str) -> NoReturn:
-        where = self.source
-        for n in range(len(path), -1, -1):  # the line of the key, or of its nearest parent
-            if path[:n] in self.lines:
-                where = f"{self.source}:{self.lines[path[:n]]}"
-                break
-        note = next((self.notes[path[:n]] for n in range(len(path), 0, -1) if path[:n] in self.notes), None)
-        shown = _fmt_path(path) + (f" (from {note})" if note else "")
-        raise MissionError(f"{where}: {shown}: {message}")
-
-    def section(self, value: Any, path: KeyPath, spec: Mapping[str, tuple[Parser, Any]]) -> dict[str, Any]:
-        """Check a mapping against ``spec`` (key → (parser, default or _REQUIRED)); parse every key."""
-        if not isinstance(value, dict):
-            self.fail(path, f"expected a mapping with keys {', '.join(spec)}, got {_type_name(value)}")
-        for key in value:
-            if key not in spec:
-                close = difflib.get_close_matches(str(key), list(spec), n=1)
-                hint = f"did you mean '{close[0]}'? " if close else ""
-                self.fail(path + (str(key),), f"unknown key; {hint}allowed keys here: {', '.join(spec)}")
-        out: dict[str, Any] = {}
-        for key, (parse, default) in spec.items():
-            if key in value:
-                out[key] = parse(self, value[key], path + (key,))
-            elif default is _REQUIRED:
-                self.fail(path + (key,), f"required key is missing; add '{key}:' to {_fmt_path(path)}")
-            else:
-                out[key] = default
-        return out
-
-
-_FLOATISH = re.compile(r"[-+]?(\d+\.?\d*|\.\d+)[eE][-+]?\d+")
-
-
-def _number(
-    *,
-    gt: float | None = None,
-    ge: float | None = None,
-    lt: float | None = None,
-    le: float | None = None,
-    null: bool = False,
-    unit: str = "",
-) -> Parser:
-    """A real number (bool is not a number) within the given limits; ``null`` allows None."""
-    limits = [f"{op} {x:g}" for op, x in ((">", gt), (">=", ge), ("<", lt), ("<=", le)) if x is not None]
-    want = "a number " + " and ".join(limits) if limits else "a number"
-    want = want + (f" ({unit})" if unit else "") + (" or null" if null else "")
-
-    def parse(ctx: _Ctx, v: Any, path: KeyPath) -> float | None:
-        if v is None and null:
-            return None
-        if isinstance(v, int) and not isinstance(v, bool) and not -1e300 < v < 1e300:  # any length
-            ctx.fail(path, f"{_type_name(v)} is out of range; set it to {want}")
-        if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
-            hint = ""
-            if isinstance(v, str) and _FLOATISH.fullmatch(v.strip()):
-                hint = " (YAML reads 1e20 as text: write 1.0e+20)"
-            ctx.fail(path, f"expected {want}, got {_type_name(v)}{hint}")
-        x = float(v)  # an int of any size was compared above: now safe
-        bad = (
-            (gt is not None and not x > gt)
-            or (ge is not None and not x >= ge)
-            or (lt is not None and not x < lt)
-            or (le is not None and not x <= le)
-        )
-        if bad:
-            shown = v if not isinstance(v, int) or v.bit_length() <= 64 else _type_name(v)
-            ctx.fail(path, f"{shown} is out of range; set it to {want}")
-        return x
-
-    return parse
-
-
-def _integer(lo: int, hi: int | None = None, what: str = "") -> Parser:
-    want = f"an integer {lo}..{hi}" if hi is not None else f"an integer >= {lo}"
-    want += f" ({what})" if what else ""
-
-    def parse(ctx: _Ctx, v: Any, path: KeyPath) -> int:
-        if isinstance(v, bool) or not isinstance(v, int):
-            ctx.fail(path, f"expected {want}, got {_type_name(v)}")
-        if v < lo or (hi is not None and v > hi):
-            shown = v if v.bit_length() <= 64 else _type_name(v)
-            ctx.fail(path, f"{shown} is out of range; set it to {want}")
-        return v
-
-    return parse
-
-
-def _string(null: bool = False) -> Parser:
-    def parse(ctx: _Ctx, v: Any, path: KeyPath) -> str | None:
-        if v is None and null:
-            return None
-        if not isinstance(v, str) or not v.strip():
-            ctx.fail(path, f"expected a non-empty string, got {_type_name(v)} (quote values like '1')")
-        if len(v) > L.MAX_STRING:
-            ctx.fail(path, f"a string of {len(v)} characters is too long; use at most {L.MAX_STRING}")
-        return v
-
-    return parse
-
-
-def _one_of(*choices: str) -> Parser:
-    def parse(ctx: _Ctx, v: Any, path: KeyPath) -> str:
-        if v not in choices:
-            close = difflib.get_close_matches(str(v), choices, n=1)
-            hint = f"did you mean '{close[0]}'? " if close else ""
-            ctx.fail(path, f"got {_type_name(v)}; {hint}use one of: {', '.join(choices)}")
-        return v
-
-    return parse
-
-
-def _vector(*dims: int) -> Parser:
-    want = " or ".join(f"[{', '.join('xyz'[:d])}]" for d in dims)
-
-    def parse(ctx: _Ctx, v: Any, path: KeyPath) -> tuple[float, ...]:
-        if not isinstance(v, list) or len(v) not in dims:
-            ctx.fail(
-                path,
-                f"expected {want} (ENU metres), got {_type_name(v)}"
-                + (f" of {len(v)} numbers" if isinstance(v, list) else ""),
-            )
-        return tuple(_COORD(ctx, c, path + (i,)) for i, c in enumerate(v))
-
-    return parse
-
-
-def _list(item: Parser, what: str, max_len: int) -> Parser:
-    def parse(ctx: _Ctx, v: Any, path: KeyPath) -> list[Any]:
-        if not isinstance(v, list):
-            ctx.fail(path, f"expected a list of {what}, got {_type_name(v)}")
-        if len(v) > max_len:
-            ctx.fail(path, f"{len(v)} entries are too many; give at most {max_len} {what} "
-                           "(see docs/mission-limits.md)")
-        return [item(ctx, x, path + (i,)) for i, x in enumerate(v)]
-
-    return parse
-
-
-_COORD = _number(ge=-L.MAX_COORD, le=L.MAX_COORD, unit="metres")
-_ALT = _number(ge=L.MIN_ALT, le=L.MAX_ALT, unit="metres above the WGS84 ellipsoid")
-
-_HOSTPORT = r"(?P<host>\[[0-9a-fA-F:.]+\]|[A-Za-z0-9_.-]+):(?P<port>\d+)"
-_CONNECTION_RES = (
-    re.compile(r"sim"),
-    re.compile(rf"(?:udp|udpout|udpin|tcp)://{_HOSTPORT}"),
-    re.compile(r"serial://(?P<dev>/[^?\s]+|COM\d+)\?baud=(?P<baud>\d+)"),
-)
-_CONNECTION_FORMS = (
-    "sim, udp://HOST:PORT, udpout://HOST:PORT, udpin://HOST:PORT, tcp://HOST:PORT, serial:///dev/NAME?baud=N "
-    "(docs/mavlink.md)"
-)
-
-
-def _connection(ctx: _Ctx, v: Any, path: KeyPath) -> str:
-    if isinstance(v, str):
-        try:  # MAVSDK/pymavlink/MAVProxy spellings: fleetctl's own, or what to write instead
-            v = normalize_connection(v)
-        except ConnectionSpellingError as exc:
-            ctx.fail(path, str(exc))
-        for rx in _CONNECTION_RES:
-            m = rx.fullmatch(v)
-            if m is None:
-                continue
-            groups = m.groupdict()
-            if "port" in groups and not 1 <= int(groups["port"]) <= 65535:
-                ctx.fail(path, f"port {groups['port']} is out of range 1..65535")
-            if "baud" in groups and int(groups["baud"]) <= 0:
-                ctx.fail(path, "baud rate must be a positive integer, e.g. ?baud=57600")
-            return v
-    ctx.fail(path, f"{_type_name(v)} is not a connection URL; use one of {_CONNECTION_FORMS}")
-
-
-_POINT_SPEC: dict[str, tuple[Parser, Any]] = {
-    "position": (_vector(2, 3), None),
-    "lat": (_number(ge=-90, le=90, unit="degrees"), None),
-    "lon": (_number(ge=-180, le=180, unit="degrees"), None),
-    "alt": (_ALT, None),
-}
-
-
-def _point(ctx: _Ctx, d: dict[str, Any], path: KeyPath, origin: Origin | None) -> Vec3:
-    """A task-like position: ``position: [x, y(, z)]`` (ENU) or ``lat/lon(/alt)`` (needs origin)."""
-    geodetic = [k for k in ("lat", "lon", "alt") if d[k] is not None]
-    if d["position"] is not None:
-        if geodetic:
-            ctx.fail(path + (geodetic[0],), "give either 'position' (ENU metres) or lat/lon/alt, not both")
-        p = d["position"]
-        return (p[0], p[1], p[2] if len(p) == 3 else 0.0)
-    if not geodetic:
-        ctx.fail(
-            path + ("position",),
-            "required key is missing; add 'position: [x, y, z]' (ENU metres) or 'lat:', 'lon:' (and 'alt:')",
-        )
-    for k in ("lat", "lon"):
-        if d[k] is None:
-            ctx.fail(
-                path + (k,),
-                f"required key is missing; a geodetic position needs both lat and lon, add '{k}:'",
-            )
-    if origin is None:
-        ctx.fail(
-            path + ("lat",),
-            "a lat/lon position needs the mission's 'origin: {lat, lon, alt}'; "
-            "add an origin or give 'position: [x, y, z]' in ENU metres",
-        )
-    alt = d["alt"] if d["alt"] is not None else origin.alt
-    p = geodetic_to_local(d["lat"], d["lon"], alt, origin)
-    if not all(abs(c) <= L.MAX_COORD for c in p):
-        ctx.fail(path + ("lat",), f"lat/lon/alt lie ({p[0]:.0f}, {p[1]:.0f}, {p[2]:.0f}) m from the origin, "
-                                  f"farther than {L.MAX_COORD:g} m; move the position or the origin")
-    return p
-
-
-# --------------------------------------------------------------------------- the contract
-
-_POS = _number(ge=L.MIN_SPEED, le=L.MAX_SPEED, unit="m/s")
-_ACCEL = _number(ge=L.MIN_ACCEL, le=L.MAX_ACCEL, null=True, unit="m/s²")
-_TIME = _number(ge=0, le=L.MAX_HANDLING_TIME, unit="seconds")
-_RANGE = _number(ge=L.MIN_RANGE, le=L.MAX_RANGE, unit="metres")
-_ID = _string()
-_OPT_STR = _string(null=True)
-
-_ORIGIN = {
-    "lat": (_number(ge=-90, le=90, unit="degrees"), _REQUIRED),
-    "lon": (_number(ge=-180, le=180, unit="degrees"), _REQUIRED),
-    "alt": (_ALT, _REQUIRED),
-}
-_CARRIER = {
-    "id": (_ID, "carrier"),
-    "connection": (_connection, "sim"),
-    "sysid": (_integer(1, 255, "MAVLink system id"), 1),
-    "position": (_vector(2), _REQUIRED),
-    "heading_deg": (
-        _number(ge=-L.MAX_HEADING, le=L.MAX_HEADING, unit="compass degrees, 0 = north, 90 = east"), 0.0
-    ),
-    "max_speed": (_POS, _REQUIRED),
-    "accel": (_ACCEL, None),
-    "turn_rate": (_number(ge=L.MIN_TURN_RATE, le=L.MAX_TURN_RATE, null=True, unit="rad/s"), None),
-    "unload_time": (_TIME, 0.0),
-    "load_time": (_TIME, 0.0),
-    "swap_time": (_TIME, 0.0),
-    "firmware_speeds": (_one_of(*FIRMWARE_SPEEDS), None),
-}
-_ENERGY = {
-    "initial": (_number(gt=0, le=L.MAX_ENERGY), _REQUIRED),
-    "task": (_number(ge=0, le=L.MAX_ENERGY), _REQUIRED),
-    "rho": (_number(gt=0, le=L.MAX_RHO, unit="metres per unit of energy"), _REQUIRED),
-}
-_FLEET = {
-    "count": (_integer(1, 255, "number of rovers"), None),
-    "sysid_start": (_integer(1, 255, "MAVLink system id of r1"), None),
-}
-_UNIT = {
-    "id": (_ID, _REQUIRED),
-    "sysid": (_integer(1, 255, "MAVLink system id"), _REQUIRED),
-    "connection": (_connection, None),
-}
-_ROVERS = {
-    "max_speed": (_POS, _REQUIRED),
-    "accel": (_ACCEL, None),
-    "deploy_range": (_RANGE, None),
-    "energy": (lambda c, v, p: c.section(v, p, _ENERGY), None),
-    "endurance_range": (_RANGE, None),
-    "reserve": (_number(ge=0, lt=1, unit="fraction of the battery"), 0.1),
-    "climb_rate": (_number(ge=L.MIN_SPEED, le=L.MAX_SPEED, null=True, unit="m/s"), None),
-    "land_speed": (_number(ge=L.MIN_SPEED, le=L.MAX_SPEED, null=True, unit="m/s"), None),
-    "takeoff_time": (_number(ge=0, le=L.MAX_HANDLING_TIME, null=True, unit="s"), None),
-    "land_time": (_number(ge=0, le=L.MAX_HANDLING_TIME, null=True, unit="s"), None),
-    "firmware_speeds": (_one_of(*FIRMWARE_SPEEDS), None),
-    "work": (_one_of(*WORK_MODES), "hover"),
-    "fleet": (lambda c, v, p: c.section(v, p, _FLEET), None),
-    "units": (_list(lambda c, v, p: c.section(v, p, _UNIT), "units {id, sysid, connection}", L.MAX_ROVERS),
-              None),
-}
-_TEAM = {**_CARRIER, "id": (_ID, _REQUIRED), "sysid": (_CARRIER["sysid"][0], _REQUIRED),
-         "fleet": _ROVERS["fleet"], "units": _ROVERS["units"]}  # carriers[i]: a carrier and its rovers
-_TASK = {"id": (_ID, _REQUIRED), **_POINT_SPEC,
-         "duration": (_number(ge=0, le=L.MAX_DWELL, null=True, unit="seconds of work; null = dwell"), None),
-         "work": (_one_of(*WORK_MODES), None)}
-_COLLECT_ROVER = {
-    "id": (_ID, _REQUIRED),
-    **_POINT_SPEC,
-    "range": (_number(gt=0, le=L.MAX_RANGE, unit="metres"), _REQUIRED),
-}
-_COLLECTION = {
-    "rovers": (
-        _list(lambda c, v, p: c.section(v, p, _COLLECT_ROVER), "rovers {id, position, range}", L.MAX_ROVERS),
-        _REQUIRED,
-    )
-}
-_FAULT = {
-    "vehicle": (_OPT_STR, None),
-    "kind": (_one_of(*FAULT_KINDS), _REQUIRED),
-    "at": (_number(ge=0, le=L.MAX_SIM_TIME, unit="simulated seconds"), 0.0),
-    "until": (_number(ge=0, le=L.MAX_SIM_TIME, null=True, unit="simulated seconds; omit = never back"), None),
-    "rate": (_number(ge=0, le=1, unit="fraction of packets lost"), None),
-    "seconds": (_number(ge=0, le=L.MAX_LATENCY, unit="added latency in seconds"), None),
-    "factor": (_number(gt=0, le=L.MAX_DRAIN, unit="battery drain multiplier"), None),
-    "level": (_number(ge=0, le=1, unit="fraction of a full battery"), None),
-}
-_FAULT_PARAM = {"packet_loss": "rate", "latency": "seconds", "battery_drain": "factor",
-                "low_battery": "level"}
-_SIM = {
-    "speedup": (_number(ge=L.MIN_SPEEDUP, le=L.MAX_SPEEDUP, unit="simulated seconds per wall second"), 1.0),
-    "faults": (
-        _list(lambda c, v, p: c.section(v, p, _FAULT), "faults {vehicle, kind, ...}", L.MAX_FAULTS), []
-    ),
-}
-_ENV_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
-
-
-def _env_name(ctx: _Ctx, v: Any, path: KeyPath) -> str:
-    if not isinstance(v, str) or not _ENV_NAME.fullmatch(v):
-        ctx.fail(path, f"{_type_name(v)} is not an environment variable name; use letters, digits and _ "
-                       "(e.g. FLEET_SIGNING_KEY): the variable holds the key, the mission file only its name")
-    return v
-
-
-_SIGNING = {"key_env": (_env_name, _REQUIRED)}
-_LINKS = {
-    "heartbeat_timeout": (
-        _number(ge=L.MIN_HEARTBEAT_TIMEOUT, le=L.MAX_HEARTBEAT_TIMEOUT, unit="seconds"), 3.0
-    ),
-    "reassign_after": (_number(ge=0, le=L.MAX_HEARTBEAT_TIMEOUT, unit="seconds"), 10.0),
-    "signing": (lambda c, v, p: SigningConfig(**c.section(v, p, _SIGNING)), None),
-    "failsafe": (_one_of(*FAILSAFE_ACTIONS), "keep"),
-}
-_XI = _number(ge=0, le=L.MAX_XI)
-_ROADMAP = {
-    "xi1": (_XI, None),
-    "xi2": (_XI, None),
-    "xi3": (_XI, None),
-    "xi4": (_XI, None),
-    "phi": (_number(gt=0, lt=1), None),
-}
-_PLANNER = {
-    "deploy": (_ID, "lee"),
-    "collect": (_ID, "lee"),
-    "seed": (_integer(0, L.MAX_SEED), 0),
-    "budget_ms": (_number(ge=0, le=L.MAX_BUDGET_MS, null=True, unit="ms of improvement search"), None),
-    "roadmap": (lambda c, v, p: RoadmapConfig(**c.section(v, p, _ROADMAP)), None),
-}
-_TLS = {"ca": (_OPT_STR, None), "cert": (_OPT_STR, None), "key": (_OPT_STR, None)}
-def _boolean(ctx: _Ctx, v: Any, path: KeyPath) -> bool:
-    if not isinstance(v, bool):
-        ctx.fail(path, f"expected true or false, got {_type_name(v)}")
-    return v
-
-
-_MQTT_URL = re.compile(r"mqtts?://[A-Za-z0-9_.-]+(:\d{1,5})?/?")
-
-
-def _mqtt_url(ctx: _Ctx, v: Any, path: KeyPath) -> str:
-    if not isinstance(v, str) or not _MQTT_URL.fullmatch(v):
-        ctx.fail(
-            path, f"{_type_name(v)} is not an MQTT broker URL; use mqtt://HOST[:PORT] or mqtts://HOST[:PORT]"
-        )
-    return v
-
-
-_MQTT = {
-    "url": (_mqtt_url, _REQUIRED),
-    "topic_prefix": (_OPT_STR, None),
-    "client_id": (_OPT_STR, None),
-    "username": (_OPT_STR, None),
-    "password_env": (_OPT_STR, None),
-    "tls": (lambda c, v, p: TlsConfig(**c.section(v, p, _TLS)), None),
-    "accept_task_changes": (_boolean, False),
-}
-_TASK_LIST = _list(lambda c, v, p: c.section(v, p, _TASK), "tasks {id, position}", L.MAX_TASKS)
-_OBSTACLE_LIST = _list(_list(_vector(2), "[x, y] vertices", L.MAX_OBSTACLE_VERTICES), "polygons",
-                       L.MAX_OBSTACLES)
-
-
-class _FileRef(str):
-    """``{file: PATH}`` in place of a list (tasks, obstacles): read in :func:`_read_files`."""
-
-
-def _file_ref(ctx: _Ctx, v: Any, path: KeyPath) -> _FileRef:
-    return _FileRef(ctx.section(v, path, {"file": (_string(), _REQUIRED)})["file"])
-
-
-def _read_files(ctx: _Ctx, d: dict[str, Any], origin: Origin | None, path: Path | None) -> None:
+def read_files(ctx: Ctx, d: dict[str, Any], origin: Origin | None, path: Path | None) -> None:
     """Replace ``tasks``/``obstacles`` given as ``{file: PATH}`` by what the file holds, validated
     like a list in the mission; later messages name the file's feature (ctx.notes)."""
     base = path.parent if path is not None else Path.cwd()
     for key in ("tasks", "obstacles"):
         ref = d[key]
-        if not isinstance(ref, _FileRef):
+        if not isinstance(ref, FileRef):
             continue
         try:
             if key == "tasks":
@@ -541,45 +108,24 @@ def _read_files(ctx: _Ctx, d: dict[str, Any], origin: Origin | None, path: Path 
         except formats.FormatError as exc:
             ctx.fail((key, "file"), str(exc))
         ctx.notes.update({(key, i): f"{ref} {w}" for i, w in enumerate(wheres)})
-        d[key] = (_TASK_LIST if key == "tasks" else _OBSTACLE_LIST)(ctx, rows, (key,))
-
-
-_TOP = {
-    "name": (_ID, None),
-    "origin": (lambda c, v, p: Origin(**c.section(v, p, _ORIGIN)), None),
-    "carrier": (lambda c, v, p: c.section(v, p, _CARRIER), None),
-    "carriers": (_list(lambda c, v, p: c.section(v, p, _TEAM), "carriers {id, sysid, position, ..., fleet}",
-                       L.MAX_CARRIERS), None),
-    "rovers": (lambda c, v, p: c.section(v, p, _ROVERS), _REQUIRED),
-    "tasks": (lambda c, v, p: _file_ref(c, v, p) if isinstance(v, dict) else _TASK_LIST(c, v, p), _REQUIRED),
-    "obstacles": (lambda c, v, p: _file_ref(c, v, p) if isinstance(v, dict) else _OBSTACLE_LIST(c, v, p), []),
-    "bounds": (_list(_vector(2), "two corners [[xmin, ymin], [xmax, ymax]]", 100), None),
-    "collection": (lambda c, v, p: c.section(v, p, _COLLECTION), None),
-    "sim": (lambda c, v, p: c.section(v, p, _SIM), {"speedup": 1.0, "faults": []}),
-    "links": (lambda c, v, p: LinksConfig(**c.section(v, p, _LINKS)), LinksConfig()),
-    "planner": (lambda c, v, p: PlannerConfig(**c.section(v, p, _PLANNER)), PlannerConfig()),
-    "dwell": (_number(ge=0, le=L.MAX_DWELL, unit="seconds on task"), 60.0),
-    "operation": (_boolean, False),
-    "mqtt": (lambda c, v, p: c.section(v, p, _MQTT), None),
-    "geofence": (lambda c, v, p: c.section(v, p, _GEOFENCE), None),
-}
+        d[key] = (TASK_LIST if key == "tasks" else OBSTACLE_LIST)(ctx, rows, (key,))
 
 
 # --------------------------------------------------------------------------- cross-field rules
 
 
-def _unique(ctx: _Ctx, items: list[tuple[Any, KeyPath]], what: str) -> None:
+def _unique(ctx: Ctx, items: list[tuple[Any, KeyPath]], what: str) -> None:
     seen: dict[Any, KeyPath] = {}
     for value, path in items:
         if value in seen:
             ctx.fail(
                 path,
-                f"duplicate {what} {value!r} (also at {_fmt_path(seen[value])}); make every {what} unique",
+                f"duplicate {what} {value!r} (also at {fmt_path(seen[value])}); make every {what} unique",
             )
         seen[value] = path
 
 
-def _unique_sysids(ctx: _Ctx, rows: list[tuple[str, int, KeyPath]]) -> None:
+def _unique_sysids(ctx: Ctx, rows: list[tuple[str, int, KeyPath]]) -> None:
     """System ids are unique per link (:mod:`fleetctl.mission.links`): ``rows`` are (link key,
     sysid, key path) of every vehicle; a repeat on the same link is an error naming both."""
     seen: dict[tuple[str, int], KeyPath] = {}
@@ -588,13 +134,13 @@ def _unique_sysids(ctx: _Ctx, rows: list[tuple[str, int, KeyPath]]) -> None:
         other = seen.get((link, sysid))
         if other is not None:
             on = f" on {shown_link(link)}" if several else ""
-            ctx.fail(path, f"duplicate vehicle sysid {sysid}{on} (also at {_fmt_path(other)}); make every "
+            ctx.fail(path, f"duplicate vehicle sysid {sysid}{on} (also at {fmt_path(other)}); make every "
                            "vehicle sysid on one link unique (vehicles on different links may share one)")
         seen[(link, sysid)] = path
 
 
 def _build_fleet(
-    ctx: _Ctx, r: dict[str, Any], carrier: dict[str, Any], default_count: int
+    ctx: Ctx, r: dict[str, Any], carrier: dict[str, Any], default_count: int
 ) -> tuple[RoverUnit, ...]:
     if r["fleet"] is not None and r["units"] is not None:
         ctx.fail(("rovers", "units"), "give either 'fleet: {count, sysid_start}' or 'units: [...]', not both")
@@ -621,7 +167,7 @@ def _build_fleet(
     return tuple(RoverUnit(f"r{i + 1}", start + i, None) for i in range(count))
 
 
-def _polygon(ctx: _Ctx, pts: list[Vec2], path: KeyPath) -> Polygon:
+def _polygon(ctx: Ctx, pts: list[Vec2], path: KeyPath) -> Polygon:
     if len(pts) < 3:
         ctx.fail(path, f"an obstacle polygon needs at least 3 vertices [x, y], got {len(pts)}")
     poly = _shape(pts)
@@ -655,7 +201,7 @@ def _why_invalid(poly: Polygon) -> str:
 
 
 def _check_geometry(
-    ctx: _Ctx, d: dict[str, Any], tasks: tuple[Task, ...]
+    ctx: Ctx, d: dict[str, Any], tasks: tuple[Task, ...]
 ) -> tuple[tuple[tuple[Vec2, ...], ...], tuple[Vec2, Vec2] | None]:
     bounds = None
     if d["bounds"] is not None:
@@ -697,23 +243,7 @@ def _check_geometry(
 
 
 # --- geofence (docs/field-safety.md): one inclusion polygon, obstacles as exclusion zones -----------
-def _fence_vertex(ctx: _Ctx, v: Any, path: KeyPath) -> Any:
-    if isinstance(v, dict):
-        return ctx.section(v, path, {"lat": _ORIGIN["lat"], "lon": _ORIGIN["lon"]})
-    if isinstance(v, list):
-        return _vector(2)(ctx, v, path)
-    ctx.fail(path, f"expected a vertex [x, y] (ENU metres) or {{lat, lon}}, got {_type_name(v)}")
-
-
-_GEOFENCE: dict[str, tuple[Parser, Any]] = {
-    "polygon": (_list(_fence_vertex, "vertices [x, y] or {lat, lon}", L.MAX_OBSTACLE_VERTICES), None),
-    "from": (_one_of("bounds"), None),
-    "alt_max": (_number(gt=0, le=L.MAX_ALT, null=True, unit="metres above home"), None),
-    "action": (_one_of(*FENCE_ACTIONS), "report"),
-}
-
-
-def _geofence(ctx: _Ctx, d: dict[str, Any], tasks: tuple[Task, ...], obstacles: tuple[tuple[Vec2, ...], ...],
+def _geofence(ctx: Ctx, d: dict[str, Any], tasks: tuple[Task, ...], obstacles: tuple[tuple[Vec2, ...], ...],
               bounds: tuple[Vec2, Vec2] | None, origin: Origin | None) -> GeofenceConfig | None:
     g = d["geofence"]
     if g is None:
@@ -757,7 +287,7 @@ def _geofence(ctx: _Ctx, d: dict[str, Any], tasks: tuple[Task, ...], obstacles: 
 
 
 def _check_roadmap(
-    ctx: _Ctx,
+    ctx: Ctx,
     d: dict[str, Any],
     tasks: tuple[Task, ...],
     collection: tuple[CollectRover, ...] | None,
@@ -805,15 +335,15 @@ def _check_roadmap(
         )
 
 
-def _build(ctx: _Ctx, data: Any, path: Path | None) -> Mission:
+def _build(ctx: Ctx, data: Any, path: Path | None) -> Mission:
     if data is None:
         ctx.fail((), "the mission file is empty; see the annotated examples in missions/ for the keys")
     ctx.raw = data
-    d = ctx.section(data, (), _TOP)
+    d = ctx.section(data, (), TOP)
     origin: Origin | None = d["origin"]
     _carriers(ctx, d)
     check_one_carrier(ctx.fail, d)
-    _read_files(ctx, d, origin, path)
+    read_files(ctx, d, origin, path)
     carrier, r = d["carrier"], d["rovers"]
     tasks, collection = _tasks_and_collection(ctx, d, origin)
     deploy_range, endurance, energy = _ranges(ctx, r)
@@ -861,9 +391,9 @@ def _build(ctx: _Ctx, data: Any, path: Path | None) -> Mission:
 
 
 def _tasks_and_collection(
-    ctx: _Ctx, d: dict[str, Any], origin: Origin | None
+    ctx: Ctx, d: dict[str, Any], origin: Origin | None
 ) -> tuple[tuple[Task, ...], tuple[CollectRover, ...] | None]:
-    tasks = tuple(Task(t["id"], _point(ctx, t, ("tasks", i), origin)) for i, t in enumerate(d["tasks"]))
+    tasks = tuple(Task(t["id"], point(ctx, t, ("tasks", i), origin)) for i, t in enumerate(d["tasks"]))
     collection = None
     if d["collection"] is not None:
         rows = d["collection"]["rovers"]
@@ -873,7 +403,7 @@ def _tasks_and_collection(
                 "the list is empty; list the rovers to collect {id, position, range}",
             )
         collection = tuple(
-            CollectRover(c["id"], _point(ctx, c, ("collection", "rovers", i), origin), c["range"])
+            CollectRover(c["id"], point(ctx, c, ("collection", "rovers", i), origin), c["range"])
             for i, c in enumerate(rows)
         )
     if not tasks and collection is None:
@@ -896,7 +426,7 @@ def _flight_times(r: dict[str, Any]) -> dict[str, float]:
     return {"climb_rate": climb, "land_speed": land, "takeoff_time": takeoff, "land_time": touch}
 
 
-def _ranges(ctx: _Ctx, r: dict[str, Any]) -> tuple[float, float, EnergyConfig | None]:
+def _ranges(ctx: Ctx, r: dict[str, Any]) -> tuple[float, float, EnergyConfig | None]:
     """d_deploy (given, or from energy terms: dissertation ch. 3.2), endurance_range, energy."""
     if (r["deploy_range"] is None) == (r["energy"] is None):
         ctx.fail(
@@ -938,7 +468,7 @@ def _ranges(ctx: _Ctx, r: dict[str, Any]) -> tuple[float, float, EnergyConfig | 
     return deploy_range, endurance, energy
 
 
-def _check_task_heights(ctx: _Ctx, tasks: tuple[Task, ...], deploy_range: float) -> None:
+def _check_task_heights(ctx: Ctx, tasks: tuple[Task, ...], deploy_range: float) -> None:
     for i, t in enumerate(tasks):
         z = t.position[2]
         if z < 0:
@@ -955,7 +485,7 @@ def _check_task_heights(ctx: _Ctx, tasks: tuple[Task, ...], deploy_range: float)
 
 
 def _fleet_units(
-    ctx: _Ctx, r: dict[str, Any], carrier: dict[str, Any], tasks: tuple[Task, ...],
+    ctx: Ctx, r: dict[str, Any], carrier: dict[str, Any], tasks: tuple[Task, ...],
     collection: tuple[CollectRover, ...] | None, operation: bool = False,
 ) -> tuple[RoverUnit, ...]:
     """The rover units, enough for the tasks (unless the mission is a long operation, whose rovers
@@ -989,7 +519,7 @@ def _fleet_units(
     return tuple(units)
 
 
-def _check_collection(ctx: _Ctx, collection: tuple[CollectRover, ...] | None, rover_ids: set[str]) -> None:
+def _check_collection(ctx: Ctx, collection: tuple[CollectRover, ...] | None, rover_ids: set[str]) -> None:
     """Collection rover ids: unique, and rovers of the fleet."""
     if collection is not None:
         _unique(
@@ -1028,7 +558,7 @@ def _carrier_starts(d: dict[str, Any]) -> list[tuple[str, Vec2, KeyPath]]:
             for i, c in enumerate(d["carriers"])]
 
 
-def _carriers(ctx: _Ctx, d: dict[str, Any]) -> None:
+def _carriers(ctx: Ctx, d: dict[str, Any]) -> None:
     """Exactly one of ``carrier:`` and ``carriers:``; with ``carriers:`` the rovers are the carriers'
     own and ``d["carrier"]`` becomes the first carrier (the one that flies a one-team mission)."""
     teams = d["carriers"]
@@ -1055,7 +585,7 @@ def _carriers(ctx: _Ctx, d: dict[str, Any]) -> None:
 
 
 def _team_units(
-    ctx: _Ctx, d: dict[str, Any], tasks: tuple[Task, ...], collection: tuple[CollectRover, ...] | None,
+    ctx: Ctx, d: dict[str, Any], tasks: tuple[Task, ...], collection: tuple[CollectRover, ...] | None,
 ) -> tuple[tuple[RoverUnit, ...], tuple[tuple[dict[str, Any], tuple[str, ...]], ...]]:
     """Every carrier's rovers (``fleet:`` ids run on across carriers in list order), enough for the
     tasks, ids unique over every vehicle, sysids unique per link, collection rovers among them."""
@@ -1082,7 +612,7 @@ def _team_units(
     return tuple(u for u, _, _ in rows), tuple(teams)
 
 
-def _team_fleet(ctx: _Ctx, c: dict[str, Any], path: KeyPath, first: int, next_sysid: int,
+def _team_fleet(ctx: Ctx, c: dict[str, Any], path: KeyPath, first: int, next_sysid: int,
                 own_link: bool = False) -> list[tuple[RoverUnit, KeyPath, KeyPath]]:
     """One carrier's rovers with the key paths of their id and sysid: ``units: [...]`` as given, or
     ``fleet: {count, sysid_start}`` as r<first+1>.. with sysids from sysid_start (default: after
@@ -1117,7 +647,7 @@ def _team_fleet(ctx: _Ctx, c: dict[str, Any], path: KeyPath, first: int, next_sy
             for j in range(count)]
 
 
-def _faults(ctx: _Ctx, d: dict[str, Any], vehicles: set[str]) -> list[Fault]:
+def _faults(ctx: Ctx, d: dict[str, Any], vehicles: set[str]) -> list[Fault]:
     faults = []
     for i, f in enumerate(d["sim"]["faults"]):
         fp: KeyPath = ("sim", "faults", i)
@@ -1127,8 +657,8 @@ def _faults(ctx: _Ctx, d: dict[str, Any], vehicles: set[str]) -> list[Fault]:
                 f"{f['vehicle']!r} is not a vehicle of this mission "
                 f"({', '.join(sorted(vehicles))}); omit 'vehicle' to affect every vehicle",
             )
-        needed = _FAULT_PARAM.get(f["kind"])
-        for param in _FAULT_PARAM.values():
+        needed = FAULT_PARAM.get(f["kind"])
+        for param in FAULT_PARAM.values():
             if param != needed and f[param] is not None:
                 ctx.fail(fp + (param,), f"'{param}' does not apply to kind {f['kind']}; remove it")
         if needed is not None and f[needed] is None:
@@ -1139,7 +669,7 @@ def _faults(ctx: _Ctx, d: dict[str, Any], vehicles: set[str]) -> list[Fault]:
     return faults
 
 
-def _mqtt(ctx: _Ctx, d: dict[str, Any], path: Path | None) -> MqttConfig | None:
+def _mqtt(ctx: Ctx, d: dict[str, Any], path: Path | None) -> MqttConfig | None:
     if d["mqtt"] is None:
         return None
     m = dict(d["mqtt"])
@@ -1160,7 +690,7 @@ def _mqtt(ctx: _Ctx, d: dict[str, Any], path: Path | None) -> MqttConfig | None:
 
 def parse_mission(data: dict[str, Any], source: str) -> Mission:
     """Validate an already parsed mission mapping; ``source`` names it in error messages."""
-    return _build(_Ctx(source), data, None)
+    return _build(Ctx(source), data, None)
 
 
 def load_mission(path: str | Path) -> Mission:
@@ -1182,7 +712,7 @@ def load_mission(path: str | Path) -> Mission:
 
 def parse_mission_text(text: str, source: str, path: Path | None = None) -> Mission:
     """Parse and validate mission YAML ``text`` (``source`` names it in messages)."""
-    ctx = _Ctx(source)
+    ctx = Ctx(source)
     try:
         data, lines = read_yaml(text)
     except YamlError as exc:

@@ -10,7 +10,8 @@ from pathlib import Path
 
 import pytest
 
-import fleetctl.mission.loader as loader
+import fleetctl.mission.schema as schema
+import fleetctl.mission.values as values
 from fleetctl.cli import build_parser
 from fleetctl.mission import parse_mission
 from fleetctl.mission.loader import parse_mission_text
@@ -36,7 +37,7 @@ def _doc_keys() -> set[str]:
 
 def _default_shown(default: object) -> str | None:
     """How the doc's default column shows a loader default (None: not checked)."""
-    if default is loader._REQUIRED:
+    if default is values.REQUIRED:
         return "required"
     if isinstance(default, bool):
         return f"`{str(default).lower()}`"
@@ -46,8 +47,8 @@ def _default_shown(default: object) -> str | None:
 
 
 def _loader_specs() -> Iterator[tuple[str, dict[str, tuple[object, object]]]]:
-    """Every key → (parser, default) table of the loader (a new section is found without a list here)."""
-    for name, value in vars(loader).items():
+    """Every key → (parser, default) table of the schema (a new section is found without a list here)."""
+    for name, value in vars(schema).items():
         if (isinstance(value, dict) and value and all(isinstance(k, str) for k in value)
                 and all(isinstance(v, tuple) and len(v) == 2 and callable(v[0]) for v in value.values())):
             yield name, value
@@ -55,7 +56,7 @@ def _loader_specs() -> Iterator[tuple[str, dict[str, tuple[object, object]]]]:
 
 def test_the_loader_has_specs() -> None:
     names = {n for n, _ in _loader_specs()}
-    assert {"_TOP", "_CARRIER", "_ROVERS", "_TASK", "_MQTT", "_GEOFENCE"} <= names, names
+    assert {"TOP", "CARRIER", "ROVERS", "TASK", "MQTT", "GEOFENCE"} <= names, names
 
 
 @pytest.mark.parametrize(("name", "spec"), list(_loader_specs()),

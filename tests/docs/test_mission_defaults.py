@@ -17,7 +17,7 @@ from typing import Any
 import pytest
 import yaml
 
-import fleetctl.mission.loader as loader
+import fleetctl.mission.schema as schema
 from fleetctl.mavlink.fleet import fleet_urls
 from fleetctl.mission import Mission
 from fleetctl.mission.loader import parse_mission_text
@@ -164,7 +164,7 @@ def _name(cell: str) -> None:
 
 def _sim(cell: str) -> None:
     documented = yaml.safe_load(cell.strip("`"))
-    assert documented == loader._TOP["sim"][1]
+    assert documented == schema.TOP["sim"][1]
     m = _load()
     assert (m.sim.speedup, m.sim.faults) == (documented["speedup"], tuple(documented["faults"]))
 
