@@ -13,7 +13,8 @@ Topics under the mission's prefix ``P`` (default ``fleetctl/<mission name>``):
 * in: ``P/tasks/add`` (``{"tasks": [{"id", "position" | "lat"/"lon"/"alt"}, ...]}``, a list of
   tasks or one task), ``P/tasks/remove`` (``{"tasks": ["t1", ...]}``, a list of ids or one id) and,
   for a long operation, ``P/tasks/update`` (``{"tasks": [{"id", "duration", "work"}, ...]}``: a
-  task's new work), validated like the mission file and handed to ``Executor.submit_task_change``.
+  task's new work), decoded and checked like the mission file (:mod:`fleetctl.bus.task_messages`)
+  and handed to ``Executor.submit_task_change``.
 * more topics a caller subscribes with :meth:`FleetBus.subscribe` (the team coordination,
   :mod:`fleetctl.run.teams.link`) and publishes with ``publish(..., absolute=True)``.
 
@@ -28,11 +29,8 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
-import copy
 import json
 import logging
-import math
-import re
 import time
 from collections import deque
 from collections.abc import Callable, Iterable
@@ -44,7 +42,6 @@ import aiomqtt
 from fleetctl.bus.config import (
     BUFFER_SIZE,
     FINAL_STATES,
-    MAX_JSON_DEPTH,
     MAX_MESSAGE,
     MAX_PENDING,
     PUBLISH_TIMEOUT,
@@ -60,10 +57,9 @@ from fleetctl.bus.config import (
     parse_url,
 )
 from fleetctl.bus.reconnect import CONNECTION_ERRORS, ConnectionStatus, Reconnector
+from fleetctl.bus.task_messages import TaskMessageError, TaskRules, decode_task_json
 from fleetctl.journal import Journal, Record, json_safe
 from fleetctl.kinds import Ev
-from fleetctl.mission import MissionError, parse_mission
-from fleetctl.mission.limits import FAR_FACTOR, MIN_EXTENT
 from fleetctl.mission.model import TaskWork
 
 if TYPE_CHECKING:
@@ -84,27 +80,6 @@ class TaskChanges(Protocol):
 
 def _dumps(data: Any) -> bytes:
     return json.dumps(json_safe(data), separators=(",", ":")).encode()
-
-
-_JSON_STRING = re.compile(rb'"(?:[^"\\]|\\.)*"')
-_BRACKETS = re.compile(rb"[\[\]{}]")
-
-
-def json_depth(payload: bytes) -> int:
-    """The deepest nesting of lists/objects in a JSON text (brackets inside strings ignored);
-    linear, no recursion, so it can be checked before ``json.loads`` (which recurses)."""
-    depth = deepest = 0
-    for m in _BRACKETS.finditer(_JSON_STRING.sub(b'""', payload)):
-        if m.group() in (b"[", b"{"):
-            depth += 1
-            deepest = max(deepest, depth)
-        else:
-            depth -= 1
-    return deepest
-
-
-class TaskMessageError(ValueError):
-    """A task message that changes nothing; the text goes to ``<prefix>/errors``."""
 
 
 class FleetBus(ConnectionStatus):
@@ -139,6 +114,7 @@ class FleetBus(ConnectionStatus):
         self.identity: dict[str, Any] = {}  # fields of every status, the last will too (a team's id, session)
         self._handlers: list[tuple[str, Callable[[str, bytes], None]]] = []  # extra subscriptions
         self.refuse_tasks: str | None = None  # why every task message is refused (None: they are handled)
+        self.rules = TaskRules(mission, self.current_tasks, self._work_of)  # what a task message may change
 
     # -- outgoing ---------------------------------------------------------------------------------
     def topic(self, suffix: str) -> str:
@@ -472,15 +448,15 @@ class FleetBus(ConnectionStatus):
         add: list[Task] = []
         remove: list[str] = []
         if op == "add":
-            add, work = self.parse_add_work(data, topic)
+            add, work = self.rules.add(data, topic)
         elif op == "remove":
-            remove = self.parse_remove(data)
+            remove = self.rules.remove(data)
         elif op == "update":
-            retime = self.parse_update(data, topic)
+            retime = self.rules.update(data, topic)
         else:
             raise TaskMessageError(f"unknown topic {topic!r}")
         if not force:
-            why = self.absurd_change(add, remove)
+            why = self.rules.absurd(add, remove)
             if why is not None:
                 raise TaskMessageError(f'{why}; nothing changed (send "force": true in the message to '
                                        "apply it anyway)")
@@ -505,20 +481,7 @@ class FleetBus(ConnectionStatus):
                 "task changes over MQTT are off for this mission; to allow them set "
                 "'accept_task_changes: true' in the mission's mqtt section (and let only named users "
                 "publish to <prefix>/tasks/# on the broker: docs/mqtt.md); nothing changed")
-        depth = json_depth(payload)
-        if depth > MAX_JSON_DEPTH:
-            raise TaskMessageError(f"JSON nested {depth} levels deep (at most {MAX_JSON_DEPTH}); "
-                                   "nothing changed")
-        try:
-            data = json.loads(payload)
-        except (ValueError, UnicodeDecodeError, RecursionError) as exc:
-            raise TaskMessageError(f"not JSON: {exc}") from None
-        force = False
-        if isinstance(data, dict) and "force" in data:
-            force = data.pop("force")
-            if not isinstance(force, bool):
-                raise TaskMessageError('"force" must be true or false')
-        return data, force
+        return decode_task_json(payload)
 
     def _hand_over(self, add: list[Task], remove: list[str], topic: str, work: dict[str, TaskWork],
                    retime: dict[str, TaskWork]) -> None:
@@ -539,29 +502,6 @@ class FleetBus(ConnectionStatus):
             except Exception as exc:  # noqa: BLE001 - the replanner's refusal is the sender's answer
                 raise TaskMessageError(f"refused by the controller: {exc}") from None
 
-    def absurd_change(self, add: list[Task], remove: list[str]) -> str | None:
-        """Why a valid change would make the mission absurd (None: it does not). Tasks outside
-        ``bounds`` are refused by the mission checks already; without bounds, a new task farther
-        than FAR_FACTOR x the mission's extent (largest carrier-start-to-task distance of the
-        mission file, at least MIN_EXTENT m) from every remaining task and the carrier start is
-        absurd, and so is removing every task."""
-        current = self.current_tasks()
-        keep = [t for t in current if t.id not in remove]
-        if current and not keep and not add:
-            return f"this would remove every task ({', '.join(sorted(t.id for t in current))})"
-        if not add:
-            return None
-        start = (float(self.mission.carrier.position[0]), float(self.mission.carrier.position[1]))
-        extent = max([MIN_EXTENT] + [math.dist(start, t.position[:2]) for t in self.mission.tasks])
-        anchors = [start] + [tuple(t.position[:2]) for t in keep]
-        for t in add:
-            d = min(math.dist(t.position[:2], a) for a in anchors)
-            if d > FAR_FACTOR * extent:
-                return (f"task {t.id!r} at ({t.position[0]:.0f}, {t.position[1]:.0f}) is {d:.0f} m from the "
-                        f"nearest task or the carrier start, more than {FAR_FACTOR:g} x the mission's "
-                        f"extent of {extent:.0f} m; check its coordinates")
-        return None
-
     def _answer_error(self, topic: str, payload: bytes, error: str) -> None:
         self.rejected += 1
         log.warning("bus: rejected %s: %s", topic, error[:500])
@@ -577,83 +517,6 @@ class FleetBus(ConnectionStatus):
             return list(live.values())
         return list(self.tasks)
 
-    def parse_add(self, data: Any, source: str) -> list[Task]:
-        """The tasks of an add message (see :meth:`parse_add_work`)."""
-        return self.parse_add_work(data, source)[0]
-
-    def parse_add_work(self, data: Any, source: str) -> tuple[list[Task], dict[str, TaskWork]]:
-        """The tasks of an add message and each one's work (its optional ``duration`` and ``work``,
-        validated by the mission loader; default the mission's ``dwell`` and ``rovers.work``),
-        checked like the mission file against the current task set and the fleet (ids unique,
-        heights within the deploy range, outside obstacles, a rover each)."""
-        if isinstance(data, dict) and "tasks" in data and set(data) == {"tasks"}:
-            data = data["tasks"]
-        entries = data if isinstance(data, list) else [data]
-        if not entries:
-            raise TaskMessageError('no tasks given; send {"tasks": [{"id": ..., "position": [x, y, z]}]}')
-        if not all(isinstance(e, dict) for e in entries):
-            raise TaskMessageError('expected a task {"id", "position": [x, y, z]} or a list of them')
-        current = self.current_tasks()
-        known = {t.id for t in current}
-        for i, e in enumerate(entries):
-            if isinstance(e.get("id"), str) and e["id"] in known:
-                raise TaskMessageError(f"tasks[{i}].id: task {e['id']!r} already exists; use a new id")
-        raw = copy.deepcopy(self.mission.raw)
-        raw["tasks"] = list(entries) + [{"id": t.id, "position": [float(c) for c in t.position]}
-                                        for t in current]
-        if "carriers" not in raw:  # (a carriers: list gives every fleet's count itself)
-            rovers = dict(raw.get("rovers") or {})
-            rovers.pop("fleet", None)  # the fleet is fixed: spell out its units
-            rovers["units"] = [{"id": u.id, "sysid": u.sysid} | ({} if u.connection is None else
-                                                                 {"connection": u.connection})
-                               for u in self.mission.rovers.units]
-            raw["rovers"] = rovers
-        raw.pop("mqtt", None)
-        if isinstance(raw.get("obstacles"), dict):  # {file: PATH}: the obstacles as loaded, no file I/O here
-            raw["obstacles"] = [[list(v) for v in poly] for poly in self.mission.obstacles]
-        try:
-            m = parse_mission(raw, f"mqtt {source}")
-        except MissionError as exc:
-            raise TaskMessageError(str(exc)) from None
-        added = list(m.tasks[: len(entries)])
-        return added, {t.id: m.task_work(t.id) for t in added}
-
-    def parse_update(self, data: Any, source: str) -> dict[str, TaskWork]:
-        """A long operation's ``tasks/update`` message: each named task's new work (``duration``,
-        ``work``; what it does not give stays as it is), checked by the mission loader."""
-        if not self.mission.operation:
-            raise TaskMessageError("tasks/update changes a task's work in a long operation (operation: "
-                                   "true); this mission is not one: nothing changed")
-        if isinstance(data, dict) and "tasks" in data and set(data) == {"tasks"}:
-            data = data["tasks"]
-        entries = data if isinstance(data, list) else [data]
-        if not entries or not all(isinstance(e, dict) and isinstance(e.get("id"), str) for e in entries):
-            raise TaskMessageError('expected {"tasks": [{"id": "t3", "duration": 60}]} (an id and the work '
-                                   'to change: "duration" in s, "work": "hover" or "ground")')
-        current = {t.id: t for t in self.current_tasks()}
-        for i, e in enumerate(entries):
-            if e["id"] not in current:
-                raise TaskMessageError(f"tasks[{i}].id: unknown task {e['id']!r}; current tasks: "
-                                       f"{', '.join(sorted(current)) or 'none'}")
-            if not set(e) - {"id"} or set(e) - {"id", "duration", "work"}:
-                raise TaskMessageError(f'tasks[{i}]: give "duration" and/or "work" (and nothing else) with '
-                                       f"the id")
-        raw = copy.deepcopy(self.mission.raw)
-        raw["tasks"] = [dict(e) for e in entries]
-        raw.pop("mqtt", None)
-        if isinstance(raw.get("obstacles"), dict):  # {file: PATH}: the obstacles as loaded, no file I/O here
-            raw["obstacles"] = [[list(v) for v in poly] for poly in self.mission.obstacles]
-        for e in raw["tasks"]:
-            e["position"] = [float(c) for c in current[e["id"]].position]
-            old = self._work_of(e["id"])
-            e.setdefault("duration", old.duration)
-            e.setdefault("work", "ground" if old.ground else "hover")
-        try:
-            m = parse_mission(raw, f"mqtt {source}")
-        except MissionError as exc:
-            raise TaskMessageError(str(exc)) from None
-        return {t.id: m.task_work(t.id) for t in m.tasks}
-
     def _work_of(self, task: str) -> TaskWork:
         """A task's work now: the running operation's (it changes), else the mission's."""
         live = getattr(getattr(self.executor, "operation_phase", None), "changes", None)
@@ -661,20 +524,6 @@ class FleetBus(ConnectionStatus):
         if isinstance(tasks, dict) and task in tasks:
             return TaskWork(tasks[task].duration, tasks[task].ground)
         return self.mission.task_work(task)
-
-    def parse_remove(self, data: Any) -> list[str]:
-        if isinstance(data, dict) and set(data) in ({"tasks"}, {"id"}):
-            data = data.get("tasks", data.get("id"))
-        ids = data if isinstance(data, list) else [data]
-        if not ids or not all(isinstance(i, str) and i.strip() for i in ids):
-            raise TaskMessageError('expected {"tasks": ["t1", ...]} (task ids as non-empty strings)')
-        known = {t.id for t in self.current_tasks()}
-        unknown = [i for i in ids if i not in known]
-        if unknown:
-            raise TaskMessageError(f"unknown task id(s) {', '.join(map(repr, unknown))}; "
-                                   f"current tasks: {', '.join(sorted(known)) or 'none'}")
-        return list(dict.fromkeys(ids))
-
 
 def start_bus(mission: Mission, config: BusConfig | None, journal: Journal, state: FleetState,
               view: View | None = None, prepare: Callable[[FleetBus], None] | None = None) -> FleetBus | None:

@@ -491,18 +491,19 @@ async def test_a_run_folder_holds_the_export_and_the_task_file(tmp_path: Path) -
 
 def test_mqtt_task_messages_work_with_obstacles_from_a_file(tmp_path: Path,
                                                             monkeypatch: pytest.MonkeyPatch) -> None:
-    from fleetctl.bus.client import FleetBus, TaskMessageError
+    from fleetctl.bus.client import FleetBus
     from fleetctl.bus.config import BusConfig
+    from fleetctl.bus.task_messages import TaskMessageError
 
     shutil.copy(DATA / "obstacles.csv", tmp_path)
     f = mission_yaml(tmp_path, [{"id": "a", "position": [10, 10, 3]}], {"file": "obstacles.csv"})
     m = load_mission(f)
     monkeypatch.chdir(ROOT)  # relative data files start at the mission's folder, not the working directory
     bus = FleetBus(BusConfig("127.0.0.1", 1883, "t"), m)
-    added = bus.parse_add({"tasks": [{"id": "n", "position": [50, 50, 2]}]}, "P/tasks/add")
+    added = bus.rules.add({"tasks": [{"id": "n", "position": [50, 50, 2]}]}, "P/tasks/add")[0]
     assert [t.id for t in added] == ["n"]
     with pytest.raises(TaskMessageError, match="lies inside obstacles"):
-        bus.parse_add({"id": "x", "position": [25, 30, 2]}, "P/tasks/add")
+        bus.rules.add({"id": "x", "position": [25, 30, 2]}, "P/tasks/add")
 
 
 def test_run_folder_export_prunes_vehicles_a_replan_left_out(tmp_path: Path) -> None:

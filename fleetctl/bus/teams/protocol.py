@@ -146,7 +146,7 @@ def allocation_hash(mission_name: str, shares: Mapping[str, Sequence[str]]) -> s
 # -- validation ---------------------------------------------------------------------------------------
 def load(payload: bytes) -> dict[str, Any]:
     """A bounded JSON object (PeerMessageError otherwise)."""
-    from fleetctl.bus.client import json_depth
+    from fleetctl.bus.task_messages import json_depth
 
     if len(payload) > MAX_PEER_MESSAGE:
         raise PeerMessageError(f"message of {len(payload)} bytes is larger than {MAX_PEER_MESSAGE}")
