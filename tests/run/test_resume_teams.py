@@ -360,97 +360,110 @@ def check_resumed(p: Problems, rc: int, out: str, run_dir: Path, before: dict[st
             f"resume output:\n{out[-2000:]}"]
 
 
+SIX_ROVERS = ["r1", "r2", "r3", "r4", "r5", "r6"]  # c2 with 4 rovers
+
+
+@dataclass
+class FaultResume:
+    """A two-team deployment flown with a simulated fault, killed (-9) once ``until`` held, then
+    resumed: what the journals held when killed, the resume's exit code and output."""
+
+    d: dict[str, Any]
+    run_dir: Path
+    killed: dict[str, Records]
+    before: dict[str, str]
+    rc: int
+    out: str
+    seen: dict[str, Seen]
+
+
+def _fault_kill_resume(tmp_path: Path, fault: dict[str, Any], until: Callable[[dict[str, Records]], bool],
+                       what: str) -> FaultResume:
+    mission, d = write_two_teams(tmp_path)
+    d["carriers"][1]["fleet"] = {"count": 4, "sysid_start": 31}
+    d["sim"]["faults"] = [fault]
+    mission.write_text(yaml.safe_dump(d, sort_keys=False), encoding="utf-8")
+    run_dir = tmp_path / "run"
+    with sim_process(mission, tmp_path / "sim.log", speedup=5.0, vehicles=2 + len(SIX_ROVERS)) as sim:
+        with controller(["deploy", "--mission", str(mission), "--run-dir", str(run_dir), "--headless",
+                         "--yes"], tmp_path / "fly.log") as fly:
+            wait_journals(fly, run_dir, until, what)
+            assert fly.kill9() == -signal.SIGKILL
+        killed, before = journals(run_dir), journal_texts(run_dir)
+        rc, out = run_ctl(["resume", "--run", str(run_dir), "--headless", "--yes"], tmp_path / "resume.log")
+        seen = observe(mission, rovers=SIX_ROVERS)
+        assert sim.proc.poll() is None, sim.output()
+    return FaultResume(d, run_dir, killed, before, rc, out, seen)
+
+
+def _check_resume_ran(p: Problems, r: FaultResume) -> dict[str, Records]:
+    """The resume exited 0 without a traceback; the journals after it."""
+    p.check(r.rc == 0, f"resume exited {r.rc}")
+    p.check("Traceback" not in r.out, "a traceback in the output of resume")
+    return journals(r.run_dir)
+
+
 def test_kill_9_after_a_handover_then_resume_honours_it(tmp_path: Path) -> None:
     """c1's r1 refuses to arm (a simulated fault) and c1 has no spare: c1 hands its unserved task
     over to c2 (4 rovers). The controller is killed right after the ``handover`` record; resumed,
     the task is c2's: c2 flies it once, c1 never does."""
-    mission, d = write_two_teams(tmp_path)
-    d["carriers"][1]["fleet"] = {"count": 4, "sysid_start": 31}
-    d["sim"]["faults"] = [{"kind": "refuse_arm", "vehicle": "r1"}]
-    mission.write_text(yaml.safe_dump(d, sort_keys=False), encoding="utf-8")
-    rovers = ["r1", "r2", "r3", "r4", "r5", "r6"]
-    run_dir = tmp_path / "run"
 
     def handed(js: dict[str, Records]) -> bool:
         return any(r.get("to_team") == "c2" for r in of_kind(js["run"], "handover"))
 
-    with sim_process(mission, tmp_path / "sim.log", speedup=5.0, vehicles=2 + len(rovers)) as sim:
-        with controller(["deploy", "--mission", str(mission), "--run-dir", str(run_dir), "--headless",
-                         "--yes"], tmp_path / "fly.log") as fly:
-            wait_journals(fly, run_dir, handed, "a handover record to c2")
-            assert fly.kill9() == -signal.SIGKILL
-        killed = journals(run_dir)
-        (h,) = [r for r in of_kind(killed["run"], "handover") if r.get("to_team") == "c2"]
-        task = h["tasks"][0]
-        assert task not in {r["task"] for r in of_kind(team_records(killed, "deploy"), "task_reached")}
-        before = journal_texts(run_dir)
-        rc, out = run_ctl(["resume", "--run", str(run_dir), "--headless", "--yes"], tmp_path / "resume.log")
-        seen = observe(mission, rovers=rovers)
-        assert sim.proc.poll() is None, sim.output()
+    r = _fault_kill_resume(tmp_path, {"kind": "refuse_arm", "vehicle": "r1"}, handed,
+                           "a handover record to c2")
+    (h,) = [x for x in of_kind(r.killed["run"], "handover") if x.get("to_team") == "c2"]
+    task = h["tasks"][0]
+    assert task not in {x["task"] for x in of_kind(team_records(r.killed, "deploy"), "task_reached")}
     p = Problems()
-    p.check(rc == 0, f"resume exited {rc}")
-    p.check("Traceback" not in out, "a traceback in the output of resume")
-    after = journal_texts(run_dir)
-    for name, text in before.items():
+    js = _check_resume_ran(p, r)
+    after = journal_texts(r.run_dir)
+    for name, text in r.before.items():
         p.check(after.get(name, "").startswith(text[: text.rfind("\n") + 1]), f"resume rewrote {name}")
-    js = journals(run_dir)
-    reached = Counter(r["task"] for r in of_kind(team_records(js, "deploy"), "task_reached"))
+    reached = Counter(x["task"] for x in of_kind(team_records(js, "deploy"), "task_reached"))
     p.check(reached == Counter({t: 1 for t in TASKS}), f"tasks reached {dict(reached)} (each once)")
-    by_c2 = {r["task"] for r in of_kind(js.get("c2/deploy", []), "task_reached")}
-    by_c1 = {r["task"] for r in of_kind(js.get("c1/deploy", []), "task_reached")}
+    by_c2 = {x["task"] for x in of_kind(js.get("c2/deploy", []), "task_reached")}
+    by_c1 = {x["task"] for x in of_kind(js.get("c1/deploy", []), "task_reached")}
     p.check(task in by_c2 and task not in by_c1, f"handed {task}: reached by c1 {by_c1}, c2 {by_c2}")
-    c1_launches = {r["task"] for r in of_kind(js.get("c1/deploy", []), "rover_launched")}
+    c1_launches = {x["task"] for x in of_kind(js.get("c1/deploy", []), "rover_launched")}
     p.check(task not in c1_launches, f"c1 launched a rover for {task}, handed to c2")
-    launched = Counter(r["vehicle"] for r in of_kind(team_records(js, "deploy"), "rover_launched"))
+    launched = Counter(x["vehicle"] for x in of_kind(team_records(js, "deploy"), "rover_launched"))
     p.check(all(n == 1 for n in launched.values()) and "r1" not in launched,
             f"rovers launched {dict(launched)}")
-    summary = read_summary(run_dir)
+    summary = read_summary(r.run_dir)
     p.check(summary.get("result") == "complete", f"summary result {summary.get('result')}")
     p.check(any(x["tasks"] == [task] and x["to"] == "c2" for x in summary.get("handovers", [])),
             f"summary handovers {summary.get('handovers')}")
-    on_task = _on_tasks(seen, d)
+    on_task = _on_tasks(r.seen, r.d)
     p.check(all(len(v) == 1 for v in on_task.values()), f"the world: rovers on each task {on_task}")
-    p.assert_none(f"the world:\n{describe(seen)}", f"resume output:\n{out[-2000:]}")
+    p.assert_none(f"the world:\n{describe(r.seen)}", f"resume output:\n{r.out[-2000:]}")
 
 
 def test_kill_9_after_a_carrier_failed_preflight_then_resume_leaves_its_team_over(tmp_path: Path) -> None:
     """c1's carrier reports no GPS (a simulated fault): its preflight fails, its deployment run ends
     and its tasks go to c2 (4 rovers). The controller is killed once c1's run has ended; resumed,
     c1 is not flown again (its journal untouched, no second preflight) and c2 flies every task once."""
-    mission, d = write_two_teams(tmp_path)
-    d["carriers"][1]["fleet"] = {"count": 4, "sysid_start": 31}
-    d["sim"]["faults"] = [{"kind": "no_gps", "vehicle": "c1"}]
-    mission.write_text(yaml.safe_dump(d, sort_keys=False), encoding="utf-8")
-    rovers = ["r1", "r2", "r3", "r4", "r5", "r6"]
-    run_dir = tmp_path / "run"
 
     def c1_over(js: dict[str, Records]) -> bool:
-        return any(r.get("team") == "c1" and r.get("status") == "ended" for r in of_kind(js["run"], "team"))
+        return any(x.get("team") == "c1" and x.get("status") == "ended" for x in of_kind(js["run"], "team"))
 
-    with sim_process(mission, tmp_path / "sim.log", speedup=5.0, vehicles=2 + len(rovers)) as sim:
-        with controller(["deploy", "--mission", str(mission), "--run-dir", str(run_dir), "--headless",
-                         "--yes"], tmp_path / "fly.log") as fly:
-            wait_journals(fly, run_dir, c1_over, "c1's deployment run ended")
-            assert fly.kill9() == -signal.SIGKILL
-        before = journal_texts(run_dir)
-        rc, out = run_ctl(["resume", "--run", str(run_dir), "--headless", "--yes"], tmp_path / "resume.log")
-        assert sim.proc.poll() is None, sim.output()
+    r = _fault_kill_resume(tmp_path, {"kind": "no_gps", "vehicle": "c1"}, c1_over,
+                           "c1's deployment run ended")
     p = Problems()
-    p.check(rc == 0, f"resume exited {rc}")
-    p.check("Traceback" not in out, "a traceback in the output of resume")
-    after = journal_texts(run_dir)
-    c1_journal = next(name for name in before if "c1" in name and "deploy" in name)
-    p.check(after[c1_journal] == before[c1_journal], "resume flew c1 again (its deployment journal grew)")
-    js = journals(run_dir)
+    js = _check_resume_ran(p, r)
+    after = journal_texts(r.run_dir)
+    c1_journal = next(name for name in r.before if "c1" in name and "deploy" in name)
+    p.check(after[c1_journal] == r.before[c1_journal], "resume flew c1 again (its deployment journal grew)")
     (resumed,) = of_kind(js["run"], "resumed")
     p.check(set(resumed.get("deploy_ended", {})) == {"c1"}, f"resumed record {resumed}")
-    reached = Counter(r["task"] for r in of_kind(team_records(js, "deploy"), "task_reached"))
+    reached = Counter(x["task"] for x in of_kind(team_records(js, "deploy"), "task_reached"))
     p.check(reached == Counter({t: 1 for t in TASKS}), f"tasks reached {dict(reached)} (each once)")
-    by_c1 = {r["task"] for r in of_kind(js.get("c1/deploy", []), "task_reached")}
+    by_c1 = {x["task"] for x in of_kind(js.get("c1/deploy", []), "task_reached")}
     p.check(not by_c1, f"c1 reached {by_c1}")
-    summary = read_summary(run_dir)
+    summary = read_summary(r.run_dir)
     p.check(summary.get("result") == "complete", f"summary result {summary.get('result')}")
-    p.assert_none(f"resume output:\n{out[-2000:]}")
+    p.assert_none(f"resume output:\n{r.out[-2000:]}")
 
 
 # ---------------------------------------------------------------------------------------------------
