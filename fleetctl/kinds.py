@@ -88,6 +88,7 @@ class Ev(StrEnum):
     SORTIE_LAUNCHED = "sortie_launched"  # a rover left the deck for a sortie (its tasks)
     TASK_STARTED = "task_started"  # a rover is at its task: the work starts
     TASK_DONE = "task_done"  # the firmware reported the task's duration of work done
+    SORTIE_CONTINUED = "sortie_continued"  # the rest of a sortie started after work timed on the ground
     SORTIE_RETURNING = "sortie_returning"  # a rover left its last task for its pick-up stop
     SORTIE_BACK = "sortie_back"  # a rover of a sortie is loaded on the deck
     SORTIE_LOST = "sortie_lost"  # a rover was lost during its sortie (its work left is replanned)

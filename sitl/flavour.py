@@ -147,6 +147,13 @@ class Flavour:
     def disarm_delay(self) -> float:
         return self.params["COM_DISARM_LAND"] if self.px4 else self.params["DISARM_DELAY"]
 
+    @property
+    def landing_ends_mission(self) -> bool:
+        """ArduCopter: a NAV_LAND inside a mission disarms the vehicle on the ground and restarts the
+        mission at its first item (measured on ArduCopter 4.6 SITL: "Disarming motors", then
+        "Mission: 1 Takeoff"), so the items after it never run; PX4 stays armed and goes on."""
+        return not self.px4 and not self.ground
+
     # -- link loss and geofence (what the firmware does, from its parameters) ---------------------
     def link_loss(self, in_mission: bool) -> tuple[str | None, float]:
         """(action, timeout s) on losing the GCS heartbeat: "hold" | "land" | "rtl", or None

@@ -572,6 +572,8 @@ class SimVehicle:
                 self.armed = False
                 self.statustext("Disarmed (landed)")
                 self._emit_heartbeat_now()
+                if self.flavour.landing_ends_mission and self.mode is Mode.MISSION and self._has_mission():
+                    self._restart_mission()
         if not self.armed:
             return
         if rover is None and (self._drive_off_state or self.faults.drives_off(self.id, t)):
@@ -671,17 +673,34 @@ class SimVehicle:
                 delay = self.flavour.disarm_delay()
                 if self.armed and delay >= 0 and not self._landing_mid_mission():
                     self._disarm_at = t + delay
+                if self.armed and self.flavour.landing_ends_mission and self._landing_in_mission():
+                    self.finished = True  # ArduCopter: the items after a mission's landing never run
             elif ev == "battery_empty":
                 self.statustext("Battery empty: landing", M.MAV_SEVERITY_CRITICAL)
                 if body.phase is Phase.AIR:
                     self._set_mode_raw(Mode.LAND)
 
+    def _landing_in_mission(self) -> bool:
+        cur = self.current
+        return (self.mode is Mode.MISSION and cur < len(self.mission)
+                and self.mission[cur].command == ms.NAV_LAND)
+
+    def _restart_mission(self) -> None:
+        """ArduCopter, disarmed by a mission's landing: the mission starts over at its first item
+        (not flown: the vehicle is disarmed), as "Mission: 1 Takeoff" tells on the firmware."""
+        self.current = self._first_item()
+        self.finished = False
+        self._item_key = None
+        self.statustext(f"Mission: {self.current} restarted")
+        self._emit(M.MAVLINK_MSG_ID_MISSION_CURRENT)
+
     def _landing_mid_mission(self) -> bool:
         """A NAV_LAND of the mission that more items follow (a task worked landed, then a
-        NAV_DELAY and a NAV_TAKEOFF): the vehicle stays armed on the ground, as in a mission."""
+        NAV_DELAY and a NAV_TAKEOFF): the vehicle stays armed on the ground, as in a mission -
+        on PX4; ArduCopter disarms there all the same (:attr:`Flavour.landing_ends_mission`)."""
         cur = self.current
         return (self.mode is Mode.MISSION and cur + 1 < len(self.mission)
-                and self.mission[cur].command == ms.NAV_LAND)
+                and self.mission[cur].command == ms.NAV_LAND and not self.flavour.landing_ends_mission)
 
     # -- mission executor ------------------------------------------------------------------
     def _has_mission(self) -> bool:

@@ -19,7 +19,12 @@ Sortie, launched from a stop::
       NAV_TAKEOFF       to the clearance (when another task follows)
     NAV_LOITER_UNLIM  at the last task when it is worked hovering (waits to be called back)
 
-A rover worked landed last ends its mission on the ground. Its way back (:func:`return_items`),
+A rover worked landed last ends its mission on the ground. On an autopilot whose mission ends at
+a NAV_LAND (:attr:`Autopilot.landing_ends_mission`: ArduCopter disarms there and restarts its
+mission, a NAV_DELAY after it never runs) the sortie's mission ends at the first task worked on the
+ground, after its NAV_LAND; that task's ``done_seq`` is -1: the controller times its work and
+uploads the rest of the sortie (:func:`sortie_items` with ``takeoff_from``: ``NAV_TAKEOFF`` from
+the task, then the tasks left) once it is done. Its way back (:func:`return_items`),
 uploaded when it is to leave: ``NAV_TAKEOFF`` (from the ground), ``NAV_WAYPOINT`` above the
 pick-up stop (``target_seq``), ``NAV_LOITER_UNLIM`` there (``hold_seq``: it waits for the carrier),
 ``NAV_LAND`` on the stop (``land_seq``, made current by the controller).
@@ -49,7 +54,9 @@ Vec3 = tuple[float, float, float]
 class WorkItems:
     task: str
     arrive_seq: int  # reached: at the task, the work starts
-    done_seq: int  # reached: the task's duration of work is done (timed by the firmware)
+    # reached: the task's duration of work is done (timed by the firmware); -1: the mission ends at
+    # the task's landing and the controller times the work (Autopilot.landing_ends_mission)
+    done_seq: int
 
 
 @dataclass(frozen=True)
@@ -121,17 +128,28 @@ def route_items(points: Sequence[Vec3], origin: Origin, start: Vec3,
 
 
 def sortie_items(rover: str, stop: Vec3, visits: Sequence[Visit], origin: Origin,
-                 autopilot: Autopilot | None = None, home_height: float = 0.0) -> SortieItems:
-    """A sortie from ``stop`` through ``visits`` (see the module docstring)."""
+                 autopilot: Autopilot | None = None, home_height: float = 0.0,
+                 takeoff_from: Vec3 | None = None) -> SortieItems:
+    """A sortie from ``stop`` through ``visits`` (see the module docstring); ``takeoff_from``: the
+    rest of a sortie, from the task on the ground where its last part ended (its position)."""
     w = _Writer(origin, autopilot, home_height)
-    w.home(stop)
-    takeoff = w.add(M.MAV_CMD_NAV_TAKEOFF, (stop[0], stop[1], TAKEOFF_HEIGHT + home_height))
+    if takeoff_from is None:
+        w.home(stop)
+        takeoff = w.add(M.MAV_CMD_NAV_TAKEOFF, (stop[0], stop[1], TAKEOFF_HEIGHT + home_height))
+    else:
+        w.home(takeoff_from)
+        x, y, z = takeoff_from
+        takeoff = w.add(M.MAV_CMD_NAV_TAKEOFF, (x, y, z + TAKEOFF_HEIGHT))
+    ends_at_landing = autopilot is not None and autopilot.landing_ends_mission
     work: list[WorkItems] = []
     for i, v in enumerate(visits):
         x, y, z = v.position
         if v.ground:
             arrive = w.add(M.MAV_CMD_NAV_WAYPOINT, (x, y, z + LAND_APPROACH))
             w.add(M.MAV_CMD_NAV_LAND, (x, y, z))
+            if ends_at_landing:  # the rest is flown by the next part, once the controller timed the work
+                work.append(WorkItems(v.task, arrive, -1))
+                break
             done = w.delay(v.duration)
             if i + 1 < len(visits):
                 w.add(M.MAV_CMD_NAV_TAKEOFF, (x, y, z + TAKEOFF_HEIGHT))

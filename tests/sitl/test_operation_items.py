@@ -1,6 +1,7 @@
 """What a long operation needs of the simulated fleet: a task worked landed (NAV_LAND, then
-NAV_DELAY for its duration while staying armed, then a take-off), a task worked hovering timed by
-NAV_LOITER_TIME, and a battery swap on the deck (MAV_CMD_BATTERY_RESET)."""
+NAV_DELAY for its duration while staying armed, then a take-off - on PX4; ArduCopter disarms at the
+landing and restarts its mission instead), a task worked hovering timed by NAV_LOITER_TIME, and a
+battery swap on the deck (MAV_CMD_BATTERY_RESET)."""
 
 from __future__ import annotations
 
@@ -63,3 +64,34 @@ async def test_a_battery_swap_fills_a_disarmed_rover_on_the_deck_only(fleet: Sim
     rover.battery = 0.3
     assert (await gcs.command(11, M.MAV_CMD_BATTERY_RESET, 255, 100)).result == M.MAV_RESULT_DENIED
     assert rover.battery == 0.3 and v.armed
+
+
+async def test_ardupilot_copter_disarms_at_a_missions_landing_and_restarts_it() -> None:
+    """As ArduCopter 4.6 SITL does ("Disarming motors" after a mission's NAV_LAND, then "Mission: 1
+    Takeoff"): the NAV_DELAY and the take-off after the landing never run, the vehicle stays
+    disarmed on the ground, the mission's current item back at its first."""
+    from sitl_helpers import make_config, open_gcs
+
+    async with SimFleet(make_config(autopilot="ardupilot")) as fleet:
+        gcs = await open_gcs(fleet.endpoints["carrier"])
+        try:
+            await gcs.recv("GLOBAL_POSITION_INT", sysid=11)
+            home = item(M.MAV_CMD_NAV_WAYPOINT, 0, 0, 0)
+            items = [home, item(M.MAV_CMD_NAV_TAKEOFF, 0, 0, 1), item(M.MAV_CMD_NAV_WAYPOINT, 10, 0, 0.5),
+                     item(M.MAV_CMD_NAV_LAND, 10, 0, 0), delay(2.0), item(M.MAV_CMD_NAV_TAKEOFF, 10, 0, 1),
+                     item(M.MAV_CMD_NAV_WAYPOINT, 10, 10, 4)]
+            assert await gcs.upload(11, items) == M.MAV_MISSION_ACCEPTED
+            assert (await gcs.command(11, M.MAV_CMD_DO_SET_MODE, 1, 4)).result == M.MAV_RESULT_ACCEPTED
+            assert (await gcs.command(11, M.MAV_CMD_COMPONENT_ARM_DISARM, 1)).result == M.MAV_RESULT_ACCEPTED
+            assert (await gcs.command(11, M.MAV_CMD_MISSION_START, 0, 0)).result == M.MAV_RESULT_ACCEPTED
+            rover, v = fleet.rover("r1"), fleet.vehicle("r1")
+            await fleet.wait_for(lambda: rover.on_ground and not rover.loaded, 10)
+            landed = fleet.sim_time
+            await fleet.wait_for(lambda: not v.armed, 5)
+            assert fleet.sim_time - landed <= fleet.vehicle("r1").flavour.disarm_delay() + 0.5
+            await fleet.wait_sim_time(fleet.sim_time + 5.0, timeout=5)  # the NAV_DELAY would be over
+            assert rover.on_ground and not v.armed and v.current == 1
+            x, y, _z = rover.position
+            assert math.hypot(x - 10, y) < 0.5  # it stayed at the task
+        finally:
+            gcs.close()

@@ -117,6 +117,12 @@ class ArduPilot(Autopilot):
         # Copter: GUIDED holds where it is (LOITER would follow the RC sticks); Rover: HOLD
         return "HOLD" if self.ground else "GUIDED"
 
+    @property
+    def landing_ends_mission(self) -> bool:
+        # Copter 4.6: "Disarming motors" about 1 s after a mission's NAV_LAND touches down, then the
+        # mission restarts at item 1 ("Mission: 1 Takeoff"); a NAV_DELAY after it never runs
+        return not self.ground
+
     def speed_params(self) -> tuple[SpeedParam, ...]:
         return ROVER_SPEEDS if self.ground else COPTER_SPEEDS
 

@@ -138,6 +138,13 @@ class Autopilot:
         """The mode a vehicle flying a mission is put in before its mission is replaced."""
         return "HOLD"
 
+    @property
+    def landing_ends_mission(self) -> bool:
+        """A NAV_LAND inside a mission ends it: the vehicle disarms on the ground and the items
+        after it never run (ArduCopter). An operation's sortie then ends at a task worked on the
+        ground, and the controller times the work and starts the rest (docs/operations.md)."""
+        return False
+
     def speed_params(self) -> tuple[SpeedParam, ...]:
         """The parameters that decide this vehicle's flight times (none known here)."""
         return ()

@@ -17,6 +17,7 @@
 from __future__ import annotations
 
 import contextlib
+import math
 from collections.abc import Awaitable, Callable
 from dataclasses import dataclass, field
 from typing import Any
@@ -27,7 +28,7 @@ from fleetctl.mavlink.vehicle import Vehicle
 from fleetctl.mission import Mission
 from fleetctl.run.kinds import Ev
 from fleetctl.run.operation.board import OperationBoard, SortieEntry, SortieStatus, TaskWorkState
-from fleetctl.run.operation.sortie import item_passed
+from fleetctl.run.operation.sortie import ON_TASK_RADIUS, item_passed
 from fleetctl.run.state import FleetState
 from planners.operations import OpTask
 
@@ -124,6 +125,8 @@ def _replay_sortie(rep: OperationReplay, kind: str, r: dict[str, Any]) -> None:
         work.seen_start = r.get("found") is None  # (a start found on an earlier resume is a bound)
     elif kind == Ev.TASK_DONE and work is not None:
         work.rover, work.done = rid, rep.op_time(float(r["t"]))
+    elif kind == Ev.SORTIE_CONTINUED and entry is not None:  # the sortie's mission is now this part
+        rep.work[entry.index] = _work_items(r)
     elif kind == Ev.SORTIE_RETURNING and entry is not None:
         entry.status = SortieStatus.RETURNING
     elif kind == Ev.SORTIE_BACK and entry is not None:
@@ -146,7 +149,12 @@ def _launched(rep: OperationReplay, rid: str, r: dict[str, Any]) -> None:
     entry = SortieEntry(int(r["sortie"]), rid, tasks, SortieStatus.FLYING, rep.op_time(float(r["t"])))
     rep.board.sorties.append(entry)
     rep.board.next_index = max(rep.board.next_index, entry.index + 1)
-    rep.work[entry.index] = tuple(WorkItems(str(w[0]), int(w[1]), int(w[2])) for w in r.get("work") or [])
+    rep.work[entry.index] = _work_items(r)
+
+
+def _work_items(r: dict[str, Any]) -> tuple[WorkItems, ...]:
+    """A record's ``work``: its mission's ``[task, arrive_seq, done_seq]`` per task."""
+    return tuple(WorkItems(str(w[0]), int(w[1]), int(w[2])) for w in r.get("work") or [])
 
 
 def _lose(rep: OperationReplay, entry: SortieEntry) -> None:
@@ -215,11 +223,19 @@ def _in_the_air(rep: OperationReplay, entry: SortieEntry, v: Vehicle, state: Fle
     (its sortie's mission: a sortie journalled returning flies its way back, nothing to infer)."""
     if entry.status is SortieStatus.RETURNING:
         return
-    for w in rep.work.get(entry.index, ()):
+    parts = rep.work.get(entry.index, ())
+    landed = bool(parts) and parts[-1].done_seq < 0 and _landed_at(v, rep.tasks.get(parts[-1].task))
+    for w in parts:
         work = rep.board.tasks.get(w.task)
         if work is None or work.done is not None:
             continue
-        if item_passed(v, w.done_seq):
+        if landed and w is parts[-1]:  # on the ground at the task its mission ended at: working there
+            if work.started is None or work.rover != entry.rover:
+                work.rover, work.started, work.seen_start = entry.rover, now, False
+                state.event(Ev.TASK_STARTED, f"{entry.rover}: landed at task {w.task} (found working on "
+                            "resume)", entry.rover, task=w.task, sortie=entry.index, found="on resume")
+            continue
+        if (w.done_seq >= 0 and item_passed(v, w.done_seq)) or landed:  # (landed: its mission is past it)
             work.rover, work.done = entry.rover, now
             work.started = now if work.started is None else work.started
             found["done_while_down"].append(w.task)
@@ -230,6 +246,14 @@ def _in_the_air(rep: OperationReplay, entry: SortieEntry, v: Vehicle, state: Fle
             work.rover, work.started, work.seen_start = entry.rover, now, False  # its start unknown
             state.event(Ev.TASK_STARTED, f"{entry.rover}: at task {w.task} (found working on resume)",
                         entry.rover, task=w.task, sortie=entry.index, found="on resume")
+
+
+def _landed_at(v: Vehicle, task: OpTask | None) -> bool:
+    """On the ground within ON_TASK_RADIUS of ``task`` (a firmware that ended its mission at the
+    task's landing restarts it at its first item: the current item tells nothing then)."""
+    p = v.enu
+    return (task is not None and p is not None and v.on_ground is True
+            and math.hypot(p[0] - task.position[0], p[1] - task.position[1]) <= ON_TASK_RADIUS)
 
 
 async def _unfinished_launches(rep: OperationReplay, fleet: Fleet, state: FleetState, disarm: Disarm,

@@ -1,6 +1,11 @@
 """One rover's sortie in the air: its tasks' work (each reported done by the firmware's
 MISSION_ITEM_REACHED of the item that timed it) and its way back to the pick-up stop, started at
-the planned leave time moved by the operation's delay so far (:attr:`SortieFlight.leave_at`)."""
+the planned leave time moved by the operation's delay so far (:attr:`SortieFlight.leave_at`).
+
+On an autopilot whose mission ends at a landing (ArduCopter: ``Autopilot.landing_ends_mission``)
+a sortie flies in parts: a part ends on the ground at a task worked landed, the controller times
+that work in mission time from the touch-down, then uploads, arms and starts the rest of the
+sortie from there (``sortie_continued``)."""
 
 from __future__ import annotations
 
@@ -12,7 +17,7 @@ from dataclasses import dataclass
 
 from fleetctl.geo import local_to_geodetic
 from fleetctl.mavlink.link import LinkError
-from fleetctl.mavlink.sortie import ReturnItems, SortieItems, return_items
+from fleetctl.mavlink.sortie import ReturnItems, SortieItems, Visit, return_items, sortie_items
 from fleetctl.mavlink.vehicle import CommandRejected, Vehicle, VehicleEvent, VehicleEventKind
 from fleetctl.run.carrier import STAY_SPEED, upload
 from fleetctl.run.context import ExecutionError, RunContext
@@ -28,6 +33,9 @@ LAND_OFFSET = 1.0  # m: a rover waiting further off the stopped carrier lands at
 CARRIER_STOP_WAIT = 10.0  # mission s for the carrier at its stop to come to rest before rovers land on it
 REPLAN_SLACK = 15.0  # mission s: a task's work done this much earlier or later than planned asks for a replan
 MISSION_STATE_COMPLETE = 3  # MAVLink MISSION_STATE: the mission's last item is done
+LANDED_WAIT = 10.0  # mission s from a task's approach waypoint to the touch-down of work timed on the ground
+DISARM_WAIT = 5.0  # mission s for a firmware that ends its mission at a landing to disarm (ArduCopter: 1-2 s)
+ON_TASK_RADIUS = 2.0  # m: a rover landed this near a task worked on the ground is at it (resume)
 
 
 def item_passed(v: Vehicle, seq: int) -> bool:
@@ -93,10 +101,15 @@ class SortieFlight:
     async def fly(self) -> None:
         unlisten = self.vehicle.add_listener(self._on_event)
         try:
-            for w in self.items.work:
-                if w.task in self.entry.tasks and w.task in self.board.tasks \
-                        and self.board.tasks[w.task].done is None:
-                    await self._work(w.task, w.arrive_seq, w.done_seq)
+            while True:
+                for w in self.items.work:
+                    if w.task in self.entry.tasks and w.task in self.board.tasks \
+                            and self.board.tasks[w.task].done is None:
+                        await self._work(w.task, w.arrive_seq, w.done_seq)
+                rest = self._rest()
+                if not rest:
+                    break
+                await self._continue(rest)
             if not self.dropped:  # called back: its firmware would fly on to a task dropped
                 await self._wait_leave()
             await self._go_back()
@@ -108,7 +121,9 @@ class SortieFlight:
     async def _work(self, task: str, arrive_seq: int, done_seq: int) -> None:
         ctx, v, st = self.ctx, self.vehicle, self.ctx.state
         rid, arrive = v.name, self.times[task][0]
-        await ctx.wait_for(v, lambda v: self._reached(v, arrive_seq) or v.lost or task in self.dropped,
+        timed_here = task if done_seq < 0 else None  # the controller times its work on the ground
+        await ctx.wait_for(v, lambda v: (self._reached(v, arrive_seq, timed_here) or v.lost
+                                         or task in self.dropped),
                            ctx.late(arrive + self.delay() - self.now()), f"at task {task}")
         self._check(v)
         if task in self.dropped:
@@ -121,8 +136,11 @@ class SortieFlight:
             ctx.record(Ev.TASK_STARTED, vehicle=rid, task=task, sortie=self.entry.index)
         watch = asyncio.create_task(self._watch_battery(), name=f"battery {rid} at {task}")
         try:  # the battery looked at while it works, not only at the task's arrival and end
-            await ctx.wait_for(v, lambda v: self._reached(v, done_seq) or v.lost or task in self.dropped,
-                               ctx.late(work.duration), f"work at {task} done")
+            if done_seq < 0:
+                await self._work_on_ground(task, work.duration)
+            else:
+                await ctx.wait_for(v, lambda v: self._reached(v, done_seq) or v.lost or task in self.dropped,
+                                   ctx.late(work.duration), f"work at {task} done")
         finally:
             watch.cancel()
             with contextlib.suppress(asyncio.CancelledError):
@@ -145,10 +163,76 @@ class SortieFlight:
             await self.ctx.sleep_mission(RECHECK)
             self.check_battery()
 
-    def _reached(self, v: Vehicle, seq: int) -> bool:
+    def _reached(self, v: Vehicle, seq: int, task: str | None = None) -> bool:
         """Item ``seq`` of its sortie's mission reached (a resumed sortie also trusts the current
-        item: its MISSION_ITEM_REACHED may have come while the controller was down)."""
-        return seq in v.items_reached or (self.resumed and self.back is None and item_passed(v, seq))
+        item: its MISSION_ITEM_REACHED may have come while the controller was down, and a rover
+        landed at a task whose work the controller times)."""
+        if seq in v.items_reached:
+            return True
+        if not self.resumed or self.back is not None:
+            return False
+        return item_passed(v, seq) or (task is not None and self._landed_at(v, task))
+
+    def _landed_at(self, v: Vehicle, task: str) -> bool:
+        """On the ground within ON_TASK_RADIUS of ``task`` (a task worked landed)."""
+        visit = next((x for x in self.planned.visits if x.task == task), None)
+        p = v.enu
+        return (visit is not None and p is not None and v.on_ground is True
+                and math.hypot(p[0] - visit.position[0], p[1] - visit.position[1]) <= ON_TASK_RADIUS)
+
+    async def _work_on_ground(self, task: str, duration: float) -> None:
+        """Work timed by the controller (its firmware ends the mission at the landing): ``duration``
+        mission seconds from the touch-down, the rover and the call-back looked at every RECHECK."""
+        ctx, v = self.ctx, self.vehicle
+        await ctx.wait_for(v, lambda v: v.on_ground is True or v.lost or task in self.dropped,
+                           ctx.late(LANDED_WAIT), f"landed at {task}")
+        end = self.now() + duration
+        while (left := end - self.now()) > 0 and not v.lost and task not in self.dropped:
+            await ctx.sleep_mission(min(RECHECK, left))
+
+    def _rest(self) -> list[Visit]:
+        """The tasks of the sortie still to fly after its mission's last part, which ended on the
+        ground at a task whose work the controller timed (none otherwise, or once called back)."""
+        work = self.items.work
+        if not work or work[-1].done_seq >= 0 or self.dropped:
+            return []
+        flown = {w.task for w in work}
+        visits = {x.task: x for x in self.planned.visits}
+        tasks = self.board.tasks
+        return [Visit(t, visits[t].position, tasks[t].duration, visits[t].ground) for t in self.entry.tasks
+                if t not in flown and t in visits and t in tasks and tasks[t].done is None]
+
+    async def _continue(self, rest: list[Visit]) -> None:
+        """The rest of the sortie from the task on the ground where its last part ended: uploaded,
+        armed (the firmware disarmed at the landing) and started."""
+        ctx, v = self.ctx, self.vehicle
+        self._check(v)
+        if v.origin is None or v.enu is None:
+            raise ExecutionError(f"{v.name}: no position to fly the rest of its sortie from")
+        await self._settle_on_ground(v)
+        items = sortie_items(v.name, v.enu, rest, v.origin, v.autopilot, takeoff_from=v.enu)
+        await upload(ctx, v, list(items.items))
+        if not v.armed:
+            await ctx.command(v, "arm", v.arm())
+        first = 1 if v.autopilot is not None and v.autopilot.home_is_item0 else 0
+        await ctx.command(v, "start_mission", v.start_mission(first))
+        self.items = items
+        self.reached_at.clear()
+        ctx.state.set_state(v.name, VehicleStatus.EN_ROUTE, rest[0].task)
+        ctx.state.event(Ev.SORTIE_CONTINUED, f"{v.name}: sortie {self.entry.index} goes on to "
+                        f"{', '.join(x.task for x in rest)}", v.name, sortie=self.entry.index,
+                        tasks=[x.task for x in rest],
+                        work=[[w.task, w.arrive_seq, w.done_seq] for w in items.work])
+
+    async def _settle_on_ground(self, v: Vehicle) -> None:
+        """A firmware that ends its mission at a landing disarms on its own about a second or two
+        after the touch-down: wait for it (DISARM_WAIT at most) before a new mission is started, so
+        that the disarm does not come after the new arming."""
+        ap = v.autopilot
+        if ap is None or not ap.landing_ends_mission or not v.armed or v.on_ground is not True:
+            return
+        with contextlib.suppress(TimeoutError):
+            await self.ctx.wait_for(v, lambda v: not v.armed or v.lost, DISARM_WAIT, "disarmed after landing")
 
     async def _wait_leave(self) -> None:
         while self.now() < self.pickup.leave + self.delay():
@@ -231,6 +315,8 @@ class SortieFlight:
         if origin is None or v.enu is None:
             raise ExecutionError(f"{v.name}: no position to fly back from")
         ground = v.on_ground is True
+        if ground:
+            await self._settle_on_ground(v)
         ret = return_items(v.enu, ground, self.pickup.position, origin, v.autopilot)
         await upload(ctx, v, list(ret.items))
         if not v.armed:  # a firmware that disarmed it landed at its task

@@ -243,3 +243,36 @@ async def test_a_battery_dropping_while_a_rover_works_is_seen_before_the_work_en
     assert any(r["kind"] == "sortie_called_back" and r["vehicle"] == "r2" for r in records)
     assert out.exit_code == 0, out.summary
     assert sorted(out.summary["tasks_done"]) == sorted(t.id for t in mission.tasks)
+
+
+async def test_ground_work_on_ardupilot_is_timed_by_the_controller(tmp_path: Path) -> None:
+    """ArduCopter ends a mission at its NAV_LAND (it disarms on the ground and restarts the mission;
+    the simulated fleet's ArduPilot flavour does the same): a sortie ends at a task worked on the
+    ground, the controller times the work from the touch-down, then uploads, arms and starts the
+    rest (``sortie_continued``). Every task is worked for its duration and every rover comes back."""
+    from fleetctl.run.sim import sim_mission_dict
+    from sitl import FleetConfig
+
+    mission = mission_from(small_operation(), tmp_path)
+    cfg = FleetConfig.from_mission_dict(sim_mission_dict(mission), autopilot="ardupilot")
+    async with SimFleet(cfg) as sim:
+        out = await asyncio.wait_for(execute(mission, "run", sim=sim, run_dir=tmp_path / "run", force=True),
+                                     180)
+        assert sim.errors == 0, sim.last_error
+    s = out.summary
+    assert out.exit_code == 0 and s["result"] == "complete", s
+    tasks = {t.id: mission.task_work(t.id) for t in mission.tasks}
+    assert sorted(s["tasks_done"]) == sorted(tasks)
+    records = journal(tmp_path / "run")
+    done = {r["task"]: r for r in records if r["kind"] == "task_done"}
+    ground = [t for t, w in tasks.items() if w.ground]
+    assert ground and all(done[t]["worked"] >= tasks[t].duration for t in ground), done
+    launched = [r for r in records if r["kind"] == "sortie_launched"]
+    for r in launched:  # each launched mission ends at its first task worked on the ground
+        firsts = [t for t in r["tasks"] if tasks[t].ground][:1]
+        assert [w[0] for w in r["work"] if w[2] < 0] == firsts, r
+    continued = [r for r in records if r["kind"] == "sortie_continued"]
+    # a sortie with work on the ground before its last task flies on after it
+    if any(tasks[t].ground for r in launched for t in r["tasks"][:-1]):
+        assert continued and all(r["work"] for r in continued), continued
+    assert sorted(s["rovers_loaded"]) == ["r1", "r2"] and not s["rovers_lost"]
