@@ -3,9 +3,9 @@ carrier's ``sitl.json_physics`` deck, 4 tasks worked hovering for short duration
 the deck) flown with ``fleetctl run`` as a user flies it. The firmware times each task's work
 (NAV_LOITER_TIME). Skipped with one line without ``FLEETCTL_ARDUPILOT_DIR``.
 
-Work on the ground is not flown here: ArduCopter disarms under a sortie's NAV_LAND (0.8 s after
-its "Land") and restarts its mission at item 1, so the NAV_DELAY that times the work never runs
-(``operation_mission(ground=...)`` builds such a mission; docs/autopilots.md)."""
+Work on the ground: ArduCopter disarms under a sortie's NAV_LAND (0.8 s after its "Land") and
+restarts its mission at item 1, so a NAV_DELAY after it never runs; the controller ends the
+sortie's mission at the landing, times the work and starts the rest (docs/autopilots.md)."""
 
 from __future__ import annotations
 
@@ -52,3 +52,22 @@ def test_a_small_operation_flies_on_ardupilot(tmp_path: Path) -> None:
         print(f"\nArduPilot operation: flown {run['makespan_flown']:.1f} s vs planned "
               f"{run['makespan_planned']:.1f} s; swaps {len(swaps)}; worked "
               f"{ {r['task']: r.get('worked') for r in done} }")
+
+
+def test_work_on_the_ground_flies_on_ardupilot(tmp_path: Path) -> None:
+    ground = ("o2", "o4")
+    with deck_team(tmp_path, n_rovers=2, mission=operation_mission(ground=ground)) as (team, _world):
+        proc, run = team.fly("run", timeout=900)
+        assert proc.returncode == 0, proc.stdout[-4000:] + proc.stderr[-2000:] + team.firmware_tail()
+        assert run["result"] == "complete", run
+        assert sorted(run["tasks_done"]) == sorted(DURATIONS), run
+        assert sorted(run["rovers_loaded"]) == team.rovers, run
+        rows = journal(Path(run["journal"]).parent)
+        done = {r["task"]: r for r in rows if r.get("kind") == "task_done"}
+        assert sorted(done) == sorted(DURATIONS)
+        for t in ground:  # timed by the controller from the touch-down: at least its duration
+            assert done[t]["worked"] >= DURATIONS[t], done[t]
+        continued = [r for r in rows if r.get("kind") == "sortie_continued"]
+        print(f"\nArduPilot operation with work on the ground: flown {run['makespan_flown']:.1f} s vs "
+              f"planned {run['makespan_planned']:.1f} s; sorties continued {len(continued)}; worked "
+              f"{ {t: r.get('worked') for t, r in done.items()} }")
