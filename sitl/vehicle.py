@@ -138,6 +138,7 @@ class SimVehicle:
         self._takeoff_pending = False
         self._drive_off_state = 0  # drive_off fault: 1 driving on, 2 stopped off its mission (to set_current)
         self._disarm_at: float | None = None
+        self._ended_at_landing = False  # ArduCopter: its mission ended at a NAV_LAND that more items follow
         self._upload: Upload | None = None
         self._last_upload: tuple[tuple[int, int], int, int] | None = None  # partner, count, mission_type
         self.statustexts: list[tuple[float, int, str]] = []
@@ -572,8 +573,9 @@ class SimVehicle:
                 self.armed = False
                 self.statustext("Disarmed (landed)")
                 self._emit_heartbeat_now()
-                if self.flavour.landing_ends_mission and self.mode is Mode.MISSION and self._has_mission():
+                if self._ended_at_landing and self.mode is Mode.MISSION and self._has_mission():
                     self._restart_mission()
+                self._ended_at_landing = False
         if not self.armed:
             return
         if rover is None and (self._drive_off_state or self.faults.drives_off(self.id, t)):
@@ -667,22 +669,25 @@ class SimVehicle:
         for ev in events:
             if ev == "takeoff":
                 self._disarm_at = None
+                self._ended_at_landing = False
             elif ev == "touchdown":
                 self._emit(M.MAVLINK_MSG_ID_EXTENDED_SYS_STATE)  # the landed state as it changes
                 self.statustext("Landed on carrier" if body.loaded else "Landed")
                 delay = self.flavour.disarm_delay()
                 if self.armed and delay >= 0 and not self._landing_mid_mission():
                     self._disarm_at = t + delay
-                if self.armed and self.flavour.landing_ends_mission and self._landing_in_mission():
+                if self.armed and self.flavour.landing_ends_mission and self._landing_mid_mission_items():
                     self.finished = True  # ArduCopter: the items after a mission's landing never run
+                    self._ended_at_landing = True
             elif ev == "battery_empty":
                 self.statustext("Battery empty: landing", M.MAV_SEVERITY_CRITICAL)
                 if body.phase is Phase.AIR:
                     self._set_mode_raw(Mode.LAND)
 
-    def _landing_in_mission(self) -> bool:
+    def _landing_mid_mission_items(self) -> bool:
+        """The current item is a NAV_LAND of the mission that more items follow."""
         cur = self.current
-        return (self.mode is Mode.MISSION and cur < len(self.mission)
+        return (self.mode is Mode.MISSION and cur + 1 < len(self.mission)
                 and self.mission[cur].command == ms.NAV_LAND)
 
     def _restart_mission(self) -> None:
@@ -698,9 +703,7 @@ class SimVehicle:
         """A NAV_LAND of the mission that more items follow (a task worked landed, then a
         NAV_DELAY and a NAV_TAKEOFF): the vehicle stays armed on the ground, as in a mission -
         on PX4; ArduCopter disarms there all the same (:attr:`Flavour.landing_ends_mission`)."""
-        cur = self.current
-        return (self.mode is Mode.MISSION and cur + 1 < len(self.mission)
-                and self.mission[cur].command == ms.NAV_LAND and not self.flavour.landing_ends_mission)
+        return self._landing_mid_mission_items() and not self.flavour.landing_ends_mission
 
     # -- mission executor ------------------------------------------------------------------
     def _has_mission(self) -> bool:

@@ -153,7 +153,10 @@ async def test_tasks_added_and_removed_in_the_mission_file_are_flown(tmp_path: P
     records = journal(tmp_path / "run")
     assert any(r["kind"] == "replan" and "tasks changed" in r.get("cause", "") for r in records)
     done = {r["task"]: r["worked"] for r in records if r["kind"] == "task_done"}
-    assert done["t7"] >= 45 - 0.5  # an added task's work: the duration the edit gives it, not the dwell
+    # an added task's work: the duration the edit gives it (45 s), not the dwell (20 s); as the
+    # controller saw it: the MISSION_ITEM_REACHED at its start and end each come up to a few tens of
+    # wall ms late on a busy machine, seconds of mission time at speed-up 20
+    assert done["t7"] >= 45 - 5.0
 
 
 async def test_a_rover_short_of_battery_in_the_air_is_called_back_early(tmp_path: Path) -> None:
