@@ -43,6 +43,10 @@ CTL_TIMEOUT = 120.0  # wall s for a run or a resume of the small operation
 
 def _operation(tmp_path: Path) -> tuple[Path, dict[str, Any]]:
     d = small_operation()
+    # rovers hover while the controller is down and while the resume connects (a few wall seconds
+    # on a loaded machine: tens of mission seconds at speed-up 10); 150 s in the air on a battery
+    # (120 in the small operation) leaves them the way back after it
+    d["rovers"]["endurance_range"] = 750.0
     d["carrier"]["connection"] = f"udp://127.0.0.1:{free_udp_port()}"
     d["sim"] = {"speedup": SPEEDUP, "faults": []}
     return write_mission(d, tmp_path / "mission.yaml"), d
