@@ -13,8 +13,7 @@ on r2, which strikes on its way to its stop:
   after its lift-off (evidence: the switch);
 * ``link lost`` - ``dropout`` of r2 from 1 s after its lift-off (evidence: the dropout; its loss is
   seen after ``links.heartbeat_timeout`` of mission time and at least one wall second, the floor
-  for telemetry that comes at wall-clock rates, so faster than real time this row scales with the
-  speed-up past it).
+  of fleetctl.mavlink.silence, so faster than real time this row scales with the speed-up past it).
 
 Detection = the mission time of the controller's ``rover_let_go`` (or, for the link, the rover's
 ``link_lost`` event) less the mission time of the evidence, both on the simulation's clock.

@@ -8,10 +8,10 @@ one). The silence in mission time is the lesser of what
 that clock and the wall clock times the nominal speed-up say: a simulator lagging behind its
 speed-up, or catching up after a pause, does not make a vehicle lost sooner.
 
-The floor is for a fleet running faster than real time: its telemetry still comes at wall-clock
-rates (a position every 0.1 wall s), so at speed-up 20 three mission seconds are 0.15 wall s, a gap
-that a lossy link or a busy controller leaves silent often; a second of wall time without a single
-message of a vehicle is not. At speed-up 1 (a real link) the floor is never above the timeout, so a
+The floor is for a fleet running faster than real time: at speed-up 20 three mission seconds are
+0.15 wall s, a gap that a lossy link or a busy controller (or a simulator that sends at most one
+message of a stream per tick of its loop) leaves silent often; a second of wall time without a
+single message of a vehicle is not. At speed-up 1 (a real link) the floor is never above the timeout, so a
 real vehicle is lost after exactly ``heartbeat_timeout`` s. A look at the silence that comes more
 than :data:`LATE_S` wall seconds after it was due (the controller's event loop was busy, and the
 vehicle's messages may be waiting to be read) gives the vehicle the floor once more before it is

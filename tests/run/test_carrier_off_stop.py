@@ -125,6 +125,45 @@ def test_an_operation_pick_up_waits_for_the_carrier_back_on_its_stop(tmp_path: P
     assert any(r["kind"] == "command" and r.get("command") == "return_to_stop" for r in recs)
 
 
+def test_an_operation_landing_is_broken_off_when_the_carrier_leaves(tmp_path: Path) -> None:
+    """A long operation: the carrier drives off its stop while a rover comes down onto its deck (a
+    watch on the simulated bodies: a rover descending, 1 - 2.8 m up, within 1.5 m of the stopped
+    carrier). The rover climbs back and hovers ("landing broken off"), the carrier is sent back, and
+    the rover lands on the deck, not on the ground: the operation completes."""
+    from tests.run.operation.ops_helpers import small_operation
+    fired: list[float] = []
+    watch: list[asyncio.Task[None]] = []
+
+    async def watcher(sim: SimFleet) -> None:
+        carrier = sim.world.body("carrier")
+        while not fired:
+            await asyncio.sleep(0.002)
+            cx, cy, _ = carrier.position
+            for rid in ("r1", "r2"):
+                rover = sim.rover(rid)
+                x, y, z = rover.position
+                t = sim.sim_time
+                if (1.0 < z < 2.8 and rover.vel[2] < -0.1 and math.hypot(x - cx, y - cy) < 1.5
+                        and carrier.speed == 0.0 and t > 40):
+                    fired.append(t)
+                    sim.inject(Fault("drive_off", vehicle="carrier", at=t, until=t + DRIVE))
+                    break
+
+    def action(ev: Event, sim: SimFleet, state: FleetState) -> None:
+        if not watch:
+            watch.append(asyncio.get_running_loop().create_task(watcher(sim)))
+
+    d = small_operation()
+    d["rovers"]["land_speed"] = 1.0  # a descent of 3 s: the carrier is seen leaving before touch-down
+    s, _trig, sim, _path = asyncio.run(fly(tmp_path, d, "run", action))
+    assert fired
+    assert s["_exit"] == 0 and s["result"] == "complete", s
+    assert sorted(s["rovers_loaded"]) == ["r1", "r2"] and not s["rovers_lost"], s
+    assert sorted(sim.world.loaded_rovers()) == ["r1", "r2"]  # on the deck, not on the ground
+    recs = journal(s)
+    assert any(r["kind"] == "rover_state" and "landing broken off" in r.get("text", "") for r in recs)
+
+
 def test_the_docs_state_the_park_terms() -> None:
     from fleetctl.run.carrier import DRIVE_OFF_SPEED, RESTOP_SETTLE, RESTOPS_MAX, STAY_SPEED
     text = (Path(__file__).resolve().parents[2] / "docs" / "operations.md").read_text(encoding="utf-8")

@@ -14,7 +14,7 @@ import contextlib
 import dataclasses
 import logging
 import time
-from collections.abc import Callable
+from collections.abc import Awaitable, Callable
 from typing import Any
 
 from fleetctl.mavlink.compile import RoverMission
@@ -331,8 +331,11 @@ class OperationPhase:
                 for f in flights:
                     if f.entry.status is SortieStatus.RETURNING:
                         f._lost(f"not landed: {exc}")
-        landed = await asyncio.gather(*(land_on_deck(ctx, f, LANDING_TIMEOUT) for f in flights
-                                        if f.entry.status is SortieStatus.RETURNING))
+        def parked() -> Awaitable[None]:
+            return self.carrier.parked(k, seq)
+
+        landed = await asyncio.gather(*(land_on_deck(ctx, f, LANDING_TIMEOUT, seq, parked)
+                                        for f in flights if f.entry.status is SortieStatus.RETURNING))
         if any(landed):
             await ctx.sleep_mission(ctx.mission.carrier.load_time)
             await asyncio.gather(*(f.vehicle.refresh_battery(BATTERY_READ_WAIT) for f in flights

@@ -12,14 +12,15 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import math
-from collections.abc import Callable
+from collections.abc import Awaitable, Callable
 from dataclasses import dataclass
 
 from fleetctl.geo import local_to_geodetic
 from fleetctl.mavlink.link import LinkError
 from fleetctl.mavlink.sortie import ReturnItems, SortieItems, Visit, return_items, sortie_items
 from fleetctl.mavlink.vehicle import CommandRejected, Vehicle, VehicleEvent, VehicleEventKind
-from fleetctl.run.carrier import STAY_SPEED, upload
+from fleetctl.mission.flight import MEET_HEIGHT
+from fleetctl.run.carrier import RESTOPS_MAX, STAY_SPEED, left_item, upload
 from fleetctl.run.context import ExecutionError, RunContext
 from fleetctl.run.kinds import Ev, VehicleStatus
 from fleetctl.run.launch import rover_on_deck
@@ -349,26 +350,65 @@ class SortieFlight:
         self.trouble(f"rover {rid} lost")
 
 
-async def land_on_deck(ctx: RunContext, flight: SortieFlight, timeout: float) -> bool:
+async def land_on_deck(ctx: RunContext, flight: SortieFlight, timeout: float, stop_seq: int,
+                       parked: Callable[[], Awaitable[None]]) -> bool:
     """Send a rover waiting above the carrier down onto its deck once the carrier has stopped (its
     stop's waypoint is reached before it has braked); a rover hovering more than ``LAND_OFFSET`` off
-    the carrier lands at the carrier's position instead of its stop's. True once it is on the deck."""
-    v, back, c = flight.vehicle, flight.back, ctx.fleet.carrier
-    if back is None or v.lost:
+    the carrier lands at the carrier's position instead of its stop's. A carrier that leaves its
+    stop (its route's item ``stop_seq``: :func:`fleetctl.run.carrier.left_item`) during the descent
+    breaks the landing off: the rover climbs back to ``MEET_HEIGHT`` where it is and hovers until
+    the carrier is parked on the stop again (``parked``), then comes down over it; at most
+    ``RESTOPS_MAX`` times. True once it is on the deck."""
+    v, c = flight.vehicle, ctx.fleet.carrier
+    if flight.back is None or v.lost:
         return False
-    with contextlib.suppress(TimeoutError):
-        await ctx.wait_for(c, lambda c: (c.ground_speed or 0.0) <= STAY_SPEED, CARRIER_STOP_WAIT, "stopped")
-    with contextlib.suppress(CommandRejected, LinkError, TimeoutError):
-        if v.enu is not None and c.enu is not None and c.origin is not None and \
-                math.hypot(v.enu[0] - c.enu[0], v.enu[1] - c.enu[1]) > LAND_OFFSET:
-            lat, lon, _alt = local_to_geodetic(c.enu[0], c.enu[1], 0.0, c.origin)
-            await ctx.command(v, "land", v.land(lat, lon))
-        else:
-            await ctx.command(v, "land", v.set_current(back.land_seq), seq=back.land_seq)
-        await ctx.wait_for(v, lambda v: v.lost or (v.on_ground is True and rover_on_deck(ctx, v)), timeout,
-                           "on the deck")
-        return not v.lost
+    for attempt in range(RESTOPS_MAX):
+        with contextlib.suppress(TimeoutError):
+            await ctx.wait_for(c, lambda c: (c.ground_speed or 0.0) <= STAY_SPEED, CARRIER_STOP_WAIT,
+                               "stopped")
+
+        def down_or_left(v: Vehicle) -> bool:
+            on_deck = v.on_ground is True and rover_on_deck(ctx, v)
+            return v.lost or on_deck or (left_item(c, stop_seq) and v.on_ground is not True)
+
+        try:
+            await _send_down(ctx, flight, over_carrier=attempt > 0)
+            await ctx.wait_for(v, down_or_left, timeout, "on the deck")
+        except (CommandRejected, LinkError, TimeoutError):
+            return False
+        if v.lost or (v.on_ground is True and rover_on_deck(ctx, v)):
+            return not v.lost
+        await _climb_back(ctx, v)  # the carrier left its stop under the landing
+        try:
+            await parked()
+        except TimeoutError:
+            return False
     return False
+
+
+async def _send_down(ctx: RunContext, flight: SortieFlight, over_carrier: bool) -> None:
+    """Its way back's landing item, or - hovering more than LAND_OFFSET off the carrier, or after a
+    landing broken off (out of its mission) - a landing at the carrier's position."""
+    v, back, c = flight.vehicle, flight.back, ctx.fleet.carrier
+    assert back is not None
+    if c.enu is not None and c.origin is not None and v.enu is not None and (
+            over_carrier or math.hypot(v.enu[0] - c.enu[0], v.enu[1] - c.enu[1]) > LAND_OFFSET):
+        lat, lon, _alt = local_to_geodetic(c.enu[0], c.enu[1], 0.0, c.origin)
+        await ctx.command(v, "land", v.land(lat, lon))
+    else:
+        await ctx.command(v, "land", v.set_current(back.land_seq), seq=back.land_seq)
+
+
+async def _climb_back(ctx: RunContext, v: Vehicle) -> None:
+    """A landing broken off: back up to MEET_HEIGHT where it is, hovering (journalled)."""
+    text = f"{v.name}: the carrier left its stop: landing broken off, hovering"
+    ctx.record(Ev.ROVER_STATE, vehicle=v.name, text=text)
+    ctx.state.set_state(v.name, VehicleStatus.WAITING)
+    if v.position is None:
+        return
+    lat, lon, _alt = v.position
+    with contextlib.suppress(CommandRejected, LinkError, TimeoutError):
+        await ctx.command(v, "goto", v.goto(lat, lon, MEET_HEIGHT))
 
 
 __all__ = ["REPLAN_SLACK", "item_passed", "FlightClock", "Pickup", "SortieFlight", "land_on_deck"]
