@@ -6,15 +6,17 @@ battery swap on the deck (MAV_CMD_BATTERY_RESET)."""
 from __future__ import annotations
 
 import math
+from collections.abc import AsyncIterator
 
 import pytest
 from pymavlink.dialects.v20 import ardupilotmega as M
-from sitl_helpers import Gcs, enu_to_latlon
+from sitl_helpers import Gcs, enu_to_latlon, make_config
 
 from sitl import SimFleet
 
 REL = M.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT
 PX4_MISSION = (1, 4, 4)
+SPEEDUP = 5.0
 
 
 def item(cmd: int, x: float = 0.0, y: float = 0.0, z: float = 0.0, p1: float = 0.0) -> tuple:
@@ -24,6 +26,15 @@ def item(cmd: int, x: float = 0.0, y: float = 0.0, z: float = 0.0, p1: float = 0
 
 def delay(seconds: float) -> tuple:
     return (M.MAV_FRAME_MISSION, M.MAV_CMD_NAV_DELAY, seconds, -1.0, -1.0, -1.0, 0.0, 0.0, 0.0)
+
+
+@pytest.fixture
+async def fleet() -> AsyncIterator[SimFleet]:
+    """The fleet at speed-up 5: the times below are read when the ground station gets a message, and
+    a loaded machine's tens of wall ms are a second of simulated time at speed-up 20."""
+    async with SimFleet(make_config(speedup=SPEEDUP)) as f:
+        yield f
+    assert f.errors == 0, f.last_error
 
 
 async def reached_at(fleet: SimFleet, gcs: Gcs, seq: int, since: int) -> float:
@@ -48,7 +59,7 @@ async def test_a_task_worked_landed_then_one_hovering_are_timed_by_the_firmware(
     await fleet.wait_sim_time(landed + 3.0, timeout=5)
     assert rover.on_ground and v.armed and rover.battery == battery  # waiting landed burns nothing
     done = await reached_at(fleet, gcs, 3, since)
-    assert done - landed == pytest.approx(6.0, abs=1.0)  # the NAV_DELAY (seen here: 50 ms of wall time)
+    assert done - landed == pytest.approx(6.0, abs=1.0)  # the NAV_DELAY (seen here: 0.2 s of wall time)
     arrived = await reached_at(fleet, gcs, 5, since)
     worked = await reached_at(fleet, gcs, 6, since)
     assert worked - arrived == pytest.approx(5.0, abs=1.0)  # the NAV_LOITER_TIME
@@ -70,9 +81,9 @@ async def test_ardupilot_copter_disarms_at_a_missions_landing_and_restarts_it() 
     """As ArduCopter 4.6 SITL does ("Disarming motors" after a mission's NAV_LAND, then "Mission: 1
     Takeoff"): the NAV_DELAY and the take-off after the landing never run, the vehicle stays
     disarmed on the ground, the mission's current item back at its first."""
-    from sitl_helpers import make_config, open_gcs
+    from sitl_helpers import open_gcs
 
-    async with SimFleet(make_config(autopilot="ardupilot")) as fleet:
+    async with SimFleet(make_config(autopilot="ardupilot", speedup=SPEEDUP)) as fleet:
         gcs = await open_gcs(fleet.endpoints["carrier"])
         try:
             await gcs.recv("GLOBAL_POSITION_INT", sysid=11)
@@ -88,7 +99,7 @@ async def test_ardupilot_copter_disarms_at_a_missions_landing_and_restarts_it() 
             await fleet.wait_for(lambda: rover.on_ground and not rover.loaded, 10)
             landed = fleet.sim_time
             await fleet.wait_for(lambda: not v.armed, 5)
-            assert fleet.sim_time - landed <= fleet.vehicle("r1").flavour.disarm_delay() + 0.5
+            assert fleet.sim_time - landed <= fleet.vehicle("r1").flavour.disarm_delay() + 1.0
             await fleet.wait_sim_time(fleet.sim_time + 5.0, timeout=5)  # the NAV_DELAY would be over
             assert rover.on_ground and not v.armed and v.current == 1
             x, y, _z = rover.position
