@@ -50,18 +50,26 @@ def json_depth(payload: bytes) -> int:
     return deepest
 
 
+def bounded_json(payload: bytes, max_bytes: int, max_depth: int, error: type[ValueError],
+                 nothing_changed: str = "") -> Any:
+    """``payload`` decoded, once it is at most ``max_bytes`` long and nested at most ``max_depth``
+    deep (checked before ``json.loads``, which recurses); ``error`` otherwise (``nothing_changed``
+    ends the depth message)."""
+    if len(payload) > max_bytes:
+        raise error(f"message of {len(payload)} bytes is larger than {max_bytes}")
+    depth = json_depth(payload)
+    if depth > max_depth:
+        raise error(f"JSON nested {depth} levels deep (at most {max_depth}){nothing_changed}")
+    try:
+        return json.loads(payload)
+    except (ValueError, UnicodeDecodeError, RecursionError) as exc:
+        raise error(f"not JSON: {exc}") from None
+
+
 def decode_task_json(payload: bytes) -> tuple[Any, bool]:
     """A task message's JSON and its ``force`` flag, once the message is within the size
     (``MAX_MESSAGE``) and nesting (``MAX_JSON_DEPTH``) limits; :class:`TaskMessageError` otherwise."""
-    if len(payload) > MAX_MESSAGE:
-        raise TaskMessageError(f"message of {len(payload)} bytes is larger than {MAX_MESSAGE}")
-    depth = json_depth(payload)
-    if depth > MAX_JSON_DEPTH:
-        raise TaskMessageError(f"JSON nested {depth} levels deep (at most {MAX_JSON_DEPTH}); nothing changed")
-    try:
-        data = json.loads(payload)
-    except (ValueError, UnicodeDecodeError, RecursionError) as exc:
-        raise TaskMessageError(f"not JSON: {exc}") from None
+    data = bounded_json(payload, MAX_MESSAGE, MAX_JSON_DEPTH, TaskMessageError, "; nothing changed")
     force = False
     if isinstance(data, dict) and "force" in data:
         force = data.pop("force")
@@ -199,4 +207,4 @@ class TaskRules:
             raise TaskMessageError(str(exc)) from None
 
 
-__all__ = ["TaskMessageError", "TaskRules", "decode_task_json", "json_depth"]
+__all__ = ["TaskMessageError", "TaskRules", "bounded_json", "decode_task_json", "json_depth"]

@@ -19,6 +19,7 @@ from collections.abc import Callable
 from fleetctl.mavlink.compile import CompiledPlan, is_waypoint, item_position
 from fleetctl.mavlink.link import LinkError, MissionItem, MissionRejected
 from fleetctl.mavlink.vehicle import CommandRejected, Vehicle
+from fleetctl.mission.flight import MEET_HEIGHT
 from fleetctl.run.context import ExecutionError, RunContext
 from fleetctl.run.kinds import Ev, VehicleStatus, Watch
 from fleetctl.run.supervisor import SupervisorEvent
@@ -91,6 +92,18 @@ def parked_on_item(v: Vehicle, seq: int) -> bool:
     off = _off(v, seq)
     speed = v.ground_speed
     return off is not None and off <= PARK_RADIUS and speed is not None and speed <= STAY_SPEED
+
+
+async def climb_back(ctx: RunContext, v: Vehicle, stop: int) -> None:
+    """The carrier left stop ``stop`` (counted from 1) under the landing of ``v``: the landing is
+    broken off (journalled) and ``v`` climbs back to ``MEET_HEIGHT`` where it is and hovers."""
+    text = f"{v.name}: the carrier left stop {stop}: landing broken off, hovering"
+    ctx.record(Ev.ROVER_STATE, vehicle=v.name, text=text)
+    ctx.state.set_state(v.name, VehicleStatus.WAITING)
+    if v.position is None:
+        return
+    lat, lon, _alt = v.position
+    await ctx.command(v, "goto", v.goto(lat, lon, MEET_HEIGHT))
 
 
 def left_item(v: Vehicle, seq: int) -> bool:
@@ -354,5 +367,5 @@ class CarrierControl:
             await self.ctx.command(v, "resume", v.resume())
 
 
-__all__ = ["CARRIER_OUTAGE_MAX", "PARK_RADIUS", "CarrierControl", "left_item", "parked_on_item",
+__all__ = ["CARRIER_OUTAGE_MAX", "PARK_RADIUS", "CarrierControl", "climb_back", "left_item", "parked_on_item",
            "stopped_on_item", "upload"]

@@ -39,7 +39,7 @@ from fleetctl.mavlink.link import LinkError, MissionItem
 from fleetctl.mavlink.vehicle import CommandRejected, Vehicle
 from fleetctl.mission.flight import GROUND_HEIGHT, MEET_HEIGHT
 from fleetctl.mission.model import any_on_ground
-from fleetctl.run.carrier import RESTOPS_MAX, STAY_SPEED, hovering_on_item, left_item, upload
+from fleetctl.run.carrier import RESTOPS_MAX, STAY_SPEED, climb_back, hovering_on_item, left_item, upload
 from fleetctl.run.collect_timing import (
     CarrierNow,
     RoundClock,
@@ -618,21 +618,9 @@ class CollectPhase:
             await ctx.wait_for(v, down_or_left, landing, "landing on the carrier")
             if rover_on_deck(ctx, v) or self._down_on_deck(rnd, v) or v.lost or not self.board.in_round(rid):
                 return
-            await self._climb_back(rnd, v, k)  # the carrier left the stop
+            await climb_back(ctx, v, k + 1)
             broken_off = True
         raise TimeoutError(f"the carrier left stop {k + 1} {RESTOPS_MAX} times")
-
-    async def _climb_back(self, rnd: _Round, v: Vehicle, k: int) -> None:
-        """The carrier left stop ``k`` under a landing ``v``: it climbs back to ``MEET_HEIGHT``
-        where it is and hovers."""
-        ctx = self.ctx
-        text = f"{v.name}: the carrier left stop {k + 1}: landing broken off, hovering"
-        ctx.record(Ev.ROVER_STATE, vehicle=v.name, text=text)
-        ctx.state.set_state(v.name, VehicleStatus.WAITING)
-        if v.position is None:
-            return
-        lat, lon, _alt = v.position
-        await ctx.command(v, "goto", v.goto(lat, lon, MEET_HEIGHT))
 
     async def _send_down(self, rnd: _Round, v: Vehicle, over_carrier: bool = False) -> None:
         """Land ``v`` on the carrier: its mission's landing straight below it, or - when it hovers

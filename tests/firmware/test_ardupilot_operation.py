@@ -38,24 +38,12 @@ def operation_mission(ground: tuple[str, ...] = ()) -> dict[str, Any]:
     return m
 
 
-def test_a_small_operation_flies_on_ardupilot(tmp_path: Path) -> None:
-    with deck_team(tmp_path, n_rovers=2, mission=operation_mission()) as (team, _world):
-        proc, run = team.fly("run", timeout=900)
-        assert proc.returncode == 0, proc.stdout[-4000:] + proc.stderr[-2000:] + team.firmware_tail()
-        assert run["result"] == "complete", run
-        assert sorted(run["tasks_done"]) == sorted(DURATIONS), run
-        assert sorted(run["rovers_loaded"]) == team.rovers, run
-        rows = journal(Path(run["journal"]).parent)
-        done = [r for r in rows if r.get("kind") == "task_done"]
-        assert sorted(r["task"] for r in done) == sorted(DURATIONS)
-        swaps = [r for r in rows if r.get("kind") == "battery_swapped"]
-        print(f"\nArduPilot operation: flown {run['makespan_flown']:.1f} s vs planned "
-              f"{run['makespan_planned']:.1f} s; swaps {len(swaps)}; worked "
-              f"{ {r['task']: r.get('worked') for r in done} }")
+Rows = list[dict[str, Any]]
 
 
-def test_work_on_the_ground_flies_on_ardupilot(tmp_path: Path) -> None:
-    ground = ("o2", "o4")
+def fly_operation(tmp_path: Path, ground: tuple[str, ...] = ()) -> tuple[dict[str, Any], Rows]:
+    """The operation flown with ``fleetctl run`` on the deck: complete, every task done once, every
+    rover back; its summary and journal."""
     with deck_team(tmp_path, n_rovers=2, mission=operation_mission(ground=ground)) as (team, _world):
         proc, run = team.fly("run", timeout=900)
         assert proc.returncode == 0, proc.stdout[-4000:] + proc.stderr[-2000:] + team.firmware_tail()
@@ -63,11 +51,26 @@ def test_work_on_the_ground_flies_on_ardupilot(tmp_path: Path) -> None:
         assert sorted(run["tasks_done"]) == sorted(DURATIONS), run
         assert sorted(run["rovers_loaded"]) == team.rovers, run
         rows = journal(Path(run["journal"]).parent)
-        done = {r["task"]: r for r in rows if r.get("kind") == "task_done"}
-        assert sorted(done) == sorted(DURATIONS)
-        for t in ground:  # timed by the controller from the touch-down: at least its duration
-            assert done[t]["worked"] >= DURATIONS[t], done[t]
-        continued = [r for r in rows if r.get("kind") == "sortie_continued"]
-        print(f"\nArduPilot operation with work on the ground: flown {run['makespan_flown']:.1f} s vs "
-              f"planned {run['makespan_planned']:.1f} s; sorties continued {len(continued)}; worked "
-              f"{ {t: r.get('worked') for t, r in done.items()} }")
+    assert sorted(r["task"] for r in rows if r.get("kind") == "task_done") == sorted(DURATIONS)
+    return run, rows
+
+
+def test_a_small_operation_flies_on_ardupilot(tmp_path: Path) -> None:
+    run, rows = fly_operation(tmp_path)
+    done = [r for r in rows if r.get("kind") == "task_done"]
+    swaps = [r for r in rows if r.get("kind") == "battery_swapped"]
+    print(f"\nArduPilot operation: flown {run['makespan_flown']:.1f} s vs planned "
+          f"{run['makespan_planned']:.1f} s; swaps {len(swaps)}; worked "
+          f"{ {r['task']: r.get('worked') for r in done} }")
+
+
+def test_work_on_the_ground_flies_on_ardupilot(tmp_path: Path) -> None:
+    ground = ("o2", "o4")
+    run, rows = fly_operation(tmp_path, ground)
+    done = {r["task"]: r for r in rows if r.get("kind") == "task_done"}
+    for t in ground:  # timed by the controller from the touch-down: at least its duration
+        assert done[t]["worked"] >= DURATIONS[t], done[t]
+    continued = [r for r in rows if r.get("kind") == "sortie_continued"]
+    print(f"\nArduPilot operation with work on the ground: flown {run['makespan_flown']:.1f} s vs "
+          f"planned {run['makespan_planned']:.1f} s; sorties continued {len(continued)}; worked "
+          f"{ {t: r.get('worked') for t, r in done.items()} }")

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import asyncio
 import math
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -89,37 +90,53 @@ def test_a_carrier_driving_off_its_second_stop_is_sent_back(tmp_path: Path) -> N
     assert all(r["stop"] == 2 for r in recs if r["kind"] == "carrier_off_stop")
 
 
-def test_an_operation_pick_up_waits_for_the_carrier_back_on_its_stop(tmp_path: Path) -> None:
-    """A long operation (tests/run/operation): the carrier drives off its stop as the first rover
-    back waits above it to be picked up (a watch on the simulated bodies: a rover hovering within
-    4 m of the stopped carrier); the rover hovers until the carrier is back, and the operation
-    completes with every rover on the deck."""
-    from tests.run.operation.ops_helpers import small_operation
+def _drive_off_when(seen: Callable[[Any, Any], bool]) -> tuple[Any, list[float]]:
+    """An action: a watch on the simulated bodies drives the carrier off for ``DRIVE`` simulated s
+    the first time ``seen(rover, carrier)`` holds for a rover, with the carrier at rest, more
+    than 40 simulated s in."""
     fired: list[float] = []
     watch: list[asyncio.Task[None]] = []
 
     async def watcher(sim: SimFleet) -> None:
         carrier = sim.world.body("carrier")
         while not fired:
-            await asyncio.sleep(0.005)
-            cx, cy, _ = carrier.position
-            for rid in ("r1", "r2"):
-                x, y, z = sim.rover(rid).position
-                t = sim.sim_time
-                if z > 1.0 and math.hypot(x - cx, y - cy) < 4.0 and carrier.speed == 0.0 and t > 40:
-                    fired.append(t)
-                    sim.inject(Fault("drive_off", vehicle="carrier", at=t, until=t + DRIVE))
-                    break
+            await asyncio.sleep(0.002)
+            t = sim.sim_time
+            rovers = (sim.rover(r) for r in ("r1", "r2"))
+            if carrier.speed == 0.0 and t > 40 and any(seen(r, carrier) for r in rovers):
+                fired.append(t)
+                sim.inject(Fault("drive_off", vehicle="carrier", at=t, until=t + DRIVE))
 
     def action(ev: Event, sim: SimFleet, state: FleetState) -> None:
         if not watch:
             watch.append(asyncio.get_running_loop().create_task(watcher(sim)))
+    return action, fired
 
-    s, _trig, sim, _path = asyncio.run(fly(tmp_path, small_operation(), "run", action))
+
+def _check_operation_on_deck(fired: list[float], s: dict[str, Any], sim: SimFleet) -> None:
+    """The drive-off happened and the operation completed with every rover on the deck (in the
+    simulated world too: not on the ground)."""
     assert fired
     assert s["_exit"] == 0 and s["result"] == "complete", s
     assert sorted(s["rovers_loaded"]) == ["r1", "r2"] and not s["rovers_lost"], s
     assert sorted(sim.world.loaded_rovers()) == ["r1", "r2"]
+
+
+def _near(rover: Any, carrier: Any, radius: float) -> bool:
+    x, y, _z = rover.position
+    cx, cy, _ = carrier.position
+    return math.hypot(x - cx, y - cy) < radius
+
+
+def test_an_operation_pick_up_waits_for_the_carrier_back_on_its_stop(tmp_path: Path) -> None:
+    """A long operation (tests/run/operation): the carrier drives off its stop as the first rover
+    back waits above it to be picked up (a watch on the simulated bodies: a rover hovering within
+    4 m of the stopped carrier); the rover hovers until the carrier is back, and the operation
+    completes with every rover on the deck."""
+    from tests.run.operation.ops_helpers import small_operation
+    action, fired = _drive_off_when(lambda r, c: r.position[2] > 1.0 and _near(r, c, 4.0))
+    s, _trig, sim, _path = asyncio.run(fly(tmp_path, small_operation(), "run", action))
+    _check_operation_on_deck(fired, s, sim)
     recs = journal(s)
     assert any(r["kind"] == "carrier_off_stop" and r["offset"] > PARK_RADIUS for r in recs)
     assert any(r["kind"] == "command" and r.get("command") == "return_to_stop" for r in recs)
@@ -131,35 +148,12 @@ def test_an_operation_landing_is_broken_off_when_the_carrier_leaves(tmp_path: Pa
     carrier). The rover climbs back and hovers ("landing broken off"), the carrier is sent back, and
     the rover lands on the deck, not on the ground: the operation completes."""
     from tests.run.operation.ops_helpers import small_operation
-    fired: list[float] = []
-    watch: list[asyncio.Task[None]] = []
-
-    async def watcher(sim: SimFleet) -> None:
-        carrier = sim.world.body("carrier")
-        while not fired:
-            await asyncio.sleep(0.002)
-            cx, cy, _ = carrier.position
-            for rid in ("r1", "r2"):
-                rover = sim.rover(rid)
-                x, y, z = rover.position
-                t = sim.sim_time
-                if (1.0 < z < 2.8 and rover.vel[2] < -0.1 and math.hypot(x - cx, y - cy) < 1.5
-                        and carrier.speed == 0.0 and t > 40):
-                    fired.append(t)
-                    sim.inject(Fault("drive_off", vehicle="carrier", at=t, until=t + DRIVE))
-                    break
-
-    def action(ev: Event, sim: SimFleet, state: FleetState) -> None:
-        if not watch:
-            watch.append(asyncio.get_running_loop().create_task(watcher(sim)))
-
+    action, fired = _drive_off_when(lambda r, c: 1.0 < r.position[2] < 2.8 and r.vel[2] < -0.1
+                                    and _near(r, c, 1.5))
     d = small_operation()
     d["rovers"]["land_speed"] = 1.0  # a descent of 3 s: the carrier is seen leaving before touch-down
     s, _trig, sim, _path = asyncio.run(fly(tmp_path, d, "run", action))
-    assert fired
-    assert s["_exit"] == 0 and s["result"] == "complete", s
-    assert sorted(s["rovers_loaded"]) == ["r1", "r2"] and not s["rovers_lost"], s
-    assert sorted(sim.world.loaded_rovers()) == ["r1", "r2"]  # on the deck, not on the ground
+    _check_operation_on_deck(fired, s, sim)
     recs = journal(s)
     assert any(r["kind"] == "rover_state" and "landing broken off" in r.get("text", "") for r in recs)
 

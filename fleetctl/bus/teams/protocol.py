@@ -146,17 +146,9 @@ def allocation_hash(mission_name: str, shares: Mapping[str, Sequence[str]]) -> s
 # -- validation ---------------------------------------------------------------------------------------
 def load(payload: bytes) -> dict[str, Any]:
     """A bounded JSON object (PeerMessageError otherwise)."""
-    from fleetctl.bus.task_messages import json_depth
+    from fleetctl.bus.task_messages import bounded_json
 
-    if len(payload) > MAX_PEER_MESSAGE:
-        raise PeerMessageError(f"message of {len(payload)} bytes is larger than {MAX_PEER_MESSAGE}")
-    depth = json_depth(payload)
-    if depth > MAX_PEER_DEPTH:
-        raise PeerMessageError(f"JSON nested {depth} levels deep (at most {MAX_PEER_DEPTH})")
-    try:
-        data = json.loads(payload)
-    except (ValueError, UnicodeDecodeError, RecursionError) as exc:
-        raise PeerMessageError(f"not JSON: {exc}") from None
+    data = bounded_json(payload, MAX_PEER_MESSAGE, MAX_PEER_DEPTH, PeerMessageError)
     if not isinstance(data, dict):
         raise PeerMessageError("expected a JSON object")
     return data

@@ -19,8 +19,7 @@ from fleetctl.geo import local_to_geodetic
 from fleetctl.mavlink.link import LinkError
 from fleetctl.mavlink.sortie import ReturnItems, SortieItems, Visit, return_items, sortie_items
 from fleetctl.mavlink.vehicle import CommandRejected, Vehicle, VehicleEvent, VehicleEventKind
-from fleetctl.mission.flight import MEET_HEIGHT
-from fleetctl.run.carrier import RESTOPS_MAX, STAY_SPEED, left_item, upload
+from fleetctl.run.carrier import RESTOPS_MAX, STAY_SPEED, climb_back, left_item, upload
 from fleetctl.run.context import ExecutionError, RunContext
 from fleetctl.run.kinds import Ev, VehicleStatus
 from fleetctl.run.launch import rover_on_deck
@@ -378,7 +377,8 @@ async def land_on_deck(ctx: RunContext, flight: SortieFlight, timeout: float, st
             return False
         if v.lost or (v.on_ground is True and rover_on_deck(ctx, v)):
             return not v.lost
-        await _climb_back(ctx, v)  # the carrier left its stop under the landing
+        with contextlib.suppress(CommandRejected, LinkError, TimeoutError):
+            await climb_back(ctx, v, flight.pickup.stop + 1)  # the carrier left its stop under the landing
         try:
             await parked()
         except TimeoutError:
@@ -397,18 +397,6 @@ async def _send_down(ctx: RunContext, flight: SortieFlight, over_carrier: bool) 
         await ctx.command(v, "land", v.land(lat, lon))
     else:
         await ctx.command(v, "land", v.set_current(back.land_seq), seq=back.land_seq)
-
-
-async def _climb_back(ctx: RunContext, v: Vehicle) -> None:
-    """A landing broken off: back up to MEET_HEIGHT where it is, hovering (journalled)."""
-    text = f"{v.name}: the carrier left its stop: landing broken off, hovering"
-    ctx.record(Ev.ROVER_STATE, vehicle=v.name, text=text)
-    ctx.state.set_state(v.name, VehicleStatus.WAITING)
-    if v.position is None:
-        return
-    lat, lon, _alt = v.position
-    with contextlib.suppress(CommandRejected, LinkError, TimeoutError):
-        await ctx.command(v, "goto", v.goto(lat, lon, MEET_HEIGHT))
 
 
 __all__ = ["REPLAN_SLACK", "item_passed", "FlightClock", "Pickup", "SortieFlight", "land_on_deck"]
