@@ -17,7 +17,6 @@
 from __future__ import annotations
 
 import contextlib
-import math
 from collections.abc import Awaitable, Callable
 from dataclasses import dataclass, field
 from typing import Any
@@ -28,7 +27,7 @@ from fleetctl.mavlink.vehicle import Vehicle
 from fleetctl.mission import Mission
 from fleetctl.run.kinds import Ev
 from fleetctl.run.operation.board import OperationBoard, SortieEntry, SortieStatus, TaskWorkState
-from fleetctl.run.operation.sortie import ON_TASK_RADIUS, item_passed
+from fleetctl.run.operation.sortie import item_passed, landed_near
 from fleetctl.run.state import FleetState
 from planners.operations import OpTask
 
@@ -224,7 +223,8 @@ def _in_the_air(rep: OperationReplay, entry: SortieEntry, v: Vehicle, state: Fle
     if entry.status is SortieStatus.RETURNING:
         return
     parts = rep.work.get(entry.index, ())
-    landed = bool(parts) and parts[-1].done_seq < 0 and _landed_at(v, rep.tasks.get(parts[-1].task))
+    last = rep.tasks.get(parts[-1].task) if parts else None
+    landed = last is not None and parts[-1].done_seq < 0 and landed_near(v, last.position)
     for w in parts:
         work = rep.board.tasks.get(w.task)
         if work is None or work.done is not None:
@@ -246,14 +246,6 @@ def _in_the_air(rep: OperationReplay, entry: SortieEntry, v: Vehicle, state: Fle
             work.rover, work.started, work.seen_start = entry.rover, now, False  # its start unknown
             state.event(Ev.TASK_STARTED, f"{entry.rover}: at task {w.task} (found working on resume)",
                         entry.rover, task=w.task, sortie=entry.index, found="on resume")
-
-
-def _landed_at(v: Vehicle, task: OpTask | None) -> bool:
-    """On the ground within ON_TASK_RADIUS of ``task`` (a firmware that ended its mission at the
-    task's landing restarts it at its first item: the current item tells nothing then)."""
-    p = v.enu
-    return (task is not None and p is not None and v.on_ground is True
-            and math.hypot(p[0] - task.position[0], p[1] - task.position[1]) <= ON_TASK_RADIUS)
 
 
 async def _unfinished_launches(rep: OperationReplay, fleet: Fleet, state: FleetState, disarm: Disarm,

@@ -38,6 +38,13 @@ DISARM_WAIT = 5.0  # mission s for a firmware that ends its mission at a landing
 ON_TASK_RADIUS = 2.0  # m: a rover landed this near a task worked on the ground is at it (resume)
 
 
+def landed_near(v: Vehicle, position: Vec3) -> bool:
+    """On the ground within ON_TASK_RADIUS of ``position`` (at a task worked landed)."""
+    p = v.enu
+    return (p is not None and v.on_ground is True
+            and math.hypot(p[0] - position[0], p[1] - position[1]) <= ON_TASK_RADIUS)
+
+
 def item_passed(v: Vehicle, seq: int) -> bool:
     """Mission item ``seq`` is behind the firmware: its current item is past it, or it is the last
     one and the mission is complete (what a controller that was down can still learn)."""
@@ -176,9 +183,7 @@ class SortieFlight:
     def _landed_at(self, v: Vehicle, task: str) -> bool:
         """On the ground within ON_TASK_RADIUS of ``task`` (a task worked landed)."""
         visit = next((x for x in self.planned.visits if x.task == task), None)
-        p = v.enu
-        return (visit is not None and p is not None and v.on_ground is True
-                and math.hypot(p[0] - visit.position[0], p[1] - visit.position[1]) <= ON_TASK_RADIUS)
+        return visit is not None and landed_near(v, visit.position)
 
     async def _work_on_ground(self, task: str, duration: float) -> None:
         """Work timed by the controller (its firmware ends the mission at the landing): ``duration``
@@ -399,4 +404,5 @@ async def _send_down(ctx: RunContext, flight: SortieFlight, over_carrier: bool) 
         await ctx.command(v, "land", v.set_current(back.land_seq), seq=back.land_seq)
 
 
-__all__ = ["REPLAN_SLACK", "item_passed", "FlightClock", "Pickup", "SortieFlight", "land_on_deck"]
+__all__ = ["REPLAN_SLACK", "FlightClock", "Pickup", "SortieFlight", "item_passed", "land_on_deck",
+           "landed_near"]
