@@ -80,7 +80,14 @@ class JsonServer:
     def start(self) -> JsonServer:
         for name, port in self.ports.items():
             s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-            s.bind((self.host, port))
+            try:
+                s.bind((self.host, port))
+            except OSError as exc:
+                s.close()
+                self.stop()  # the ports already bound are released, not leaked
+                raise OSError(exc.errno, f"{name}: cannot listen on UDP {self.host}:{port} for its "
+                              f"firmware's servo packets ({exc.strerror}): another physics server "
+                              "or simulator holds it; pick another instance number") from exc
             s.setblocking(False)
             link = _Link(name, s, self.stats[name])
             self._links.append(link)

@@ -222,6 +222,23 @@ def test_server_answers_each_packet_in_lockstep() -> None:
         server.stop()
 
 
+def test_a_port_already_held_is_named_and_the_others_are_released() -> None:
+    w = World()
+    w.add_copter("a", 20)
+    w.add_copter("b", 21)
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as held, \
+            socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
+        held.bind(("127.0.0.1", 0))
+        probe.bind(("127.0.0.1", 0))
+        free = probe.getsockname()[1]
+        probe.close()
+        busy = held.getsockname()[1]
+        with pytest.raises(OSError, match=f"b: cannot listen on UDP 127.0.0.1:{busy}"):
+            JsonServer(w, ports={"a": free, "b": busy}).start()
+        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as again:
+            again.bind(("127.0.0.1", free))  # a's port was closed when b's failed
+
+
 def test_server_keeps_the_vehicles_on_one_clock() -> None:
     """A vehicle ahead of the slowest active one by more than max_skew waits for it; a vehicle
     silent for active_timeout no longer holds the others."""
