@@ -623,7 +623,8 @@ class CollectPhase:
         raise TimeoutError(f"the carrier left stop {k + 1} {RESTOPS_MAX} times")
 
     async def _send_down(self, rnd: _Round, v: Vehicle, over_carrier: bool = False) -> None:
-        """Land ``v`` on the carrier: its mission's landing straight below it, or - when it hovers
+        """Land ``v`` on the carrier: its mission's landing straight below it (its landing mode
+        where that item would settle first: ``Autopilot.mission_landing_settles``), or - when it hovers
         more than ``RETARGET_OFFSET`` off the stopped carrier (autopilots stop within their acceptance
         radius, an Ackermann carrier may overshoot its stop) - over the carrier's live position
         first (DO_REPOSITION), then straight down, so that a rover lands on the deck, never beside it.
@@ -634,7 +635,10 @@ class CollectPhase:
         off = None if c.enu is None or v.enu is None else math.hypot(c.enu[0] - v.enu[0], c.enu[1] - v.enu[1])
         moving = c.ground_speed is None or c.ground_speed > STAY_SPEED  # it is still coming to its stop
         if off is None or c.position is None or not (over_carrier or (off > RETARGET_OFFSET and not moving)):
-            if over_carrier:  # out of its mission, the carrier's position unknown: down where it hovers
+            ap = v.autopilot
+            if over_carrier or (ap is not None and ap.mission_landing_settles):
+                # out of its mission, the carrier's position unknown, or a mission landing that
+                # would settle first: down where it hovers
                 if (trouble := rnd.trouble.get(rid)) is not None:
                     trouble.commanded("LAND")
                 await ctx.command(v, "land", v.land())

@@ -119,5 +119,18 @@ def call_back(problem: OperationProblem, state: LiveState, keep: bool = True) ->
     return CallBack(replace(state, in_flight=tuple(air)), tuple(dropped), called)
 
 
-__all__ = ["CallBack", "InFlight", "LiveState", "air_needed", "call_back", "call_margin", "seed",
+
+def recovery(problem: OperationProblem,
+             state: LiveState) -> tuple[OperationProblem, LiveState, dict[str, list[str]]]:
+    """The rest of last resort, for a live state no plan keeping every reserve starts from (rovers
+    that hovered while the controller was down, a battery lower than it read): nothing launched,
+    each rover short of battery called back at once (:func:`call_back`, keeping none), the others on
+    their tasks, and the reserve given up so that every rover can still come back. The problem, the
+    state and the call-backs; the work no rover has waits for the replan made once they are aboard."""
+    cb = call_back(problem, state, keep=False)
+    live, called = (cb.state, cb.called_back) if cb is not None else (state, {})
+    return replace(problem, tasks=(), reserve=0.0), live, called
+
+
+__all__ = ["CallBack", "InFlight", "LiveState", "air_needed", "call_back", "call_margin", "recovery", "seed",
            "short_of_battery"]

@@ -79,6 +79,7 @@ class OperationPlan:
     time_model: dict[str, float | bool] = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
     called_back: dict[str, list[str]] = field(default_factory=dict)  # a replan's rover -> tasks dropped
+    recovery: bool = False  # a replan that only brings the rovers in the air back (reserve given up)
 
     kind = "operation"
 
@@ -98,6 +99,7 @@ class OperationPlan:
             "compute_ms": round(self.compute_ms, 3),
             "time_model": dict(self.time_model),
             "called_back": {r: list(ts) for r, ts in sorted(self.called_back.items())},
+            "recovery": self.recovery,
         }
 
     def timelines(self) -> dict[str, list[dict[str, Any]]]:

@@ -13,7 +13,7 @@ from dataclasses import replace
 
 from planners.core.problem import PlanningError
 from planners.operations.dispatch import Policy, dispatch
-from planners.operations.live import LiveState, call_back
+from planners.operations.live import LiveState, call_back, recovery
 from planners.operations.plan import OperationPlan
 from planners.operations.problem import OperationProblem
 from planners.operations.sites import cut_sites, task_tour
@@ -57,7 +57,9 @@ def plan_operation(problem: OperationProblem, start: LiveState | None = None,
     tours after the policies (PlanningError when no schedule keeps every battery). From a live
     state where a rover in the air is short of battery for its work left, the rest is also planned
     with that rover called back early (:func:`~planners.operations.live.call_back`: keeping the
-    tasks that fit, and keeping none); the earliest end is kept."""
+    tasks that fit, and keeping none); the earliest end is kept. When none keeps every battery
+    above its reserve, a live state's rovers in the air are brought back by a recovery plan
+    (``recovery``: no launches, the reserve given up, the rovers short of battery called back)."""
     t0 = time.perf_counter()
     if not problem.rovers:
         raise PlanningError("an operation needs at least one rover")
@@ -77,10 +79,26 @@ def plan_operation(problem: OperationProblem, start: LiveState | None = None,
         plan.called_back = called
         if best is None or plan.makespan < best.makespan:
             best = plan
+    if best is None and start is not None and start.in_flight:
+        best = _recover(problem, start, rounds, t0, error)
     if best is None:
         raise error
     best.compute_ms = (time.perf_counter() - t0) * 1e3
     return best
+
+
+def _recover(problem: OperationProblem, start: LiveState, rounds: int, t0: float,
+             error: PlanningError) -> OperationPlan:
+    """The recovery plan (:func:`~planners.operations.live.recovery`): the rovers in the air back."""
+    p, state, called = recovery(problem, start)
+    try:
+        plan = _search(p, state, rounds, t0)
+    except PlanningError:
+        raise error from None
+    plan.called_back, plan.recovery = called, True
+    plan.notes.append("recovery: no plan keeps every battery above its reserve; the rovers in the air "
+                      "come back, the work left is planned once they are aboard")
+    return plan
 
 
 def _search(problem: OperationProblem, start: LiveState | None, rounds: int, t0: float) -> OperationPlan:

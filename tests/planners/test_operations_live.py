@@ -7,6 +7,7 @@ import dataclasses
 
 import pytest
 
+from planners.core.problem import PlanningError
 from planners.operations import InFlight, LiveState, OpTask, air_needed, call_back, plan_operation
 from planners.operations.live import call_margin, short_of_battery
 from tests.planners.test_operations import instance
@@ -124,3 +125,29 @@ def test_no_rover_short_of_battery_is_not_called_back() -> None:
     assert not short_of_battery(problem, fine.in_flight[0], fine.carrier, call_margin(problem))
     assert call_back(problem, fine) is None
     assert plan_operation(problem, fine).called_back == {}
+
+
+@pytest.mark.parametrize("seed", SEEDS[:6])
+def test_a_rover_into_its_reserve_is_brought_back_by_a_recovery_plan(seed: int) -> None:
+    """No plan keeps its reserve (it cannot even come straight back above it): the plan of last
+    resort launches nothing, calls it back at once and gives the reserve up; the work waits."""
+    problem, state, (t1, t2, t3) = _short_rover(seed, spare=-5.0)
+    f = state.in_flight[0]
+    back = air_needed(problem, dataclasses.replace(f, tasks=(), flown=0.0), state.carrier)
+    into_reserve = dataclasses.replace(
+        f, flown=problem.air_budget - back + 0.5 * problem.reserve * problem.endurance)
+    state = dataclasses.replace(state, in_flight=(into_reserve,))
+    plan = plan_operation(problem, state)
+    assert plan.recovery and plan.to_json()["recovery"] is True
+    assert plan.called_back == {f.rover: [t1.id, t2.id, t3.id]}
+    assert [s.rover for s in plan.sorties] == [f.rover]  # nothing launched, nobody else flies
+    assert [v.task for v in plan.sorties[0].visits] == [""] and plan.sorties[0].pickup_stop >= 0
+    assert plan.sorties[0].battery_left >= 0.0
+    assert not plan_operation(problem, dataclasses.replace(state, in_flight=(f,))).recovery
+
+
+def test_a_rover_beyond_any_battery_is_not_planned_back() -> None:
+    problem, state, _tasks = _short_rover(SEEDS[0], spare=-5.0)
+    f = dataclasses.replace(state.in_flight[0], flown=problem.endurance)
+    with pytest.raises(PlanningError):
+        plan_operation(problem, dataclasses.replace(state, in_flight=(f,)))

@@ -384,5 +384,13 @@ async def test_run_on_ardupilot_flavoured_vehicles(tmp_path: Path) -> None:
     assert out.summary["tasks_reached"] == ["t1", "t2"]
     assert sorted(out.summary["rovers_loaded"]) == sorted(out.summary["assignment"].values())
     assert all(sim.rover(r).loaded for r in out.summary["rovers_loaded"])
-    connected = [r for r in journal(out.run_dir) if r["kind"] == "connected"]
+    rows = journal(out.run_dir)
+    connected = [r for r in rows if r["kind"] == "connected"]
     assert {r["autopilot"] for r in connected} == {"ardupilot"}
+    # over their stop, ArduCopter rovers come down in LAND mode, not by their mission's NAV_LAND
+    # (which would first fly to the item and settle: Autopilot.mission_landing_settles)
+    k = next(i for i, r in enumerate(rows) if r["kind"] == "phase" and r["phase"] == "collect")
+    landing = [(r["vehicle"], r["command"]) for r in rows[k:]
+               if r["kind"] == "command" and r["vehicle"] != "carrier"]
+    assert {v for v, c in landing if c == "land"} == set(out.summary["rovers_loaded"])
+    assert not [v for v, c in landing if c == "set_current"]

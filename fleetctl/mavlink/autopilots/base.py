@@ -145,6 +145,14 @@ class Autopilot:
         ground, and the controller times the work and starts the rest (docs/operations.md)."""
         return False
 
+    @property
+    def mission_landing_settles(self) -> bool:
+        """A mission's NAV_LAND made current under a hovering vehicle first flies to the item's
+        location and settles there before it descends (ArduCopter: seconds). Such a vehicle
+        already above its landing point is brought straight down with :meth:`Vehicle.land`
+        (its landing mode) instead."""
+        return False
+
     def speed_params(self) -> tuple[SpeedParam, ...]:
         """The parameters that decide this vehicle's flight times (none known here)."""
         return ()

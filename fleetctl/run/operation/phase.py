@@ -166,6 +166,9 @@ class OperationPhase:
             await self._launch(k, stop)
             if seqs[k][1] is not None:
                 await self.carrier.release(k, seqs[k][1])
+        if plan.recovery and self.board.left():  # the rovers it brought back are aboard: the rest
+            self._on_trouble("the rovers called back by a recovery plan are aboard")
+            return await self._replan()
         return None
 
     def _problem(self) -> OperationProblem:
@@ -268,8 +271,12 @@ class OperationPhase:
         end = round(self.now() + plan.makespan, 3)
         text = (f"replan #{st.replans}: {cause} -> {len(problem.tasks)} tasks to launch, "
                 f"{len(state.in_flight)} rovers in the air; ends at {end:.0f} s")
+        if plan.recovery:
+            text = (f"replan #{st.replans}: {cause} -> no plan keeps every reserve: recovery, the "
+                    f"{len(state.in_flight)} rovers in the air come back (reserve given up) by {end:.0f} s; "
+                    f"the {len(problem.tasks)} tasks left are planned once they are aboard")
         st.last_replan = text
-        st.event(Ev.REPLAN, text, None, n=st.replans, cause=cause, makespan=end)
+        st.event(Ev.REPLAN, text, None, n=st.replans, cause=cause, makespan=end, recovery=plan.recovery)
         self._adopt(plan, f"plan-replan-{st.replans}.json")
         self._start_planned_swaps()
         return plan

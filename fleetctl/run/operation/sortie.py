@@ -392,14 +392,17 @@ async def land_on_deck(ctx: RunContext, flight: SortieFlight, timeout: float, st
 
 
 async def _send_down(ctx: RunContext, flight: SortieFlight, over_carrier: bool) -> None:
-    """Its way back's landing item, or - hovering more than LAND_OFFSET off the carrier, or after a
-    landing broken off (out of its mission) - a landing at the carrier's position."""
+    """Its way back's landing item (or its landing mode where that item would settle first:
+    ``Autopilot.mission_landing_settles``), or - hovering more than LAND_OFFSET off the carrier, or
+    after a landing broken off (out of its mission) - a landing at the carrier's position."""
     v, back, c = flight.vehicle, flight.back, ctx.fleet.carrier
     assert back is not None
     if c.enu is not None and c.origin is not None and v.enu is not None and (
             over_carrier or math.hypot(v.enu[0] - c.enu[0], v.enu[1] - c.enu[1]) > LAND_OFFSET):
         lat, lon, _alt = local_to_geodetic(c.enu[0], c.enu[1], 0.0, c.origin)
         await ctx.command(v, "land", v.land(lat, lon))
+    elif v.autopilot is not None and v.autopilot.mission_landing_settles:
+        await ctx.command(v, "land", v.land())  # straight down where it hovers, at once
     else:
         await ctx.command(v, "land", v.set_current(back.land_seq), seq=back.land_seq)
 

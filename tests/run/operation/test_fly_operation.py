@@ -197,6 +197,37 @@ async def test_a_rover_short_of_battery_in_the_air_is_called_back_early(tmp_path
             assert r["sortie"] != called[0]["sortie"] and r["worked"] >= durations[r["task"]] - 1.0, r
 
 
+async def test_a_rover_into_its_reserve_is_brought_back_by_a_recovery_plan(tmp_path: Path) -> None:
+    """r2's battery reads 8 % just after its launch, below the 10 % reserve: no schedule keeps every
+    reserve, so the replan is a recovery (nothing launched, r2 called back at once, the reserve
+    given up); once the rovers it brings back are aboard, the tasks left are planned and flown."""
+    mission = mission_from(small_operation(), tmp_path)
+    watchers: list[asyncio.Task[None]] = []
+
+    async def drop_r2_battery(sim: SimFleet) -> None:
+        r2 = sim.rover("r2")
+        await sim.wait_for(lambda: r2.phase is BodyPhase.AIR, 60)
+        sim.pin_battery("r2", 0.08)
+        sim.pin_battery("r2", None)  # drains on from there
+
+    def on_sim(sim: SimFleet) -> None:
+        watchers.append(asyncio.ensure_future(drop_r2_battery(sim)))
+
+    out = await asyncio.wait_for(execute(mission, "run", run_dir=tmp_path / "run", force=True, on_sim=on_sim),
+                                 150)
+    for w in watchers:
+        w.cancel()
+    records = journal(tmp_path / "run")
+    replans = [r for r in records if r["kind"] == "replan"]
+    assert replans and replans[0]["recovery"] is True, [r.get("text") for r in replans]
+    plan = json.loads((tmp_path / "run" / "plan-replan-1.json").read_text())
+    assert plan["recovery"] is True and plan["time_model"]["reserve"] == 0.0
+    assert all(s["launch_stop"] == -1 for s in plan["sorties"]) and plan["called_back"]["r2"]
+    assert any("recovery plan are aboard" in r["cause"] for r in replans[1:])
+    assert out.exit_code == 0, out.summary
+    assert sorted(out.summary["tasks_done"]) == sorted(t.id for t in mission.tasks)  # the rest flown after
+
+
 async def test_a_task_s_duration_alone_edited_in_the_mission_file_is_replanned(tmp_path: Path) -> None:
     """t4's duration goes from 15 s to 40 s in the mission file after the first launch (t4 is not in
     a sortie yet): the edit is a task change, the rest is replanned, t4 is worked for 40 s."""
