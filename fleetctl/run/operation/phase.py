@@ -34,6 +34,7 @@ from fleetctl.run.operation.swaps import SwapStation
 from fleetctl.run.parts import PhaseParts
 from fleetctl.run.results import PhaseResult
 from fleetctl.run.state import OperationProgress
+from fleetctl.run.supervisor import SupervisorEvent
 from fleetctl.run.task_board import TaskBoard
 from planners.core.problem import PlanningError
 from planners.operations import OperationPlan, OperationProblem, plan_operation
@@ -49,6 +50,12 @@ BATTERY_READ_WAIT = 1.0  # wall s for each rover's fresh battery reading before 
 REPLAN_ROUNDS = 20  # the planner's perturbed rounds in a replan (rovers in the air fly on meanwhile)
 ROUTE_START_WAIT = 5.0  # mission s for a carrier to report the new route's first item current
 BATTERY_SLACK = 0.02  # of a battery: a next sortie that would end this near the reserve asks for a replan
+# trouble while the carrier drives replans at once (the carrier paused where it is) when the plan has it
+# at least this long (mission s) from its next stop; nearer, the replan waits for the stop
+DRIVE_REPLAN_MIN = 5.0
+PAUSED_SPEED = 0.2  # m/s: a paused carrier this slow is where the replan starts from
+PAUSE_WAIT = 10.0  # mission s for the paused carrier to come to rest
+WATCH_POLL = 1.0  # wall s between looks at the drive's trouble when nothing else wakes the watch
 
 
 class OperationPhase:
@@ -66,7 +73,8 @@ class OperationPhase:
         self.flights: dict[str, SortieFlight] = {}  # rover -> its sortie in the air
         self.base = 0.0  # operation s of the plan flown's time 0 (a replan's plan starts at its making)
         self.entry_of: dict[int, SortieEntry] = {}  # the plan flown's sortie index -> its board entry
-        self.trouble: str | None = None  # why to replan at the next stop
+        self.trouble: str | None = None  # why to replan (at the next stop, or on the way: _drive)
+        self.troubled = asyncio.Event()  # set with each cause of trouble (wakes a drive's watch)
         self.urgent = False  # a rover in the air short of battery: replan, not waiting for pick-ups
         self.changes = TaskChanges(self.ctx, self.board, {}, self.live_tasks)
         self.swaps = SwapStation(self.ctx, self.board, self.now)
@@ -153,7 +161,10 @@ class OperationPhase:
         self.ctx.state.stop_count = len(plan.stops)
         for k, stop in enumerate(plan.stops):
             leg = stop.arrive - (plan.stops[k - 1].depart if k else 0.0)
-            await self.carrier.reach_stop(k, seqs[k][0], leg)
+            if not await self._drive(k, seqs[k][0], leg, stop):
+                if (new := await self._replan_on_the_way()) is not None:
+                    return new
+                await self.carrier.reach_stop(k, seqs[k][0], leg)
             self.delay = max(self.now() - (self.base + stop.arrive), 0.0)
             self.ctx.state.eta = self._eta()
             waiting = await self._pick_up(k, seqs[k][0], stop, interruptible=True)
@@ -210,14 +221,77 @@ class OperationPhase:
                       self.base + s.meet, s.aboard, s.battery_left)
 
     def _take_changes(self) -> None:
-        """Task changes queued since the last stop (other supervision events are seen by the
+        """Task changes queued since the last look (other supervision events are seen by the
         sorties themselves)."""
+        while not self.supervisor.queue.empty():
+            self._take_change(self.supervisor.queue.get_nowait())
+
+    def _take_change(self, ev: SupervisorEvent) -> None:
         flying = [t for f in self.flights.values() if f.entry.status is SortieStatus.FLYING
                   for t, _w in f.work_left()]
-        while not self.supervisor.queue.empty():
-            ev = self.supervisor.queue.get_nowait()
-            if ev.kind == Watch.TASKS and self.changes.apply(ev, flying):
-                self._on_trouble(f"tasks changed by {ev.source}")
+        if ev.kind == Watch.TASKS and self.changes.apply(ev, flying):
+            self._on_trouble(f"tasks changed by {ev.source}")
+
+    # ============================================================================== on the way
+    async def _drive(self, k: int, seq: int, leg: float, stop: OpStop) -> bool:
+        """Drive to stop ``k`` (its arrive item ``seq``, ``leg`` mission s planned). False: trouble
+        came on the way with the carrier still ``DRIVE_REPLAN_MIN`` or more from the stop (the
+        replan is then made at once, :meth:`_replan_on_the_way`, not at the stop)."""
+        reach = asyncio.ensure_future(self.carrier.reach_stop(k, seq, leg))
+        watch = asyncio.ensure_future(self._watch_the_way(stop))
+        try:
+            await asyncio.wait({reach, watch}, return_when=asyncio.FIRST_COMPLETED)
+        finally:
+            for t in (watch, reach):
+                if not t.done():
+                    t.cancel()
+                    with contextlib.suppress(asyncio.CancelledError):
+                        await t
+        if reach.done() and not reach.cancelled():
+            reach.result()  # its ExecutionError, if it failed
+            return True
+        return False
+
+    def _drive_left(self, stop: OpStop) -> float:
+        """Mission s the plan (shifted by the delay so far) still gives the drive to ``stop``."""
+        return self.base + stop.arrive + self.delay - self.now()
+
+    async def _watch_the_way(self, stop: OpStop) -> None:
+        """Return when there is trouble (a task change, a rover lost or short of battery) and the
+        carrier is still far enough from ``stop`` for a replan on the way."""
+        queue = self.supervisor.queue
+        while True:
+            self._take_changes()
+            if self.trouble is not None and self._drive_left(stop) >= DRIVE_REPLAN_MIN:
+                return
+            self.troubled.clear()
+            get = asyncio.ensure_future(queue.get())
+            woke = asyncio.ensure_future(self.troubled.wait())
+            try:
+                await asyncio.wait({get, woke}, timeout=WATCH_POLL, return_when=asyncio.FIRST_COMPLETED)
+            finally:
+                for t in (get, woke):
+                    if not t.done():
+                        t.cancel()
+                        with contextlib.suppress(asyncio.CancelledError):
+                            await t
+            if get.done() and not get.cancelled():
+                self._take_change(get.result())
+
+    async def _replan_on_the_way(self) -> OperationPlan | None:
+        """Pause the carrier where it is and replan from there; no new plan: it drives on."""
+        c = self.carrier.vehicle
+        self.ctx.state.event(Ev.HOLD, f"{c.name}: paused on its way for a replan ({self.trouble})", c.name,
+                             vehicles=[c.name])
+        with contextlib.suppress(CommandRejected, LinkError, TimeoutError):
+            await self.ctx.command(c, "pause", c.pause())
+            await self.ctx.wait_for(c, lambda v: (v.ground_speed or 0.0) < PAUSED_SPEED, PAUSE_WAIT,
+                                    "the carrier paused")
+        new = await self._replan()
+        if new is None:
+            with contextlib.suppress(CommandRejected, LinkError, TimeoutError):
+                await self.ctx.command(c, "resume", c.resume())
+        return new
 
     async def _check_batteries(self) -> None:
         """The rovers in the air with a fresh battery reading each (a streamed one is a second of
@@ -241,11 +315,13 @@ class OperationPhase:
         self._on_trouble(cause)
 
     def _on_trouble(self, cause: str) -> None:
-        """A rover lost, a task's work off its plan, ...: replan at the next stop (every cause said)."""
+        """A rover lost, a task's work off its plan, ...: replan at the next stop, or on the way when
+        the carrier is still far from it (every cause said)."""
         if self.trouble is None:
             self.trouble = cause
         elif cause not in self.trouble:
             self.trouble += f"; {cause}"
+        self.troubled.set()
 
     async def _replan(self) -> OperationPlan | None:
         """The rest of the operation planned from the live state (None: nothing to plan, or no

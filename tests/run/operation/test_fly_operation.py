@@ -310,3 +310,52 @@ async def test_ground_work_on_ardupilot_is_timed_by_the_controller(tmp_path: Pat
     if any(tasks[t].ground for r in launched for t in r["tasks"][:-1]):
         assert continued and all(r["work"] for r in continued), continued
     assert sorted(s["rovers_loaded"]) == ["r1", "r2"] and not s["rovers_lost"]
+
+
+async def test_a_task_added_while_the_carrier_drives_is_replanned_on_the_way(tmp_path: Path) -> None:
+    # a first drive of ~13 mission s at speed-up 4: the file watch (0.5 wall s) sees the edit on the way
+    changes = {"sim": {"speedup": 4.0, "faults": []}}
+    d = small_operation(**changes)
+    d["carrier"]["position"] = [-40, 0]
+    mission = mission_from(d, tmp_path)
+    edited = small_operation(**changes)
+    edited["carrier"]["position"] = [-40, 0]
+    edited["tasks"].append({"id": "t7", "position": [-30, 10, 4], "duration": 15})  # behind the carrier
+    watchers: list[asyncio.Task[None]] = []
+
+    async def edit_while_driving(sim: SimFleet) -> None:
+        carrier = sim.body("carrier")
+        await sim.wait_for(lambda: abs(carrier.vel[0]) + abs(carrier.vel[1]) > 1.0, 60)
+        write_mission(edited, tmp_path / "mission.yaml")
+
+    def on_sim(sim: SimFleet) -> None:
+        watchers.append(asyncio.ensure_future(edit_while_driving(sim)))
+
+    try:
+        out = await asyncio.wait_for(execute(mission, "run", run_dir=tmp_path / "run", force=True,
+                                             on_sim=on_sim), 150)
+    finally:
+        for w in watchers:
+            w.cancel()
+    s = out.summary
+    assert out.exit_code == 0, s
+    assert "t7" in s["tasks_done"]
+    records = journal(tmp_path / "run")
+    first_stop = next(r["elapsed"] for r in records if r["kind"] == "stop_reached")
+    replan = next(r for r in records if r["kind"] == "replan" and "tasks changed" in r.get("cause", ""))
+    assert replan["elapsed"] < first_stop, (replan, first_stop)  # made on the way, not at the stop
+    paused = [r for r in records if r["kind"] == "hold" and r.get("vehicle") == "carrier"]
+    assert paused and paused[0]["elapsed"] < replan["elapsed"]
+    starts = [r["elapsed"] for r in records if r["kind"] == "carrier_started"]
+    assert len(starts) >= 2 and starts[1] < first_stop  # the new route from where it was paused
+
+
+def test_the_docs_state_the_terms_of_a_replan_on_the_way() -> None:
+    from fleetctl.run.operation.phase import DRIVE_REPLAN_MIN, PAUSE_WAIT
+    text = (Path(__file__).resolve().parents[3] / "docs" / "operations.md").read_text(encoding="utf-8")
+    part = text[text.index("#### Replanning on the way"):text.index("#### Early call-back")]
+    section = " ".join(part.split())
+    for phrase in (f"{DRIVE_REPLAN_MIN:g} mission seconds (`DRIVE_REPLAN_MIN`)",
+                   f"at most {PAUSE_WAIT:g} mission s: `PAUSE_WAIT`", "`DO_PAUSE_CONTINUE`",
+                   "a `hold` record"):
+        assert phrase in section, phrase
