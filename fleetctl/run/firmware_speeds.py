@@ -90,7 +90,8 @@ def fitted_handling(mission: Mission, autopilots: list[Autopilot],
                     carrier: Autopilot | None = None) -> Mission | None:
     """The mission with the rovers' take-off and touch-down times and leg acceleration of their
     firmware (the slowest of ``autopilots``), the times where the mission file does not give them,
-    and the carrier's leg acceleration as its ``carrier`` firmware drives; None when nothing changes."""
+    and the carrier's leg acceleration and turn rate as its ``carrier`` firmware drives; None when
+    nothing changes."""
     out = mission
     r = mission.rovers
     load = mission.carrier.load_time
@@ -106,7 +107,8 @@ def fitted_handling(mission: Mission, autopilots: list[Autopilot],
     c = mission.carrier
     if carrier is not None:
         c_accel = carrier.planned_accel(c.max_speed, c.accel)
-        out = dataclasses.replace(out, carrier=dataclasses.replace(c, accel=c_accel))
+        turn = carrier.planned_turn_rate(c.turn_rate)
+        out = dataclasses.replace(out, carrier=dataclasses.replace(c, accel=c_accel, turn_rate=turn))
     return None if out == mission else out
 
 

@@ -283,8 +283,9 @@ async def _set_speeds(fleet: Fleet, mission: Mission, rep: SafetyReport, vids: l
         r = speeds.mission.rovers
         rep.mission = speeds.mission
         accel = "-" if r.accel is None else f"{r.accel:.2f} m/s²"
-        c_accel = speeds.mission.carrier.accel
-        carrier = "" if c_accel is None else f"; carrier legs at {c_accel:.2f} m/s²"
+        c = speeds.mission.carrier
+        carrier = "" if c.accel is None else f"; carrier legs at {c.accel:.2f} m/s²"
+        carrier += "" if c.turn_rate is None else f", turns at {c.turn_rate:.2f} rad/s"
         text = (f"planned with the firmware's handling: rovers take off in {r.takeoff_time:.1f} s, "
                 f"touch down in {r.land_time:.1f} s, legs at {accel}{carrier}")
         rep.notes.append((Ev.FIRMWARE_SPEEDS, text, None))

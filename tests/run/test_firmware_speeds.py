@@ -54,6 +54,10 @@ def test_the_plan_takes_the_copters_measured_handling_where_the_file_is_silent(t
     c = m.carrier
     expected = c.max_speed / (c.max_speed / c.accel + apm.ROVER_LEG_OVERHEAD)
     assert carrier.carrier.accel == pytest.approx(expected)
+    # the carrier turns at the rate its firmware's legs cost, whatever the mission said
+    assert carrier.carrier.turn_rate == pytest.approx(1.0 / apm.ROVER_TURN_COST) != c.turn_rate
+    copter_carrier = fitted_handling(m, [], ArduPilot())
+    assert copter_carrier is not None and copter_carrier.carrier.turn_rate == c.turn_rate
 
 
 def test_the_copters_touch_down_term_holds_the_auto_disarm_only_where_load_time_does_not_cover_it(
@@ -102,6 +106,7 @@ def test_docs_autopilots_states_the_measured_constants_and_every_parameter() -> 
     assert f"more than {RETARGET_OFFSET:g} m off the stop" in text  # the re-target the term includes
     assert f"(v/a + {apm.COPTER_LEG_OVERHEAD:.1f} s)" in text
     assert f"(v/a + {apm.ROVER_LEG_OVERHEAD:.1f} s)" in text
+    assert f"{apm.ROVER_TURN_COST:.1f} s per radian" in text
     assert f"more than {HOME_ALT_TOLERANCE:g} m off" in text
     names = documented_params(text)
     for p in (*apm.COPTER_SPEEDS, *apm.ROVER_SPEEDS):

@@ -168,6 +168,11 @@ class Autopilot:
         ``speed``, its parameters set to ``accel``): ``accel`` unless measured otherwise."""
         return accel
 
+    def planned_turn_rate(self, turn_rate: float | None) -> float | None:
+        """The turn rate (rad/s) a carrier of this firmware is planned with: what a radian of heading
+        change between two legs costs it as it drives them; ``turn_rate`` unless measured otherwise."""
+        return turn_rate
+
     def handling_times(self, climb_rate: float, land_speed: float,
                        load_time: float = 0.0) -> tuple[float, float] | None:
         """The time model's take-off clearance and touch-down (``rovers.takeoff_time``,
