@@ -23,6 +23,7 @@ from fleetctl.mavlink.sortie import SortieItems, Visit, route_items, sortie_item
 from fleetctl.mavlink.vehicle import CommandRejected, Vehicle
 from fleetctl.run.carrier import upload
 from fleetctl.run.context import ExecutionError
+from fleetctl.run.events import next_event
 from fleetctl.run.kinds import Ev, Phase, VehicleStatus, Watch
 from fleetctl.run.launch import Launcher, Spares, rover_on_deck
 from fleetctl.run.operation.board import OperationBoard, SortieEntry, SortieStatus, TaskWorkState
@@ -259,24 +260,20 @@ class OperationPhase:
     async def _watch_the_way(self, stop: OpStop) -> None:
         """Return when there is trouble (a task change, a rover lost or short of battery) and the
         carrier is still far enough from ``stop`` for a replan on the way."""
-        queue = self.supervisor.queue
         while True:
             self._take_changes()
             if self.trouble is not None and self._drive_left(stop) >= DRIVE_REPLAN_MIN:
                 return
             self.troubled.clear()
-            get = asyncio.ensure_future(queue.get())
-            woke = asyncio.ensure_future(self.troubled.wait())
+            woke: asyncio.Task[Any] = asyncio.ensure_future(self.troubled.wait())
             try:
-                await asyncio.wait({get, woke}, timeout=WATCH_POLL, return_when=asyncio.FIRST_COMPLETED)
+                ev = await next_event(self.supervisor.queue, {woke}, WATCH_POLL)
             finally:
-                for t in (get, woke):
-                    if not t.done():
-                        t.cancel()
-                        with contextlib.suppress(asyncio.CancelledError):
-                            await t
-            if get.done() and not get.cancelled():
-                self._take_change(get.result())
+                woke.cancel()
+                with contextlib.suppress(asyncio.CancelledError):
+                    await woke
+            if ev is not None:
+                self._take_change(ev)
 
     async def _replan_on_the_way(self) -> OperationPlan | None:
         """Pause the carrier where it is and replan from there; no new plan: it drives on."""
