@@ -188,9 +188,11 @@ def test_an_operation_shows_each_task_s_work_and_the_sorties_out(tmp_path: Path)
     working = [t for t in marks if t["working"]]
     assert working, "no task marker ever showed work in progress"
     for t in working:  # work done / duration on the marker: its text, its bar, the rover at it
-        assert 0.0 < float(t["progress"]) < 1.0 and t["rover"] in ("r1", "r2"), t
+        # 1.000 while working: the duration has been worked and the rover's "done" is on its way
+        assert 0.0 < float(t["progress"]) <= 1.0 and t["rover"] in ("r1", "r2"), t
         assert float(t["duration"]) == durations[t["id"]], t
         assert t["bar"] == pytest.approx(float(t["progress"]), abs=0.01), t
+    assert any(float(t["progress"]) < 1.0 for t in working), working  # seen part-way, not only at the end
     sorties = [s for look in looks for s in look["sorties"]]
     assert {s["rover"] for s in sorties} == {"r1", "r2"}  # every rover's sortie drawn while out
     assert any(s["tasks"] and s["points"] >= 2 for s in sorties), sorties  # rover -> its tasks left
