@@ -244,6 +244,20 @@ class SortieShown:
 
 
 @dataclass(frozen=True)
+class SortieAhead:
+    """A sortie of the plan flown that has not taken off yet: its index, rover and tasks, its launch
+    and pick-up stops (ENU east, north; no pick-up: it ends on the ground) and the mission seconds
+    until its planned take-off (moved by the operation's delay so far)."""
+
+    index: int
+    rover: str
+    tasks: tuple[str, ...]
+    launch: tuple[float, float]
+    pickup: tuple[float, float] | None
+    takeoff_in: float
+
+
+@dataclass(frozen=True)
 class OperationProgress:
     """A long operation as the views show it: its sorties, each task's work and the end it heads for."""
 
@@ -253,6 +267,7 @@ class OperationProgress:
     tasks: dict[str, tuple[float, float, str | None, bool]]  # task -> (s worked, duration s, rover, done)
     eta: float | None  # mission s of the phase: the plan's end moved by the delay so far
     out: tuple[SortieShown, ...] = ()  # the sorties out now
+    ahead: tuple[SortieAhead, ...] = ()  # the plan's sorties not launched yet, the next first
 
     @property
     def done(self) -> int:
@@ -287,4 +302,4 @@ def on_deck(pos: tuple[float, float, float] | None, carrier: tuple[float, float,
 
 
 __all__ = ["DECK_HEIGHT", "DECK_RADIUS", "LANDED_HEIGHT", "Event", "FleetState", "OperationProgress",
-           "VehicleState", "on_deck"]
+           "SortieAhead", "SortieShown", "VehicleState", "on_deck"]

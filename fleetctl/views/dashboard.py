@@ -79,8 +79,8 @@ def _header(state: FleetState) -> Table:
 
 
 def _operation_line(op: OperationProgress, working: int = 4) -> Text:
-    """A long operation: sorties out and back, tasks done, the ETA, and the tasks being worked
-    with their work done / duration (at most ``working`` of them)."""
+    """A long operation: sorties out and back, tasks done, the ETA, the tasks being worked with
+    their work done / duration (at most ``working`` of them) and the next sortie to take off."""
     eta = "" if op.eta is None else f" · ETA {op.eta:.1f} s"
     line = (f"sorties {op.sorties_out} out, {op.sorties_back} back of {op.sorties_planned} · "
             f"tasks {op.done}/{len(op.tasks)} done{eta}")
@@ -88,6 +88,9 @@ def _operation_line(op: OperationProgress, working: int = 4) -> Text:
     if now:
         shown = ", ".join(f"{t} {w:.0f}/{d:.0f} s ({r})" for t, w, d, r in now[:working])
         line += f" · working: {shown}" + (f" … {len(now) - working} more" if len(now) > working else "")
+    if op.ahead:
+        a = op.ahead[0]
+        line += f" · next: {a.rover} in {a.takeoff_in:.0f} s ({', '.join(a.tasks)})"
     return Text(line, style="cyan", overflow="ellipsis", no_wrap=True)
 
 

@@ -95,7 +95,9 @@ def frame(state: FleetState) -> dict[str, Any]:
 def _operation(state: FleetState) -> dict[str, Any] | None:
     """A long operation's progress: sorties out, back and planned, tasks done of all, each task's
     ``[work done s, duration s, rover, done]``, the sorties out (``out``: index, rover, status and
-    tasks each), and ``eta`` as ``T`` (mission s since the run started); None for any other run."""
+    tasks each), the plan's sorties not launched yet (``ahead``: index, rover, tasks, launch and
+    pick-up stop, mission s to its take-off), and ``eta`` as ``T`` (mission s since the run
+    started); None for any other run."""
     if state.operation is None:
         return None
     op = state.operation()
@@ -104,7 +106,11 @@ def _operation(state: FleetState) -> dict[str, Any] | None:
             "done": op.done, "tasks": {t: [w, d, r, done] for t, (w, d, r, done) in op.tasks.items()},
             "working": [t for t, *_rest in op.working()], "eta": _r(eta, 1),
             "out": [{"sortie": s.index, "rover": s.rover, "status": s.status, "tasks": list(s.tasks)}
-                    for s in op.out]}
+                    for s in op.out],
+            "ahead": [{"sortie": a.index, "rover": a.rover, "tasks": list(a.tasks),
+                       "launch": [_r(a.launch[0]), _r(a.launch[1])],
+                       "pickup": None if a.pickup is None else [_r(a.pickup[0]), _r(a.pickup[1])],
+                       "in": _r(a.takeoff_in, 1)} for a in op.ahead]}
 
 
 def teams_plan(teams: ShownTeams) -> dict[str, Any]:

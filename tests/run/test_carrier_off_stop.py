@@ -90,7 +90,8 @@ def test_a_carrier_driving_off_its_second_stop_is_sent_back(tmp_path: Path) -> N
     # sent back from stop 2 only (a carrier seen moving onto stop 1 within PARK_RADIUS - the simulated
     # carrier's hop of a few cm at collection start - is journalled too, and waited out, not sent back)
     assert all(r["stop"] == 2 for r in recs if r["kind"] == "carrier_off_stop" and r["offset"] > PARK_RADIUS)
-    assert all(r["stop"] == 2 for r in recs if r["kind"] == "command" and r.get("command") == "return_to_stop")
+    restops = [r for r in recs if r["kind"] == "command" and r.get("command") == "return_to_stop"]
+    assert all(r["stop"] == 2 for r in restops), restops
 
 
 def _drive_off_when(seen: Callable[[Any, Any], bool]) -> tuple[Any, list[float]]:

@@ -158,21 +158,26 @@ def test_without_a_width_the_text_is_plain_uncut_lines(tmp_path: Path) -> None:
 
 
 def test_a_long_operation_shows_its_sorties_task_progress_and_eta(tmp_path: Path) -> None:
-    from fleetctl.run.state import OperationProgress, SortieShown
+    from fleetctl.run.state import OperationProgress, SortieAhead, SortieShown
     from fleetctl.views.map_model import frame
 
     st, _clock = _fleet(tmp_path)
     st.set_phase("operation", 600.0, 12)
-    progress = OperationProgress(2, 3, 9, {"t1": (90.0, 90.0, "r1", True), "t2": (40.0, 120.0, "r2", False),
-                                           "t3": (0.0, 60.0, None, False)}, 640.5,
-                                 (SortieShown(4, "r2", "flying", ("t2", "t3")),))
+    work = {"t1": (90.0, 90.0, "r1", True), "t2": (40.0, 120.0, "r2", False), "t3": (0.0, 60.0, None, False),
+            "t4": (0.0, 30.0, None, False)}
+    progress = OperationProgress(2, 3, 9, work, 640.5,
+                                 (SortieShown(4, "r2", "flying", ("t2", "t3")),),
+                                 (SortieAhead(5, "r1", ("t4",), (10.0, 5.0), (20.0, 5.0), 12.34),))
     st.operation = lambda: progress
     text = render_text(st, width=160)
-    assert "sorties 2 out, 3 back of 9 · tasks 1/3 done · ETA 640.5 s" in text
+    assert "sorties 2 out, 3 back of 9 · tasks 1/4 done · ETA 640.5 s" in text
+    assert "next: r1 in 12 s (t4)" in text  # the next sortie to take off
     assert "working: t2 40/120 s (r2)" in text and "t3" not in text.split("working:")[1]
     assert st.snapshot()["operation"]["eta"] == 640.5
     op = frame(st)["operation"]  # the web map's document
     assert op["working"] == ["t2"] and op["tasks"]["t2"] == [40.0, 120.0, "r2", False] and op["done"] == 1
     assert op["tasks"]["t1"] == [90.0, 90.0, "r1", True]
     assert op["out"] == [{"sortie": 4, "rover": "r2", "status": "flying", "tasks": ["t2", "t3"]}]
+    assert op["ahead"] == [{"sortie": 5, "rover": "r1", "tasks": ["t4"], "launch": [10.0, 5.0],
+                            "pickup": [20.0, 5.0], "in": 12.3}]
     assert op["eta"] == pytest.approx(st.mission_time - st.elapsed + 640.5, abs=0.1)

@@ -174,6 +174,7 @@ READ_OPERATION = """() => ({
     }),
     sorties: [...document.querySelectorAll('#sorties [data-sortie]')].map(s => ({
         sortie: s.dataset.sortie, rover: s.dataset.rover, tasks: s.dataset.tasks,
+        planned: s.classList.contains('planned'), takeoff_in: s.dataset.in,
         points: s.getAttribute('points').trim().split(/\\s+/).filter(Boolean).length}))})"""
 
 
@@ -193,9 +194,15 @@ def test_an_operation_shows_each_task_s_work_and_the_sorties_out(tmp_path: Path)
         assert float(t["duration"]) == durations[t["id"]], t
         assert t["bar"] == pytest.approx(float(t["progress"]), abs=0.01), t
     assert any(float(t["progress"]) < 1.0 for t in working), working  # seen part-way, not only at the end
-    sorties = [s for look in looks for s in look["sorties"]]
+    sorties = [s for look in looks for s in look["sorties"] if not s["planned"]]
     assert {s["rover"] for s in sorties} == {"r1", "r2"}  # every rover's sortie drawn while out
     assert any(s["tasks"] and s["points"] >= 2 for s in sorties), sorties  # rover -> its tasks left
+    # a sortie drawn ahead of its launch (launch stop -> its tasks -> pick-up stop), then drawn out
+    seen = [(i, s) for i, look in enumerate(looks) for s in look["sorties"]]
+    ahead = [(i, s) for i, s in seen if s["planned"] and float(s["takeoff_in"]) >= 0.0
+             and s["points"] == len(s["tasks"].split()) + 2]
+    assert any(j > i and o["sortie"] == a["sortie"] and not o["planned"]
+               for i, a in ahead for j, o in seen), seen
     last = looks[-1]
     assert sorted(t["id"] for t in last["tasks"]) == sorted(durations) and not last["sorties"]
     for t in last["tasks"]:  # the end: every task done, its whole duration worked

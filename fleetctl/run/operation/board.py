@@ -5,8 +5,12 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from enum import StrEnum
+from typing import TYPE_CHECKING
 
-from fleetctl.run.state import OperationProgress, SortieShown
+from fleetctl.run.state import OperationProgress, SortieAhead, SortieShown
+
+if TYPE_CHECKING:
+    from planners.operations import OperationPlan
 
 
 class SortieStatus(StrEnum):
@@ -71,19 +75,38 @@ class OperationBoard:
     def left(self) -> list[str]:
         return [t for t, w in self.tasks.items() if w.done is None]
 
-    def progress(self, now: float, eta: float | None) -> OperationProgress:
-        """What the views show (``now``: operation s; ``eta``: mission s of the phase)."""
+    def progress(self, now: float, eta: float | None,
+                 ahead: tuple[SortieAhead, ...] = ()) -> OperationProgress:
+        """What the views show (``now``: operation s; ``eta``: mission s of the phase; ``ahead``: the
+        plan's sorties not launched yet)."""
         out = sum(1 for s in self.sorties if s.status in (SortieStatus.FLYING, SortieStatus.RETURNING))
         back = sum(1 for s in self.sorties if s.status is SortieStatus.ABOARD)
         tasks = {t: (round(w.worked(now), 1), w.duration, w.rover, w.done is not None)
                  for t, w in self.tasks.items()}
         shown = tuple(SortieShown(s.index, s.rover, str(s.status), tuple(s.tasks)) for s in self.sorties
                       if s.status in (SortieStatus.FLYING, SortieStatus.RETURNING))
-        return OperationProgress(out, back, len(self.sorties), tasks, eta, shown)
+        return OperationProgress(out, back, len(self.sorties), tasks, eta, shown, ahead)
 
     def flying(self, rover: str) -> SortieEntry | None:
         return next((s for s in self.sorties if s.rover == rover
                      and s.status in (SortieStatus.FLYING, SortieStatus.RETURNING)), None)
 
 
-__all__ = ["OperationBoard", "SortieEntry", "SortieStatus", "TaskWorkState"]
+def sorties_ahead(plan: OperationPlan, entries: dict[int, SortieEntry], at: float) -> tuple[SortieAhead, ...]:
+    """The sorties of ``plan`` (``entries``: its sortie index -> board entry) still to take off, the
+    next first; ``at``: where the flight is on the plan's clock (operation s since it was adopted,
+    less the delay so far)."""
+    ahead = []
+    for i, entry in entries.items():
+        s = plan.sorties[i]
+        if entry.status is not SortieStatus.PLANNED or s.launch_stop < 0:
+            continue
+        launch = plan.stops[s.launch_stop].position
+        pickup = plan.stops[s.pickup_stop].position if s.pickup_stop >= 0 else None
+        ahead.append(SortieAhead(entry.index, entry.rover, tuple(entry.tasks), (launch[0], launch[1]),
+                                 None if pickup is None else (pickup[0], pickup[1]),
+                                 max(0.0, s.takeoff - at)))
+    return tuple(sorted(ahead, key=lambda a: (a.takeoff_in, a.index)))
+
+
+__all__ = ["OperationBoard", "SortieEntry", "SortieStatus", "TaskWorkState", "sorties_ahead"]

@@ -26,7 +26,13 @@ from fleetctl.run.context import ExecutionError
 from fleetctl.run.events import next_event
 from fleetctl.run.kinds import Ev, Phase, VehicleStatus, Watch
 from fleetctl.run.launch import Launcher, Spares, rover_on_deck
-from fleetctl.run.operation.board import OperationBoard, SortieEntry, SortieStatus, TaskWorkState
+from fleetctl.run.operation.board import (
+    OperationBoard,
+    SortieEntry,
+    SortieStatus,
+    TaskWorkState,
+    sorties_ahead,
+)
 from fleetctl.run.operation.changes import TaskChanges
 from fleetctl.run.operation.live import live_problem
 from fleetctl.run.operation.resume import OperationReplay
@@ -201,7 +207,10 @@ class OperationPhase:
         return self.t0 - st.phase_started + self.base + plan.makespan + self.delay
 
     def _progress(self) -> OperationProgress:
-        return self.board.progress(self.now(), self._eta())
+        now = self.now()
+        at = now - self.base - self.delay  # where the flight is on the plan's clock
+        ahead = () if self.plan is None else sorties_ahead(self.plan, self.entry_of, at)
+        return self.board.progress(now, self._eta(), ahead)
 
     def _adopt(self, plan: OperationPlan, name: str) -> None:
         """Fly ``plan`` from now on: its sorties on the board, the rovers in the air told their new

@@ -151,6 +151,13 @@
         "data-tasks": left.join(" "), points: pts.map((q) => q[0] + "," + -q[1]).join(" ") }, box);
       el("title", {}, line).textContent = `sortie ${s.sortie}: ${s.rover} (${s.status}) ${s.tasks.join(", ")}`;
     }
+    for (const s of op.ahead || []) {  // not launched yet: its launch stop, its tasks, its pick-up stop
+      const pts = [s.launch].concat(s.tasks.filter((t) => at[t]).map((t) => [at[t].e, at[t].n]))
+        .concat(s.pickup ? [s.pickup] : []);
+      const line = el("polyline", { class: "sortie planned", "data-sortie": s.sortie, "data-rover": s.rover,
+        "data-tasks": s.tasks.join(" "), "data-in": fmt(s.in), points: pts.map((q) => q[0] + "," + -q[1]).join(" ") }, box);
+      el("title", {}, line).textContent = `sortie ${s.sortie}: ${s.rover} planned, takes off in ${fmt(s.in)} s: ${s.tasks.join(", ")}`;
+    }
   }
 
   // -- trails ----------------------------------------------------------------------------------
