@@ -39,7 +39,15 @@ from fleetctl.mavlink.link import LinkError, MissionItem
 from fleetctl.mavlink.vehicle import CommandRejected, Vehicle
 from fleetctl.mission.flight import GROUND_HEIGHT, MEET_HEIGHT
 from fleetctl.mission.model import any_on_ground
-from fleetctl.run.carrier import RESTOPS_MAX, STAY_SPEED, climb_back, hovering_on_item, left_item, upload
+from fleetctl.run.carrier import (
+    RESTOPS_MAX,
+    STAY_SPEED,
+    climb_back,
+    hovering_on_item,
+    left_item,
+    parked_on_item,
+    upload,
+)
 from fleetctl.run.collect_timing import (
     CarrierNow,
     RoundClock,
@@ -54,6 +62,7 @@ from fleetctl.run.kinds import Ev, Phase, VehicleStatus, Watch
 from fleetctl.run.launch import flight_path, rover_on_deck
 from fleetctl.run.parts import PhaseParts
 from fleetctl.run.results import PhaseResult
+from fleetctl.run.safety import line_clear
 from fleetctl.run.state import DECK_RADIUS
 from fleetctl.run.supervisor import SupervisorEvent
 from fleetctl.run.trouble import Trouble
@@ -64,7 +73,8 @@ log = logging.getLogger(__name__)
 
 RETARGET_OFFSET = 1.25  # m: a rover hovering this far off the carrier (the deck radius less a margin) is
 # moved over it first
-RETARGET_DONE = 0.5  # m: a re-targeted rover this near over the carrier is sent down
+RETARGET_DONE = 0.5  # m: a re-targeted rover this near over the carrier, and slowed down to
+RETARGET_SPEED = 1.0  # m/s (horizontally) at most, is sent down
 RETARGET_SLACK = 5.0  # mission s on top of the flight over to the carrier
 DISARM_WAIT = 4.0  # mission s a rover down on the deck is given to disarm itself before it is told to
 LANDING_TIMEOUT = 10.0  # mission s from the land command to the rover on the deck (at least 3x land_time)
@@ -578,10 +588,10 @@ class CollectPhase:
         if rid in rnd.failed or not self.board.in_round(rid):
             return
         try:
-            await self._wait_meeting_point(rnd, v, leg_arrive)
+            over = await self._wait_meeting_point(rnd, v, leg_arrive, k, seq)
             if v.lost or not self.board.in_round(rid):
                 return
-            await self._land_on_parked(rnd, v, k, seq)
+            await self._land_on_parked(rnd, v, k, seq, over_carrier=over)
             if v.lost or not self.board.in_round(rid):
                 return
             rnd.touched[rid] = ctx.clock()
@@ -597,14 +607,16 @@ class CollectPhase:
         st.set_state(rid, VehicleStatus.LOADED)
         st.event(Ev.ROVER_LOADED, f"{rid}: loaded on the carrier at {flown:.1f} s", rid, flown=flown)
 
-    async def _land_on_parked(self, rnd: _Round, v: Vehicle, k: int, seq: int) -> None:
+    async def _land_on_parked(self, rnd: _Round, v: Vehicle, k: int, seq: int,
+                              over_carrier: bool = False) -> None:
         """Land ``v`` on the carrier once it is parked at stop ``k`` (:meth:`CarrierControl.parked`:
         the rover hovers meanwhile). A carrier that leaves the stop during the descent
         (:func:`left_item`) breaks the landing off: the rover climbs back to ``MEET_HEIGHT`` where it
-        is, the carrier is sent back onto the stop, and the rover is brought down over it again."""
+        is, the carrier is sent back onto the stop, and the rover is brought down over it again.
+        ``over_carrier``: ``v`` flies out of its mission (sent over the carrier on its way)."""
         ctx, c, rid = self.ctx, self.ctx.fleet.carrier, v.name
         landing = max(LANDING_TIMEOUT, 3.0 * ctx.mission.rovers.land_time)
-        broken_off = False
+        broken_off = over_carrier
         for _ in range(RESTOPS_MAX):
             await self.carrier.parked(k, seq)
             if not rover_on_deck(ctx, v):
@@ -621,6 +633,49 @@ class CollectPhase:
             await climb_back(ctx, v, k + 1)
             broken_off = True
         raise TimeoutError(f"the carrier left stop {k + 1} {RESTOPS_MAX} times")
+
+    def _carrier_off_stop(self, rnd: _Round, v: Vehicle, k: int, seq: int) -> float | None:
+        """How far the carrier stands parked off stop ``k`` (its arrive item ``seq``) while ``v`` flies
+        there - None unless it is parked (:func:`parked_on_item`) more than ``RETARGET_OFFSET`` off the
+        planned stop (autopilots stop within their acceptance radius), ``v`` is in the air on a
+        straight way there, and the line from ``v`` to the carrier is clear (:func:`line_clear`)."""
+        c = self.ctx.fleet.carrier
+        stops = rnd.clock.plan.stops if rnd.clock is not None else rnd.plan.stops
+        if (v.on_ground is not False or (v.height or 0.0) <= GROUND_SNAP or k >= len(stops) or c.enu is None
+                or v.enu is None or not parked_on_item(c, seq)):
+            return None
+        stop = stops[k]
+        off = math.hypot(c.enu[0] - stop.position[0], c.enu[1] - stop.position[1])
+        straight = any(leg.rover == v.name and len(leg.path) <= 2 for leg in stop.rovers)
+        if off <= RETARGET_OFFSET or not straight or not line_clear(self.ctx.mission, v.enu, c.enu):
+            return None
+        return off
+
+    async def _meet_over_carrier(self, rnd: _Round, v: Vehicle, off: float, k: int) -> bool:
+        """Send ``v``, on its way to stop ``k``, straight over the carrier parked ``off`` m off the
+        stop, at its hold's height (DO_REPOSITION), instead of to the stop and then across. Returns
+        whether it was (refused: it keeps its mission)."""
+        ctx, c, rid = self.ctx, self.ctx.fleet.carrier, v.name
+        if c.position is None or c.enu is None:
+            return False
+        lat, lon, _alt = c.position
+        height = rnd.items[rid][rnd.hold_seq[rid]].z
+        text = f"{rid}: the carrier stopped {off:.1f} m off stop {k + 1}: flying over the carrier"
+        ctx.record(Ev.ROVER_STATE, vehicle=rid, text=text, offset=off)
+        try:
+            await ctx.command(v, "goto", v.goto(lat, lon, height))
+        except CommandRejected:
+            return False
+        if v.enu is not None:
+            self.supervisor.expect(rid, [v.enu, (c.enu[0], c.enu[1], v.enu[2])])
+        return True
+
+    def _at_meeting_point(self, rnd: _Round, v: Vehicle) -> bool:
+        """``v`` holds above its stop: its hold is the current item, or its autopilot reported the
+        approach waypoint before it, or its position shows it at rest in the air on its hold."""
+        hold = rnd.hold_seq[v.name]
+        return ((v.mission_current or 0) >= hold or hold - 1 in v.items_reached
+                or (hovering_on_item(v, hold) and (v.height or 0.0) > GROUND_SNAP))
 
     async def _send_down(self, rnd: _Round, v: Vehicle, over_carrier: bool = False) -> None:
         """Land ``v`` on the carrier: its mission's landing straight below it (its landing mode
@@ -647,7 +702,8 @@ class CollectPhase:
             return
         lat, lon, _alt = c.position
         height = v.height if v.height is not None else MEET_HEIGHT
-        text = f"{rid}: {off:.1f} m off the carrier above its stop: landing over the carrier"
+        where = "" if over_carrier else " above its stop"
+        text = f"{rid}: {off:.1f} m off the carrier{where}: landing over the carrier"
         ctx.record(Ev.ROVER_STATE, vehicle=rid, text=text, offset=off)
         try:
             await ctx.command(v, "goto", v.goto(lat, lon, height))
@@ -656,7 +712,8 @@ class CollectPhase:
             return
         speed = ctx.mission.rovers.max_speed
         with contextlib.suppress(TimeoutError):  # not quite over it in time: down from where it is
-            await ctx.wait_for(v, lambda v: _over(v, c, RETARGET_DONE) or v.lost,
+            await ctx.wait_for(v, lambda v: v.lost or (_over(v, c, RETARGET_DONE)
+                                                       and (v.ground_speed or 0.0) <= RETARGET_SPEED),
                                off / speed + RETARGET_SLACK, "over the carrier")
         trouble = rnd.trouble.get(rid)
         if trouble is not None:
@@ -702,32 +759,33 @@ class CollectPhase:
             return False
         return math.hypot(v.enu[0] - c.enu[0], v.enu[1] - c.enu[1]) <= DECK_RADIUS
 
-    async def _wait_meeting_point(self, rnd: _Round, v: Vehicle, leg_arrive: float) -> None:
-        """Wait until ``v`` holds above its stop - its hold is the current item, or its autopilot
-        reported the approach waypoint before it reached (MISSION_ITEM_REACHED comes at once,
-        MISSION_CURRENT at its 1 Hz stream rate), or its position shows it at rest in the air on its
-        hold (:func:`fleetctl.run.carrier.hovering_on_item`: the reached message lost) -: until it
-        was due there (its release plus its planned flight) and the stated slack
-        (:meth:`RunContext.late`), in mission time; a rover let go on the way ends the wait at once."""
+    async def _wait_meeting_point(self, rnd: _Round, v: Vehicle, leg_arrive: float, k: int, seq: int) -> bool:
+        """Wait until ``v`` holds above its stop ``k`` (:meth:`_at_meeting_point`; MISSION_ITEM_REACHED
+        comes at once, MISSION_CURRENT at its 1 Hz stream rate, the position shows it at rest on its
+        hold when the reached message is lost) - or, while it flies there, the carrier parks more than
+        ``RETARGET_OFFSET`` off the stop: then it is sent over the carrier (:meth:`_meet_over_carrier`)
+        and True returned -: until it was due there (its release plus its planned flight) and the
+        stated slack (:meth:`RunContext.late`), in mission time; a rover let go on the way ends the
+        wait at once."""
         ctx, rid = self.ctx, v.name
-        hold = rnd.hold_seq[rid]
         while True:
             losses = self.carrier.losses
             try:
                 await ctx.wait_for(
                     v,
-                    lambda v: (
-                        (v.mission_current or 0) >= hold or hold - 1 in v.items_reached
-                        or (hovering_on_item(v, hold) and (v.height or 0.0) > GROUND_SNAP)
-                        or rover_on_deck(ctx, v) or v.lost or self._gone(rnd, v)
-                    ),
+                    lambda v: (self._at_meeting_point(rnd, v) or rover_on_deck(ctx, v) or v.lost
+                               or self._gone(rnd, v) or self._carrier_off_stop(rnd, v, k, seq) is not None),
                     ctx.late(max(rnd.due.get(rid, rnd.start + leg_arrive) - ctx.clock(), 0.0)),
                     "meeting point",
                 )
-                return
+                break
             except TimeoutError:
                 if losses == self.carrier.losses and not self.carrier.lost:
                     raise
+        off = self._carrier_off_stop(rnd, v, k, seq)
+        if off is None or v.lost or self._at_meeting_point(rnd, v) or not self.board.in_round(rid):
+            return False
+        return await self._meet_over_carrier(rnd, v, off, k)
 
     # ============================================================================== letting go
     def _landing_places(self, rnd: _Round, rid: str) -> Callable[[], list[Vec3 | None]]:

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -179,6 +180,19 @@ def plan_violations(plan: Any, fence: GeofenceConfig) -> list[str]:
             if fence.alt_max is not None and top > fence.alt_max + 1e-6:
                 out.append(f"{what} climbs to {top:.1f} m, above the geofence alt_max {fence.alt_max:g} m")
     return out
+
+
+def line_clear(mission: Mission, a: Sequence[float], b: Sequence[float]) -> bool:
+    """The straight line ``a`` -> ``b`` (ENU; its ground projection) touches none of the mission's
+    obstacles and stays inside its geofence, if it has one."""
+    fence = mission.geofence
+    if not mission.obstacles and fence is None:
+        return True
+    line = LineString([(float(a[0]), float(a[1])), (float(b[0]), float(b[1]))])
+    zones = [*mission.obstacles, *(fence.exclusions if fence is not None else ())]
+    if any(line.intersects(Polygon(z)) for z in zones):
+        return False
+    return fence is None or Polygon(fence.polygon).covers(line)
 
 
 def check_plan(plan: Any, fence: GeofenceConfig | None) -> None:

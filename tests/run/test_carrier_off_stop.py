@@ -17,6 +17,7 @@ from fleetctl.geo import Origin, local_to_geodetic
 from fleetctl.mavlink.link import Link, MissionItem
 from fleetctl.mavlink.vehicle import Vehicle
 from fleetctl.run.carrier import PARK_RADIUS, left_item, parked_on_item
+from fleetctl.run.collect import RETARGET_OFFSET
 from fleetctl.run.kinds import Phase
 from fleetctl.run.state import Event, FleetState
 from sitl import Fault, SimFleet
@@ -45,8 +46,8 @@ def test_parked_means_stopped_within_the_park_radius() -> None:
     assert not left_item(_carrier(0.6, 0.1), 0)
 
 
-def _drive_off_at_collect_stop(delay: float, stop: int = 1) -> tuple[Any, list[float]]:
-    """An action: the carrier drives on for ``DRIVE`` simulated s, ``delay`` simulated s after the
+def _drive_off_at_collect_stop(delay: float, stop: int = 1, drive: float = DRIVE) -> tuple[Any, list[float]]:
+    """An action: the carrier drives on for ``drive`` simulated s, ``delay`` simulated s after the
     collection's stop ``stop`` is reached - stop 0: after the collection starts (the carrier stands
     on its first stop: the route starts on that stop's hold, as in PX4's drive-off)."""
     fired: list[float] = []
@@ -58,7 +59,7 @@ def _drive_off_at_collect_stop(delay: float, stop: int = 1) -> tuple[Any, list[f
                 ev.kind == "collection_started" and stop == 0):
             at = sim.sim_time + delay
             fired.append(at)
-            sim.inject(Fault("drive_off", vehicle="carrier", at=at, until=at + DRIVE))
+            sim.inject(Fault("drive_off", vehicle="carrier", at=at, until=at + drive))
     return action, fired
 
 
@@ -80,6 +81,34 @@ def test_rovers_hover_until_the_carrier_is_back_on_its_stop(tmp_path: Path) -> N
     s, _trig, sim, _path = asyncio.run(fly(tmp_path, mission_dict(rovers=2), "run", action))
     assert fired
     _check_loaded_on_deck(s, sim)
+
+
+def test_a_rover_on_its_way_flies_straight_over_a_carrier_parked_off_its_stop(tmp_path: Path) -> None:
+    """The carrier stops 2 m off its second stop - within PARK_RADIUS, beyond RETARGET_OFFSET, as an
+    ArduRover stops within its WP_RADIUS - while that stop's rover, pushed 8 m further out by a gust
+    as the collection starts, still flies there: it is sent over the carrier on its way (not to the
+    planned stop first, then across) and lands on the deck."""
+    fired: list[float] = []
+
+    def action(ev: Event, sim: SimFleet, state: FleetState) -> None:
+        if state.phase != Phase.COLLECT:
+            return
+        if ev.kind == "collection_started" and not fired:
+            sim.rover("r1")._pos[0] -= 8.0  # r1 (collected at stop 2, east of it) 8 m further west
+            fired.append(sim.sim_time)
+        elif ev.kind == "stop_reached" and state.stop_index == 2 and len(fired) == 1:
+            at = sim.sim_time  # 0.25 s at 8 m/s: 2 m on, then it stands there
+            fired.append(at)
+            sim.inject(Fault("drive_off", vehicle="carrier", at=at, until=at + 0.25))
+
+    s, _trig, sim, _path = asyncio.run(fly(tmp_path, mission_dict(rovers=2), "run", action))
+    assert len(fired) == 2 and s["_exit"] == 0, s
+    assert sorted(s["rovers_loaded"]) == ["r1", "r2"] and sorted(sim.world.loaded_rovers()) == ["r1", "r2"]
+    states = [r for r in journal(s) if r["kind"] == "rover_state" and r.get("vehicle") == "r1"]
+    straight = [r for r in states if "flying over the carrier" in r.get("text", "")]
+    assert straight and RETARGET_OFFSET < straight[0]["offset"] <= PARK_RADIUS, states
+    assert not [r for r in states if "above its stop" in r.get("text", "")], states  # no hover, then across
+    assert not [r for r in journal(s) if r.get("command") == "return_to_stop"]  # parked: not sent back
 
 
 def test_a_carrier_driving_off_its_second_stop_is_sent_back(tmp_path: Path) -> None:

@@ -25,6 +25,7 @@ from fleetctl.run.safety import (
     check_plan,
     download_fence,
     fence_items,
+    line_clear,
     plan_violations,
     read_failsafe,
     set_failsafe,
@@ -297,3 +298,20 @@ async def test_a_plan_leaving_the_fence_is_not_flown(tmp_path: Path) -> None:
     assert out.exit_code == 1 and out.error is not None
     assert "plan" in out.error and "leaves the geofence" in out.error and "rover r" in out.error
     assert out.summary["tasks_reached"] == []
+
+
+def test_a_line_is_clear_of_the_obstacles_and_inside_the_fence() -> None:
+    """``line_clear``: what a rover sent straight over the carrier (off its planned path) must keep."""
+    from types import SimpleNamespace
+    from typing import cast
+
+    from fleetctl.mission import Mission
+
+    square = ((0.0, 0.0), (50.0, 0.0), (50.0, 50.0), (0.0, 50.0))
+    block = ((20.0, 20.0), (30.0, 20.0), (30.0, 30.0), (20.0, 30.0))
+    open_air = cast(Mission, SimpleNamespace(obstacles=(), geofence=None))
+    fenced = cast(Mission, SimpleNamespace(obstacles=(block,), geofence=GeofenceConfig(square, (block,))))
+    assert line_clear(open_air, (10.0, 10.0, 3.0), (90.0, 90.0, 0.0))
+    assert line_clear(fenced, (10.0, 10.0, 3.0), (15.0, 40.0, 0.0))
+    assert not line_clear(fenced, (10.0, 10.0, 3.0), (40.0, 40.0, 0.0))  # through the block
+    assert not line_clear(fenced, (10.0, 10.0, 3.0), (60.0, 10.0, 0.0))  # out of the fence
