@@ -396,8 +396,8 @@ class SimVehicle:
         else:
             x, y = here[0], here[1]
         z = here[2]
-        if math.isfinite(cmd.alt):
-            relative = cmd.frame in ms.FRAME_RELATIVE
+        if math.isfinite(cmd.alt):  # PX4 takes it AMSL whatever the frame (as PX4 1.18 does)
+            relative = cmd.frame in ms.FRAME_RELATIVE and not self.flavour.px4
             z = self.home[2] + cmd.alt if relative else cmd.alt - self.frame.alt0
         speed = cmd.p[0] if math.isfinite(cmd.p[0]) and cmd.p[0] > 0 else None
         if not self.body.goto(x, y, max(z, 0.0), speed) and self.is_rover:

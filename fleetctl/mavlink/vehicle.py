@@ -725,10 +725,16 @@ class Vehicle:
 
     async def goto(self, lat: float, lon: float, alt: float, speed: float | None = None) -> None:
         """Fly to ``lat``/``lon`` (degrees) at ``alt`` metres above home (DO_REPOSITION as
-        COMMAND_INT, switching to the guided/hold mode that flies it)."""
+        COMMAND_INT, switching to the guided/hold mode that flies it). An autopilot that takes the
+        altitude as AMSL whatever the frame (:attr:`Autopilot.reposition_amsl`) is sent it AMSL
+        (``MAV_FRAME_GLOBAL_INT``, from :attr:`home_amsl`; unknown: NaN, its altitude kept)."""
+        frame = M.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT
+        if self.autopilot is not None and self.autopilot.reposition_amsl:
+            home = self.home_amsl
+            frame, alt = M.MAV_FRAME_GLOBAL_INT, (math.nan if home is None else home + alt)
         await self.command(M.MAV_CMD_DO_REPOSITION,
                            (speed if speed else -1, M.MAV_DO_REPOSITION_FLAGS_CHANGE_MODE, 0, math.nan,
-                            lat, lon, alt), frame=M.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT)
+                            lat, lon, alt), frame=frame)
 
     async def goto_enu(self, x: float, y: float, z: float, speed: float | None = None) -> None:
         """:meth:`goto` a point of the mission frame (``z`` = height above the origin altitude,

@@ -15,6 +15,7 @@ import contextlib
 import logging
 import math
 from collections.abc import Callable
+from typing import Any
 
 from fleetctl.mavlink.compile import CompiledPlan, is_waypoint, item_position
 from fleetctl.mavlink.link import LinkError, MissionItem, MissionRejected
@@ -123,6 +124,7 @@ class CarrierControl:
         self.losses = 0  # carrier link losses so far (a wait that timed out during one is retried)
         self.held: set[str] = set()  # rovers paused while the carrier is lost
         self._stayed: int | None = None  # the first stop's arrive item when the route started there
+        self._waiting = False  # the route was uploaded on its first stop and not started (start_route)
         self._parking = asyncio.Lock()  # one re-stop at a time, shared by the rovers of the stop
 
     @property
@@ -151,17 +153,21 @@ class CarrierControl:
     # -- the route ---------------------------------------------------------------------------------
     async def start_route(self, compiled: CompiledPlan) -> None:
         """Upload the route and start it. A carrier standing (stopped, within ``STAY_RADIUS``) at
-        the route's first stop starts on that stop's hold: it stays where it is (a replan that
-        keeps the stop must not make it drive a loop back onto it) and the stop counts as reached."""
+        the route's first stop is armed, not started: it stays in its hold mode where it is and the
+        stop counts as reached; its mission starts when it is released or sent back onto the stop
+        (:meth:`_move_on`). Started on that stop's hold instead, an Ackermann carrier may drive off
+        to reach the hold's point (PX4's SIH rover drove 4 m and once 57 m), and a replan that keeps
+        the stop must not make it drive a loop back onto it."""
         c = self.vehicle
         await upload(self.ctx, c, list(compiled.carrier))
         stay = compiled.stops[0] if compiled.stops and self._standing_at(compiled, 0) else None
         self._stayed = None if stay is None else stay.arrive_seq
+        self._waiting = stay is not None
         try:
-            if not c.armed:
+            if not c.armed:  # armed as for its route (a disarmed PX4 SIH vehicle's clock runs at 1x)
                 await self.ctx.command(c, "arm", c.arm())
-            first = 0 if stay is None else stay.hold_seq
-            await self.ctx.command(c, "start_mission", c.start_mission(first))
+            if not self._waiting:
+                await self.ctx.command(c, "start_mission", c.start_mission(0))
         except CommandRejected as exc:
             raise ExecutionError(f"the carrier {c.name} refused to start its route: {exc}") from None
         except (LinkError, TimeoutError) as exc:
@@ -180,10 +186,23 @@ class CarrierControl:
             return
         c = self.vehicle
         try:
-            await self.ctx.command(c, "set_current", c.set_current(seq), seq=seq, stop=stop + 1)
+            await self._move_on(seq, "set_current", "start_mission", stop=stop + 1)
         except (CommandRejected, LinkError, TimeoutError) as exc:
             raise ExecutionError(f"the carrier {c.name} could not be released from its stop: {exc}") from None
         self.ctx.record(Ev.CARRIER_RELEASED, stop=stop + 1)
+
+    async def _move_on(self, seq: int, label: str, start_label: str, **fields: Any) -> None:
+        """Make item ``seq`` of the carrier's route current (journalled as ``label``) - or, when the
+        route was not started (:meth:`start_route` on its first stop), start it there (armed first;
+        journalled as ``start_label``)."""
+        c = self.vehicle
+        if not self._waiting:
+            await self.ctx.command(c, label, c.set_current(seq), seq=seq, **fields)
+            return
+        if not c.armed:
+            await self.ctx.command(c, "arm", c.arm())
+        await self.ctx.command(c, start_label, c.start_mission(seq), seq=seq, **fields)
+        self._waiting = False
 
     async def park(self) -> bool:
         """After a complete collection: the carrier in its hold mode and disarmed (armed, the next
@@ -290,7 +309,7 @@ class CarrierControl:
         drives there and holds on the stop's loiter)."""
         c = self.vehicle
         try:
-            await self.ctx.command(c, "return_to_stop", c.set_current(seq), seq=seq, stop=k + 1)
+            await self._move_on(seq, "return_to_stop", "return_to_stop", stop=k + 1)
         except (CommandRejected, LinkError, TimeoutError) as exc:
             log.warning("%s: could not send the carrier back onto stop %d: %s", c.name, k + 1, exc)
 

@@ -34,7 +34,7 @@ from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from enum import StrEnum
 
-from fleetctl.mavlink.compile import CompiledPlan, StopItems, with_meeting_hold
+from fleetctl.mavlink.compile import CompiledPlan, StopItems, item_position, with_meeting_hold
 from fleetctl.mavlink.link import LinkError, MissionItem
 from fleetctl.mavlink.vehicle import CommandRejected, Vehicle
 from fleetctl.mission.flight import GROUND_HEIGHT, MEET_HEIGHT
@@ -74,7 +74,8 @@ log = logging.getLogger(__name__)
 RETARGET_OFFSET = 1.25  # m: a rover hovering this far off the carrier (the deck radius less a margin) is
 # moved over it first
 RETARGET_DONE = 0.5  # m: a re-targeted rover this near over the carrier, and slowed down to
-RETARGET_SPEED = 1.0  # m/s (horizontally) at most, is sent down
+RETARGET_SPEED = 1.0  # m/s (horizontally) at most, is sent down; so is one at rest (STAY_SPEED) within
+RETARGET_NEAR = 1.0  # m of it (PX4 stops 0.7 - 0.8 m short of a DO_REPOSITION's point), well on the deck
 RETARGET_SLACK = 5.0  # mission s on top of the flight over to the carrier
 DISARM_WAIT = 4.0  # mission s a rover down on the deck is given to disarm itself before it is told to
 LANDING_TIMEOUT = 10.0  # mission s from the land command to the rover on the deck (at least 3x land_time)
@@ -97,6 +98,14 @@ def _over(v: Vehicle, carrier: Vehicle, within: float) -> bool:
     if v.enu is None or carrier.enu is None:
         return False
     return math.hypot(v.enu[0] - carrier.enu[0], v.enu[1] - carrier.enu[1]) <= within
+
+
+def _over_carrier(v: Vehicle, carrier: Vehicle) -> bool:
+    """A rover sent over ``carrier`` may go down: within ``RETARGET_DONE`` at ``RETARGET_SPEED`` at
+    most, or at rest within ``RETARGET_NEAR``."""
+    speed = v.ground_speed or 0.0
+    return ((_over(v, carrier, RETARGET_DONE) and speed <= RETARGET_SPEED)
+            or (_over(v, carrier, RETARGET_NEAR) and speed <= STAY_SPEED))
 
 
 def _surface_height(v: Vehicle, z: float) -> float:
@@ -681,17 +690,23 @@ class CollectPhase:
         """Land ``v`` on the carrier: its mission's landing straight below it (its landing mode
         where that item would settle first: ``Autopilot.mission_landing_settles``), or - when it hovers
         more than ``RETARGET_OFFSET`` off the stopped carrier (autopilots stop within their acceptance
-        radius, an Ackermann carrier may overshoot its stop) - over the carrier's live position
-        first (DO_REPOSITION), then straight down, so that a rover lands on the deck, never beside it.
+        radius, an Ackermann carrier may overshoot its stop), or its mission's landing item is (an
+        autopilot whose mission landing flies to the item first lands there: PX4 set one down 1.6 m
+        off a carrier it hovered 1.2 m off) - over the carrier's live position first
+        (DO_REPOSITION), then straight down, so that a rover lands on the deck, never beside it.
         ``over_carrier``: always over the carrier first (a rover whose landing was broken off flies
         a DO_REPOSITION, out of its mission)."""
         ctx, rid = self.ctx, v.name
         c = ctx.fleet.carrier
+        ap = v.autopilot
+        settles = ap is not None and ap.mission_landing_settles
         off = None if c.enu is None or v.enu is None else math.hypot(c.enu[0] - v.enu[0], c.enu[1] - v.enu[1])
+        if off is not None and not settles and c.enu is not None and c.origin is not None:
+            x, y, _z = item_position(rnd.items[rid][rnd.land_seq[rid]], c.origin)
+            off = max(off, math.hypot(c.enu[0] - x, c.enu[1] - y))  # where its mission would land it
         moving = c.ground_speed is None or c.ground_speed > STAY_SPEED  # it is still coming to its stop
         if off is None or c.position is None or not (over_carrier or (off > RETARGET_OFFSET and not moving)):
-            ap = v.autopilot
-            if over_carrier or (ap is not None and ap.mission_landing_settles):
+            if over_carrier or settles:
                 # out of its mission, the carrier's position unknown, or a mission landing that
                 # would settle first: down where it hovers
                 if (trouble := rnd.trouble.get(rid)) is not None:
@@ -712,8 +727,7 @@ class CollectPhase:
             return
         speed = ctx.mission.rovers.max_speed
         with contextlib.suppress(TimeoutError):  # not quite over it in time: down from where it is
-            await ctx.wait_for(v, lambda v: v.lost or (_over(v, c, RETARGET_DONE)
-                                                       and (v.ground_speed or 0.0) <= RETARGET_SPEED),
+            await ctx.wait_for(v, lambda v: v.lost or _over_carrier(v, c),
                                off / speed + RETARGET_SLACK, "over the carrier")
         trouble = rnd.trouble.get(rid)
         if trouble is not None:

@@ -13,6 +13,8 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+import pytest
+
 from fleetctl.geo import Origin, local_to_geodetic
 from fleetctl.mavlink.link import Link, MissionItem
 from fleetctl.mavlink.vehicle import Vehicle
@@ -111,6 +113,26 @@ def test_a_rover_on_its_way_flies_straight_over_a_carrier_parked_off_its_stop(tm
     assert not [r for r in journal(s) if r.get("command") == "return_to_stop"]  # parked: not sent back
 
 
+def test_a_carrier_standing_on_its_first_stop_starts_its_route_when_released(tmp_path: Path) -> None:
+    """The collection's first stop is where the deployment left the carrier: its route is uploaded
+    but not started (an Ackermann carrier started on the stop's hold may drive off to reach it), the
+    stop counts as reached at once, and the route starts from the release item when the stop's
+    rovers are loaded."""
+    s, _trig, _sim, _path = asyncio.run(fly(tmp_path, mission_dict(rovers=2), "run"))
+    assert s["_exit"] == 0 and sorted(s["rovers_loaded"]) == ["r1", "r2"], s
+    recs = journal(s)
+    start = next(i for i, r in enumerate(recs) if r["kind"] == "collection_started")
+    first = next(i for i, r in enumerate(recs) if r["kind"] == "stop_reached" and i > start)
+    loaded = next(i for i, r in enumerate(recs) if r["kind"] == "rover_loaded" and i > first)
+    carrier = [(i, r) for i, r in enumerate(recs) if i > start and r["kind"] == "command"
+               and r.get("vehicle") == "carrier"]
+    assert recs[first]["stop"] == 1 and recs[first]["T"] == pytest.approx(recs[start]["T"], abs=0.5)
+    i, go = carrier[0]  # the carrier's first command of the collection: its route started on release
+    assert go["command"] == "start_mission" and go.get("stop") == 1 and go.get("seq", 0) > 0, carrier
+    assert i > loaded, carrier
+    assert [r for r in recs[i:] if r["kind"] == "carrier_released"][0]["stop"] == 1
+
+
 def test_a_carrier_driving_off_its_second_stop_is_sent_back(tmp_path: Path) -> None:
     action, fired = _drive_off_at_collect_stop(0.5, stop=2)
     s, _trig, sim, _path = asyncio.run(fly(tmp_path, mission_dict(rovers=2), "run", action))
@@ -192,10 +214,11 @@ def test_an_operation_landing_is_broken_off_when_the_carrier_leaves(tmp_path: Pa
 
 
 def test_the_docs_state_the_park_terms() -> None:
-    from fleetctl.run.carrier import DRIVE_OFF_SPEED, RESTOP_SETTLE, RESTOPS_MAX, STAY_SPEED
+    from fleetctl.run.carrier import DRIVE_OFF_SPEED, RESTOP_SETTLE, RESTOPS_MAX, STAY_RADIUS, STAY_SPEED
     text = (Path(__file__).resolve().parents[2] / "docs" / "operations.md").read_text(encoding="utf-8")
     section = " ".join(text[text.index("### A carrier that leaves its stop"):].split())
     for phrase in (f"at most {STAY_SPEED:g} m/s", f"within {PARK_RADIUS:g} m of the stop",
                    f"plus {RESTOP_SETTLE:g} s", f"after {RESTOPS_MAX} waits",
-                   f"faster than {DRIVE_OFF_SPEED:g} m/s", "`return_to_stop`"):
+                   f"faster than {DRIVE_OFF_SPEED:g} m/s", "`return_to_stop`",
+                   f"stopped within {STAY_RADIUS:g} m of it, `STAY_RADIUS`"):
         assert phrase in section, phrase

@@ -155,6 +155,9 @@ def test_docs_state_how_long_a_landed_rover_is_given_to_disarm() -> None:
 
 
 def test_docs_state_when_a_rover_is_landed_over_the_carrier_instead_of_the_stop() -> None:
-    from fleetctl.run.collect import RETARGET_OFFSET
+    from fleetctl.run.collect import RETARGET_DONE, RETARGET_NEAR, RETARGET_OFFSET, RETARGET_SPEED
 
-    assert f"more than {RETARGET_OFFSET:g} m off the carrier" in (DOC.parent / "mavlink.md").read_text()
+    text = (DOC.parent / "mavlink.md").read_text()
+    assert f"more than {RETARGET_OFFSET:g} m off the carrier" in text
+    assert (f"once within {RETARGET_DONE:g} m of it at {RETARGET_SPEED:g} m/s at most, or at rest within "
+            f"{RETARGET_NEAR:g} m") in text

@@ -146,6 +146,12 @@ class Autopilot:
         return False
 
     @property
+    def reposition_amsl(self) -> bool:
+        """DO_REPOSITION's altitude is always taken as AMSL, whatever the COMMAND_INT frame says (PX4's
+        navigator): :meth:`Vehicle.goto` sends it AMSL (``MAV_FRAME_GLOBAL_INT``)."""
+        return False
+
+    @property
     def mission_landing_settles(self) -> bool:
         """A mission's NAV_LAND made current under a hovering vehicle first flies to the item's
         location and settles there before it descends (ArduCopter: seconds). Such a vehicle

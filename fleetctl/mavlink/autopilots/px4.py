@@ -144,6 +144,17 @@ class Px4(Autopilot):
         if vehicle.mission_current not in (None, 0):
             await vehicle.set_current(0)
 
+    @property
+    def mission_landing_settles(self) -> bool:
+        # PX4 1.18 SIH: a mission's NAV_LAND flies to the item's point before it descends, and set a
+        # rover hovering 1.2 m off the carrier down 1.6 m off it, beside the deck; LAND mode descends
+        # where it hovers
+        return not self.ground
+
+    @property
+    def reposition_amsl(self) -> bool:
+        return True  # PX4 1.18: a relative altitude of 3 m was flown as 3 m AMSL (the rover landed)
+
     def speed_params(self) -> tuple[SpeedParam, ...]:
         return ROVER_SPEED_PARAMS if self.ground else MC_SPEED_PARAMS
 
