@@ -142,7 +142,8 @@ async def test_takeoff_reposition_and_return_to_launch(fleet: SimFleet, gcs: Gcs
     await fleet.wait_for(lambda: v.mode is Mode.HOLD and rover.position[2] > 3.9, timeout=5)
     assert rover.position == pytest.approx((0.0, 0.0, 4.0), abs=TOL)
     lat, lon = enu_to_latlon(8.0, -6.0)
-    ack = await gcs.command_int(12, M.MAV_CMD_DO_REPOSITION, REL, (-1, 1, 0, math.nan), lat, lon, 6.0)
+    ack = await gcs.command_int(12, M.MAV_CMD_DO_REPOSITION, M.MAV_FRAME_GLOBAL_INT, (-1, 1, 0, math.nan),
+                                lat, lon, ORIGIN[2] + 6.0)  # PX4: the altitude is AMSL
     assert ack.result == M.MAV_RESULT_ACCEPTED
     await fleet.wait_for(lambda: rover.arrived and rover.position[2] > 5.9, timeout=5)
     assert rover.position == pytest.approx((8.0, -6.0, 6.0), abs=TOL)
@@ -151,6 +152,19 @@ async def test_takeoff_reposition_and_return_to_launch(fleet: SimFleet, gcs: Gcs
     await fleet.wait_for(lambda: not v.armed, timeout=5)
     hb = await gcs.recv("HEARTBEAT", sysid=12, since=gcs.mark())
     assert hb.custom_mode == (4 << 16 | 5 << 24)  # PX4 AUTO.RTL
+
+
+async def test_px4_takes_a_reposition_altitude_as_amsl_whatever_the_frame(fleet: SimFleet, gcs: Gcs) -> None:
+    """As PX4 1.18 does: a DO_REPOSITION to 3 m in MAV_FRAME_GLOBAL_RELATIVE_ALT_INT is flown to 3 m
+    AMSL - far below home: the rover comes down to the ground."""
+    await gcs.command(12, M.MAV_CMD_COMPONENT_ARM_DISARM, 1)
+    await gcs.command(12, M.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, math.nan, math.nan, math.nan, ORIGIN[2] + 4.0)
+    rover = fleet.rover("r2")
+    await fleet.wait_for(lambda: rover.position[2] > 3.9, timeout=5)
+    lat, lon = enu_to_latlon(2.0, 0.0)
+    ack = await gcs.command_int(12, M.MAV_CMD_DO_REPOSITION, REL, (-1, 1, 0, math.nan), lat, lon, 3.0)
+    assert ack.result == M.MAV_RESULT_ACCEPTED
+    await fleet.wait_for(lambda: rover.position[2] < 0.05, timeout=10)
 
 
 async def test_land_command_away_from_the_carrier_stays_on_the_ground(fleet: SimFleet, gcs: Gcs) -> None:
