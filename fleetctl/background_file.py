@@ -19,6 +19,8 @@ import threading
 from pathlib import Path
 from typing import Generic, TypeVar
 
+from fleetctl.aio import cancel_and_wait
+
 T = TypeVar("T", str, bytes)
 
 
@@ -92,10 +94,7 @@ class BackgroundFile(Generic[T]):
     async def aclose(self) -> None:
         """Stop the background flush, write the rest and close the file."""
         task, self._task = self._task, None
-        if task is not None:
-            task.cancel()
-            with contextlib.suppress(asyncio.CancelledError):
-                await task
+        await cancel_and_wait(task)
         await asyncio.to_thread(self.close)
 
     def close(self) -> None:

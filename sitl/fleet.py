@@ -135,9 +135,8 @@ class SimFleet:
         """Stop the simulation and close every endpoint."""
         task, self._task = self._task, None
         if task is not None:
-            task.cancel()
-            with contextlib.suppress(asyncio.CancelledError, TimeoutError):
-                await asyncio.wait_for(task, timeout=2.0)
+            task.cancel()  # (asyncio.wait: a cancel of the caller meanwhile is not swallowed)
+            await asyncio.wait({task}, timeout=2.0)
         for ep in self._endpoints:
             ep.flush()
             ep.close()

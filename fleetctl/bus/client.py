@@ -39,6 +39,7 @@ from typing import TYPE_CHECKING, Any, Protocol
 
 import aiomqtt
 
+from fleetctl.aio import cancel_and_wait
 from fleetctl.bus.config import (
     BUFFER_SIZE,
     FINAL_STATES,
@@ -246,10 +247,8 @@ class FleetBus(ConnectionStatus):
         self._publish_telemetry()
         self.executor = None
         tel = [t for t in self._tasks if t.get_name() == "mqtt telemetry"]
+        await cancel_and_wait(*tel)
         for t in tel:
-            t.cancel()
-            with contextlib.suppress(asyncio.CancelledError, Exception):
-                await t
             self._tasks.remove(t)
 
     def attach_executor(self, executor: TaskChanges) -> None:
@@ -314,11 +313,7 @@ class FleetBus(ConnectionStatus):
         self.publish("status", self.status_payload(), retain=True, qos=1)
         while self.status == BusStatus.CONNECTED and self._dirty and time.monotonic() < deadline + 1.0:
             await asyncio.sleep(0.02)
-        for t in self._tasks:
-            t.cancel()
-        for t in self._tasks:
-            with contextlib.suppress(asyncio.CancelledError, Exception):
-                await t
+        await cancel_and_wait(*self._tasks)
         self._tasks.clear()
         self.change_status(BusStatus.CLOSED)
 

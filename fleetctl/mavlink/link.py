@@ -60,6 +60,7 @@ from typing import Any, cast
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
+from fleetctl.aio import cancel_and_wait
 from fleetctl.mavlink import mission_protocol
 from fleetctl.mavlink.address import LinkAddress, parse_url
 from fleetctl.mavlink.command_protocol import (
@@ -312,12 +313,7 @@ class Link:
         self._open = False
         if self.signer is not None:
             self.signer.close()
-        tasks = list(self._tasks)
-        for t in tasks:
-            t.cancel()
-        for t in tasks:
-            with contextlib.suppress(asyncio.CancelledError, Exception):
-                await t
+        await cancel_and_wait(*self._tasks)
         for waiters in self._waiters.values():
             for w in waiters:
                 if w.fut is not None and not w.fut.done():

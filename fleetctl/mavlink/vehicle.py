@@ -55,6 +55,7 @@ log = logging.getLogger(__name__)
 M = mavlink2
 HOME_ALT_TOLERANCE = 50.0  # m: a ground vehicle's HOME_POSITION altitude this far off its own is wrong
 FORCE_MAGIC = 21196.0  # MAV_CMD_COMPONENT_ARM_DISARM param2: force (ignore checks)
+MISSION_STATE_COMPLETE = M.MISSION_STATE_COMPLETE  # MISSION_CURRENT.mission_state: the last item is done
 DEFAULT_POSITION_HZ = 10.0
 DEFAULT_BATTERY_HZ = 1.0
 MAX_BATTERY_TIME = 86_400  # s: a BATTERY_STATUS.time_remaining above a day is not believed

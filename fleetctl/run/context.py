@@ -24,6 +24,7 @@ import time
 from collections.abc import Awaitable, Callable, Coroutine
 from typing import Any, Protocol, TypeVar
 
+from fleetctl.aio import cancel_and_wait
 from fleetctl.mavlink.fleet import Fleet
 from fleetctl.mavlink.link import LinkError, MissionRejected
 from fleetctl.mavlink.vehicle import CommandRejected, Vehicle
@@ -188,12 +189,7 @@ class RunContext:
 
     async def close(self) -> None:
         """Cancel every background task (call on shutdown)."""
-        tasks = list(self._tasks)
-        for t in tasks:
-            t.cancel()
-        for t in tasks:
-            with contextlib.suppress(asyncio.CancelledError, Exception):
-                await t
+        await cancel_and_wait(*self._tasks)
 
 
 __all__ = ["Committer", "ExecutionError", "Recorder", "RunContext"]

@@ -9,10 +9,10 @@ hands over what is queued.
 from __future__ import annotations
 
 import asyncio
-import contextlib
 from collections.abc import Awaitable, Callable
 from typing import TypeVar
 
+from fleetctl.aio import cancel_and_wait
 from fleetctl.run.context import RunContext
 from fleetctl.run.kinds import Ev, Watch
 from fleetctl.run.supervisor import SupervisorEvent
@@ -41,11 +41,7 @@ async def race(
                 continue
             return True, task.result()
     finally:
-        for f in (task, getter):
-            if f is not None and not f.done():
-                f.cancel()
-                with contextlib.suppress(asyncio.CancelledError, Exception):
-                    await f
+        await cancel_and_wait(task, getter)
 
 
 def drain(queue: asyncio.Queue[SupervisorEvent], handle: Handler) -> bool:
@@ -64,10 +60,7 @@ async def next_event(
     try:
         await asyncio.wait({getter, *others}, timeout=timeout, return_when=asyncio.FIRST_COMPLETED)
     finally:
-        if not getter.done():
-            getter.cancel()
-            with contextlib.suppress(asyncio.CancelledError):
-                await getter
+        await cancel_and_wait(getter)
     if getter.done() and not getter.cancelled():
         return getter.result()
     return None

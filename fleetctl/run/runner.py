@@ -18,6 +18,7 @@ import logging
 import time
 from typing import TYPE_CHECKING, Any
 
+from fleetctl.aio import cancel_and_wait
 from fleetctl.mavlink.fleet import Fleet
 from fleetctl.mavlink.link import LinkError
 from fleetctl.mavlink.vehicle import CommandRejected, Vehicle
@@ -341,10 +342,7 @@ class TeamFlight(OnSession):
             self.results["collect"] = ex.collect_phase.snapshot()
 
     async def end(self) -> dict[str, Any]:
-        if self._refresher is not None:
-            self._refresher.cancel()
-            with contextlib.suppress(asyncio.CancelledError):
-                await self._refresher
+        await cancel_and_wait(self._refresher)
         if self.fleet is not None:
             self.state.refresh(self.fleet)
         self._snapshot_results()

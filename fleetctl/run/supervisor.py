@@ -31,6 +31,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from fleetctl.aio import cancel_and_wait
 from fleetctl.mavlink.fleet import Fleet
 from fleetctl.mavlink.vehicle import VehicleEvent, VehicleEventKind
 from fleetctl.mission import Mission, MissionError, load_mission
@@ -136,11 +137,7 @@ class Supervisor:
             self._unlisten()
             self._unlisten = None
         bg, self._bg = self._bg, []
-        for t in bg:
-            t.cancel()
-        for t in bg:
-            with contextlib.suppress(asyncio.CancelledError, Exception):
-                await t
+        await cancel_and_wait(*bg)
 
     def put(self, ev: SupervisorEvent) -> None:
         self.queue.put_nowait(ev)

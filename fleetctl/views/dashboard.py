@@ -9,7 +9,6 @@ mission; :class:`HeadlessView` prints each event as it happens. :func:`make_view
 from __future__ import annotations
 
 import asyncio
-import contextlib
 import io
 import sys
 from collections.abc import Callable, Sequence
@@ -21,6 +20,7 @@ from rich.progress_bar import ProgressBar
 from rich.table import Table
 from rich.text import Text
 
+from fleetctl.aio import cancel_and_wait
 from fleetctl.run.kinds import Ev
 from fleetctl.run.state import Event, FleetState, OperationProgress, VehicleState
 from fleetctl.views.eta import FLYING, PlannedLeg, mission_time_to_go, planned_legs, time_to_go
@@ -383,10 +383,7 @@ class LiveView(View):
 
     async def stop(self) -> None:
         task, self._task = self._task, None
-        if task is not None:
-            task.cancel()
-            with contextlib.suppress(asyncio.CancelledError):
-                await task
+        await cancel_and_wait(task)
         self._draw()
         if self._live is not None:
             self._live.stop()

@@ -30,6 +30,7 @@ from typing import IO, Any
 
 import aiomqtt
 
+from fleetctl.aio import cancel_and_wait
 from fleetctl.bus.client import iter_topics
 from fleetctl.bus.config import (
     CONNECT_TIMEOUT,
@@ -333,9 +334,7 @@ async def watch(config: BusConfig, *, headless: bool = False, exit_on_done: bool
             if runner.done():
                 runner.result()  # an unexpected error: raise it
     finally:
-        runner.cancel()
-        with contextlib.suppress(asyncio.CancelledError):
-            await runner
+        await cancel_and_wait(runner)
         await view.stop()
         if headless:
             out.write(render_text(watcher))

@@ -39,6 +39,7 @@ from typing import TYPE_CHECKING, Any
 
 from aiohttp import web
 
+from fleetctl.aio import cancel_and_wait
 from fleetctl.journal import json_safe
 from fleetctl.run.kinds import Ev
 from fleetctl.views.map_model import Trails, teams_frame, teams_plan
@@ -380,10 +381,7 @@ class WebMapView(View):
         if not task.done():
             self.tick()  # the final state goes out before the streams close
             await asyncio.sleep(0)
-        task.cancel()
-        with contextlib.suppress(asyncio.CancelledError, TimeoutError):
-            async with asyncio.timeout(STOP_TIMEOUT + 1.0):
-                await task
+        await cancel_and_wait(task, timeout=STOP_TIMEOUT + 1.0)
 
 
 def map_config(origin: Origin | None, tiles: str | None) -> dict[str, Any]:

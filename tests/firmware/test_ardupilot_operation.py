@@ -45,7 +45,7 @@ def fly_operation(tmp_path: Path, ground: tuple[str, ...] = ()) -> tuple[dict[st
     """The operation flown with ``fleetctl run`` on the deck: complete, every task done once, every
     rover back; its summary and journal."""
     with deck_team(tmp_path, n_rovers=2, mission=operation_mission(ground=ground)) as (team, _world):
-        proc, run = team.fly("run", timeout=900)
+        proc, run = team.fly("run", timeout=360)  # ~45 s wall when it flies; a hang fails in 6 min
         assert proc.returncode == 0, proc.stdout[-4000:] + proc.stderr[-2000:] + team.firmware_tail()
         assert run["result"] == "complete", run
         assert sorted(run["tasks_done"]) == sorted(DURATIONS), run

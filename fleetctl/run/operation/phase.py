@@ -17,6 +17,7 @@ import time
 from collections.abc import Awaitable, Callable
 from typing import Any
 
+from fleetctl.aio import cancel_and_wait
 from fleetctl.mavlink.compile import RoverMission
 from fleetctl.mavlink.link import LinkError
 from fleetctl.mavlink.sortie import SortieItems, Visit, route_items, sortie_items
@@ -252,11 +253,7 @@ class OperationPhase:
         try:
             await asyncio.wait({reach, watch}, return_when=asyncio.FIRST_COMPLETED)
         finally:
-            for t in (watch, reach):
-                if not t.done():
-                    t.cancel()
-                    with contextlib.suppress(asyncio.CancelledError):
-                        await t
+            await cancel_and_wait(watch, reach)
         if reach.done() and not reach.cancelled():
             reach.result()  # its ExecutionError, if it failed
             return True
@@ -278,9 +275,7 @@ class OperationPhase:
             try:
                 ev = await next_event(self.supervisor.queue, {woke}, WATCH_POLL)
             finally:
-                woke.cancel()
-                with contextlib.suppress(asyncio.CancelledError):
-                    await woke
+                await cancel_and_wait(woke)
             if ev is not None:
                 self._take_change(ev)
 

@@ -15,10 +15,17 @@ import math
 from collections.abc import Awaitable, Callable
 from dataclasses import dataclass
 
+from fleetctl.aio import cancel_and_wait
 from fleetctl.geo import local_to_geodetic
 from fleetctl.mavlink.link import LinkError
 from fleetctl.mavlink.sortie import ReturnItems, SortieItems, Visit, return_items, sortie_items
-from fleetctl.mavlink.vehicle import CommandRejected, Vehicle, VehicleEvent, VehicleEventKind
+from fleetctl.mavlink.vehicle import (
+    MISSION_STATE_COMPLETE,
+    CommandRejected,
+    Vehicle,
+    VehicleEvent,
+    VehicleEventKind,
+)
 from fleetctl.run.carrier import RESTOPS_MAX, STAY_SPEED, climb_back, left_item, upload
 from fleetctl.run.context import ExecutionError, RunContext
 from fleetctl.run.kinds import Ev, VehicleStatus
@@ -32,7 +39,6 @@ RECHECK = 1.0  # mission s between looks at the leave time (or the battery) whil
 LAND_OFFSET = 1.0  # m: a rover waiting further off the stopped carrier lands at the carrier's position
 CARRIER_STOP_WAIT = 10.0  # mission s for the carrier at its stop to come to rest before rovers land on it
 REPLAN_SLACK = 15.0  # mission s: a task's work done this much earlier or later than planned asks for a replan
-MISSION_STATE_COMPLETE = 3  # MAVLink MISSION_STATE: the mission's last item is done
 LANDED_WAIT = 10.0  # mission s from a task's approach waypoint to the touch-down of work timed on the ground
 DISARM_WAIT = 5.0  # mission s for a firmware that ends its mission at a landing to disarm (ArduCopter: 1-2 s)
 ON_TASK_RADIUS = 2.0  # m: a rover landed this near a task worked on the ground is at it (resume)
@@ -47,7 +53,8 @@ def landed_near(v: Vehicle, position: Vec3) -> bool:
 
 def item_passed(v: Vehicle, seq: int) -> bool:
     """Mission item ``seq`` is behind the firmware: its current item is past it, or it is the last
-    one and the mission is complete (what a controller that was down can still learn)."""
+    one and the mission is complete (MISSION_STATE_COMPLETE, not ACTIVE: an item being flown is not
+    passed) - what a controller that was down can still learn."""
     cur = v.mission_current
     return cur is not None and (cur > seq or (cur == seq and v.mission_state == MISSION_STATE_COMPLETE))
 
@@ -149,9 +156,7 @@ class SortieFlight:
                 await ctx.wait_for(v, lambda v: self._reached(v, done_seq) or v.lost or task in self.dropped,
                                    ctx.late(work.duration), f"work at {task} done")
         finally:
-            watch.cancel()
-            with contextlib.suppress(asyncio.CancelledError):
-                await watch
+            await cancel_and_wait(watch)
         self._check(v)
         if task in self.dropped:
             return

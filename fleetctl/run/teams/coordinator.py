@@ -31,6 +31,7 @@ import time
 from collections.abc import Callable
 from typing import Any
 
+from fleetctl.aio import cancel_and_wait
 from fleetctl.mavlink.fleet import Fleet
 from fleetctl.mission import Mission
 from fleetctl.mission.teams import mission_teams, team_mission, teams_problem
@@ -224,9 +225,7 @@ class TeamsFlight(OnSession):
         try:
             await self._fly_all("deploy", runs, self._deploy_ended)
         finally:
-            watch.cancel()
-            with contextlib.suppress(asyncio.CancelledError):
-                await watch
+            await cancel_and_wait(watch)
 
     async def _deploy_ended(self, cid: str, run: TeamRun, outcome: RunOutcome) -> None:
         """A team's deployment run is over: what it reached counts; what it owns and did not reach

@@ -11,10 +11,10 @@ Flown alone (:func:`fly_team`, ``coordinator`` None) it is exactly a one-team ru
 from __future__ import annotations
 
 import asyncio
-import contextlib
 from collections.abc import Iterable
 from typing import Any
 
+from fleetctl.aio import cancel_and_wait
 from fleetctl.mission import Mission
 from fleetctl.mission.teams import team_mission
 from fleetctl.run.crew import Crew
@@ -85,10 +85,7 @@ class TeamRun(TeamFlight):
 
     async def end(self) -> dict[str, Any]:
         release, self._release = self._release, None
-        if release is not None:  # lets the batteries drain if the collection never got to a plan
-            release.cancel()
-            with contextlib.suppress(asyncio.CancelledError):
-                await release
+        await cancel_and_wait(release)  # lets the batteries drain if the collection never got to a plan
         return await super().end()
 
     async def _collect(self) -> None:

@@ -8,9 +8,12 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import pytest
+from pymavlink.dialects.v20 import common as M
+
+from fleetctl.mavlink.vehicle import MISSION_STATE_COMPLETE
 from fleetctl.run.operation.board import SortieStatus
 from fleetctl.run.operation.resume import reconcile_operation, replay_operation
-from fleetctl.run.operation.sortie import MISSION_STATE_COMPLETE
 from tests.run.ctl_helpers import mission_from
 from tests.run.operation.ops_helpers import small_operation
 
@@ -118,9 +121,12 @@ async def test_a_task_whose_timing_item_passed_while_the_controller_was_down_is_
     assert disarmed == ["r2"] and found["disarmed"] == ["r2"]
 
 
-async def test_a_task_whose_arrival_passed_is_being_worked_from_its_journalled_start(tmp_path: Path) -> None:
+@pytest.mark.parametrize("state", [None, M.MISSION_STATE_ACTIVE])  # (ArduPilot and PX4 send ACTIVE)
+async def test_a_task_whose_arrival_passed_is_being_worked_from_its_journalled_start(
+        tmp_path: Path, state: int | None) -> None:
     # r1 at t3's NAV_DELAY (item 5 current, not complete); r2 in the air from a launch never journalled flown
-    rep, found, journal, _ = await _reconcile(tmp_path, Seen("r1", mission_current=5), Seen("r2"))
+    rep, found, journal, _ = await _reconcile(tmp_path, Seen("r1", mission_current=5, mission_state=state),
+                                              Seen("r2"))
     t3 = rep.board.tasks["t3"]
     assert t3.done is None and t3.started == 60.0 and t3.seen_start  # the journal saw its start
     assert not [e for e in journal.events if e[0] in ("task_done", "task_started")]
