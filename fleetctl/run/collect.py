@@ -168,6 +168,11 @@ class _Round:
     watch: dict[str, asyncio.Task[None]] = field(default_factory=dict)  # rover -> its trouble watch
     touched: dict[str, float] = field(default_factory=dict)  # rover -> mission clock of its touch-down
 
+    @property
+    def stops(self) -> list[Stop]:
+        """The stops of the route flown (the live clock's plan once it has one)."""
+        return self.clock.plan.stops if self.clock is not None else self.plan.stops
+
 
 @dataclass(frozen=True)
 class ResumedCollect:
@@ -649,7 +654,7 @@ class CollectPhase:
         planned stop (autopilots stop within their acceptance radius), ``v`` is in the air on a
         straight way there, and the line from ``v`` to the carrier is clear (:func:`line_clear`)."""
         c = self.ctx.fleet.carrier
-        stops = rnd.clock.plan.stops if rnd.clock is not None else rnd.plan.stops
+        stops = rnd.stops
         if (v.on_ground is not False or (v.height or 0.0) <= GROUND_SNAP or k >= len(stops) or c.enu is None
                 or v.enu is None or not parked_on_item(c, seq)):
             return None
@@ -806,7 +811,7 @@ class CollectPhase:
         """Where ``rid`` may come down in this round: its stop (of the route flown now) and the carrier."""
         def places() -> list[Vec3 | None]:
             k = rnd.stop_of.get(rid)
-            stops = rnd.clock.plan.stops if rnd.clock is not None else rnd.plan.stops
+            stops = rnd.stops
             stop = stops[k].position if k is not None and k < len(stops) else None
             return [stop, self.ctx.fleet.carrier.enu]
         return places
