@@ -15,7 +15,7 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
-TOL = 1e-4  # s / m: the plan JSON rounds to 6 decimals
+TOL = 1e-4  # s / m: the plan JSON rounds times to 6 decimals, positions to 9
 
 
 @dataclass(frozen=True)

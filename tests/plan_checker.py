@@ -9,7 +9,7 @@ from __future__ import annotations
 import math
 from typing import Any
 
-TOL = 1e-4  # seconds / metres; plan JSON rounds to 6 decimals
+TOL = 1e-4  # seconds / metres; plan JSON rounds times to 6 decimals, positions to 9
 
 
 def _leg(s: float, v: float, a: float | None) -> float:

@@ -69,18 +69,18 @@ class Plan:
             rovers: list[dict[str, Any]] = []
             for leg in s.rovers:
                 if self.kind == "deploy":
-                    rovers.append({"rover": leg.rover, "task": leg.task, "target": _pt(leg.end),
-                                   "path": [_pt(p) for p in leg.path], "arrive": _t(leg.arrive)})
+                    rovers.append({"rover": leg.rover, "task": leg.task, "target": point_json(leg.end),
+                                   "path": [point_json(p) for p in leg.path], "arrive": _t(leg.arrive)})
                 else:
-                    rovers.append({"rover": leg.rover, "from": _pt(leg.start),
-                                   "path": [_pt(p) for p in leg.path], "arrive": _t(leg.arrive)})
-            stops.append({"position": _pt(s.position), "arrive": _t(s.arrive), "depart": _t(s.depart),
-                          "carrier_path": [_pt(p) for p in s.carrier_path], "rovers": rovers})
+                    rovers.append({"rover": leg.rover, "from": point_json(leg.start),
+                                   "path": [point_json(p) for p in leg.path], "arrive": _t(leg.arrive)})
+            stops.append({"position": point_json(s.position), "arrive": _t(s.arrive), "depart": _t(s.depart),
+                          "carrier_path": [point_json(p) for p in s.carrier_path], "rovers": rovers})
         return {
             "schema": PLAN_SCHEMA,
             "kind": self.kind,
             "planner": self.planner,
-            "carrier": {"start": _pt(self.start), "heading": round(self.heading, 6)},
+            "carrier": {"start": point_json(self.start), "heading": round(self.heading, 6)},
             "stops": stops,
             "makespan": _t(self.makespan),
             "carrier_distance": round(self.carrier_distance, 4),
@@ -89,8 +89,15 @@ class Plan:
         }
 
 
-def _pt(p: Vec3) -> list[float]:
-    return [round(float(c), 6) for c in p]
+# decimals of a position in the plan JSON: times are recomputed from positions, and the heading of
+# a hop of a centimetre moves by 1e-4 rad when its ends are rounded to 6 decimals (seconds of turn
+# at a slow carrier's turn rate, off by 1e-4 s); at 9 it moves by 1e-7 rad
+POSITION_DECIMALS = 9
+
+
+def point_json(p: Vec3) -> list[float]:
+    """A position as the plan JSON writes it (``POSITION_DECIMALS``)."""
+    return [round(float(c), POSITION_DECIMALS) for c in p]
 
 
 def _t(t: float) -> float:

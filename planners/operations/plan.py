@@ -5,7 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
-from planners.core.plan import PLAN_SCHEMA
+from planners.core.plan import PLAN_SCHEMA, point_json
 from planners.core.problem import Vec3
 
 
@@ -88,7 +88,7 @@ class OperationPlan:
             "schema": PLAN_SCHEMA,
             "kind": "operation",
             "planner": self.planner,
-            "carrier": {"start": _pt(self.start), "heading": round(self.heading, 6)},
+            "carrier": {"start": point_json(self.start), "heading": round(self.heading, 6)},
             "stops": [_stop_json(s, self.sorties) for s in self.stops],
             "sorties": [_sortie_json(k, s) for k, s in enumerate(self.sorties)],
             "rovers": self.timelines(),
@@ -115,23 +115,20 @@ class OperationPlan:
 
 
 def _stop_json(s: OpStop, sorties: list[Sortie]) -> dict[str, Any]:
-    return {"position": _pt(s.position), "arrive": _t(s.arrive), "loaded": _t(s.loaded),
-            "depart": _t(s.depart), "carrier_path": [_pt(p) for p in s.carrier_path],
+    return {"position": point_json(s.position), "arrive": _t(s.arrive), "loaded": _t(s.loaded),
+            "depart": _t(s.depart), "carrier_path": [point_json(p) for p in s.carrier_path],
             "pickups": list(s.pickups), "launches": list(s.launches)}
 
 
 def _sortie_json(k: int, s: Sortie) -> dict[str, Any]:
     return {"id": k, "rover": s.rover, "launch_stop": s.launch_stop, "pickup_stop": s.pickup_stop,
             "takeoff": _t(s.takeoff), "depart": _t(s.depart),
-            "visits": [{"task": v.task, "position": _pt(v.position), "arrive": _t(v.arrive), "end": _t(v.end),
-                        "leave": _t(v.leave), "work": "ground" if v.ground else "hover"} for v in s.visits],
+            "visits": [{"task": v.task, "position": point_json(v.position), "arrive": _t(v.arrive),
+                        "end": _t(v.end), "leave": _t(v.leave), "work": "ground" if v.ground else "hover"}
+                       for v in s.visits],
             "meet": _t(s.meet), "landed": _t(s.landed), "aboard": _t(s.aboard),
             "air_time": _t(s.air_time), "battery_start": round(s.battery_start, 6),
             "battery_left": round(s.battery_left, 6)}
-
-
-def _pt(p: Vec3) -> list[float]:
-    return [round(float(c), 6) for c in p]
 
 
 def _t(t: float) -> float:

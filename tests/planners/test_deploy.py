@@ -161,3 +161,20 @@ def test_mst_length():
     import numpy as np
 
     assert mst_length(np.array(w, dtype=float)) == 5.0
+
+
+def test_a_first_hop_of_a_centimetre_is_timed_as_its_json_says() -> None:
+    # the carrier turns 82 degrees at 0.58 rad/s to a stop 1.1 cm away: the turn recomputed from
+    # positions rounded to 6 decimals was 1.6e-4 s off the plan's (found by the property test)
+    plan = check(random_problem(894937, 22, False), "lee")
+    assert math.dist(plan["carrier"]["start"], plan["stops"][0]["position"]) < 0.02
+
+
+def test_the_docs_give_the_decimals_the_plan_json_has() -> None:
+    from pathlib import Path
+
+    from planners.core.plan import POSITION_DECIMALS, point_json
+
+    text = (Path(__file__).resolve().parents[2] / "docs" / "plan-json.md").read_text()
+    assert f"positions to {POSITION_DECIMALS} decimals, times to 6" in " ".join(text.split())
+    assert point_json((1 / 3, 0.0, 0.0))[0] == round(1 / 3, POSITION_DECIMALS) != round(1 / 3, 6)
