@@ -77,6 +77,7 @@ RETARGET_DONE = 0.5  # m: a re-targeted rover this near over the carrier, and sl
 RETARGET_SPEED = 1.0  # m/s (horizontally) at most, is sent down; so is one at rest (STAY_SPEED) within
 RETARGET_NEAR = 1.0  # m of it (PX4 stops 0.7 - 0.8 m short of a DO_REPOSITION's point), well on the deck
 RETARGET_SLACK = 5.0  # mission s on top of the flight over to the carrier
+SETTLE_WAIT = 3.0  # mission s at most for a rover moving over its stop to come to rest before going down
 DISARM_WAIT = 4.0  # mission s a rover down on the deck is given to disarm itself before it is told to
 LANDING_TIMEOUT = 10.0  # mission s from the land command to the rover on the deck (at least 3x land_time)
 MAX_POSITION_AGE = 5.0  # mission s: an older carrier position is not moved on by its speed
@@ -705,6 +706,13 @@ class CollectPhase:
         c = ctx.fleet.carrier
         ap = v.autopilot
         settles = ap is not None and ap.mission_landing_settles
+        if not over_carrier and (v.ground_speed or 0.0) > STAY_SPEED:
+            # still sliding onto its hold (its approach waypoint is reported reached 1 m early): where
+            # it comes to rest decides, as a landing mode descends where the rover is when it engages
+            # (PX4 1.18 SIH: a rover 0.9 m off the carrier at 1 m/s, sent down, landed 1.7 m off)
+            with contextlib.suppress(TimeoutError):
+                await ctx.wait_for(v, lambda v: v.lost or (v.ground_speed or 0.0) <= STAY_SPEED,
+                                   SETTLE_WAIT, "at rest over its stop")
         off = None if c.enu is None or v.enu is None else math.hypot(c.enu[0] - v.enu[0], c.enu[1] - v.enu[1])
         if off is not None and not settles and c.enu is not None and c.origin is not None:
             x, y, _z = item_position(rnd.items[rid][rnd.land_seq[rid]], c.origin)
@@ -752,16 +760,22 @@ class CollectPhase:
     async def _disarmed_on_deck(self, v: Vehicle) -> None:
         """A rover down on the deck counts as loaded once its motors are off, so the carrier never
         drives off with a rover armed on it (whose land detector a moving deck may keep from
-        finishing): its autopilot disarms it on its own after the landing (ArduCopter and PX4 about
-        2 s); after ``DISARM_WAIT`` mission seconds without a HEARTBEAT showing it disarmed, it is
+        finishing): its autopilot disarms it on its own after the landing (ArduCopter about 2 s
+        after the touch-down; PX4 ``COM_DISARM_LAND`` after its land detector, so a PX4 rover is told
+        to as soon as it reports itself landed: ``Autopilot.disarm_when_landed``); after
+        ``DISARM_WAIT`` mission seconds without a HEARTBEAT showing it disarmed, it is
         told to, and the command's ACK confirms it (a disarm of a disarmed vehicle is accepted too):
         its next HEARTBEAT, ~1 wall s away and lost on a lossy link, is not waited for. An autopilot
         that refuses (its landing not finished) is given ``DISARM_WAIT`` more to disarm on its own."""
         ctx = self.ctx
         end = ctx.clock() + DISARM_WAIT
+        at_once = v.autopilot is not None and v.autopilot.disarm_when_landed
+
+        def done_or_due(v: Vehicle) -> bool:
+            return not v.armed or v.lost or ctx.clock() >= end or (at_once and v.on_ground is True)
+
         with contextlib.suppress(TimeoutError):
-            await ctx.wait_for(v, lambda v: not v.armed or v.lost or ctx.clock() >= end, DISARM_WAIT,
-                               "disarmed on the deck")
+            await ctx.wait_for(v, done_or_due, DISARM_WAIT, "disarmed on the deck")
         if not v.armed or v.lost:
             return
         try:

@@ -131,20 +131,38 @@ def test_px4_handling_is_planned_and_documented(tmp_path: Path) -> None:
     assert fitted is not None
     r = fitted.rovers
     assert r.takeoff_time == pytest.approx(TAKEOFF_HEIGHT / 1.5 + px4.MC_TAKEOFF_OVERHEAD)
-    m = mission_from(d, tmp_path)
-    disarm_left = max(0.0, px4.MC_DISARM_DELAY - m.carrier.load_time)
-    assert r.land_time == pytest.approx(MEET_HEIGHT / 0.7 + px4.MC_TOUCHDOWN_OVERHEAD + disarm_left)
+    # disarmed at once when its land detector reports it landed: no auto-disarm in the term
+    assert px4.Px4(M.MAV_TYPE_QUADROTOR).disarm_when_landed
+    assert r.land_time == pytest.approx(MEET_HEIGHT / 0.7 + px4.MC_TOUCHDOWN_OVERHEAD)
     assert r.accel == pytest.approx(5.0 / (5.0 / 3.0 + px4.MC_LEG_OVERHEAD))
     assert px4.Px4(M.MAV_TYPE_GROUND_ROVER).handling_times(1.5, 0.7) is None  # a carrier: none
     text = DOC.read_text()
     assert f"`TAKEOFF_HEIGHT / climb_rate + {px4.MC_TAKEOFF_OVERHEAD:.1f} s`" in text
-    assert (f"`MEET_HEIGHT / land_speed + {px4.MC_TOUCHDOWN_OVERHEAD:.1f} s + "
-            f"max(0, {px4.MC_DISARM_DELAY:.1f} s − load_time)`") in text
+    assert f"`MEET_HEIGHT / land_speed + {px4.MC_TOUCHDOWN_OVERHEAD:.1f} s`" in text
     assert f"`v / (v/a + {px4.MC_LEG_OVERHEAD:.1f} s)`" in text
     names = documented_params(text)
     for p in (*px4.MC_SPEED_PARAMS, *px4.ROVER_SPEED_PARAMS):
         assert p.name in names, p.name
     assert "| PX4 | v1.18" in text  # the tested firmware table
+
+
+def test_px4_lands_at_the_mission_s_landing_speed_and_detects_it_below_that(tmp_path: Path) -> None:
+    from fleetctl.mavlink.autopilots import px4
+
+    values = px4.Px4(M.MAV_TYPE_QUADROTOR).speed_values(
+        {"max_speed": 5.0, "accel": 3.0, "climb_rate": 1.5, "land_speed": 0.7})
+    # the crawl below MPC_LAND_ALT3 at the speed planned, and the land detector's threshold written
+    # after it (PX4 caps LNDMC_Z_VEL_MAX at min(MPC_LAND_CRWL, MPC_LAND_SPEED) / 1.2)
+    assert values["MPC_LAND_CRWL"] == values["MPC_LAND_SPEED"] == 0.7
+    names = list(values)
+    assert names.index("LNDMC_Z_VEL_MAX") > names.index("MPC_LAND_CRWL")
+    assert values["LNDMC_Z_VEL_MAX"] == pytest.approx(0.7 * px4.LAND_DETECT_RATIO)
+    assert values["LNDMC_Z_VEL_MAX"] < 0.7 / 1.2
+    fast = px4.Px4(M.MAV_TYPE_QUADROTOR).speed_values({"land_speed": 2.0})
+    assert fast["LNDMC_Z_VEL_MAX"] == px4.LAND_DETECT_MAX  # no looser, whatever the landing speed
+    text = DOC.read_text()
+    assert "`LNDMC_Z_VEL_MAX`" in text and "`MPC_LAND_CRWL`" in text
+    assert f"{px4.LAND_DETECT_RATIO:g} × `rovers.land_speed`, at most {px4.LAND_DETECT_MAX:g} m/s" in text
 
 
 def test_docs_state_how_long_a_landed_rover_is_given_to_disarm() -> None:

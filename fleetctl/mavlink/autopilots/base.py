@@ -159,6 +159,13 @@ class Autopilot:
         (its landing mode) instead."""
         return False
 
+    @property
+    def disarm_when_landed(self) -> bool:
+        """The firmware waits seconds after its land detector before it disarms itself (PX4:
+        ``COM_DISARM_LAND``, 2 s): a rover it reports landed on the deck is told to disarm at once
+        (a plain disarm, which the firmware accepts only once it detected the landing)."""
+        return False
+
     def speed_params(self) -> tuple[SpeedParam, ...]:
         """The parameters that decide this vehicle's flight times (none known here)."""
         return ()

@@ -41,6 +41,16 @@ QUIET_STREAMS = ("ATTITUDE", "ATTITUDE_QUATERNION", "ATTITUDE_TARGET", "POSITION
 # MPC_XY_CRUISE with MPC_ACC_HOR (jerk MPC_JERK_AUTO). A ground rover (10045: Ackermann) drives at
 # RO_SPEED_LIM with RO_ACCEL_LIM / RO_DECEL_LIM. Waypoints count as reached NAV_ACC_RAD early
 # (10 m multicopter, 0.5 m rover; RA_ACC_RAD_MAX on an Ackermann rover) unless param2 is set.
+# A multicopter with a distance sensor (the SIH quadcopter has one) touches down at MPC_LAND_CRWL
+# (0.3 m/s) below MPC_LAND_ALT3, slower than the mission's land_speed: set to land_speed, it lands
+# at the speed planned, as ArduCopter at LAND_SPEED. Its land detector's vertical-speed threshold,
+# LNDMC_Z_VEL_MAX (0.25 m/s: PX4 ships it at MPC_LAND_CRWL / 1.2 and caps it there), is kept below
+# the landing speed by that same margin, a bit more: SIH's estimator reads the quadcopter climbing
+# at up to 0.33 m/s for 1 - 3 s after it stood still on the ground (PX4 1.18 SIH, 12 landings),
+# which held "Landing detected" back 1.7 - 4.0 s after the touch-down with the stock threshold,
+# 1.05 - 1.42 s at 0.5 m/s (the land detector's own LNDMC_TRIG_TIME is 1 s)
+LAND_DETECT_RATIO = 0.8  # LNDMC_Z_VEL_MAX per m/s of land_speed (PX4's cap: 1 / 1.2)
+LAND_DETECT_MAX = 0.6  # m/s: no looser, whatever the landing speed
 MC_SPEED_PARAMS = (
     SpeedParam("MPC_XY_CRUISE", "max_speed", 1.0),
     SpeedParam("MPC_ACC_HOR", "accel", 1.0),
@@ -48,6 +58,9 @@ MC_SPEED_PARAMS = (
     SpeedParam("MPC_Z_V_AUTO_UP", "climb_rate", 1.0),
     SpeedParam("MPC_LAND_SPEED", "land_speed", 1.0),
     SpeedParam("MPC_Z_V_AUTO_DN", "land_speed", 1.0),
+    SpeedParam("MPC_LAND_CRWL", "land_speed", 1.0),
+    # after MPC_LAND_CRWL, which caps it
+    SpeedParam("LNDMC_Z_VEL_MAX", "land_speed", LAND_DETECT_RATIO, hi=LAND_DETECT_MAX),
 )
 ROVER_SPEED_PARAMS = (
     SpeedParam("RO_SPEED_LIM", "max_speed", 1.0),
@@ -66,13 +79,16 @@ ROVER_SPEED_PARAMS = (
 #   clearance is that less the leg: 1 m / 1.5 m/s of climb + 3.6 s (take-off detection, the
 #   MPC_TKO_RAMP_T velocity ramp, less the start of the leg the rover flies while it climbs);
 # - sent down from its approach waypoint 3 m above the carrier (MISSION_ITEM_REACHED) -> loaded
-#   (landed, auto-disarmed COM_DISARM_LAND 2 s later, seen by fleetctl): 9.7 - 15.0 s, mean 11.4 s
-#   (15 landings, load_time 0; touch-down -> "Landing detected" alone takes 1 - 9 s on SIH):
-#   3 m / 0.7 m/s + 5.1 s to the landing detected, and the auto-disarm 2 s later; the carrier's
-#   load_time runs from the touch-down alongside the auto-disarm (as on ArduPilot)
+#   (its land detector reports it landed and fleetctl disarms it at once, Px4.disarm_when_landed;
+#   MPC_LAND_CRWL and LNDMC_Z_VEL_MAX set from land_speed as above): 7.9 - 12.5 s, mean 9.2 s (17
+#   landings of 6 collections, bench/firmware_px4.py, 2026-12-04): 1.5 - 5.8 s over the stop
+#   before it is sent down (at rest over it, the carrier parked: SIH's Ackermann carrier rolls on
+#   at 0.2 - 0.4 m/s after its stop) and 5.9 - 8.3 s from the land command to "Landing detected".
+#   A collection's makespan is its last rover's: the term is the mean of each stop's last landing
+#   (three rovers a stop), 9.9 s, so 3 m / 0.7 m/s + 5.6 s; the carrier's load_time runs from the
+#   touch-down on
 MC_TAKEOFF_OVERHEAD = 3.6  # s
-MC_TOUCHDOWN_OVERHEAD = 5.1  # s approach waypoint -> landed, beyond 3 m / MPC_LAND_SPEED
-MC_DISARM_DELAY = 2.0  # s landed -> disarmed (COM_DISARM_LAND)
+MC_TOUCHDOWN_OVERHEAD = 5.6  # s approach waypoint -> landed and disarmed, beyond 3 m / MPC_LAND_SPEED
 MC_LEG_OVERHEAD = 2.5  # s a waypoint leg from rest takes beyond S/v + v/a
 WAYPOINT_RADIUS = 1.0  # m: param2 of compiled waypoints ("reached" = at the point, not 10 m early)
 _WORDS = {"none": "no action", "hold": "hold", "rtl": "RTL", "land": "land",
@@ -145,6 +161,10 @@ class Px4(Autopilot):
             await vehicle.set_current(0)
 
     @property
+    def disarm_when_landed(self) -> bool:
+        return True  # COM_DISARM_LAND: 2 s after "Landing detected"
+
+    @property
     def mission_landing_settles(self) -> bool:
         # PX4 1.18 SIH: a mission's NAV_LAND flies to the item's point before it descends, and set a
         # rover hovering 1.2 m off the carrier down 1.6 m off it, beside the deck; LAND mode descends
@@ -167,9 +187,9 @@ class Px4(Autopilot):
                        load_time: float = 0.0) -> tuple[float, float] | None:
         if self.ground:
             return None
-        disarm_left = max(0.0, MC_DISARM_DELAY - load_time)  # what load_time does not cover
+        # disarmed at once when landed (disarm_when_landed): load_time has no disarm to cover
         return (TAKEOFF_HEIGHT / climb_rate + MC_TAKEOFF_OVERHEAD,
-                MEET_HEIGHT / land_speed + MC_TOUCHDOWN_OVERHEAD + disarm_left)
+                MEET_HEIGHT / land_speed + MC_TOUCHDOWN_OVERHEAD)
 
     # -- telemetry rates ------------------------------------------------------------------------------
     def stream_rates(self, position_hz: float, status_hz: float) -> dict[str, float]:
