@@ -21,7 +21,7 @@ from fleetctl.geo import Origin
 from fleetctl.mavlink.autopilots import ModeError
 from fleetctl.mavlink.fence import fence_items as mavlink_fence_items
 from fleetctl.mavlink.fleet import Fleet
-from fleetctl.mavlink.health import request_missing
+from fleetctl.mavlink.health import request_missing, unhealthy_sensors
 from fleetctl.mavlink.link import LinkError, MissionItem
 from fleetctl.mavlink.params import ParamError, read_params, set_param
 from fleetctl.mavlink.vehicle import CommandRejected, Vehicle
@@ -33,6 +33,10 @@ from fleetctl.run.kinds import Ev
 from fleetctl.run.preflight import PreflightRow, check_connected, check_fleet
 
 GATHER_TIMEOUT = 3.0  # s to wait for the telemetry preflight checks read
+# s a vehicle failing preflight on sensor health alone is given to report its sensors healthy: PX4 SITL's
+# rover carrier reported "xy position control" unhealthy in one SYS_STATUS seconds after `fleetctl status`
+# had found every sensor healthy, and a carrier failing preflight stops the run
+SENSOR_SETTLE = 3.0
 RTL_WARNING = ("RTL returns a rover to where it armed: a carrier stop the carrier will have left "
                "(set links.failsafe: hold or land to keep rovers near their task)")
 
@@ -63,6 +67,22 @@ async def gather_telemetry(vehicles: list[Vehicle], timeout: float = GATHER_TIME
                 await v.wait_until(_complete, timeout, "preflight telemetry")
 
     await asyncio.gather(*(one(v) for v in vehicles if v.connected and not v.lost))
+
+
+async def settle_sensors(vehicles: dict[str, Vehicle], rows: dict[str, PreflightRow],
+                         timeout: float = SENSOR_SETTLE) -> bool:
+    """Wait up to ``timeout`` for the vehicles whose only failing check is sensor health to report
+    every sensor healthy (a health flag that flickers is not a failed sensor; one that stays
+    unhealthy fails as before). Returns whether any vehicle was waited for (check again)."""
+    waiting = [vehicles[vid] for vid, row in rows.items()
+               if vid in vehicles and {c.name for c in row.checks if not c.ok} == {"sensors"}]
+
+    async def one(v: Vehicle) -> None:
+        with contextlib.suppress(TimeoutError):
+            await v.wait_until(lambda v: v.lost or not unhealthy_sensors(v), timeout, "sensors healthy")
+
+    await asyncio.gather(*(one(v) for v in waiting))
+    return bool(waiting)
 
 
 async def read_failsafes(vehicles: list[Vehicle]) -> dict[str, PreflightFailsafe]:
@@ -231,6 +251,8 @@ async def admit_safety(fleet: Fleet, mission: Mission, command: str, *, resuming
     vehicles = {vid: v for vid, v in fleet.vehicles.items() if v.connected}
     await gather_telemetry(list(vehicles.values()), timeout)
     rep.rows = check_fleet(vehicles, fleet.carrier_id, mission, command=command, resuming=resuming)
+    if await settle_sensors(vehicles, rep.rows):
+        rep.rows = check_fleet(vehicles, fleet.carrier_id, mission, command=command, resuming=resuming)
     if prefetched is not None:
         failsafe = await prefetched
     else:

@@ -126,3 +126,36 @@ async def test_require_all_refuses_a_rover_failing_preflight(tmp_path: Path, req
         execute(mission_from(d, tmp_path), "deploy", runs_dir=tmp_path / "runs", require_all=require_all), 60
     )
     assert out.exit_code == 1 and out.error is not None and "--require-all" in out.error and "r3" in out.error
+
+
+async def test_a_sensor_flag_that_flickers_is_waited_out_and_one_that_stays_fails(tmp_path: Path) -> None:
+    from fleetctl.mavlink.health import unhealthy_sensors
+    from fleetctl.run.safety import SENSOR_SETTLE, settle_sensors
+    from sitl.faults import Fault
+
+    d = mission_dict(rovers=3)
+    mission = mission_from(d, tmp_path)
+    async with sim_fleet(d) as sim, await connect_fleet(mission, sim.endpoints, timeout=5.0) as fleet:
+        await gather(fleet)
+        speedup = d["sim"]["speedup"]
+        # r1's magnetometer unhealthy for 1 wall s from now, r2's for good
+        sim.faults.add(Fault("unhealthy", vehicle="r1", until=sim.sim_time + 1.0 * speedup))
+        sim.faults.add(Fault("unhealthy", vehicle="r2"))
+        for rid in ("r1", "r2"):
+            await fleet.rovers[rid].wait_until(lambda v: bool(unhealthy_sensors(v)), 5.0, "unhealthy")
+        rows = check_fleet(fleet.vehicles, fleet.carrier_id, mission, command="deploy")
+        assert rows["r1"].failures == rows["r2"].failures == ["sensors not healthy: magnetometer"]
+        assert rows["r3"].ok
+        assert SENSOR_SETTLE > 1.0
+        assert await settle_sensors(fleet.vehicles, rows)
+        again = check_fleet(fleet.vehicles, fleet.carrier_id, mission, command="deploy")
+        assert not await settle_sensors(fleet.vehicles, {"r3": rows["r3"]})  # nothing to wait for
+    assert again["r1"].ok and again["r3"].ok
+    assert again["r2"].failures == ["sensors not healthy: magnetometer"]
+
+
+def test_docs_state_how_long_sensors_are_given_to_settle() -> None:
+    from fleetctl.run.safety import SENSOR_SETTLE
+
+    text = (ROOT / "docs" / "field-safety.md").read_text()
+    assert f"given {SENSOR_SETTLE:g} s to report its sensors healthy" in text
