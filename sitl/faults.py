@@ -14,7 +14,7 @@ from dataclasses import dataclass
 from typing import Any
 
 KINDS = ("dropout", "packet_loss", "latency", "battery_drain", "refuse_arm", "reject_mission",
-         "no_gps", "unhealthy", "low_battery", "drive_off")
+         "no_gps", "unhealthy", "low_battery", "drive_off", "land_drift")
 _KIND_KEYS: dict[str, set[str]] = {
     "dropout": set(),
     "packet_loss": {"rate"},
@@ -26,6 +26,7 @@ _KIND_KEYS: dict[str, set[str]] = {
     "unhealthy": set(),
     "low_battery": {"level"},
     "drive_off": set(),
+    "land_drift": {"distance"},
 }
 _COMMON_KEYS = {"kind", "vehicle", "at", "until"}
 
@@ -50,7 +51,11 @@ class Fault:
     ``drive_off`` (a carrier): while active it drives on along its heading at its cruise speed,
     whatever its mission or commands say (as PX4's SIH Ackermann carrier once drove 57 m on from a
     stop it had reported reached); when the fault ends it stops where it is and stays there until
-    its mission is moved on (a current item set again)."""
+    its mission is moved on (a current item set again).
+
+    ``land_drift`` (a rover): a landing begun while it is active drifts ``distance`` metres east on
+    the way down, in step with the descent (PX4 1.18 SIH's LAND mode moved quadcopters 0.1 - 1.1 m
+    sideways on a descent from 3 m): a rover sent down over the deck may touch down beside it."""
 
     kind: str
     vehicle: str | None = None
@@ -60,6 +65,7 @@ class Fault:
     seconds: float = 0.0
     factor: float = 1.0
     level: float = 1.0  # low_battery
+    distance: float = 0.0  # land_drift: metres east over a landing's descent
 
     def __post_init__(self) -> None:
         if self.kind not in KINDS:
@@ -74,6 +80,8 @@ class Fault:
             raise FaultError(f"fault latency: 'seconds' must be >= 0, got {self.seconds}")
         if not (math.isfinite(self.factor) and self.factor >= 0):
             raise FaultError(f"fault battery_drain: 'factor' must be >= 0, got {self.factor}")
+        if not (math.isfinite(self.distance) and self.distance >= 0):
+            raise FaultError(f"fault land_drift: 'distance' must be >= 0 m, got {self.distance}")
         if not 0.0 <= self.level <= 1.0:
             raise FaultError(f"fault low_battery: 'level' must be within 0..1, got {self.level}")
 
@@ -95,7 +103,7 @@ class Fault:
         kw: dict[str, Any] = {"kind": kind}
         if d.get("vehicle") is not None:
             kw["vehicle"] = str(d["vehicle"])
-        for key in ("at", "until", "rate", "seconds", "factor", "level"):
+        for key in ("at", "until", "rate", "seconds", "factor", "level", "distance"):
             if key in d and d[key] is not None:
                 val = d[key]
                 if isinstance(val, bool) or not isinstance(val, int | float):
@@ -107,6 +115,8 @@ class Fault:
             raise FaultError(f"{where}: a latency fault needs 'seconds'")
         if kind == "battery_drain" and "factor" not in kw:
             raise FaultError(f"{where}: a battery_drain fault needs 'factor'")
+        if kind == "land_drift" and "distance" not in kw:
+            raise FaultError(f"{where}: a land_drift fault needs 'distance' (metres)")
         if kind == "low_battery" and "level" not in kw:
             raise FaultError(f"{where}: a low_battery fault needs 'level' (0..1)")
         try:
@@ -187,6 +197,12 @@ class FaultBook:
     def drives_off(self, vehicle: str, t: float) -> bool:
         """The carrier drives on along its heading, deaf to its mission (``drive_off``)."""
         return bool(self._faults) and bool(self._active("drive_off", vehicle, t))
+
+    def land_drift(self, vehicle: str, t: float) -> float:
+        """Metres east a landing begun now drifts on its way down (``land_drift``; 0 without one)."""
+        if not self._faults:
+            return 0.0
+        return sum(f.distance for f in self._active("land_drift", vehicle, t))
 
     def battery_level(self, vehicle: str, t: float) -> float | None:
         """The cap on the battery (0..1) of an active low_battery fault, None without one."""

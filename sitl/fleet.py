@@ -54,6 +54,7 @@ class SimFleet:
                            config.position_hz)
             if isinstance(body, Rover):
                 body.drain_factor = self._drain_getter(spec.id)
+                body.land_drift = self._drift_getter(spec.id)
             if config.signing_key is not None:
                 v.set_signing_key(config.signing_key)
             self.vehicles[spec.id] = v
@@ -71,6 +72,9 @@ class SimFleet:
 
     def _drain_getter(self, vid: str) -> Callable[[], float]:
         return lambda: self.faults.drain_factor(vid, self.world.time)
+
+    def _drift_getter(self, vid: str) -> Callable[[], float]:
+        return lambda: self.faults.land_drift(vid, self.world.time)
 
     def _group_links(self) -> list[tuple[LinkSpec, list[str]]]:
         """One endpoint per link of the configuration (:meth:`FleetConfig.link_groups`)."""

@@ -191,6 +191,8 @@ class Rover(Body):
         self.passed = False  # the last target was flown through (the rover still moves)
         self._land_xy: tuple[float, float] | None = None
         self.drain_factor: Callable[[], float] = lambda: 1.0
+        self.land_drift: Callable[[], float] = lambda: 0.0  # m east a landing begun now drifts
+        self._drift_per_m = 0.0  # m east per metre descended, for the landing under way
         self.events: list[str] = []  # "touchdown", "loaded", "battery_empty", "takeoff"
 
     # -- state -----------------------------------------------------------------------------
@@ -258,6 +260,7 @@ class Rover(Body):
             return
         self.landing = True
         self.through = False
+        self._drift_per_m = self.land_drift() / max(self._pos[2], 0.1)
         self._land_xy = None if x is None or y is None else (float(x), float(y))
         self.target = None if self._land_xy is None else (self._land_xy[0], self._land_xy[1], self._pos[2])
 
@@ -360,6 +363,7 @@ class Rover(Body):
         z = self._pos[2]
         step = min(z, self.land_speed * dt)
         self._pos[2] = z - step
+        self._pos[0] += self._drift_per_m * step
         self.vel = (0.0, 0.0, -self.land_speed)
         self.flown += step
         self.moves += 1

@@ -51,6 +51,7 @@ MIN_SPEEDUP = 0.01
 MAX_SIM_TIME = 1e7  # s: fault at/until (~116 days)
 MAX_LATENCY = 60.0  # s: a latency fault
 MAX_DRAIN = 1000.0  # battery drain multiplier
+MAX_DRIFT = 10.0  # m a simulated landing drifts (sim fault land_drift)
 MAX_HEARTBEAT_TIMEOUT = 3600.0  # s
 MIN_HEARTBEAT_TIMEOUT = 0.01
 MAX_SEED = 2**32 - 1

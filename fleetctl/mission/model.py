@@ -25,7 +25,7 @@ Vec2 = tuple[float, float]
 Vec3 = tuple[float, float, float]
 
 FAULT_KINDS = ("dropout", "packet_loss", "latency", "battery_drain", "refuse_arm", "reject_mission",
-               "no_gps", "unhealthy", "low_battery", "drive_off")
+               "no_gps", "unhealthy", "low_battery", "drive_off", "land_drift")
 FAILSAFE_ACTIONS = ("keep", "hold", "land", "rtl")  # links.failsafe
 FENCE_ACTIONS = ("report", "hold", "rtl", "land")  # geofence.action
 
@@ -124,6 +124,7 @@ class Fault:
     seconds: float | None = None  # latency
     factor: float | None = None  # battery_drain
     level: float | None = None  # low_battery: the battery reads at most this fraction
+    distance: float | None = None  # land_drift: metres a rover's landing drifts east on its way down
 
 
 @dataclass(frozen=True)

@@ -125,9 +125,10 @@ FAULT = {
     "seconds": (number(ge=0, le=L.MAX_LATENCY, unit="added latency in seconds"), None),
     "factor": (number(gt=0, le=L.MAX_DRAIN, unit="battery drain multiplier"), None),
     "level": (number(ge=0, le=1, unit="fraction of a full battery"), None),
+    "distance": (number(gt=0, le=L.MAX_DRIFT, unit="metres a landing drifts"), None),
 }
 FAULT_PARAM = {"packet_loss": "rate", "latency": "seconds", "battery_drain": "factor",
-                "low_battery": "level"}
+                "low_battery": "level", "land_drift": "distance"}
 SIM = {
     "speedup": (number(ge=L.MIN_SPEEDUP, le=L.MAX_SPEEDUP, unit="simulated seconds per wall second"), 1.0),
     "faults": (

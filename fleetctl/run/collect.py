@@ -78,6 +78,8 @@ RETARGET_SPEED = 1.0  # m/s (horizontally) at most, is sent down; so is one at r
 RETARGET_NEAR = 1.0  # m of it (PX4 stops 0.7 - 0.8 m short of a DO_REPOSITION's point), well on the deck
 RETARGET_SLACK = 5.0  # mission s on top of the flight over to the carrier
 SETTLE_WAIT = 3.0  # mission s at most for a rover moving over its stop to come to rest before going down
+RELANDS_MAX = 1  # times a rover that touched down beside the deck takes off to land on it again
+LIFT_SLACK = 0.5  # m below MEET_HEIGHT that counts as up again
 DISARM_WAIT = 4.0  # mission s a rover down on the deck is given to disarm itself before it is told to
 LANDING_TIMEOUT = 10.0  # mission s from the land command to the rover on the deck (at least 3x land_time)
 MAX_POSITION_AGE = 5.0  # mission s: an older carrier position is not moved on by its speed
@@ -99,6 +101,17 @@ def _over(v: Vehicle, carrier: Vehicle, within: float) -> bool:
     if v.enu is None or carrier.enu is None:
         return False
     return math.hypot(v.enu[0] - carrier.enu[0], v.enu[1] - carrier.enu[1]) <= within
+
+
+def _beside_deck(v: Vehicle, carrier: Vehicle) -> float | None:
+    """How far ``v`` stands from ``carrier`` when it reports itself landed and at rest beyond the
+    deck (:data:`DECK_RADIUS`), None otherwise: it touched down beside the deck."""
+    if v.on_ground is not True or v.enu is None or carrier.enu is None:
+        return None
+    if (v.ground_speed or 0.0) > STAY_SPEED:
+        return None
+    off = math.hypot(v.enu[0] - carrier.enu[0], v.enu[1] - carrier.enu[1])
+    return off if off > DECK_RADIUS else None
 
 
 def _over_carrier(v: Vehicle, carrier: Vehicle) -> bool:
@@ -632,7 +645,8 @@ class CollectPhase:
         ctx, c, rid = self.ctx, self.ctx.fleet.carrier, v.name
         landing = max(LANDING_TIMEOUT, 3.0 * ctx.mission.rovers.land_time)
         broken_off = over_carrier
-        for _ in range(RESTOPS_MAX):
+        relands = 0
+        for _ in range(RESTOPS_MAX + RELANDS_MAX):
             await self.carrier.parked(k, seq)
             if not rover_on_deck(ctx, v):
                 await self._send_down(rnd, v, over_carrier=broken_off)
@@ -640,14 +654,38 @@ class CollectPhase:
 
             def down_or_left(v: Vehicle) -> bool:
                 return (rover_on_deck(ctx, v) or self._down_on_deck(rnd, v) or v.lost or self._gone(rnd, v)
-                        or (left_item(c, seq) and v.on_ground is not True))
+                        or (left_item(c, seq) and v.on_ground is not True) or _beside_deck(v, c) is not None)
 
             await ctx.wait_for(v, down_or_left, landing, "landing on the carrier")
             if rover_on_deck(ctx, v) or self._down_on_deck(rnd, v) or v.lost or not self.board.in_round(rid):
                 return
-            await climb_back(ctx, v, k + 1)
+            off = _beside_deck(v, c)
+            if off is not None:
+                relands += 1
+                if relands > RELANDS_MAX:
+                    raise TimeoutError(f"landed {off:.1f} m off the carrier, beside its deck, "
+                                       f"{relands} times")
+                await self._lift_again(v, off, k)
+            else:
+                await climb_back(ctx, v, k + 1)
             broken_off = True
         raise TimeoutError(f"the carrier left stop {k + 1} {RESTOPS_MAX} times")
+
+    async def _lift_again(self, v: Vehicle, off: float, k: int) -> None:
+        """``v`` touched down ``off`` m from the carrier parked at stop ``k``, beside its deck: it takes
+        off again to ``MEET_HEIGHT`` (armed and its take-off command; journalled) and is then brought
+        down over the carrier (:meth:`_send_down` with ``over_carrier``)."""
+        ctx, rid = self.ctx, v.name
+        text = (f"{rid}: landed {off:.1f} m off the carrier at stop {k + 1}, beside its deck: "
+                "taking off to land again")
+        ctx.record(Ev.ROVER_STATE, vehicle=rid, text=text, offset=off)
+        ctx.state.set_state(rid, VehicleStatus.WAITING)
+        if not v.armed:
+            await ctx.command(v, "arm", v.arm())
+        await ctx.command(v, "takeoff", v.takeoff(MEET_HEIGHT))
+        climb = ctx.mission.rovers.takeoff_time + MEET_HEIGHT / ctx.mission.rovers.climb_rate
+        await ctx.wait_for(v, lambda v: v.lost or (v.height or 0.0) >= MEET_HEIGHT - LIFT_SLACK,
+                           climb + RETARGET_SLACK, "up again beside the deck")
 
     def _carrier_off_stop(self, rnd: _Round, v: Vehicle, k: int, seq: int) -> float | None:
         """How far the carrier stands parked off stop ``k`` (its arrive item ``seq``) while ``v`` flies

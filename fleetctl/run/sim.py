@@ -99,7 +99,7 @@ def _fault(f: Fault) -> Any:
     from sitl import Fault as SimFault
 
     extra = {k: float(v) for k, v in (("rate", f.rate), ("seconds", f.seconds), ("factor", f.factor),
-                                      ("level", f.level)) if v is not None}
+                                      ("level", f.level), ("distance", f.distance)) if v is not None}
     return SimFault(f.kind, vehicle=f.vehicle, at=f.at, until=f.until, **extra)
 
 
