@@ -77,7 +77,6 @@ RETARGET_DONE = 0.5  # m: a re-targeted rover this near over the carrier, and sl
 RETARGET_SPEED = 1.0  # m/s (horizontally) at most, is sent down; so is one at rest (STAY_SPEED) within
 RETARGET_NEAR = 1.0  # m of it (PX4 stops 0.7 - 0.8 m short of a DO_REPOSITION's point), well on the deck
 RETARGET_SLACK = 5.0  # mission s on top of the flight over to the carrier
-SETTLE_WAIT = 3.0  # mission s at most for a rover moving over its stop to come to rest before going down
 RELANDS_MAX = 1  # times a rover that touched down beside the deck takes off to land on it again
 LIFT_SLACK = 0.5  # m below MEET_HEIGHT that counts as up again
 DISARM_WAIT = 4.0  # mission s a rover down on the deck is given to disarm itself before it is told to
@@ -744,13 +743,6 @@ class CollectPhase:
         c = ctx.fleet.carrier
         ap = v.autopilot
         settles = ap is not None and ap.mission_landing_settles
-        if not over_carrier and (v.ground_speed or 0.0) > STAY_SPEED:
-            # still sliding onto its hold (its approach waypoint is reported reached 1 m early): where
-            # it comes to rest decides, as a landing mode descends where the rover is when it engages
-            # (PX4 1.18 SIH: a rover 0.9 m off the carrier at 1 m/s, sent down, landed 1.7 m off)
-            with contextlib.suppress(TimeoutError):
-                await ctx.wait_for(v, lambda v: v.lost or (v.ground_speed or 0.0) <= STAY_SPEED,
-                                   SETTLE_WAIT, "at rest over its stop")
         off = None if c.enu is None or v.enu is None else math.hypot(c.enu[0] - v.enu[0], c.enu[1] - v.enu[1])
         if off is not None and not settles and c.enu is not None and c.origin is not None:
             x, y, _z = item_position(rnd.items[rid][rnd.land_seq[rid]], c.origin)

@@ -87,11 +87,10 @@ def test_a_land_drift_fault_needs_its_distance(tmp_path: Path) -> None:
         mission_from(d, tmp_path)
 
 
-def test_docs_state_the_second_try_and_the_settle_wait() -> None:
-    from fleetctl.run.collect import RELANDS_MAX, SETTLE_WAIT
+def test_docs_state_the_second_try() -> None:
+    from fleetctl.run.collect import RELANDS_MAX
     from fleetctl.run.state import DECK_RADIUS
 
     text = (Path(__file__).resolve().parents[2] / "docs" / "mavlink.md").read_text()
-    assert f"at most {SETTLE_WAIT:g} s later" in text
     assert f"more than {DECK_RADIUS:g} m from the carrier" in text
     assert f"after {RELANDS_MAX} such second try" in text
