@@ -80,15 +80,14 @@ ROVER_SPEED_PARAMS = (
 #   MPC_TKO_RAMP_T velocity ramp, less the start of the leg the rover flies while it climbs);
 # - sent down from its approach waypoint 3 m above the carrier (MISSION_ITEM_REACHED) -> loaded
 #   (its land detector reports it landed and fleetctl disarms it at once, Px4.disarm_when_landed;
-#   MPC_LAND_CRWL and LNDMC_Z_VEL_MAX set from land_speed as above): 7.9 - 12.5 s, mean 9.2 s (17
-#   landings of 6 collections, bench/firmware_px4.py, 2026-12-04): 1.5 - 5.8 s over the stop
-#   before it is sent down (at rest over it, the carrier parked: SIH's Ackermann carrier rolls on
-#   at 0.2 - 0.4 m/s after its stop) and 5.9 - 8.3 s from the land command to "Landing detected".
-#   A collection's makespan is its last rover's: the term is the mean of each stop's last landing
-#   (three rovers a stop), 9.9 s, so 3 m / 0.7 m/s + 5.6 s; the carrier's load_time runs from the
-#   touch-down on
+#   MPC_LAND_CRWL and LNDMC_Z_VEL_MAX set from land_speed as above): 6.5 - 10.8 s, mean 8.0 s (24
+#   landings of 8 collections, bench/firmware_px4.py, 2026-12-04): 0 - 3 s over the stop until the
+#   carrier is parked (SIH's Ackermann carrier rolls on at 0.1 - 0.4 m/s after its stop) and
+#   6.1 - 8.6 s from the land command to "Landing detected". A collection's makespan is its last
+#   rover's: the term is the mean of each stop's last landing (three rovers a stop), 8.8 s, so
+#   3 m / 0.7 m/s + 4.5 s; the carrier's load_time runs from the touch-down on
 MC_TAKEOFF_OVERHEAD = 3.6  # s
-MC_TOUCHDOWN_OVERHEAD = 5.6  # s approach waypoint -> landed and disarmed, beyond 3 m / MPC_LAND_SPEED
+MC_TOUCHDOWN_OVERHEAD = 4.5  # s approach waypoint -> landed and disarmed, beyond 3 m / MPC_LAND_SPEED
 MC_LEG_OVERHEAD = 2.5  # s a waypoint leg from rest takes beyond S/v + v/a
 WAYPOINT_RADIUS = 1.0  # m: param2 of compiled waypoints ("reached" = at the point, not 10 m early)
 _WORDS = {"none": "no action", "hold": "hold", "rtl": "RTL", "land": "land",
