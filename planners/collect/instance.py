@@ -8,7 +8,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from planners.collect.reach import Point2, Region, make_region
+from planners.collect.reach import Point2, Region, make_region, rover_rows
 from planners.core.geometry import EnclosingCircles
 from planners.core.problem import CollectProblem, PlanningError
 from planners.core.timing import RANGE_MARGIN
@@ -30,7 +30,7 @@ class CollectInstance:
         self.pts2: list[Point2] = [(float(x), float(y)) for x, y in self.ground.tolist()]
         self.rad: list[float] = self.radii.tolist()  # the same numbers as lists, for Python loops
         self.h2: list[float] = self.heights2.tolist()
-        self._lists = (self.pts2, self.rad, self.h2)
+        self._rows = rover_rows((self.pts2, self.rad, self.h2))  # every rover's disc and row, made once
         self._regions: dict[tuple[int, ...], Region] = {}
         # power and time centres' circles, derived from neighbouring clusters' (core.geometry)
         self._circles = (EnclosingCircles(self.pts2), EnclosingCircles(self.pts2))
@@ -42,7 +42,8 @@ class CollectInstance:
         reg = self._regions.get(key)
         if reg is None:
             hints = tuple(tuple(sorted(c)) for c in near)
-            reg = make_region(key, self.ground, self.radii, self.heights2, self._lists, self._circles, hints)
+            reg = make_region(key, self.ground, self.radii, self.heights2, None, self._circles, hints,
+                              self._rows)
             self._regions[key] = reg
         return reg
 

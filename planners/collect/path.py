@@ -33,6 +33,8 @@ class PathBuilder:
         # whether Route.replace places the stop before a change afresh too (the quick descent of
         # long routes leaves it where it is: ``planners.collect.lee.QD_KEEP_BEFORE_FROM``)
         self.replace_before = True
+        self._scored: dict[tuple, list[list]] = {}  # ``_quick``'s candidates by region, stop, heading, next
+        self._caps: dict[tuple[int, ...], float] = {}  # ``_ready_cap`` by membership
 
     def ready(self, region: Region, p: Point2) -> float:
         """g(q_γ) of eq. 5.2: when the cluster's last rover lands at ``p`` (all leave at t = 0)."""
@@ -86,19 +88,69 @@ class PathBuilder:
         """``place`` at level 0 with what it timed on the way: the stop, the hop into it (time and
         heading on arrival) and when the cluster's last rover lands there (``local_time`` of
         each quick candidate, the first fastest kept; the same floats)."""
-        drive, leg, load = self.drive, self.leg, self.load
-        best: tuple[Point2, float, float, float] | None = None
-        best_eta = math.inf
-        for p in region.quick_candidates(prev, nxt):
-            dt, h = drive(prev, p, heading)
-            ready = leg(region.farthest_flight(p))
-            eta = max(t + dt, ready) + load
-            if nxt is not None:
-                eta += drive(p, nxt, h)[0]
+        best, _ = self._quick(region, prev, t, heading, nxt)
+        p, dt, h, ready, _ = best
+        if ready is None:
+            ready = best[3] = self.leg(region.farthest_flight(p))
+        return p, dt, h, ready
+
+    def _quick(self, region: Region, prev: Point2, t: float, heading: float,
+               nxt: Point2 | None) -> tuple[list, float]:
+        """``quick_place``'s fastest candidate [stop, hop time, heading, ready or None, hop on] and
+        max(t + hop time, ready): eq. 5.2's departure less the load (``replace`` goes on from it).
+
+        A candidate's hops do not depend on ``t``: they are remembered per region, previous stop,
+        heading and next stop (the descent scores the same stops again as other stops move). Its
+        ready time is only needed while the carrier could arrive before the last rover: once
+        t + hop ≥ the region's ``_ready_cap`` the max is t + hop whatever the ready time."""
+        key = (region.members, prev, heading, nxt)
+        scored = self._scored.get(key)
+        if scored is None:
+            if len(self._scored) >= SCORED_SIZE:
+                self._scored.clear()
+            scored = self._scored[key] = self._score(region, prev, heading, nxt)
+        cap = self._caps.get(region.members)
+        if cap is None:
+            cap = self._caps[region.members] = self._ready_cap(region)
+        load = self.load
+        best: list | None = None
+        best_eta = best_max = math.inf
+        for entry in scored:
+            arrive = t + entry[1]
+            if arrive >= cap:
+                held = arrive
+            else:
+                ready = entry[3]
+                if ready is None:
+                    ready = entry[3] = self.leg(region.farthest_flight(entry[0]))
+                held = max(arrive, ready)
+            eta = held + load
+            if entry[4] is not None:
+                eta += entry[4]
             if best is None or eta < best_eta:
-                best, best_eta = (p, dt, h, ready), eta
+                best, best_eta, best_max = entry, eta, held
         assert best is not None  # the time centre is always a candidate
-        return best
+        return best, best_max
+
+    def _score(self, region: Region, prev: Point2, heading: float, nxt: Point2 | None) -> list[list]:
+        """Per quick candidate: [stop, hop time into it, heading there, None (ready: when needed),
+        hop time on to ``nxt`` or None] (``carrier_stepper``'s arithmetic, as ``drive``)."""
+        step = self.step
+        out = []
+        for p in region.quick_candidates(prev, nxt):
+            dt, h = step(p[0] - prev[0], p[1] - prev[1], heading)
+            out.append([p, dt, h, None, None if nxt is None else step(nxt[0] - p[0], nxt[1] - p[1], h)[0]])
+        return out
+
+    def _ready_cap(self, region: Region) -> float:
+        """A time no rover of ``region`` lands after at any quick candidate: every candidate lies in
+        the reach discs (up to rounding, far below ``READY_SLACK``), so its flight is at most
+        sqrt((ρ + slack)² + z²); inf for an empty region (its candidates may lie anywhere)."""
+        if not region.feasible:
+            return math.inf
+        far = max((r + READY_SLACK) ** 2 + z2 for (_, _, r), (_, _, z2) in zip(region.discs, region.rows,
+                                                                             strict=True))
+        return self.leg(math.sqrt(far)) + READY_SLACK
 
     def route(self, clusters: list[list[int]], level: int = 0) -> Route:
         """GET_COLLECT_PATH for every cluster in order, then the route's times (CALC_TIME)."""
@@ -124,6 +176,9 @@ class PathBuilder:
             prev = pos
         return Route(self, clusters, regions, positions, (hops, headings, readies))
 
+
+SCORED_SIZE = 50_000  # ``PathBuilder._quick``'s remembered candidates (then it starts afresh)
+READY_SLACK = 1e-3  # m (and s): ``PathBuilder._ready_cap``'s headroom over rounding
 
 NUMPY_FROM = 24  # stops: from this many on, a route's times are summed with numpy
 
@@ -277,8 +332,8 @@ class Route:
                 nxt: Point2 | None = window[k + 1].center
             else:
                 nxt = self.positions[m] if m < n else None
-            pos, dt, h, ready = b.quick_place(reg, prev, t, h, nxt)
-            t = max(t + dt, ready) + b.load
+            (pos, _, h, _, _), held = b._quick(reg, prev, t, h, nxt)
+            t = held + b.load
             placed.append(pos)
             prev = pos
         if m < n:

@@ -371,44 +371,62 @@ def disc_vertices(discs: Sequence[tuple[float, float, float]]) -> list[Point2]:
 
 
 DiscLists = tuple[Sequence[Sequence[float]], Sequence[float], Sequence[float]]  # ground xy, ρ, z²
+# per rover: the (x, y, ρ) disc, the (x, y, z²) row and ρ², plain floats (a collection's instance keeps them)
+RoverRows = tuple[Sequence[tuple[float, float, float]], Sequence[tuple[float, float, float]], Sequence[float]]
+
+
+def rover_rows(lists: DiscLists) -> RoverRows:
+    """The discs, rows and squared radii of ``make_region``'s ``rows`` from ground xy, ρ and z² lists."""
+    pts, rad, h2 = lists
+    discs = [(float(x), float(y), float(q)) for (x, y), q in zip(pts, rad, strict=True)]
+    rows = [(float(x), float(y), float(w)) for (x, y), w in zip(pts, h2, strict=True)]
+    return discs, rows, [q * q for _, _, q in discs]
 
 
 def make_region(members: Sequence[int], ground: np.ndarray, radii: np.ndarray,
                 heights2: np.ndarray, lists: DiscLists | None = None,
                 circles: tuple[EnclosingCircles, EnclosingCircles] | None = None,
-                near: tuple[tuple[int, ...], ...] = ()) -> Region:
+                near: tuple[tuple[int, ...], ...] = (), rows: RoverRows | None = None) -> Region:
     """I_β of ``members`` with its power centre (the feasibility test of Algorithm 5.1).
 
     The power centre minimises max_i |c − g_i|² − ρ_i²; shifting every weight by W = max ρ² keeps
     them non-negative for the enclosing-ball routine without moving the minimiser. I_β is
     non-empty exactly when the minimum is ≤ 0, and then the centre lies in I_β. ``lists``: the
-    same ground positions, radii and z² as Python lists (a collection's instance keeps them), so
-    that the cluster's discs are read without numpy. ``circles``: the instance's enclosing circles
+    same ground positions, radii and z² as Python lists, or ``rows`` (``rover_rows``: every
+    rover's disc and row made once; a collection's instance keeps them), so that the cluster's
+    discs are read without numpy. ``circles``: the instance's enclosing circles
     for the power centre and the time centre (the same balls, derived from those of the clusters
     ``near``, sorted memberships one member away, when exact); ``members`` must then be sorted.
     """
     key = tuple(members)
-    if lists is None:
-        idx = list(key)
-        pts, rad, h2 = ground[idx].tolist(), radii[idx].tolist(), heights2[idx].tolist()
+    if rows is None:
+        if lists is None:
+            idx = list(key)
+            lists = (ground[idx].tolist(), radii[idx].tolist(), heights2[idx].tolist())
+            rows = rover_rows(lists)
+        else:
+            rows = rover_rows(([lists[0][i] for i in key], [lists[1][i] for i in key],
+                               [lists[2][i] for i in key]))
+        key_rows: Sequence[int] = range(len(key))
     else:
-        pts, rad, h2 = [lists[0][i] for i in key], [lists[1][i] for i in key], [lists[2][i] for i in key]
-    discs = [(float(x), float(y), float(q)) for (x, y), q in zip(pts, rad, strict=True)]
-    rows = [(float(x), float(y), float(w)) for (x, y), w in zip(pts, h2, strict=True)]
+        key_rows = key
+    all_discs, all_rows, all_r2 = rows
+    discs = [all_discs[i] for i in key_rows]
+    reg_rows = [all_rows[i] for i in key_rows]
     if len(key) == 1:
-        reg = Region(key, discs, rows, (discs[0][0], discs[0][1]), discs[0][2], True)
+        reg = Region(key, discs, reg_rows, (discs[0][0], discs[0][1]), discs[0][2], True)
     else:
-        r2 = [q * q for _, _, q in discs]
+        r2 = [all_r2[i] for i in key_rows]
         top = max(r2)
-        ws = [max(top - q, 0.0) for q in r2]
+        ws = [top - q for q in r2]  # ≥ 0: q ≤ top, and rounding keeps the sign of a difference
         if circles is not None:
             ball = circles[0].get(key, ws, near)
         else:
             ball = enclosing_ball([(x, y) for x, y, _ in discs], ws)
-        p = (float(ball.center[0]), float(ball.center[1]))
-        depth = min(q - math.hypot(x - p[0], y - p[1]) for x, y, q in discs)
-        reg = Region(key, discs, rows, p, depth, depth >= -INSIDE_TOL)
+        px, py = float(ball.center[0]), float(ball.center[1])
+        hypot = math.hypot
+        depth = min([q - hypot(x - px, y - py) for x, y, q in discs])
+        reg = Region(key, discs, reg_rows, (px, py), depth, depth >= -INSIDE_TOL)
     if circles is not None:
         reg._time_circles, reg._near = circles[1], near
     return reg
-

@@ -166,31 +166,35 @@ def _one(xs: list[float], ys: list[float], ws: list[float], i: int) -> Circle:
 def _two(xs: list[float], ys: list[float], ws: list[float], i: int, j: int) -> Circle:
     """The smallest circle with points i and j on its boundary (``_ball_2d``'s closed form)."""
     x0, y0, w0 = xs[i], ys[i], ws[i]
-    ux, uy = xs[j] - x0, ys[j] - y0
+    x1, y1, w1 = xs[j], ys[j], ws[j]
+    ux, uy = x1 - x0, y1 - y0
     n = ux * ux + uy * uy
     if n < 1e-24:
-        return _as_tuple(_ball_on_boundary([(x0, y0), (xs[j], ys[j])], [w0, ws[j]]))
-    lam = (n + ws[j] - w0) / (2.0 * n)
-    c = (x0 + lam * ux, y0 + lam * uy)
-    value = max(math.dist(c, (x0, y0)) ** 2 + w0, math.dist(c, (xs[j], ys[j])) ** 2 + ws[j])
-    return c[0], c[1], math.sqrt(max(value, 0.0))
+        return _as_tuple(_ball_on_boundary([(x0, y0), (x1, y1)], [w0, w1]))
+    lam = (n + w1 - w0) / (2.0 * n)
+    cx, cy = x0 + lam * ux, y0 + lam * uy
+    hypot = math.hypot  # (math.dist of two points is hypot of their difference, bit for bit)
+    value = max(hypot(cx - x0, cy - y0) ** 2 + w0, hypot(cx - x1, cy - y1) ** 2 + w1)
+    return cx, cy, math.sqrt(max(value, 0.0))
 
 
 def _three(xs: list[float], ys: list[float], ws: list[float], i: int, j: int, k: int) -> Circle:
     """The circle with points i, j and k on its boundary (``_ball_2d``'s closed form)."""
     x0, y0, w0 = xs[i], ys[i], ws[i]
-    u1x, u1y = xs[j] - x0, ys[j] - y0
-    u2x, u2y = xs[k] - x0, ys[k] - y0
-    b1 = u1x * u1x + u1y * u1y + ws[j] - w0
-    b2 = u2x * u2x + u2y * u2y + ws[k] - w0
+    x1, y1, w1 = xs[j], ys[j], ws[j]
+    x2, y2, w2 = xs[k], ys[k], ws[k]
+    u1x, u1y = x1 - x0, y1 - y0
+    u2x, u2y = x2 - x0, y2 - y0
+    b1 = u1x * u1x + u1y * u1y + w1 - w0
+    b2 = u2x * u2x + u2y * u2y + w2 - w0
     det = u1x * u2y - u1y * u2x
     if abs(det) < 1e-12 * max(1.0, (u1x * u1x + u1y * u1y) * (u2x * u2x + u2y * u2y)) ** 0.5:
-        return _as_tuple(_ball_on_boundary([(x0, y0), (xs[j], ys[j]), (xs[k], ys[k])], [w0, ws[j], ws[k]]))
-    c = (x0 + (b1 * u2y - b2 * u1y) / (2.0 * det), y0 + (u1x * b2 - u2x * b1) / (2.0 * det))
-    dist = math.dist
-    value = max(dist(c, (x0, y0)) ** 2 + w0, dist(c, (xs[j], ys[j])) ** 2 + ws[j],
-                dist(c, (xs[k], ys[k])) ** 2 + ws[k])
-    return c[0], c[1], math.sqrt(max(value, 0.0))
+        return _as_tuple(_ball_on_boundary([(x0, y0), (x1, y1), (x2, y2)], [w0, w1, w2]))
+    cx, cy = x0 + (b1 * u2y - b2 * u1y) / (2.0 * det), y0 + (u1x * b2 - u2x * b1) / (2.0 * det)
+    hypot = math.hypot
+    value = max(hypot(cx - x0, cy - y0) ** 2 + w0, hypot(cx - x1, cy - y1) ** 2 + w1,
+                hypot(cx - x2, cy - y2) ** 2 + w2)
+    return cx, cy, math.sqrt(max(value, 0.0))
 
 
 def _tolerance(xs: list[float], ys: list[float], ws: list[float]) -> float:
@@ -287,23 +291,31 @@ class EnclosingCircles:
         got = self._known.get(key)
         if got is not None:
             return got[0]
-        order = _shuffled(len(key), 0)
-        visit = [key[q] for q in order]
-        xs, ys = [self._xs[g] for g in visit], [self._ys[g] for g in visit]
-        ws = [0.0] * len(key) if weights is None else [float(weights[q]) for q in order]
-        found = self._derive(key, xs, ys, ws, near) if near and len(key) > 1 else None
+        ws = [0.0] * len(key) if weights is None else [float(w) for w in weights]  # in key's order
+        found = self._derive(key, ws, near) if near and len(key) > 1 else None
         if found is None:
-            ball, sup = _welzl_2d(xs, ys, ws)
+            visit, xs, ys, vws = self._visiting(key, ws)
+            ball, sup = _welzl_2d(xs, ys, vws)
             found = ball, tuple(visit[q] for q in sup)
         self._known[key] = found
         return found[0]
 
-    def _derive(self, key: Members, xs: list[float], ys: list[float], ws: list[float],
-                near: Sequence[Members]) -> tuple[Ball, Members] | None:
-        """The circle of ``key`` (points in visiting order) from a known neighbour's support, or
-        None when no neighbour gives it."""
+    def _visiting(self, key: Members,
+                  ws: list[float]) -> tuple[list[int], list[float], list[float], list[float]]:
+        """The members of ``key`` in Welzl's visiting order, and their x, y and weights (``ws`` in
+        ``key``'s order) in that order."""
+        order = _shuffled(len(key), 0)
+        visit = [key[q] for q in order]
+        allx, ally = self._xs, self._ys
+        return visit, [allx[g] for g in visit], [ally[g] for g in visit], [ws[q] for q in order]
+
+    def _derive(self, key: Members, ws: list[float], near: Sequence[Members]) -> tuple[Ball, Members] | None:
+        """The circle of ``key`` (weights ``ws`` in its order) from a known neighbour's support, or
+        None when no neighbour gives it. Only the support's and the added point's coordinates are
+        read (the visiting order's lists are made only for ``_welzl_through``)."""
         rank = _visit_rank(len(key), 0)
         members = set(key)
+        allx, ally = self._xs, self._ys
         outside: tuple[int, list[int]] | None = None  # an added point outside a neighbour's circle
         for other in near:
             entry = self._known.get(other) if -1 <= len(key) - len(other) <= 1 else None
@@ -313,23 +325,38 @@ class EnclosingCircles:
             if len(added) > 1 or len(other) - len(key) + len(added) > 1 or not members.issuperset(entry[1]):
                 continue  # more than one member added or removed, or a support point removed
             support = entry[1]
-            local = [rank[key.index(g)] for g in support]
-            ball = _on_support(xs, ys, ws, local)
+            at = [key.index(g) for g in support]
+            local = [rank[q] for q in at]
+            # ``_on_support``: the closed form on the support, latest visited first
+            last = sorted(zip(local, support, at, strict=True), reverse=True)
+            ball = _ball_on([allx[g] for _, g, _ in last], [ally[g] for _, g, _ in last],
+                            [ws[q] for _, _, q in last])
             if not added:
                 return ball, support
-            a = rank[key.index(added.pop())]
+            g = added.pop()
             (cx, cy), r = ball.center, ball.radius
             margin = 2 * _REL_EPS * (1.0 + abs(cx) + abs(cy) + r)  # more than Welzl's tolerance
-            power = (cx - xs[a]) ** 2 + (cy - ys[a]) ** 2 + ws[a]
+            power = (cx - allx[g]) ** 2 + (cy - ally[g]) ** 2 + ws[key.index(g)]
             if r > margin and power < (r - margin) ** 2:
                 return ball, support
             if outside is None and power > (r + margin) ** 2:
-                outside = a, local
+                outside = rank[key.index(g)], local
         if outside is None:
             return None
-        sup = _welzl_through(xs, ys, ws, *outside)
-        order = _shuffled(len(key), 0)
-        return _on_support(xs, ys, ws, sup), tuple(key[order[q]] for q in sup)
+        visit, xs, ys, vws = self._visiting(key, ws)
+        sup = _welzl_through(xs, ys, vws, *outside)
+        return _on_support(xs, ys, vws, sup), tuple(visit[q] for q in sup)
+
+
+def _ball_on(xs: list[float], ys: list[float], ws: list[float]) -> Ball:
+    """``_on_support`` of one, two or three points given latest visited first."""
+    if len(xs) == 1:
+        cx, cy, r = _one(xs, ys, ws, 0)
+    elif len(xs) == 2:
+        cx, cy, r = _two(xs, ys, ws, 0, 1)
+    else:
+        cx, cy, r = _three(xs, ys, ws, 0, 1, 2)
+    return Ball((cx, cy), r)
 
 
 def _as_tuple(ball: Ball) -> tuple[float, float, float]:
