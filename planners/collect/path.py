@@ -59,11 +59,23 @@ class PathBuilder:
         best toward the time centre and the line point (level 2: toward every candidate); I_β is
         convex, so every such segment stays inside it.
         """
-        def cost(p: Point2) -> float:
-            return self.local_time(region, p, prev, t, heading, nxt)
-
         if level == 0:
             return self.quick_place(region, prev, t, heading, nxt)[0]
+        step, leg, load = self.step, self.leg, self.load
+        cap = self._cap(region)
+
+        def cost(p: Point2) -> float:
+            """``local_time`` at ``p`` (the same floats): the candidates and the points between
+            them lie in I_β, so a rover's flight is needed only while the carrier could be early."""
+            dt, h = step(p[0] - prev[0], p[1] - prev[1], heading)
+            arrive = t + dt
+            if arrive < cap:
+                arrive = max(arrive, leg(region.farthest_flight(p)))
+            eta = arrive + load
+            if nxt is not None:
+                eta += step(nxt[0] - p[0], nxt[1] - p[1], h)[0]
+            return eta
+
         cands = region.candidates(prev, nxt)
         vals = [cost(p) for p in cands]
         j = min(range(len(cands)), key=vals.__getitem__)
@@ -109,9 +121,7 @@ class PathBuilder:
             if len(self._scored) >= SCORED_SIZE:
                 self._scored.clear()
             scored = self._scored[key] = self._score(region, prev, heading, nxt)
-        cap = self._caps.get(region.members)
-        if cap is None:
-            cap = self._caps[region.members] = self._ready_cap(region)
+        cap = self._cap(region)
         load = self.load
         best: list | None = None
         best_eta = best_max = math.inf
@@ -141,6 +151,13 @@ class PathBuilder:
             dt, h = step(p[0] - prev[0], p[1] - prev[1], heading)
             out.append([p, dt, h, None, None if nxt is None else step(nxt[0] - p[0], nxt[1] - p[1], h)[0]])
         return out
+
+    def _cap(self, region: Region) -> float:
+        """``_ready_cap`` of ``region``, remembered."""
+        cap = self._caps.get(region.members)
+        if cap is None:
+            cap = self._caps[region.members] = self._ready_cap(region)
+        return cap
 
     def _ready_cap(self, region: Region) -> float:
         """A time no rover of ``region`` lands after at any quick candidate: every candidate lies in

@@ -52,6 +52,11 @@ class Region:
     _memo: dict[tuple[float, ...], Point2] = field(default_factory=dict, repr=False, compare=False)
     _time_circles: EnclosingCircles | None = field(default=None, repr=False, compare=False)
     _near: tuple[tuple[int, ...], ...] = field(default=(), repr=False, compare=False)  # neighbours' members
+    # (x, y, (ρ + INSIDE_TOL)²) of every member: ``contains``'s test at the default tolerance
+    _limits: list[tuple[float, float, float]] | None = field(default=None, repr=False, compare=False)
+    # per disc (by id): the intersection points of its circle with the others' (``_vertex_projection``)
+    _rims: dict[int, list[tuple[Point2, tuple[float, float, float]]]] = field(
+        default_factory=dict, repr=False, compare=False)
 
     @property
     def rows(self) -> list[tuple[float, float, float]]:
@@ -82,8 +87,13 @@ class Region:
 
     def contains(self, p: Sequence[float], tol: float = INSIDE_TOL) -> bool:
         x, y = p[0], p[1]
-        for cx, cy, r in self.discs:
-            if (x - cx) ** 2 + (y - cy) ** 2 > (r + tol) ** 2:
+        if tol != INSIDE_TOL:
+            return all((x - cx) ** 2 + (y - cy) ** 2 <= (r + tol) ** 2 for cx, cy, r in self._discs)
+        limits = self._limits
+        if limits is None:  # the same (ρ + tol)² as computed per call, made once
+            limits = self._limits = [(cx, cy, (r + INSIDE_TOL) ** 2) for cx, cy, r in self._discs]
+        for cx, cy, lim in limits:
+            if (x - cx) ** 2 + (y - cy) ** 2 > lim:
                 return False
         return True
 
@@ -151,22 +161,23 @@ class Region:
         """I_β lies inside every disc, so the distance to I_β is at least the largest distance to
         one disc, and a disc's nearest point that lies in I_β is I_β's nearest point: only the
         discs ``p`` violates most can give it (O(k)); otherwise the nearest point is a vertex."""
-        discs = self.discs
+        discs = self._discs
         if len(discs) == 1:
             cx, cy, r = discs[0]
             n = math.hypot(x - cx, y - cy)
             if n <= r:
                 return (x, y)
             return (cx + (x - cx) * r / n, cy + (y - cy) * r / n)
+        hypot = math.hypot
         out = []
         for disc in discs:
             cx, cy, r = disc
-            n = math.hypot(x - cx, y - cy)
+            n = hypot(x - cx, y - cy)
             if n > r + INSIDE_TOL:
                 out.append((n - r, n, disc))
         if not out:
             return (x, y)
-        out.sort(key=lambda o: -o[0])
+        out.sort(key=_first, reverse=True)  # most violated first (stable: ties in the discs' order)
         worst = out[0][0]
         for d, n, (cx, cy, r) in out:
             if d < worst - 1e-9:
@@ -190,9 +201,13 @@ class Region:
         (x − v lies in the cone of the two active circles' outward normals); else None, and the
         caller scans every vertex. O(k²) only through the inside test, no vertex list built."""
         xm, ym, rm = disc
-        pairs = [(math.hypot(q[0] - x, q[1] - y), q, d2)
-                 for d2 in self.discs if d2 is not disc for q in _pair_points(disc, d2)]
-        pairs.sort(key=lambda e: e[0])  # nearest first (stable: ties in the discs' order)
+        rim = self._rims.get(id(disc))
+        if rim is None:  # the circle's crossings with every other: the same for every (x, y)
+            rim = self._rims[id(disc)] = [(q, d2) for d2 in self._discs if d2 is not disc
+                                          for q in _pair_points(disc, d2)]
+        hypot = math.hypot
+        pairs = [(hypot(q[0] - x, q[1] - y), q, d2) for q, d2 in rim]
+        pairs.sort(key=_first)  # nearest first (stable: ties in the discs' order)
         best: Point2 | None = None
         other = disc
         for _, q, d2 in pairs:  # the nearest vertex: the first that lies in I_β
@@ -214,11 +229,13 @@ class Region:
 
     def clip_segment(self, a: Point2, b: Point2) -> tuple[float, float] | None:
         """Parameters [s0, s1] ⊂ [0, 1] of the part of segment a → b inside I_β, or None."""
-        dx, dy = b[0] - a[0], b[1] - a[1]
+        ax, ay = a[0], a[1]
+        dx, dy = b[0] - ax, b[1] - ay
         qa = dx * dx + dy * dy
         lo, hi = 0.0, 1.0
-        for cx, cy, r in self.discs:
-            ex, ey = a[0] - cx, a[1] - cy
+        sqrt = math.sqrt
+        for cx, cy, r in self._discs:
+            ex, ey = ax - cx, ay - cy
             qc = ex * ex + ey * ey - r * r
             if qa < 1e-18:
                 if qc > 0:
@@ -228,9 +245,13 @@ class Region:
             disc = qb * qb - 4.0 * qa * qc
             if disc < 0:
                 return None
-            sq = math.sqrt(disc)
-            lo = max(lo, (-qb - sq) / (2.0 * qa))
-            hi = min(hi, (-qb + sq) / (2.0 * qa))
+            sq = sqrt(disc)
+            s0 = (-qb - sq) / (2.0 * qa)
+            if s0 > lo:  # (max and min, written out)
+                lo = s0
+            s1 = (-qb + sq) / (2.0 * qa)
+            if s1 < hi:
+                hi = s1
             if lo > hi:
                 return None
         return lo, hi
@@ -254,16 +275,16 @@ class Region:
         length = math.hypot(dx, dy)
         if length > 1e-9:
             nx, ny = -dy / length, dx / length  # unit normal of the line (eq. 5.13's objective)
-            side = (self.centers[:, 0] - a[0]) * nx + (self.centers[:, 1] - a[1]) * ny
-            sign = np.where(side > 0, -1.0, 1.0)  # step from each centre toward the line
-            pts = self.centers + (sign * self.radii)[:, None] * np.array([nx, ny])
-            if len(self.vertices):
-                pts = np.vstack([pts, self.vertices])
-            pts = pts[_inside_all(pts, self.centers, self.radii)]
-            if len(pts):
-                d = np.array([_seg_dist(p, a, b) for p in pts.tolist()])
-                j = int(np.argmin(d))
-                cands.append((float(pts[j, 0]), float(pts[j, 1])))
+            discs = self._discs
+            pts = []
+            for cx, cy, r in discs:  # each centre stepped toward the line by its radius
+                step = -r if (cx - a[0]) * nx + (cy - a[1]) * ny > 0 else r
+                pts.append((cx + step * nx, cy + step * ny))
+            pts += self.vertex_list
+            pts = [p for p in pts if _inside_all_discs(p, discs)]
+            if pts:
+                d = [_seg_dist(p, a, b) for p in pts]
+                cands.append(pts[min(range(len(d)), key=d.__getitem__)])
         return [min(cands, key=lambda p: _seg_dist(p, a, b))]
 
     def line_point(self, prev: Point2, nxt: Point2 | None) -> Point2:
@@ -310,11 +331,37 @@ class Region:
         return pts
 
 
+def _first(e: tuple) -> float:
+    """The sort key of ``(distance, …)`` rows."""
+    return e[0]
+
+
 def _seg_dist(p: Sequence[float], a: Point2, b: Point2) -> float:
     dx, dy = b[0] - a[0], b[1] - a[1]
     qa = dx * dx + dy * dy
     s = 0.0 if qa < 1e-18 else min(max(((p[0] - a[0]) * dx + (p[1] - a[1]) * dy) / qa, 0.0), 1.0)
     return math.hypot(p[0] - a[0] - s * dx, p[1] - a[1] - s * dy)
+
+
+INSIDE_CERTAIN = 1e-13  # relative: a squared distance this far from the squared limit decides ``_inside_all``
+
+
+def _inside_all_discs(p: Point2, discs: Sequence[tuple[float, float, float]],
+                      tol: float = INSIDE_TOL) -> bool:
+    """``_inside_all`` of one point (the same answer): numpy's hypot(p − g) ≤ ρ + tol for every
+    disc. The squared distance decides it unless it lies within ``INSIDE_CERTAIN`` of (ρ + tol)²
+    (hypot and the sum of squares are both within a few ulps of the distance); there numpy's
+    hypot itself, as ``_inside_all`` computes it."""
+    x, y = p
+    for cx, cy, r in discs:
+        dx, dy = x - cx, y - cy
+        lim = r + tol
+        d2, lim2 = dx * dx + dy * dy, lim * lim
+        if d2 <= lim2 * (1.0 - INSIDE_CERTAIN):
+            continue
+        if d2 >= lim2 * (1.0 + INSIDE_CERTAIN) or not float(np.hypot(dx, dy)) <= lim:
+            return False
+    return True
 
 
 def _inside_all(pts: np.ndarray, centers: np.ndarray, radii: np.ndarray,
