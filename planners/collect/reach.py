@@ -54,7 +54,7 @@ class Region:
     _near: tuple[tuple[int, ...], ...] = field(default=(), repr=False, compare=False)  # neighbours' members
     # (x, y, (ρ + INSIDE_TOL)²) of every member: ``contains``'s test at the default tolerance
     _limits: list[tuple[float, float, float]] | None = field(default=None, repr=False, compare=False)
-    # per disc (by id): the intersection points of its circle with the others' (``_vertex_projection``)
+    # per disc (by id): the crossings of its circle with the others' that lie in I_β (``_vertex_projection``)
     _rims: dict[int, list[tuple[Point2, tuple[float, float, float]]]] = field(
         default_factory=dict, repr=False, compare=False)
 
@@ -169,23 +169,23 @@ class Region:
                 return (x, y)
             return (cx + (x - cx) * r / n, cy + (y - cy) * r / n)
         hypot = math.hypot
-        out = []
-        for disc in discs:
-            cx, cy, r = disc
+        out = []  # (−violation, disc index): sorted, the most violated first, ties in the discs' order
+        for i, (cx, cy, r) in enumerate(discs):
             n = hypot(x - cx, y - cy)
             if n > r + INSIDE_TOL:
-                out.append((n - r, n, disc))
+                out.append((r - n, i, n))
         if not out:
             return (x, y)
-        out.sort(key=_first, reverse=True)  # most violated first (stable: ties in the discs' order)
-        worst = out[0][0]
-        for d, n, (cx, cy, r) in out:
-            if d < worst - 1e-9:
+        out.sort()
+        least = out[0][0]
+        for neg, i, n in out:
+            if -neg < -least - 1e-9:
                 break
+            cx, cy, r = discs[i]
             q = (cx + (x - cx) * r / n, cy + (y - cy) * r / n)
             if self.contains(q):
                 return q
-        got = self._vertex_projection(x, y, out[0][2])
+        got = self._vertex_projection(x, y, discs[out[0][1]])
         if got is not None:
             return got
         best, best_d = self.center, math.inf  # numerically empty region: the power centre
@@ -202,18 +202,17 @@ class Region:
         caller scans every vertex. O(k²) only through the inside test, no vertex list built."""
         xm, ym, rm = disc
         rim = self._rims.get(id(disc))
-        if rim is None:  # the circle's crossings with every other: the same for every (x, y)
+        if rim is None:  # the circle's crossings with every other that lie in I_β: the same for every (x, y)
             rim = self._rims[id(disc)] = [(q, d2) for d2 in self._discs if d2 is not disc
-                                          for q in _pair_points(disc, d2)]
-        hypot = math.hypot
-        pairs = [(hypot(q[0] - x, q[1] - y), q, d2) for q, d2 in rim]
-        pairs.sort(key=_first)  # nearest first (stable: ties in the discs' order)
+                                          for q in _pair_points(disc, d2) if self.contains(q)]
         best: Point2 | None = None
         other = disc
-        for _, q, d2 in pairs:  # the nearest vertex: the first that lies in I_β
-            if self.contains(q):
-                best, other = q, d2
-                break
+        best_d = math.inf
+        hypot = math.hypot
+        for q, d2 in rim:  # the nearest vertex (the first of equally near ones)
+            d = hypot(q[0] - x, q[1] - y)
+            if d < best_d:
+                best, other, best_d = q, d2, d
         if best is None:
             return None
         vx, vy = best
@@ -329,11 +328,6 @@ class Region:
             pts += self.nearest_to_segment(prev, nxt)
         pts += self.vertex_list
         return pts
-
-
-def _first(e: tuple) -> float:
-    """The sort key of ``(distance, …)`` rows."""
-    return e[0]
 
 
 def _seg_dist(p: Sequence[float], a: Point2, b: Point2) -> float:

@@ -42,6 +42,7 @@ class DeployInstance:
         self._geo: dict[tuple[int, ...], ClusterGeometry] = {}
         # per task: the radius of the ground disc from which it is within d_deploy
         self._disc = [math.sqrt(max(self.d**2 - p[2] ** 2, 0.0)) for p in self.pts]
+        self._rows = [(p[0], p[1], p[2] * p[2]) for p in self.pts]  # x, y, z² of every task, for reach_from
         for i, p in enumerate(self.pts):
             if p[2] > self.range or p[2] < 0:
                 raise PlanningError(
@@ -78,11 +79,11 @@ class DeployInstance:
     def reach_from(self, p: Point2, members: Sequence[int]) -> float:
         """Longest rover flight from ground point ``p`` to the cluster's tasks (eq. 4.5 numerator)."""
         x, y = p
-        pts = self.pts
+        rows = self._rows
         worst = 0.0
         for i in members:
-            q = pts[i]
-            d2 = (q[0] - x) ** 2 + (q[1] - y) ** 2 + q[2] * q[2]
+            qx, qy, z2 = rows[i]
+            d2 = (qx - x) ** 2 + (qy - y) ** 2 + z2
             if d2 > worst:
                 worst = d2
         return math.sqrt(worst)
