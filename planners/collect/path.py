@@ -15,6 +15,8 @@ from planners.collect.screen import screen
 from planners.core.geometry import minimize_1d
 from planners.core.timing import carrier_hopper, carrier_stepper, leg_timer
 
+Scored = tuple[Point2, float, float, float | None]  # a quick candidate: stop, hop in, heading, hop on
+
 
 class PathBuilder:
     """GET_COLLECT_PATH and CALC_TIME of Algorithm 5.1–5.2 for ordered lists of clusters."""
@@ -33,7 +35,8 @@ class PathBuilder:
         # whether Route.replace places the stop before a change afresh too (the quick descent of
         # long routes leaves it where it is: ``planners.collect.lee.QD_KEEP_BEFORE_FROM``)
         self.replace_before = True
-        self._scored: dict[tuple, list[list]] = {}  # ``_quick``'s candidates by region, stop, heading, next
+        # ``_quick``'s candidates by region, previous stop, heading and next stop
+        self._scored: dict[tuple, tuple[Scored, ...]] = {}
         self._caps: dict[tuple[int, ...], float] = {}  # ``_ready_cap`` by membership
 
     def ready(self, region: Region, p: Point2) -> float:
@@ -100,21 +103,18 @@ class PathBuilder:
         """``place`` at level 0 with what it timed on the way: the stop, the hop into it (time and
         heading on arrival) and when the cluster's last rover lands there (``local_time`` of
         each quick candidate, the first fastest kept; the same floats)."""
-        best, _ = self._quick(region, prev, t, heading, nxt)
-        p, dt, h, ready, _ = best
-        if ready is None:
-            ready = best[3] = self.leg(region.farthest_flight(p))
-        return p, dt, h, ready
+        (p, dt, h, _), _ = self._quick(region, prev, t, heading, nxt)
+        return p, dt, h, self.leg(region.farthest_flight(p))
 
     def _quick(self, region: Region, prev: Point2, t: float, heading: float,
-               nxt: Point2 | None) -> tuple[list, float]:
-        """``quick_place``'s fastest candidate [stop, hop time, heading, ready or None, hop on] and
+               nxt: Point2 | None) -> tuple[Scored, float]:
+        """``quick_place``'s fastest candidate (stop, hop time, heading, hop on) and
         max(t + hop time, ready): eq. 5.2's departure less the load (``replace`` goes on from it).
 
         A candidate's hops do not depend on ``t``: they are remembered per region, previous stop,
         heading and next stop (the descent scores the same stops again as other stops move). Its
-        ready time is only needed while the carrier could arrive before the last rover: once
-        t + hop ≥ the region's ``_ready_cap`` the max is t + hop whatever the ready time."""
+        rovers' ready time is only needed while the carrier could arrive before the last of them:
+        once t + hop ≥ the region's ``_ready_cap`` the max is t + hop whatever the ready time."""
         key = (region.members, prev, heading, nxt)
         scored = self._scored.get(key)
         if scored is None:
@@ -123,34 +123,29 @@ class PathBuilder:
             scored = self._scored[key] = self._score(region, prev, heading, nxt)
         cap = self._cap(region)
         load = self.load
-        best: list | None = None
+        best: Scored | None = None
         best_eta = best_max = math.inf
         for entry in scored:
             arrive = t + entry[1]
-            if arrive >= cap:
-                held = arrive
-            else:
-                ready = entry[3]
-                if ready is None:
-                    ready = entry[3] = self.leg(region.farthest_flight(entry[0]))
-                held = max(arrive, ready)
+            held = arrive if arrive >= cap else max(arrive, self.leg(region.farthest_flight(entry[0])))
             eta = held + load
-            if entry[4] is not None:
-                eta += entry[4]
+            if entry[3] is not None:
+                eta += entry[3]
             if best is None or eta < best_eta:
                 best, best_eta, best_max = entry, eta, held
         assert best is not None  # the time centre is always a candidate
         return best, best_max
 
-    def _score(self, region: Region, prev: Point2, heading: float, nxt: Point2 | None) -> list[list]:
-        """Per quick candidate: [stop, hop time into it, heading there, None (ready: when needed),
-        hop time on to ``nxt`` or None] (``carrier_stepper``'s arithmetic, as ``drive``)."""
+    def _score(self, region: Region, prev: Point2, heading: float, nxt: Point2 | None) -> tuple[Scored, ...]:
+        """Per quick candidate: (stop, hop time into it, heading there, hop time on to ``nxt`` or
+        None), ``carrier_stepper``'s arithmetic as ``drive``'s (tuples of numbers: the garbage
+        collector stops tracking them)."""
         step = self.step
         out = []
         for p in region.quick_candidates(prev, nxt):
             dt, h = step(p[0] - prev[0], p[1] - prev[1], heading)
-            out.append([p, dt, h, None, None if nxt is None else step(nxt[0] - p[0], nxt[1] - p[1], h)[0]])
-        return out
+            out.append((p, dt, h, None if nxt is None else step(nxt[0] - p[0], nxt[1] - p[1], h)[0]))
+        return tuple(out)
 
     def _cap(self, region: Region) -> float:
         """``_ready_cap`` of ``region``, remembered."""
@@ -349,7 +344,7 @@ class Route:
                 nxt: Point2 | None = window[k + 1].center
             else:
                 nxt = self.positions[m] if m < n else None
-            (pos, _, h, _, _), held = b._quick(reg, prev, t, h, nxt)
+            (pos, _, h, _), held = b._quick(reg, prev, t, h, nxt)
             t = held + b.load
             placed.append(pos)
             prev = pos
