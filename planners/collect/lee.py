@@ -78,15 +78,12 @@ class CollectSpace:
         self.fits = inst.fits
         self.rebuild = builder.route
         keep = next(k for upto, k in QD_KEEP if self.size <= upto)
-        self.cheap: Sequence[Move] = (swap, relocate_nearest(self.nearness, keep), merge)
+        # (the moves hold the instance, not this space: no reference cycle, so that a plan's caches
+        # are freed when it returns, not by the garbage collector in a later plan's time)
+        self.cheap: Sequence[Move] = (swap, relocate_nearest(nearness(inst), keep), merge)
         # long routes: a change's quick score leaves the stop before it in place (a third fewer
         # stops placed per score, and as good plans on 500-1000 rovers)
         builder.replace_before = self.size < QD_KEEP_BEFORE_FROM
-
-    def nearness(self, cluster: Sequence[int]) -> Callable[[int], float]:
-        """The key ranking rovers by their squared distance to ``cluster``'s power centre."""
-        c, pts = self.inst.region(cluster).center, self.inst.pts2
-        return lambda rover: (pts[rover][0] - c[0]) ** 2 + (pts[rover][1] - c[1]) ** 2
 
     def finish(self, route: Route, small: bool, improve: bool) -> Route:
         return place_finely(self.builder, route, small)
@@ -99,6 +96,17 @@ class CollectSpace:
 
     def ranking(self) -> Callable[[list[list[int]]], Route]:
         return lambda clusters: self.builder.route(clusters, 1)
+
+
+def nearness(inst: CollectInstance) -> Callable[[Sequence[int]], Callable[[int], float]]:
+    """``near(cluster)``: the key ranking rovers by their squared distance to ``cluster``'s power
+    centre (the quick descent's ``relocate_nearest``)."""
+    pts = inst.pts2
+
+    def near(cluster: Sequence[int]) -> Callable[[int], float]:
+        c = inst.region(cluster).center
+        return lambda rover: (pts[rover][0] - c[0]) ** 2 + (pts[rover][1] - c[1]) ** 2
+    return near
 
 
 def _initial_clusters(builder: PathBuilder) -> list[list[int]]:

@@ -37,12 +37,9 @@ class DeploySpace:
         self.fits = inst.fits_quick
         self.rebuild = builder.route
         keep = next(k for upto, k in QD_KEEP if self.size <= upto)
-        self.cheap: Sequence[Move] = (relocate_nearest(self.nearness, keep), merge)
-
-    def nearness(self, cluster: Sequence[int]) -> Callable[[int], float]:
-        """The key ranking tasks by their squared distance to ``cluster``'s centre."""
-        c, pts = self.inst.geometry(cluster).center, self.inst.pts
-        return lambda task: (pts[task][0] - c[0]) ** 2 + (pts[task][1] - c[1]) ** 2
+        # (the moves hold the instance, not this space: no reference cycle, so that a plan's caches
+        # are freed when it returns, not by the garbage collector in a later plan's time)
+        self.cheap: Sequence[Move] = (relocate_nearest(nearness(inst), keep), merge)
 
     def finish(self, route: Route, small: bool, improve: bool) -> Route:
         return place_finely(self.builder, route, small, improve)
@@ -55,6 +52,17 @@ class DeploySpace:
 
     def ranking(self) -> None:
         return None
+
+
+def nearness(inst: DeployInstance) -> Callable[[Sequence[int]], Callable[[int], float]]:
+    """``near(cluster)``: the key ranking tasks by their squared distance to ``cluster``'s centre
+    (the quick descent's ``relocate_nearest``)."""
+    pts = inst.pts
+
+    def near(cluster: Sequence[int]) -> Callable[[int], float]:
+        c = inst.geometry(cluster).center
+        return lambda task: (pts[task][0] - c[0]) ** 2 + (pts[task][1] - c[1]) ** 2
+    return near
 
 
 def lee_clusters(problem: DeployProblem, improve: bool = True, t0: float | None = None,
