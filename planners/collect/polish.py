@@ -97,25 +97,35 @@ def _stop_cost(route: Route, k: int) -> Callable[[float, float], float]:
             for i in members]
     (px, py), t0, h0 = route.state_before(k)
     n = len(route.positions)
-    nxt = route.positions[k + 1:k + 3]
-    ready = route.ready[k + 1:k + 3]
+    # the next two stops and when their rovers are ready (kept), then ``Route.end_from`` written out
+    later = [(q[0], q[1], rd) for q, rd in zip(route.positions[k + 1:k + 3], route.ready[k + 1:k + 3],
+                                               strict=True)]
+    last = k + len(later)
+    after, late = route.after[last], route.late[last]
+    sqrt, inf = math.sqrt, math.inf
 
     def cost(x: float, y: float) -> float:
         far = 0.0
         for gx, gy, r2, z2 in rows:
             e = (x - gx) ** 2 + (y - gy) ** 2
             if e > r2:
-                return math.inf
+                return inf
             if e + z2 > far:
                 far = e + z2
         dt, h = step(x - px, y - py, h0)
-        t = max(t0 + dt, leg(math.sqrt(far))) + load
+        t = max(t0 + dt, leg(sqrt(far))) + load
         qx, qy = x, y
-        for (nx, ny), rd in zip(nxt, ready, strict=True):
+        for nx, ny, rd in later:
             dt, h = step(nx - qx, ny - qy, h)
-            t = max(t + dt, rd) + load
+            t += dt  # (max(t + dt, rd), written out)
+            if rd > t:
+                t = rd
+            t += load
             qx, qy = nx, ny
-        return route.end_from(k + len(nxt), t) if k + 1 < n else t
+        if k + 1 < n:  # Route.end_from(last, t)
+            t += after
+            return late if late > t else t
+        return t
 
     return cost
 

@@ -70,7 +70,9 @@ class PathBuilder:
             return got
 
         def makespan(s: float, u: float = 1.0) -> float:
-            return max(worst, *both(s, u))
+            a, b = both(s, u)  # max(worst, a, b), written out
+            m = a if a > worst else worst
+            return b if b > m else m
 
         if not fine and nxt is not None:
             # Eq. 4.20: both clusters' rovers arrive together. This cluster finishes later as the
@@ -280,11 +282,14 @@ class Route:
             t, h = self.arrive[lo - 1] + b.unload, self.heading[lo - 1]
             worst = self.head[lo - 1]
         positions = self.positions[:lo]
+        place, drive, unload, finish = b.place, b.drive, b.unload, b.finish
         for k in range(lo, hi):
-            pos = b.place(clusters, geos, k, prev, t, h, worst, fine=False)
-            dt, h = b.drive(prev, pos, h)
-            t += dt + b.unload
-            worst = max(worst, t + b.finish(pos, clusters[k]))
+            pos = place(clusters, geos, k, prev, t, h, worst, fine=False)
+            dt, h = drive(prev, pos, h)
+            t += dt + unload
+            done = t + finish(pos, clusters[k])
+            if done > worst:  # (max(worst, done), written out)
+                worst = done
             positions.append(pos)
             prev = pos
         m = hi - len(pieces) + count  # old index of the first kept stop

@@ -24,6 +24,7 @@ from planners.deploy.path import PathBuilder, Route
 
 HANDOFF = 6  # stops: when no more of the class are still moving, each finishes on its own
 _TAU = 2.0 * np.pi
+_TAU_F = float(_TAU)  # the same number as a Python float (the same remainders, without numpy's scalars)
 _DX = np.array([d[0] for d in COMPASS])
 _DY = np.array([d[1] for d in COMPASS])
 _DX2, _DY2 = np.tile(_DX, 2), np.tile(_DY, 2)  # the points at a step and at half of it
@@ -60,6 +61,8 @@ def stop_cost(builder: PathBuilder, r: Route, k: int) -> Callable[[float, float]
             hop12 = carrier_hop(pos[k + 1], pos[k + 2], h12, c)[0]  # travel only (no turn)
         tail2, arrive2 = r.tail[k + 2], r.arrive[k + 2]
 
+    tau, sqrt, inf = _TAU_F, math.sqrt, math.inf
+
     def cost(x: float, y: float) -> float:
         far = 0.0
         for tx, ty, z2 in rows2:
@@ -67,22 +70,28 @@ def stop_cost(builder: PathBuilder, r: Route, k: int) -> Callable[[float, float]
             if e > far:
                 far = e
         if far > d2max:
-            return math.inf
+            return inf
         dt, h = step(x - px, y - py, h0)
         t = t0 + dt + unload
-        worst = max(head, t + leg(math.sqrt(far)))
+        worst = t + leg(sqrt(far))  # (the maxima written out: max(a, b) is a unless b > a)
+        if head > worst:
+            worst = head
         if k + 1 < n:
             dt, h = step(nx1 - x, ny1 - y, h)
-            t1 = t + dt  # new arrival at k + 1
-            worst = max(worst, done1 + (t1 - arrive1))
+            t1 = t + dt
+            v = done1 + (t1 - arrive1)
+            if v > worst:
+                worst = v
             if k + 2 < n:
                 dt = hop12
                 if h12 is not None and w is not None:
-                    turn = (h12 - h) % _TAU
-                    dt += min(turn, _TAU - turn) / w
+                    turn = (h12 - h) % tau
+                    dt += (turn if not tau - turn < turn else tau - turn) / w
                 elif h12 is None:
                     dt = 0.0
-                worst = max(worst, tail2 + (t1 + unload + dt - arrive2))
+                v = tail2 + (t1 + unload + dt - arrive2)
+                if v > worst:
+                    worst = v
         return worst
 
     return cost
