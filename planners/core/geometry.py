@@ -291,31 +291,23 @@ class EnclosingCircles:
         got = self._known.get(key)
         if got is not None:
             return got[0]
-        ws = [0.0] * len(key) if weights is None else [float(w) for w in weights]  # in key's order
-        found = self._derive(key, ws, near) if near and len(key) > 1 else None
+        order = _shuffled(len(key), 0)
+        visit = [key[q] for q in order]
+        xs, ys = [self._xs[g] for g in visit], [self._ys[g] for g in visit]
+        ws = [0.0] * len(key) if weights is None else [float(weights[q]) for q in order]
+        found = self._derive(key, xs, ys, ws, near) if near and len(key) > 1 else None
         if found is None:
-            visit, xs, ys, vws = self._visiting(key, ws)
-            ball, sup = _welzl_2d(xs, ys, vws)
+            ball, sup = _welzl_2d(xs, ys, ws)
             found = ball, tuple(visit[q] for q in sup)
         self._known[key] = found
         return found[0]
 
-    def _visiting(self, key: Members,
-                  ws: list[float]) -> tuple[list[int], list[float], list[float], list[float]]:
-        """The members of ``key`` in Welzl's visiting order, and their x, y and weights (``ws`` in
-        ``key``'s order) in that order."""
-        order = _shuffled(len(key), 0)
-        visit = [key[q] for q in order]
-        allx, ally = self._xs, self._ys
-        return visit, [allx[g] for g in visit], [ally[g] for g in visit], [ws[q] for q in order]
-
-    def _derive(self, key: Members, ws: list[float], near: Sequence[Members]) -> tuple[Ball, Members] | None:
-        """The circle of ``key`` (weights ``ws`` in its order) from a known neighbour's support, or
-        None when no neighbour gives it. Only the support's and the added point's coordinates are
-        read (the visiting order's lists are made only for ``_welzl_through``)."""
+    def _derive(self, key: Members, xs: list[float], ys: list[float], ws: list[float],
+                near: Sequence[Members]) -> tuple[Ball, Members] | None:
+        """The circle of ``key`` (points in visiting order) from a known neighbour's support, or
+        None when no neighbour gives it."""
         rank = _visit_rank(len(key), 0)
         members = set(key)
-        allx, ally = self._xs, self._ys
         outside: tuple[int, list[int]] | None = None  # an added point outside a neighbour's circle
         for other in near:
             entry = self._known.get(other) if -1 <= len(key) - len(other) <= 1 else None
@@ -325,38 +317,23 @@ class EnclosingCircles:
             if len(added) > 1 or len(other) - len(key) + len(added) > 1 or not members.issuperset(entry[1]):
                 continue  # more than one member added or removed, or a support point removed
             support = entry[1]
-            at = [key.index(g) for g in support]
-            local = [rank[q] for q in at]
-            # ``_on_support``: the closed form on the support, latest visited first
-            last = sorted(zip(local, support, at, strict=True), reverse=True)
-            ball = _ball_on([allx[g] for _, g, _ in last], [ally[g] for _, g, _ in last],
-                            [ws[q] for _, _, q in last])
+            local = [rank[key.index(g)] for g in support]
+            ball = _on_support(xs, ys, ws, local)
             if not added:
                 return ball, support
-            g = added.pop()
+            a = rank[key.index(added.pop())]
             (cx, cy), r = ball.center, ball.radius
             margin = 2 * _REL_EPS * (1.0 + abs(cx) + abs(cy) + r)  # more than Welzl's tolerance
-            power = (cx - allx[g]) ** 2 + (cy - ally[g]) ** 2 + ws[key.index(g)]
+            power = (cx - xs[a]) ** 2 + (cy - ys[a]) ** 2 + ws[a]
             if r > margin and power < (r - margin) ** 2:
                 return ball, support
             if outside is None and power > (r + margin) ** 2:
-                outside = rank[key.index(g)], local
+                outside = a, local
         if outside is None:
             return None
-        visit, xs, ys, vws = self._visiting(key, ws)
-        sup = _welzl_through(xs, ys, vws, *outside)
-        return _on_support(xs, ys, vws, sup), tuple(visit[q] for q in sup)
-
-
-def _ball_on(xs: list[float], ys: list[float], ws: list[float]) -> Ball:
-    """``_on_support`` of one, two or three points given latest visited first."""
-    if len(xs) == 1:
-        cx, cy, r = _one(xs, ys, ws, 0)
-    elif len(xs) == 2:
-        cx, cy, r = _two(xs, ys, ws, 0, 1)
-    else:
-        cx, cy, r = _three(xs, ys, ws, 0, 1, 2)
-    return Ball((cx, cy), r)
+        sup = _welzl_through(xs, ys, ws, *outside)
+        order = _shuffled(len(key), 0)
+        return _on_support(xs, ys, ws, sup), tuple(key[order[q]] for q in sup)
 
 
 def _as_tuple(ball: Ball) -> tuple[float, float, float]:
