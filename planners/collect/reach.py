@@ -54,8 +54,9 @@ class Region:
     _near: tuple[tuple[int, ...], ...] = field(default=(), repr=False, compare=False)  # neighbours' members
     # (x, y, (ρ + INSIDE_TOL)²) of every member: ``contains``'s test at the default tolerance
     _limits: list[tuple[float, float, float]] | None = field(default=None, repr=False, compare=False)
-    # per disc (by id): the crossings of its circle with the others' that lie in I_β (``_vertex_projection``)
-    _rims: dict[int, list[tuple[Point2, tuple[float, float, float]]]] = field(
+    # per disc (by id): the crossings of its circle with the others' and, once asked, whether each
+    # lies in I_β (``_vertex_projection``)
+    _rims: dict[int, tuple[list[tuple[Point2, tuple[float, float, float]]], list[bool | None]]] = field(
         default_factory=dict, repr=False, compare=False)
 
     @property
@@ -202,17 +203,21 @@ class Region:
         caller scans every vertex. O(k²) only through the inside test, no vertex list built."""
         xm, ym, rm = disc
         rim = self._rims.get(id(disc))
-        if rim is None:  # the circle's crossings with every other that lie in I_β: the same for every (x, y)
-            rim = self._rims[id(disc)] = [(q, d2) for d2 in self._discs if d2 is not disc
-                                          for q in _pair_points(disc, d2) if self.contains(q)]
+        if rim is None:  # the circle's crossings with every other: the same for every (x, y)
+            points = [(q, d2) for d2 in self._discs if d2 is not disc for q in _pair_points(disc, d2)]
+            rim = self._rims[id(disc)] = (points, [None] * len(points))
+        points, inside = rim
+        hypot = math.hypot
+        near = sorted([(hypot(q[0] - x, q[1] - y), j) for j, (q, _) in enumerate(points)])  # ties: in order
         best: Point2 | None = None
         other = disc
-        best_d = math.inf
-        hypot = math.hypot
-        for q, d2 in rim:  # the nearest vertex (the first of equally near ones)
-            d = hypot(q[0] - x, q[1] - y)
-            if d < best_d:
-                best, other, best_d = q, d2, d
+        for _, j in near:  # the nearest vertex: the first crossing that lies in I_β
+            got = inside[j]
+            if got is None:  # (asked once per crossing)
+                got = inside[j] = self.contains(points[j][0])
+            if got:
+                best, other = points[j]
+                break
         if best is None:
             return None
         vx, vy = best
