@@ -38,6 +38,8 @@ class PathBuilder:
         # ``_quick``'s candidates by region, previous stop, heading and next stop
         self._scored: dict[tuple, tuple[Scored, ...]] = {}
         self._caps: dict[tuple[int, ...], float] = {}  # ``_ready_cap`` by membership
+        # per rover: the squared flight to the farthest point of its reach disc, with READY_SLACK
+        self._reach2 = [(r + READY_SLACK) ** 2 + z2 for r, z2 in zip(inst.rad, inst.h2, strict=True)]
 
     def ready(self, region: Region, p: Point2) -> float:
         """g(q_γ) of eq. 5.2: when the cluster's last rover lands at ``p`` (all leave at t = 0)."""
@@ -160,9 +162,8 @@ class PathBuilder:
         sqrt((ρ + slack)² + z²); inf for an empty region (its candidates may lie anywhere)."""
         if not region.feasible:
             return math.inf
-        far = max((r + READY_SLACK) ** 2 + z2 for (_, _, r), (_, _, z2) in zip(region.discs, region.rows,
-                                                                             strict=True))
-        return self.leg(math.sqrt(far)) + READY_SLACK
+        reach2 = self._reach2
+        return self.leg(math.sqrt(max([reach2[i] for i in region.members]))) + READY_SLACK
 
     def route(self, clusters: list[list[int]], level: int = 0) -> Route:
         """GET_COLLECT_PATH for every cluster in order, then the route's times (CALC_TIME)."""
