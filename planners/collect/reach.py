@@ -342,15 +342,16 @@ def _seg_dist(p: Sequence[float], a: Point2, b: Point2) -> float:
     return math.hypot(p[0] - a[0] - s * dx, p[1] - a[1] - s * dy)
 
 
-INSIDE_CERTAIN = 1e-13  # relative: a squared distance this far from the squared limit decides ``_inside_all``
+# relative: a squared distance this far from the squared limit decides ``_inside_all_discs``
+INSIDE_CERTAIN = 1e-13
 
 
 def _inside_all_discs(p: Point2, discs: Sequence[tuple[float, float, float]],
                       tol: float = INSIDE_TOL) -> bool:
-    """``_inside_all`` of one point (the same answer): numpy's hypot(p − g) ≤ ρ + tol for every
-    disc. The squared distance decides it unless it lies within ``INSIDE_CERTAIN`` of (ρ + tol)²
-    (hypot and the sum of squares are both within a few ulps of the distance); there numpy's
-    hypot itself, as ``_inside_all`` computes it."""
+    """Whether numpy's hypot(p − g) ≤ ρ + tol for every disc (the test ``nearest_to_segment``
+    made with numpy arrays, the same answer). The squared distance decides it unless it lies
+    within ``INSIDE_CERTAIN`` of (ρ + tol)² (hypot and the sum of squares are both within a few
+    ulps of the distance); there numpy's hypot itself decides."""
     x, y = p
     for cx, cy, r in discs:
         dx, dy = x - cx, y - cy
@@ -361,12 +362,6 @@ def _inside_all_discs(p: Point2, discs: Sequence[tuple[float, float, float]],
         if d2 >= lim2 * (1.0 + INSIDE_CERTAIN) or not float(np.hypot(dx, dy)) <= lim:
             return False
     return True
-
-
-def _inside_all(pts: np.ndarray, centers: np.ndarray, radii: np.ndarray,
-                tol: float = INSIDE_TOL) -> np.ndarray:
-    d = np.hypot(pts[:, None, 0] - centers[None, :, 0], pts[:, None, 1] - centers[None, :, 1])
-    return np.all(d <= radii[None, :] + tol, axis=1)
 
 
 def circle_vertices(centers: np.ndarray, radii: np.ndarray) -> np.ndarray:
