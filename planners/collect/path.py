@@ -190,7 +190,8 @@ class PathBuilder:
         return Route(self, clusters, regions, positions, (hops, headings, readies))
 
 
-SCORED_SIZE = 50_000  # ``PathBuilder._quick``'s remembered candidates (then it starts afresh)
+# ``PathBuilder._quick``'s remembered candidates, then it starts afresh (a 1000-rover quick plan: ~5,000)
+SCORED_SIZE = 20_000
 READY_SLACK = 1e-3  # m (and s): ``PathBuilder._ready_cap``'s headroom over rounding
 
 NUMPY_FROM = 24  # stops: from this many on, a route's times are summed with numpy
