@@ -89,7 +89,7 @@ class Region:
     def contains(self, p: Sequence[float], tol: float = INSIDE_TOL) -> bool:
         x, y = p[0], p[1]
         if tol != INSIDE_TOL:
-            return all((x - cx) ** 2 + (y - cy) ** 2 <= (r + tol) ** 2 for cx, cy, r in self._discs)
+            return not any((x - cx) ** 2 + (y - cy) ** 2 > (r + tol) ** 2 for cx, cy, r in self._discs)
         limits = self._limits
         if limits is None:  # the same (ρ + tol)² as computed per call, made once
             limits = self._limits = [(cx, cy, (r + INSIDE_TOL) ** 2) for cx, cy, r in self._discs]
