@@ -73,9 +73,10 @@ def stop_cost(builder: PathBuilder, r: Route, k: int) -> Callable[[float, float]
             return inf
         dt, h = step(x - px, y - py, h0)
         t = t0 + dt + unload
-        worst = t + leg(sqrt(far))  # (the maxima written out: max(a, b) is a unless b > a)
-        if head > worst:
-            worst = head
+        worst = head  # (the maxima written out: max(a, b) is a unless b > a)
+        v = t + leg(sqrt(far))
+        if v > worst:
+            worst = v
         if k + 1 < n:
             dt, h = step(nx1 - x, ny1 - y, h)
             t1 = t + dt
