@@ -193,32 +193,10 @@ def carrier_stepper(carrier: CarrierSpec) -> Step:
 
 
 def carrier_hopper(carrier: CarrierSpec) -> Hop:
-    """:func:`carrier_hop` with ``carrier``'s numbers bound once: ``hop(p, q, heading)``,
-    ``carrier_stepper``'s arithmetic on q − p written out again (one call less per hop: the
-    path builders drive every stop of every route they time with it)."""
-    v, a, w = carrier.max_speed, carrier.accel, carrier.turn_rate
-    atan2, sqrt, tau = math.atan2, math.sqrt, _TAU
-    ramp = None if a is None else v * v / a
-    brake = None if a is None else v / a
-
-    def hop(p: Sequence[float], q: Sequence[float], heading: float) -> tuple[float, float]:
-        dx, dy = q[0] - p[0], q[1] - p[1]
-        d2 = dx * dx + dy * dy
-        if d2 <= 1e-18:
-            return 0.0, heading
-        h = atan2(dy, dx)
-        length = sqrt(d2)
-        if a is None:
-            t = length / v
-        elif length >= ramp:  # type: ignore[operator]
-            t = length / v + brake  # type: ignore[operator]
-        else:
-            t = 2.0 * sqrt(length / a)
-        if w is not None:
-            turn = (h - heading) % tau
-            t += (turn if turn <= tau - turn else tau - turn) / w
-        return t, h
-    return hop
+    """:func:`carrier_hop` with ``carrier``'s numbers bound once (``carrier_stepper``):
+    ``hop(p, q, heading)``."""
+    step = carrier_stepper(carrier)
+    return lambda p, q, heading: step(q[0] - p[0], q[1] - p[1], heading)
 
 
 def leg_timer(motion: Motion) -> Callable[[float], float]:
