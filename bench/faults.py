@@ -81,6 +81,9 @@ class Watcher:
         self.task: asyncio.Task[None] | None = None
         self.lift_off: float | None = None
         self.evidence: float | None = None
+        # the poll before the evidence was seen (sim time): the evidence lies after it - a busy event
+        # loop may poll tenths of a simulated second apart at speed-up 20
+        self.before: float | None = None
 
     def attach(self, sim: SimFleet) -> None:
         self.sim = sim
@@ -96,6 +99,9 @@ class Watcher:
                 self.lift_off = t
             if self.fault == "battery" and r.battery <= 0.0:
                 self.evidence = t
+                break
+            if self.fault == "battery":
+                self.before = t
             elif self.fault != "battery" and self.lift_off is not None and t >= self.lift_off + STRIKE_AFTER:
                 if self.fault == "link":
                     sim.dropout(VICTIM)
@@ -126,10 +132,14 @@ async def fly(fault: str, speedup: float, tmp: Path) -> dict[str, Any]:
     seen = next((r for r in recs if r.get("kind") == kind and r.get("vehicle") == VICTIM), None)
     detected = None if seen is None else _clock_of(recs, seen)
     detection = None if detected is None or w.evidence is None else detected - w.evidence
+    # the battery's end lies between two polls: the detection at most this much longer
+    earliest = w.before if w.fault == "battery" else w.evidence
+    detection_max = None if detected is None or earliest is None else detected - earliest
     return {
         "fault": FAULTS[fault],
         "speedup": speedup,
         "detection": detection,
+        "detection_max": detection_max,
         "result": s["result"],
         "loaded": s["rovers_loaded"],
         "let_go": s.get("rovers_let_go", {}),
