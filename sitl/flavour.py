@@ -83,6 +83,7 @@ COPTER_SAFETY_PARAMS = {"FS_GCS_ENABLE": 0.0, "FS_GCS_TIMEOUT": 5.0, "FS_OPTIONS
 # action is FS_ACTION (0 nothing, 1 RTL, 2 hold, 3 SmartRTL or RTL, 4 SmartRTL or hold) after
 # FS_TIMEOUT; FENCE_ACTION 0 report, 1 RTL or hold, 2 hold, 3 SmartRTL or RTL or hold, 4 SmartRTL or hold.
 ROVER_SAFETY_PARAMS = {"FS_GCS_ENABLE": 0.0, "FS_ACTION": 2.0, "FS_TIMEOUT": 1.5, "FENCE_TYPE": 6.0}
+FIRST_FENCE_LOAD_S = 0.45  # PX4: see Flavour.fence_load_time
 _PX4_DLL = {1: "hold", 2: "rtl", 3: "land", 5: "land", 6: "land"}  # terminate/lockdown: the sim lands
 _PX4_GF = {1: "report", 2: "hold", 3: "rtl", 4: "land", 5: "land"}
 _COPTER_GCS = {1: "rtl", 2: "rtl", 3: "rtl", 4: "rtl", 5: "land", 6: "rtl", 7: "hold"}
@@ -153,6 +154,14 @@ class Flavour:
         mission at its first item (measured on ArduCopter 4.6 SITL: "Disarming motors", then
         "Mission: 1 Takeoff"), so the items after it never run; PX4 stays armed and goes on."""
         return not self.px4 and not self.ground
+
+    @property
+    def fence_load_time(self) -> float:
+        """Seconds after a vehicle's first geofence upload during which the mission mode is refused
+        with MAV_RESULT_TEMPORARILY_REJECTED: PX4 1.18 SITL (SIH, speed factor 4) refused it 14-15
+        times over 0.4 s of its time after a mission uploaded right behind its first fence, never
+        after a later fence or without one; ArduPilot: never."""
+        return FIRST_FENCE_LOAD_S if self.px4 else 0.0
 
     # -- link loss and geofence (what the firmware does, from its parameters) ---------------------
     def link_loss(self, in_mission: bool) -> tuple[str | None, float]:

@@ -147,6 +147,8 @@ class SimVehicle:
         self.fence = Fence()
         self.fence_breach = 0  # FENCE_BREACH of the current breach, 0 = inside
         self.fence_breach_count = 0
+        self._fence_loaded = False  # a fence was uploaded once (Flavour.fence_load_time)
+        self._fence_loaded_at = 0.0  # sim time: the mission mode refused "for now" until then
         self._fence_breach_time = 0
         self.gcs_heard: float | None = None  # wall time of the last GCS heartbeat
         self.link_lost = False
@@ -500,6 +502,8 @@ class SimVehicle:
             if not self._has_mission():
                 self.statustext("Mission mode denied: no mission", M.MAV_SEVERITY_WARNING)
                 return M.MAV_RESULT_DENIED
+            if self.clock.sim_time < self._fence_loaded_at:  # the first fence still being loaded
+                return M.MAV_RESULT_TEMPORARILY_REJECTED
             if self.finished:
                 self.current = self._first_item()
                 self.finished = False
@@ -944,6 +948,9 @@ class SimVehicle:
         self._emit(M.MAVLINK_MSG_ID_MISSION_CURRENT)
 
     def _replace_fence(self, items: list[MissionItem]) -> None:
+        if items and not self._fence_loaded:
+            self._fence_loaded = True
+            self._fence_loaded_at = self.clock.sim_time + self.flavour.fence_load_time
         self.fence_items = list(items)
         self.fence = build_fence(self.fence_items, self.frame)
         self.fence_breach = 0

@@ -64,6 +64,7 @@ SET_CURRENT_RESEND = 1.5  # s: MISSION_SET_CURRENT sent again when nothing says 
 SET_CURRENT_PATIENCE = (COMMAND_RETRIES + 1) * COMMAND_TIMEOUT  # s in all: a command's patience
 WATCH_EFFECT = 3600.0  # s: a command's effect is watched while its exchange runs (the exchange ends it)
 _STATUS_REASON_S = 2.0  # a STATUSTEXT this recent explains a rejected command
+MODE_RETRY_S = 0.1  # mission s between two DO_SET_MODE refused "for now" (set_mode's settle)
 # position plausibility (field safety): a fix farther from the last applied one than
 # JUMP_FACTOR x max_speed x dt + JUMP_SLACK_M is held back until CONFIRM_FIXES consecutive fixes
 # spanning CONFIRM_S wall seconds agree with it (with no fix consistent with the old track between)
@@ -164,6 +165,7 @@ class Vehicle:
         self.last_heartbeat: float | None = None  # time.monotonic()
         self.heartbeats = 0  # autopilot HEARTBEATs heard (a command's effect: fleetctl.mavlink.effects)
         self.confirmed_by_telemetry = 0  # commands ended by their effect in telemetry, their ACK lost
+        self.mode_retries = 0  # mode switches refused "for now" and asked again (set_mode's settle)
         # position
         self.lat: float | None = None
         self.lon: float | None = None
@@ -705,11 +707,26 @@ class Vehicle:
         await self.disarm()
         await self.wait_until(lambda v: not v.armed, timeout, "disarmed")
 
-    async def set_mode(self, mode: str) -> None:
+    async def set_mode(self, mode: str, *, settle: float = 0.0) -> None:
         """Switch to a generic mode (HOLD, GUIDED, MISSION, TAKEOFF, LAND, RTL, MANUAL) or a
-        firmware mode name, with DO_SET_MODE; done when the ACK or a HEARTBEAT showing the mode comes."""
+        firmware mode name, with DO_SET_MODE; done when the ACK or a HEARTBEAT showing the mode comes.
+
+        ``settle``: for this many mission seconds a MAV_RESULT_TEMPORARILY_REJECTED answer ("valid,
+        but not now: retry later", MAVLink's command protocol) is retried every
+        :data:`MODE_RETRY_S`; any other refusal, or one after that, raises :class:`CommandRejected`."""
         params = self._require_autopilot().set_mode_params(mode)
-        await self.command(M.MAV_CMD_DO_SET_MODE, params, effect=heartbeat_shows(self, in_mode(mode)))
+        rate = max(self._clock.rate, 1e-9)
+        give_up = time.monotonic() + settle / rate
+        while True:
+            try:
+                await self.command(M.MAV_CMD_DO_SET_MODE, params, effect=heartbeat_shows(self, in_mode(mode)))
+                return
+            except CommandRejected as exc:
+                if exc.ack.result != M.MAV_RESULT_TEMPORARILY_REJECTED or time.monotonic() >= give_up:
+                    raise
+                self.mode_retries += 1
+                log.debug("%s: %s refused for now (%s), asked again", self.name, mode, exc.reason)
+            await asyncio.sleep(MODE_RETRY_S / rate)
 
     async def takeoff(self, height: float) -> None:
         """Take off to ``height`` metres above home (arm first)."""

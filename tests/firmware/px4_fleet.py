@@ -10,6 +10,7 @@ import math
 import os
 import signal
 import socket
+import subprocess
 import sys
 import time
 from collections.abc import Iterator, Sequence
@@ -18,6 +19,7 @@ from pathlib import Path
 
 from sitl.firmware import FirmwareFleet, FirmwareVehicle, find_px4
 
+ROOT = Path(__file__).resolve().parents[2]
 HOME = (47.397742, 8.545594, 488.0, 0.0)  # the origin of the mission: lat, lon, AMSL alt, heading
 GCS_PORT = 14550  # PX4 always sends its ground-station link here
 SPEEDUP = 4.0  # PX4_SIM_SPEED_FACTOR (the machine is shared: keep it at most 4)
@@ -30,6 +32,26 @@ def vehicles(n_rovers: int = 3) -> list[FirmwareVehicle]:
     out = [FirmwareVehicle("carrier", sysid=1, frame="rover", home=HOME)]
     out += [FirmwareVehicle(f"r{i + 1}", sysid=11 + i, frame="copter", home=HOME) for i in range(n_rovers)]
     return out
+
+
+def cli(*args: str, timeout: float = 90.0,
+        env: dict[str, str] | None = None) -> subprocess.CompletedProcess[str]:
+    """``fleetctl`` as a user runs it (``env``: more environment variables)."""
+    full = dict(os.environ, PYTHONPATH=str(ROOT), **(env or {}))
+    return subprocess.run([sys.executable, "-m", "fleetctl.cli", *args], cwd=ROOT, env=full, text=True,
+                          capture_output=True, timeout=timeout)
+
+
+def wait_ready(mission: Path, timeout: float = 40.0,
+               env: dict[str, str] | None = None) -> subprocess.CompletedProcess[str]:
+    """``fleetctl status`` until it passes (armable after ~1.3 s at 4x: GPS fix, home, estimator) or
+    ``timeout`` s; its last output."""
+    deadline = time.monotonic() + timeout
+    while True:
+        out = cli("status", "-m", str(mission), "--timeout", "10", env=env)
+        if out.returncode == 0 or time.monotonic() > deadline:
+            return out
+        time.sleep(1.0)
 
 
 def port_free(port: int = GCS_PORT) -> bool:

@@ -23,14 +23,13 @@ import math
 import os
 import subprocess
 import sys
-import time
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
 import pytest
 from ardupilot_team import kill_run_once_deployed, probe
-from px4_fleet import GCS_PORT, SKIP_REASON, TASKS, mission_yaml, port_free, px4_fleet
+from px4_fleet import GCS_PORT, ROOT, SKIP_REASON, TASKS, cli, mission_yaml, port_free, px4_fleet, wait_ready
 
 from sitl.firmware import find_px4
 
@@ -39,7 +38,6 @@ pytestmark = pytest.mark.firmware
 if find_px4() is None:
     pytest.skip(SKIP_REASON, allow_module_level=True)
 
-ROOT = Path(__file__).resolve().parents[2]
 SPEEDUP = 4
 DECK_M = 1.5  # a rover "on the deck": this near the carrier, horizontally (fleetctl's deck radius)
 # read after the run, up to ~30 s after the rover was loaded: the parked SIH carrier's position estimate
@@ -47,12 +45,6 @@ DECK_M = 1.5  # a rover "on the deck": this near the carrier, horizontally (flee
 NEAR_DECK_M = DECK_M + 0.5
 TASK_M = 2.0  # a rover "at its task": this near it
 LAND_MODE = (6 << 24) | (4 << 16)  # PX4 AUTO.LAND custom mode
-
-
-def cli(*args: str, timeout: float = 90.0) -> subprocess.CompletedProcess[str]:
-    env = dict(os.environ, PYTHONPATH=str(ROOT))
-    return subprocess.run([sys.executable, "-m", "fleetctl.cli", *args], cwd=ROOT, env=env, text=True,
-                          capture_output=True, timeout=timeout)
 
 
 @pytest.fixture(scope="module")
@@ -162,15 +154,6 @@ def test_a_run_killed_with_sigkill_is_finished_by_resume(tmp_path: Path) -> None
         positions = where_landed({"mission": mission})
         for rid in ("r1", "r2", "r3"):  # on the ground next to the carrier, disarmed
             assert math.dist(positions[rid][:2], positions["carrier"][:2]) < NEAR_DECK_M, (rid, positions)
-
-
-def wait_ready(mission: Path, timeout: float = 40.0) -> subprocess.CompletedProcess[str]:
-    deadline = time.monotonic() + timeout
-    while True:  # armable after ~1.3 s at 4x (GPS fix, home, estimator)
-        out = cli("status", "-m", str(mission), "--timeout", "10")
-        if out.returncode == 0 or time.monotonic() > deadline:
-            return out
-        time.sleep(1.0)
 
 
 def test_status_sees_every_vehicle_ready(px4: dict[str, Any]) -> None:

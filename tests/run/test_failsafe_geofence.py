@@ -217,6 +217,48 @@ async def test_fence_upload_download_round_trip(autopilot: str, tmp_path: Path) 
             assert await download_fence(r1) == [] and not sv.fence.has_zones
 
 
+async def test_px4_mission_mode_refused_for_now_after_the_first_fence_is_asked_again(tmp_path: Path) -> None:
+    """PX4 1.18 SITL refuses the mission mode with MAV_RESULT_TEMPORARILY_REJECTED for ~0.4 s after
+    its first fence upload (measured; sitl Flavour.fence_load_time): a plain switch fails at once,
+    ``set_mode(settle=...)`` asks again until it is taken, and ``start_mission`` does so on PX4."""
+    from pymavlink.dialects.v20 import ardupilotmega as m
+
+    from fleetctl.mavlink.messages import MissionItem
+    from fleetctl.mavlink.vehicle import CommandRejected
+
+    d = mission_dict(rovers=2, speedup=1.0)  # real time: the refusal lasts 0.45 s of wall time
+    mission = mission_from(d, tmp_path)
+    fence = GeofenceConfig(SQUARE, (), 20.0, "land")
+    assert mission.origin is not None
+    lat, lon = int(mission.origin.lat * 1e7), int(mission.origin.lon * 1e7)
+    item = MissionItem(m.MAV_CMD_NAV_WAYPOINT, x=lat, y=lon, z=5.0)
+    async with sim_fleet(d, autopilot="px4") as sim:
+        async with await connect_fleet(mission, sim.endpoints, timeout=5.0) as fleet:
+            r1 = fleet.rovers["r1"]
+            await upload_fence(r1, fence, mission.origin)
+            await r1.upload_mission([item, item])
+            with pytest.raises(CommandRejected, match="TEMPORARILY_REJECTED"):
+                await r1.set_mode("MISSION")
+            await r1.set_mode("MISSION", settle=2.0)
+            assert r1.mode_retries >= 1 and sim.vehicle("r1").mode is Mode.MISSION
+            r2 = fleet.rovers["r2"]
+            await upload_fence(r2, fence, mission.origin)
+            await r2.upload_mission([item, item])
+            await r2.start_mission()
+            assert r2.mode_retries >= 1 and sim.vehicle("r2").mode is Mode.MISSION
+
+
+def test_the_mission_mode_retry_is_documented() -> None:
+    from fleetctl.mavlink.autopilots.px4 import MISSION_CHECK_S
+    from fleetctl.mavlink.vehicle import MODE_RETRY_S
+    from sitl.flavour import FIRST_FENCE_LOAD_S
+
+    doc = " ".join((Path(__file__).resolve().parents[2] / "docs" / "autopilots.md").read_text().split())
+    assert f"asked again every {MODE_RETRY_S:g} s for up to {MISSION_CHECK_S:g} s" in doc
+    assert f"{MISSION_CHECK_S:g} mission seconds, `MODE_RETRY_S` {MODE_RETRY_S:g} s apart" in doc
+    assert f"refuses the same way for {FIRST_FENCE_LOAD_S:g} s after a vehicle's first fence" in doc
+
+
 @pytest.mark.parametrize(
     ("autopilot", "action", "goto", "mode", "breach"),
     [

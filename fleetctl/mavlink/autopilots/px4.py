@@ -35,6 +35,10 @@ QUIET_STREAMS = ("ATTITUDE", "ATTITUDE_QUATERNION", "ATTITUDE_TARGET", "POSITION
                  "POSITION_TARGET_GLOBAL_INT", "LOCAL_POSITION_NED", "SERVO_OUTPUT_RAW", "VFR_HUD",
                  "ALTITUDE", "SCALED_PRESSURE", "GNSS_INTEGRITY", "OPEN_DRONE_ID_LOCATION",
                  "OPEN_DRONE_ID_SYSTEM", "ESTIMATOR_STATUS", "DISTANCE_SENSOR", "VIBRATION", "CURRENT_MODE")
+# PX4 checks an uploaded mission (its navigator's feasibility check, geofence included) after the
+# MISSION_ACK and refuses the mission mode with MAV_RESULT_TEMPORARILY_REJECTED until it has: seen on
+# SITL v1.18 with a geofence loaded, the mode asked 20 ms after the ACK. Asked again for this long
+MISSION_CHECK_S = 2.0  # mission s
 # what decides a flight's time (all SI units: scale 1). A multicopter takes off at MPC_TKO_SPEED
 # (after a MPC_TKO_RAMP_T velocity ramp), climbs between waypoints at MPC_Z_V_AUTO_UP, descends at
 # MPC_Z_V_AUTO_DN and lands at MPC_LAND_SPEED below MPC_LAND_ALT2 (5 m); horizontally it cruises at
@@ -149,7 +153,7 @@ class Px4(Autopilot):
         # the new route's first hold, where a rover stays put. The first item is made current first.
         if vehicle.mission_current != first:
             await vehicle.set_current(first)
-        await vehicle.set_mode("MISSION")
+        await vehicle.set_mode("MISSION", settle=MISSION_CHECK_S)
 
     async def after_upload(self, vehicle: Vehicle) -> None:
         # the first item made current at once (see start_mission), so that the start is only the
