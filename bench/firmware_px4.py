@@ -8,7 +8,10 @@ follows the carrier's own time on SITL firmware) and the flown makespan in the c
 seconds measured apart (its ``time_boot_ms`` in the run's ``traffic.tlog`` from the journal record
 the makespan starts at to the one it ends at: the last task reached, the park command).
 
-    FLEETCTL_PX4_DIR=/path/to/px4 python bench/firmware_px4.py [--rounds 3] [--json OUT]
+    FLEETCTL_PX4_DIR=/path/to/px4 python bench/firmware_px4.py [--rounds 3] [--seed S] [--json OUT]
+
+``--seed S``: round k flies tasks drawn at random with seed S + k (15-30 m away, 3-10 m up: the
+firmware tests' random missions) instead of the fixed three tasks.
 
 Prints a markdown table. Each round takes about 30 s of wall time on a quiet machine.
 """
@@ -30,7 +33,7 @@ HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
 sys.path.insert(0, str(ROOT / "tests" / "firmware"))
 
-from px4_fleet import SPEEDUP, mission_yaml, port_free, px4_fleet  # noqa: E402
+from px4_fleet import SPEEDUP, TASKS, mission_yaml, port_free, px4_fleet, random_task_positions  # noqa: E402
 
 STARTS = ("carrier_started", "collection_started")  # the journal record a command's makespan counts from
 
@@ -104,6 +107,8 @@ def main() -> int:
     ap.add_argument("--rounds", type=int, default=3, help="deploy + collect this many times (default 3)")
     ap.add_argument("--json", help="also write the rows here")
     ap.add_argument("--runs", help="keep the run folders here (default: a temporary folder)")
+    ap.add_argument("--seed", type=int,
+                    help="round k flies random tasks of seed SEED + k (default: fixed tasks)")
     args = ap.parse_args()
     if not port_free():
         print("UDP port 14550 (PX4's ground-station port) is in use", file=sys.stderr)
@@ -117,6 +122,8 @@ def main() -> int:
         mission.write_text(mission_yaml())
         wait_ready(mission, runs)
         for k in range(args.rounds):
+            tasks = TASKS if args.seed is None else random_task_positions(args.seed + k)
+            mission.write_text(mission_yaml(tasks))
             for command in ("deploy", "collect"):
                 r = fly(mission, runs, command)
                 r["round"] = k + 1

@@ -28,6 +28,14 @@ SKIP_REASON = "PX4 SITL not found: set FLEETCTL_PX4_DIR"
 TASKS = ((20.0, 8.0, 5.0), (-6.0, 24.0, 6.0), (-14.0, -18.0, 4.0))
 
 
+def random_task_positions(seed: int, n: int = 3) -> tuple[tuple[float, float, float], ...]:
+    """``n`` tasks fleetctl has never seen: 15-30 m from the carrier in random directions, 3-10 m up,
+    at least 8 m apart (``ardupilot_team.random_tasks``, the ArduPilot tests' missions)."""
+    from ardupilot_team import random_tasks
+
+    return tuple(p for _id, p in random_tasks(seed, n))
+
+
 def vehicles(n_rovers: int = 3) -> list[FirmwareVehicle]:
     out = [FirmwareVehicle("carrier", sysid=1, frame="rover", home=HOME)]
     out += [FirmwareVehicle(f"r{i + 1}", sysid=11 + i, frame="copter", home=HOME) for i in range(n_rovers)]

@@ -9,7 +9,8 @@ The mission's rover speeds are PX4's (``Px4.speed_params``: MPC_XY_CRUISE 5 m/s,
 1.5 m/s, MPC_LAND_SPEED 0.7 m/s); the take-off, touch-down and leg acceleration the plan uses are
 PX4's measured handling (``Px4.handling_times``, ``Px4.planned_accel``). The faults (a rover's
 firmware killed in flight, link loss after the controller is gone) fly a fleet of four
-quadcopters first; then the tests run in file order on one fleet of three: status, deploy (the
+quadcopters first; then the tests run in file order on one fleet of three, on tasks drawn at random
+(the seed printed; ``FLEETCTL_FW_SEED`` flies them again): status, deploy (the
 rovers end at their tasks), collect (they land on the deck, the carrier is disarmed, status passes
 again). A run killed with SIGKILL during its dwell and finished by ``resume`` flies a fleet of its
 own before them (SIH cannot carry a rover: after a collection the rovers stand on the ground beside
@@ -23,13 +24,25 @@ import math
 import os
 import subprocess
 import sys
+import time
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
 import pytest
 from ardupilot_team import kill_run_once_deployed, probe
-from px4_fleet import GCS_PORT, ROOT, SKIP_REASON, TASKS, cli, mission_yaml, port_free, px4_fleet, wait_ready
+from px4_fleet import (
+    GCS_PORT,
+    ROOT,
+    SKIP_REASON,
+    TASKS,
+    cli,
+    mission_yaml,
+    port_free,
+    px4_fleet,
+    random_task_positions,
+    wait_ready,
+)
 
 from sitl.firmware import find_px4
 
@@ -52,10 +65,14 @@ def px4(tmp_path_factory: pytest.TempPathFactory) -> Iterator[dict[str, Any]]:
     if not port_free():
         pytest.skip("UDP port 14550 (PX4's ground-station port) is in use")
     d = tmp_path_factory.mktemp("px4")
+    seed = int(os.environ.get("FLEETCTL_FW_SEED", time.time_ns() % 100_000))
+    print(f"\ntasks of seed {seed} (FLEETCTL_FW_SEED={seed} flies them again)")
+    tasks = random_task_positions(seed)
     mission = d / "mission.yaml"
-    mission.write_text(mission_yaml())
+    mission.write_text(mission_yaml(tasks))
     with px4_fleet(speedup=SPEEDUP) as fleet:
-        ctx: dict[str, Any] = {"fleet": fleet, "mission": mission, "dir": d}
+        ctx: dict[str, Any] = {"fleet": fleet, "mission": mission, "dir": d,
+                               "tasks": {f"t{i + 1}": p for i, p in enumerate(tasks)}}
         ctx["status"] = wait_ready(mission)
         yield ctx
 
@@ -169,7 +186,7 @@ def test_deploy_reaches_every_task(px4: dict[str, Any]) -> None:
     assert s["result"] == "complete", log[-3000:]
     assert sorted(s["tasks_reached"]) == ["t1", "t2", "t3"]
     assert s["link"]["route_conflicts"] == 0
-    tasks = {f"t{i + 1}": p for i, p in enumerate(TASKS)}
+    tasks = px4["tasks"]
     for rid, r in s["rovers_airborne"].items():  # each ends at its task (1 m acceptance radius)
         assert math.dist(r["position"], tasks[r["task"]]) < TASK_M, (rid, r)
     landed = [e for e in journal(s) if e["kind"] == "landed_state" and e.get("state") == "ON_GROUND"

@@ -41,7 +41,8 @@ COPTER_SPEEDS = (SpeedParam("WPNAV_SPEED", "max_speed", 100.0, 20.0, 2000.0),
                  SpeedParam("WPNAV_ACCEL", "accel", 100.0, 50.0, 500.0),
                  SpeedParam("WPNAV_ACCEL_Z", "accel", 100.0, 50.0, 500.0),  # the time model's line is 3D
                  SpeedParam("WPNAV_SPEED_UP", "climb_rate", 100.0, 10.0, 1000.0),
-                 SpeedParam("WPNAV_SPEED_DN", "land_speed", 100.0, 10.0, 500.0),
+                 # a leg is the time model's straight 3D line at max_speed: not slowed on the way down
+                 SpeedParam("WPNAV_SPEED_DN", "max_speed", 100.0, 10.0, 500.0),
                  SpeedParam("LAND_SPEED", "land_speed", 100.0, 30.0, 200.0))
 ROVER_SPEEDS = (SpeedParam("WP_SPEED", "max_speed", 1.0, 0.0, 100.0),
                 SpeedParam("CRUISE_SPEED", "max_speed", 1.0, 0.0, 100.0),

@@ -59,9 +59,13 @@ MC_SPEED_PARAMS = (
     SpeedParam("MPC_XY_CRUISE", "max_speed", 1.0),
     SpeedParam("MPC_ACC_HOR", "accel", 1.0),
     SpeedParam("MPC_TKO_SPEED", "climb_rate", 1.0),
-    SpeedParam("MPC_Z_V_AUTO_UP", "climb_rate", 1.0),
+    # a leg is the time model's straight 3D line at max_speed: the mission's vertical limits must not
+    # slow it (the caps first: PX4 flies the auto limits at most at MPC_Z_VEL_MAX_UP / _DN)
+    SpeedParam("MPC_Z_VEL_MAX_UP", "max_speed", 1.0),
+    SpeedParam("MPC_Z_V_AUTO_UP", "max_speed", 1.0),
+    SpeedParam("MPC_Z_VEL_MAX_DN", "max_speed", 1.0),
+    SpeedParam("MPC_Z_V_AUTO_DN", "max_speed", 1.0),
     SpeedParam("MPC_LAND_SPEED", "land_speed", 1.0),
-    SpeedParam("MPC_Z_V_AUTO_DN", "land_speed", 1.0),
     SpeedParam("MPC_LAND_CRWL", "land_speed", 1.0),
     # after MPC_LAND_CRWL, which caps it
     SpeedParam("LNDMC_Z_VEL_MAX", "land_speed", LAND_DETECT_RATIO, hi=LAND_DETECT_MAX),
