@@ -261,23 +261,27 @@ class CarrierControl:
         )
         return t
 
-    async def parked(self, k: int, seq: int) -> None:
+    async def parked(self, k: int, seq: int, hold: bool = False) -> None:
         """Return once the carrier is parked at stop ``k`` (its arrive item ``seq``:
         :func:`parked_on_item`); a carrier not parked there is journalled (``carrier_off_stop``) and,
         when it is beyond ``PARK_RADIUS`` of the stop, sent back onto it (the stop's item made current
         again; once more when it stands still off the stop or is not back in time). Each wait is
         bounded in mission time: the drive back at the carrier's speed plus ``RESTOP_SETTLE``, with the
         stated slack (:meth:`RunContext.late`); after ``RESTOPS_MAX`` re-stops a ``TimeoutError``.
-        The rovers of the stop call this at once: one of them does the waiting, the rest find it done."""
+        ``hold``: within ``PARK_RADIUS`` of the stop the carrier is stopped where it is
+        (:meth:`hold_on_stop`). The rovers of the stop call this at once: one of them does the
+        waiting, the rest find it done."""
         async with self._parking:
             for restops in range(RESTOPS_MAX + 1):
-                if parked_on_item(self.vehicle, seq):
+                c = self.vehicle
+                off = _off(c, seq)
+                if hold and off is not None and off <= PARK_RADIUS:
+                    await self.hold_on_stop(k)
+                if parked_on_item(c, seq):
                     return
                 if restops == RESTOPS_MAX:
                     break
                 await self.ready()
-                c = self.vehicle
-                off = _off(c, seq)
                 self.ctx.record(Ev.CARRIER_OFF_STOP, vehicle=c.name, stop=k + 1, offset=off,
                                 speed=c.ground_speed, attempt=restops + 1)
                 budget = RESTOP_SETTLE
@@ -286,6 +290,22 @@ class CarrierControl:
                     budget += (off or 0.0) / max(self.ctx.mission.carrier.max_speed, 0.1)
                 await self._wait_parked(k, seq, budget)
             raise TimeoutError(f"the carrier is not parked at stop {k + 1} after {RESTOPS_MAX} re-stops")
+
+    async def hold_on_stop(self, k: int) -> None:
+        """Stop the carrier where it is, on stop ``k``, in its hold mode: it drove off the stop under
+        a landing and may not settle on its own (PX4 1.18's SIH Ackermann carrier circled a stop 2.1 m
+        to its side at 1 m/s, and three landings on it were broken off). Its route goes on from the
+        next stop with a mission start (as a route that began on its first stop: :meth:`start_route`).
+        Refused: journalled, and it is left in its mission."""
+        c = self.vehicle
+        if c.mode == "HOLD" and self._waiting:
+            return
+        try:
+            await self.ctx.command(c, "hold_on_stop", c.set_mode("HOLD"), stop=k + 1)
+        except (CommandRejected, LinkError, TimeoutError) as exc:
+            log.warning("%s: could not hold the carrier on stop %d: %s", c.name, k + 1, exc)
+            return
+        self._waiting = True
 
     async def _wait_parked(self, k: int, seq: int, budget: float) -> None:
         """Wait (``budget`` mission s with the stated slack) for the carrier parked at the stop, lost,

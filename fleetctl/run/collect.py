@@ -639,14 +639,16 @@ class CollectPhase:
         """Land ``v`` on the carrier once it is parked at stop ``k`` (:meth:`CarrierControl.parked`:
         the rover hovers meanwhile). A carrier that leaves the stop during the descent
         (:func:`left_item`) breaks the landing off: the rover climbs back to ``MEET_HEIGHT`` where it
-        is, the carrier is sent back onto the stop, and the rover is brought down over it again.
+        is, the carrier is sent back onto the stop and held there in its hold mode
+        (:meth:`CarrierControl.hold_on_stop`), and the rover is brought down over it again.
         ``over_carrier``: ``v`` flies out of its mission (sent over the carrier on its way)."""
         ctx, c, rid = self.ctx, self.ctx.fleet.carrier, v.name
         landing = max(LANDING_TIMEOUT, 3.0 * ctx.mission.rovers.land_time)
         broken_off = over_carrier
         relands = 0
+        carrier_left = False  # it drove off under a landing: held where it parks next
         for _ in range(RESTOPS_MAX + RELANDS_MAX):
-            await self.carrier.parked(k, seq)
+            await self.carrier.parked(k, seq, hold=carrier_left)
             if not rover_on_deck(ctx, v):
                 await self._send_down(rnd, v, over_carrier=broken_off)
                 ctx.state.set_state(rid, VehicleStatus.LANDED)
@@ -667,6 +669,7 @@ class CollectPhase:
                 await self._lift_again(v, off, k)
             else:
                 await climb_back(ctx, v, k + 1)
+                carrier_left = True
             broken_off = True
         raise TimeoutError(f"the carrier left stop {k + 1} {RESTOPS_MAX} times")
 

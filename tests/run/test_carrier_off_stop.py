@@ -213,6 +213,25 @@ def test_an_operation_landing_is_broken_off_when_the_carrier_leaves(tmp_path: Pa
     assert any(r["kind"] == "rover_state" and "landing broken off" in r.get("text", "") for r in recs)
 
 
+def test_a_collection_landing_broken_off_holds_the_carrier_on_its_stop(tmp_path: Path) -> None:
+    """``collect`` after a deployment: the carrier drives off its stop while a rover comes down onto
+    its deck. The rover climbs back and hovers, the carrier is sent back and, parked, held there in
+    its hold mode (``hold_on_stop``: an Ackermann carrier may circle a stop it cannot turn onto, as
+    PX4's SIH rover did), and every rover is loaded on the deck."""
+    action, fired = _drive_off_when(lambda r, c: 1.0 < r.position[2] < 2.8 and r.vel[2] < -0.1
+                                    and _near(r, c, 1.5))
+    d = mission_dict(rovers=2)
+    d["rovers"]["land_speed"] = 1.0  # a descent of 3 s: the carrier is seen leaving before touch-down
+    s, _trig, sim, _path = asyncio.run(fly(tmp_path, d, "run", action, dwell=45.0))
+    assert fired
+    assert s["_exit"] == 0 and s["result"] == "complete", s
+    assert sorted(sim.world.loaded_rovers()) == ["r1", "r2"]
+    recs = journal(s)
+    assert any(r["kind"] == "rover_state" and "landing broken off" in r.get("text", "") for r in recs)
+    held = [r for r in recs if r["kind"] == "command" and r.get("command") == "hold_on_stop"]
+    assert held and all(r["vehicle"] == "carrier" for r in held), held
+
+
 def test_the_docs_state_the_park_terms() -> None:
     from fleetctl.run.carrier import DRIVE_OFF_SPEED, RESTOP_SETTLE, RESTOPS_MAX, STAY_RADIUS, STAY_SPEED
     text = (Path(__file__).resolve().parents[2] / "docs" / "operations.md").read_text(encoding="utf-8")
