@@ -268,7 +268,7 @@ class CarrierControl:
         again; once more when it stands still off the stop or is not back in time). Each wait is
         bounded in mission time: the drive back at the carrier's speed plus ``RESTOP_SETTLE``, with the
         stated slack (:meth:`RunContext.late`); after ``RESTOPS_MAX`` re-stops a ``TimeoutError``.
-        ``hold``: within ``PARK_RADIUS`` of the stop the carrier is stopped where it is
+        ``hold``: within ``PARK_RADIUS`` of the stop the carrier is stopped where it is, disarmed
         (:meth:`hold_on_stop`). The rovers of the stop call this at once: one of them does the
         waiting, the rest find it done."""
         async with self._parking:
@@ -292,18 +292,19 @@ class CarrierControl:
             raise TimeoutError(f"the carrier is not parked at stop {k + 1} after {RESTOPS_MAX} re-stops")
 
     async def hold_on_stop(self, k: int) -> None:
-        """Stop the carrier where it is, on stop ``k``, in its hold mode: it drove off the stop under
-        a landing and may not settle on its own (PX4 1.18's SIH Ackermann carrier circled a stop 2.1 m
-        to its side at 1 m/s, and three landings on it were broken off). Its route goes on from the
-        next stop with a mission start (as a route that began on its first stop: :meth:`start_route`).
-        Refused: journalled, and it is left in its mission."""
+        """Stop the carrier where it is, on stop ``k``, by disarming it: it drove off the stop under a
+        landing and may not settle on its own - PX4 1.18's SIH Ackermann carrier circled a stop 2.1 m
+        to its side at 1 m/s (three landings on it were broken off) and, switched to its hold mode,
+        drove off 73 m. Disarmed, it stands. Its route goes on from the next stop armed again, with a
+        mission start (as a route that began on its first stop: :meth:`start_route`). Refused:
+        journalled, and it is left in its mission."""
         c = self.vehicle
-        if c.mode == "HOLD" and self._waiting:
+        if not c.armed:
             return
         try:
-            await self.ctx.command(c, "hold_on_stop", c.set_mode("HOLD"), stop=k + 1)
+            await self.ctx.command(c, "hold_on_stop", c.disarm(), stop=k + 1)
         except (CommandRejected, LinkError, TimeoutError) as exc:
-            log.warning("%s: could not hold the carrier on stop %d: %s", c.name, k + 1, exc)
+            log.warning("%s: could not stop the carrier on stop %d: %s", c.name, k + 1, exc)
             return
         self._waiting = True
 

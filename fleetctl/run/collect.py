@@ -639,7 +639,7 @@ class CollectPhase:
         """Land ``v`` on the carrier once it is parked at stop ``k`` (:meth:`CarrierControl.parked`:
         the rover hovers meanwhile). A carrier that leaves the stop during the descent
         (:func:`left_item`) breaks the landing off: the rover climbs back to ``MEET_HEIGHT`` where it
-        is, the carrier is sent back onto the stop and held there in its hold mode
+        is, the carrier is sent back onto the stop and stopped there, disarmed
         (:meth:`CarrierControl.hold_on_stop`), and the rover is brought down over it again.
         ``over_carrier``: ``v`` flies out of its mission (sent over the carrier on its way)."""
         ctx, c, rid = self.ctx, self.ctx.fleet.carrier, v.name

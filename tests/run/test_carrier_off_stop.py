@@ -215,9 +215,9 @@ def test_an_operation_landing_is_broken_off_when_the_carrier_leaves(tmp_path: Pa
 
 def test_a_collection_landing_broken_off_holds_the_carrier_on_its_stop(tmp_path: Path) -> None:
     """``collect`` after a deployment: the carrier drives off its stop while a rover comes down onto
-    its deck. The rover climbs back and hovers, the carrier is sent back and, parked, held there in
-    its hold mode (``hold_on_stop``: an Ackermann carrier may circle a stop it cannot turn onto, as
-    PX4's SIH rover did), and every rover is loaded on the deck."""
+    its deck. The rover climbs back and hovers, the carrier is sent back and stopped there, disarmed
+    (``hold_on_stop``: an Ackermann carrier may circle a stop it cannot turn onto, as PX4's SIH
+    rover did), and every rover is loaded on the deck."""
     action, fired = _drive_off_when(lambda r, c: 1.0 < r.position[2] < 2.8 and r.vel[2] < -0.1
                                     and _near(r, c, 1.5))
     d = mission_dict(rovers=2)
