@@ -268,20 +268,19 @@ class CarrierControl:
         again; once more when it stands still off the stop or is not back in time). Each wait is
         bounded in mission time: the drive back at the carrier's speed plus ``RESTOP_SETTLE``, with the
         stated slack (:meth:`RunContext.late`); after ``RESTOPS_MAX`` re-stops a ``TimeoutError``.
-        ``hold``: within ``PARK_RADIUS`` of the stop the carrier is stopped where it is, disarmed
-        (:meth:`hold_on_stop`). The rovers of the stop call this at once: one of them does the
-        waiting, the rest find it done."""
+        ``hold``: parked, the carrier is kept there, disarmed (:meth:`hold_on_stop`). The rovers of
+        the stop call this at once: one of them does the waiting, the rest find it done."""
         async with self._parking:
             for restops in range(RESTOPS_MAX + 1):
                 c = self.vehicle
-                off = _off(c, seq)
-                if hold and off is not None and off <= PARK_RADIUS:
-                    await self.hold_on_stop(k)
                 if parked_on_item(c, seq):
+                    if hold:
+                        await self.hold_on_stop(k)
                     return
                 if restops == RESTOPS_MAX:
                     break
                 await self.ready()
+                off = _off(c, seq)
                 self.ctx.record(Ev.CARRIER_OFF_STOP, vehicle=c.name, stop=k + 1, offset=off,
                                 speed=c.ground_speed, attempt=restops + 1)
                 budget = RESTOP_SETTLE
