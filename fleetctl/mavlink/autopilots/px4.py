@@ -35,9 +35,10 @@ QUIET_STREAMS = ("ATTITUDE", "ATTITUDE_QUATERNION", "ATTITUDE_TARGET", "POSITION
                  "POSITION_TARGET_GLOBAL_INT", "LOCAL_POSITION_NED", "SERVO_OUTPUT_RAW", "VFR_HUD",
                  "ALTITUDE", "SCALED_PRESSURE", "GNSS_INTEGRITY", "OPEN_DRONE_ID_LOCATION",
                  "OPEN_DRONE_ID_SYSTEM", "ESTIMATOR_STATUS", "DISTANCE_SENSOR", "VIBRATION", "CURRENT_MODE")
-# PX4 checks an uploaded mission (its navigator's feasibility check, geofence included) after the
-# MISSION_ACK and refuses the mission mode with MAV_RESULT_TEMPORARILY_REJECTED until it has: seen on
-# SITL v1.18 with a geofence loaded, the mode asked 20 ms after the ACK. Asked again for this long
+# After a vehicle's first geofence upload PX4 refuses the mission mode with
+# MAV_RESULT_TEMPORARILY_REJECTED for a moment (SITL v1.18, speed factor 4: 14 - 15 refusals over 0.4 s
+# of its time, the first 20 ms after the mission's ACK; none after a later fence or without one). The
+# mode is asked again for this long (Vehicle.set_mode's settle)
 MISSION_CHECK_S = 2.0  # mission s
 # what decides a flight's time (all SI units: scale 1). A multicopter takes off at MPC_TKO_SPEED
 # (after a MPC_TKO_RAMP_T velocity ramp), climbs between waypoints at MPC_Z_V_AUTO_UP, descends at
