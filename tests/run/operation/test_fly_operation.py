@@ -219,7 +219,7 @@ async def test_a_rover_into_its_reserve_is_brought_back_by_a_recovery_plan(tmp_p
         w.cancel()
     records = journal(tmp_path / "run")
     replans = [r for r in records if r["kind"] == "replan"]
-    assert replans and replans[0]["recovery"] is True, [r.get("text") for r in replans]
+    assert replans and replans[0].get("recovery") is True, [r.get("text") for r in replans]
     plan = json.loads((tmp_path / "run" / "plan-replan-1.json").read_text())
     assert plan["recovery"] is True and plan["time_model"]["reserve"] == 0.0
     assert all(s["launch_stop"] == -1 for s in plan["sorties"]) and plan["called_back"]["r2"]
