@@ -200,8 +200,15 @@ async def test_a_rover_short_of_battery_in_the_air_is_called_back_early(tmp_path
 async def test_a_rover_into_its_reserve_is_brought_back_by_a_recovery_plan(tmp_path: Path) -> None:
     """r2's battery reads 8 % just after its launch, below the 10 % reserve: no schedule keeps every
     reserve, so the replan is a recovery (nothing launched, r2 called back at once, the reserve
-    given up); once the rovers it brings back are aboard, the tasks left are planned and flown."""
-    mission = mission_from(small_operation(), tmp_path)
+    given up); once the rovers it brings back are aboard, the tasks left are planned and flown.
+
+    At a quarter of the usual speed-up: the controller and the simulated fleet share one event
+    loop, and on a loaded machine (CI, two workers) the low battery was acted on 25 mission s late
+    at 20x (at T 46 instead of T 20), when r2 was too far out to come back on 4 %: no recovery plan
+    exists then."""
+    d = small_operation()
+    d["sim"]["speedup"] = 5.0
+    mission = mission_from(d, tmp_path)
     watchers: list[asyncio.Task[None]] = []
 
     async def drop_r2_battery(sim: SimFleet) -> None:
