@@ -37,6 +37,9 @@ CARRIER_OUTAGE_MAX = 600.0  # mission s the controller waits for a lost carrier 
 # faster than DRIVE_OFF_SPEED has left its stop: a landing under way is broken off.
 PARK_RADIUS = 3.0  # m
 DRIVE_OFF_SPEED = 1.0  # m/s
+# A carrier that does not stand still on its own is disarmed on its stop at this speed at most: PX4
+# 1.18 SIH's Ackermann carrier, disarmed at 1 - 1.5 m/s, rolled on beyond PARK_RADIUS
+HOLD_SPEED_MAX = 0.5  # m/s
 RESTOP_SETTLE = 10.0  # mission s on top of the drive back onto the stop (braking, turning, settling)
 RESTOPS_MAX = 3  # waits for the carrier to park (each sending it back onto the stop when it is off it)
 
@@ -125,6 +128,7 @@ class CarrierControl:
         self.held: set[str] = set()  # rovers paused while the carrier is lost
         self._stayed: int | None = None  # the first stop's arrive item when the route started there
         self._waiting = False  # the route was uploaded on its first stop and not started (start_route)
+        self._held = False  # disarmed on its stop (hold_on_stop) and not moved on since
         self._parking = asyncio.Lock()  # one re-stop at a time, shared by the rovers of the stop
 
     @property
@@ -162,7 +166,7 @@ class CarrierControl:
         await upload(self.ctx, c, list(compiled.carrier))
         stay = compiled.stops[0] if compiled.stops and self._standing_at(compiled, 0) else None
         self._stayed = None if stay is None else stay.arrive_seq
-        self._waiting = stay is not None
+        self._waiting, self._held = stay is not None, False
         try:
             if not c.armed:  # armed as for its route (a disarmed PX4 SIH vehicle's clock runs at 1x)
                 await self.ctx.command(c, "arm", c.arm())
@@ -202,7 +206,7 @@ class CarrierControl:
         if not c.armed:
             await self.ctx.command(c, "arm", c.arm())
         await self.ctx.command(c, start_label, c.start_mission(seq), seq=seq, **fields)
-        self._waiting = False
+        self._waiting = self._held = False
 
     async def park(self) -> bool:
         """After a complete collection: the carrier in its hold mode and disarmed (armed, the next
@@ -268,14 +272,15 @@ class CarrierControl:
         again; once more when it stands still off the stop or is not back in time). Each wait is
         bounded in mission time: the drive back at the carrier's speed plus ``RESTOP_SETTLE``, with the
         stated slack (:meth:`RunContext.late`); after ``RESTOPS_MAX`` re-stops a ``TimeoutError``.
-        ``hold``: parked, the carrier is kept there, disarmed (:meth:`hold_on_stop`). The rovers of
+        ``hold``: the carrier is kept on the stop, disarmed (:meth:`hold_on_stop`), as soon as it may
+        be (:meth:`_holdable`); disarmed there, it counts as parked. The rovers of
         the stop call this at once: one of them does the waiting, the rest find it done."""
         async with self._parking:
             for restops in range(RESTOPS_MAX + 1):
                 c = self.vehicle
-                if parked_on_item(c, seq):
-                    if hold:
-                        await self.hold_on_stop(k)
+                if hold:
+                    await self.hold_if_holdable(k, seq)
+                if self.is_parked(seq):
                     return
                 if restops == RESTOPS_MAX:
                     break
@@ -287,8 +292,49 @@ class CarrierControl:
                 if off is None or off > PARK_RADIUS:  # else it is still coming to a stop on it
                     await self._restop(k, seq)
                     budget += (off or 0.0) / max(self.ctx.mission.carrier.max_speed, 0.1)
-                await self._wait_parked(k, seq, budget)
+                await self._wait_parked(k, seq, budget, hold)
             raise TimeoutError(f"the carrier is not parked at stop {k + 1} after {RESTOPS_MAX} re-stops")
+
+    def is_parked(self, seq: int) -> bool:
+        """The carrier is parked at its route's item ``seq`` (:func:`parked_on_item`), or disarmed
+        on it (:meth:`hold_on_stop`) and within ``PARK_RADIUS``: its velocity estimate is not
+        trusted then (see :meth:`_holdable`)."""
+        c = self.vehicle
+        if self._held:
+            off = _off(c, seq)
+            return off is not None and off <= PARK_RADIUS
+        return parked_on_item(c, seq)
+
+    def has_left(self, seq: int) -> bool:
+        """The carrier has left its route's item ``seq`` (:func:`left_item`); disarmed on it, only
+        when it is beyond ``PARK_RADIUS``."""
+        c = self.vehicle
+        if self._held:
+            off = _off(c, seq)
+            return off is not None and off > PARK_RADIUS
+        return left_item(c, seq)
+
+    async def hold_if_holdable(self, k: int, seq: int) -> None:
+        """Disarm the carrier on stop ``k`` (its arrive item ``seq``) now if it may be
+        (:meth:`_holdable`, :meth:`hold_on_stop`)."""
+        if self._holdable(seq):
+            await self.hold_on_stop(k)
+
+    def _holdable(self, seq: int) -> bool:
+        """The carrier may be disarmed on its stop (its arrive item ``seq``) now: parked there - or,
+        on a firmware whose carrier does not stand still on its own (``Autopilot.stands_disarmed``),
+        within ``PARK_RADIUS`` of it and slower than ``HOLD_SPEED_MAX``. PX4 1.18 SIH's Ackermann
+        carrier, armed on its stop's loiter, read 0.3 - 0.5 m/s in its velocity estimate for
+        seconds after it stopped while its position moved a few centimetres a second (a rover waited
+        up to 5 s for it to read stopped), or circled the stop 1 - 2 m about it at 1.5 m/s, slowing
+        down for moments.
+        Disarmed on its stop it counts as parked, whatever its velocity estimate says."""
+        c = self.vehicle
+        if parked_on_item(c, seq):
+            return True
+        off, ap = _off(c, seq), c.autopilot
+        return (ap is not None and ap.stands_disarmed and off is not None and off <= PARK_RADIUS
+                and (c.ground_speed or 0.0) <= HOLD_SPEED_MAX)
 
     async def hold_on_stop(self, k: int) -> None:
         """Stop the carrier where it is, on stop ``k``, by disarming it: it drove off the stop under a
@@ -298,18 +344,20 @@ class CarrierControl:
         mission start (as a route that began on its first stop: :meth:`start_route`). Refused:
         journalled, and it is left in its mission."""
         c = self.vehicle
-        if not c.armed:
+        if not c.armed or self._held:
             return
         try:
             await self.ctx.command(c, "hold_on_stop", c.disarm(), stop=k + 1)
         except (CommandRejected, LinkError, TimeoutError) as exc:
             log.warning("%s: could not stop the carrier on stop %d: %s", c.name, k + 1, exc)
             return
-        self._waiting = True
+        self._waiting = self._held = True
 
-    async def _wait_parked(self, k: int, seq: int, budget: float) -> None:
-        """Wait (``budget`` mission s with the stated slack) for the carrier parked at the stop, lost,
-        or - after it moved - standing still off the stop (it is sent back again)."""
+    async def _wait_parked(self, k: int, seq: int, budget: float, hold: bool = False) -> None:
+        """Wait (``budget`` mission s with the stated slack) for the carrier parked at the stop (or,
+        ``hold``, one it may be disarmed on: :meth:`_holdable` - PX4 SIH's carrier circling its stop
+        for a minute, slowing down for moments, was never seen parked), lost, or - after it moved -
+        standing still off the stop (it is sent back again)."""
         moved = False
 
         def done(v: Vehicle) -> bool:
@@ -317,8 +365,8 @@ class CarrierControl:
             speed = v.ground_speed or 0.0
             moved = moved or speed > STAY_SPEED
             off = _off(v, seq)
-            return parked_on_item(v, seq) or v.lost or (moved and speed <= STAY_SPEED and off is not None
-                                                        and off > PARK_RADIUS)
+            return (parked_on_item(v, seq) or (hold and self._holdable(seq)) or v.lost
+                    or (moved and speed <= STAY_SPEED and off is not None and off > PARK_RADIUS))
 
         with contextlib.suppress(TimeoutError):
             await self.ctx.wait_for(self.vehicle, done, self.ctx.late(budget),

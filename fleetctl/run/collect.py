@@ -44,8 +44,6 @@ from fleetctl.run.carrier import (
     STAY_SPEED,
     climb_back,
     hovering_on_item,
-    left_item,
-    parked_on_item,
     upload,
 )
 from fleetctl.run.collect_timing import (
@@ -481,6 +479,8 @@ class CollectPhase:
                 continue
             prev = stop.depart
             self._at_stop(rnd, k)
+            if self._stands_disarmed:  # held at once: it settles while the rovers come in
+                await self.carrier.hold_if_holdable(k, items.arrive_seq)
             await asyncio.gather(*(self._bring_in(rnd, leg.rover, leg.arrive, k, items.arrive_seq)
                                    for leg in stop.rovers))
             await ctx.sleep_mission(self._load_left(rnd, [leg.rover for leg in stop.rovers]))
@@ -540,6 +540,12 @@ class CollectPhase:
         stop follow it."""
         rnd.clock = RoundClock(rest, self.ctx.mission.carrier_spec(), self.ctx.clock())
         rnd.stop_of = {leg.rover: k for k, stop in enumerate(rest.stops) for leg in stop.rovers}
+
+    @property
+    def _stands_disarmed(self) -> bool:
+        """The carrier is disarmed on a collection stop (``Autopilot.stands_disarmed``)."""
+        ap = self.ctx.fleet.carrier.autopilot
+        return ap is not None and ap.stands_disarmed
 
     def _carrier_now(self) -> CarrierNow | None:
         c = self.ctx.fleet.carrier
@@ -638,24 +644,26 @@ class CollectPhase:
                               over_carrier: bool = False) -> None:
         """Land ``v`` on the carrier once it is parked at stop ``k`` (:meth:`CarrierControl.parked`:
         the rover hovers meanwhile). A carrier that leaves the stop during the descent
-        (:func:`left_item`) breaks the landing off: the rover climbs back to ``MEET_HEIGHT`` where it
-        is, the carrier is sent back onto the stop and stopped there, disarmed
-        (:meth:`CarrierControl.hold_on_stop`), and the rover is brought down over it again.
+        (:meth:`CarrierControl.has_left`) breaks the landing off: the rover climbs back to
+        ``MEET_HEIGHT`` where it is, the carrier is sent back onto the stop and stopped there,
+        disarmed (:meth:`CarrierControl.hold_on_stop`), and the rover is brought down over it again.
+        A carrier that does not stand still on its own is held so at once (``_stands_disarmed``).
         ``over_carrier``: ``v`` flies out of its mission (sent over the carrier on its way)."""
         ctx, c, rid = self.ctx, self.ctx.fleet.carrier, v.name
         landing = max(LANDING_TIMEOUT, 3.0 * ctx.mission.rovers.land_time)
         broken_off = over_carrier
         relands = 0
-        carrier_left = False  # it drove off under a landing: held where it parks next
+        hold = self._stands_disarmed  # held where it parks next (or once it drove off under a landing)
         for _ in range(RESTOPS_MAX + RELANDS_MAX):
-            await self.carrier.parked(k, seq, hold=carrier_left)
+            await self.carrier.parked(k, seq, hold=hold)
             if not rover_on_deck(ctx, v):
                 await self._send_down(rnd, v, over_carrier=broken_off)
                 ctx.state.set_state(rid, VehicleStatus.LANDED)
 
             def down_or_left(v: Vehicle) -> bool:
                 return (rover_on_deck(ctx, v) or self._down_on_deck(rnd, v) or v.lost or self._gone(rnd, v)
-                        or (left_item(c, seq) and v.on_ground is not True) or _beside_deck(v, c) is not None)
+                        or (self.carrier.has_left(seq) and v.on_ground is not True)
+                        or _beside_deck(v, c) is not None)
 
             await ctx.wait_for(v, down_or_left, landing, "landing on the carrier")
             if rover_on_deck(ctx, v) or self._down_on_deck(rnd, v) or v.lost or not self.board.in_round(rid):
@@ -669,7 +677,7 @@ class CollectPhase:
                 await self._lift_again(v, off, k)
             else:
                 await climb_back(ctx, v, k + 1)
-                carrier_left = True
+                hold = True
             broken_off = True
         raise TimeoutError(f"the carrier left stop {k + 1} {RESTOPS_MAX} times")
 
@@ -691,13 +699,14 @@ class CollectPhase:
 
     def _carrier_off_stop(self, rnd: _Round, v: Vehicle, k: int, seq: int) -> float | None:
         """How far the carrier stands parked off stop ``k`` (its arrive item ``seq``) while ``v`` flies
-        there - None unless it is parked (:func:`parked_on_item`) more than ``RETARGET_OFFSET`` off the
-        planned stop (autopilots stop within their acceptance radius), ``v`` is in the air on a
-        straight way there, and the line from ``v`` to the carrier is clear (:func:`line_clear`)."""
+        there - None unless it is parked (:meth:`CarrierControl.is_parked`) more than
+        ``RETARGET_OFFSET`` off the planned stop (autopilots stop within their acceptance radius),
+        ``v`` is in the air on a straight way there, and the line from ``v`` to the carrier is clear
+        (:func:`line_clear`)."""
         c = self.ctx.fleet.carrier
         stops = rnd.stops
         if (v.on_ground is not False or (v.height or 0.0) <= GROUND_SNAP or k >= len(stops) or c.enu is None
-                or v.enu is None or not parked_on_item(c, seq)):
+                or v.enu is None or not self.carrier.is_parked(seq)):
             return None
         stop = stops[k]
         off = math.hypot(c.enu[0] - stop.position[0], c.enu[1] - stop.position[1])

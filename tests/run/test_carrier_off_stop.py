@@ -28,6 +28,9 @@ from tests.run.test_supervision import mission_dict
 
 ORIGIN = Origin(47.397742, 8.545594, 488.0)
 DRIVE = 2.0  # simulated s the carrier drives on from its stop
+# a collection carrier that may drive off its stop: the ArduPilot flavour's (the PX4 flavour's
+# Ackermann carrier is disarmed on its collection stops: Autopilot.stands_disarmed)
+AP = "ardupilot"
 
 
 def _carrier(x: float, speed: float) -> Vehicle:
@@ -46,6 +49,25 @@ def test_parked_means_stopped_within_the_park_radius() -> None:
     assert not parked_on_item(_carrier(PARK_RADIUS + 0.5, 0.0), 0)  # standing off the stop
     assert left_item(_carrier(0.6, 2.0), 0) and left_item(_carrier(PARK_RADIUS + 0.5, 0.0), 0)
     assert not left_item(_carrier(0.6, 0.1), 0)
+
+
+def test_a_carrier_held_on_its_stop_is_judged_by_its_position_alone() -> None:
+    """Disarmed on its stop (hold_on_stop), PX4 SIH's carrier read 0.3 - 1 m/s in its velocity
+    estimate while its position moved centimetres: parked while within PARK_RADIUS, gone beyond it."""
+    from types import SimpleNamespace
+
+    from fleetctl.run.carrier import CarrierControl
+
+    def control(c: Vehicle, held: bool) -> CarrierControl:
+        cc = CarrierControl(SimpleNamespace(fleet=SimpleNamespace(carrier=c)))  # type: ignore[arg-type]
+        cc._held = held
+        return cc
+
+    rolling = _carrier(0.6, 1.5)
+    assert not control(rolling, False).is_parked(0) and control(rolling, False).has_left(0)
+    assert control(rolling, True).is_parked(0) and not control(rolling, True).has_left(0)
+    away = _carrier(PARK_RADIUS + 0.5, 0.0)
+    assert not control(away, True).is_parked(0) and control(away, True).has_left(0)
 
 
 def _drive_off_at_collect_stop(delay: float, stop: int = 1, drive: float = DRIVE) -> tuple[Any, list[float]]:
@@ -80,7 +102,7 @@ def _check_loaded_on_deck(s: dict[str, Any], sim: SimFleet) -> list[dict[str, An
 
 def test_rovers_hover_until_the_carrier_is_back_on_its_stop(tmp_path: Path) -> None:
     action, fired = _drive_off_at_collect_stop(0.0, stop=0)
-    s, _trig, sim, _path = asyncio.run(fly(tmp_path, mission_dict(rovers=2), "run", action))
+    s, _trig, sim, _path = asyncio.run(fly(tmp_path, mission_dict(rovers=2), "run", action, autopilot=AP))
     assert fired
     _check_loaded_on_deck(s, sim)
 
@@ -103,7 +125,7 @@ def test_a_rover_on_its_way_flies_straight_over_a_carrier_parked_off_its_stop(tm
             fired.append(at)
             sim.inject(Fault("drive_off", vehicle="carrier", at=at, until=at + 0.25))
 
-    s, _trig, sim, _path = asyncio.run(fly(tmp_path, mission_dict(rovers=2), "run", action))
+    s, _trig, sim, _path = asyncio.run(fly(tmp_path, mission_dict(rovers=2), "run", action, autopilot=AP))
     assert len(fired) == 2 and s["_exit"] == 0, s
     assert sorted(s["rovers_loaded"]) == ["r1", "r2"] and sorted(sim.world.loaded_rovers()) == ["r1", "r2"]
     states = [r for r in journal(s) if r["kind"] == "rover_state" and r.get("vehicle") == "r1"]
@@ -125,7 +147,7 @@ def test_a_carrier_standing_on_its_first_stop_starts_its_route_when_released(tmp
     first = next(i for i, r in enumerate(recs) if r["kind"] == "stop_reached" and i > start)
     loaded = next(i for i, r in enumerate(recs) if r["kind"] == "rover_loaded" and i > first)
     carrier = [(i, r) for i, r in enumerate(recs) if i > start and r["kind"] == "command"
-               and r.get("vehicle") == "carrier"]
+               and r.get("vehicle") == "carrier" and r.get("command") not in ("hold_on_stop", "arm")]
     assert recs[first]["stop"] == 1 and recs[first]["T"] == pytest.approx(recs[start]["T"], abs=0.5)
     i, go = carrier[0]  # the carrier's first command of the collection: its route started on release
     assert go["command"] == "start_mission" and go.get("stop") == 1 and go.get("seq", 0) > 0, carrier
@@ -133,9 +155,32 @@ def test_a_carrier_standing_on_its_first_stop_starts_its_route_when_released(tmp
     assert [r for r in recs[i:] if r["kind"] == "carrier_released"][0]["stop"] == 1
 
 
+def test_a_px4_carrier_is_held_disarmed_on_every_collection_stop(tmp_path: Path) -> None:
+    """The PX4 flavour (``Autopilot.stands_disarmed``: PX4 SIH's Ackermann carrier rolls on and
+    wanders about its stop): the carrier is disarmed as soon as it is on each collection stop
+    (``hold_on_stop``), the rovers land on it, and it leaves armed again with a mission start from
+    the stop's release item; every rover is on the deck."""
+    s, _trig, sim, _path = asyncio.run(fly(tmp_path, mission_dict(rovers=2), "run"))
+    assert s["_exit"] == 0 and sorted(s["rovers_loaded"]) == ["r1", "r2"], s
+    assert sorted(sim.world.loaded_rovers()) == ["r1", "r2"]
+    recs = journal(s)
+    start = next(i for i, r in enumerate(recs) if r["kind"] == "collection_started")
+    carrier = [r for r in recs[start:] if r["kind"] == "command" and r.get("vehicle") == "carrier"]
+    stops = {r["stop"] for r in recs[start:] if r["kind"] == "stop_reached"}
+    held = [r["stop"] for r in carrier if r["command"] == "hold_on_stop"]
+    assert len(stops) == 2 and sorted(held) == sorted(stops), carrier  # once a stop
+    released = [r for r in recs[start:] if r["kind"] == "carrier_released"]
+    assert [r["stop"] for r in released] == [1], released
+    names = [r["command"] for r in carrier]
+    go = names.index("start_mission")
+    assert names[go - 1] == "arm" and names.index("hold_on_stop") < go - 1, names
+    assert carrier[go].get("seq", 0) > 0 and carrier[go].get("stop") == 1, carrier[go]
+    assert not [r for r in recs if r["kind"] == "command" and r.get("command") == "return_to_stop"]
+
+
 def test_a_carrier_driving_off_its_second_stop_is_sent_back(tmp_path: Path) -> None:
     action, fired = _drive_off_at_collect_stop(0.5, stop=2)
-    s, _trig, sim, _path = asyncio.run(fly(tmp_path, mission_dict(rovers=2), "run", action))
+    s, _trig, sim, _path = asyncio.run(fly(tmp_path, mission_dict(rovers=2), "run", action, autopilot=AP))
     assert fired
     recs = _check_loaded_on_deck(s, sim)
     # sent back from stop 2 only (a carrier seen moving onto stop 1 within PARK_RADIUS - the simulated
@@ -222,7 +267,7 @@ def test_a_collection_landing_broken_off_holds_the_carrier_on_its_stop(tmp_path:
                                     and _near(r, c, 1.5))
     d = mission_dict(rovers=2)
     d["rovers"]["land_speed"] = 1.0  # a descent of 3 s: the carrier is seen leaving before touch-down
-    s, _trig, sim, _path = asyncio.run(fly(tmp_path, d, "run", action, dwell=45.0))
+    s, _trig, sim, _path = asyncio.run(fly(tmp_path, d, "run", action, dwell=45.0, autopilot=AP))
     assert fired
     assert s["_exit"] == 0 and s["result"] == "complete", s
     assert sorted(sim.world.loaded_rovers()) == ["r1", "r2"]
@@ -233,11 +278,19 @@ def test_a_collection_landing_broken_off_holds_the_carrier_on_its_stop(tmp_path:
 
 
 def test_the_docs_state_the_park_terms() -> None:
-    from fleetctl.run.carrier import DRIVE_OFF_SPEED, RESTOP_SETTLE, RESTOPS_MAX, STAY_RADIUS, STAY_SPEED
+    from fleetctl.run.carrier import (
+        DRIVE_OFF_SPEED,
+        HOLD_SPEED_MAX,
+        RESTOP_SETTLE,
+        RESTOPS_MAX,
+        STAY_RADIUS,
+        STAY_SPEED,
+    )
     text = (Path(__file__).resolve().parents[2] / "docs" / "operations.md").read_text(encoding="utf-8")
     section = " ".join(text[text.index("### A carrier that leaves its stop"):].split())
     for phrase in (f"at most {STAY_SPEED:g} m/s", f"within {PARK_RADIUS:g} m of the stop",
                    f"plus {RESTOP_SETTLE:g} s", f"after {RESTOPS_MAX} waits",
                    f"faster than {DRIVE_OFF_SPEED:g} m/s", "`return_to_stop`",
+                   f"no faster than {HOLD_SPEED_MAX:g} m/s (`HOLD_SPEED_MAX`;",
                    f"stopped within {STAY_RADIUS:g} m of it, `STAY_RADIUS`"):
         assert phrase in section, phrase

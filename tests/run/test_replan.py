@@ -71,11 +71,12 @@ class Trigger(View):
 
 async def fly(tmp_path: Path, d: dict[str, Any], command: str,
               action: Callable[[Event, SimFleet, FleetState], None] = lambda *a: None,
-              **kw: Any) -> tuple[dict[str, Any], Trigger, SimFleet, Path]:
+              autopilot: str | None = None, **kw: Any) -> tuple[dict[str, Any], Trigger, SimFleet, Path]:
+    """Fly ``command`` of mission ``d`` on the simulated fleet (its PX4 flavour, or ``autopilot``)."""
     path = tmp_path / "mission.yaml"
     path.write_text(yaml.safe_dump(d, sort_keys=False), encoding="utf-8")
     mission = load_mission(path)
-    cfg = FleetConfig.from_mission_dict(sim_mission_dict(mission), speedup=SPEEDUP)
+    cfg = FleetConfig.from_mission_dict(sim_mission_dict(mission), speedup=SPEEDUP, autopilot=autopilot)
     async with SimFleet(cfg) as sim:
         trig = Trigger(sim, action)
         out = await asyncio.wait_for(execute(mission, command, sim=sim, runs_dir=tmp_path / "runs", view=trig,

@@ -160,6 +160,13 @@ class Autopilot:
         return False
 
     @property
+    def stands_disarmed(self) -> bool:
+        """A ground vehicle of this firmware does not stand still on its own at a mission stop: it is
+        disarmed while rovers land on it at a collection stop and armed again when it leaves
+        (:meth:`fleetctl.run.carrier.CarrierControl.hold_on_stop`)."""
+        return False
+
+    @property
     def disarm_when_landed(self) -> bool:
         """The firmware waits seconds after its land detector before it disarms itself (PX4:
         ``COM_DISARM_LAND``, 2 s): a rover it reports landed on the deck is told to disarm at once
