@@ -54,9 +54,9 @@ class Region:
     _near: tuple[tuple[int, ...], ...] = field(default=(), repr=False, compare=False)  # neighbours' members
     # (x, y, (ρ + INSIDE_TOL)²) of every member: ``contains``'s test at the default tolerance
     _limits: list[tuple[float, float, float]] | None = field(default=None, repr=False, compare=False)
-    # per disc (by id): the crossings of its circle with the others' and, once asked, whether each
-    # lies in I_β (``_vertex_projection``)
-    _rims: dict[int, tuple[list[tuple[Point2, tuple[float, float, float]]], list[bool | None]]] = field(
+    # per disc (by id): the crossings of its circle with the others' that lie in I_β, with the other
+    # disc (``_vertex_projection``)
+    _rims: dict[int, list[tuple[Point2, tuple[float, float, float]]]] = field(
         default_factory=dict, repr=False, compare=False)
 
     @property
@@ -203,21 +203,17 @@ class Region:
         caller scans every vertex. O(k²) only through the inside test, no vertex list built."""
         xm, ym, rm = disc
         rim = self._rims.get(id(disc))
-        if rim is None:  # the circle's crossings with every other: the same for every (x, y)
-            points = [(q, d2) for d2 in self._discs if d2 is not disc for q in _pair_points(disc, d2)]
-            rim = self._rims[id(disc)] = (points, [None] * len(points))
-        points, inside = rim
+        if rim is None:  # the circle's crossings with every other that lie in I_β: the same for every (x, y)
+            rim = self._rims[id(disc)] = [(q, d2) for d2 in self._discs if d2 is not disc
+                                          for q in _pair_points(disc, d2) if self.contains(q)]
         hypot = math.hypot
-        near = sorted([(hypot(q[0] - x, q[1] - y), j) for j, (q, _) in enumerate(points)])  # ties: in order
         best: Point2 | None = None
         other = disc
-        for _, j in near:  # the nearest vertex: the first crossing that lies in I_β
-            got = inside[j]
-            if got is None:  # (asked once per crossing)
-                got = inside[j] = self.contains(points[j][0])
-            if got:
-                best, other = points[j]
-                break
+        least = math.inf
+        for q, d2 in rim:  # the nearest vertex (ties: the first crossing)
+            dq = hypot(q[0] - x, q[1] - y)
+            if dq < least:
+                best, other, least = q, d2, dq
         if best is None:
             return None
         vx, vy = best
