@@ -106,6 +106,41 @@ def test_matrix_two_opt_makes_the_plain_loops_tour(seed: int) -> None:
         assert _two_opt_rows(dmat, route) == _two_opt_small(dmat.tolist(), route)
 
 
+def _two_opt_reference(d: list[list[float]], route: list[int]) -> list[int]:
+    """The plain 2-opt loop as first written (every gain read from the matrix)."""
+    path = route[:]
+    n = len(path) - 1
+    improved = True
+    while improved:
+        improved = False
+        for i in range(1, n):
+            for j in range(i + 1, n + 1):
+                a, b, c = path[i - 1], path[i], path[j]
+                if j < n:
+                    gain = d[a][b] + d[c][path[j + 1]] - d[a][c] - d[b][path[j + 1]]
+                else:
+                    gain = d[a][b] - d[a][c]
+                if gain > 1e-9:
+                    path[i: j + 1] = path[i: j + 1][::-1]
+                    improved = True
+    return [v - 1 for v in path[1:]]
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_plain_two_opt_with_edge_list_makes_the_reference_tour(seed: int) -> None:
+    """``_two_opt_small`` (edge lengths kept beside the path) makes the reference loop's reversals:
+    the same tour, from random and nearest-neighbour tours, general position and a grid."""
+    rng = np.random.default_rng(100 + seed)
+    for trial in range(30):
+        m = int(rng.integers(1, 60))
+        nodes = rng.uniform(0, 300, (m + 1, 2))
+        if trial % 3 == 0:
+            nodes = np.round(nodes / 50) * 50
+        dmat = np.linalg.norm(nodes[:, None, :] - nodes[None, :, :], axis=2)
+        route = nearest_neighbour(dmat) if trial % 2 else [0, *(int(v) + 1 for v in rng.permutation(m))]
+        assert _two_opt_small(dmat.tolist(), route) == _two_opt_reference(dmat.tolist(), route)
+
+
 def test_long_tours_are_as_short_as_the_exhaustive_two_opt_within_a_few_percent() -> None:
     rng = np.random.default_rng(7)
     ratios = []
