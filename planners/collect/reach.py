@@ -90,13 +90,15 @@ class Region:
         x, y = p[0], p[1]
         if tol != INSIDE_TOL:
             return not any((x - cx) ** 2 + (y - cy) ** 2 > (r + tol) ** 2 for cx, cy, r in self._discs)
-        limits = self._limits
-        if limits is None:  # the same (ρ + tol)² as computed per call, made once
-            limits = self._limits = [(cx, cy, (r + INSIDE_TOL) ** 2) for cx, cy, r in self._discs]
-        for cx, cy, lim in limits:
+        for cx, cy, lim in self._limits or self._make_limits():
             if (x - cx) ** 2 + (y - cy) ** 2 > lim:
                 return False
         return True
+
+    def _make_limits(self) -> list[tuple[float, float, float]]:
+        """``_limits``: the same (ρ + tol)² as computed per call, made once."""
+        self._limits = [(cx, cy, (r + INSIDE_TOL) ** 2) for cx, cy, r in self._discs]
+        return self._limits
 
     @property
     def discs(self) -> list[tuple[float, float, float]]:
@@ -204,8 +206,7 @@ class Region:
         xm, ym, rm = disc
         rim = self._rims.get(id(disc))
         if rim is None:  # the circle's crossings with every other that lie in I_β: the same for every (x, y)
-            rim = self._rims[id(disc)] = [(q, d2) for d2 in self._discs if d2 is not disc
-                                          for q in _pair_points(disc, d2) if self.contains(q)]
+            rim = self._rims[id(disc)] = self._rim(disc)
         hypot = math.hypot
         best: Point2 | None = None
         other = disc
@@ -226,6 +227,23 @@ class Region:
         lam1 = (px * a2y - py * a2x) / det
         lam2 = (a1x * py - a1y * px) / det
         return best if lam1 >= -1e-9 and lam2 >= -1e-9 else None
+
+    def _rim(self, disc: tuple[float, float, float]) -> list[tuple[Point2, tuple[float, float, float]]]:
+        """The crossings of ``disc``'s circle with every other circle that lie in I_β (``contains``'s
+        test, written out), each with the other disc, in the discs' order."""
+        limits = self._limits or self._make_limits()
+        out = []
+        for d2 in self._discs:
+            if d2 is disc:
+                continue
+            for q in _pair_points(disc, d2):
+                x, y = q
+                for cx, cy, lim in limits:
+                    if (x - cx) ** 2 + (y - cy) ** 2 > lim:
+                        break
+                else:
+                    out.append((q, d2))
+        return out
 
     def clip_segment(self, a: Point2, b: Point2) -> tuple[float, float] | None:
         """Parameters [s0, s1] ⊂ [0, 1] of the part of segment a → b inside I_β, or None."""
