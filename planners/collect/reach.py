@@ -179,15 +179,20 @@ class Region:
                 out.append((r - n, i, n))
         if not out:
             return (x, y)
-        out.sort()
+        if len(out) > 1:
+            out.sort()
         least = out[0][0]
+        limits = self._limits or self._make_limits()
         for neg, i, n in out:
             if -neg < -least - 1e-9:
                 break
             cx, cy, r = discs[i]
-            q = (cx + (x - cx) * r / n, cy + (y - cy) * r / n)
-            if self.contains(q):
-                return q
+            qx, qy = cx + (x - cx) * r / n, cy + (y - cy) * r / n
+            for gx, gy, lim in limits:  # (``contains``, written out)
+                if (qx - gx) ** 2 + (qy - gy) ** 2 > lim:
+                    break
+            else:
+                return (qx, qy)
         got = self._vertex_projection(x, y, discs[out[0][1]])
         if got is not None:
             return got
