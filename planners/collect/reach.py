@@ -399,7 +399,8 @@ def _pair_points(d1: tuple[float, float, float], d2: tuple[float, float, float])
     if not (dist > 1e-12 and dist <= ri + rj + INSIDE_TOL and dist >= abs(ri - rj) - INSIDE_TOL):
         return ()
     a = (ri * ri - rj * rj + dist * dist) / (2.0 * dist)
-    h = math.sqrt(max(ri * ri - a * a, 0.0))
+    h2 = ri * ri - a * a
+    h = math.sqrt(0.0 if 0.0 > h2 else h2)  # (max(h2, 0.0), written out)
     ux, uy = dx / dist, dy / dist
     bx, by = xi + a * ux, yi + a * uy
     px, py = -uy * h, ux * h

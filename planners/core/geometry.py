@@ -159,8 +159,13 @@ def _visit_rank(n: int, seed: int) -> tuple[int, ...]:
 Circle = tuple[float, float, float]  # centre x, y and radius of a circle in the hot loops
 
 
+# The hot loops below write builtins' max(a, b) out as ``b if b > a else a`` (and min likewise):
+# the same element, the first of equals (so the same sign of a zero), without the call.
+
+
 def _one(xs: list[float], ys: list[float], ws: list[float], i: int) -> Circle:
-    return xs[i], ys[i], math.sqrt(max(ws[i], 0.0))
+    w = ws[i]
+    return xs[i], ys[i], math.sqrt(0.0 if 0.0 > w else w)
 
 
 def _two(xs: list[float], ys: list[float], ws: list[float], i: int, j: int) -> Circle:
@@ -174,8 +179,11 @@ def _two(xs: list[float], ys: list[float], ws: list[float], i: int, j: int) -> C
     lam = (n + w1 - w0) / (2.0 * n)
     cx, cy = x0 + lam * ux, y0 + lam * uy
     hypot = math.hypot  # (math.dist of two points is hypot of their difference, bit for bit)
-    value = max(hypot(cx - x0, cy - y0) ** 2 + w0, hypot(cx - x1, cy - y1) ** 2 + w1)
-    return cx, cy, math.sqrt(max(value, 0.0))
+    value = hypot(cx - x0, cy - y0) ** 2 + w0
+    v1 = hypot(cx - x1, cy - y1) ** 2 + w1
+    if v1 > value:
+        value = v1
+    return cx, cy, math.sqrt(0.0 if 0.0 > value else value)
 
 
 def _three(xs: list[float], ys: list[float], ws: list[float], i: int, j: int, k: int) -> Circle:
@@ -188,18 +196,29 @@ def _three(xs: list[float], ys: list[float], ws: list[float], i: int, j: int, k:
     b1 = u1x * u1x + u1y * u1y + w1 - w0
     b2 = u2x * u2x + u2y * u2y + w2 - w0
     det = u1x * u2y - u1y * u2x
-    if abs(det) < 1e-12 * max(1.0, (u1x * u1x + u1y * u1y) * (u2x * u2x + u2y * u2y)) ** 0.5:
+    size = (u1x * u1x + u1y * u1y) * (u2x * u2x + u2y * u2y)
+    if abs(det) < 1e-12 * (size if size > 1.0 else 1.0) ** 0.5:
         return _as_tuple(_ball_on_boundary([(x0, y0), (x1, y1), (x2, y2)], [w0, w1, w2]))
     cx, cy = x0 + (b1 * u2y - b2 * u1y) / (2.0 * det), y0 + (u1x * b2 - u2x * b1) / (2.0 * det)
     hypot = math.hypot
-    value = max(hypot(cx - x0, cy - y0) ** 2 + w0, hypot(cx - x1, cy - y1) ** 2 + w1,
-                hypot(cx - x2, cy - y2) ** 2 + w2)
-    return cx, cy, math.sqrt(max(value, 0.0))
+    value = hypot(cx - x0, cy - y0) ** 2 + w0
+    v1 = hypot(cx - x1, cy - y1) ** 2 + w1
+    if v1 > value:
+        value = v1
+    v2 = hypot(cx - x2, cy - y2) ** 2 + w2
+    if v2 > value:
+        value = v2
+    return cx, cy, math.sqrt(0.0 if 0.0 > value else value)
 
 
 def _tolerance(xs: list[float], ys: list[float], ws: list[float]) -> float:
     """Welzl's inside tolerance: ``_REL_EPS`` times the size of the coordinates and weights."""
-    return _REL_EPS * max(1.0, max(max(xs), max(ys)), -min(min(xs), min(ys)), math.sqrt(max(ws)))
+    hx, hy, lx, ly = max(xs), max(ys), min(xs), min(ys)
+    size = 1.0
+    for v in (hy if hy > hx else hx, -(ly if ly < lx else lx), math.sqrt(max(ws))):
+        if v > size:
+            size = v
+    return _REL_EPS * size
 
 
 def _welzl_2d(xs: list[float], ys: list[float], ws: list[float]) -> tuple[Ball, tuple[int, ...]]:
