@@ -129,7 +129,11 @@ class PathBuilder:
         best_eta = best_max = math.inf
         for entry in scored:
             arrive = t + entry[1]
-            held = arrive if arrive >= cap else max(arrive, self.leg(region.farthest_flight(entry[0])))
+            if arrive >= cap:
+                held = arrive
+            else:  # (max(arrive, ready), written out: the first of equals, as the builtin)
+                ready = self.leg(region.farthest_flight(entry[0]))
+                held = ready if ready > arrive else arrive
             eta = held + load
             if entry[3] is not None:
                 eta += entry[3]
@@ -282,7 +286,8 @@ class Route:
 
     def end_from(self, j: int, t: float) -> float:
         """Makespan when the carrier leaves stop j at ``t`` and later stops keep their places."""
-        return max(t + self.after[j], self.late[j])
+        end, late = t + self.after[j], self.late[j]
+        return late if late > end else end  # (max(end, late), written out)
 
     def state_before(self, k: int) -> tuple[Point2, float, float]:
         """Carrier position, time and heading when it leaves the stop before stop k."""
@@ -297,7 +302,9 @@ class Route:
         for j in range(m, last):  # the heading into m changed, so the rotation at m (into m + 1) too
             pos = self.positions[j]
             dt, h = b.drive(prev, pos, h)
-            t = max(t + dt, self.ready[j]) + b.load
+            t += dt
+            ready = self.ready[j]
+            t = (ready if ready > t else t) + b.load  # (max(t + dt, ready) + load, written out)
             prev = pos
         return self.end_from(last - 1, t)
 

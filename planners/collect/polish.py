@@ -113,7 +113,8 @@ def _stop_cost(route: Route, k: int) -> Callable[[float, float], float]:
             if e + z2 > far:
                 far = e + z2
         dt, h = step(x - px, y - py, h0)
-        t = max(t0 + dt, leg(sqrt(far))) + load
+        t, ready = t0 + dt, leg(sqrt(far))
+        t = (ready if ready > t else t) + load  # (max(t0 + dt, ready) + load, written out)
         qx, qy = x, y
         for nx, ny, rd in later:
             dt, h = step(nx - qx, ny - qy, h)

@@ -62,7 +62,8 @@ def _seeds(members: Sequence[int], points: Sequence[Sequence[float]]) -> tuple[i
     pa = points[a]
     d_a = [dist(points[i], pa) for i in members]
     far = max(d_a)
-    ties = [i for i, d in zip(members, d_a, strict=True) if d >= far - _TIE * max(1.0, far)]
+    near = far - _TIE * max(1.0, far)
+    ties = [i for i, d in zip(members, d_a, strict=True) if d >= near]
     return a, ties, d_a
 
 
