@@ -95,7 +95,9 @@ class DeployInstance:
         qa = dx * dx + dy * dy
         for i in members:
             x, y, z = self.pts[i]
-            r2 = max(self.d**2 - z * z, 0.0)
+            r2 = self.d**2 - z * z
+            if 0.0 > r2:  # (max(r2, 0.0), written out: the same element as the builtin)
+                r2 = 0.0
             ex, ey = a[0] - x, a[1] - y
             qc = ex * ex + ey * ey - r2
             if qc <= 0:
@@ -104,8 +106,9 @@ class DeployInstance:
                 return 1.0
             qb = 2 * (dx * ex + dy * ey)
             disc = qb * qb - 4 * qa * qc
-            s1 = (-qb - math.sqrt(max(disc, 0.0))) / (2 * qa)
-            s_lo = max(s_lo, s1)
+            s1 = (-qb - math.sqrt(0.0 if 0.0 > disc else disc)) / (2 * qa)
+            if s1 > s_lo:
+                s_lo = s1
         return min(max(s_lo, 0.0), 1.0)
 
 

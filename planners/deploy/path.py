@@ -125,7 +125,9 @@ class PathBuilder:
             dt, heading = self.drive(prev, pos, heading)
             fly = self.finish(pos, clusters[k])
             t += dt + self.unload
-            worst = max(worst, t + fly)
+            done = t + fly
+            if done > worst:  # (max(worst, done), written out)
+                worst = done
             positions.append(pos)
             hops.append(dt)
             headings.append(heading)
@@ -297,10 +299,14 @@ class Route:
             pos = self.positions[m]
             dt, h = b.drive(prev, pos, h)
             t += dt + b.unload
-            worst = max(worst, t + self.fly[m])  # the kept stop's flight: b.finish(pos, old[m])
+            done = t + self.fly[m]  # the kept stop's flight: b.finish(pos, old[m])
+            if done > worst:
+                worst = done
             if m + 1 < len(old):
                 dt, _ = b.drive(pos, self.positions[m + 1], h)
                 shift = t + dt - self.arrive[m + 1]
-                worst = max(worst, self.tail[m + 1] + shift)
+                done = self.tail[m + 1] + shift
+                if done > worst:
+                    worst = done
             positions += self.positions[m:]
         return worst, clusters, geos, positions, lo, hi, m
