@@ -3,11 +3,14 @@ short durations, a battery swap, a high speed-up."""
 
 from __future__ import annotations
 
+import asyncio
 import copy
 import json
 from pathlib import Path
 from typing import Any
 
+from sitl import SimFleet
+from sitl.world import Phase as BodyPhase
 from tests.run.ctl_helpers import ORIGIN
 
 SMALL_OPERATION: dict[str, Any] = {
@@ -43,3 +46,44 @@ def small_operation(**changes: Any) -> dict[str, Any]:
 
 def journal(run_dir: Path) -> list[dict[str, Any]]:
     return [json.loads(line) for line in (run_dir / "journal.jsonl").read_text().splitlines()]
+
+
+async def until_journalled(run_dir: Path, kind: str, cause: str = "",
+                           timeout: float = 90.0) -> dict[str, Any]:
+    """The first record of ``kind`` whose cause holds ``cause`` in a run's journal, once it is written
+    (looked for every 50 ms; a line still being written is read at the next look); TimeoutError
+    after ``timeout`` wall seconds."""
+    path = run_dir / "journal.jsonl"
+    async with asyncio.timeout(timeout):
+        while True:
+            lines = path.read_text().splitlines() if path.exists() else []
+            for line in lines:
+                try:
+                    r = json.loads(line)
+                except json.JSONDecodeError:
+                    break
+                if r.get("kind") == kind and cause in str(r.get("cause", "")):
+                    return r
+            await asyncio.sleep(0.05)
+
+
+async def drop_battery(sim: SimFleet, rover: str, level: float, run_dir: Path, after: float = 0.0) -> None:
+    """Set ``rover``'s battery to ``level`` ``after`` mission seconds once it is in the air, and hold it
+    there until the controller journals the replan the reading asks for ("rover <id> at ..."); then it
+    drains on. From the take-off until that replan the fleet flies in real time: the controller and
+    the simulated fleet share one event loop, and on a loaded machine (CI: two workers, firmware
+    beside them) a reading was acted on up to 25 mission s late at 20x, with the rover drained
+    and flown on meanwhile. The test asks how the controller reads a battery, not how fast the
+    machine runs its event loop."""
+    body = sim.rover(rover)
+    await sim.wait_for(lambda: body.phase is BodyPhase.AIR, 60)
+    speedup = sim.speedup
+    sim.set_speedup(1.0)
+    try:
+        if after:
+            await sim.wait_sim_time(sim.sim_time + after, 60)
+        sim.pin_battery(rover, level)
+        await until_journalled(run_dir, "replan", f"rover {rover} at")
+        sim.pin_battery(rover, None)
+    finally:
+        sim.set_speedup(speedup)

@@ -15,7 +15,7 @@ from fleetctl.run.lifecycle import RunOutcome
 from sitl import SimFleet
 from sitl.world import Phase as BodyPhase
 from tests.run.ctl_helpers import mission_from, write_mission
-from tests.run.operation.ops_helpers import journal, small_operation
+from tests.run.operation.ops_helpers import drop_battery, journal, small_operation
 
 
 async def test_a_small_operation_flies_to_complete(tmp_path: Path) -> None:
@@ -97,14 +97,8 @@ async def test_a_battery_reading_low_in_the_air_asks_for_a_replan(tmp_path: Path
     mission = mission_from(small_operation(), tmp_path)
     watchers: list[asyncio.Task[None]] = []
 
-    async def drop_r2_battery(sim: SimFleet) -> None:
-        r2 = sim.rover("r2")
-        await sim.wait_for(lambda: r2.phase is BodyPhase.AIR, 60)
-        sim.pin_battery("r2", 0.55)
-        sim.pin_battery("r2", None)  # drains on from there
-
     def on_sim(sim: SimFleet) -> None:
-        watchers.append(asyncio.ensure_future(drop_r2_battery(sim)))
+        watchers.append(asyncio.ensure_future(drop_battery(sim, "r2", 0.55, tmp_path / "run")))
 
     await asyncio.wait_for(execute(mission, "run", run_dir=tmp_path / "run", force=True, on_sim=on_sim), 150)
     for w in watchers:
@@ -167,14 +161,8 @@ async def test_a_rover_short_of_battery_in_the_air_is_called_back_early(tmp_path
     mission = mission_from(small_operation(), tmp_path)
     watchers: list[asyncio.Task[None]] = []
 
-    async def drop_r2_battery(sim: SimFleet) -> None:
-        r2 = sim.rover("r2")
-        await sim.wait_for(lambda: r2.phase is BodyPhase.AIR, 60)
-        sim.pin_battery("r2", 0.5)
-        sim.pin_battery("r2", None)  # drains on from there
-
     def on_sim(sim: SimFleet) -> None:
-        watchers.append(asyncio.ensure_future(drop_r2_battery(sim)))
+        watchers.append(asyncio.ensure_future(drop_battery(sim, "r2", 0.5, tmp_path / "run")))
 
     out = await asyncio.wait_for(execute(mission, "run", run_dir=tmp_path / "run", force=True, on_sim=on_sim),
                                  150)
@@ -201,24 +189,13 @@ async def test_a_rover_into_its_reserve_is_brought_back_by_a_recovery_plan(tmp_p
     """r2's battery reads 8 % just after its launch, below the 10 % reserve: no schedule keeps every
     reserve, so the replan is a recovery (nothing launched, r2 called back at once, the reserve
     given up); once the rovers it brings back are aboard, the tasks left are planned and flown.
-
-    At a quarter of the usual speed-up: the controller and the simulated fleet share one event
-    loop, and on a loaded machine (CI, two workers) the low battery was acted on 25 mission s late
-    at 20x (at T 46 instead of T 20), when r2 was too far out to come back on 4 %: no recovery plan
-    exists then."""
-    d = small_operation()
-    d["sim"]["speedup"] = 5.0
-    mission = mission_from(d, tmp_path)
+    (Acted on late, at 4 % and further out, r2 could not come back: no recovery plan exists then;
+    :func:`drop_battery` holds the reading and flies the fleet in real time until the replan.)"""
+    mission = mission_from(small_operation(), tmp_path)
     watchers: list[asyncio.Task[None]] = []
 
-    async def drop_r2_battery(sim: SimFleet) -> None:
-        r2 = sim.rover("r2")
-        await sim.wait_for(lambda: r2.phase is BodyPhase.AIR, 60)
-        sim.pin_battery("r2", 0.08)
-        sim.pin_battery("r2", None)  # drains on from there
-
-    def on_sim(sim: SimFleet) -> None:
-        watchers.append(asyncio.ensure_future(drop_r2_battery(sim)))
+    def on_sim(sim: SimFleet) -> None:  # just after the launch
+        watchers.append(asyncio.ensure_future(drop_battery(sim, "r2", 0.08, tmp_path / "run")))
 
     out = await asyncio.wait_for(execute(mission, "run", run_dir=tmp_path / "run", force=True, on_sim=on_sim),
                                  150)
@@ -262,21 +239,15 @@ async def test_a_task_s_duration_alone_edited_in_the_mission_file_is_replanned(t
 
 
 async def test_a_battery_dropping_while_a_rover_works_is_seen_before_the_work_ends(tmp_path: Path) -> None:
-    """r2's battery drops to 35 % halfway through its first task (t2, 30 s of hovering, then t1):
-    the reading is looked at while it works, so the replan is asked for (and r2 called back) before
-    r2 reports any task done."""
+    """r2's battery drops to 35 % early in its first task (t2, 30 s of hovering, then t1): the reading
+    is looked at while it works, so the replan is asked for (and r2 called back) before r2 reports any
+    task done (:func:`drop_battery` flies the fleet in real time until the replan: at 20x the rest of
+    t2 is 1.3 wall s, which a loaded machine's event loop may spend elsewhere)."""
     mission = mission_from(small_operation(), tmp_path)
     watchers: list[asyncio.Task[None]] = []
 
-    async def drop_r2_battery_mid_task(sim: SimFleet) -> None:
-        r2 = sim.rover("r2")
-        await sim.wait_for(lambda: r2.phase is BodyPhase.AIR, 60)
-        await sim.wait_sim_time(sim.sim_time + 19.0, 60)  # at t2 (arrives ~4 s after take-off), working
-        sim.pin_battery("r2", 0.35)
-        sim.pin_battery("r2", None)
-
-    def on_sim(sim: SimFleet) -> None:
-        watchers.append(asyncio.ensure_future(drop_r2_battery_mid_task(sim)))
+    def on_sim(sim: SimFleet) -> None:  # at t2 (arrives ~4 s after take-off), working
+        watchers.append(asyncio.ensure_future(drop_battery(sim, "r2", 0.35, tmp_path / "run", after=8.0)))
 
     out = await asyncio.wait_for(execute(mission, "run", run_dir=tmp_path / "run", force=True, on_sim=on_sim),
                                  150)
