@@ -320,6 +320,13 @@ class CarrierControl:
         if self._holdable(seq):
             await self.hold_on_stop(k)
 
+    @property
+    def stands_disarmed(self) -> bool:
+        """The carrier's firmware does not stand it still on its own and it is held disarmed on its
+        collection stops (``Autopilot.stands_disarmed``: PX4's ground vehicles)."""
+        ap = self.vehicle.autopilot
+        return ap is not None and ap.stands_disarmed
+
     def _holdable(self, seq: int) -> bool:
         """The carrier may be disarmed on its stop (its arrive item ``seq``) now: parked there - or,
         on a firmware whose carrier does not stand still on its own (``Autopilot.stands_disarmed``),
@@ -332,8 +339,8 @@ class CarrierControl:
         c = self.vehicle
         if parked_on_item(c, seq):
             return True
-        off, ap = _off(c, seq), c.autopilot
-        return (ap is not None and ap.stands_disarmed and off is not None and off <= PARK_RADIUS
+        off = _off(c, seq)
+        return (self.stands_disarmed and off is not None and off <= PARK_RADIUS
                 and (c.ground_speed or 0.0) <= HOLD_SPEED_MAX)
 
     async def hold_on_stop(self, k: int) -> None:

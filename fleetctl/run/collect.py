@@ -479,7 +479,7 @@ class CollectPhase:
                 continue
             prev = stop.depart
             self._at_stop(rnd, k)
-            if self._stands_disarmed:  # held at once: it settles while the rovers come in
+            if self.carrier.stands_disarmed:  # held at once: it settles while the rovers come in
                 await self.carrier.hold_if_holdable(k, items.arrive_seq)
             await asyncio.gather(*(self._bring_in(rnd, leg.rover, leg.arrive, k, items.arrive_seq)
                                    for leg in stop.rovers))
@@ -540,12 +540,6 @@ class CollectPhase:
         stop follow it."""
         rnd.clock = RoundClock(rest, self.ctx.mission.carrier_spec(), self.ctx.clock())
         rnd.stop_of = {leg.rover: k for k, stop in enumerate(rest.stops) for leg in stop.rovers}
-
-    @property
-    def _stands_disarmed(self) -> bool:
-        """The carrier is disarmed on a collection stop (``Autopilot.stands_disarmed``)."""
-        ap = self.ctx.fleet.carrier.autopilot
-        return ap is not None and ap.stands_disarmed
 
     def _carrier_now(self) -> CarrierNow | None:
         c = self.ctx.fleet.carrier
@@ -647,13 +641,14 @@ class CollectPhase:
         (:meth:`CarrierControl.has_left`) breaks the landing off: the rover climbs back to
         ``MEET_HEIGHT`` where it is, the carrier is sent back onto the stop and stopped there,
         disarmed (:meth:`CarrierControl.hold_on_stop`), and the rover is brought down over it again.
-        A carrier that does not stand still on its own is held so at once (``_stands_disarmed``).
+        A carrier that does not stand still on its own is held so at once
+        (:attr:`CarrierControl.stands_disarmed`).
         ``over_carrier``: ``v`` flies out of its mission (sent over the carrier on its way)."""
         ctx, c, rid = self.ctx, self.ctx.fleet.carrier, v.name
         landing = max(LANDING_TIMEOUT, 3.0 * ctx.mission.rovers.land_time)
         broken_off = over_carrier
         relands = 0
-        hold = self._stands_disarmed  # held where it parks next (or once it drove off under a landing)
+        hold = self.carrier.stands_disarmed  # held where it parks next (or once it drove off under a landing)
         for _ in range(RESTOPS_MAX + RELANDS_MAX):
             await self.carrier.parked(k, seq, hold=hold)
             if not rover_on_deck(ctx, v):
