@@ -145,6 +145,11 @@ class Flavour:
         else:
             self.params["WPNAV_SPEED"] = speed * 100.0
 
+    def land_travel(self) -> float:
+        """Seconds of its speed a multirotor sent into LAND mode while moving travels on before it
+        stops over its landing point (PX4 1.18 SIH: 1.2 s; ArduCopter brakes at its acceleration)."""
+        return 1.2 if self.px4 and not self.ground else 0.0
+
     def disarm_delay(self) -> float:
         return self.params["COM_DISARM_LAND"] if self.px4 else self.params["DISARM_DELAY"]
 

@@ -50,9 +50,10 @@ class SimFleet:
         for spec in config.vehicles:
             body = self.world.body(spec.id)
             ground = spec.role == "carrier" and spec.frame == "ground"
-            v = SimVehicle(spec, body, Flavour(config.autopilot, ground), self.frame, self, self.faults,
-                           config.position_hz)
+            flavour = Flavour(config.autopilot, ground)
+            v = SimVehicle(spec, body, flavour, self.frame, self, self.faults, config.position_hz)
             if isinstance(body, Rover):
+                body.land_travel = flavour.land_travel()
                 body.drain_factor = self._drain_getter(spec.id)
                 body.land_drift = self._drift_getter(spec.id)
             if config.signing_key is not None:

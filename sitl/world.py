@@ -193,6 +193,8 @@ class Rover(Body):
         self.drain_factor: Callable[[], float] = lambda: 1.0
         self.land_drift: Callable[[], float] = lambda: 0.0  # m east a landing begun now drifts
         self._drift_per_m = 0.0  # m east per metre descended, for the landing under way
+        self.land_travel = 0.0  # s of its speed a rover sent down while moving travels on (PX4: 1.2)
+        self._land_brake: float | None = None  # m/s², the braking of the landing under way
         self.events: list[str] = []  # "touchdown", "loaded", "battery_empty", "takeoff"
 
     # -- state -----------------------------------------------------------------------------
@@ -262,6 +264,9 @@ class Rover(Body):
         self.through = False
         self._drift_per_m = self.land_drift() / max(self._pos[2], 0.1)
         self._land_xy = None if x is None or y is None else (float(x), float(y))
+        # down here while moving: it brakes over ``land_travel`` s of its speed (else at its accel)
+        moving = self._land_xy is None and self.land_travel > 0.0 and self.speed > 0.0
+        self._land_brake = self.speed / (2.0 * self.land_travel) if moving else None
         self.target = None if self._land_xy is None else (self._land_xy[0], self._land_xy[1], self._pos[2])
 
     def hold(self) -> None:
@@ -278,7 +283,8 @@ class Rover(Body):
         elif self.target is not None:
             self._fly_to(self.target, dt)
         elif self.speed > 0.0:
-            self._coast(_brake(self.speed, self.spec.accel, dt), dt)
+            accel = self._land_brake if self.landing and self._land_brake is not None else self.spec.accel
+            self._coast(_brake(self.speed, accel, dt), dt, accel)
         elif self.landing:
             self._descend(dt)
         if self.spec.endurance_range is not None and self.battery > 0.0 and not self.battery_pinned:
@@ -338,11 +344,12 @@ class Rover(Body):
         if self.landing and target[2] <= 0.0:
             self._touchdown()
 
-    def _coast(self, speed: float, dt: float) -> None:
-        """Brake along the current velocity (no target left) to ``speed`` at the end of the step."""
+    def _coast(self, speed: float, dt: float, accel: float | None) -> None:
+        """Brake along the current velocity (no target left) to ``speed`` at the end of the step,
+        at ``accel``."""
         vx, vy, vz = self.vel
         norm = math.sqrt(vx * vx + vy * vy + vz * vz)
-        step = _travelled(self.speed, speed, self.spec.accel, dt)
+        step = _travelled(self.speed, speed, accel, dt)
         self.speed = max(speed, 0.0)
         if norm <= 0.0:
             self.speed = 0.0

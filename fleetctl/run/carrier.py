@@ -321,6 +321,11 @@ class CarrierControl:
             await self.hold_on_stop(k)
 
     @property
+    def held_on_stop(self) -> bool:
+        """The carrier is held disarmed on its stop (:meth:`hold_on_stop`) and has not moved on."""
+        return self._held
+
+    @property
     def stands_disarmed(self) -> bool:
         """The carrier's firmware does not stand it still on its own and it is held disarmed on its
         collection stops (``Autopilot.stands_disarmed``: PX4's ground vehicles)."""

@@ -93,11 +93,30 @@ MIN_RANGE = 0.01  # m: what is left to plan with of a range the handling eats up
 
 
 
+def landing_point(v: Vehicle) -> tuple[float, float] | None:
+    """Where ``v`` comes down (east, north) if it is sent down now: its position moved on by its
+    horizontal velocity times its autopilot's ``land_travel`` (PX4's quadcopter sent down at 1.1 m/s
+    touched down 1.3 m on)."""
+    if v.enu is None:
+        return None
+    travel = v.autopilot.land_travel if v.autopilot is not None else 0.0
+    ve, vn = (v.velocity[0], v.velocity[1]) if v.velocity is not None else (0.0, 0.0)
+    return v.enu[0] + ve * travel, v.enu[1] + vn * travel
+
+
+def _landing_off(v: Vehicle, carrier: Vehicle) -> float | None:
+    """How far (horizontally) from ``carrier`` ``v`` comes down if it is sent down now
+    (:func:`landing_point`)."""
+    p = landing_point(v)
+    if p is None or carrier.enu is None:
+        return None
+    return math.hypot(p[0] - carrier.enu[0], p[1] - carrier.enu[1])
+
+
 def _over(v: Vehicle, carrier: Vehicle, within: float) -> bool:
-    """``v`` is within ``within`` m (horizontally) of being over ``carrier``."""
-    if v.enu is None or carrier.enu is None:
-        return False
-    return math.hypot(v.enu[0] - carrier.enu[0], v.enu[1] - carrier.enu[1]) <= within
+    """``v`` comes down within ``within`` m (horizontally) of ``carrier`` if it is sent down now."""
+    off = _landing_off(v, carrier)
+    return off is not None and off <= within
 
 
 def _beside_deck(v: Vehicle, carrier: Vehicle) -> float | None:
@@ -738,9 +757,11 @@ class CollectPhase:
 
     async def _send_down(self, rnd: _Round, v: Vehicle, over_carrier: bool = False) -> None:
         """Land ``v`` on the carrier: its mission's landing straight below it (its landing mode
-        where that item would settle first: ``Autopilot.mission_landing_settles``), or - when it hovers
-        more than ``RETARGET_OFFSET`` off the stopped carrier (autopilots stop within their acceptance
-        radius, an Ackermann carrier may overshoot its stop), or its mission's landing item is (an
+        where that item would settle first: ``Autopilot.mission_landing_settles``), or - when it would
+        come down (:func:`landing_point`: where it is, or on along its way for an autopilot whose
+        landing mode travels on) more than ``RETARGET_OFFSET`` off the stopped carrier (autopilots
+        stop within their acceptance radius, an Ackermann carrier may overshoot its stop; one held
+        disarmed on its stop is stopped), or its mission's landing item is (an
         autopilot whose mission landing flies to the item first lands there: PX4 set one down 1.6 m
         off a carrier it hovered 1.2 m off) - over the carrier's live position first
         (DO_REPOSITION), then straight down, so that a rover lands on the deck, never beside it.
@@ -750,11 +771,12 @@ class CollectPhase:
         c = ctx.fleet.carrier
         ap = v.autopilot
         settles = ap is not None and ap.mission_landing_settles
-        off = None if c.enu is None or v.enu is None else math.hypot(c.enu[0] - v.enu[0], c.enu[1] - v.enu[1])
+        off = _landing_off(v, c)
         if off is not None and not settles and c.enu is not None and c.origin is not None:
             x, y, _z = item_position(rnd.items[rid][rnd.land_seq[rid]], c.origin)
             off = max(off, math.hypot(c.enu[0] - x, c.enu[1] - y))  # where its mission would land it
-        moving = c.ground_speed is None or c.ground_speed > STAY_SPEED  # it is still coming to its stop
+        # still coming to its stop (a carrier held disarmed stands: its velocity estimate is not trusted)
+        moving = not self.carrier.held_on_stop and (c.ground_speed is None or c.ground_speed > STAY_SPEED)
         if off is None or c.position is None or not (over_carrier or (off > RETARGET_OFFSET and not moving)):
             if over_carrier or settles:
                 # out of its mission, the carrier's position unknown, or a mission landing that
@@ -768,7 +790,7 @@ class CollectPhase:
         lat, lon, _alt = c.position
         height = v.height if v.height is not None else MEET_HEIGHT
         where = "" if over_carrier else " above its stop"
-        text = f"{rid}: {off:.1f} m off the carrier{where}: landing over the carrier"
+        text = f"{rid}: would come down {off:.1f} m off the carrier{where}: landing over the carrier"
         ctx.record(Ev.ROVER_STATE, vehicle=rid, text=text, offset=off)
         try:
             await ctx.command(v, "goto", v.goto(lat, lon, height))

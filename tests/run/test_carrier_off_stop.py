@@ -70,6 +70,34 @@ def test_a_carrier_held_on_its_stop_is_judged_by_its_position_alone() -> None:
     assert not control(away, True).is_parked(0) and control(away, True).has_left(0)
 
 
+def test_a_rover_is_judged_by_where_its_landing_mode_sets_it_down() -> None:
+    """PX4's LAND mode travels on 1.2 s of the rover's speed (64 collection landings on SIH): a PX4
+    rover sent down 1.3 m short of the carrier at 1.1 m/s comes down on the deck (not moved over it
+    first), one 0.9 m off but flying away from it would come down beside the deck (moved over it
+    first); ArduCopter's comes down where it is."""
+    from pymavlink.dialects.v20 import ardupilotmega as M
+
+    from fleetctl.mavlink.autopilots import ArduPilot, Px4
+    from fleetctl.run.collect import _landing_off, landing_point
+
+    def rover(x: float, ve: float, autopilot: Any) -> Vehicle:
+        v = Vehicle(Link("udp://127.0.0.1:9"), 11, name="r1", origin=ORIGIN)  # never opened
+        v.lat, v.lon, v.alt = local_to_geodetic(x, 0.0, 3.0, ORIGIN)
+        v.velocity = (ve, 0.0, 0.0)
+        v.autopilot = autopilot
+        return v
+
+    carrier = _carrier(0.0, 0.0)
+    px4, copter = Px4(M.MAV_TYPE_QUADROTOR), ArduPilot(M.MAV_TYPE_QUADROTOR)
+    coming = rover(-1.3, 1.1, px4)
+    assert landing_point(coming) == pytest.approx((-1.3 + 1.1 * px4.land_travel, 0.0), abs=1e-6)
+    offs = [_landing_off(coming, carrier), _landing_off(rover(0.9, 1.0, px4), carrier),
+            _landing_off(rover(-1.3, 1.1, copter), carrier)]
+    assert offs == pytest.approx([0.02, 2.1, 1.3], abs=1e-6)
+    assert offs[0] < RETARGET_OFFSET < min(offs[1:])  # type: ignore[type-var]
+    assert Px4(M.MAV_TYPE_GROUND_ROVER).land_travel == copter.land_travel == 0.0
+
+
 def _drive_off_at_collect_stop(delay: float, stop: int = 1, drive: float = DRIVE) -> tuple[Any, list[float]]:
     """An action: the carrier drives on for ``drive`` simulated s, ``delay`` simulated s after the
     collection's stop ``stop`` is reached - stop 0: after the collection starts (the carrier stands

@@ -193,5 +193,9 @@ def test_docs_state_when_a_rover_is_landed_over_the_carrier_instead_of_the_stop(
 
     text = (DOC.parent / "mavlink.md").read_text()
     assert f"more than {RETARGET_OFFSET:g} m off the carrier" in text
+    from pymavlink.dialects.v20 import ardupilotmega as M
+
+    from fleetctl.mavlink.autopilots import Px4
+    assert f"travels on {Px4(M.MAV_TYPE_QUADROTOR).land_travel:g} s of the rover's horizontal speed" in text
     assert (f"once within {RETARGET_DONE:g} m of it at {RETARGET_SPEED:g} m/s at most, or at rest within "
             f"{RETARGET_NEAR:g} m") in text

@@ -150,6 +150,27 @@ def test_drain_factor_and_empty_battery_lands_where_it_is() -> None:
     assert not r.takeoff(5.0)  # an empty battery cannot lift off
 
 
+@pytest.mark.parametrize("land_travel", [0.0, 1.2])
+def test_a_rover_sent_down_while_moving_travels_on_its_land_travel(land_travel: float) -> None:
+    """Sent down at 2 m/s, a rover comes down ``land_travel`` s of its speed further on (PX4's
+    LAND mode: 1.2 s), or where it brakes to a stop at its acceleration (0: ArduCopter's)."""
+    w = world(rover_accel=4.0)
+    r = w.rovers["r1"]
+    r.land_travel = land_travel
+    r.takeoff(3.0)
+    run_until(w, lambda: r.arrived)
+    r.goto(10.0, 0.0, 3.0)  # away from the deck: it comes down on the ground
+    run_until(w, lambda: r.arrived)
+    r.goto(40.0, 0.0, 3.0)
+    run_until(w, lambda: r.speed >= 2.0)
+    x0 = r.position[0]
+    r.land()
+    run_until(w, lambda: r.on_ground)
+    travel = 2.0 * land_travel if land_travel else 2.0**2 / (2 * 4.0)
+    assert r.position[0] - x0 == pytest.approx(travel, abs=2.0 * DT)
+    assert r.position[1] == pytest.approx(0.0)
+
+
 def test_rover_acceleration_profile() -> None:
     w = world(rover_accel=1.0)
     r = w.rovers["r1"]

@@ -160,6 +160,13 @@ class Autopilot:
         return False
 
     @property
+    def land_travel(self) -> float:
+        """Seconds of its horizontal velocity a multirotor sent down by :meth:`Vehicle.land` (its
+        landing mode) travels on before it touches down: where it comes down is its position plus
+        its velocity times this (0: where it is)."""
+        return 0.0
+
+    @property
     def stands_disarmed(self) -> bool:
         """A ground vehicle of this firmware does not stand still on its own at a mission stop: it is
         disarmed while rovers land on it at a collection stop and armed again when it leaves
