@@ -137,9 +137,9 @@ def test_rovers_hover_until_the_carrier_is_back_on_its_stop(tmp_path: Path) -> N
 
 def test_a_rover_on_its_way_flies_straight_over_a_carrier_parked_off_its_stop(tmp_path: Path) -> None:
     """The carrier stops 2 m off its second stop - within PARK_RADIUS, beyond RETARGET_OFFSET, as an
-    ArduRover stops within its WP_RADIUS - while that stop's rover, pushed 8 m further out by a gust
-    as the collection starts, still flies there: it is sent over the carrier on its way (not to the
-    planned stop first, then across) and lands on the deck."""
+    ArduRover that turned sharply into a short leg comes to rest beside its stop - while that stop's
+    rover, pushed 8 m further out by a gust as the collection starts, still flies there: it is sent
+    over the carrier on its way (not to the planned stop first, then across) and lands on the deck."""
     fired: list[float] = []
 
     def action(ev: Event, sim: SimFleet, state: FleetState) -> None:

@@ -48,21 +48,23 @@ ROVER_SPEEDS = (SpeedParam("WP_SPEED", "max_speed", 1.0, 0.0, 100.0),
                 SpeedParam("CRUISE_SPEED", "max_speed", 1.0, 0.0, 100.0),
                 SpeedParam("WP_ACCEL", "accel", 1.0, 0.0, 10.0),
                 SpeedParam("ATC_ACCEL_MAX", "accel", 1.0, 0.0, 10.0))
-# ArduCopter's handling as measured on SITL (docs/autopilots.md; vehicle seconds): from MISSION_START
-# to clear of the deck takes the motors' spool-up and the take-off throttle ramp (TKOFF_SLEW_TIME) on
-# top of the climb (a rover armed 2 s before, as at a deployment stop; armed and started at once it
-# lifts off 2 s later). A leg from rest to rest takes 3.3 - 3.6 s more than the trapezoid (the S-curve's
+# ArduCopter's handling as measured on SITL (docs/autopilots.md; vehicle seconds): from MISSION_START to
+# clear of the deck takes the motors' spool-up and the take-off throttle ramp (TKOFF_SLEW_TIME) on top
+# of the climb (a rover armed 2 s before, as at a deployment stop; armed and started at once it lifts
+# off 2 s later). A leg from rest to rest takes 3.3 - 3.6 s more than the trapezoid (the S-curve's
 # jerk-limited start and its slow-down into the waypoint: 3 deployment legs and 3 collection legs on
 # ArduCopter's own physics, 4 on sitl.json_physics). A rover hovering over its stop is brought down in
 # LAND mode (Autopilot.mission_landing_settles: its mission's NAV_LAND first flies to the item and
 # settles, up to 4 s more); from the LAND command to the rover loaded - down 3 m at LAND_SPEED 2 m/s,
 # the land detector, "Disarming motors" about 1.9 s after the touch-down and its HEARTBEAT up to 0.5 s
-# later - took 4.2 - 4.9 s over 12 landings (bench/firmware.py seeds 1, 2, 3, 7, own physics): 0.75 s
-# on average beyond the descent and the 2.2 s disarm. An ArduRover carrier stops within its WP_RADIUS
-# (2 m) of the stop: a rover hovering more than 1.25 m off it is moved over the carrier first
-# (fleetctl.run.collect.RETARGET_OFFSET), 1.6 s more; 2 of those 4 collections' stops did, 0.75 s a
-# stop on average. The carrier's load_time runs from the touch-down (fleetctl.run.collect), alongside
-# the auto-disarm: the touch-down term counts only the part of the disarm that load_time does not cover.
+# later - took 4.2 - 4.9 s over 12 landings (bench/firmware.py seeds 1, 2, 3, 7, own physics): 0.75 s on
+# average beyond the descent and the 2.2 s disarm. An ArduRover carrier that turned sharply into a short
+# leg comes to rest up to 1.6 m beside the stop (not its WP_RADIUS: the same with 0.5 m): a rover
+# hovering more than 1.25 m off it is moved over the carrier first
+# (fleetctl.run.collect.RETARGET_OFFSET), 1.6 s more; 2 of those 4 collections' stops did, 0.75 s a stop
+# on average (5 of 14 in bench/firmware.py seeds 501 - 514). The carrier's load_time runs from the
+# touch-down (fleetctl.run.collect), alongside the auto-disarm: the touch-down term counts only the part
+# of the disarm that load_time does not cover.
 COPTER_TAKEOFF_OVERHEAD = 2.6  # s
 COPTER_TOUCHDOWN_OVERHEAD = 1.5  # s over its stop -> at rest on the deck beyond 3 m / LAND_SPEED
 COPTER_DISARM_DELAY = 2.2  # s from the touch-down to the auto-disarm seen (its HEARTBEAT)
