@@ -6,7 +6,8 @@ own physics, the rovers where the carrier starts) are started, ``fleetctl deploy
 summaries' ``makespan_planned`` / ``makespan_flown`` (mission seconds) are tabled. Tasks are drawn
 as in ``tests/firmware`` (15-30 m from the carrier, 3-10 m up).
 
-    FLEETCTL_ARDUPILOT_DIR=/path/to/ardupilot python bench/firmware.py [--seeds 1,2,3] [--json OUT]
+    FLEETCTL_ARDUPILOT_DIR=/path/to/ardupilot python bench/firmware.py [--seeds 1,2,3] [--json OUT] \
+        [--runs DIR]
 
 Prints a markdown table. Each seed takes about 35 s of wall time (boot to armable included).
 Lockstep firmware that falls behind its --speedup on a loaded machine makes flights look longer:
@@ -16,7 +17,9 @@ run it on a quiet machine.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
+import shutil
 import sys
 import tempfile
 from pathlib import Path
@@ -28,12 +31,19 @@ sys.path.insert(0, str(HERE.parent / "tests" / "firmware"))
 from ardupilot_team import ardupilot_team, mission_yaml, random_tasks  # noqa: E402
 
 
-def fly_seed(seed: int, port: int, instance_base: int) -> dict[str, Any]:
+def fly_seed(seed: int, port: int, instance_base: int, keep: Path | None = None) -> dict[str, Any]:
+    """Deploy then collect seed ``seed``'s tasks; ``keep``: the team's folder (mission, run folders
+    with their journals and tlogs) goes to ``keep/seed-<seed>`` instead of a temporary folder."""
     row: dict[str, Any] = {"seed": seed}
-    with tempfile.TemporaryDirectory() as tmp, ardupilot_team(
-        Path(tmp), gcs_port=port, instance_base=instance_base,
-        mission=mission_yaml(port, 3, tasks=random_tasks(seed))
-    ) as team:
+    with contextlib.ExitStack() as stack:
+        if keep is None:
+            folder = Path(stack.enter_context(tempfile.TemporaryDirectory()))
+        else:
+            folder = keep / f"seed-{seed}"
+            shutil.rmtree(folder, ignore_errors=True)
+            folder.mkdir(parents=True)
+        team = stack.enter_context(ardupilot_team(folder, gcs_port=port, instance_base=instance_base,
+                                                  mission=mission_yaml(port, 3, tasks=random_tasks(seed))))
         for command in ("deploy", "collect"):
             proc, summary = team.fly(command)
             row[command] = {"exit": proc.returncode, "result": summary.get("result"),
@@ -54,13 +64,16 @@ def main() -> int:
     ap.add_argument("--instance-base", type=int, default=80,
                     help="first SITL instance number (each has its own TCP ports; default 80)")
     ap.add_argument("--json", help="also write the rows here")
+    ap.add_argument("--runs", help="keep each seed's folder (its mission and run folders: journals, "
+                    "plans, tlogs) here, as seed-N (default: a temporary folder; bench/firmware_stops.py "
+                    "reads them)")
     args = ap.parse_args()
     rows = []
     print("| seed | deploy planned s | flown s | flown vs planned | collect planned s | flown s "
           "| flown vs planned |")
     print("|---|---|---|---|---|---|---|")
     for seed in (int(s) for s in args.seeds.split(",")):
-        r = fly_seed(seed, args.port, args.instance_base)
+        r = fly_seed(seed, args.port, args.instance_base, Path(args.runs) if args.runs else None)
         rows.append(r)
         d, c = r["deploy"], r["collect"]
         nan = float("nan")

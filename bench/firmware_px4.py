@@ -118,7 +118,10 @@ def main() -> int:
           "| vs planned |")
     print("|---|---|---|---|---|---|---|---|")
     with tempfile.TemporaryDirectory() as tmp, px4_fleet(speedup=SPEEDUP):
-        mission, runs = Path(tmp) / "mission.yaml", Path(args.runs or Path(tmp) / "runs")
+        runs = Path(args.runs or Path(tmp) / "runs")
+        runs.mkdir(parents=True, exist_ok=True)
+        # kept runs keep their mission beside them (bench/firmware_stops.py reads its origin)
+        mission = (runs if args.runs else Path(tmp)) / "mission.yaml"
         mission.write_text(mission_yaml())
         wait_ready(mission, runs)
         for k in range(args.rounds):
