@@ -62,6 +62,9 @@ def wait_ready(mission: Path, runs: Path, timeout: float = 60.0) -> None:
         time.sleep(1.0)
 
 
+TAIL = 0.5  # wall s: an end this soon after the carrier's last position report is timed on from it
+
+
 def vehicle_seconds(run_dir: Path, start: float, end: float, sysid: int = 1) -> float | None:
     """The vehicle's own seconds (``time_boot_ms`` of its GLOBAL_POSITION_INT) between two wall
     times (unix), interpolated; None without its telemetry."""
@@ -75,6 +78,9 @@ def vehicle_seconds(run_dir: Path, start: float, end: float, sysid: int = 1) -> 
         for (t0, b0), (t1, b1) in zip(pts, pts[1:], strict=False):
             if t0 <= t <= t1:
                 return b0 + (b1 - b0) * (t - t0) / max(t1 - t0, 1e-9)
+        if len(pts) >= 2 and 0.0 < t - pts[-1][0] <= TAIL:  # the run ended just after its last report
+            (t0, b0), (t1, b1) = pts[-2], pts[-1]
+            return b1 + (b1 - b0) * (t - t1) / max(t1 - t0, 1e-9)
         return None
 
     a, b = at(start), at(end)
