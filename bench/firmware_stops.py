@@ -4,8 +4,8 @@ kept firmware runs (``bench/firmware.py --runs DIR``, ``bench/firmware_px4.py --
 For every collection run found under the given folders (a run folder holds ``journal.jsonl``,
 ``plan.json`` and the link's ``traffic.tlog``) and every stop of its plan, one row:
 
-* the carrier's heading change into the stop (from the heading it stood at, or its previous leg),
-  and the leg's length;
+* the carrier's heading change into the stop (from the heading it stood at, or its previous leg;
+  positive: a turn to the left, counter-clockwise), and the leg's length;
 * where it came to rest: how far beyond the stop along its last leg, and how far across it, to the
   outside of its turn (negative: to the inside) - the median of its positions from the stop
   reached to its last rover loaded;
