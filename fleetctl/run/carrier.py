@@ -31,7 +31,7 @@ STAY_RADIUS = 1.0  # m: a stopped carrier this near its new route's first stop s
 STAY_SPEED = 0.3  # m/s: a carrier this slow is stopped
 CARRIER_OUTAGE_MAX = 600.0  # mission s the controller waits for a lost carrier to come back
 # A collection lands rovers only on a carrier parked at their stop: stopped (STAY_SPEED) within
-# PARK_RADIUS of it - beyond the 1.6 m beside the stop where an ArduRover that turned sharply into a
+# PARK_RADIUS of it - beyond the 1.3 m beside the stop where an ArduRover that turned sharply into a
 # short leg comes to rest, and the estimator's drift; the rovers are moved over the carrier's live
 # position first when it stands more than fleetctl.run.collect.RETARGET_OFFSET off the stop. A carrier
 # seen beyond PARK_RADIUS or faster than DRIVE_OFF_SPEED has left its stop: a landing under way is

@@ -59,7 +59,7 @@ ROVER_SPEEDS = (SpeedParam("WP_SPEED", "max_speed", 1.0, 0.0, 100.0),
 # the land detector, "Disarming motors" about 1.9 s after the touch-down and its HEARTBEAT up to 0.5 s
 # later - took 4.2 - 4.9 s over 12 landings (bench/firmware.py seeds 1, 2, 3, 7, own physics): 0.75 s on
 # average beyond the descent and the 2.2 s disarm. An ArduRover carrier that turned sharply into a short
-# leg comes to rest up to 1.6 m beside the stop (not its WP_RADIUS: the same with 0.5 m): a rover
+# leg comes to rest up to 1.3 m beside the stop (not its WP_RADIUS: the same with 0.5 m): a rover
 # hovering more than 1.25 m off it is moved over the carrier first
 # (fleetctl.run.collect.RETARGET_OFFSET), 1.6 s more; 2 of those 4 collections' stops did, 0.75 s a stop
 # on average (5 of 14 in bench/firmware.py seeds 501 - 514). The carrier's load_time runs from the
