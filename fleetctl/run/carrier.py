@@ -32,8 +32,8 @@ STAY_SPEED = 0.3  # m/s: a carrier this slow is stopped
 CARRIER_OUTAGE_MAX = 600.0  # mission s the controller waits for a lost carrier to come back
 # A collection lands rovers only on a carrier parked at their stop: stopped (STAY_SPEED) within
 # PARK_RADIUS of it - beyond the 1.3 m beside the stop where an ArduRover that turned sharply into a
-# short leg comes to rest, and the estimator's drift; the rovers are moved over the carrier's live
-# position first when it stands more than fleetctl.run.collect.RETARGET_OFFSET off the stop. A carrier
+# short leg comes to rest, and the estimator's drift; the rovers are sent where the carrier brakes to
+# while it comes in (fleetctl.run.collect.FOLLOW_STEP), and over it before they come down. A carrier
 # seen beyond PARK_RADIUS or faster than DRIVE_OFF_SPEED has left its stop: a landing under way is
 # broken off.
 PARK_RADIUS = 3.0  # m

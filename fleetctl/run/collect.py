@@ -46,6 +46,7 @@ from fleetctl.run.carrier import (
     hovering_on_item,
     upload,
 )
+from fleetctl.run.carrier_rest import RestPredictor
 from fleetctl.run.collect_timing import (
     CarrierNow,
     RoundClock,
@@ -68,6 +69,7 @@ from planners.core.plan import Plan, Stop
 from planners.core.problem import CollectProblem, CollectRover, Vec3
 
 log = logging.getLogger(__name__)
+Point = tuple[float, float]  # east, north (mission frame)
 
 RETARGET_OFFSET = 1.25  # m: a rover hovering this far off the carrier (the deck radius less a margin) is
 # moved over it first
@@ -75,6 +77,13 @@ RETARGET_DONE = 0.5  # m: a re-targeted rover this near over the carrier, and sl
 RETARGET_SPEED = 1.0  # m/s (horizontally) at most, is sent down; so is one at rest (STAY_SPEED) within
 RETARGET_NEAR = 1.0  # m of it (PX4 stops 0.7 - 0.8 m short of a DO_REPOSITION's point), well on the deck
 RETARGET_SLACK = 5.0  # mission s on top of the flight over to the carrier
+# a carrier coming to rest (parked, or at most FOLLOW_SPEED within FOLLOW_RANGE of its stop) more
+# than FOLLOW_STEP off the point a rover flies to or holds over: the rover is moved over it then,
+# not once it is parked (an ArduRover carrier comes to rest up to 1.3 m beside its stop after a
+# sharp turn: docs/autopilots.md)
+FOLLOW_RANGE = 2.0  # m
+FOLLOW_SPEED = 1.0  # m/s
+FOLLOW_STEP = 0.5  # m
 RELANDS_MAX = 1  # times a rover that touched down beside the deck takes off to land on it again
 LIFT_SLACK = 0.5  # m below MEET_HEIGHT that counts as up again
 DISARM_WAIT = 4.0  # mission s a rover down on the deck is given to disarm itself before it is told to
@@ -197,6 +206,8 @@ class _Round:
     trouble: dict[str, Trouble] = field(default_factory=dict)  # rover -> evidence it will not arrive
     watch: dict[str, asyncio.Task[None]] = field(default_factory=dict)  # rover -> its trouble watch
     touched: dict[str, float] = field(default_factory=dict)  # rover -> mission clock of its touch-down
+    # rover -> the point it was sent over, out of its mission, where the carrier comes to rest
+    moved: dict[str, Point] = field(default_factory=dict)
 
     @property
     def stops(self) -> list[Stop]:
@@ -228,6 +239,7 @@ class CollectPhase:
         self.t0: float | None = None  # mission clock when the carrier first started
         self.result = PhaseResult("collect")
         self.resumed = resumed
+        self._rest: RestPredictor | None = None  # where the carrier brakes to (built at first use)
         self._speed_seen = (-math.inf, 0.0)  # (mission clock, carrier speed) of the last sample
         self._accelerating = True
         # the controller's own cost in mission s (its rovers in the air burn battery meanwhile)
@@ -489,9 +501,16 @@ class CollectPhase:
         k, prev = 0, 0.0
         while k < len(stops):
             stop, items = stops[k], cstops[k]
-            ok, _ = await race(
-                q, self.carrier.reach_stop(k, items.arrive_seq, stop.arrive - prev), self.handle
-            )
+            follows = [asyncio.create_task(self._follow_in(rnd, leg.rover, k, items.arrive_seq))
+                       for leg in stop.rovers]
+            try:
+                ok, _ = await race(
+                    q, self.carrier.reach_stop(k, items.arrive_seq, stop.arrive - prev), self.handle
+                )
+            finally:
+                for t in follows:
+                    t.cancel()
+                await asyncio.gather(*follows, return_exceptions=True)
             if not ok:
                 stops, cstops = await self._trim(rnd, stops[k:], cstops[k:])
                 k, prev = 0, 0.0
@@ -665,7 +684,9 @@ class CollectPhase:
         ``over_carrier``: ``v`` flies out of its mission (sent over the carrier on its way)."""
         ctx, c, rid = self.ctx, self.ctx.fleet.carrier, v.name
         landing = max(LANDING_TIMEOUT, 3.0 * ctx.mission.rovers.land_time)
-        broken_off = over_carrier
+        if not over_carrier:
+            await self._follow_in(rnd, rid, k, seq)
+        broken_off = over_carrier or rid in rnd.moved
         relands = 0
         hold = self.carrier.stands_disarmed  # held where it parks next (or once it drove off under a landing)
         for _ in range(RESTOPS_MAX + RELANDS_MAX):
@@ -711,41 +732,106 @@ class CollectPhase:
         await ctx.wait_for(v, lambda v: v.lost or (v.height or 0.0) >= MEET_HEIGHT - LIFT_SLACK,
                            climb + RETARGET_SLACK, "up again beside the deck")
 
-    def _carrier_off_stop(self, rnd: _Round, v: Vehicle, k: int, seq: int) -> float | None:
-        """How far the carrier stands parked off stop ``k`` (its arrive item ``seq``) while ``v`` flies
-        there - None unless it is parked (:meth:`CarrierControl.is_parked`) more than
-        ``RETARGET_OFFSET`` off the planned stop (autopilots stop within their acceptance radius),
-        ``v`` is in the air on a straight way there, and the line from ``v`` to the carrier is clear
+    def _carrier_off_stop(self, rnd: _Round, v: Vehicle, k: int, seq: int,
+                          target: Point | None = None) -> tuple[float, Point] | None:
+        """Where the carrier comes to rest at stop ``k`` (its arrive item ``seq``) and how far that is
+        from ``target`` (the planned stop by default), while ``v`` flies to or holds over it: where
+        it is parked, or where it brakes to (:class:`RestPredictor`) or creeps at most
+        ``FOLLOW_SPEED`` within ``FOLLOW_RANGE`` of the stop. None unless more than ``FOLLOW_STEP``
+        off, ``v`` is in the air on a straight way there, and the line from ``v`` to it is clear
         (:func:`line_clear`)."""
         c = self.ctx.fleet.carrier
         stops = rnd.stops
-        if (v.on_ground is not False or (v.height or 0.0) <= GROUND_SNAP or k >= len(stops) or c.enu is None
-                or v.enu is None or not self.carrier.is_parked(seq)):
+        if (v.lost or v.on_ground is not False or (v.height or 0.0) <= GROUND_SNAP or k >= len(stops)
+                or c.enu is None or v.enu is None):
             return None
         stop = stops[k]
-        off = math.hypot(c.enu[0] - stop.position[0], c.enu[1] - stop.position[1])
-        straight = any(leg.rover == v.name and len(leg.path) <= 2 for leg in stop.rovers)
-        if off <= RETARGET_OFFSET or not straight or not line_clear(self.ctx.mission, v.enu, c.enu):
+        point = self._coming_to_rest(stop, seq)
+        if point is None:
             return None
-        return off
+        x, y = target if target is not None else (stop.position[0], stop.position[1])
+        off = math.hypot(point[0] - x, point[1] - y)
+        straight = any(leg.rover == v.name and len(leg.path) <= 2 for leg in stop.rovers)
+        if off <= FOLLOW_STEP or not straight or not line_clear(self.ctx.mission, v.enu, (*point, 0.0)):
+            return None
+        return off, point
 
-    async def _meet_over_carrier(self, rnd: _Round, v: Vehicle, off: float, k: int) -> bool:
-        """Send ``v``, on its way to stop ``k``, straight over the carrier parked ``off`` m off the
-        stop, at its hold's height (DO_REPOSITION), instead of to the stop and then across. Returns
-        whether it was (refused: it keeps its mission)."""
-        ctx, c, rid = self.ctx, self.ctx.fleet.carrier, v.name
-        if c.position is None or c.enu is None:
-            return False
-        lat, lon, _alt = c.position
+    def _coming_to_rest(self, stop: Stop, seq: int) -> tuple[float, float] | None:
+        """Where the carrier will stand at ``stop`` (its arrive item ``seq``): where it is when it is
+        parked there, or where it brakes to (or creeps at most ``FOLLOW_SPEED``) when that is
+        within ``FOLLOW_RANGE`` of the stop; None otherwise (still on its way)."""
+        c = self.ctx.fleet.carrier
+        if c.enu is None:
+            return None
+        here = (c.enu[0], c.enu[1])
+        if self.carrier.is_parked(seq):
+            return here
+        if c.velocity is None or c.ground_speed is None:
+            return None
+        if self._rest is None:
+            accel = self.ctx.mission.carrier.accel
+            self._rest = RestPredictor(accel if accel is not None else math.inf)
+        self._rest.observe(self.ctx.clock(), c.ground_speed)
+        if self._rest.braking <= 0.0 and c.ground_speed > FOLLOW_SPEED:
+            return None
+        point = self._rest.rest(here, (c.velocity[0], c.velocity[1]))
+        if math.hypot(point[0] - stop.position[0], point[1] - stop.position[1]) > FOLLOW_RANGE:
+            return None
+        return point
+
+    async def _follow_in(self, rnd: _Round, rid: str, k: int, seq: int) -> None:
+        """While the carrier comes in to stop ``k`` (its arrive item ``seq``), keep ``rid``, flying to
+        or holding above the stop, heading for where the carrier will stand: each time that place
+        (:meth:`_carrier_off_stop`) is more than ``FOLLOW_STEP`` off the point ``rid`` flies to,
+        ``rid`` is sent over it (:meth:`_meet_over_carrier`; ``rnd.moved``), so that it is above the
+        carrier when the carrier parks instead of crossing over then. Until the carrier is parked,
+        or was due there with the stated slack, or the task is cancelled (the stop reached)."""
+        ctx, c = self.ctx, self.ctx.fleet.carrier
+        v = ctx.fleet.rovers.get(rid)
+        if v is None or k >= len(rnd.stops):
+            return
+        stop = rnd.stops[k]
+        end = ctx.clock() + ctx.late(max(rnd.start + stop.arrive - ctx.clock(), 0.0))
+
+        def target() -> Point:
+            return rnd.moved.get(rid, (stop.position[0], stop.position[1]))
+
+        def due(_c: Vehicle) -> bool:
+            return (self.carrier.is_parked(seq) or v.lost or not self.board.in_round(rid)
+                    or self._carrier_off_stop(rnd, v, k, seq, target()) is not None)
+
+        while True:
+            with contextlib.suppress(TimeoutError):
+                await ctx.wait_for(c, due, end - ctx.clock(), "the carrier coming to its stop")
+            found = self._carrier_off_stop(rnd, v, k, seq, target())
+            if found is None or not self.board.in_round(rid):
+                return
+            await self._meet_over_carrier(rnd, v, found[1], k)
+            if self.carrier.is_parked(seq):
+                return
+
+    async def _meet_over_carrier(self, rnd: _Round, v: Vehicle, point: tuple[float, float], k: int) -> bool:
+        """Send ``v``, on its way to or above stop ``k``, straight over ``point``, where the carrier
+        comes to rest, at its hold's height (DO_REPOSITION), instead of to the stop and then across.
+        Returns whether it was (refused: it keeps its mission)."""
+        ctx, rid = self.ctx, v.name
         height = rnd.items[rid][rnd.hold_seq[rid]].z
-        text = f"{rid}: the carrier stopped {off:.1f} m off stop {k + 1}: flying over the carrier"
+        stop = rnd.stops[k].position
+        off = math.hypot(point[0] - stop[0], point[1] - stop[1])
+        text = f"{rid}: the carrier comes to rest {off:.1f} m off stop {k + 1}: flying over the carrier"
         ctx.record(Ev.ROVER_STATE, vehicle=rid, text=text, offset=off)
+        before = rnd.moved.get(rid)
+        rnd.moved[rid] = point  # before the command: it may fly there although its answer is lost
         try:
-            await ctx.command(v, "goto", v.goto(lat, lon, height))
+            await ctx.command(v, "goto", v.goto_enu(point[0], point[1], height))
         except CommandRejected:
+            if before is None:
+                rnd.moved.pop(rid, None)
+            else:
+                rnd.moved[rid] = before
             return False
         if v.enu is not None:
-            self.supervisor.expect(rid, [v.enu, (c.enu[0], c.enu[1], v.enu[2])])
+            self.supervisor.expect(rid, [v.enu, (point[0], point[1], v.enu[2])])
         return True
 
     def _at_meeting_point(self, rnd: _Round, v: Vehicle) -> bool:
@@ -860,6 +946,8 @@ class CollectPhase:
         stated slack (:meth:`RunContext.late`), in mission time; a rover let go on the way ends the
         wait at once."""
         ctx, rid = self.ctx, v.name
+        if rid in rnd.moved:  # sent over where the carrier comes to rest: out of its mission
+            return True
         while True:
             losses = self.carrier.losses
             try:
@@ -874,10 +962,10 @@ class CollectPhase:
             except TimeoutError:
                 if losses == self.carrier.losses and not self.carrier.lost:
                     raise
-        off = self._carrier_off_stop(rnd, v, k, seq)
-        if off is None or v.lost or self._at_meeting_point(rnd, v) or not self.board.in_round(rid):
+        found = self._carrier_off_stop(rnd, v, k, seq)
+        if found is None or v.lost or self._at_meeting_point(rnd, v) or not self.board.in_round(rid):
             return False
-        return await self._meet_over_carrier(rnd, v, off, k)
+        return await self._meet_over_carrier(rnd, v, found[1], k)
 
     # ============================================================================== letting go
     def _landing_places(self, rnd: _Round, rid: str) -> Callable[[], list[Vec3 | None]]:

@@ -59,14 +59,14 @@ ROVER_SPEEDS = (SpeedParam("WP_SPEED", "max_speed", 1.0, 0.0, 100.0),
 # the land detector, "Disarming motors" about 1.9 s after the touch-down and its HEARTBEAT up to 0.5 s
 # later - took 4.2 - 4.9 s over 12 landings (bench/firmware.py seeds 1, 2, 3, 7, own physics): 0.75 s on
 # average beyond the descent and the 2.2 s disarm. An ArduRover carrier that turned sharply into a short
-# leg comes to rest up to 1.3 m beside the stop (not its WP_RADIUS: the same with 0.5 m): a rover
-# hovering more than 1.25 m off it is moved over the carrier first
-# (fleetctl.run.collect.RETARGET_OFFSET), 1.6 s more; 2 of those 4 collections' stops did, 0.75 s a stop
-# on average (5 of 14 in bench/firmware.py seeds 501 - 514). The carrier's load_time runs from the
+# leg comes to rest up to 1.3 m beside the stop (not its WP_RADIUS: the same with 0.5 m): the rovers are
+# sent where it brakes to while it comes in (fleetctl.run.carrier_rest), then brought over it once it is
+# parked; 1.0 s beyond the descent fits 14 collections (bench/firmware.py seeds 501 - 514: -8.8 ...
+# +4.5 %; 1.5 s when a rover was moved across after the carrier parked). The carrier's load_time runs from the
 # touch-down (fleetctl.run.collect), alongside the auto-disarm: the touch-down term counts only the part
 # of the disarm that load_time does not cover.
 COPTER_TAKEOFF_OVERHEAD = 2.6  # s
-COPTER_TOUCHDOWN_OVERHEAD = 1.5  # s over its stop -> at rest on the deck beyond 3 m / LAND_SPEED
+COPTER_TOUCHDOWN_OVERHEAD = 1.0  # s over its stop -> at rest on the deck beyond 3 m / LAND_SPEED
 COPTER_DISARM_DELAY = 2.2  # s from the touch-down to the auto-disarm seen (its HEARTBEAT)
 COPTER_LEG_OVERHEAD = 3.4  # s a waypoint leg takes beyond S/v + v/a (jerk-limited S-curve, stop at the end)
 # ArduRover (own physics, WP_RADIUS 2 m, 22 legs of 3 - 30 m turning 0 - 180 deg at 2 and 3 m/s,
