@@ -77,13 +77,15 @@ RETARGET_DONE = 0.5  # m: a re-targeted rover this near over the carrier, and sl
 RETARGET_SPEED = 1.0  # m/s (horizontally) at most, is sent down; so is one at rest (STAY_SPEED) within
 RETARGET_NEAR = 1.0  # m of it (PX4 stops 0.7 - 0.8 m short of a DO_REPOSITION's point), well on the deck
 RETARGET_SLACK = 5.0  # mission s on top of the flight over to the carrier
-# a carrier coming to rest (parked, or at most FOLLOW_SPEED within FOLLOW_RANGE of its stop) more
-# than FOLLOW_STEP off the point a rover flies to or holds over: the rover is moved over it then,
-# not once it is parked (an ArduRover carrier comes to rest up to 1.3 m beside its stop after a
-# sharp turn: docs/autopilots.md)
+# a carrier braking to rest within FOLLOW_RANGE of its stop (or, the stop reached, parked or creeping
+# at most FOLLOW_SPEED) more than FOLLOW_STEP off the point a rover near the stop flies to or holds
+# over: the rover is sent there while the carrier brakes, not across once it is parked (an ArduRover
+# carrier comes to rest up to 1.3 m beside its stop after a sharp turn: docs/autopilots.md)
 FOLLOW_RANGE = 2.0  # m
 FOLLOW_SPEED = 1.0  # m/s
 FOLLOW_STEP = 0.5  # m
+FOLLOW_NEAR = 6.0  # m: rovers this near their stop (horizontally) follow; farther out, only a parked
+# carrier more than RETARGET_OFFSET off the stop has them sent over it
 RELANDS_MAX = 1  # times a rover that touched down beside the deck takes off to land on it again
 LIFT_SLACK = 0.5  # m below MEET_HEIGHT that counts as up again
 DISARM_WAIT = 4.0  # mission s a rover down on the deck is given to disarm itself before it is told to
@@ -501,7 +503,7 @@ class CollectPhase:
         k, prev = 0, 0.0
         while k < len(stops):
             stop, items = stops[k], cstops[k]
-            follows = [asyncio.create_task(self._follow_in(rnd, leg.rover, k, items.arrive_seq))
+            follows = [asyncio.create_task(self._follow_in(rnd, leg.rover, k, items.arrive_seq, False))
                        for leg in stop.rovers]
             try:
                 ok, _ = await race(
@@ -685,7 +687,7 @@ class CollectPhase:
         ctx, c, rid = self.ctx, self.ctx.fleet.carrier, v.name
         landing = max(LANDING_TIMEOUT, 3.0 * ctx.mission.rovers.land_time)
         if not over_carrier:
-            await self._follow_in(rnd, rid, k, seq)
+            await self._follow_in(rnd, rid, k, seq, True)
         broken_off = over_carrier or rid in rnd.moved
         relands = 0
         hold = self.carrier.stands_disarmed  # held where it parks next (or once it drove off under a landing)
@@ -732,54 +734,60 @@ class CollectPhase:
         await ctx.wait_for(v, lambda v: v.lost or (v.height or 0.0) >= MEET_HEIGHT - LIFT_SLACK,
                            climb + RETARGET_SLACK, "up again beside the deck")
 
-    def _carrier_off_stop(self, rnd: _Round, v: Vehicle, k: int, seq: int,
+    def _carrier_off_stop(self, rnd: _Round, v: Vehicle, k: int, seq: int, reached: bool = True,
                           target: Point | None = None) -> tuple[float, Point] | None:
-        """Where the carrier comes to rest at stop ``k`` (its arrive item ``seq``) and how far that is
-        from ``target`` (the planned stop by default), while ``v`` flies to or holds over it: where
-        it is parked, or where it brakes to (:class:`RestPredictor`) or creeps at most
-        ``FOLLOW_SPEED`` within ``FOLLOW_RANGE`` of the stop. None unless more than ``FOLLOW_STEP``
-        off, ``v`` is in the air on a straight way there, and the line from ``v`` to it is clear
-        (:func:`line_clear`)."""
+        """Where the carrier comes to rest at stop ``k`` (its arrive item ``seq``:
+        :meth:`_coming_to_rest`; ``reached``: the stop is reached) and how far that is from
+        ``target`` (the planned stop by default), while ``v`` flies to or holds over it. None unless
+        that is more than ``FOLLOW_STEP`` off for a rover within ``FOLLOW_NEAR`` of the stop (whose
+        autopilot :attr:`~Autopilot.follows_braking_carrier`), more than ``RETARGET_OFFSET`` off a
+        parked carrier for any other; ``v`` is in the air on a
+        straight way there, and the line from ``v`` to it is clear (:func:`line_clear`)."""
         c = self.ctx.fleet.carrier
         stops = rnd.stops
         if (v.lost or v.on_ground is not False or (v.height or 0.0) <= GROUND_SNAP or k >= len(stops)
                 or c.enu is None or v.enu is None):
             return None
         stop = stops[k]
-        point = self._coming_to_rest(stop, seq)
+        follows = v.autopilot is None or v.autopilot.follows_braking_carrier
+        near = follows and math.hypot(v.enu[0] - stop.position[0], v.enu[1] - stop.position[1]) <= FOLLOW_NEAR
+        point = self._coming_to_rest(stop, seq, reached, near)
         if point is None:
             return None
         x, y = target if target is not None else (stop.position[0], stop.position[1])
         off = math.hypot(point[0] - x, point[1] - y)
         straight = any(leg.rover == v.name and len(leg.path) <= 2 for leg in stop.rovers)
-        if off <= FOLLOW_STEP or not straight or not line_clear(self.ctx.mission, v.enu, (*point, 0.0)):
+        if (off <= (FOLLOW_STEP if near else RETARGET_OFFSET) or not straight
+                or not line_clear(self.ctx.mission, v.enu, (*point, 0.0))):
             return None
         return off, point
 
-    def _coming_to_rest(self, stop: Stop, seq: int) -> tuple[float, float] | None:
-        """Where the carrier will stand at ``stop`` (its arrive item ``seq``): where it is when it is
-        parked there, or where it brakes to (or creeps at most ``FOLLOW_SPEED``) when that is
-        within ``FOLLOW_RANGE`` of the stop; None otherwise (still on its way)."""
+    def _coming_to_rest(self, stop: Stop, seq: int, reached: bool, near: bool) -> Point | None:
+        """Where the carrier will stand at ``stop`` (its arrive item ``seq``): where it is once the
+        stop is ``reached`` and it is parked there; for a rover ``near`` the stop also where it
+        brakes to (:class:`RestPredictor`; after the stop is reached, where it creeps at most
+        ``FOLLOW_SPEED``) when that is within ``FOLLOW_RANGE`` of the stop. None otherwise (still
+        on its way, or standing where it starts from)."""
         c = self.ctx.fleet.carrier
         if c.enu is None:
             return None
         here = (c.enu[0], c.enu[1])
-        if self.carrier.is_parked(seq):
+        if reached and self.carrier.is_parked(seq):
             return here
-        if c.velocity is None or c.ground_speed is None:
+        if not near or c.velocity is None or c.ground_speed is None:
             return None
         if self._rest is None:
             accel = self.ctx.mission.carrier.accel
             self._rest = RestPredictor(accel if accel is not None else math.inf)
         self._rest.observe(self.ctx.clock(), c.ground_speed)
-        if self._rest.braking <= 0.0 and c.ground_speed > FOLLOW_SPEED:
+        if self._rest.braking <= 0.0 and not (reached and c.ground_speed <= FOLLOW_SPEED):
             return None
         point = self._rest.rest(here, (c.velocity[0], c.velocity[1]))
         if math.hypot(point[0] - stop.position[0], point[1] - stop.position[1]) > FOLLOW_RANGE:
             return None
         return point
 
-    async def _follow_in(self, rnd: _Round, rid: str, k: int, seq: int) -> None:
+    async def _follow_in(self, rnd: _Round, rid: str, k: int, seq: int, reached: bool) -> None:
         """While the carrier comes in to stop ``k`` (its arrive item ``seq``), keep ``rid``, flying to
         or holding above the stop, heading for where the carrier will stand: each time that place
         (:meth:`_carrier_off_stop`) is more than ``FOLLOW_STEP`` off the point ``rid`` flies to,
@@ -798,12 +806,12 @@ class CollectPhase:
 
         def due(_c: Vehicle) -> bool:
             return (self.carrier.is_parked(seq) or v.lost or not self.board.in_round(rid)
-                    or self._carrier_off_stop(rnd, v, k, seq, target()) is not None)
+                    or self._carrier_off_stop(rnd, v, k, seq, reached, target()) is not None)
 
         while True:
             with contextlib.suppress(TimeoutError):
                 await ctx.wait_for(c, due, end - ctx.clock(), "the carrier coming to its stop")
-            found = self._carrier_off_stop(rnd, v, k, seq, target())
+            found = self._carrier_off_stop(rnd, v, k, seq, reached, target())
             if found is None or not self.board.in_round(rid):
                 return
             await self._meet_over_carrier(rnd, v, found[1], k)

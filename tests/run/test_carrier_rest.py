@@ -53,3 +53,14 @@ def test_an_instant_carrier_rests_where_it_is() -> None:
     p = RestPredictor(accel=math.inf)
     brake(p, [2.0, 1.0])
     assert p.rest((1.0, 1.0), (1.0, 0.0)) == pytest.approx((1.0, 1.0))
+
+
+def test_only_autopilots_measured_to_gain_send_rovers_where_the_carrier_brakes_to() -> None:
+    """ArduCopter rovers are sent where the braking carrier will stand; PX4 rovers are not (on PX4
+    1.18 SIH each DO_REPOSITION switches the rover to HOLD: docs/autopilots.md)."""
+    from fleetctl.mavlink.autopilots import ArduPilot, Px4
+    from fleetctl.mavlink.autopilots.generic import GenericAutopilot
+
+    assert ArduPilot().follows_braking_carrier
+    assert GenericAutopilot().follows_braking_carrier
+    assert not Px4().follows_braking_carrier

@@ -174,6 +174,14 @@ class Autopilot:
         return False
 
     @property
+    def follows_braking_carrier(self) -> bool:
+        """A rover near its collection stop is sent (``DO_REPOSITION``) where the carrier brakes to
+        while it comes in, instead of being moved across once the carrier is parked
+        (``fleetctl.run.collect.FOLLOW_STEP``): for autopilots whose repositioning was measured to
+        gain by it."""
+        return True
+
+    @property
     def disarm_when_landed(self) -> bool:
         """The firmware waits seconds after its land detector before it disarms itself (PX4:
         ``COM_DISARM_LAND``, 2 s): a rover it reports landed on the deck is told to disarm at once
