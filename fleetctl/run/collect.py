@@ -741,8 +741,8 @@ class CollectPhase:
         ``target`` (the planned stop by default), while ``v`` flies to or holds over it. None unless
         that is more than ``FOLLOW_STEP`` off for a rover within ``FOLLOW_NEAR`` of the stop (whose
         autopilot :attr:`~Autopilot.follows_braking_carrier`), more than ``RETARGET_OFFSET`` off a
-        parked carrier for any other; ``v`` is in the air on a
-        straight way there, and the line from ``v`` to it is clear (:func:`line_clear`)."""
+        parked carrier for any other; ``v`` is in the air on a straight way there, and the line from
+        ``v`` to it is clear (:func:`line_clear`)."""
         c = self.ctx.fleet.carrier
         stops = rnd.stops
         if (v.lost or v.on_ground is not False or (v.height or 0.0) <= GROUND_SNAP or k >= len(stops)
@@ -809,16 +809,17 @@ class CollectPhase:
                     or self._carrier_off_stop(rnd, v, k, seq, reached, target()) is not None)
 
         while True:
-            with contextlib.suppress(TimeoutError):
+            try:
                 await ctx.wait_for(c, due, end - ctx.clock(), "the carrier coming to its stop")
+            except TimeoutError:
+                return
             found = self._carrier_off_stop(rnd, v, k, seq, reached, target())
             if found is None or not self.board.in_round(rid):
                 return
-            await self._meet_over_carrier(rnd, v, found[1], k)
-            if self.carrier.is_parked(seq):
-                return
+            if not await self._meet_over_carrier(rnd, v, found[1], k) or self.carrier.is_parked(seq):
+                return  # refused: it keeps to where it flies
 
-    async def _meet_over_carrier(self, rnd: _Round, v: Vehicle, point: tuple[float, float], k: int) -> bool:
+    async def _meet_over_carrier(self, rnd: _Round, v: Vehicle, point: Point, k: int) -> bool:
         """Send ``v``, on its way to or above stop ``k``, straight over ``point``, where the carrier
         comes to rest, at its hold's height (DO_REPOSITION), instead of to the stop and then across.
         Returns whether it was (refused: it keeps its mission)."""
