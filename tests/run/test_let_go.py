@@ -52,7 +52,11 @@ async def test_a_rover_dying_on_its_way_is_let_go_and_the_decisions_do_not_depen
         return [d if d[0] != "rover_let_go" else d[:2] for d in row["decisions"]]
 
     assert acts(fast) == acts(slow), (fast["decisions"], slow["decisions"])
-    assert abs(fast["flown"] - slow["flown"]) < 3.0, (fast["flown"], slow["flown"])
+    # the same flight, within what the machine's load adds at speed-up 20: a stall of 0.15 wall s
+    # is 3 mission s there (a loaded CI machine flew it 14.9 s against 11.8 s), so the bound is
+    # relative; a decision that waited for a wall-time timeout would double the flight
+    gap = abs(fast["flown"] - slow["flown"])
+    assert gap < max(3.0, 0.4 * slow["flown"]), (fast["flown"], slow["flown"])
 
 
 @pytest.mark.parametrize("fault,why", [("rtl", "RTL"), ("land", "LAND")])
