@@ -40,6 +40,7 @@ MIN_ACCEL = 0.01  # m/s²
 MAX_ACCEL = 200.0  # m/s² (~20 g)
 MIN_TURN_RATE = 0.001  # rad/s
 MAX_TURN_RATE = 100.0  # rad/s
+MAX_DECK_HEIGHT = 10.0  # m: |carrier.deck_height| (the deck above or below the carrier's reported position)
 MAX_HANDLING_TIME = 3600.0  # s: unload_time, load_time, rovers.takeoff_time, rovers.land_time
 MAX_DWELL = 7 * 86_400.0  # s on task (a week)
 MIN_RANGE = 0.01  # m: deploy_range, endurance_range, collection range

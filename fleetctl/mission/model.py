@@ -51,6 +51,7 @@ class CarrierConfig:
     load_time: float
     firmware_speeds: str = "keep"  # set | keep (docs/autopilots.md)
     swap_time: float = 0.0  # s to swap one rover's battery on the deck (a long operation)
+    deck_height: float = 0.0  # m of the deck above the carrier's reported altitude (on_deck)
 
     def spec(self) -> CarrierSpec:
         return CarrierSpec(self.max_speed, self.accel, self.turn_rate, self.unload_time, self.load_time)

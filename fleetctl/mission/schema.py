@@ -67,6 +67,8 @@ CARRIER = {
     "unload_time": (TIME, 0.0),
     "load_time": (TIME, 0.0),
     "swap_time": (TIME, 0.0),
+    "deck_height": (number(ge=-L.MAX_DECK_HEIGHT, le=L.MAX_DECK_HEIGHT,
+                           unit="m of the deck above the carrier's reported altitude"), 0.0),
     "firmware_speeds": (one_of(*FIRMWARE_SPEEDS), None),
 }
 ENERGY = {

@@ -37,7 +37,8 @@ Vec3 = tuple[float, float, float]
 
 def rover_on_deck(ctx: RunContext, v: Vehicle) -> bool:
     c = ctx.fleet.carrier
-    return v.connected and not v.lost and on_deck(v.enu, c.enu, v.on_ground, v.ground_speed, v.height)
+    return v.connected and not v.lost and on_deck(v.enu, c.enu, v.on_ground, v.ground_speed, v.height,
+                                                  ctx.mission.carrier.deck_height)
 
 
 def takeoff_seq(slot: RoverMission) -> int:

@@ -107,6 +107,10 @@ class Resumption:
         return {"command": self.command, "phase": self.phase, "found": self.found}
 
     # -- against the live fleet --------------------------------------------------------------------
+    def _on_deck(self, fleet: Fleet, v: Vehicle) -> bool:
+        return on_deck(v.enu, fleet.carrier.enu, v.on_ground, v.ground_speed, v.height,
+                       self.mission.carrier.deck_height)
+
     async def reconcile(self, fleet: Fleet, state: FleetState, disarm: Disarm) -> None:
         """Check the journal against live telemetry (see the module docstring). Tasks found
         reached are journalled as such; a rover armed on the deck by a launch the crash cut
@@ -114,7 +118,7 @@ class Resumption:
         await asyncio.gather(*(_settle(v) for v in fleet.vehicles.values() if v.connected))
         if self.operation is not None:
             self.found = await reconcile_operation(self.operation, fleet, state, disarm,
-                                                   lambda v: _on_deck(fleet, v), time.time())
+                                                   lambda v: self._on_deck(fleet, v), time.time())
             return
         found: dict[str, Any] = {"reached": self.board.with_status(TaskStatus.REACHED), "flying": {},
                                  "holding_on_task": [], "landed_elsewhere": [], "back_on_deck": [],
@@ -127,7 +131,7 @@ class Resumption:
             self._reconcile_flying(fleet, state, found)
         for rid in self.intents:
             v = fleet.rovers.get(rid)
-            if v is not None and v.connected and v.armed and _on_deck(fleet, v):
+            if v is not None and v.connected and v.armed and self._on_deck(fleet, v):
                 await disarm(v)
                 found["back_on_deck"].append(rid)
         c = fleet.carrier
@@ -150,7 +154,7 @@ class Resumption:
                 found["holding_on_task"].append(rid)
                 state.event(Ev.TASK_REACHED, f"{rid}: reached {task} (found holding on it on resume)", rid,
                             task=task, flown=flown)
-            elif _on_deck(fleet, v):  # the crash caught it before it took off
+            elif self._on_deck(fleet, v):  # the crash caught it before it took off
                 board.give_back(task, f"its rover {rid} was still on the deck")
                 board.unlaunch(rid)
                 self.intents[rid] = task
@@ -183,10 +187,6 @@ async def _settle(v: Vehicle) -> None:
     with contextlib.suppress(TimeoutError):
         await v.wait_until(lambda v: v.enu is not None and v.landed_state is not None, SETTLE_TIMEOUT,
                            "telemetry")
-
-
-def _on_deck(fleet: Fleet, v: Vehicle) -> bool:
-    return on_deck(v.enu, fleet.carrier.enu, v.on_ground, v.ground_speed, v.height)
 
 
 def _airborne(v: Vehicle) -> bool:

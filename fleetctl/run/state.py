@@ -80,6 +80,7 @@ class FleetState:
         for u in mission.rovers.units:
             self.vehicles[u.id] = VehicleState(u.id, "rover", u.sysid, urls.get(u.id, ""))
         self.carrier_id = mission.carrier.id
+        self.deck_height = mission.carrier.deck_height
         self.phase: str = Phase.CONNECT
         self.stop_index = 0  # 1-based stop being driven to / served; 0 before the first
         self.stop_count = 0
@@ -218,7 +219,7 @@ class FleetState:
                 except ValueError:
                     s.range_m = None
                 if (s.state == VehicleStatus.UNKNOWN and v.connected
-                        and on_deck(v.enu, cpos, v.on_ground, v.ground_speed, v.height)):
+                        and on_deck(v.enu, cpos, v.on_ground, v.ground_speed, v.height, self.deck_height)):
                     s.state = VehicleStatus.ON_DECK
 
     def snapshot(self) -> dict[str, Any]:
@@ -284,18 +285,21 @@ LANDED_HEIGHT = 1.0  # m: height slack when the autopilot itself reports ON_GROU
 
 
 def on_deck(pos: tuple[float, float, float] | None, carrier: tuple[float, float, float] | None,
-            on_ground: bool | None, speed: float | None = None, height: float | None = None) -> bool:
+            on_ground: bool | None, speed: float | None = None, height: float | None = None,
+            deck: float = 0.0) -> bool:
     """A rover is on the carrier's deck when it is within :data:`DECK_RADIUS` (horizontal) of the
     carrier and either reports ON_GROUND within :data:`LANDED_HEIGHT` of the carrier's altitude or
     of its own home (``height``: metres above its home, which a rover sets on the deck) - a ground
     vehicle's altitude drifts by metres: PX4 SITL's rover carrier reads 2 m low within a minute,
     3 m after two flights, while its rovers stand next to it -, or is at rest within
-    :data:`DECK_HEIGHT` of it (the landed state comes at ~1 Hz, positions much faster)."""
+    :data:`DECK_HEIGHT` of it (the landed state comes at ~1 Hz, positions much faster; ArduCopter
+    reports its landing 1.6 s after the touch-down, when its land detector has seen it). ``deck``:
+    the deck's height above the carrier's reported altitude (``carrier.deck_height``)."""
     if pos is None or carrier is None:
         return False
     if math.hypot(pos[0] - carrier[0], pos[1] - carrier[1]) > DECK_RADIUS:
         return False
-    dz = pos[2] - carrier[2]
+    dz = pos[2] - carrier[2] - deck
     if on_ground is True and (dz <= LANDED_HEIGHT or (height is not None and height <= LANDED_HEIGHT)):
         return True
     return dz <= DECK_HEIGHT and (speed is None or speed < 0.2)

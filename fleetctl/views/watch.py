@@ -59,7 +59,8 @@ class RemoteFleetState(FleetState):
 
     def __init__(self, mission_name: str = "?", max_events: int = 12) -> None:
         # FleetState builds its vehicles from a Mission; here they come from telemetry
-        nobody = SimpleNamespace(name=mission_name, carrier=SimpleNamespace(id="", sysid=0), tasks=(),
+        carrier = SimpleNamespace(id="", sysid=0, deck_height=0.0)
+        nobody = SimpleNamespace(name=mission_name, carrier=carrier, tasks=(),
                                  rovers=SimpleNamespace(reserve=0.0, endurance_range=0.0, units=(),
                                                         motion=lambda: None))
         super().__init__(nobody, max_events=max_events)  # type: ignore[arg-type]

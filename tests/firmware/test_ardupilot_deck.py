@@ -13,124 +13,17 @@ line without ``FLEETCTL_ARDUPILOT_DIR``.
 from __future__ import annotations
 
 import math
-import threading
 import time
-from collections.abc import Iterator
-from contextlib import contextmanager
 from pathlib import Path
-from typing import Any
 
 import pytest
-import yaml
-from ardupilot_team import (
-    ORIGIN,
-    SPEEDUP,
-    Team,
-    build,
-    horizontal,
-    journal,
-    land_where_they_are,
-    mission_yaml,
-    probe,
-)
+from ardupilot_team import SPEEDUP, horizontal, land_where_they_are, probe
+from deck_team import DECK, TASKS, Rides, deck_team, ne_to_enu, plan_stops, sim_time
 from pymavlink.dialects.v20 import ardupilotmega as M
-
-from sitl.firmware import FirmwareFleet
-from sitl.json_physics import Deck, JsonWorld
 
 pytestmark = pytest.mark.firmware
 
-GCS_PORT = 14640
-INSTANCE_BASE = 60
-DECK = Deck(height=0.5, radius=1.5)
 AT_TASK = 2.0  # m from the task, horizontally
-FIRMWARE = {"SIM_RATE_HZ": 400}  # physics steps at the copter's loop rate
-# two groups 70 m apart (ENU east, north, up): the carrier must stop at each
-TASKS = (("a1", (45.0, 6.0, 6.0)), ("a2", (50.0, -8.0, 6.0)),
-         ("b1", (40.0, 76.0, 6.0)), ("b2", (52.0, 70.0, 6.0)))
-# where each copter sits on the deck (forward, right of the carrier's reference point)
-SEATS = ((0.5, 0.5), (0.5, -0.5), (-0.5, 0.5), (-0.5, -0.5))
-
-
-def deck_mission(n_rovers: int) -> dict[str, Any]:
-    return mission_yaml(GCS_PORT, n_rovers, tasks=TASKS, extra={
-        "carrier": {"max_speed": 3.0, "accel": 1.0},
-        # a battery that cannot fly from one group to the other and back onto the deck: the
-        # collection needs a stop at each group (the rovers wait for it on the ground)
-        "rovers": {"deploy_range": 25.0, "endurance_range": 100.0},
-    })
-
-
-@contextmanager
-def deck_team(tmp_path: Path, n_rovers: int = 4,
-              mission: dict[str, Any] | None = None) -> Iterator[tuple[Team, JsonWorld]]:
-    """The world (carrier at the origin heading north, copters on its deck), its firmware and the
-    mission file (``mission``, else :func:`deck_mission`); ready when fleetctl's preflight passes."""
-    b = build()
-    world = JsonWorld(ORIGIN, instance_base=INSTANCE_BASE)
-    world.add_carrier("carrier", 1, deck=DECK, firmware_params=FIRMWARE)
-    rovers = [f"r{k + 1}" for k in range(n_rovers)]
-    for k, r in enumerate(rovers):
-        fwd, right = SEATS[k]
-        world.add_copter(r, 11 + k, north=fwd, east=right, on_deck_of="carrier", firmware_params=FIRMWARE)
-    path = tmp_path / "mission.yaml"
-    path.write_text(yaml.safe_dump(mission or deck_mission(n_rovers), sort_keys=False))
-    fleet = FirmwareFleet(b, world.firmware_vehicles(), gcs_port=GCS_PORT, speedup=SPEEDUP,
-                          instance_base=INSTANCE_BASE, workdir=tmp_path / "firmware")
-    with world, fleet:
-        team = Team(fleet, path, tmp_path / "runs", rovers)
-        team.wait_ready()
-        yield team, world
-
-
-def plan_stops(summary: dict[str, Any]) -> int:
-    """The carrier stops of the run's plan (its journal's first ``plan`` record)."""
-    rows = journal(Path(summary["journal"]).parent)
-    return next(len(r["plan"]["stops"]) for r in rows if r.get("kind") == "plan" and "plan" in r)
-
-
-class Rides:
-    """Samples the physics from a thread while a command runs: how far the carrier drove each
-    rover while it sat on the deck, and which rovers boarded (came down on the deck)."""
-
-    def __init__(self, world: JsonWorld, rovers: list[str]) -> None:
-        self.world, self.rovers = world, rovers
-        self.carried = dict.fromkeys(rovers, 0.0)
-        self.boarded: set[str] = set()
-        self._stop = threading.Event()
-        self._thread = threading.Thread(target=self._run, daemon=True)
-
-    def _run(self) -> None:
-        last = self.world.state("carrier").position
-        aboard = {r: self.world.on_deck(r) == "carrier" for r in self.rovers}
-        while not self._stop.wait(0.1):
-            c = self.world.state("carrier").position
-            step = math.hypot(c[0] - last[0], c[1] - last[1])
-            for r in self.rovers:
-                now = self.world.on_deck(r) == "carrier"
-                if now and aboard[r]:
-                    self.carried[r] += step
-                if now and not aboard[r]:
-                    self.boarded.add(r)
-                aboard[r] = now
-            last = c
-
-    def __enter__(self) -> Rides:
-        self._thread.start()
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self._stop.set()
-        self._thread.join(2.0)
-
-
-def sim_time(world: JsonWorld) -> float:
-    """The world's clock: the carrier's simulated seconds (the server keeps every firmware on it)."""
-    return world.world.vehicles["carrier"].time
-
-
-def ne_to_enu(p: tuple[float, float, float]) -> tuple[float, float, float]:
-    return (p[1], p[0], -p[2])
 
 
 def test_multi_stop_deploy_and_collect_on_the_deck(tmp_path: Path) -> None:

@@ -14,7 +14,7 @@ from typing import Any
 
 import pytest
 from ardupilot_team import journal, mission_yaml
-from test_ardupilot_deck import GCS_PORT, deck_team
+from deck_team import DECK, GCS_PORT, deck_team
 
 pytestmark = pytest.mark.firmware
 
@@ -26,7 +26,7 @@ DURATIONS = {"o1": 10.0, "o2": 15.0, "o3": 10.0, "o4": 15.0}
 def operation_mission(ground: tuple[str, ...] = ()) -> dict[str, Any]:
     m = mission_yaml(GCS_PORT, 2, tasks=TASKS, extra={
         "operation": True,
-        "carrier": {"max_speed": 3.0, "accel": 1.0, "swap_time": 5.0},
+        "carrier": {"max_speed": 3.0, "accel": 1.0, "swap_time": 5.0, "deck_height": DECK.height},
         # a battery for a sortie or two: the planner may swap one on the deck
         "rovers": {"deploy_range": 60.0, "endurance_range": 300.0},
     })

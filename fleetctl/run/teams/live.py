@@ -40,14 +40,14 @@ async def rovers_in_the_field(
     without a position, or without the range to reach the approach height above it, goes to
     ``left`` (rover -> why) instead."""
     rp = mission.rovers
-    carriers = [fleet.vehicles[t.carrier.id].enu for t in mission_teams(mission)]
+    carriers = [(fleet.vehicles[t.carrier.id].enu, t.carrier.deck_height) for t in mission_teams(mission)]
     out = []
     for rid in dict.fromkeys(launched):
         v = fleet.vehicles[rid]
         if not v.connected or v.lost or v.enu is None:
             left[rid] = "lost: no position to collect it from"
             continue
-        if any(on_deck(v.enu, c, v.on_ground, v.ground_speed, v.height) for c in carriers):
+        if any(on_deck(v.enu, c, v.on_ground, v.ground_speed, v.height, deck) for c, deck in carriers):
             continue
         with contextlib.suppress(LinkError, TimeoutError):
             await v.refresh_battery()

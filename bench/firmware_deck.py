@@ -1,0 +1,105 @@
+"""Several carrier stops on real ArduPilot firmware with the marsupial deck (``sitl.json_physics``):
+random missions fleetctl has never seen, flown through the command line.
+
+For each seed, four tasks in two groups (``tests/firmware/deck_team.random_groups``: group a
+35-55 m from the carrier, group b 60-80 m beyond it, 3-8 m up) and the deck test's mission
+(``rovers.deploy_range`` 25 m, ``endurance_range`` 100 m, carrier 3 m/s): an ArduRover carrier
+and four ArduCopter rovers on its deck start on one physics world; ``fleetctl deploy`` flies, the
+rovers land where they are, ``fleetctl collect`` flies. The table gives each command's result,
+its plan's carrier stops, planned and flown makespans (mission seconds), how far the rovers ended
+from their tasks (the physics' positions) and how many came down on the deck.
+
+    FLEETCTL_ARDUPILOT_DIR=/path/to/ardupilot python bench/firmware_deck.py [--seeds 1,2,3] \
+        [--json OUT] [--runs DIR]
+
+About 70 s of wall time per seed on 2 cores (boot to armable included). Lockstep firmware that
+falls behind on a loaded machine makes flights look longer: run it on a quiet machine.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import json
+import math
+import shutil
+import sys
+import tempfile
+from pathlib import Path
+from typing import Any
+
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE.parent / "tests" / "firmware"))
+
+from ardupilot_team import horizontal, land_where_they_are  # noqa: E402
+from deck_team import Rides, deck_mission, deck_team, ne_to_enu, plan_stops, random_groups  # noqa: E402
+from firmware import percent  # noqa: E402  (bench/firmware.py)
+
+
+def _cell(proc: Any, summary: dict[str, Any]) -> dict[str, Any]:
+    return {"exit": proc.returncode, "result": summary.get("result"),
+            "stops": plan_stops(summary) if summary.get("journal") else None,
+            "planned": summary.get("makespan_planned"), "flown": summary.get("makespan_flown")}
+
+
+def fly_seed(seed: int, port: int, instance_base: int, keep: Path | None = None) -> dict[str, Any]:
+    """Deploy then collect seed ``seed``'s tasks on the deck; ``keep``: the team's folder goes to
+    ``keep/seed-<seed>`` instead of a temporary folder."""
+    tasks = random_groups(seed)
+    row: dict[str, Any] = {"seed": seed, "tasks": tasks}
+    with contextlib.ExitStack() as stack:
+        if keep is None:
+            folder = Path(stack.enter_context(tempfile.TemporaryDirectory()))
+        else:
+            folder = keep / f"seed-{seed}"
+            shutil.rmtree(folder, ignore_errors=True)
+            folder.mkdir(parents=True)
+        team, world = stack.enter_context(deck_team(folder, 4, deck_mission(4, tasks, port),
+                                                    gcs_port=port, instance_base=instance_base))
+        proc, deploy = team.fly("deploy", timeout=400)
+        row["deploy"] = _cell(proc, deploy)
+        where = dict(tasks)
+        off = [horizontal(ne_to_enu(world.state(r).position), where[t])
+               for t, r in deploy.get("assignment", {}).items()]
+        row["deploy"]["off_task_m"] = max(off) if off else None
+        if deploy.get("result") != "complete":
+            return row
+        land_where_they_are(port, [11 + k for k in range(len(team.rovers))])
+        with Rides(world, team.rovers) as rides:
+            proc, collect = team.fly("collect", timeout=400)
+        row["collect"] = _cell(proc, collect)
+        row["collect"]["on_deck"] = sum(world.on_deck(r) == "carrier" for r in team.rovers)
+        row["collect"]["boarded"] = len(rides.boarded)
+    return row
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--seeds", default="1,2,3", help="comma-separated task seeds (default 1,2,3)")
+    ap.add_argument("--port", type=int, default=14650, help="the ground-station UDP port (default 14650)")
+    ap.add_argument("--instance-base", type=int, default=70,
+                    help="first SITL instance number (each has its own ports; default 70)")
+    ap.add_argument("--json", help="also write the rows here")
+    ap.add_argument("--runs", help="keep each seed's folder (mission, run folders: journals, plans, "
+                    "tlogs) here, as seed-N (default: a temporary folder)")
+    args = ap.parse_args()
+    rows = []
+    print("| seed | deploy | stops | planned s | flown s | flown vs planned | farthest from its task m "
+          "| collect | stops | planned s | flown s | flown vs planned | on the deck |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|")
+    nan = math.nan
+    for seed in (int(s) for s in args.seeds.split(",")):
+        r = fly_seed(seed, args.port, args.instance_base, Path(args.runs) if args.runs else None)
+        rows.append(r)
+        d, c = r["deploy"], r.get("collect", {})
+        print(f"| {seed} | {d['result']} | {d['stops']} | {d['planned'] or nan:.1f} "
+              f"| {d['flown'] or nan:.1f} | {percent(d)} | {d['off_task_m'] or nan:.1f} "
+              f"| {c.get('result', '-')} | {c.get('stops', '-')} | {c.get('planned') or nan:.1f} "
+              f"| {c.get('flown') or nan:.1f} | {percent(c)} | {c.get('on_deck', '-')} of 4 |", flush=True)
+    if args.json:
+        Path(args.json).write_text(json.dumps(rows, indent=1))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
