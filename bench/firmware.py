@@ -22,6 +22,7 @@ import json
 import shutil
 import sys
 import tempfile
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -31,17 +32,23 @@ sys.path.insert(0, str(HERE.parent / "tests" / "firmware"))
 from ardupilot_team import ardupilot_team, mission_yaml, random_tasks  # noqa: E402
 
 
+def seed_folder(stack: contextlib.ExitStack, seed: int, keep: Path | None) -> Path:
+    """Where a seed's team runs: ``keep/seed-<seed>`` (emptied first), else a temporary folder
+    that ``stack`` removes."""
+    if keep is None:
+        return Path(stack.enter_context(tempfile.TemporaryDirectory()))
+    folder = keep / f"seed-{seed}"
+    shutil.rmtree(folder, ignore_errors=True)
+    folder.mkdir(parents=True)
+    return folder
+
+
 def fly_seed(seed: int, port: int, instance_base: int, keep: Path | None = None) -> dict[str, Any]:
     """Deploy then collect seed ``seed``'s tasks; ``keep``: the team's folder (mission, run folders
     with their journals and tlogs) goes to ``keep/seed-<seed>`` instead of a temporary folder."""
     row: dict[str, Any] = {"seed": seed}
     with contextlib.ExitStack() as stack:
-        if keep is None:
-            folder = Path(stack.enter_context(tempfile.TemporaryDirectory()))
-        else:
-            folder = keep / f"seed-{seed}"
-            shutil.rmtree(folder, ignore_errors=True)
-            folder.mkdir(parents=True)
+        folder = seed_folder(stack, seed, keep)
         team = stack.enter_context(ardupilot_team(folder, gcs_port=port, instance_base=instance_base,
                                                   mission=mission_yaml(port, 3, tasks=random_tasks(seed))))
         for command in ("deploy", "collect"):
@@ -57,31 +64,46 @@ def percent(cell: dict[str, Any]) -> str:
     return "-" if not p or f is None else f"{100.0 * (f - p) / p:+.1f} %"
 
 
-def main() -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+def seed_args(doc: str, port: int, instance_base: int) -> argparse.Namespace:
+    """The command line of a bench that flies one firmware team per seed (this one and
+    ``bench/firmware_deck.py``): seeds, ports, where the rows and the run folders go."""
+    ap = argparse.ArgumentParser(description=doc.split("\n\n")[0])
     ap.add_argument("--seeds", default="1,2,3", help="comma-separated task seeds (default 1,2,3)")
-    ap.add_argument("--port", type=int, default=14560, help="the ground-station UDP port (default 14560)")
-    ap.add_argument("--instance-base", type=int, default=80,
-                    help="first SITL instance number (each has its own TCP ports; default 80)")
+    ap.add_argument("--port", type=int, default=port, help=f"the ground-station UDP port (default {port})")
+    ap.add_argument("--instance-base", type=int, default=instance_base,
+                    help=f"first SITL instance number (each has its own ports; default {instance_base})")
     ap.add_argument("--json", help="also write the rows here")
     ap.add_argument("--runs", help="keep each seed's folder (its mission and run folders: journals, "
                     "plans, tlogs) here, as seed-N (default: a temporary folder; bench/firmware_stops.py "
                     "reads them)")
-    args = ap.parse_args()
+    return ap.parse_args()
+
+
+def fly_seeds(args: argparse.Namespace, fly: Callable[[int, int, int, Path | None], dict[str, Any]],
+              columns: Sequence[str], line: Callable[[dict[str, Any]], str]) -> int:
+    """Fly every seed of ``args`` with ``fly``, print the table (``columns``, then each row's
+    ``line`` as it comes), and write the rows to ``--json``."""
+    print("| " + " | ".join(columns) + " |")
+    print("|" + "---|" * len(columns))
     rows = []
-    print("| seed | deploy planned s | flown s | flown vs planned | collect planned s | flown s "
-          "| flown vs planned |")
-    print("|---|---|---|---|---|---|---|")
     for seed in (int(s) for s in args.seeds.split(",")):
-        r = fly_seed(seed, args.port, args.instance_base, Path(args.runs) if args.runs else None)
-        rows.append(r)
-        d, c = r["deploy"], r["collect"]
-        nan = float("nan")
-        print(f"| {seed} | {d['planned'] or nan:.1f} | {d['flown'] or nan:.1f} | {percent(d)} | "
-              f"{c['planned'] or nan:.1f} | {c['flown'] or nan:.1f} | {percent(c)} |", flush=True)
+        rows.append(fly(seed, args.port, args.instance_base, Path(args.runs) if args.runs else None))
+        print(line(rows[-1]), flush=True)
     if args.json:
         Path(args.json).write_text(json.dumps(rows, indent=1))
     return 0
+
+
+def _line(r: dict[str, Any]) -> str:
+    d, c, nan = r["deploy"], r["collect"], float("nan")
+    return (f"| {r['seed']} | {d['planned'] or nan:.1f} | {d['flown'] or nan:.1f} | {percent(d)} | "
+            f"{c['planned'] or nan:.1f} | {c['flown'] or nan:.1f} | {percent(c)} |")
+
+
+def main() -> int:
+    columns = ("seed", "deploy planned s", "flown s", "flown vs planned", "collect planned s", "flown s",
+               "flown vs planned")
+    return fly_seeds(seed_args(__doc__, 14560, 80), fly_seed, columns, _line)
 
 
 if __name__ == "__main__":

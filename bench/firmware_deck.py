@@ -18,13 +18,9 @@ falls behind on a loaded machine makes flights look longer: run it on a quiet ma
 
 from __future__ import annotations
 
-import argparse
 import contextlib
-import json
 import math
-import shutil
 import sys
-import tempfile
 from pathlib import Path
 from typing import Any
 
@@ -33,7 +29,7 @@ sys.path.insert(0, str(HERE.parent / "tests" / "firmware"))
 
 from ardupilot_team import horizontal, land_where_they_are  # noqa: E402
 from deck_team import Rides, deck_mission, deck_team, ne_to_enu, plan_stops, random_groups  # noqa: E402
-from firmware import percent  # noqa: E402  (bench/firmware.py)
+from firmware import fly_seeds, percent, seed_args, seed_folder  # noqa: E402  (bench/firmware.py)
 
 
 def _cell(proc: Any, summary: dict[str, Any]) -> dict[str, Any]:
@@ -48,12 +44,7 @@ def fly_seed(seed: int, port: int, instance_base: int, keep: Path | None = None)
     tasks = random_groups(seed)
     row: dict[str, Any] = {"seed": seed, "tasks": tasks}
     with contextlib.ExitStack() as stack:
-        if keep is None:
-            folder = Path(stack.enter_context(tempfile.TemporaryDirectory()))
-        else:
-            folder = keep / f"seed-{seed}"
-            shutil.rmtree(folder, ignore_errors=True)
-            folder.mkdir(parents=True)
+        folder = seed_folder(stack, seed, keep)
         team, world = stack.enter_context(deck_team(folder, 4, deck_mission(4, tasks, port),
                                                     gcs_port=port, instance_base=instance_base))
         proc, deploy = team.fly("deploy", timeout=400)
@@ -74,31 +65,18 @@ def fly_seed(seed: int, port: int, instance_base: int, keep: Path | None = None)
 
 
 def main() -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--seeds", default="1,2,3", help="comma-separated task seeds (default 1,2,3)")
-    ap.add_argument("--port", type=int, default=14650, help="the ground-station UDP port (default 14650)")
-    ap.add_argument("--instance-base", type=int, default=70,
-                    help="first SITL instance number (each has its own ports; default 70)")
-    ap.add_argument("--json", help="also write the rows here")
-    ap.add_argument("--runs", help="keep each seed's folder (mission, run folders: journals, plans, "
-                    "tlogs) here, as seed-N (default: a temporary folder)")
-    args = ap.parse_args()
-    rows = []
-    print("| seed | deploy | stops | planned s | flown s | flown vs planned | farthest from its task m "
-          "| collect | stops | planned s | flown s | flown vs planned | on the deck |")
-    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|")
-    nan = math.nan
-    for seed in (int(s) for s in args.seeds.split(",")):
-        r = fly_seed(seed, args.port, args.instance_base, Path(args.runs) if args.runs else None)
-        rows.append(r)
-        d, c = r["deploy"], r.get("collect", {})
-        print(f"| {seed} | {d['result']} | {d['stops']} | {d['planned'] or nan:.1f} "
-              f"| {d['flown'] or nan:.1f} | {percent(d)} | {d['off_task_m'] or nan:.1f} "
-              f"| {c.get('result', '-')} | {c.get('stops', '-')} | {c.get('planned') or nan:.1f} "
-              f"| {c.get('flown') or nan:.1f} | {percent(c)} | {c.get('on_deck', '-')} of 4 |", flush=True)
-    if args.json:
-        Path(args.json).write_text(json.dumps(rows, indent=1))
-    return 0
+    columns = ("seed", "deploy", "stops", "planned s", "flown s", "flown vs planned",
+               "farthest from its task m", "collect", "stops", "planned s", "flown s", "flown vs planned",
+               "on the deck")
+    return fly_seeds(seed_args(__doc__, 14650, 70), fly_seed, columns, _line)
+
+
+def _line(r: dict[str, Any]) -> str:
+    d, c, nan = r["deploy"], r.get("collect", {}), math.nan
+    return (f"| {r['seed']} | {d['result']} | {d['stops']} | {d['planned'] or nan:.1f} "
+            f"| {d['flown'] or nan:.1f} | {percent(d)} | {d['off_task_m'] or nan:.1f} "
+            f"| {c.get('result', '-')} | {c.get('stops', '-')} | {c.get('planned') or nan:.1f} "
+            f"| {c.get('flown') or nan:.1f} | {percent(c)} | {c.get('on_deck', '-')} of 4 |")
 
 
 if __name__ == "__main__":
