@@ -27,6 +27,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from planners.core.geometry import EnclosingCircles, enclosing_ball
+from planners.core.native import kernels
 
 Point2 = tuple[float, float]
 
@@ -107,13 +108,7 @@ class Region:
 
     def farthest_flight(self, p: Sequence[float]) -> float:
         """Longest 3D flight of a member to ground point ``p``: the cluster's last arrival there."""
-        x, y = p[0], p[1]
-        worst = 0.0
-        for gx, gy, z2 in self.rows:
-            d2 = (x - gx) * (x - gx) + (y - gy) * (y - gy) + z2
-            if d2 > worst:
-                worst = d2
-        return math.sqrt(worst)
+        return _farthest(self._rows, p)
 
     @property
     def vertices(self) -> np.ndarray:
@@ -161,41 +156,13 @@ class Region:
         return got
 
     def _project(self, x: float, y: float) -> Point2:
-        """I_β lies inside every disc, so the distance to I_β is at least the largest distance to
-        one disc, and a disc's nearest point that lies in I_β is I_β's nearest point: only the
-        discs ``p`` violates most can give it (O(k)); otherwise the nearest point is a vertex."""
-        discs = self._discs
-        if len(discs) == 1:
-            cx, cy, r = discs[0]
-            n = math.hypot(x - cx, y - cy)
-            if n <= r:
-                return (x, y)
-            return (cx + (x - cx) * r / n, cy + (y - cy) * r / n)
-        hypot = math.hypot
-        out = []  # (−violation, disc index): sorted, the most violated first, ties in the discs' order
-        for i, (cx, cy, r) in enumerate(discs):
-            n = hypot(x - cx, y - cy)
-            if n > r + INSIDE_TOL:
-                out.append((r - n, i, n))
-        if not out:
-            return (x, y)
-        if len(out) > 1:
-            out.sort()
-        least = out[0][0]
-        limits = self._limits or self._make_limits()
-        for neg, i, n in out:
-            if -neg < -least - 1e-9:
-                break
-            cx, cy, r = discs[i]
-            qx, qy = cx + (x - cx) * r / n, cy + (y - cy) * r / n
-            for gx, gy, lim in limits:  # (``contains``, written out)
-                if (qx - gx) ** 2 + (qy - gy) ** 2 > lim:
-                    break
-            else:
-                return (qx, qy)
-        got = self._vertex_projection(x, y, discs[out[0][1]])
-        if got is not None:
+        """``project_discs``, then, when the nearest point is no circle's, the vertices."""
+        got = _project_discs(self._discs, self._limits or self._make_limits(), x, y)
+        if type(got) is tuple:
             return got
+        vertex = self._vertex_projection(x, y, self._discs[got])  # type: ignore[index]
+        if vertex is not None:
+            return vertex
         best, best_d = self.center, math.inf  # numerically empty region: the power centre
         for q in self.vertex_list:
             d = math.hypot(q[0] - x, q[1] - y)
@@ -234,50 +201,12 @@ class Region:
         return best if lam1 >= -1e-9 and lam2 >= -1e-9 else None
 
     def _rim(self, disc: tuple[float, float, float]) -> list[tuple[Point2, tuple[float, float, float]]]:
-        """The crossings of ``disc``'s circle with every other circle that lie in I_β (``contains``'s
-        test, written out), each with the other disc, in the discs' order."""
-        limits = self._limits or self._make_limits()
-        out = []
-        for d2 in self._discs:
-            if d2 is disc:
-                continue
-            for q in _pair_points(disc, d2):
-                x, y = q
-                for cx, cy, lim in limits:
-                    if (x - cx) ** 2 + (y - cy) ** 2 > lim:
-                        break
-                else:
-                    out.append((q, d2))
-        return out
+        """``rim`` of ``disc`` in this region."""
+        return _rim(disc, self._discs, self._limits or self._make_limits())
 
     def clip_segment(self, a: Point2, b: Point2) -> tuple[float, float] | None:
         """Parameters [s0, s1] ⊂ [0, 1] of the part of segment a → b inside I_β, or None."""
-        ax, ay = a[0], a[1]
-        dx, dy = b[0] - ax, b[1] - ay
-        qa = dx * dx + dy * dy
-        lo, hi = 0.0, 1.0
-        sqrt = math.sqrt
-        for cx, cy, r in self._discs:
-            ex, ey = ax - cx, ay - cy
-            qc = ex * ex + ey * ey - r * r
-            if qa < 1e-18:
-                if qc > 0:
-                    return None
-                continue
-            qb = 2.0 * (dx * ex + dy * ey)
-            disc = qb * qb - 4.0 * qa * qc
-            if disc < 0:
-                return None
-            sq = sqrt(disc)
-            s0 = (-qb - sq) / (2.0 * qa)
-            if s0 > lo:  # (max and min, written out)
-                lo = s0
-            s1 = (-qb + sq) / (2.0 * qa)
-            if s1 < hi:
-                hi = s1
-            if lo > hi:
-                return None
-        return lo, hi
+        return _clip(self._discs, a, b)
 
     def nearest_to_segment(self, a: Point2, b: Point2) -> list[Point2]:
         """Eq. 5.13–5.16: the point(s) of I_β nearest the carrier's line a → b.
@@ -352,6 +281,113 @@ class Region:
             pts += self.nearest_to_segment(prev, nxt)
         pts += self.vertex_list
         return pts
+
+
+def project_discs(discs: Sequence[tuple[float, float, float]], limits: Sequence[tuple[float, float, float]],
+                  x: float, y: float) -> Point2 | int:
+    """The nearest point of the discs' intersection to (x, y) when it is (x, y) itself or lies on one
+    circle; else the index of the disc (x, y) violates most (the nearest point is then a vertex:
+    ``Region._vertex_projection``). ``limits``: (x, y, (ρ + INSIDE_TOL)²) per disc.
+
+    The intersection lies inside every disc, so the distance to it is at least the largest distance
+    to one disc, and a disc's nearest point that lies in the intersection is its nearest point:
+    only the discs (x, y) violates most can give it (O(k))."""
+    if len(discs) == 1:
+        cx, cy, r = discs[0]
+        n = math.hypot(x - cx, y - cy)
+        if n <= r:
+            return (x, y)
+        return (cx + (x - cx) * r / n, cy + (y - cy) * r / n)
+    hypot = math.hypot
+    out = []  # (−violation, disc index): sorted, the most violated first, ties in the discs' order
+    for i, (cx, cy, r) in enumerate(discs):
+        n = hypot(x - cx, y - cy)
+        if n > r + INSIDE_TOL:
+            out.append((r - n, i, n))
+    if not out:
+        return (x, y)
+    if len(out) > 1:
+        out.sort()
+    least = out[0][0]
+    for neg, i, n in out:
+        if -neg < -least - 1e-9:
+            break
+        cx, cy, r = discs[i]
+        qx, qy = cx + (x - cx) * r / n, cy + (y - cy) * r / n
+        for gx, gy, lim in limits:  # (``Region.contains``, written out)
+            if (qx - gx) ** 2 + (qy - gy) ** 2 > lim:
+                break
+        else:
+            return (qx, qy)
+    return out[0][1]
+
+
+def rim(disc: tuple[float, float, float], discs: Sequence[tuple[float, float, float]],
+        limits: Sequence[tuple[float, float, float]]) -> list[tuple[Point2, tuple[float, float, float]]]:
+    """The crossings of ``disc``'s circle with every other of ``discs`` that lie in their intersection
+    (``limits``: ``Region.contains``'s test, written out), each with the other disc, in the discs'
+    order (``Region._vertex_projection``)."""
+    out = []
+    for d2 in discs:
+        if d2 is disc:
+            continue
+        for q in _pair_points(disc, d2):
+            x, y = q
+            for cx, cy, lim in limits:
+                if (x - cx) ** 2 + (y - cy) ** 2 > lim:
+                    break
+            else:
+                out.append((q, d2))
+    return out
+
+
+def clip_segment(discs: Sequence[tuple[float, float, float]], a: Sequence[float],
+                 b: Sequence[float]) -> tuple[float, float] | None:
+    """Parameters [s0, s1] ⊂ [0, 1] of the part of segment a → b inside every disc, or None."""
+    ax, ay = a[0], a[1]
+    dx, dy = b[0] - ax, b[1] - ay
+    qa = dx * dx + dy * dy
+    lo, hi = 0.0, 1.0
+    sqrt = math.sqrt
+    for cx, cy, r in discs:
+        ex, ey = ax - cx, ay - cy
+        qc = ex * ex + ey * ey - r * r
+        if qa < 1e-18:
+            if qc > 0:
+                return None
+            continue
+        qb = 2.0 * (dx * ex + dy * ey)
+        disc = qb * qb - 4.0 * qa * qc
+        if disc < 0:
+            return None
+        sq = sqrt(disc)
+        s0 = (-qb - sq) / (2.0 * qa)
+        if s0 > lo:  # (max and min, written out)
+            lo = s0
+        s1 = (-qb + sq) / (2.0 * qa)
+        if s1 < hi:
+            hi = s1
+        if lo > hi:
+            return None
+    return lo, hi
+
+
+def farthest_flight(rows: Sequence[tuple[float, float, float]], p: Sequence[float]) -> float:
+    """The longest flight from a row (x, y, z²) to ground point ``p`` (``Region.farthest_flight``)."""
+    x, y = p[0], p[1]
+    worst = 0.0
+    for gx, gy, z2 in rows:
+        d2 = (x - gx) * (x - gx) + (y - gy) * (y - gy) + z2
+        if d2 > worst:
+            worst = d2
+    return math.sqrt(worst)
+
+
+# the compiled twin when it is built (planners.core.native): the same float
+_farthest = farthest_flight if kernels is None else kernels.farthest_flight
+_project_discs = project_discs if kernels is None else kernels.project_discs
+_rim = rim if kernels is None else kernels.rim
+_clip = clip_segment if kernels is None else kernels.clip_segment
 
 
 def _seg_dist(p: Sequence[float], a: Point2, b: Point2) -> float:

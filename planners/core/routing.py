@@ -8,6 +8,8 @@ from collections import deque
 
 import numpy as np
 
+from planners.core.native import kernels
+
 
 def two_opt_route(points: np.ndarray, start: np.ndarray, initial: list[int] | None = None,
                   long_tours: bool = False) -> list[int]:
@@ -29,7 +31,11 @@ def two_opt_route(points: np.ndarray, start: np.ndarray, initial: list[int] | No
     else:
         route = nearest_neighbour(dmat)
     if n <= SMALL_TOUR:
-        return _two_opt_rows(dmat, route) if n >= ROWS_FROM else _two_opt_small(dmat.tolist(), route)
+        if n >= ROWS_FROM:
+            return _two_opt_rows(dmat, route)
+        if kernels is not None:  # the compiled twin: the same tour
+            return kernels.two_opt_small(dmat, route)
+        return _two_opt_small(dmat.tolist(), route)
     # 2-opt on the open path: reverse route[i..j]; the start stays first, the end is free.
     path = np.array(route)
     improved = True

@@ -13,6 +13,7 @@ from typing import TypeVar
 
 import numpy as np
 
+from planners.core.native import kernels
 from planners.core.plan import Plan
 from planners.core.problem import CarrierSpec, CollectProblem, DeployProblem, Motion, Vec3
 
@@ -169,6 +170,13 @@ def carrier_stepper(carrier: CarrierSpec) -> Step:
     arithmetic in the same order (the same floats, bit for bit; a test checks), for the planners'
     innermost loops, which call it millions of times."""
     v, a, w = carrier.max_speed, carrier.accel, carrier.turn_rate
+    if kernels is not None:  # the compiled twin (planners.core.native): the same floats
+        return kernels.Stepper(v, a, w)
+    return _python_stepper(v, a, w)
+
+
+def _python_stepper(v: float, a: float | None, w: float | None) -> Step:
+    """``carrier_stepper`` in Python (the compiled ``Stepper``'s twin)."""
     atan2, sqrt, tau = math.atan2, math.sqrt, _TAU
     ramp = None if a is None else v * v / a
     brake = None if a is None else v / a
@@ -195,6 +203,8 @@ def carrier_stepper(carrier: CarrierSpec) -> Step:
 def carrier_hopper(carrier: CarrierSpec) -> Hop:
     """:func:`carrier_hop` with ``carrier``'s numbers bound once (``carrier_stepper``):
     ``hop(p, q, heading)``."""
+    if kernels is not None:
+        return kernels.Hopper(carrier.max_speed, carrier.accel, carrier.turn_rate)
     step = carrier_stepper(carrier)
     return lambda p, q, heading: step(q[0] - p[0], q[1] - p[1], heading)
 
@@ -202,6 +212,13 @@ def carrier_hopper(carrier: CarrierSpec) -> Hop:
 def leg_timer(motion: Motion) -> Callable[[float], float]:
     """:func:`leg_time` with ``motion``'s numbers bound once: ``leg(length)``, the same floats."""
     v, a, fixed = motion.max_speed, motion.accel, motion.fixed_time
+    if kernels is not None:
+        return kernels.Leg(v, a, fixed)
+    return _python_leg(v, a, fixed)
+
+
+def _python_leg(v: float, a: float | None, fixed: float) -> Callable[[float], float]:
+    """``leg_timer`` in Python (the compiled ``Leg``'s twin)."""
     ramp = None if a is None else v * v / a
     brake = None if a is None else v / a
     sqrt = math.sqrt

@@ -1,0 +1,150 @@
+"""The compiled kernels (planners/core/_native.c, planners.core.native) compute the floats of their
+pure-Python twins, so that a plan does not depend on whether the install could compile them."""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import random
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from planners.core.native import kernels
+
+ROOT = Path(__file__).resolve().parents[2]
+native = pytest.mark.skipif(kernels is None, reason="compiled kernels not built (no C compiler at install)")
+
+
+@native
+def test_step_hop_and_leg_kernels_give_the_python_floats() -> None:
+    from planners.core.timing import _python_leg, _python_stepper
+
+    assert kernels is not None
+    rng = random.Random(5)
+    for _ in range(200):
+        v = rng.uniform(0.5, 25)
+        a = rng.choice([None, rng.uniform(0.3, 10)])
+        w = rng.choice([None, rng.uniform(0.1, 5)])
+        fixed = rng.uniform(0, 4)
+        step, py_step = kernels.Stepper(v, a, w), _python_stepper(v, a, w)
+        hop = kernels.Hopper(v, a, w)
+        leg, py_leg = kernels.Leg(v, a, fixed), _python_leg(v, a, fixed)
+        for _ in range(50):
+            length = rng.choice([0.0, 1e-10, rng.uniform(0, 2), rng.uniform(0, 200), v * v / a if a else 1.0])
+            ang = rng.uniform(-math.pi, math.pi)
+            dx, dy = length * math.cos(ang), length * math.sin(ang)
+            h0 = rng.choice([ang, ang + math.pi, ang - math.pi, rng.uniform(-20, 20), 0.0, -0.0])
+            assert step(dx, dy, h0) == py_step(dx, dy, h0)
+            p = (rng.uniform(-100, 100), rng.uniform(-100, 100))
+            assert hop(p, (p[0] + dx, p[1] + dy), h0) == py_step(p[0] + dx - p[0], p[1] + dy - p[1], h0)
+            assert hop(np.array(p), [p[0] + dx, p[1] + dy], h0) == hop(p, (p[0] + dx, p[1] + dy), h0)
+            assert leg(length) == py_leg(length) and leg(-length) == py_leg(-length)
+    with pytest.raises(TypeError):
+        kernels.Stepper(1.0, None, None)(1.0, 2.0)
+    with pytest.raises(IndexError):  # (as the Python hop's q[1] - p[1])
+        kernels.Hopper(1.0, None, None)((1.0,), (2.0, 3.0), 0.0)
+
+
+@native
+def test_farthest_flight_and_two_opt_kernels_match_python() -> None:
+    from planners.collect.reach import farthest_flight
+    from planners.core.routing import _two_opt_small, nearest_neighbour
+
+    assert kernels is not None
+    rng = np.random.default_rng(3)
+    for k in (1, 2, 5, 13):
+        rows = [tuple(map(float, r)) for r in rng.uniform(-30, 30, (k, 3))]
+        for p in rng.uniform(-40, 40, (20, 2)).tolist():
+            assert kernels.farthest_flight(rows, p) == farthest_flight(rows, p)
+    for n in (1, 2, 3, 8, 30, 79):
+        nodes = rng.uniform(0, 200, (n + 1, 2))
+        dmat = np.linalg.norm(nodes[:, None, :] - nodes[None, :, :], axis=2)
+        for route in (nearest_neighbour(dmat), [0, *rng.permutation(np.arange(1, n + 1)).tolist()]):
+            assert kernels.two_opt_small(dmat, route) == _two_opt_small(dmat.tolist(), route)
+    with pytest.raises(ValueError):
+        kernels.two_opt_small(np.zeros((3, 3)), [0, 1])
+
+
+@native
+def test_hypot_kernel_is_pythons_math_hypot() -> None:
+    assert kernels is not None
+    rng = random.Random(8)
+    odd = [0.0, -0.0, 5e-324, -1e-310, 1e-300, 1e300, 1.7e308, math.inf, -math.inf, 3.0, -4.0]
+    for _ in range(100_000):
+        x, y = rng.uniform(-400, 400), rng.uniform(-400, 400)
+        assert kernels.hypot(x, y) == math.hypot(x, y)
+    for x in odd:
+        for y in odd:
+            assert kernels.hypot(x, y) == math.hypot(x, y)
+    assert math.isnan(kernels.hypot(math.nan, 1.0)) and kernels.hypot(math.nan, math.inf) == math.inf
+
+
+@native
+def test_projection_rim_and_clip_kernels_match_python() -> None:
+    """Regions of random clusters: projections of points around them, every disc's rim, segments."""
+    from planners.collect.reach import INSIDE_TOL, clip_segment, project_discs, rim
+
+    assert kernels is not None
+    rng = random.Random(9)
+    seen = {"point": 0, "vertex": 0, "rim": 0, "clip": 0}
+    for _ in range(400):
+        k = rng.choice([1, 2, 3, 4, 6, 9, 40])
+        cx, cy = rng.uniform(-50, 50), rng.uniform(-50, 50)
+        discs = [(cx + rng.uniform(-12, 12), cy + rng.uniform(-12, 12), rng.uniform(4, 20)) for _ in range(k)]
+        if rng.random() < 0.2:  # tangent and coincident circles
+            discs.append((discs[0][0] + discs[0][2] * 2, discs[0][1], discs[0][2]))
+            discs.append(discs[0])
+        limits = [(x, y, (r + INSIDE_TOL) ** 2) for x, y, r in discs]
+        for _ in range(15):
+            x, y = cx + rng.uniform(-40, 40), cy + rng.uniform(-40, 40)
+            got = kernels.project_discs(discs, limits, x, y)
+            assert got == project_discs(discs, limits, x, y)
+            seen["vertex" if isinstance(got, int) else "point"] += 1
+            a, b = (x, y), (cx + rng.uniform(-40, 40), cy + rng.uniform(-40, 40))
+            for end in (b, a):
+                clip = kernels.clip_segment(discs, a, end)
+                assert clip == clip_segment(discs, a, end)
+                seen["clip"] += clip is not None
+        for d in discs:
+            got_rim = kernels.rim(d, discs, limits)
+            assert got_rim == rim(d, discs, limits)
+            assert all(o is p for (_, o), (_, p) in zip(got_rim, rim(d, discs, limits), strict=True))
+            seen["rim"] += len(got_rim)
+    assert min(seen.values()) > 50, seen  # every branch was compared
+
+
+_PLANS = """
+import json, random, sys
+sys.path.insert(0, {root!r})
+from bench.scaling import random_deploy
+from bench.scaling_collect import random_problem
+from planners import COLLECT_PLANNERS, DEPLOY_PLANNERS
+from planners.core.native import kernels
+out = {{"native": kernels is not None, "plans": []}}
+for n, seed in ((7, 1), (40, 2), (120, 3)):
+    rng = random.Random(seed)
+    for plan in (DEPLOY_PLANNERS["lee"](random_deploy(rng, n, 200.0, rng.uniform(5.0, 20.0))),
+                 COLLECT_PLANNERS["lee"](random_problem(n, seed, 200.0, ranges=(5.0, 20.0)))):
+        out["plans"].append([plan.makespan, [list(s.position) for s in plan.stops]])
+print(json.dumps(out))
+"""
+
+
+def _plans(pure: bool) -> dict:
+    env = {**os.environ, "FLEETCTL_PURE_PYTHON": "1" if pure else "0"}
+    got = subprocess.run([sys.executable, "-c", _PLANS.format(root=str(ROOT))], env=env, check=True,
+                         capture_output=True, text=True, timeout=300)
+    return json.loads(got.stdout)
+
+
+@native
+@pytest.mark.slow
+def test_plans_are_the_same_floats_with_and_without_the_kernels() -> None:
+    compiled, python = _plans(pure=False), _plans(pure=True)
+    assert compiled["native"] and not python["native"]
+    assert compiled["plans"] == python["plans"]
