@@ -9,7 +9,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from planners.collect.reach import Point2, Region, make_region, rover_rows
-from planners.core.geometry import EnclosingCircles
+from planners.core.geometry import enclosing_circles
 from planners.core.problem import CollectProblem, PlanningError
 from planners.core.timing import RANGE_MARGIN
 
@@ -33,7 +33,7 @@ class CollectInstance:
         self._rows = rover_rows((self.pts2, self.rad, self.h2))  # every rover's disc and row, made once
         self._regions: dict[tuple[int, ...], Region] = {}
         # power and time centres' circles, derived from neighbouring clusters' (core.geometry)
-        self._circles = (EnclosingCircles(self.pts2), EnclosingCircles(self.pts2))
+        self._circles = (enclosing_circles(self.pts2), enclosing_circles(self.pts2))
 
     def region(self, members: Sequence[int], near: Sequence[Sequence[int]] = ()) -> Region:
         """The region of a cluster; ``near``: clusters that may be one member away (a move's old

@@ -26,7 +26,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from planners.core.geometry import EnclosingCircles, enclosing_ball
+from planners.core.geometry import CircleCache, enclosing_ball
 from planners.core.native import kernels
 
 Point2 = tuple[float, float]
@@ -51,7 +51,7 @@ class Region:
     _time_center: Point2 | None = field(default=None, repr=False)
     _vertex_list: list[Point2] | None = field(default=None, repr=False)
     _memo: dict[tuple[float, ...], Point2] = field(default_factory=dict, repr=False, compare=False)
-    _time_circles: EnclosingCircles | None = field(default=None, repr=False, compare=False)
+    _time_circles: CircleCache | None = field(default=None, repr=False, compare=False)
     _near: tuple[tuple[int, ...], ...] = field(default=(), repr=False, compare=False)  # neighbours' members
     # (x, y, (ρ + INSIDE_TOL)²) of every member: ``contains``'s test at the default tolerance
     _limits: list[tuple[float, float, float]] | None = field(default=None, repr=False, compare=False)
@@ -129,10 +129,11 @@ class Region:
         if self._time_center is None:
             ws = [z2 for _, _, z2 in self.rows]
             if self._time_circles is not None:
-                ball = self._time_circles.get(self.members, ws, self._near)
+                cx, cy, _ = self._time_circles.get(self.members, ws, self._near)
             else:
                 ball = enclosing_ball([(x, y) for x, y, _ in self.rows], ws)
-            c = (float(ball.center[0]), float(ball.center[1]))
+                cx, cy = ball.center
+            c = (float(cx), float(cy))
             self._time_center = c if self.contains(c) else self.project(c)
         return self._time_center
 
@@ -482,7 +483,7 @@ def rover_rows(lists: DiscLists) -> RoverRows:
 
 def make_region(members: Sequence[int], ground: np.ndarray, radii: np.ndarray,
                 heights2: np.ndarray, lists: DiscLists | None = None,
-                circles: tuple[EnclosingCircles, EnclosingCircles] | None = None,
+                circles: tuple[CircleCache, CircleCache] | None = None,
                 near: tuple[tuple[int, ...], ...] = (), rows: RoverRows | None = None) -> Region:
     """I_β of ``members`` with its power centre (the feasibility test of Algorithm 5.1).
 
@@ -517,10 +518,10 @@ def make_region(members: Sequence[int], ground: np.ndarray, radii: np.ndarray,
         top = max(r2)
         ws = [top - q for q in r2]  # ≥ 0: q ≤ top, and rounding keeps the sign of a difference
         if circles is not None:
-            ball = circles[0].get(key, ws, near)
+            px, py, _ = circles[0].get(key, ws, near)
         else:
             ball = enclosing_ball([(x, y) for x, y, _ in discs], ws)
-        px, py = float(ball.center[0]), float(ball.center[1])
+            px, py = float(ball.center[0]), float(ball.center[1])
         hypot = math.hypot
         depth = min([q - hypot(x - px, y - py) for x, y, q in discs])
         reg = Region(key, discs, reg_rows, (px, py), depth, depth >= -INSIDE_TOL)

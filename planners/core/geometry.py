@@ -14,8 +14,11 @@ import math
 import random
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
+
+from planners.core.native import kernels
 
 _REL_EPS = 1e-9
 
@@ -134,9 +137,9 @@ def enclosing_circle(xs: Sequence[float], ys: Sequence[float], ws: Sequence[floa
     if n == 1:
         return float(xs[0]), float(ys[0]), math.sqrt(max(float(ws[0]), 0.0))
     order = _shuffled(n, seed)
-    ball, _ = _welzl_2d([float(xs[i]) for i in order], [float(ys[i]) for i in order],
-                        [float(ws[i]) for i in order])
-    return ball.center[0], ball.center[1], ball.radius
+    circle, _ = _welzl_2d([float(xs[i]) for i in order], [float(ys[i]) for i in order],
+                          [float(ws[i]) for i in order])
+    return circle
 
 
 @functools.lru_cache(maxsize=4096)
@@ -175,7 +178,7 @@ def _two(xs: list[float], ys: list[float], ws: list[float], i: int, j: int) -> C
     ux, uy = x1 - x0, y1 - y0
     n = ux * ux + uy * uy
     if n < 1e-24:
-        return _as_tuple(_ball_on_boundary([(x0, y0), (x1, y1)], [w0, w1]))
+        return _boundary_circle([(x0, y0), (x1, y1)], [w0, w1])
     lam = (n + w1 - w0) / (2.0 * n)
     cx, cy = x0 + lam * ux, y0 + lam * uy
     hypot = math.hypot  # (math.dist of two points is hypot of their difference, bit for bit)
@@ -198,7 +201,7 @@ def _three(xs: list[float], ys: list[float], ws: list[float], i: int, j: int, k:
     det = u1x * u2y - u1y * u2x
     size = (u1x * u1x + u1y * u1y) * (u2x * u2x + u2y * u2y)
     if abs(det) < 1e-12 * (size if size > 1.0 else 1.0) ** 0.5:
-        return _as_tuple(_ball_on_boundary([(x0, y0), (x1, y1), (x2, y2)], [w0, w1, w2]))
+        return _boundary_circle([(x0, y0), (x1, y1), (x2, y2)], [w0, w1, w2])
     cx, cy = x0 + (b1 * u2y - b2 * u1y) / (2.0 * det), y0 + (u1x * b2 - u2x * b1) / (2.0 * det)
     hypot = math.hypot
     value = hypot(cx - x0, cy - y0) ** 2 + w0
@@ -221,7 +224,7 @@ def _tolerance(xs: list[float], ys: list[float], ws: list[float]) -> float:
     return _REL_EPS * size
 
 
-def _welzl_2d(xs: list[float], ys: list[float], ws: list[float]) -> tuple[Ball, tuple[int, ...]]:
+def _welzl_2d(xs: list[float], ys: list[float], ws: list[float]) -> tuple[Circle, tuple[int, ...]]:
     """The same three nested loops as ``solve`` for the plane, over the points in their visiting
     order, unrolled for speed: balls are (x, y, radius) tuples and the closed forms of ``_ball_2d``
     are written out (the planners compute thousands of these per plan). Also returns the points
@@ -244,7 +247,7 @@ def _welzl_2d(xs: list[float], ys: list[float], ws: list[float]) -> tuple[Ball, 
                 if (cx - xs[k]) ** 2 + (cy - ys[k]) ** 2 + ws[k] > lim:
                     cx, cy, r = _three(xs, ys, ws, i, j, k)
                     lim, sup = (r + eps) ** 2, (i, j, k)
-    return Ball((cx, cy), r), sup
+    return (cx, cy, r), sup
 
 
 def _welzl_through(xs: list[float], ys: list[float], ws: list[float], a: int,
@@ -268,17 +271,15 @@ def _welzl_through(xs: list[float], ys: list[float], ws: list[float], a: int,
     return sup
 
 
-def _on_support(xs: list[float], ys: list[float], ws: list[float], sup: Sequence[int]) -> Ball:
+def _on_support(xs: list[float], ys: list[float], ws: list[float], sup: Sequence[int]) -> Circle:
     """The circle ``_welzl_2d`` ends with when it builds its last circle on the points ``sup`` (in
     visiting order): the same closed form on the same points in the same order, so the same bits."""
     s = sorted(sup, reverse=True)
     if len(s) == 1:
-        cx, cy, r = _one(xs, ys, ws, s[0])
-    elif len(s) == 2:
-        cx, cy, r = _two(xs, ys, ws, s[0], s[1])
-    else:
-        cx, cy, r = _three(xs, ys, ws, s[0], s[1], s[2])
-    return Ball((cx, cy), r)
+        return _one(xs, ys, ws, s[0])
+    if len(s) == 2:
+        return _two(xs, ys, ws, s[0], s[1])
+    return _three(xs, ys, ws, s[0], s[1], s[2])
 
 
 Members = tuple[int, ...]
@@ -301,12 +302,14 @@ class EnclosingCircles:
     def __init__(self, points: Sequence[Sequence[float]]) -> None:
         self._xs = [float(p[0]) for p in points]
         self._ys = [float(p[1]) for p in points]
-        self._known: dict[Members, tuple[Ball, Members]] = {}  # subset → its circle and support
+        self._known: dict[Members, tuple[Circle, Members]] = {}  # subset → its circle and support
 
-    def get(self, key: Members, weights: Sequence[float] | None = None, near: Sequence[Members] = ()) -> Ball:
+    def get(self, key: Members, weights: Sequence[float] | None = None,
+            near: Sequence[Members] = ()) -> Circle:
         """``enclosing_ball`` of the points ``key`` (sorted, distinct indices) with these weights
-        (one per member, in ``key``'s order; zero when None): the same ball, bit for bit. ``near``:
-        subsets (sorted) that may differ from ``key`` by a member, whose circles may be known."""
+        (one per member, in ``key``'s order; zero when None) as (centre x, centre y, radius): the
+        same ball, bit for bit. ``near``: subsets (sorted) that may differ from ``key`` by a member,
+        whose circles may be known."""
         got = self._known.get(key)
         if got is not None:
             return got[0]
@@ -316,13 +319,13 @@ class EnclosingCircles:
         ws = [0.0] * len(key) if weights is None else [float(weights[q]) for q in order]
         found = self._derive(key, xs, ys, ws, near) if near and len(key) > 1 else None
         if found is None:
-            ball, sup = _welzl_2d(xs, ys, ws)
-            found = ball, tuple(visit[q] for q in sup)
+            circle, sup = _welzl_2d(xs, ys, ws)
+            found = circle, tuple(visit[q] for q in sup)
         self._known[key] = found
         return found[0]
 
     def _derive(self, key: Members, xs: list[float], ys: list[float], ws: list[float],
-                near: Sequence[Members]) -> tuple[Ball, Members] | None:
+                near: Sequence[Members]) -> tuple[Circle, Members] | None:
         """The circle of ``key`` (points in visiting order) from a known neighbour's support, or
         None when no neighbour gives it."""
         rank = _visit_rank(len(key), 0)
@@ -337,15 +340,15 @@ class EnclosingCircles:
                 continue  # more than one member added or removed, or a support point removed
             support = entry[1]
             local = [rank[key.index(g)] for g in support]
-            ball = _on_support(xs, ys, ws, local)
+            circle = _on_support(xs, ys, ws, local)
             if not added:
-                return ball, support
+                return circle, support
             a = rank[key.index(added.pop())]
-            (cx, cy), r = ball.center, ball.radius
+            cx, cy, r = circle
             margin = 2 * _REL_EPS * (1.0 + abs(cx) + abs(cy) + r)  # more than Welzl's tolerance
             power = (cx - xs[a]) ** 2 + (cy - ys[a]) ** 2 + ws[a]
             if r > margin and power < (r - margin) ** 2:
-                return ball, support
+                return circle, support
             if outside is None and power > (r + margin) ** 2:
                 outside = a, local
         if outside is None:
@@ -355,7 +358,25 @@ class EnclosingCircles:
         return _on_support(xs, ys, ws, sup), tuple(key[order[q]] for q in sup)
 
 
-def _as_tuple(ball: Ball) -> tuple[float, float, float]:
+class CircleCache(Protocol):
+    """What ``enclosing_circles`` returns: ``EnclosingCircles`` or its compiled twin."""
+
+    def get(self, key: Members, weights: Sequence[float] | None = None,
+            near: Sequence[Members] = ()) -> Circle: ...
+
+
+def enclosing_circles(points: Sequence[Sequence[float]]) -> CircleCache:
+    """``EnclosingCircles`` of the points, or its compiled twin (``planners.core.native``: the same
+    circles, float for float, falling back to ``_ball_on_boundary`` on the same degenerate points)."""
+    if kernels is not None:
+        circles: CircleCache = kernels.Circles(points, _boundary_circle, _shuffled)
+        return circles
+    return EnclosingCircles(points)
+
+
+def _boundary_circle(pts: list[tuple[float, ...]], ws: list[float]) -> Circle:
+    """``_ball_on_boundary`` as a circle tuple: the closed forms' way out of degenerate points."""
+    ball = _ball_on_boundary(pts, ws)
     return ball.center[0], ball.center[1], ball.radius
 
 

@@ -136,7 +136,7 @@ def test_incremental_circles_are_welzls_bit_for_bit(weighted, monkeypatch):
         got = cache.get(key, ws, (prev,))
         fresh += len(calls) - before
         ref = enclosing_ball([pts[i] for i in key], ws)
-        assert (got.center, got.radius) == (ref.center, ref.radius)
+        assert (got[:2], got[2]) == (ref.center, ref.radius)
     assert new > 1000 and fresh < 0.6 * new
 
 
@@ -155,24 +155,22 @@ def test_incremental_circles_on_degenerate_points(grid, wlist, seed, weighted):
         ws = [w[i] for i in key]
         got = cache.get(key, ws, (prev, key[1:]))
         ref = enclosing_ball([pts[i] for i in key], ws)
-        assert math.dist(got.center, ref.center) <= 1e-6 and abs(got.radius - ref.radius) <= 1e-6
+        assert math.dist(got[:2], ref.center) <= 1e-6 and abs(got[2] - ref.radius) <= 1e-6
         for i in key:
-            assert math.dist(got.center, pts[i]) ** 2 + w[i] <= (got.radius + 1e-6) ** 2
+            assert math.dist(got[:2], pts[i]) ** 2 + w[i] <= (got[2] + 1e-6) ** 2
 
 
 def test_incremental_circles_special_cases():
     pts = [(0.0, 0.0), (4.0, 0.0), (0.0, 4.0), (4.0, 4.0), (2.0, 2.0), (2.0, 2.0), (8.0, 0.0)]
     cache = EnclosingCircles(pts)
     square = cache.get((0, 1, 2, 3))  # four cocircular points
-    assert math.dist(square.center, (2.0, 2.0)) < 1e-12 and abs(square.radius - math.sqrt(8)) < 1e-12
+    assert math.dist(square[:2], (2.0, 2.0)) < 1e-12 and abs(square[2] - math.sqrt(8)) < 1e-12
     inner = cache.get((0, 1, 2, 3, 4), near=[(0, 1, 2, 3)])  # an added point inside: unchanged
-    assert (inner.center, inner.radius) == (square.center, square.radius)
-    dup = cache.get((4, 5), near=[(4,)])  # duplicates
-    assert dup.center == (2.0, 2.0) and dup.radius == 0.0
+    assert inner == square
+    assert cache.get((4, 5), near=[(4,)]) == (2.0, 2.0, 0.0)  # duplicates
     line = cache.get((0, 1, 6), near=[(0, 1)])  # collinear, the added point outside
-    assert line.center == (4.0, 0.0) and line.radius == 4.0
-    back = cache.get((0, 6), near=[(0, 1, 6)])  # removed a point off the support
-    assert (back.center, back.radius) == (line.center, line.radius)
-    assert cache.get((1, 6), near=[(0, 1, 6)]).radius == 2.0  # removed a support point
+    assert line == (4.0, 0.0, 4.0)
+    assert cache.get((0, 6), near=[(0, 1, 6)]) == line  # removed a point off the support
+    assert cache.get((1, 6), near=[(0, 1, 6)])[2] == 2.0  # removed a support point
     heavy = cache.get((0, 1), [100.0, 0.0], near=[(0,)])  # power weights: a heavy point holds it alone
-    assert heavy.center == (0.0, 0.0) and heavy.radius == 10.0
+    assert heavy == (0.0, 0.0, 10.0)

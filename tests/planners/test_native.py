@@ -118,6 +118,52 @@ def test_projection_rim_and_clip_kernels_match_python() -> None:
     assert min(seen.values()) > 50, seen  # every branch was compared
 
 
+@native
+@pytest.mark.parametrize("grid", [False, True])
+def test_enclosing_circles_kernel_matches_python(grid: bool) -> None:
+    """Random walks of clusters (members added, removed, exchanged) over generic points, and over
+    small grids squeezed to nearly collinear points (the degenerate fallback, counted)."""
+    from planners.core.geometry import EnclosingCircles, _boundary_circle, _shuffled
+
+    assert kernels is not None
+    degenerate = []
+
+    def fallback(pts: list, ws: list) -> tuple[float, float, float]:
+        degenerate.append(1)
+        return _boundary_circle(pts, ws)
+
+    rng = random.Random(11 + grid)
+    for _ in range(400 if grid else 4):
+        if grid:
+            k = rng.choice([2, 3, 5])
+            pts = [(rng.randrange(k) * 0.1 + 1e-13 * rng.random(), float(rng.randrange(k)))
+                   for _ in range(rng.randrange(2, 14))]
+            w = [rng.choice([0.0, 0.25, 1.0, 4.0]) for _ in pts]
+        else:
+            pts = [(rng.uniform(-100, 100), rng.uniform(-100, 100)) for _ in range(40)]
+            w = [rng.choice([0.0, rng.uniform(0, 400)]) for _ in pts]
+        ours, ref = kernels.Circles(pts, fallback, _shuffled), EnclosingCircles(pts)
+        cur = (0,)
+        for _ in range(50 if grid else 300):
+            s = set(cur)
+            if rng.random() < 0.4 and len(s) > 1:
+                s.discard(rng.choice(cur))
+            if rng.random() > 0.3:
+                s.add(rng.randrange(len(pts)))
+            prev, cur = cur, tuple(sorted(s))
+            weights = [w[i] for i in cur] if rng.random() < 0.7 else None
+            near = rng.choice([(prev,), (prev, cur[1:]), ()])
+            assert ours.get(cur, weights, near) == ref.get(cur, weights, near)
+            assert ours.get(cur) == ref.get(cur)  # remembered
+    assert (len(degenerate) > 5) if grid else not degenerate, len(degenerate)
+    with pytest.raises(TypeError):
+        ours.get([0, 1])
+    with pytest.raises(IndexError):
+        ours.get((0, len(pts)))
+    with pytest.raises(ValueError):
+        ours.get(())
+
+
 _PLANS = """
 import json, random, sys
 sys.path.insert(0, {root!r})
