@@ -141,7 +141,7 @@ class Region:
     def vertex_list(self) -> list[Point2]:
         """``vertices`` as a list (computed in plain Python: clusters are small)."""
         if self._vertex_list is None:
-            self._vertex_list = disc_vertices(self.discs)
+            self._vertex_list = _disc_vertices(self.discs)
         return self._vertex_list
 
     def project(self, p: Sequence[float]) -> Point2:
@@ -173,33 +173,11 @@ class Region:
 
     def _vertex_projection(self, x: float, y: float, disc: tuple[float, float, float]) -> Point2 | None:
         """The nearest point of I_β to (x, y) when it is a vertex on the circle ``disc`` (the one
-        (x, y) violates most): the nearest such vertex, if the optimality condition holds there
-        (x − v lies in the cone of the two active circles' outward normals); else None, and the
-        caller scans every vertex. O(k²) only through the inside test, no vertex list built."""
-        xm, ym, rm = disc
+        (x, y) violates most): ``vertex_on_rim`` of that circle's crossings, remembered per circle."""
         rim = self._rims.get(id(disc))
         if rim is None:  # the circle's crossings with every other that lie in I_β: the same for every (x, y)
             rim = self._rims[id(disc)] = self._rim(disc)
-        hypot = math.hypot
-        best: Point2 | None = None
-        other = disc
-        least = math.inf
-        for q, d2 in rim:  # the nearest vertex (ties: the first crossing)
-            dq = hypot(q[0] - x, q[1] - y)
-            if dq < least:
-                best, other, least = q, d2, dq
-        if best is None:
-            return None
-        vx, vy = best
-        a1x, a1y = vx - xm, vy - ym
-        a2x, a2y = vx - other[0], vy - other[1]
-        det = a1x * a2y - a1y * a2x
-        if abs(det) < 1e-12 * max(1.0, math.hypot(a1x, a1y) * math.hypot(a2x, a2y)):
-            return None
-        px, py = x - vx, y - vy
-        lam1 = (px * a2y - py * a2x) / det
-        lam2 = (a1x * py - a1y * px) / det
-        return best if lam1 >= -1e-9 and lam2 >= -1e-9 else None
+        return _vertex_on_rim(rim, disc, x, y)
 
     def _rim(self, disc: tuple[float, float, float]) -> list[tuple[Point2, tuple[float, float, float]]]:
         """``rim`` of ``disc`` in this region."""
@@ -282,6 +260,35 @@ class Region:
             pts += self.nearest_to_segment(prev, nxt)
         pts += self.vertex_list
         return pts
+
+
+def vertex_on_rim(rim: Sequence[tuple[Point2, tuple[float, float, float]]], disc: tuple[float, float, float],
+                  x: float, y: float) -> Point2 | None:
+    """The vertex of the circle ``disc`` nearest to (x, y), among its crossings ``rim`` (``rim``),
+    when it is the nearest point of I_β: the optimality condition holds there (x − v lies in the
+    cone of the two active circles' outward normals). Else None, and the caller scans every vertex.
+    O(k²) only through the inside test, no vertex list built."""
+    xm, ym, rm = disc
+    hypot = math.hypot
+    best: Point2 | None = None
+    other = disc
+    least = math.inf
+    for q, d2 in rim:  # the nearest vertex (ties: the first crossing)
+        dq = hypot(q[0] - x, q[1] - y)
+        if dq < least:
+            best, other, least = q, d2, dq
+    if best is None:
+        return None
+    vx, vy = best
+    a1x, a1y = vx - xm, vy - ym
+    a2x, a2y = vx - other[0], vy - other[1]
+    det = a1x * a2y - a1y * a2x
+    if abs(det) < 1e-12 * max(1.0, math.hypot(a1x, a1y) * math.hypot(a2x, a2y)):
+        return None
+    px, py = x - vx, y - vy
+    lam1 = (px * a2y - py * a2x) / det
+    lam2 = (a1x * py - a1y * px) / det
+    return best if lam1 >= -1e-9 and lam2 >= -1e-9 else None
 
 
 def project_discs(discs: Sequence[tuple[float, float, float]], limits: Sequence[tuple[float, float, float]],
@@ -384,11 +391,6 @@ def farthest_flight(rows: Sequence[tuple[float, float, float]], p: Sequence[floa
     return math.sqrt(worst)
 
 
-# the compiled twin when it is built (planners.core.native): the same float
-_farthest = farthest_flight if kernels is None else kernels.farthest_flight
-_project_discs = project_discs if kernels is None else kernels.project_discs
-_rim = rim if kernels is None else kernels.rim
-_clip = clip_segment if kernels is None else kernels.clip_segment
 
 
 def _seg_dist(p: Sequence[float], a: Point2, b: Point2) -> float:
@@ -528,3 +530,12 @@ def make_region(members: Sequence[int], ground: np.ndarray, radii: np.ndarray,
     if circles is not None:
         reg._time_circles, reg._near = circles[1], near
     return reg
+
+
+# the compiled twins when they are built (planners.core.native): the same floats
+_farthest = farthest_flight if kernels is None else kernels.farthest_flight
+_project_discs = project_discs if kernels is None else kernels.project_discs
+_rim = rim if kernels is None else kernels.rim
+_clip = clip_segment if kernels is None else kernels.clip_segment
+_vertex_on_rim = vertex_on_rim if kernels is None else kernels.vertex_on_rim
+_disc_vertices = disc_vertices if kernels is None else kernels.disc_vertices

@@ -669,6 +669,119 @@ fail:
     return NULL;
 }
 
+/* disc_vertices(discs): planners.collect.reach.disc_vertices, every pair's crossings (all first
+ * points, then all second points) that lie inside every disc */
+static PyObject *
+disc_vertices(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    if (nargs != 1) {
+        PyErr_SetString(PyExc_TypeError, "disc_vertices(discs)");
+        return NULL;
+    }
+    PyObject *seq = PySequence_Fast(args[0], "discs must be a sequence");
+    if (seq == NULL)
+        return NULL;
+    Py_ssize_t k = PySequence_Fast_GET_SIZE(seq), found = 0;
+    double *d = PyMem_Malloc((size_t)(3 * k + 2 * k * k + 1) * sizeof(double));
+    PyObject *out = d ? PyList_New(0) : PyErr_NoMemory();
+    if (out == NULL)
+        goto fail;
+    for (Py_ssize_t i = 0; i < k; i++)
+        if (triple(PySequence_Fast_GET_ITEM(seq, i), &d[3 * i], &d[3 * i + 1], &d[3 * i + 2]) < 0)
+            goto fail;
+    double *plus = d + 3 * k, *minus = plus + k * k;  /* at most k(k-1)/2 pairs each */
+    for (Py_ssize_t i = 0; i < k; i++)
+        for (Py_ssize_t j = i + 1; j < k; j++) {
+            double q[4];
+            if (pair_points(d[3 * i], d[3 * i + 1], d[3 * i + 2], d[3 * j], d[3 * j + 1], d[3 * j + 2], q)) {
+                plus[2 * found] = q[0], plus[2 * found + 1] = q[1];
+                minus[2 * found] = q[2], minus[2 * found + 1] = q[3];
+                found++;
+            }
+        }
+    for (int half = 0; half < 2; half++)
+        for (Py_ssize_t t = 0; t < found; t++) {
+            double x = (half ? minus : plus)[2 * t], y = (half ? minus : plus)[2 * t + 1];
+            int inside = 1;
+            for (Py_ssize_t g = 0; g < k && inside; g++)
+                inside = !(py_hypot(x - d[3 * g], y - d[3 * g + 1]) > d[3 * g + 2] + INSIDE_TOL);
+            if (!inside)
+                continue;
+            PyObject *pt = point(x, y);
+            if (pt == NULL || PyList_Append(out, pt) < 0) {
+                Py_XDECREF(pt);
+                goto fail;
+            }
+            Py_DECREF(pt);
+        }
+    PyMem_Free(d);
+    Py_DECREF(seq);
+    return out;
+fail:
+    PyMem_Free(d);
+    Py_XDECREF(out);
+    Py_DECREF(seq);
+    return NULL;
+}
+
+/* vertex_on_rim(rim, disc, x, y): planners.collect.reach.vertex_on_rim, the vertex of the circle
+ * `disc` nearest to (x, y) when it is the region's nearest point, else None */
+static PyObject *
+vertex_on_rim(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    double xm, ym, rm, x, y;
+    if (nargs != 4 || triple(args[1], &xm, &ym, &rm) < 0 || as_double(args[2], &x) < 0
+        || as_double(args[3], &y) < 0) {
+        if (!PyErr_Occurred())
+            PyErr_SetString(PyExc_TypeError, "vertex_on_rim(rim, disc, x, y)");
+        return NULL;
+    }
+    PyObject *seq = PySequence_Fast(args[0], "rim must be a sequence");
+    if (seq == NULL)
+        return NULL;
+    PyObject *best = NULL, *other = args[1];
+    double least = INFINITY, vx = 0.0, vy = 0.0;
+    for (Py_ssize_t i = 0; i < PySequence_Fast_GET_SIZE(seq); i++) {
+        PyObject *entry = PySequence_Fast_GET_ITEM(seq, i);
+        if (!PyTuple_Check(entry) || PyTuple_GET_SIZE(entry) != 2) {
+            PyErr_SetString(PyExc_TypeError, "rim entries are ((x, y), disc)");
+            Py_DECREF(seq);
+            return NULL;
+        }
+        PyObject *q = PyTuple_GET_ITEM(entry, 0);
+        double qx, qy;
+        if (item_double(q, 0, &qx) < 0 || item_double(q, 1, &qy) < 0) {
+            Py_DECREF(seq);
+            return NULL;
+        }
+        double dq = py_hypot(qx - x, qy - y);
+        if (dq < least)
+            best = q, other = PyTuple_GET_ITEM(entry, 1), least = dq, vx = qx, vy = qy;
+    }
+    double ox, oy, orad;
+    if (best == NULL || triple(other, &ox, &oy, &orad) < 0) {
+        Py_DECREF(seq);
+        if (PyErr_Occurred())
+            return NULL;
+        Py_RETURN_NONE;
+    }
+    double a1x = vx - xm, a1y = vy - ym;
+    double a2x = vx - ox, a2y = vy - oy;
+    double det = a1x * a2y - a1y * a2x;
+    double size = py_hypot(a1x, a1y) * py_hypot(a2x, a2y);
+    PyObject *out = Py_None;
+    if (!(fabs(det) < 1e-12 * (size > 1.0 ? size : 1.0))) {
+        double px = x - vx, py = y - vy;
+        double lam1 = (px * a2y - py * a2x) / det;
+        double lam2 = (a1x * py - a1y * px) / det;
+        if (lam1 >= -1e-9 && lam2 >= -1e-9)
+            out = best;
+    }
+    Py_INCREF(out);
+    Py_DECREF(seq);
+    return out;
+}
+
 /* clip_segment(discs, a, b): planners.collect.reach.clip_segment, the parameters [s0, s1] of the
  * part of segment a -> b inside every disc, or None */
 static PyObject *
@@ -1284,6 +1397,10 @@ static PyMethodDef methods[] = {
      "planners.collect.reach.project_discs (the same floats)."},
     {"rim", (PyCFunction)(void (*)(void))rim, METH_FASTCALL,
      "planners.collect.reach.rim (the same floats)."},
+    {"disc_vertices", (PyCFunction)(void (*)(void))disc_vertices, METH_FASTCALL,
+     "planners.collect.reach.disc_vertices (the same floats)."},
+    {"vertex_on_rim", (PyCFunction)(void (*)(void))vertex_on_rim, METH_FASTCALL,
+     "planners.collect.reach.vertex_on_rim (the same vertex)."},
     {"clip_segment", (PyCFunction)(void (*)(void))clip_segment, METH_FASTCALL,
      "planners.collect.reach.clip_segment (the same floats)."},
     {NULL, NULL, 0, NULL},

@@ -86,12 +86,20 @@ def test_hypot_kernel_is_pythons_math_hypot() -> None:
 
 @native
 def test_projection_rim_and_clip_kernels_match_python() -> None:
-    """Regions of random clusters: projections of points around them, every disc's rim, segments."""
-    from planners.collect.reach import INSIDE_TOL, clip_segment, project_discs, rim
+    """Regions of random clusters: projections of points around them, every disc's rim and its
+    vertex nearest to points, the vertices, segments."""
+    from planners.collect.reach import (
+        INSIDE_TOL,
+        clip_segment,
+        disc_vertices,
+        project_discs,
+        rim,
+        vertex_on_rim,
+    )
 
     assert kernels is not None
     rng = random.Random(9)
-    seen = {"point": 0, "vertex": 0, "rim": 0, "clip": 0}
+    seen = {"point": 0, "vertex": 0, "rim": 0, "clip": 0, "vertices": 0, "on rim": 0, "off rim": 0}
     for _ in range(400):
         k = rng.choice([1, 2, 3, 4, 6, 9, 40])
         cx, cy = rng.uniform(-50, 50), rng.uniform(-50, 50)
@@ -115,6 +123,14 @@ def test_projection_rim_and_clip_kernels_match_python() -> None:
             assert got_rim == rim(d, discs, limits)
             assert all(o is p for (_, o), (_, p) in zip(got_rim, rim(d, discs, limits), strict=True))
             seen["rim"] += len(got_rim)
+            for _ in range(5):
+                x, y = cx + rng.uniform(-40, 40), cy + rng.uniform(-40, 40)
+                vertex = kernels.vertex_on_rim(got_rim, d, x, y)
+                assert vertex == vertex_on_rim(got_rim, d, x, y)
+                seen["on rim" if vertex is not None else "off rim"] += 1
+        vertices = kernels.disc_vertices(discs)
+        assert vertices == disc_vertices(discs)
+        seen["vertices"] += len(vertices)
     assert min(seen.values()) > 50, seen  # every branch was compared
 
 
