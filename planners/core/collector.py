@@ -8,7 +8,10 @@ the young generation's threshold to ``PLANNING_THRESHOLD`` while any planner run
 ``planners.LazyPlanner`` enters it) and puts the thresholds found on entry back when the last one
 returns, from any thread. The collector still runs, only less often, so what a plan leaves for it
 (a collection plan's caches, once it returns, are freed by the collector) and a long anytime
-search's garbage are still freed; the plans are the same.
+search's garbage are still freed; the plans are the same. At 20,000 the collector still took
+about 11 ms of a 1,000-rover collection plan's 160 ms (a pass over the young caches every few
+thousand regions); at 200,000 about 1 ms, for at most some 200,000 unreachable containers
+(tens of megabytes) waiting for the next pass.
 """
 
 from __future__ import annotations
@@ -18,7 +21,7 @@ import threading
 from collections.abc import Iterator
 from contextlib import contextmanager
 
-PLANNING_THRESHOLD = 20_000  # allocations between young-generation passes while planning
+PLANNING_THRESHOLD = 200_000  # allocations between young-generation passes while planning
 
 _lock = threading.Lock()
 _active = 0  # planner calls running (nested or in other threads)
