@@ -1386,6 +1386,103 @@ static PyTypeObject CirclesType = {
     .tp_new = circles_new,
 };
 
+/* welzl_2d(xs, ys, ws, fallback): planners.core.geometry._welzl_2d over points already in their
+ * visiting order, ((x, y, radius), support) */
+static PyObject *
+welzl_2d_(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    if (nargs != 4) {
+        PyErr_SetString(PyExc_TypeError, "welzl_2d(xs, ys, ws, fallback)");
+        return NULL;
+    }
+    Py_ssize_t m = PyObject_Length(args[0]);
+    if (m < 0)
+        return NULL;
+    if (m == 0 || PyObject_Length(args[1]) != m || PyObject_Length(args[2]) != m) {
+        if (!PyErr_Occurred())
+            PyErr_SetString(PyExc_ValueError, "welzl_2d: as many xs, ys and ws, at least one");
+        return NULL;
+    }
+    double *d = PyMem_Malloc((size_t)(3 * m) * sizeof(double));
+    if (d == NULL)
+        return PyErr_NoMemory();
+    for (Py_ssize_t q = 0; q < m; q++)
+        if (item_double(args[0], q, &d[q]) < 0 || item_double(args[1], q, &d[m + q]) < 0
+            || item_double(args[2], q, &d[2 * m + q]) < 0) {
+            PyMem_Free(d);
+            return NULL;
+        }
+    Pts p = {d, d + m, d + 2 * m, args[3]};
+    Circ c;
+    Support sup;
+    PyObject *out = NULL;
+    if (welzl_2d(&p, m, &c, &sup) == 0) {
+        if (sup.n == 1)
+            out = Py_BuildValue("((ddd)(n))", c.x, c.y, c.r, sup.q[0]);
+        else if (sup.n == 2)
+            out = Py_BuildValue("((ddd)(nn))", c.x, c.y, c.r, sup.q[0], sup.q[1]);
+        else
+            out = Py_BuildValue("((ddd)(nnn))", c.x, c.y, c.r, sup.q[0], sup.q[1], sup.q[2]);
+    }
+    PyMem_Free(d);
+    return out;
+}
+
+/* reach_of(rows, members, x, y): planners.deploy.cluster.reach_of, the longest flight from (x, y)
+ * on the ground to the members' rows (x, y, z²) */
+static PyObject *
+reach_of(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    double x, y;
+    if (nargs != 4 || as_double(args[2], &x) < 0 || as_double(args[3], &y) < 0) {
+        if (!PyErr_Occurred())
+            PyErr_SetString(PyExc_TypeError, "reach_of(rows, members, x, y)");
+        return NULL;
+    }
+    PyObject *rows = PySequence_Fast(args[0], "rows must be a sequence");
+    if (rows == NULL)
+        return NULL;
+    PyObject *members = PySequence_Fast(args[1], "members must be a sequence");
+    if (members == NULL) {
+        Py_DECREF(rows);
+        return NULL;
+    }
+    Py_ssize_t n = PySequence_Fast_GET_SIZE(rows);
+    double worst = 0.0;
+    int rc = 0;
+    for (Py_ssize_t t = 0; t < PySequence_Fast_GET_SIZE(members) && rc == 0; t++) {
+        Py_ssize_t i = PyNumber_AsSsize_t(PySequence_Fast_GET_ITEM(members, t), PyExc_IndexError);
+        if (i == -1 && PyErr_Occurred()) {
+            rc = -1;
+            break;
+        }
+        if (i < 0)
+            i += n;
+        if (i < 0 || i >= n) {
+            PyErr_SetString(PyExc_IndexError, "list index out of range");
+            rc = -1;
+            break;
+        }
+        double qx, qy, z2;
+        if (triple(PySequence_Fast_GET_ITEM(rows, i), &qx, &qy, &z2) < 0) {
+            rc = -1;
+            break;
+        }
+        double d2 = py_square(qx - x) + py_square(qy - y) + z2;
+        if (d2 > worst)
+            worst = d2;
+    }
+    Py_DECREF(rows);
+    Py_DECREF(members);
+    if (rc < 0)
+        return NULL;
+    if (worst < 0.0) {  /* (math.sqrt's domain error; NaN passes as NaN) */
+        PyErr_SetString(PyExc_ValueError, "math domain error");
+        return NULL;
+    }
+    return PyFloat_FromDouble(sqrt(worst));
+}
+
 static PyMethodDef methods[] = {
     {"two_opt_small", (PyCFunction)(void (*)(void))two_opt_small, METH_FASTCALL,
      "planners.core.routing._two_opt_small over a float64 distance matrix (the same tour)."},
@@ -1401,6 +1498,10 @@ static PyMethodDef methods[] = {
      "planners.collect.reach.disc_vertices (the same floats)."},
     {"vertex_on_rim", (PyCFunction)(void (*)(void))vertex_on_rim, METH_FASTCALL,
      "planners.collect.reach.vertex_on_rim (the same vertex)."},
+    {"welzl_2d", (PyCFunction)(void (*)(void))welzl_2d_, METH_FASTCALL,
+     "planners.core.geometry._welzl_2d (the same circle and support)."},
+    {"reach_of", (PyCFunction)(void (*)(void))reach_of, METH_FASTCALL,
+     "planners.deploy.cluster.reach_of (the same float)."},
     {"clip_segment", (PyCFunction)(void (*)(void))clip_segment, METH_FASTCALL,
      "planners.collect.reach.clip_segment (the same floats)."},
     {NULL, NULL, 0, NULL},

@@ -137,9 +137,10 @@ def enclosing_circle(xs: Sequence[float], ys: Sequence[float], ws: Sequence[floa
     if n == 1:
         return float(xs[0]), float(ys[0]), math.sqrt(max(float(ws[0]), 0.0))
     order = _shuffled(n, seed)
-    circle, _ = _welzl_2d([float(xs[i]) for i in order], [float(ys[i]) for i in order],
-                          [float(ws[i]) for i in order])
-    return circle
+    vx, vy, vw = [float(xs[i]) for i in order], [float(ys[i]) for i in order], [float(ws[i]) for i in order]
+    if kernels is not None:  # the compiled twin: the same circle
+        return kernels.welzl_2d(vx, vy, vw, _boundary_circle)[0]
+    return _welzl_2d(vx, vy, vw)[0]
 
 
 @functools.lru_cache(maxsize=4096)

@@ -10,6 +10,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from planners.core.geometry import enclosing_circle
+from planners.core.native import kernels
 from planners.core.problem import DeployProblem, PlanningError, Point2, Vec3
 from planners.core.timing import RANGE_MARGIN
 
@@ -78,15 +79,7 @@ class DeployInstance:
 
     def reach_from(self, p: Point2, members: Sequence[int]) -> float:
         """Longest rover flight from ground point ``p`` to the cluster's tasks (eq. 4.5 numerator)."""
-        x, y = p
-        rows = self._rows
-        worst = 0.0
-        for i in members:
-            qx, qy, z2 = rows[i]
-            d2 = (qx - x) ** 2 + (qy - y) ** 2 + z2
-            if d2 > worst:
-                worst = d2
-        return math.sqrt(worst)
+        return _reach_of(self._rows, members, p[0], p[1])
 
     def feasible_from(self, a: Point2, b: Point2, members: Sequence[int]) -> float:
         """Smallest s in [0, 1] such that a + s·(b − a) serves every task (b must serve them)."""
@@ -153,3 +146,17 @@ def max_range_points(px: np.ndarray, py: np.ndarray, cx: np.ndarray, cy: np.ndar
     inside = off <= slack
     off = np.where(inside, 1.0, off)
     return np.where(inside, fx, cx + ox / off * slack), np.where(inside, fy, cy + oy / off * slack)
+
+
+def reach_of(rows: Sequence[tuple[float, float, float]], members: Sequence[int], x: float, y: float) -> float:
+    """Longest flight from (x, y) on the ground to the rows (x, y, z²) of ``members``."""
+    worst = 0.0
+    for i in members:
+        qx, qy, z2 = rows[i]
+        d2 = (qx - x) ** 2 + (qy - y) ** 2 + z2
+        if d2 > worst:
+            worst = d2
+    return math.sqrt(worst)
+
+
+_reach_of = reach_of if kernels is None else kernels.reach_of  # the compiled twin: the same float

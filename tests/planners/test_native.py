@@ -180,6 +180,33 @@ def test_enclosing_circles_kernel_matches_python(grid: bool) -> None:
         ours.get(())
 
 
+@native
+def test_welzl_and_deploy_reach_kernels_match_python() -> None:
+    """Welzl's loop on random point sets (generic and squeezed nearly collinear: the fallback),
+    and the deployment's longest flight from a ground point to a cluster."""
+    from planners.core.geometry import _boundary_circle, _welzl_2d
+    from planners.deploy.cluster import reach_of
+
+    assert kernels is not None
+    rng = random.Random(13)
+    for _ in range(3000):
+        n = rng.randrange(1, 30)
+        squeeze = rng.random() < 0.5
+        xs = [rng.randrange(4) * 0.1 + 1e-13 * rng.random() if squeeze else rng.uniform(-100, 100)
+              for _ in range(n)]
+        ys = [float(rng.randrange(4)) if squeeze else rng.uniform(-100, 100) for _ in range(n)]
+        ws = [rng.choice([0.0, 0.25, 1.0, 4.0, rng.uniform(0, 300)]) for _ in range(n)]
+        assert kernels.welzl_2d(xs, ys, ws, _boundary_circle) == _welzl_2d(xs, ys, ws)
+        rows = list(zip(xs, ys, ws, strict=True))
+        members = rng.sample(range(n), rng.randrange(0, n + 1))
+        x, y = rng.uniform(-120, 120), rng.uniform(-120, 120)
+        assert kernels.reach_of(rows, members, x, y) == reach_of(rows, members, x, y)
+    with pytest.raises(ValueError):
+        kernels.welzl_2d([], [], [], _boundary_circle)
+    with pytest.raises(IndexError):
+        kernels.reach_of([(0.0, 0.0, 0.0)], [1], 0.0, 0.0)
+
+
 _PLANS = """
 import json, random, sys
 sys.path.insert(0, {root!r})
