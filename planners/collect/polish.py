@@ -12,8 +12,10 @@ from planners.collect.path import PathBuilder, Route
 from planners.collect.reach import INSIDE_TOL, Point2, Region
 from planners.core.driver import COARSE_TOL
 from planners.core.geometry import compass_search
+from planners.core.native import kernels
 from planners.core.plan import SNAP
 from planners.core.smooth import smooth_compass, smooth_max
+from planners.core.timing import Step
 
 
 def polish(builder: PathBuilder, route: Route,
@@ -101,7 +103,23 @@ def _stop_cost(route: Route, k: int) -> Callable[[float, float], float]:
     later = [(q[0], q[1], rd) for q, rd in zip(route.positions[k + 1:k + 3], route.ready[k + 1:k + 3],
                                                strict=True)]
     last = k + len(later)
-    after, late = route.after[last], route.late[last]
+    tail = (route.after[last], route.late[last]) if k + 1 < n else None
+    # the compiled twin when it is built: the same floats
+    make = collect_stop_cost if kernels is None else kernels.CollectStopCost
+    return make(rows, step, leg, (px, py, h0, t0), load, later, tail)
+
+
+def collect_stop_cost(rows: Sequence[tuple[float, float, float, float]], step: Step,
+                      leg: Callable[[float], float],
+                      start: tuple[float, float, float, float], load: float,
+                      later: Sequence[tuple[float, float, float]],
+                      tail: tuple[float, float] | None) -> Callable[[float, float], float]:
+    """``_stop_cost``'s cost(x, y) from its fixed data: the rovers' (x, y, ρ², z²), the carrier's
+    step and the rovers' leg, the start (x, y, heading, time), the load time, the next stops
+    (x, y, ready) re-timed, and ``Route.end_from``'s (after, late) of the last of them (None when
+    stop k is the last)."""
+    px, py, h0, t0 = start
+    after, late = tail if tail is not None else (0.0, 0.0)
     sqrt, inf = math.sqrt, math.inf
 
     def cost(x: float, y: float) -> float:
@@ -123,7 +141,7 @@ def _stop_cost(route: Route, k: int) -> Callable[[float, float], float]:
                 t = rd
             t += load
             qx, qy = nx, ny
-        if k + 1 < n:  # Route.end_from(last, t)
+        if tail is not None:  # Route.end_from(last, t)
             t += after
             return late if late > t else t
         return t

@@ -17,8 +17,9 @@ from collections.abc import Callable, Sequence
 import numpy as np
 
 from planners.core.geometry import COMPASS, compass_search
+from planners.core.native import kernels
 from planners.core.problem import Point2
-from planners.core.timing import carrier_hop, carrier_stepper, carrier_steps, leg_times, travel_times
+from planners.core.timing import Step, carrier_hop, carrier_stepper, carrier_steps, leg_times, travel_times
 from planners.deploy.cluster import max_range_point
 from planners.deploy.path import PathBuilder, Route
 
@@ -61,6 +62,29 @@ def stop_cost(builder: PathBuilder, r: Route, k: int) -> Callable[[float, float]
             hop12 = carrier_hop(pos[k + 1], pos[k + 2], h12, c)[0]  # travel only (no turn)
         tail2, arrive2 = r.tail[k + 2], r.arrive[k + 2]
 
+    start = (px, py, h0, t0)
+    next1 = (nx1, ny1, done1, arrive1) if k + 1 < n else None
+    next2 = (hop12, h12, tail2, arrive2) if k + 2 < n else None
+    # the compiled twin when it is built: the same floats
+    make = deploy_stop_cost if kernels is None else kernels.DeployStopCost
+    return make(rows2, d2max, step, leg, start, unload, head, next1, next2, w)
+
+
+Start = tuple[float, float, float, float]  # where, heading and when the carrier leaves the stop before
+
+
+def deploy_stop_cost(rows2: Sequence[tuple[float, float, float]], d2max: float, step: Step,
+                     leg: Callable[[float], float], start: Start, unload: float, head: float,
+                     next1: tuple[float, float, float, float] | None,
+                     next2: tuple[float, float | None, float, float] | None,
+                     w: float | None) -> Callable[[float, float], float]:
+    """``stop_cost``'s cost(x, y) from its fixed data: the tasks' (x, y, z²), the largest squared
+    flight, the carrier's step and the rovers' leg, the start (x, y, heading, time), the stops
+    before k (``head``: their latest finish), the next stop (x, y, done, arrival) and the one
+    after (hop time, heading of the hop or None, tail, arrival), the carrier's turn rate."""
+    px, py, h0, t0 = start
+    nx1, ny1, done1, arrive1 = next1 if next1 is not None else (0.0, 0.0, 0.0, 0.0)
+    hop12, h12, tail2, arrive2 = next2 if next2 is not None else (0.0, None, 0.0, 0.0)
     tau, sqrt, inf = _TAU_F, math.sqrt, math.inf
 
     def cost(x: float, y: float) -> float:
@@ -77,13 +101,13 @@ def stop_cost(builder: PathBuilder, r: Route, k: int) -> Callable[[float, float]
         v = t + leg(sqrt(far))
         if v > worst:
             worst = v
-        if k + 1 < n:
+        if next1 is not None:
             dt, h = step(nx1 - x, ny1 - y, h)
             t1 = t + dt
             v = done1 + (t1 - arrive1)
             if v > worst:
                 worst = v
-            if k + 2 < n:
+            if next2 is not None:
                 dt = hop12
                 if h12 is not None and w is not None:
                     turn = (h12 - h) % tau

@@ -207,6 +207,55 @@ def test_welzl_and_deploy_reach_kernels_match_python() -> None:
         kernels.reach_of([(0.0, 0.0, 0.0)], [1], 0.0, 0.0)
 
 
+@native
+def test_stop_cost_kernels_match_python() -> None:
+    """The polishes' cost of one stop moved (deployment and collection) on random fixed data and
+    points, with and without acceleration, turn rate, next stops; out of reach included."""
+    from planners.collect.polish import collect_stop_cost
+    from planners.core.timing import _python_leg, _python_stepper
+    from planners.deploy.stops import deploy_stop_cost
+
+    assert kernels is not None
+    rng = random.Random(17)
+    seen = {"inf": 0, "finite": 0}
+    for _ in range(300):
+        v, a = rng.uniform(2, 20), rng.choice([None, rng.uniform(0.5, 5)])
+        w = rng.choice([None, rng.uniform(0.2, 3)])
+        rv, ra, fixed = rng.uniform(2, 10), rng.choice([None, rng.uniform(0.5, 5)]), rng.uniform(0, 3)
+        c_models = kernels.Stepper(v, a, w), kernels.Leg(rv, ra, fixed)
+        py_models = _python_stepper(v, a, w), _python_leg(rv, ra, fixed)
+        cx, cy = rng.uniform(-50, 50), rng.uniform(-50, 50)
+        tasks = [(cx + rng.uniform(-15, 15), cy + rng.uniform(-15, 15), rng.uniform(0, 10) ** 2)
+                 for _ in range(rng.randrange(1, 8))]
+        start = (cx + rng.uniform(-80, 80), cy + rng.uniform(-80, 80), rng.uniform(-4, 4),
+                 rng.uniform(0, 100))
+        next1 = rng.choice([None, (cx + rng.uniform(-80, 80), cy + rng.uniform(-80, 80), rng.uniform(0, 200),
+                                   rng.uniform(0, 200))])
+        h12 = rng.choice([None, rng.uniform(-4, 4)])
+        next2 = None if next1 is None else rng.choice(
+            [None, (rng.uniform(0, 30), h12, rng.uniform(0, 100), rng.uniform(0, 200))])
+        deploy = (tasks, rng.uniform(100, 900), start, rng.uniform(0, 5), rng.uniform(0, 150), next1, next2,
+                  w)
+        rows = [(x, y, rng.uniform(10, 20) ** 2, z2) for x, y, z2 in tasks]
+        later = [(cx + rng.uniform(-80, 80), cy + rng.uniform(-80, 80), rng.uniform(0, 300))
+                 for _ in range(rng.randrange(0, 3))]
+        tail = rng.choice([None, (rng.uniform(0, 300), rng.uniform(0, 600))])
+        collect = (rows, start, rng.uniform(0, 5), later, tail)
+        c_cost = (kernels.DeployStopCost(*deploy[:2], *c_models, *deploy[2:]),
+                  kernels.CollectStopCost(rows, *c_models, *collect[1:]))
+        py_cost = (deploy_stop_cost(*deploy[:2], *py_models, *deploy[2:]),
+                   collect_stop_cost(rows, *py_models, *collect[1:]))
+        for _ in range(20):
+            x, y = cx + rng.uniform(-25, 25), cy + rng.uniform(-25, 25)
+            for ours, ref in zip(c_cost, py_cost, strict=True):
+                got = ours(x, y)
+                assert got == ref(x, y)
+                seen["inf" if got == math.inf else "finite"] += 1
+    assert min(seen.values()) > 500, seen
+    with pytest.raises(TypeError):  # only the compiled time model
+        kernels.DeployStopCost(*deploy[:2], *py_models, *deploy[2:])
+
+
 _PLANS = """
 import json, random, sys
 sys.path.insert(0, {root!r})
