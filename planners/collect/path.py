@@ -5,15 +5,16 @@ from __future__ import annotations
 
 import itertools
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import numpy as np
 
 from planners.collect.instance import CollectInstance
-from planners.collect.reach import Point2, Region
+from planners.collect.reach import Point2, Region, farthest_flight
 from planners.collect.screen import screen
 from planners.core.geometry import minimize_1d
-from planners.core.timing import carrier_hopper, carrier_stepper, leg_timer
+from planners.core.native import kernels
+from planners.core.timing import Step, carrier_hopper, carrier_stepper, leg_timer
 
 Scored = tuple[Point2, float, float, float | None]  # a quick candidate: stop, hop in, heading, hop on
 
@@ -123,35 +124,13 @@ class PathBuilder:
             if len(self._scored) >= SCORED_SIZE:
                 self._scored.clear()
             scored = self._scored[key] = self._score(region, prev, heading, nxt)
-        cap = self._cap(region)
-        load = self.load
-        best: Scored | None = None
-        best_eta = best_max = math.inf
-        for entry in scored:
-            arrive = t + entry[1]
-            if arrive >= cap:
-                held = arrive
-            else:  # (max(arrive, ready), written out: the first of equals, as the builtin)
-                ready = self.leg(region.farthest_flight(entry[0]))
-                held = ready if ready > arrive else arrive
-            eta = held + load
-            if entry[3] is not None:
-                eta += entry[3]
-            if best is None or eta < best_eta:
-                best, best_eta, best_max = entry, eta, held
-        assert best is not None  # the time centre is always a candidate
-        return best, best_max
+        return _quickest(scored, t, self._cap(region), self.leg, region.rows, self.load)
 
     def _score(self, region: Region, prev: Point2, heading: float, nxt: Point2 | None) -> tuple[Scored, ...]:
         """Per quick candidate: (stop, hop time into it, heading there, hop time on to ``nxt`` or
         None), ``carrier_stepper``'s arithmetic as ``drive``'s (tuples of numbers: the garbage
         collector stops tracking them)."""
-        step = self.step
-        out = []
-        for p in region.quick_candidates(prev, nxt):
-            dt, h = step(p[0] - prev[0], p[1] - prev[1], heading)
-            out.append((p, dt, h, None if nxt is None else step(nxt[0] - p[0], nxt[1] - p[1], h)[0]))
-        return tuple(out)
+        return _score_candidates(self.step, region.quick_candidates(prev, nxt), prev, heading, nxt)
 
     def _cap(self, region: Region) -> float:
         """``_ready_cap`` of ``region``, remembered."""
@@ -365,3 +344,44 @@ class Route:
         """A lower bound of ``replace(*change)[0]`` for every change at once (numpy; −inf where it
         has none; ``planners.collect.screen``)."""
         return screen(self, changes)
+
+
+def score_candidates(step: Step, cands: Sequence[Point2], prev: Point2, heading: float,
+                     nxt: Point2 | None) -> tuple[Scored, ...]:
+    """``PathBuilder._score``: per candidate stop (stop, hop time into it from ``prev`` and
+    ``heading``, heading there, hop time on to ``nxt`` or None)."""
+    out = []
+    for p in cands:
+        dt, h = step(p[0] - prev[0], p[1] - prev[1], heading)
+        out.append((p, dt, h, None if nxt is None else step(nxt[0] - p[0], nxt[1] - p[1], h)[0]))
+    return tuple(out)
+
+
+def quickest(scored: Sequence[Scored], t: float, cap: float, leg: Callable[[float], float],
+             rows: Sequence[tuple[float, float, float]], load: float) -> tuple[Scored, float]:
+    """``PathBuilder._quick``'s choice: the scored candidate the carrier leaves soonest from (the
+    first of equals) when it leaves the previous stop at ``t``, and max(t + hop, ready) there. The
+    rovers' ready time (``leg`` of the longest flight from ``rows``) only counts while the carrier
+    could arrive before ``cap``."""
+    best: Scored | None = None
+    best_eta = best_max = math.inf
+    for entry in scored:
+        arrive = t + entry[1]
+        if arrive >= cap:
+            held = arrive
+        else:  # (max(arrive, ready), written out: the first of equals, as the builtin)
+            ready = leg(farthest_flight(rows, entry[0]))
+            held = ready if ready > arrive else arrive
+        eta = held + load
+        if entry[3] is not None:
+            eta += entry[3]
+        if best is None or eta < best_eta:
+            best, best_eta, best_max = entry, eta, held
+    if best is None:
+        raise ValueError("quickest of no candidates")
+    return best, best_max
+
+
+# the compiled twins when they are built (planners.core.native): the same floats
+_score_candidates = score_candidates if kernels is None else kernels.score_candidates
+_quickest = quickest if kernels is None else kernels.quickest

@@ -369,6 +369,30 @@ static PyTypeObject LegType = {
 /* ---- reach regions (planners.collect.reach) ---- */
 
 /* farthest_flight(rows, p): Region.farthest_flight over rows [(x, y, z2), ...] of floats */
+/* the longest flight from (x, y) to the rows (x, y, z2) */
+static int
+farthest_of(PyObject *rows_obj, double x, double y, double *out)
+{
+    PyObject *rows = PySequence_Fast(rows_obj, "rows must be a sequence of (x, y, z2)");
+    if (rows == NULL)
+        return -1;
+    double worst = 0.0;
+    for (Py_ssize_t i = 0; i < PySequence_Fast_GET_SIZE(rows); i++) {
+        PyObject *r = PySequence_Fast_GET_ITEM(rows, i);
+        double gx, gy, z2;
+        if (item_double(r, 0, &gx) < 0 || item_double(r, 1, &gy) < 0 || item_double(r, 2, &z2) < 0) {
+            Py_DECREF(rows);
+            return -1;
+        }
+        double d2 = (x - gx) * (x - gx) + (y - gy) * (y - gy) + z2;
+        if (d2 > worst)
+            worst = d2;
+    }
+    Py_DECREF(rows);
+    *out = sqrt(worst);
+    return 0;
+}
+
 static PyObject *
 farthest_flight(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 {
@@ -376,26 +400,11 @@ farthest_flight(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
         PyErr_SetString(PyExc_TypeError, "farthest_flight(rows, p)");
         return NULL;
     }
-    double x, y;
-    if (item_double(args[1], 0, &x) < 0 || item_double(args[1], 1, &y) < 0)
+    double x, y, far;
+    if (item_double(args[1], 0, &x) < 0 || item_double(args[1], 1, &y) < 0
+        || farthest_of(args[0], x, y, &far) < 0)
         return NULL;
-    PyObject *rows = PySequence_Fast(args[0], "rows must be a sequence of (x, y, z2)");
-    if (rows == NULL)
-        return NULL;
-    double worst = 0.0;
-    for (Py_ssize_t i = 0; i < PySequence_Fast_GET_SIZE(rows); i++) {
-        PyObject *r = PySequence_Fast_GET_ITEM(rows, i);
-        double gx, gy, z2;
-        if (item_double(r, 0, &gx) < 0 || item_double(r, 1, &gy) < 0 || item_double(r, 2, &z2) < 0) {
-            Py_DECREF(rows);
-            return NULL;
-        }
-        double d2 = (x - gx) * (x - gx) + (y - gy) * (y - gy) + z2;
-        if (d2 > worst)
-            worst = d2;
-    }
-    Py_DECREF(rows);
-    return PyFloat_FromDouble(sqrt(worst));
+    return PyFloat_FromDouble(far);
 }
 
 /* ---- CPython's math.hypot for two numbers (Modules/mathmodule.c, vector_norm): correctly rounded in
@@ -839,6 +848,103 @@ clip_segment(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 none:
     Py_DECREF(discs);
     Py_RETURN_NONE;
+}
+
+/* ---- the collection's quick placement (planners.collect.path) ---- */
+
+/* score_candidates(step, cands, prev, heading, nxt): planners.collect.path.score_candidates, per
+ * candidate stop (stop, hop time into it, heading there, hop time on to nxt or None) */
+static PyObject *
+score_candidates(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    double px, py, heading, nx = 0.0, ny = 0.0;
+    if (nargs != 5 || Py_TYPE(args[0]) != &StepperType) {
+        PyErr_SetString(PyExc_TypeError, "score_candidates(step: Stepper, cands, prev, heading, nxt)");
+        return NULL;
+    }
+    StepperObject *s = (StepperObject *)args[0];
+    int has_next = args[4] != Py_None;
+    if (item_double(args[2], 0, &px) < 0 || item_double(args[2], 1, &py) < 0 || as_double(args[3], &heading) < 0
+        || (has_next && (item_double(args[4], 0, &nx) < 0 || item_double(args[4], 1, &ny) < 0)))
+        return NULL;
+    PyObject *cands = PySequence_Fast(args[1], "cands must be a sequence of points");
+    if (cands == NULL)
+        return NULL;
+    Py_ssize_t n = PySequence_Fast_GET_SIZE(cands);
+    PyObject *out = PyTuple_New(n);
+    for (Py_ssize_t i = 0; out != NULL && i < n; i++) {
+        PyObject *p = PySequence_Fast_GET_ITEM(cands, i);
+        double x, y;
+        if (item_double(p, 0, &x) < 0 || item_double(p, 1, &y) < 0) {
+            Py_CLEAR(out);
+            break;
+        }
+        double h = heading;
+        double dt = step_time(s, x - px, y - py, &h), h_on = h;
+        PyObject *entry = has_next ? Py_BuildValue("(Oddd)", p, dt, h, step_time(s, nx - x, ny - y, &h_on))
+                                   : Py_BuildValue("(OddO)", p, dt, h, Py_None);
+        if (entry == NULL) {
+            Py_CLEAR(out);
+            break;
+        }
+        PyTuple_SET_ITEM(out, i, entry);
+    }
+    Py_DECREF(cands);
+    return out;
+}
+
+/* quickest(scored, t, cap, leg, rows, load): planners.collect.path.quickest, the scored candidate
+ * the carrier leaves soonest from (the first of equals) and max(t + hop, ready) there */
+static PyObject *
+quickest(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    double t, cap, load;
+    if (nargs != 6 || Py_TYPE(args[3]) != &LegType) {
+        PyErr_SetString(PyExc_TypeError, "quickest(scored, t, cap, leg: Leg, rows, load)");
+        return NULL;
+    }
+    if (as_double(args[1], &t) < 0 || as_double(args[2], &cap) < 0 || as_double(args[5], &load) < 0)
+        return NULL;
+    PyObject *scored = PySequence_Fast(args[0], "scored must be a sequence");
+    if (scored == NULL)
+        return NULL;
+    PyObject *best = NULL;
+    double best_eta = INFINITY, best_max = INFINITY;
+    for (Py_ssize_t i = 0; i < PySequence_Fast_GET_SIZE(scored); i++) {
+        PyObject *entry = PySequence_Fast_GET_ITEM(scored, i);
+        double hop, on = 0.0, x, y;
+        if (!PyTuple_Check(entry) || PyTuple_GET_SIZE(entry) != 4) {
+            PyErr_SetString(PyExc_TypeError, "scored entries are (stop, hop, heading, hop on)");
+            goto fail;
+        }
+        PyObject *p = PyTuple_GET_ITEM(entry, 0), *on_obj = PyTuple_GET_ITEM(entry, 3);
+        if (as_double(PyTuple_GET_ITEM(entry, 1), &hop) < 0 || (on_obj != Py_None && as_double(on_obj, &on) < 0))
+            goto fail;
+        double arrive = t + hop, held;
+        if (arrive >= cap)
+            held = arrive;
+        else {
+            double far;
+            if (item_double(p, 0, &x) < 0 || item_double(p, 1, &y) < 0 || farthest_of(args[4], x, y, &far) < 0)
+                goto fail;
+            double ready = leg_time((LegObject *)args[3], far);
+            held = ready > arrive ? ready : arrive;
+        }
+        double eta = held + load;
+        if (on_obj != Py_None)
+            eta += on;
+        if (best == NULL || eta < best_eta)
+            best = entry, best_eta = eta, best_max = held;
+    }
+    Py_DECREF(scored);
+    if (best == NULL) {
+        PyErr_SetString(PyExc_ValueError, "quickest of no candidates");
+        return NULL;
+    }
+    return Py_BuildValue("(Od)", best, best_max);
+fail:
+    Py_DECREF(scored);
+    return NULL;
 }
 
 /* ---- one stop moved, the others kept: the polishes' cost of a stop at (x, y) ---- */
@@ -1782,6 +1888,10 @@ static PyMethodDef methods[] = {
      "planners.core.geometry._welzl_2d (the same circle and support)."},
     {"reach_of", (PyCFunction)(void (*)(void))reach_of, METH_FASTCALL,
      "planners.deploy.cluster.reach_of (the same float)."},
+    {"score_candidates", (PyCFunction)(void (*)(void))score_candidates, METH_FASTCALL,
+     "planners.collect.path.score_candidates (the same floats)."},
+    {"quickest", (PyCFunction)(void (*)(void))quickest, METH_FASTCALL,
+     "planners.collect.path.quickest (the same candidate)."},
     {"clip_segment", (PyCFunction)(void (*)(void))clip_segment, METH_FASTCALL,
      "planners.collect.reach.clip_segment (the same floats)."},
     {NULL, NULL, 0, NULL},

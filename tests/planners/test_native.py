@@ -256,6 +256,44 @@ def test_stop_cost_kernels_match_python() -> None:
         kernels.DeployStopCost(*deploy[:2], *py_models, *deploy[2:])
 
 
+@native
+def test_quick_placement_kernels_match_python() -> None:
+    """The collection's quick placement: candidates scored from a previous stop (hops of no length
+    included), then the one the carrier leaves soonest from, with and without the rovers' ready
+    time counted, ties to the first."""
+    from planners.collect.path import quickest, score_candidates
+    from planners.core.timing import _python_leg, _python_stepper
+
+    assert kernels is not None
+    rng = random.Random(19)
+    seen = {"capped": 0, "ready": 0, "tie": 0}
+    for _ in range(500):
+        v, a, w = rng.uniform(2, 20), rng.choice([None, rng.uniform(0.5, 5)]), rng.choice([None, 1.0])
+        step, py_step = kernels.Stepper(v, a, w), _python_stepper(v, a, w)
+        ra = rng.choice([None, 2.0])
+        leg, py_leg = kernels.Leg(5.0, ra, 1.0), _python_leg(5.0, ra, 1.0)
+        prev = (rng.uniform(-50, 50), rng.uniform(-50, 50))
+        cands = [(rng.uniform(-50, 50), rng.uniform(-50, 50)) for _ in range(rng.randrange(1, 4))]
+        if rng.random() < 0.3:
+            cands.append(prev)
+            cands.append(cands[0])  # a tie
+        nxt = rng.choice([None, (rng.uniform(-50, 50), rng.uniform(-50, 50))])
+        heading = rng.uniform(-4, 4)
+        scored = kernels.score_candidates(step, cands, prev, heading, nxt)
+        assert scored == score_candidates(py_step, cands, prev, heading, nxt)
+        rows = [(rng.uniform(-50, 50), rng.uniform(-50, 50), rng.uniform(0, 100)) for _ in range(5)]
+        t, load = rng.uniform(0, 100), rng.uniform(0, 5)
+        for cap in (0.0, math.inf, t + rng.uniform(0, 20)):
+            got = kernels.quickest(scored, t, cap, leg, rows, load)
+            ref = quickest(scored, t, cap, py_leg, rows, load)
+            assert got == ref and got[0] is ref[0]
+            seen["capped" if cap == 0.0 else "ready"] += 1
+        seen["tie"] += len(cands) > len(set(cands))
+    assert min(seen.values()) > 50, seen
+    with pytest.raises(ValueError):
+        kernels.quickest((), 0.0, 0.0, leg, [], 0.0)
+
+
 _PLANS = """
 import json, random, sys
 sys.path.insert(0, {root!r})
