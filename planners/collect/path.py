@@ -221,28 +221,11 @@ class Route:
         With S_j the hops and loads up to stop j and v_j = ready_j + load − S_j, the departures are
         eta_j = S_j + max(0, v_0 … v_j) and, S the total, after_j = S − S_j, late_j = S + max(v_j+1 …):
         prefix sums and running maxima, no Python loop over the stops."""
-        load = self.b.load
         if not self.hop:
             self.eta, self.makespan, self.after, self.late = [], 0.0, [], []
             return
-        if len(self.hop) < NUMPY_FROM:  # short routes: plain Python is faster than numpy's calls
-            sums = list(itertools.accumulate(h + load for h in self.hop))
-            v = [r + load - s for r, s in zip(self.ready, sums, strict=True)]
-            held = itertools.islice(itertools.accumulate(v, max, initial=0.0), 1, None)
-            self.eta = [s + u for s, u in zip(sums, held, strict=True)]
-            end = sums[-1]
-            self.after = [end - s for s in sums]
-            later = list(itertools.accumulate(reversed(v), max))[::-1]
-            self.late = [end + x for x in later[1:]]
-        else:
-            total = np.cumsum(np.array(self.hop) + load)
-            w = np.array(self.ready) + load - total
-            self.eta = (total + np.maximum(np.maximum.accumulate(w), 0.0)).tolist()
-            end = float(total[-1])
-            self.after = (end - total).tolist()
-            self.late = (end + np.maximum.accumulate(w[::-1])[::-1][1:]).tolist()
+        self.eta, self.after, self.late = _route_times(self.hop, self.ready, self.b.load)
         self.makespan = self.eta[-1]
-        self.late.append(-math.inf)
 
     def moved(self, k: int, q: Point2) -> Route:
         """This route with stop k moved to ``q``: only the hops whose turn or length changed (into
@@ -346,6 +329,30 @@ class Route:
         return screen(self, changes)
 
 
+def route_times(hop: Sequence[float], ready: Sequence[float],
+                load: float) -> tuple[list[float], list[float], list[float]]:
+    """``Route._times`` of a route of at least one stop: eta, after and late (``late`` ends with
+    −inf, nothing after the last stop holds the carrier up)."""
+    if len(hop) < NUMPY_FROM:  # short routes: plain Python is faster than numpy's calls
+        sums = list(itertools.accumulate(h + load for h in hop))
+        v = [r + load - s for r, s in zip(ready, sums, strict=True)]
+        held = itertools.islice(itertools.accumulate(v, max, initial=0.0), 1, None)
+        eta = [s + u for s, u in zip(sums, held, strict=True)]
+        end = sums[-1]
+        after = [end - s for s in sums]
+        later = list(itertools.accumulate(reversed(v), max))[::-1]
+        late = [end + x for x in later[1:]]
+    else:
+        total = np.cumsum(np.array(hop) + load)
+        w = np.array(ready) + load - total
+        eta = (total + np.maximum(np.maximum.accumulate(w), 0.0)).tolist()
+        end = float(total[-1])
+        after = (end - total).tolist()
+        late = (end + np.maximum.accumulate(w[::-1])[::-1][1:]).tolist()
+    late.append(-math.inf)
+    return eta, after, late
+
+
 def score_candidates(step: Step, cands: Sequence[Point2], prev: Point2, heading: float,
                      nxt: Point2 | None) -> tuple[Scored, ...]:
     """``PathBuilder._score``: per candidate stop (stop, hop time into it from ``prev`` and
@@ -385,3 +392,4 @@ def quickest(scored: Sequence[Scored], t: float, cap: float, leg: Callable[[floa
 # the compiled twins when they are built (planners.core.native): the same floats
 _score_candidates = score_candidates if kernels is None else kernels.score_candidates
 _quickest = quickest if kernels is None else kernels.quickest
+_route_times = route_times if kernels is None else kernels.route_times

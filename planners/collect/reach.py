@@ -36,7 +36,7 @@ INSIDE_TOL = 1e-9
 MEMO_SIZE = 256  # projections and line points a region remembers (then it starts afresh)
 
 
-@dataclass
+@dataclass(slots=True)
 class Region:
     """The common reach region I_β of a cluster (eq. 5.12)."""
 

@@ -947,6 +947,79 @@ fail:
     return NULL;
 }
 
+/* route_times(hop, ready, load): planners.collect.path.route_times, eq. 5.2's departures (eta), the
+ * hops and loads still to come after each stop (after) and the latest a later cluster's rovers
+ * hold the carrier up (late, ending with -inf): prefix sums and running maxima */
+static PyObject *
+route_times(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    double load;
+    if (nargs != 3 || as_double(args[2], &load) < 0) {
+        if (!PyErr_Occurred())
+            PyErr_SetString(PyExc_TypeError, "route_times(hop, ready, load)");
+        return NULL;
+    }
+    PyObject *hop = PySequence_Fast(args[0], "hop must be a sequence");
+    PyObject *ready = hop ? PySequence_Fast(args[1], "ready must be a sequence") : NULL;
+    PyObject *eta = NULL, *after = NULL, *late = NULL, *out = NULL;
+    double *total = NULL, *w = NULL;
+    if (ready == NULL)
+        goto done;
+    Py_ssize_t n = PySequence_Fast_GET_SIZE(hop);
+    if (n == 0 || PySequence_Fast_GET_SIZE(ready) != n) {
+        PyErr_SetString(PyExc_ValueError, "route_times: as many hops as ready times, at least one");
+        goto done;
+    }
+    total = PyMem_Malloc((size_t)n * sizeof(double));
+    w = PyMem_Malloc((size_t)n * sizeof(double));
+    eta = PyList_New(n), after = PyList_New(n), late = PyList_New(n);
+    if (total == NULL || w == NULL) {
+        PyErr_NoMemory();
+        goto done;
+    }
+    if (eta == NULL || after == NULL || late == NULL)
+        goto done;
+    double sum = 0.0, top = 0.0;
+    for (Py_ssize_t j = 0; j < n; j++) {
+        double h, r;
+        if (as_double(PySequence_Fast_GET_ITEM(hop, j), &h) < 0 || as_double(PySequence_Fast_GET_ITEM(ready, j), &r) < 0)
+            goto done;
+        sum = j ? sum + (h + load) : h + load;
+        total[j] = sum;
+        w[j] = r + load - sum;
+        if (j == 0 || w[j] > top)  /* the running maximum of w */
+            top = w[j];
+        PyObject *e = PyFloat_FromDouble(sum + (top > 0.0 ? top : 0.0));
+        if (e == NULL)
+            goto done;
+        PyList_SET_ITEM(eta, j, e);
+    }
+    double end = total[n - 1], back = -INFINITY;
+    for (Py_ssize_t j = n - 1; j >= 0; j--) {
+        PyObject *a = PyFloat_FromDouble(end - total[j]);
+        PyObject *l = PyFloat_FromDouble(j == n - 1 ? -INFINITY : end + back);
+        if (a == NULL || l == NULL) {
+            Py_XDECREF(a);
+            Py_XDECREF(l);
+            goto done;
+        }
+        PyList_SET_ITEM(after, j, a);
+        PyList_SET_ITEM(late, j, l);
+        if (j == n - 1 || w[j] > back)  /* the running maximum of w from the end */
+            back = w[j];
+    }
+    out = PyTuple_Pack(3, eta, after, late);
+done:
+    PyMem_Free(total);
+    PyMem_Free(w);
+    Py_XDECREF(eta);
+    Py_XDECREF(after);
+    Py_XDECREF(late);
+    Py_XDECREF(ready);
+    Py_XDECREF(hop);
+    return out;
+}
+
 /* ---- one stop moved, the others kept: the polishes' cost of a stop at (x, y) ---- */
 
 static int
@@ -1892,6 +1965,8 @@ static PyMethodDef methods[] = {
      "planners.collect.path.score_candidates (the same floats)."},
     {"quickest", (PyCFunction)(void (*)(void))quickest, METH_FASTCALL,
      "planners.collect.path.quickest (the same candidate)."},
+    {"route_times", (PyCFunction)(void (*)(void))route_times, METH_FASTCALL,
+     "planners.collect.path.route_times (the same floats)."},
     {"clip_segment", (PyCFunction)(void (*)(void))clip_segment, METH_FASTCALL,
      "planners.collect.reach.clip_segment (the same floats)."},
     {NULL, NULL, 0, NULL},

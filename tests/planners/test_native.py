@@ -294,6 +294,24 @@ def test_quick_placement_kernels_match_python() -> None:
         kernels.quickest((), 0.0, 0.0, leg, [], 0.0)
 
 
+@native
+def test_route_times_kernel_matches_python() -> None:
+    """Eq. 5.2's departures and suffix times of random routes, short (plain Python) and long
+    (numpy), with rovers that hold the carrier up and rovers that are ready before it comes."""
+    from planners.collect.path import route_times
+
+    assert kernels is not None
+    rng = random.Random(23)
+    for _ in range(400):
+        n = rng.choice([1, 2, 5, 23, 24, 60, 300])
+        hop = [rng.choice([0.0, rng.uniform(0, 30)]) for _ in range(n)]
+        ready = [rng.uniform(0, 40 * n) * rng.choice([0.0, 1.0]) for _ in range(n)]
+        load = rng.choice([0.0, rng.uniform(0, 5)])
+        assert kernels.route_times(hop, ready, load) == route_times(hop, ready, load)
+    with pytest.raises(ValueError):
+        kernels.route_times([], [], 1.0)
+
+
 _PLANS = """
 import json, random, sys
 sys.path.insert(0, {root!r})
