@@ -1020,6 +1020,77 @@ done:
     return out;
 }
 
+/* deploy_times(hop, fly, unload): planners.deploy.path.deploy_times, per stop the carrier's arrival,
+ * when its rovers are done, and the running maxima of done from the end (tail) and the start
+ * (head) */
+static PyObject *
+deploy_times(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    double unload;
+    if (nargs != 3 || as_double(args[2], &unload) < 0) {
+        if (!PyErr_Occurred())
+            PyErr_SetString(PyExc_TypeError, "deploy_times(hop, fly, unload)");
+        return NULL;
+    }
+    PyObject *hop = PySequence_Fast(args[0], "hop must be a sequence");
+    PyObject *fly = hop ? PySequence_Fast(args[1], "fly must be a sequence") : NULL;
+    PyObject *lists[4] = {NULL, NULL, NULL, NULL}, *out = NULL;  /* arrive, done, tail, head */
+    double *done = NULL;
+    if (fly == NULL)
+        goto end;
+    Py_ssize_t n = PySequence_Fast_GET_SIZE(hop);
+    if (PySequence_Fast_GET_SIZE(fly) != n) {
+        PyErr_SetString(PyExc_ValueError, "deploy_times: as many hops as flights");
+        goto end;
+    }
+    done = PyMem_Malloc((size_t)(n + 1) * sizeof(double));
+    if (done == NULL) {
+        PyErr_NoMemory();
+        goto end;
+    }
+    for (int q = 0; q < 4; q++)
+        if ((lists[q] = PyList_New(n)) == NULL)
+            goto end;
+    double depart = 0.0, head = 0.0;
+    for (Py_ssize_t j = 0; j < n; j++) {
+        double h, f;
+        if (as_double(PySequence_Fast_GET_ITEM(hop, j), &h) < 0 || as_double(PySequence_Fast_GET_ITEM(fly, j), &f) < 0)
+            goto end;
+        depart = j ? depart + (h + unload) : h + unload;
+        done[j] = depart + f;
+        if (j == 0 || done[j] > head)
+            head = done[j];
+        PyObject *a = PyFloat_FromDouble(depart - unload), *d = PyFloat_FromDouble(done[j]);
+        PyObject *hd = PyFloat_FromDouble(head);
+        if (a == NULL || d == NULL || hd == NULL) {
+            Py_XDECREF(a);
+            Py_XDECREF(d);
+            Py_XDECREF(hd);
+            goto end;
+        }
+        PyList_SET_ITEM(lists[0], j, a);
+        PyList_SET_ITEM(lists[1], j, d);
+        PyList_SET_ITEM(lists[3], j, hd);
+    }
+    double tail = 0.0;
+    for (Py_ssize_t j = n - 1; j >= 0; j--) {
+        if (j == n - 1 || done[j] > tail)
+            tail = done[j];
+        PyObject *t = PyFloat_FromDouble(tail);
+        if (t == NULL)
+            goto end;
+        PyList_SET_ITEM(lists[2], j, t);
+    }
+    out = PyTuple_Pack(4, lists[0], lists[1], lists[2], lists[3]);
+end:
+    PyMem_Free(done);
+    for (int q = 0; q < 4; q++)
+        Py_XDECREF(lists[q]);
+    Py_XDECREF(fly);
+    Py_XDECREF(hop);
+    return out;
+}
+
 /* ---- one stop moved, the others kept: the polishes' cost of a stop at (x, y) ---- */
 
 static int
@@ -1967,6 +2038,8 @@ static PyMethodDef methods[] = {
      "planners.collect.path.quickest (the same candidate)."},
     {"route_times", (PyCFunction)(void (*)(void))route_times, METH_FASTCALL,
      "planners.collect.path.route_times (the same floats)."},
+    {"deploy_times", (PyCFunction)(void (*)(void))deploy_times, METH_FASTCALL,
+     "planners.deploy.path.deploy_times (the same floats)."},
     {"clip_segment", (PyCFunction)(void (*)(void))clip_segment, METH_FASTCALL,
      "planners.collect.reach.clip_segment (the same floats)."},
     {NULL, NULL, 0, NULL},

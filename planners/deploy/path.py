@@ -9,6 +9,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from planners.core.geometry import find_root, minimize_1d
+from planners.core.native import kernels
 from planners.core.problem import Point2
 from planners.core.timing import carrier_hopper, leg_timer
 from planners.deploy.cluster import ClusterGeometry, DeployInstance, lerp, max_range_point
@@ -154,6 +155,11 @@ class Route:
     time, so re-timing costs a few hops plus C-speed prefix sums.
     """
 
+    arrive: list[float]
+    done: list[float]
+    tail: list[float]
+    head: list[float]
+
     def __init__(self, b: PathBuilder, clusters: list[list[int]], geos: list[ClusterGeometry],
                  positions: list[Point2]) -> None:
         self.b, self.clusters, self.geos, self.positions = b, clusters, geos, positions
@@ -183,20 +189,7 @@ class Route:
     def _times(self) -> None:
         """The times from the hops and flights: a cumulative sum and running maxima (numpy, the
         same sums in the same order as a loop over the stops)."""
-        unload = self.b.unload
-        if len(self.hop) < NUMPY_FROM:  # short routes: plain Python is faster than numpy's calls
-            departs = list(itertools.accumulate(h + unload for h in self.hop))
-            self.arrive = [d - unload for d in departs]
-            self.done = [d + f for d, f in zip(departs, self.fly, strict=True)]
-            self.tail = list(itertools.accumulate(reversed(self.done), max))[::-1]
-            self.head = list(itertools.accumulate(self.done, max))
-        else:
-            depart = np.cumsum(np.array(self.hop) + unload)
-            done = depart + np.array(self.fly)
-            self.arrive = (depart - unload).tolist()
-            self.done = done.tolist()
-            self.tail = np.maximum.accumulate(done[::-1])[::-1].tolist()
-            self.head = np.maximum.accumulate(done).tolist()
+        self.arrive, self.done, self.tail, self.head = _deploy_times(self.hop, self.fly, self.b.unload)
         self.makespan = self.tail[0] if self.tail else 0.0
 
     def _redrive(self, r: Route, lo: int, hi: int, m: int) -> None:
@@ -310,3 +303,22 @@ class Route:
                     worst = done
             positions += self.positions[m:]
         return worst, clusters, geos, positions, lo, hi, m
+
+
+def deploy_times(hop: Sequence[float], fly: Sequence[float],
+                 unload: float) -> tuple[list[float], list[float], list[float], list[float]]:
+    """``Route._times``: per stop the carrier's arrival, when its rovers are done, and the running
+    maxima of done from the end (tail) and from the start (head)."""
+    if len(hop) < NUMPY_FROM:  # short routes: plain Python is faster than numpy's calls
+        departs = list(itertools.accumulate(h + unload for h in hop))
+        done = [d + f for d, f in zip(departs, fly, strict=True)]
+        return ([d - unload for d in departs], done, list(itertools.accumulate(reversed(done), max))[::-1],
+                list(itertools.accumulate(done, max)))
+    depart = np.cumsum(np.array(hop) + unload)
+    done_a = depart + np.array(fly)
+    return ((depart - unload).tolist(), done_a.tolist(), np.maximum.accumulate(done_a[::-1])[::-1].tolist(),
+            np.maximum.accumulate(done_a).tolist())
+
+
+# the compiled twin when it is built (planners.core.native): the same floats
+_deploy_times = deploy_times if kernels is None else kernels.deploy_times

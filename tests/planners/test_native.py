@@ -295,10 +295,12 @@ def test_quick_placement_kernels_match_python() -> None:
 
 
 @native
-def test_route_times_kernel_matches_python() -> None:
+def test_route_times_kernels_match_python() -> None:
     """Eq. 5.2's departures and suffix times of random routes, short (plain Python) and long
-    (numpy), with rovers that hold the carrier up and rovers that are ready before it comes."""
+    (numpy), with rovers that hold the carrier up and rovers that are ready before it comes; the
+    deployment's arrivals, finishes and their running maxima likewise."""
     from planners.collect.path import route_times
+    from planners.deploy.path import deploy_times
 
     assert kernels is not None
     rng = random.Random(23)
@@ -308,6 +310,9 @@ def test_route_times_kernel_matches_python() -> None:
         ready = [rng.uniform(0, 40 * n) * rng.choice([0.0, 1.0]) for _ in range(n)]
         load = rng.choice([0.0, rng.uniform(0, 5)])
         assert kernels.route_times(hop, ready, load) == route_times(hop, ready, load)
+        fly = [rng.uniform(0, 20) for _ in range(n)]
+        assert kernels.deploy_times(hop, fly, load) == deploy_times(hop, fly, load)
+    assert kernels.deploy_times([], [], 1.0) == deploy_times([], [], 1.0)
     with pytest.raises(ValueError):
         kernels.route_times([], [], 1.0)
 
