@@ -1,4 +1,4 @@
-# The compiled kernels (_native.c); planners.core.native loads them when they are built.
+# The compiled kernels (_native_src/*.c); planners.core.native loads them when they are built.
 from collections.abc import Sequence
 from typing import Any
 

@@ -1,4 +1,4 @@
-"""The compiled kernels, when the install could build them (``planners/core/_native.c``, an
+"""The compiled kernels, when the install could build them (``planners/core/_native_src/*.c``, an
 optional extension of ``setup.py``), else None: callers then run their pure-Python twins.
 
 Each kernel computes the same floats as its Python twin (the same operations in the same order,
@@ -19,7 +19,7 @@ def _load() -> ModuleType | None:
         from planners.core import _native
     except ImportError:
         return None
-    return _native
+    return _native if hasattr(_native, "Stepper") else None  # (not a stray module of that name)
 
 
 kernels: ModuleType | None = _load()

@@ -1,4 +1,4 @@
-"""The compiled kernels (planners/core/_native.c, planners.core.native) compute the floats of their
+"""The compiled kernels (planners/core/_native_src/, planners.core.native) compute the floats of their
 pure-Python twins, so that a plan does not depend on whether the install could compile them."""
 
 from __future__ import annotations
@@ -18,6 +18,21 @@ from planners.core.native import kernels
 
 ROOT = Path(__file__).resolve().parents[2]
 native = pytest.mark.skipif(kernels is None, reason="compiled kernels not built (no C compiler at install)")
+
+
+def test_kernels_are_built_where_they_can_be() -> None:
+    """Where a C compiler and Python's headers are, the install builds the kernels (an empty or
+    failed build would otherwise only show as skipped tests)."""
+    import shutil
+    import sysconfig
+
+    if os.environ.get("FLEETCTL_PURE_PYTHON", "") not in ("", "0"):
+        pytest.skip("FLEETCTL_PURE_PYTHON turns the kernels off")
+    headers = Path(sysconfig.get_paths()["include"]) / "Python.h"
+    if shutil.which(os.environ.get("CC", "cc")) is None or not headers.exists():
+        pytest.skip("no C compiler or no Python headers here: the planners run the Python code")
+    assert kernels is not None, "a C compiler is here but planners.core._native is not built: reinstall"
+    assert {"Stepper", "Circles", "route_times", "quickest"} <= set(dir(kernels))
 
 
 @native
