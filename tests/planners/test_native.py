@@ -36,6 +36,16 @@ def test_kernels_are_built_where_they_can_be() -> None:
 
 
 @native
+def test_the_stub_names_every_kernel() -> None:
+    """planners/core/_native.pyi (what mypy reads) names exactly the module's functions and types."""
+    import ast
+
+    stub = ast.parse((ROOT / "planners" / "core" / "_native.pyi").read_text(encoding="utf-8"))
+    named = {n.name for n in stub.body if isinstance(n, ast.FunctionDef | ast.ClassDef)}
+    assert named == {name for name in dir(kernels) if not name.startswith("__")}
+
+
+@native
 def test_step_hop_and_leg_kernels_give_the_python_floats() -> None:
     from planners.core.timing import _python_leg, _python_stepper
 
