@@ -45,6 +45,17 @@ def test_the_stub_names_every_kernel() -> None:
     assert named == {name for name in dir(kernels) if not name.startswith("__")}
 
 
+def test_the_readme_names_every_c_file() -> None:
+    """The README's paragraph on the C twins names every file of planners/core/_native_src/."""
+    import re
+
+    text = (ROOT / "README.md").read_text(encoding="utf-8")
+    named = set(re.findall(r"`(\w+\.[ch])`", text))
+    folder = ROOT / "planners" / "core" / "_native_src"
+    present = {p.name for p in folder.iterdir() if p.suffix in (".c", ".h")}
+    assert named == present, (named, present)
+
+
 @native
 def test_step_hop_and_leg_kernels_give_the_python_floats() -> None:
     from planners.core.timing import _python_leg, _python_stepper
