@@ -321,6 +321,23 @@ class CarrierControl:
         if self._holdable(seq):
             await self.hold_on_stop(k)
 
+    async def hold_once_holdable(self, k: int, seq: int) -> None:
+        """Disarm the carrier on stop ``k`` (its arrive item ``seq``) as soon as it may be
+        (:meth:`_holdable`), waiting at most ``RESTOP_SETTLE`` mission s for it to slow down: a
+        carrier still rolling when it reaches its stop item is held the moment it stands, before
+        it wanders off (PX4 1.18 SIH's Ackermann carrier reached a stop at 1.3 m/s, stood 0.5 s
+        later, then circled the stop for 10 s until its rovers came in). The rovers' waits for the
+        parked carrier (:meth:`parked`) go on as before; one that holds it first leaves this
+        nothing to do."""
+        try:
+            await self.ctx.wait_for(self.vehicle, lambda _v: self._held or self._holdable(seq), RESTOP_SETTLE,
+                                    f"the carrier standing on stop {k + 1}")
+        except TimeoutError:
+            return
+        async with self._parking:
+            if not self._held and self._holdable(seq):
+                await self.hold_on_stop(k)
+
     @property
     def held_on_stop(self) -> bool:
         """The carrier is held disarmed on its stop (:meth:`hold_on_stop`) and has not moved on."""

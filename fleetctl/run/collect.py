@@ -519,10 +519,7 @@ class CollectPhase:
                 continue
             prev = stop.depart
             self._at_stop(rnd, k)
-            if self.carrier.stands_disarmed:  # held at once: it settles while the rovers come in
-                await self.carrier.hold_if_holdable(k, items.arrive_seq)
-            await asyncio.gather(*(self._bring_in(rnd, leg.rover, leg.arrive, k, items.arrive_seq)
-                                   for leg in stop.rovers))
+            await self._bring_all_in(rnd, stop, k, items.arrive_seq)
             await ctx.sleep_mission(self._load_left(rnd, [leg.rover for leg in stop.rovers]))
             assert self.t0 is not None
             self.result.flown = ctx.clock() - self.t0
@@ -539,6 +536,20 @@ class CollectPhase:
             k += 1
         for t in (*rnd.going.values(), *rnd.watch.values()):
             t.cancel()
+
+    async def _bring_all_in(self, rnd: _Round, stop: Stop, k: int, seq: int) -> None:
+        """Bring the rovers of stop ``k`` in (:meth:`_bring_in`). A carrier that does not stand still
+        on its own (:attr:`CarrierControl.stands_disarmed`) is held on the stop meanwhile, as soon
+        as it stands (:meth:`CarrierControl.hold_once_holdable`): it settles while they come in."""
+        holding = None
+        if self.carrier.stands_disarmed:
+            holding = asyncio.create_task(self.carrier.hold_once_holdable(k, seq))
+        try:
+            await asyncio.gather(*(self._bring_in(rnd, leg.rover, leg.arrive, k, seq) for leg in stop.rovers))
+        finally:
+            if holding is not None:
+                holding.cancel()
+                await asyncio.gather(holding, return_exceptions=True)
 
     async def _send_rovers(self, rnd: _Round) -> None:
         """Upload every rover's way back (with a hold above its meeting point), start the

@@ -70,6 +70,55 @@ def test_a_carrier_held_on_its_stop_is_judged_by_its_position_alone() -> None:
     assert not control(away, True).is_parked(0) and control(away, True).has_left(0)
 
 
+class _ScriptedCtx:
+    """What ``CarrierControl.hold_once_holdable`` uses of a run's context, over a scripted carrier:
+    each report moves it to the next (offset from its stop, speed); commands are journalled only."""
+
+    def __init__(self, carrier: Vehicle, reports: list[tuple[float, float]]) -> None:
+        from types import SimpleNamespace
+        self.fleet = SimpleNamespace(carrier=carrier)
+        self.reports, self.commands = reports, []  # type: ignore[var-annotated]
+
+    async def wait_for(self, v: Vehicle, predicate: Callable[[Vehicle], bool], mission_seconds: float,
+                       what: str) -> None:
+        for x, speed in self.reports:
+            v.lat, v.lon, v.alt = local_to_geodetic(x, 0.0, 0.0, ORIGIN)
+            v.velocity = (speed, 0.0, 0.0)
+            if predicate(v):
+                return
+        raise TimeoutError(what)
+
+    async def command(self, v: Vehicle, what: str, aw: Any, **data: Any) -> None:
+        aw.close()  # (not sent: the carrier is never connected)
+        self.commands.append((what, data))
+
+
+@pytest.mark.parametrize("reports, held", [
+    ([(1.5, 1.3), (0.4, 0.08), (0.5, 0.9), (1.0, 1.9)], True),  # rolls onto its stop, stands, circles
+    ([(1.5, 1.3), (0.5, 0.9), (2.0, 1.9)], False),  # never stands on it
+    ([(3.5, 0.1), (4.0, 0.0)], False),  # stands only off it (beyond PARK_RADIUS)
+])
+def test_a_px4_carrier_is_held_the_moment_it_stands_on_its_stop(reports: list[tuple[float, float]],
+                                                               held: bool) -> None:
+    """PX4 SIH's Ackermann carrier reached a stop at 1.3 m/s, stood 0.5 s later, then circled the
+    stop for 10 s while its rovers waited above it: a carrier that does not stand still on its own
+    is disarmed on the stop the moment it stands there (within PARK_RADIUS, slower than
+    HOLD_SPEED_MAX), not only when it reached the stop item or when its rovers come in."""
+    from pymavlink.dialects.v20 import ardupilotmega as M
+
+    from fleetctl.mavlink.autopilots import Px4
+    from fleetctl.run.carrier import CarrierControl
+
+    c = _carrier(reports[0][0], reports[0][1])
+    c.autopilot, c.armed = Px4(M.MAV_TYPE_GROUND_ROVER), True
+    ctx = _ScriptedCtx(c, reports)
+    cc = CarrierControl(ctx)  # type: ignore[arg-type]
+    assert cc.stands_disarmed
+    asyncio.run(cc.hold_once_holdable(0, 0))
+    assert cc.held_on_stop is held
+    assert ctx.commands == ([("hold_on_stop", {"stop": 1})] if held else [])
+
+
 def test_a_rover_is_judged_by_where_its_landing_mode_sets_it_down() -> None:
     """PX4's LAND mode travels on 1.2 s of the rover's speed (64 collection landings on SIH): a PX4
     rover sent down 1.3 m short of the carrier at 1.1 m/s comes down on the deck (not moved over it
