@@ -41,6 +41,10 @@ DRIVE_OFF_SPEED = 1.0  # m/s
 # A carrier that does not stand still on its own is disarmed on its stop at this speed at most: PX4
 # 1.18 SIH's Ackermann carrier, disarmed at 1 - 1.5 m/s, rolled on beyond PARK_RADIUS
 HOLD_SPEED_MAX = 0.5  # m/s
+# ... by its velocity estimate, or by its positions over this many seconds of its own clock (it moved
+# HOLD_SPEED_MAX x HOLD_WINDOW m at most): the estimate of PX4 SIH's carrier read 0.54 - 0.83 m/s for
+# 4 s while its position moved 0.06 m/s, and its rovers waited above it (collect +36 %)
+HOLD_WINDOW = 1.0  # s
 RESTOP_SETTLE = 10.0  # mission s on top of the drive back onto the stop (braking, turning, settling)
 RESTOPS_MAX = 3  # waits for the carrier to park (each sending it back onto the stop when it is off it)
 
@@ -116,6 +120,15 @@ def left_item(v: Vehicle, seq: int) -> bool:
     ``DRIVE_OFF_SPEED``): a rover landing there must break off."""
     off = _off(v, seq)
     return (off is not None and off > PARK_RADIUS) or (v.ground_speed or 0.0) > DRIVE_OFF_SPEED
+
+
+def standing(v: Vehicle) -> bool:
+    """``v`` is slower than ``HOLD_SPEED_MAX`` by its velocity estimate or by its positions of the
+    last ``HOLD_WINDOW`` seconds (:meth:`Vehicle.drift`): either shows a carrier that may be held."""
+    if (v.ground_speed or 0.0) <= HOLD_SPEED_MAX:
+        return True
+    drift = v.drift(HOLD_WINDOW)
+    return drift is not None and drift <= HOLD_SPEED_MAX * HOLD_WINDOW
 
 
 class CarrierControl:
@@ -353,8 +366,8 @@ class CarrierControl:
     def _holdable(self, seq: int) -> bool:
         """The carrier may be disarmed on its stop (its arrive item ``seq``) now: parked there - or,
         on a firmware whose carrier does not stand still on its own (``Autopilot.stands_disarmed``),
-        within ``PARK_RADIUS`` of it and slower than ``HOLD_SPEED_MAX``. PX4 1.18 SIH's Ackermann
-        carrier, armed on its stop's loiter, read 0.3 - 0.5 m/s in its velocity estimate for
+        within ``PARK_RADIUS`` of it and slower than ``HOLD_SPEED_MAX`` (:func:`standing`). PX4 1.18
+        SIH's Ackermann carrier, armed on its stop's loiter, read 0.3 - 0.5 m/s in its velocity estimate for
         seconds after it stopped while its position moved a few centimetres a second (a rover waited
         up to 5 s for it to read stopped), or circled the stop 1 - 2 m about it at 1.5 m/s, slowing
         down for moments.
@@ -363,8 +376,7 @@ class CarrierControl:
         if parked_on_item(c, seq):
             return True
         off = _off(c, seq)
-        return (self.stands_disarmed and off is not None and off <= PARK_RADIUS
-                and (c.ground_speed or 0.0) <= HOLD_SPEED_MAX)
+        return self.stands_disarmed and off is not None and off <= PARK_RADIUS and standing(c)
 
     async def hold_on_stop(self, k: int) -> None:
         """Stop the carrier where it is, on stop ``k``, by disarming it: it drove off the stop under a

@@ -124,6 +124,15 @@ def _landing_off(v: Vehicle, carrier: Vehicle) -> float | None:
     return math.hypot(p[0] - carrier.enu[0], p[1] - carrier.enu[1])
 
 
+def _direct_within(v: Vehicle) -> float:
+    """How near the carrier (horizontally) ``v`` must come down, if sent down now, to be sent down
+    straight: ``RETARGET_OFFSET``, or less for an autopilot whose landings scatter about the point
+    it is predicted to come down at (:attr:`~Autopilot.land_scatter`), so that it still lands
+    within :data:`DECK_RADIUS`."""
+    scatter = v.autopilot.land_scatter if v.autopilot is not None else 0.0
+    return min(RETARGET_OFFSET, DECK_RADIUS - scatter)
+
+
 def _over(v: Vehicle, carrier: Vehicle, within: float) -> bool:
     """``v`` comes down within ``within`` m (horizontally) of ``carrier`` if it is sent down now."""
     off = _landing_off(v, carrier)
@@ -865,11 +874,12 @@ class CollectPhase:
         """Land ``v`` on the carrier: its mission's landing straight below it (its landing mode
         where that item would settle first: ``Autopilot.mission_landing_settles``), or - when it would
         come down (:func:`landing_point`: where it is, or on along its way for an autopilot whose
-        landing mode travels on) more than ``RETARGET_OFFSET`` off the stopped carrier (autopilots
-        stop within their acceptance radius, an Ackermann carrier may overshoot its stop; one held
-        disarmed on its stop is stopped), or its mission's landing item is (an
-        autopilot whose mission landing flies to the item first lands there: PX4 set one down 1.6 m
-        off a carrier it hovered 1.2 m off) - over the carrier's live position first
+        landing mode travels on) more than ``RETARGET_OFFSET`` (less for an autopilot whose landings
+        scatter: :func:`_direct_within`) off the stopped carrier (autopilots stop within their
+        acceptance radius, an Ackermann carrier may overshoot its stop; one held disarmed on its
+        stop is stopped), or its mission's landing item is (an autopilot whose mission landing flies
+        to the item first lands there: PX4 set one down 1.6 m off a carrier it hovered 1.2 m off) -
+        over the carrier's live position first
         (DO_REPOSITION), then straight down, so that a rover lands on the deck, never beside it.
         ``over_carrier``: always over the carrier first (a rover whose landing was broken off flies
         a DO_REPOSITION, out of its mission)."""
@@ -883,7 +893,8 @@ class CollectPhase:
             off = max(off, math.hypot(c.enu[0] - x, c.enu[1] - y))  # where its mission would land it
         # still coming to its stop (a carrier held disarmed stands: its velocity estimate is not trusted)
         moving = not self.carrier.held_on_stop and (c.ground_speed is None or c.ground_speed > STAY_SPEED)
-        if off is None or c.position is None or not (over_carrier or (off > RETARGET_OFFSET and not moving)):
+        straight = off is not None and off <= _direct_within(v)
+        if off is None or c.position is None or not (over_carrier or (not straight and not moving)):
             if over_carrier or settles:
                 # out of its mission, the carrier's position unknown, or a mission landing that
                 # would settle first: down where it hovers

@@ -119,6 +119,45 @@ def test_a_px4_carrier_is_held_the_moment_it_stands_on_its_stop(reports: list[tu
     assert ctx.commands == ([("hold_on_stop", {"stop": 1})] if held else [])
 
 
+def _fixes(v: Vehicle, track: list[tuple[float, float, float]]) -> None:
+    """Apply GLOBAL_POSITION_INT reports (vehicle s, east m, velocity estimate east m/s) to ``v``."""
+    import time
+
+    from pymavlink.dialects.v20 import ardupilotmega as M
+    for t, x, ve in track:
+        lat, lon, _ = local_to_geodetic(x, 0.0, 0.0, ORIGIN)
+        msg = M.MAVLink_global_position_int_message(int(t * 1000), round(lat * 1e7), round(lon * 1e7),
+                                                    488000, 0, 0, round(ve * 100), 0, 0xFFFF)
+        v._apply_position(msg, time.monotonic())
+
+
+def test_a_carrier_standing_by_its_positions_is_standing_whatever_its_velocity_estimate() -> None:
+    """PX4 SIH's carrier read 0.54 - 0.83 m/s in its velocity estimate for 4 s while its position
+    moved 6 cm/s (its rovers waited above it): it stands when either its estimate or its positions
+    over HOLD_WINDOW s of its own clock show it slower than HOLD_SPEED_MAX; circling at 1.5 m/s, or
+    too short a track, it does not."""
+    from fleetctl.run.carrier import HOLD_SPEED_MAX, HOLD_WINDOW, standing
+
+    creeping = _carrier(0.0, 0.0)
+    _fixes(creeping, [(10.0 + 0.1 * i, 0.006 * i, 0.7) for i in range(15)])  # 6 cm/s, reads 0.7 m/s
+    assert creeping.ground_speed == pytest.approx(0.7)
+    assert creeping.drift(HOLD_WINDOW) == pytest.approx(0.06, abs=0.005)
+    assert standing(creeping)
+    rolling = _carrier(0.0, 0.0)
+    _fixes(rolling, [(10.0 + 0.1 * i, 0.15 * i, 0.2) for i in range(15)])  # 1.5 m/s, reads 0.2 m/s
+    assert standing(rolling)  # its estimate says so: as before
+    rolling2 = _carrier(0.0, 0.0)
+    _fixes(rolling2, [(10.0 + 0.1 * i, 0.15 * i, 1.5) for i in range(15)])
+    assert rolling2.drift(HOLD_WINDOW) == pytest.approx(1.5, abs=0.01) and not standing(rolling2)
+    short = _carrier(0.0, 0.0)
+    _fixes(short, [(10.0 + 0.1 * i, 0.0, 0.7) for i in range(5)])  # 0.4 s of positions
+    assert short.drift(HOLD_WINDOW) is None and not standing(short)
+    rebooted = _carrier(0.0, 0.0)
+    _fixes(rebooted, [(10.0 + 0.1 * i, 0.0, 0.7) for i in range(15)] + [(0.5, 0.0, 0.7)])
+    assert rebooted.drift(HOLD_WINDOW) is None  # its clock went back: the track starts again
+    assert HOLD_SPEED_MAX * HOLD_WINDOW < 1.36  # the chord of 1 s on a 1 m circle at 1.5 m/s
+
+
 def test_a_rover_is_judged_by_where_its_landing_mode_sets_it_down() -> None:
     """PX4's LAND mode travels on 1.2 s of the rover's speed (64 collection landings on SIH): a PX4
     rover sent down 1.3 m short of the carrier at 1.1 m/s comes down on the deck (not moved over it
@@ -145,6 +184,29 @@ def test_a_rover_is_judged_by_where_its_landing_mode_sets_it_down() -> None:
     assert offs == pytest.approx([0.02, 2.1, 1.3], abs=1e-6)
     assert offs[0] < RETARGET_OFFSET < min(offs[1:])  # type: ignore[type-var]
     assert Px4(M.MAV_TYPE_GROUND_ROVER).land_travel == copter.land_travel == 0.0
+
+
+def test_a_px4_rover_is_sent_straight_down_only_where_its_scatter_stays_on_the_deck() -> None:
+    """PX4's LAND mode scatters up to 0.75 m about the point land_travel predicts (31 landings on SIH;
+    two predicted 0.95 and 1.0 m off the carrier came down 1.6 m off it, beside the deck): a PX4 rover
+    is sent straight down only when it is predicted within DECK_RADIUS less that scatter, an
+    ArduCopter rover within RETARGET_OFFSET, as before."""
+    from pymavlink.dialects.v20 import ardupilotmega as M
+
+    from fleetctl.mavlink.autopilots import ArduPilot, Px4
+    from fleetctl.run.collect import _direct_within
+    from fleetctl.run.state import DECK_RADIUS
+
+    def rover(autopilot: Any) -> Vehicle:
+        v = Vehicle(Link("udp://127.0.0.1:9"), 11, name="r1", origin=ORIGIN)  # never opened
+        v.autopilot = autopilot
+        return v
+
+    px4 = Px4(M.MAV_TYPE_QUADROTOR)
+    assert _direct_within(rover(px4)) == pytest.approx(DECK_RADIUS - px4.land_scatter)
+    assert _direct_within(rover(px4)) < 0.95  # the two that came down beside the deck
+    assert _direct_within(rover(ArduPilot(M.MAV_TYPE_QUADROTOR))) == RETARGET_OFFSET
+    assert _direct_within(rover(None)) == RETARGET_OFFSET
 
 
 def _drive_off_at_collect_stop(delay: float, stop: int = 1, drive: float = DRIVE) -> tuple[Any, list[float]]:
