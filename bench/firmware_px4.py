@@ -2,7 +2,9 @@
 
 One PX4 fleet (an Ackermann rover carrier, three quadcopters at its home: ``tests/firmware/px4_fleet``)
 is started; ``fleetctl deploy`` and ``fleetctl collect`` are flown through the command line at the
-firmware's speed factor, ``--rounds`` times in a row. For each command the table gives the
+firmware's speed factor, ``--rounds`` times in a row; after a round that is not complete (a rover
+left beside the carrier, where the next deployment would not launch it) the next round flies a
+fresh fleet. For each command the table gives the
 summaries' ``makespan_planned`` and ``makespan_flown`` (mission seconds: fleetctl's clock, which
 follows the carrier's own time on SITL firmware) and the flown makespan in the carrier's own
 seconds measured apart (its ``time_boot_ms`` in the run's ``traffic.tlog`` from the journal record
@@ -108,6 +110,28 @@ def percent(planned: float | None, flown: float | None) -> str:
     return "-" if not planned or flown is None else f"{100.0 * (flown - planned) / planned:+.1f} %"
 
 
+def fly_rounds(mission: Path, runs: Path, k: int, args: argparse.Namespace,
+               rows: list[dict[str, Any]]) -> int:
+    """Fly rounds k, k + 1, ... on one fleet, until one is not complete (then its vehicles may not
+    be where the next round needs them: a rover beside the carrier) or all are flown; return the
+    number of rounds flown in all."""
+    while k < args.rounds:
+        tasks = TASKS if args.seed is None else random_task_positions(args.seed + k)
+        mission.write_text(mission_yaml(tasks))
+        k += 1
+        for command in ("deploy", "collect"):
+            r = fly(mission, runs, command)
+            r["round"] = k
+            rows.append(r)
+            p, f, v = r["planned"], r["flown"], r["vehicle"]
+            cells = [f"{x:.1f}" if x is not None else "-" for x in (p, f, v)]
+            print(f"| {k} | {command} | {r['result']} | {cells[0]} | {cells[1]} | {percent(p, f)} | "
+                  f"{cells[2]} | {percent(p, v)} |", flush=True)
+            if r["result"] != "complete":
+                return k
+    return k
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--rounds", type=int, default=3, help="deploy + collect this many times (default 3)")
@@ -119,33 +143,23 @@ def main() -> int:
     if not port_free():
         print("UDP port 14550 (PX4's ground-station port) is in use", file=sys.stderr)
         return 2
-    rows = []
+    rows: list[dict[str, Any]] = []
     print("| round | command | result | planned s | flown s (mission) | vs planned | flown s (vehicle) "
           "| vs planned |")
     print("|---|---|---|---|---|---|---|---|")
-    with tempfile.TemporaryDirectory() as tmp, px4_fleet(speedup=SPEEDUP):
+    with tempfile.TemporaryDirectory() as tmp:
         runs = Path(args.runs or Path(tmp) / "runs")
         runs.mkdir(parents=True, exist_ok=True)
         # kept runs keep their mission beside them (bench/firmware_stops.py reads its origin)
         mission = (runs if args.runs else Path(tmp)) / "mission.yaml"
-        mission.write_text(mission_yaml())
-        wait_ready(mission, runs)
-        for k in range(args.rounds):
-            tasks = TASKS if args.seed is None else random_task_positions(args.seed + k)
-            mission.write_text(mission_yaml(tasks))
-            for command in ("deploy", "collect"):
-                r = fly(mission, runs, command)
-                r["round"] = k + 1
-                rows.append(r)
-                p, f, v = r["planned"], r["flown"], r["vehicle"]
-                cells = [f"{x:.1f}" if x is not None else "-" for x in (p, f, v)]
-                print(f"| {k + 1} | {command} | {r['result']} | {cells[0]} | {cells[1]} | {percent(p, f)} | "
-                      f"{cells[2]} | {percent(p, v)} |", flush=True)
-                if r["result"] != "complete":
-                    break
-            else:
-                continue
-            break
+        k = 0
+        while k < args.rounds:  # a fleet per stretch of complete rounds
+            with px4_fleet(speedup=SPEEDUP):
+                mission.write_text(mission_yaml())
+                wait_ready(mission, runs)
+                k = fly_rounds(mission, runs, k, args, rows)
+            if k < args.rounds:
+                print(f"| {k} | - | the next round flies a fresh PX4 fleet | | | | | |", flush=True)
     if args.json:
         Path(args.json).write_text(json.dumps(rows, indent=1))
     return 0

@@ -423,6 +423,7 @@ def test_the_docs_state_the_park_terms() -> None:
     from fleetctl.run.carrier import (
         DRIVE_OFF_SPEED,
         HOLD_SPEED_MAX,
+        HOLD_WINDOW,
         RESTOP_SETTLE,
         RESTOPS_MAX,
         STAY_RADIUS,
@@ -434,5 +435,7 @@ def test_the_docs_state_the_park_terms() -> None:
                    f"plus {RESTOP_SETTLE:g} s", f"after {RESTOPS_MAX} waits",
                    f"faster than {DRIVE_OFF_SPEED:g} m/s", "`return_to_stop`",
                    f"no faster than {HOLD_SPEED_MAX:g} m/s (`HOLD_SPEED_MAX`;",
+                   f"the last {HOLD_WINDOW:g} s of its own clock (`HOLD_WINDOW`",
+                   f"it moved at most {HOLD_SPEED_MAX * HOLD_WINDOW:g} m;",
                    f"stopped within {STAY_RADIUS:g} m of it, `STAY_RADIUS`"):
         assert phrase in section, phrase
