@@ -89,6 +89,10 @@ FOLLOW_NEAR = 6.0  # m: rovers this near their stop (horizontally) follow; farth
 RELANDS_MAX = 1  # times a rover that touched down beside the deck takes off to land on it again
 LIFT_SLACK = 0.5  # m below MEET_HEIGHT that counts as up again
 DISARM_WAIT = 4.0  # mission s a rover down on the deck is given to disarm itself before it is told to
+# a rover slower than this vertically, and horizontally by its velocity estimate or by its positions
+# over REST_WINDOW s of its own clock, is at rest (_at_rest)
+REST_SPEED = 0.2  # m/s
+REST_WINDOW = 1.0  # s
 LANDING_TIMEOUT = 10.0  # mission s from the land command to the rover on the deck (at least 3x land_time)
 MAX_POSITION_AGE = 5.0  # mission s: an older carrier position is not moved on by its speed
 SPEED_SAMPLE = 0.5  # mission s between carrier speed samples (is it speeding up?)
@@ -124,13 +128,17 @@ def _landing_off(v: Vehicle, carrier: Vehicle) -> float | None:
     return math.hypot(p[0] - carrier.enu[0], p[1] - carrier.enu[1])
 
 
-def _direct_within(v: Vehicle) -> float:
-    """How near the carrier (horizontally) ``v`` must come down, if sent down now, to be sent down
-    straight: ``RETARGET_OFFSET``, or less for an autopilot whose landings scatter about the point
-    it is predicted to come down at (:attr:`~Autopilot.land_scatter`), so that it still lands
-    within :data:`DECK_RADIUS`."""
-    scatter = v.autopilot.land_scatter if v.autopilot is not None else 0.0
-    return min(RETARGET_OFFSET, DECK_RADIUS - scatter)
+def _at_rest(v: Vehicle) -> bool:
+    """``v`` is at rest: slower than ``REST_SPEED`` vertically by its velocity estimate, and
+    horizontally by that or by its positions over the last ``REST_WINDOW`` s of its own clock
+    (:meth:`Vehicle.drift`: PX4 SIH's estimate read 0.3 - 0.4 m/s for seconds on a rover standing on
+    the ground, its positions moving 0.1 m/s)."""
+    if v.velocity is None or abs(v.velocity[2]) >= REST_SPEED:
+        return False
+    if (v.ground_speed or 0.0) < REST_SPEED:
+        return True
+    drift = v.drift(REST_WINDOW)
+    return drift is not None and drift < REST_SPEED * REST_WINDOW
 
 
 def _over(v: Vehicle, carrier: Vehicle, within: float) -> bool:
@@ -740,13 +748,17 @@ class CollectPhase:
 
     async def _lift_again(self, v: Vehicle, off: float, k: int) -> None:
         """``v`` touched down ``off`` m from the carrier parked at stop ``k``, beside its deck: it takes
-        off again to ``MEET_HEIGHT`` (armed and its take-off command; journalled) and is then brought
-        down over the carrier (:meth:`_send_down` with ``over_carrier``)."""
+        off again to ``MEET_HEIGHT`` (journalled) and is then brought down over the carrier
+        (:meth:`_send_down` with ``over_carrier``). Its motors are off first (:meth:`_disarmed_on_deck`),
+        then it is armed and given its take-off command: a landed autopilot disarms itself on its
+        own (PX4 ``COM_DISARM_LAND``), and one that does so just after the take-off command stays on
+        the ground (PX4 SIH: disarmed 0.5 s after the take-off was accepted, collection incomplete)."""
         ctx, rid = self.ctx, v.name
         text = (f"{rid}: landed {off:.1f} m off the carrier at stop {k + 1}, beside its deck: "
                 "taking off to land again")
         ctx.record(Ev.ROVER_STATE, vehicle=rid, text=text, offset=off)
         ctx.state.set_state(rid, VehicleStatus.WAITING)
+        await self._disarmed_on_deck(v)
         if not v.armed:
             await ctx.command(v, "arm", v.arm())
         await ctx.command(v, "takeoff", v.takeoff(MEET_HEIGHT))
@@ -874,12 +886,11 @@ class CollectPhase:
         """Land ``v`` on the carrier: its mission's landing straight below it (its landing mode
         where that item would settle first: ``Autopilot.mission_landing_settles``), or - when it would
         come down (:func:`landing_point`: where it is, or on along its way for an autopilot whose
-        landing mode travels on) more than ``RETARGET_OFFSET`` (less for an autopilot whose landings
-        scatter: :func:`_direct_within`) off the stopped carrier (autopilots stop within their
-        acceptance radius, an Ackermann carrier may overshoot its stop; one held disarmed on its
-        stop is stopped), or its mission's landing item is (an autopilot whose mission landing flies
-        to the item first lands there: PX4 set one down 1.6 m off a carrier it hovered 1.2 m off) -
-        over the carrier's live position first
+        landing mode travels on) more than ``RETARGET_OFFSET`` off the stopped carrier (autopilots
+        stop within their acceptance radius, an Ackermann carrier may overshoot its stop; one held
+        disarmed on its stop is stopped), or its mission's landing item is (an
+        autopilot whose mission landing flies to the item first lands there: PX4 set one down 1.6 m
+        off a carrier it hovered 1.2 m off) - over the carrier's live position first
         (DO_REPOSITION), then straight down, so that a rover lands on the deck, never beside it.
         ``over_carrier``: always over the carrier first (a rover whose landing was broken off flies
         a DO_REPOSITION, out of its mission)."""
@@ -893,8 +904,7 @@ class CollectPhase:
             off = max(off, math.hypot(c.enu[0] - x, c.enu[1] - y))  # where its mission would land it
         # still coming to its stop (a carrier held disarmed stands: its velocity estimate is not trusted)
         moving = not self.carrier.held_on_stop and (c.ground_speed is None or c.ground_speed > STAY_SPEED)
-        straight = off is not None and off <= _direct_within(v)
-        if off is None or c.position is None or not (over_carrier or (not straight and not moving)):
+        if off is None or c.position is None or not (over_carrier or (off > RETARGET_OFFSET and not moving)):
             if over_carrier or settles:
                 # out of its mission, the carrier's position unknown, or a mission landing that
                 # would settle first: down where it hovers
@@ -938,7 +948,9 @@ class CollectPhase:
         drives off with a rover armed on it (whose land detector a moving deck may keep from
         finishing): its autopilot disarms it on its own after the landing (ArduCopter about 2 s
         after the touch-down; PX4 ``COM_DISARM_LAND`` after its land detector, so a PX4 rover is told
-        to as soon as it reports itself landed: ``Autopilot.disarm_when_landed``); after
+        to as soon as it reports itself landed, or is at rest on the deck (:func:`_at_rest`: PX4 SIH's
+        land detector missed landings for seconds, once for good, while the rover stood on the ground
+        beside the carrier): ``Autopilot.disarm_when_landed``); after
         ``DISARM_WAIT`` mission seconds without a HEARTBEAT showing it disarmed, it is
         told to, and the command's ACK confirms it (a disarm of a disarmed vehicle is accepted too):
         its next HEARTBEAT, ~1 wall s away and lost on a lossy link, is not waited for. An autopilot
@@ -948,7 +960,8 @@ class CollectPhase:
         at_once = v.autopilot is not None and v.autopilot.disarm_when_landed
 
         def done_or_due(v: Vehicle) -> bool:
-            return not v.armed or v.lost or ctx.clock() >= end or (at_once and v.on_ground is True)
+            down = v.on_ground is True or _at_rest(v)
+            return not v.armed or v.lost or ctx.clock() >= end or (at_once and down)
 
         with contextlib.suppress(TimeoutError):
             await ctx.wait_for(v, done_or_due, DISARM_WAIT, "disarmed on the deck")

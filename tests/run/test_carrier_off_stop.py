@@ -186,29 +186,6 @@ def test_a_rover_is_judged_by_where_its_landing_mode_sets_it_down() -> None:
     assert Px4(M.MAV_TYPE_GROUND_ROVER).land_travel == copter.land_travel == 0.0
 
 
-def test_a_px4_rover_is_sent_straight_down_only_where_its_scatter_stays_on_the_deck() -> None:
-    """PX4's LAND mode scatters up to 0.75 m about the point land_travel predicts (31 landings on SIH;
-    two predicted 0.95 and 1.0 m off the carrier came down 1.6 m off it, beside the deck): a PX4 rover
-    is sent straight down only when it is predicted within DECK_RADIUS less that scatter, an
-    ArduCopter rover within RETARGET_OFFSET, as before."""
-    from pymavlink.dialects.v20 import ardupilotmega as M
-
-    from fleetctl.mavlink.autopilots import ArduPilot, Px4
-    from fleetctl.run.collect import _direct_within
-    from fleetctl.run.state import DECK_RADIUS
-
-    def rover(autopilot: Any) -> Vehicle:
-        v = Vehicle(Link("udp://127.0.0.1:9"), 11, name="r1", origin=ORIGIN)  # never opened
-        v.autopilot = autopilot
-        return v
-
-    px4 = Px4(M.MAV_TYPE_QUADROTOR)
-    assert _direct_within(rover(px4)) == pytest.approx(DECK_RADIUS - px4.land_scatter)
-    assert _direct_within(rover(px4)) < 0.95  # the two that came down beside the deck
-    assert _direct_within(rover(ArduPilot(M.MAV_TYPE_QUADROTOR))) == RETARGET_OFFSET
-    assert _direct_within(rover(None)) == RETARGET_OFFSET
-
-
 def _drive_off_at_collect_stop(delay: float, stop: int = 1, drive: float = DRIVE) -> tuple[Any, list[float]]:
     """An action: the carrier drives on for ``drive`` simulated s, ``delay`` simulated s after the
     collection's stop ``stop`` is reached - stop 0: after the collection starts (the carrier stands

@@ -64,6 +64,26 @@ async def test_a_rover_that_lands_beside_the_deck_takes_off_and_lands_on_it(tmp_
     again = [t for t in texts if "beside its deck: taking off to land again" in t]
     assert len(again) == 1 and again[0].startswith("r1: landed 2.5 m off the carrier at stop"), texts
     assert s["makespan_flown"] > s["makespan_planned"]  # the second landing is not in the plan
+    # its motors are off before it is armed and told to take off (an autopilot that disarms itself
+    # just after the take-off command would keep it on the ground: PX4 SIH did)
+    rows = journal(out.run_dir)
+    since = next(i for i, r in enumerate(rows) if "taking off to land again" in r.get("text", ""))
+    after = [(r["kind"], r.get("command")) for r in rows[since:]
+             if r.get("vehicle") == "r1" and r["kind"] in ("command", "disarmed")]
+    assert ("command", "arm") in after and ("command", "takeoff") in after, after
+    arm = after.index(("command", "arm"))
+    assert arm < after.index(("command", "takeoff"))
+    off = any(k == "disarmed" or c == "disarm" for k, c in after[:arm])
+    assert off or _disarmed_before(rows, since), after
+
+
+def _disarmed_before(rows: list[dict[str, Any]], since: int) -> bool:
+    """r1 was disarmed, and not armed again, before record ``since``."""
+    state = None
+    for r in rows[:since]:
+        if r.get("vehicle") == "r1" and r["kind"] in ("armed", "disarmed"):
+            state = r["kind"]
+    return state == "disarmed"
 
 
 async def test_a_rover_that_lands_beside_the_deck_twice_is_reported_not_loaded(tmp_path: Path) -> None:

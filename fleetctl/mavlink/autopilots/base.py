@@ -167,13 +167,6 @@ class Autopilot:
         return 0.0
 
     @property
-    def land_scatter(self) -> float:
-        """Metres a multirotor sent down by :meth:`Vehicle.land` may touch down off the point
-        :attr:`land_travel` predicts: a rover whose predicted point lies more than the deck's radius
-        less this off the carrier is flown over it first (``fleetctl.run.collect``)."""
-        return 0.0
-
-    @property
     def stands_disarmed(self) -> bool:
         """A ground vehicle of this firmware does not stand still on its own at a mission stop: it is
         disarmed while rovers land on it at a collection stop and armed again when it leaves

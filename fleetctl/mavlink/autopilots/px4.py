@@ -208,15 +208,6 @@ class Px4(Autopilot):
         return 0.0 if self.ground else 1.2
 
     @property
-    def land_scatter(self) -> float:
-        # PX4 1.18 SIH quadcopter: 31 collection landings sent down at 0.2 - 1.35 m/s
-        # (bench/firmware_px4.py, seeds 353 - 366) touched down 0.03 - 1.01 m off the point
-        # land_travel predicts; two predicted 0.95 and 1.00 m off the carrier came down 1.60 and
-        # 1.67 m off it, beside the deck, and were lifted to land again (collect +95 %). None
-        # predicted within 0.75 m came down beyond 1.32 m.
-        return 0.0 if self.ground else 0.75
-
-    @property
     def reposition_amsl(self) -> bool:
         return True  # PX4 1.18: a relative altitude of 3 m was flown as 3 m AMSL (the rover landed)
 
