@@ -758,9 +758,8 @@ class CollectPhase:
                 "taking off to land again")
         ctx.record(Ev.ROVER_STATE, vehicle=rid, text=text, offset=off)
         ctx.state.set_state(rid, VehicleStatus.WAITING)
-        await self._disarmed_on_deck(v)
-        if not v.armed:
-            await ctx.command(v, "arm", v.arm())
+        await self._disarmed_on_deck(v)  # its ACK, or its HEARTBEAT, shows it disarmed: armed again
+        await ctx.command(v, "arm", v.arm())
         await ctx.command(v, "takeoff", v.takeoff(MEET_HEIGHT))
         climb = ctx.mission.rovers.takeoff_time + MEET_HEIGHT / ctx.mission.rovers.climb_rate
         await ctx.wait_for(v, lambda v: v.lost or (v.height or 0.0) >= MEET_HEIGHT - LIFT_SLACK,
@@ -954,7 +953,9 @@ class CollectPhase:
         ``DISARM_WAIT`` mission seconds without a HEARTBEAT showing it disarmed, it is
         told to, and the command's ACK confirms it (a disarm of a disarmed vehicle is accepted too):
         its next HEARTBEAT, ~1 wall s away and lost on a lossy link, is not waited for. An autopilot
-        that refuses (its landing not finished) is given ``DISARM_WAIT`` more to disarm on its own."""
+        that refuses (its landing not finished) is given ``DISARM_WAIT`` more to disarm on its own - a
+        PX4 rover is told again as soon as it reports itself landed (refused at rest, "not landed",
+        it disarmed itself 4 s later)."""
         ctx = self.ctx
         end = ctx.clock() + DISARM_WAIT
         at_once = v.autopilot is not None and v.autopilot.disarm_when_landed
@@ -969,8 +970,16 @@ class CollectPhase:
             return
         try:
             await ctx.command(v, "disarm", v.disarm())
-        except CommandRejected:
-            await ctx.wait_for(v, lambda v: not v.armed or v.lost, DISARM_WAIT, "disarmed on the deck")
+        except CommandRejected:  # PX4: "Disarming denied: not landed" (at rest, its land detector behind)
+            def landed(v: Vehicle) -> bool:
+                return not v.armed or v.lost or (at_once and v.on_ground is True)
+            await ctx.wait_for(v, landed, DISARM_WAIT, "disarmed on the deck")
+            if not v.armed or v.lost:
+                return
+            try:  # it reports itself landed now: told again
+                await ctx.command(v, "disarm", v.disarm())
+            except CommandRejected:
+                await ctx.wait_for(v, lambda v: not v.armed or v.lost, DISARM_WAIT, "disarmed on the deck")
 
     def _down_on_deck(self, rnd: _Round, v: Vehicle) -> bool:
         """``v``'s autopilot reports its landing done (at once; the landed state and positions come

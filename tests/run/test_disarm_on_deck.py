@@ -18,7 +18,8 @@ from pymavlink.dialects.v20 import ardupilotmega as M
 from fleetctl.geo import Origin, local_to_geodetic
 from fleetctl.mavlink.autopilots import ArduPilot, Px4
 from fleetctl.mavlink.link import Link
-from fleetctl.mavlink.vehicle import Vehicle
+from fleetctl.mavlink.messages import CommandAck
+from fleetctl.mavlink.vehicle import CommandRejected, Vehicle
 from fleetctl.run.collect import DISARM_WAIT, REST_WINDOW, CollectPhase, _at_rest
 
 ORIGIN = Origin(47.397742, 8.545594, 488.0)
@@ -46,14 +47,23 @@ class _Ctx:
     """What ``_disarmed_on_deck`` uses of a run's context: a wait looks at the rover once and, if it
     is not done, runs out (the clock moves on by the wait); commands are journalled only."""
 
-    def __init__(self) -> None:
+    def __init__(self, refuse: int = 0, during_waits: list[Callable[[Vehicle], None]] | None = None) -> None:
         self.now, self.log = 0.0, []  # type: ignore[var-annotated]
+        self.refuse = refuse  # this many disarms are refused ("Disarming denied: not landed")
+        self.during_waits = list(during_waits or [])  # what happens to the rover during each wait
+        self.state = SimpleNamespace(set_state=lambda *_a: None)
+        self.mission = SimpleNamespace(rovers=SimpleNamespace(takeoff_time=1.0, climb_rate=1.0))
 
     def clock(self) -> float:
         return self.now
 
+    def record(self, kind: str, **data: Any) -> None:
+        self.log.append(("record", kind))
+
     async def wait_for(self, v: Vehicle, predicate: Callable[[Vehicle], bool], seconds: float,
                        what: str) -> None:
+        if self.during_waits:
+            self.during_waits.pop(0)(v)
         if not predicate(v):
             self.now += seconds
             self.log.append(("waited", seconds))
@@ -62,12 +72,42 @@ class _Ctx:
     async def command(self, v: Vehicle, what: str, aw: Any, **data: Any) -> None:
         aw.close()  # (not sent: the rover is never connected)
         self.log.append(("command", what))
+        if what == "disarm" and self.refuse > 0:
+            self.refuse -= 1
+            ack = CommandAck(v.sysid, M.MAV_CMD_COMPONENT_ARM_DISARM, M.MAV_RESULT_DENIED, 1)
+            raise CommandRejected(v.name, ack, "not landed")
 
 
-def disarm(v: Vehicle) -> list[tuple[str, Any]]:
-    ctx = _Ctx()
+def disarm(v: Vehicle, ctx: _Ctx | None = None) -> list[tuple[str, Any]]:
+    ctx = ctx or _Ctx()
     asyncio.run(CollectPhase._disarmed_on_deck(SimpleNamespace(ctx=ctx), v))  # type: ignore[arg-type]
     return ctx.log
+
+
+def landed(v: Vehicle) -> None:
+    v.landed_state = M.MAV_LANDED_STATE_ON_GROUND
+
+
+def test_a_px4_rover_refused_at_rest_is_told_again_once_it_reports_itself_landed() -> None:
+    """PX4 SIH refused a disarm at rest ("Disarming denied: not landed"), detected the landing 2.3 s
+    later and disarmed itself 1.7 s after that: it is told again as soon as it reports itself landed."""
+    v = rover(Px4(M.MAV_TYPE_QUADROTOR), standing(0.35))
+    log = disarm(v, _Ctx(refuse=1, during_waits=[lambda v: None, landed]))
+    assert log == [("command", "disarm"), ("command", "disarm")]
+
+
+def test_a_rover_beside_the_deck_is_disarmed_then_armed_before_its_take_off() -> None:
+    """Its disarm's ACK comes before the HEARTBEAT that shows it disarmed: it is armed again all the
+    same (PX4 SIH, told to take off while still disarming, stayed on the ground)."""
+    v = rover(Px4(M.MAV_TYPE_QUADROTOR), standing(0.0))
+    landed(v)
+    ctx = _Ctx()
+    phase = SimpleNamespace(ctx=ctx, _disarmed_on_deck=lambda v: CollectPhase._disarmed_on_deck(phase, v))
+    with pytest.raises(TimeoutError):  # (the scripted rover never climbs)
+        asyncio.run(CollectPhase._lift_again(phase, v, 1.7, 0))  # type: ignore[arg-type]
+    assert v.armed  # its HEARTBEAT has not come yet
+    assert [c for c in ctx.log if c[0] == "command"] == [("command", "disarm"), ("command", "arm"),
+                                                         ("command", "takeoff")]
 
 
 def test_a_px4_rover_at_rest_is_disarmed_at_once_whatever_its_land_detector_says() -> None:
