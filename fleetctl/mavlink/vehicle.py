@@ -318,6 +318,15 @@ class Vehicle:
             far = max(far, _distance(lat, lon, 0.0, la, lo, 0.0))
         return far
 
+    def slower_than(self, speed: float, window: float) -> bool:
+        """Horizontally no faster than ``speed`` m/s by its velocity estimate (none counts as at
+        rest) or by its positions over the last ``window`` s of its own clock (:meth:`drift` at most
+        ``speed`` x ``window``): either shows a vehicle that stands."""
+        if (self.ground_speed or 0.0) <= speed:
+            return True
+        drift = self.drift(window)
+        return drift is not None and drift <= speed * window
+
     @property
     def battery_fraction(self) -> float | None:
         """Battery remaining in 0..1 (None if the vehicle does not report it)."""

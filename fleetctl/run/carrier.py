@@ -124,11 +124,8 @@ def left_item(v: Vehicle, seq: int) -> bool:
 
 def standing(v: Vehicle) -> bool:
     """``v`` is slower than ``HOLD_SPEED_MAX`` by its velocity estimate or by its positions of the
-    last ``HOLD_WINDOW`` seconds (:meth:`Vehicle.drift`): either shows a carrier that may be held."""
-    if (v.ground_speed or 0.0) <= HOLD_SPEED_MAX:
-        return True
-    drift = v.drift(HOLD_WINDOW)
-    return drift is not None and drift <= HOLD_SPEED_MAX * HOLD_WINDOW
+    last ``HOLD_WINDOW`` seconds (:meth:`Vehicle.slower_than`): either shows a carrier that may be held."""
+    return v.slower_than(HOLD_SPEED_MAX, HOLD_WINDOW)
 
 
 class CarrierControl:

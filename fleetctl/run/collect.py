@@ -132,14 +132,11 @@ def _landing_off(v: Vehicle, carrier: Vehicle) -> float | None:
 def _at_rest(v: Vehicle) -> bool:
     """``v`` is at rest: slower than ``REST_SPEED`` vertically by its velocity estimate, and
     horizontally by that or by its positions over the last ``REST_WINDOW`` s of its own clock
-    (:meth:`Vehicle.drift`: PX4 SIH's estimate read 0.3 - 0.4 m/s for seconds on a rover standing on
-    the ground, its positions moving 0.1 m/s)."""
+    (:meth:`Vehicle.slower_than`: PX4 SIH's estimate read 0.3 - 0.4 m/s for seconds on a rover
+    standing on the ground, its positions moving 0.1 m/s)."""
     if v.velocity is None or abs(v.velocity[2]) >= REST_SPEED:
         return False
-    if (v.ground_speed or 0.0) < REST_SPEED:
-        return True
-    drift = v.drift(REST_WINDOW)
-    return drift is not None and drift < REST_SPEED * REST_WINDOW
+    return v.slower_than(REST_SPEED, REST_WINDOW)
 
 
 async def _disarm(ctx: RunContext, v: Vehicle) -> bool:

@@ -11,6 +11,8 @@ from typing import Any
 
 import yaml
 
+from fleetctl.geo import Origin, local_to_geodetic
+from fleetctl.mavlink.vehicle import Vehicle
 from fleetctl.mission import Mission, load_mission
 from sitl import FleetConfig, SimFleet
 
@@ -66,3 +68,17 @@ async def sim_fleet(d: dict[str, Any], autopilot: str | None = None) -> AsyncIte
     async with SimFleet(config) as fleet:
         yield fleet
     assert fleet.errors == 0, fleet.last_error
+
+
+def apply_positions(v: Vehicle, origin: Origin, track: list[tuple[float, float, float, float]]) -> None:
+    """Apply GLOBAL_POSITION_INT reports to ``v`` (never connected): each (vehicle s, east m from
+    ``origin``, velocity estimate east m/s, up m/s)."""
+    import time
+
+    from pymavlink.dialects.v20 import ardupilotmega as M
+    for t, x, ve, vu in track:
+        lat, lon, _ = local_to_geodetic(x, 0.0, 0.0, origin)
+        msg = M.MAVLink_global_position_int_message(round(t * 1000), round(lat * 1e7), round(lon * 1e7),
+                                                    round(origin.alt * 1000), 0, 0, round(ve * 100),
+                                                    round(-vu * 100), 0xFFFF)
+        v._apply_position(msg, time.monotonic())

@@ -23,6 +23,7 @@ from fleetctl.run.collect import RETARGET_OFFSET
 from fleetctl.run.kinds import Phase
 from fleetctl.run.state import Event, FleetState
 from sitl import Fault, SimFleet
+from tests.run.ctl_helpers import apply_positions
 from tests.run.test_replan import fly, journal
 from tests.run.test_supervision import mission_dict
 
@@ -120,15 +121,8 @@ def test_a_px4_carrier_is_held_the_moment_it_stands_on_its_stop(reports: list[tu
 
 
 def _fixes(v: Vehicle, track: list[tuple[float, float, float]]) -> None:
-    """Apply GLOBAL_POSITION_INT reports (vehicle s, east m, velocity estimate east m/s) to ``v``."""
-    import time
-
-    from pymavlink.dialects.v20 import ardupilotmega as M
-    for t, x, ve in track:
-        lat, lon, _ = local_to_geodetic(x, 0.0, 0.0, ORIGIN)
-        msg = M.MAVLink_global_position_int_message(int(t * 1000), round(lat * 1e7), round(lon * 1e7),
-                                                    488000, 0, 0, round(ve * 100), 0, 0xFFFF)
-        v._apply_position(msg, time.monotonic())
+    """Apply position reports (vehicle s, east m, velocity estimate east m/s) to ``v``."""
+    apply_positions(v, ORIGIN, [(t, x, ve, 0.0) for t, x, ve in track])
 
 
 def test_a_carrier_standing_by_its_positions_is_standing_whatever_its_velocity_estimate() -> None:

@@ -7,7 +7,6 @@ the rover was disarmed only DISARM_WAIT later (collect +32 %). One still descend
 from __future__ import annotations
 
 import asyncio
-import time
 from collections.abc import Callable
 from types import SimpleNamespace
 from typing import Any
@@ -15,12 +14,13 @@ from typing import Any
 import pytest
 from pymavlink.dialects.v20 import ardupilotmega as M
 
-from fleetctl.geo import Origin, local_to_geodetic
+from fleetctl.geo import Origin
 from fleetctl.mavlink.autopilots import ArduPilot, Px4
 from fleetctl.mavlink.link import Link
 from fleetctl.mavlink.messages import CommandAck
 from fleetctl.mavlink.vehicle import CommandRejected, Vehicle
 from fleetctl.run.collect import DISARM_WAIT, REST_WINDOW, CollectPhase, _at_rest
+from tests.run.ctl_helpers import apply_positions
 
 ORIGIN = Origin(47.397742, 8.545594, 488.0)
 
@@ -30,11 +30,7 @@ def rover(autopilot: Any, track: list[tuple[float, float, float, float]]) -> Veh
     velocity estimate east m/s, up m/s)."""
     v = Vehicle(Link("udp://127.0.0.1:9"), 11, name="r1", origin=ORIGIN)
     v.autopilot, v.armed = autopilot, True
-    for t, x, ve, vu in track:
-        lat, lon, _ = local_to_geodetic(x, 0.0, 0.0, ORIGIN)
-        msg = M.MAVLink_global_position_int_message(round(t * 1000), round(lat * 1e7), round(lon * 1e7),
-                                                    488000, 0, 0, round(ve * 100), round(-vu * 100), 0xFFFF)
-        v._apply_position(msg, time.monotonic())
+    apply_positions(v, ORIGIN, track)
     return v
 
 
