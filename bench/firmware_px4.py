@@ -15,6 +15,9 @@ the makespan starts at to the one it ends at: the last task reached, the park co
 ``--seed S``: round k flies tasks drawn at random with seed S + k (15-30 m away, 3-10 m up: the
 firmware tests' random missions) instead of the fixed three tasks.
 
+``--deck``: the same airframes fly on ``sitl.json_physics`` (PX4's simulator interface) instead of
+SIH, the quadcopters riding on the carrier's deck (``px4_fleet.px4_deck_fleet``), at 2x.
+
 Prints a markdown table. Each round takes about 30 s of wall time on a quiet machine.
 """
 
@@ -35,7 +38,17 @@ HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
 sys.path.insert(0, str(ROOT / "tests" / "firmware"))
 
-from px4_fleet import SPEEDUP, TASKS, mission_yaml, port_free, px4_fleet, random_task_positions  # noqa: E402
+from px4_fleet import (  # noqa: E402
+    DECK,
+    DECK_SPEEDUP,
+    SPEEDUP,
+    TASKS,
+    mission_yaml,
+    port_free,
+    px4_deck_fleet,
+    px4_fleet,
+    random_task_positions,
+)
 
 STARTS = ("carrier_started", "collection_started")  # the journal record a command's makespan counts from
 
@@ -48,17 +61,17 @@ def end_of(rows: list[dict[str, Any]]) -> float | None:
     return ends[-1] if ends else None
 
 
-def fleetctl(mission: Path, runs: Path, *args: str,
+def fleetctl(mission: Path, runs: Path, *args: str, speedup: float = SPEEDUP,
              timeout: float = 240.0) -> subprocess.CompletedProcess[str]:
-    argv = [sys.executable, "-m", "fleetctl.cli", *args, "-m", str(mission), "--speedup", f"{SPEEDUP:g}"]
+    argv = [sys.executable, "-m", "fleetctl.cli", *args, "-m", str(mission), "--speedup", f"{speedup:g}"]
     if args[0] != "status":
         argv += ["--yes", "--headless", "--runs", str(runs)]
     return subprocess.run(argv, cwd=ROOT, capture_output=True, text=True, timeout=timeout, check=False)
 
 
-def wait_ready(mission: Path, runs: Path, timeout: float = 60.0) -> None:
+def wait_ready(mission: Path, runs: Path, speedup: float, timeout: float = 60.0) -> None:
     deadline = time.monotonic() + timeout
-    while fleetctl(mission, runs, "status", "--timeout", "10").returncode != 0:
+    while fleetctl(mission, runs, "status", "--timeout", "10", speedup=speedup).returncode != 0:
         if time.monotonic() > deadline:
             raise RuntimeError("the PX4 fleet was not ready")
         time.sleep(1.0)
@@ -89,9 +102,9 @@ def vehicle_seconds(run_dir: Path, start: float, end: float, sysid: int = 1) -> 
     return None if a is None or b is None else b - a
 
 
-def fly(mission: Path, runs: Path, command: str) -> dict[str, Any]:
+def fly(mission: Path, runs: Path, command: str, speedup: float) -> dict[str, Any]:
     out = runs / f"{command}-{time.monotonic_ns()}.json"
-    proc = fleetctl(mission, runs, command, "--summary", str(out))
+    proc = fleetctl(mission, runs, command, "--summary", str(out), speedup=speedup)
     s = json.loads(out.read_text()) if out.exists() else {}
     row: dict[str, Any] = {"command": command, "exit": proc.returncode, "result": s.get("result"),
                            "planned": s.get("makespan_planned"), "flown": s.get("makespan_flown"),
@@ -117,10 +130,10 @@ def fly_rounds(mission: Path, runs: Path, k: int, args: argparse.Namespace,
     number of rounds flown in all."""
     while k < args.rounds:
         tasks = TASKS if args.seed is None else random_task_positions(args.seed + k)
-        mission.write_text(mission_yaml(tasks))
+        mission.write_text(mission_yaml(tasks, deck_height=DECK.height if args.deck else None))
         k += 1
         for command in ("deploy", "collect"):
-            r = fly(mission, runs, command)
+            r = fly(mission, runs, command, DECK_SPEEDUP if args.deck else SPEEDUP)
             r["round"] = k
             rows.append(r)
             p, f, v = r["planned"], r["flown"], r["vehicle"]
@@ -139,6 +152,8 @@ def main() -> int:
     ap.add_argument("--runs", help="keep the run folders here (default: a temporary folder)")
     ap.add_argument("--seed", type=int,
                     help="round k flies random tasks of seed SEED + k (default: fixed tasks)")
+    ap.add_argument("--deck", action="store_true",
+                    help="fly on sitl.json_physics with the carrier's deck instead of PX4's SIH")
     args = ap.parse_args()
     if not port_free():
         print("UDP port 14550 (PX4's ground-station port) is in use", file=sys.stderr)
@@ -154,9 +169,10 @@ def main() -> int:
         mission = (runs if args.runs else Path(tmp)) / "mission.yaml"
         k = 0
         while k < args.rounds:  # a fleet per stretch of complete rounds
-            with px4_fleet(speedup=SPEEDUP):
-                mission.write_text(mission_yaml())
-                wait_ready(mission, runs)
+            speedup = DECK_SPEEDUP if args.deck else SPEEDUP
+            with px4_deck_fleet() if args.deck else px4_fleet(speedup=SPEEDUP):
+                mission.write_text(mission_yaml(deck_height=DECK.height if args.deck else None))
+                wait_ready(mission, runs, speedup)
                 k = fly_rounds(mission, runs, k, args, rows)
             if k < args.rounds:
                 print(f"| {k} | - | the next round flies a fresh PX4 fleet | | | | | |", flush=True)

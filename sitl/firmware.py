@@ -53,7 +53,8 @@ class FirmwareVehicle:
     """One firmware vehicle: its name, MAVLink system id, airframe and home (lat, lon, AMSL alt,
     heading in compass degrees). ``params`` are set as defaults at boot (ArduPilot: an extra
     defaults file; PX4: ``PX4_PARAM_*`` variables); ``model`` overrides the physics model
-    (ArduPilot ``--model``, e.g. ``JSON`` for an external physics process). ``gcs_serial`` is
+    (ArduPilot ``--model``, e.g. ``JSON`` for an external physics process; PX4
+    ``PX4_SIMULATOR``, e.g. ``rotorpy`` for an external one). ``gcs_serial`` is
     the ArduPilot serial port of the ground-station link: 0 (SERIAL0) is the channel ArduPilot
     trusts like a USB cable and takes unsigned messages on even when signing is set up; 1 is a
     telemetry radio's port, where signing is enforced."""
@@ -200,7 +201,7 @@ class FirmwareFleet:
     def _px4_argv(self, build: Px4Build, v: FirmwareVehicle, wd: Path) -> tuple[list[str], dict[str, str]]:
         lat, lon, alt, _hdg = v.home
         env = dict(os.environ)
-        env.update({"PX4_SYS_AUTOSTART": str(PX4_AIRFRAMES[v.frame]), "PX4_SIMULATOR": "sihsim",
+        env.update({"PX4_SYS_AUTOSTART": str(PX4_AIRFRAMES[v.frame]), "PX4_SIMULATOR": v.model or "sihsim",
                     "PX4_HOME_LAT": f"{lat:.7f}", "PX4_HOME_LON": f"{lon:.7f}", "PX4_HOME_ALT": f"{alt:.2f}",
                     "PX4_PARAM_MAV_SYS_ID": str(v.sysid), "PX4_PARAM_SDLOG_BACKEND": "0",
                     "PX4_SIM_SPEED_FACTOR": f"{self.speedup:g}"})

@@ -47,9 +47,13 @@ class GroundVehicle:
         return 2.0 * speed / diameter
 
     def step(self, pwm: Sequence[int], dt: float) -> None:
+        """One step driven by ArduPilot's servo outputs (microseconds)."""
+        p = self.params
+        self.drive(_servo(pwm, p.steering_channel), _servo(pwm, p.throttle_channel), dt)
+
+    def drive(self, steering: float, throttle: float, dt: float) -> None:
+        """One step with ``steering`` and ``throttle`` in -1..1."""
         p, b = self.params, self.body
-        throttle = _servo(pwm, p.throttle_channel)
-        steering = _servo(pwm, p.steering_channel)
         drive = p.max_accel * (throttle - self.speed / p.max_speed)
         before = self.speed
         if before == 0.0 and abs(drive) <= p.rolling:

@@ -29,6 +29,10 @@ from .rigid import GRAVITY, Vec, add, cross, integrate, norm, rotate, scale, unr
 # (forward, right) unit positions and yaw sign of the four motors of the + frame, by channel
 PLUS_MOTORS: tuple[tuple[float, float, float], ...] = (
     (0.0, 1.0, 1.0), (0.0, -1.0, 1.0), (1.0, 0.0, -1.0), (-1.0, 0.0, -1.0))
+_D = math.sqrt(0.5)
+# PX4's quadrotor X (CA_ROTOR0..3 of its SITL quads): front right and back left spin CCW
+X_MOTORS_PX4: tuple[tuple[float, float, float], ...] = (
+    (_D, _D, 1.0), (-_D, -_D, 1.0), (_D, -_D, -1.0), (-_D, _D, -1.0))
 
 
 @dataclass(frozen=True)
@@ -49,6 +53,7 @@ class QuadParams:
     spin_max: float = 0.95              # MOT_SPIN_MAX
     pwm_min: float = 1000.0             # MOT_PWM_MIN
     pwm_max: float = 2000.0             # MOT_PWM_MAX
+    motors: tuple[tuple[float, float, float], ...] = PLUS_MOTORS  # (forward, right, yaw sign) by output
 
     @property
     def max_thrust(self) -> float:
@@ -82,11 +87,17 @@ class Multicopter:
     thrusts: list[float] = field(default_factory=lambda: [0.0] * 4)
 
     def update_motors(self, pwm: Sequence[int], dt: float) -> None:
+        """Motors driven by ArduPilot's servo outputs (microseconds, its thrust curve)."""
+        self.drive([self.params.thrust_fraction(x) for x in pwm[:4]], dt)
+
+    def drive(self, fractions: Sequence[float], dt: float) -> None:
+        """Motors driven towards ``fractions`` of full thrust (0..1, one per motor)."""
         p = self.params
         alpha = min(1.0, dt / p.motor_tau)
         full = p.max_thrust
         for i in range(4):
-            target = full * p.thrust_fraction(pwm[i])
+            f = fractions[i] if i < len(fractions) else 0.0
+            target = full * min(1.0, max(0.0, f if math.isfinite(f) else 0.0))
             self.thrusts[i] += (target - self.thrusts[i]) * alpha
 
     def total_thrust(self) -> float:
@@ -102,7 +113,7 @@ class Multicopter:
         p, b = self.params, self.body
         arm = p.arm
         tx = ty = tz = 0.0
-        for (fwd, right, yaw_sign), t in zip(PLUS_MOTORS, self.thrusts, strict=True):
+        for (fwd, right, yaw_sign), t in zip(p.motors, self.thrusts, strict=True):
             # r x (0, 0, -t) with r = arm * (fwd, right, 0)
             tx -= arm * right * t
             ty += arm * fwd * t

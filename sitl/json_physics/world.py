@@ -117,13 +117,39 @@ class World:
 
     # -- stepping ---------------------------------------------------------------------------
     def step(self, name: str, pwm: Sequence[int], dt: float) -> Body:
+        """One step driven by ArduPilot's servo outputs (microseconds)."""
         v = self.vehicles[name]
-        v.time += dt
         m = v.model
         if isinstance(m, GroundVehicle):
             m.step(pwm, dt)
+        else:
+            m.update_motors(pwm, dt)
+        return self._advance(v, dt)
+
+    def step_controls(self, name: str, controls: Sequence[float], dt: float) -> Body:
+        """One step driven by normalised controls, as PX4's HIL_ACTUATOR_CONTROLS: a quad's
+        motors 0..1 of full thrust; a ground vehicle's steering and throttle -1..1 on its
+        ``steering_channel`` and ``throttle_channel`` (1-based)."""
+        v = self.vehicles[name]
+        m = v.model
+        if isinstance(m, GroundVehicle):
+            p = m.params
+
+            def channel(c: int) -> float:
+                x = controls[c - 1] if 0 < c <= len(controls) else 0.0
+                return max(-1.0, min(1.0, x)) if math.isfinite(x) else 0.0
+            m.drive(channel(p.steering_channel), channel(p.throttle_channel), dt)
+        else:
+            m.drive(controls, dt)
+        return self._advance(v, dt)
+
+    def _advance(self, v: Vehicle, dt: float) -> Body:
+        """Move ``v`` by one step after its motors were driven: a ground vehicle has moved; a
+        copter rests on its support or flies, and may touch down."""
+        v.time += dt
+        m = v.model
+        if isinstance(m, GroundVehicle):
             return m.body
-        m.update_motors(pwm, dt)
         if v.support is not None:
             if not m.lifting():
                 self._rest(m.body, v.support, dt)

@@ -1,6 +1,9 @@
 """PX4 SITL (SIH) fleet for the firmware tests: a rover carrier (airframe 10045) and quadcopters
 (10040) at the carrier's home, all on one ground-station port ``udpin://127.0.0.1:14550``.
 
+:func:`px4_deck_fleet`: the same airframes flying on ``sitl.json_physics`` through PX4's
+simulator interface instead of SIH, the quadcopters riding on the carrier's deck.
+
 Also runnable by hand: ``FLEETCTL_PX4_DIR=/path/to/px4 python3 -m tests.firmware.px4_fleet OUTDIR``
 starts the fleet, writes ``OUTDIR/mission.yaml`` and runs until interrupted (SIGINT/SIGTERM)."""
 
@@ -18,6 +21,7 @@ from contextlib import contextmanager
 from pathlib import Path
 
 from sitl.firmware import FirmwareFleet, FirmwareVehicle, find_px4
+from sitl.json_physics import Deck, JsonWorld
 
 ROOT = Path(__file__).resolve().parents[2]
 HOME = (47.397742, 8.545594, 488.0, 0.0)  # the origin of the mission: lat, lon, AMSL alt, heading
@@ -26,6 +30,12 @@ SPEEDUP = 4.0  # PX4_SIM_SPEED_FACTOR (the machine is shared: keep it at most 4)
 SKIP_REASON = "PX4 SITL not found: set FLEETCTL_PX4_DIR"
 # tasks 20-30 m from the carrier, one per rover (east, north, height above ground)
 TASKS = ((20.0, 8.0, 5.0), (-6.0, 24.0, 6.0), (-14.0, -18.0, 4.0))
+
+
+DECK = Deck(height=0.5, radius=1.5)
+DECK_SPEEDUP = 2.0  # the world's physics runs in Python: four vehicles at 250 Hz keep pace at 2x
+DECK_INSTANCE_BASE = 30
+SEATS = ((0.5, 0.5), (0.5, -0.5), (-0.5, 0.5), (-0.5, -0.5))  # forward, right of the carrier
 
 
 def random_task_positions(seed: int, n: int = 3) -> tuple[tuple[float, float, float], ...]:
@@ -84,6 +94,28 @@ def px4_fleet(n_rovers: int = 3, speedup: float = SPEEDUP) -> Iterator[FirmwareF
         fleet.cleanup()
 
 
+@contextmanager
+def px4_deck_fleet(n_rovers: int = 3, speedup: float = DECK_SPEEDUP,
+                   instance_base: int = DECK_INSTANCE_BASE) -> Iterator[tuple[FirmwareFleet, JsonWorld]]:
+    """PX4 on the marsupial deck: the carrier at the origin heading north, the quadcopters on its
+    deck (:data:`SEATS`), one physics world (``sitl.json_physics``, PX4's simulator interface)."""
+    build = find_px4()
+    if build is None:
+        raise RuntimeError(SKIP_REASON)
+    world = JsonWorld(HOME[:3], instance_base=instance_base, firmware="px4", speed=speedup)
+    world.add_carrier("carrier", 1, deck=DECK)
+    for k in range(n_rovers):
+        fwd, right = SEATS[k]
+        world.add_copter(f"r{k + 1}", 11 + k, north=fwd, east=right, on_deck_of="carrier")
+    fleet = FirmwareFleet(build, world.firmware_vehicles(), gcs_port=GCS_PORT, speedup=speedup,
+                          instance_base=instance_base)
+    try:
+        with world, fleet:
+            yield fleet, world
+    finally:
+        fleet.cleanup()
+
+
 # the mission's rover speeds are PX4's defaults (written with firmware_speeds: set); the take-off and
 # touch-down times and the leg acceleration the plan uses come from Px4.handling_times and
 # Px4.planned_accel (measured: fleetctl/mavlink/autopilots/px4.py)
@@ -92,14 +124,17 @@ PX4_TIMING = {"max_speed": 5.0, "accel": 3.0}
 
 def mission_yaml(tasks: Sequence[tuple[float, float, float]] = TASKS, *, n_rovers: int = 3,
                  extra_rovers: str = "", timing: dict[str, float] | None = None,
-                 deploy_range: float | None = None, extra: str = "") -> str:
+                 deploy_range: float | None = None, extra: str = "",
+                 deck_height: float | None = None) -> str:
     """A mission for the PX4 fleet (``deploy_range`` default: every task within reach of the
-    carrier's start; ``extra``: more top-level keys)."""
+    carrier's start; ``extra``: more top-level keys; ``deck_height``: the carrier's deck above
+    its reference point, :data:`DECK` for :func:`px4_deck_fleet`)."""
     t = {**PX4_TIMING, **(timing or {})}
     lat, lon, alt, _ = HOME
     task_lines = "".join(f"  - {{id: t{i + 1}, position: [{x:g}, {y:g}, {z:g}]}}\n"
                          for i, (x, y, z) in enumerate(tasks))
     reach = deploy_range or max(math.hypot(x, y) for x, y, _z in tasks) + 10.0
+    deck = "" if deck_height is None else f"  deck_height: {deck_height:g}\n"
     return f"""name: px4-sitl
 origin: {{lat: {lat}, lon: {lon}, alt: {alt}}}
 carrier:
@@ -112,7 +147,7 @@ carrier:
   accel: 1.0
   unload_time: 0.0
   load_time: 0.0
-rovers:                      # PX4 quadcopter (10040) defaults, measured on SITL (tests/firmware/test_px4.py)
+{deck}rovers:  # PX4 quadcopter (10040) defaults, measured on SITL (tests/firmware/test_px4.py)
   max_speed: {t['max_speed']:g}               # MPC_XY_CRUISE
   accel: {t['accel']:g}                   # MPC_ACC_HOR
   climb_rate: 1.5            # MPC_TKO_SPEED

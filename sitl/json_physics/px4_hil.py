@@ -1,0 +1,254 @@
+"""PX4's simulator interface (``simulator_mavlink``): the same world flown by PX4 firmware.
+
+PX4 SITL started with ``PX4_SIMULATOR=rotorpy`` (an external simulator; GPS, barometer and
+magnetometer simulated inside PX4 from the ground truth it is sent) connects over TCP to port
+``4560 + instance`` and speaks MAVLink 2 there. The world answers with, each step of
+``1 / rate`` simulated seconds:
+
+- ``HIL_SENSOR``: the accelerometer and gyroscope (body FRD, m/s^2 and rad/s, with a little
+  noise: PX4 flags a sensor whose readings repeat exactly as stale);
+- ``HIL_STATE_QUATERNION``: the ground truth (attitude, position, velocity) from which PX4's
+  own ``sensor_gps_sim``, ``sensor_baro_sim`` and ``sensor_mag_sim`` compute those sensors;
+
+and takes ``HIL_ACTUATOR_CONTROLS`` (motors 0..1, other outputs -1..1) for the next step.
+
+Lockstep: PX4's clock is the ``time_usec`` the world sends. All vehicles step together on one
+world clock, paced at ``speed`` times real time. A firmware answers at its own control rate (a
+quad every step, the rover every few) with its own time in the controls; a step waits (at most
+``reply_timeout`` wall seconds) for a firmware whose last answer is more than ``MAX_LAG`` behind
+the world, so a loaded machine slows the world rather than leaving the firmware behind it. A
+firmware that does not answer in time is not waited for again until it answers. A firmware that
+connects later joins at the world's time; one whose connection closes (killed) leaves its
+vehicle with motors off.
+"""
+
+from __future__ import annotations
+
+import math
+import random
+import selectors
+import socket
+import threading
+import time
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+
+from pymavlink.dialects.v20 import common as mavlink2
+
+from .rigid import GRAVITY
+from .world import World
+
+BASE_PORT = 4560
+RATE = 250                 # Hz: PX4's IMU_INTEG_RATE for its simulator airframes
+REPLY_TIMEOUT = 0.05       # wall s a step waits for a firmware's controls
+MAX_LAG = 0.02             # simulated s a firmware's controls may lag the world without a wait
+ACCEL_NOISE = 0.02         # m/s^2 (1 sigma)
+GYRO_NOISE = 0.002         # rad/s
+MAX_READ = 65536           # bytes read from one firmware per pass
+EARTH_RADIUS = 6378137.0
+
+
+def hil_port(instance: int) -> int:
+    """Where PX4 instance ``instance`` connects to its simulator."""
+    return BASE_PORT + instance
+
+
+@dataclass
+class HilStats:
+    steps: int = 0         # sensor messages sent
+    controls: int = 0      # HIL_ACTUATOR_CONTROLS received
+    waits: int = 0         # steps that ran without this firmware's answer (timeout)
+    connects: int = 0
+    malformed: int = 0     # bytes MAVLink could not parse
+
+
+@dataclass
+class _Link:
+    name: str
+    listener: socket.socket
+    stats: HilStats
+    conn: socket.socket | None = None
+    mav: mavlink2.MAVLink = field(default_factory=lambda: mavlink2.MAVLink(None, 1, 51))
+    controls: tuple[float, ...] = (0.0,) * 16
+    answered_at: float = -1.0  # the firmware's own time (s) in its last controls
+    lockstep: bool = False     # it answers: a step waits for it when it lags
+
+
+class Px4HilServer:
+    """Serves the PX4 firmware of ``world`` from a background thread (``start``/``stop``).
+    ``origin`` is the (lat, lon, AMSL alt) of the world's north = east = 0 on the ground.
+    ``lock`` guards the world."""
+
+    def __init__(self, world: World, origin: tuple[float, float, float], *, host: str = "127.0.0.1",
+                 ports: Mapping[str, int] | None = None, speed: float = 1.0, rate: int = RATE,
+                 reply_timeout: float = REPLY_TIMEOUT, seed: int = 0) -> None:
+        self.world = world
+        self.origin = origin
+        self.host = host
+        self.ports = {n: (ports or {}).get(n, hil_port(v.instance)) for n, v in world.vehicles.items()}
+        self.speed = speed
+        self.dt = 1.0 / rate
+        self.reply_timeout = reply_timeout
+        self.lock = threading.Lock()
+        self.stats = {n: HilStats() for n in world.vehicles}
+        self.time = 0.0
+        self._rng = random.Random(seed)
+        self._links: dict[str, _Link] = {}
+        self._selector = selectors.DefaultSelector()
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+
+    # -- life -----------------------------------------------------------------------------------
+    def start(self) -> Px4HilServer:
+        for name, port in self.ports.items():
+            s = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+            s.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+            try:
+                s.bind((self.host, port))
+            except OSError as exc:
+                s.close()
+                self.stop()
+                raise OSError(exc.errno, f"{name}: cannot listen on TCP {self.host}:{port} for its PX4 "
+                              f"firmware ({exc.strerror}): another simulator holds it; pick another "
+                              "instance number") from exc
+            s.listen(1)
+            s.setblocking(False)
+            link = _Link(name, s, self.stats[name])
+            self._links[name] = link
+            self._selector.register(s, selectors.EVENT_READ, (link, True))
+        self._thread = threading.Thread(target=self._run, name="px4-hil", daemon=True)
+        self._thread.start()
+        return self
+
+    def stop(self) -> None:
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(5.0)
+            self._thread = None
+        for link in self._links.values():
+            self._drop(link)
+            link.listener.close()
+        self._links.clear()
+        self._selector.close()
+
+    # -- the loop ---------------------------------------------------------------------------------
+    def _lagging(self) -> list[_Link]:
+        return [k for k in self._links.values()
+                if k.conn is not None and k.lockstep and k.answered_at < self.time - MAX_LAG - 1e-9]
+
+    def _run(self) -> None:
+        wall0, sim0 = time.monotonic(), self.time
+        stepped = time.monotonic()
+        while not self._stop.is_set():
+            now = time.monotonic()
+            ahead = (self.time - sim0) / self.speed - (now - wall0)
+            wait = 0.002 if self._lagging() else max(0.0, min(ahead, 0.01))
+            for key, _ in self._selector.select(timeout=wait):
+                link, listening = key.data
+                if listening:
+                    self._accept(link)
+                else:
+                    self._read(link)
+            now = time.monotonic()
+            if (self.time - sim0) / self.speed > now - wall0:
+                continue  # ahead of the wall clock
+            lagging = self._lagging()
+            if lagging and now - stepped < self.reply_timeout:
+                continue
+            for k in lagging:  # silent too long: not waited for until it answers again
+                k.stats.waits += 1
+                k.lockstep = False
+            if (self.time - sim0) / self.speed < now - wall0 - 1.0:
+                wall0, sim0 = now, self.time  # fell behind by more than a second: do not race to catch up
+            self._step()
+            stepped = time.monotonic()
+
+    def _accept(self, link: _Link) -> None:
+        try:
+            conn, _ = link.listener.accept()
+        except (BlockingIOError, InterruptedError, OSError):
+            return
+        self._drop(link)
+        conn.setblocking(False)
+        conn.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+        link.conn = conn
+        link.mav = mavlink2.MAVLink(None, 1, 51)
+        link.mav.robust_parsing = True
+        link.controls, link.answered_at, link.lockstep = (0.0,) * 16, -1.0, False
+        link.stats.connects += 1
+        self._selector.register(conn, selectors.EVENT_READ, (link, False))
+
+    def _drop(self, link: _Link) -> None:
+        if link.conn is not None:
+            try:
+                self._selector.unregister(link.conn)
+            except (KeyError, ValueError):
+                pass
+            link.conn.close()
+            link.conn = None
+        link.controls, link.lockstep, link.answered_at = (0.0,) * 16, False, -1.0
+
+    def _read(self, link: _Link) -> None:
+        assert link.conn is not None
+        try:
+            data = link.conn.recv(MAX_READ)
+        except (BlockingIOError, InterruptedError):
+            return
+        except OSError:
+            data = b""
+        if not data:
+            self._drop(link)  # the firmware is gone: its motors stop
+            return
+        try:
+            msgs = link.mav.parse_buffer(data) or []
+        except mavlink2.MAVError:
+            link.stats.malformed += len(data)
+            return
+        for m in msgs:
+            if m.get_type() == "HIL_ACTUATOR_CONTROLS":
+                c = tuple(float(x) if math.isfinite(x) else 0.0 for x in m.controls)
+                link.controls = c if m.mode & mavlink2.MAV_MODE_FLAG_SAFETY_ARMED else (0.0,) * 16
+                link.answered_at, link.lockstep = m.time_usec * 1e-6, True
+                link.stats.controls += 1
+            elif m.get_type() == "BAD_DATA":
+                link.stats.malformed += 1
+
+    def _step(self) -> None:
+        with self.lock:
+            self.time += self.dt
+            for name, link in self._links.items():
+                self.world.step_controls(name, link.controls, self.dt)
+            out = {name: self._sensors(name) for name, link in self._links.items() if link.conn is not None}
+        for name, payload in out.items():
+            link = self._links[name]
+            link.stats.steps += 1
+            assert link.conn is not None
+            try:
+                link.conn.sendall(payload)
+            except (BlockingIOError, InterruptedError):
+                pass  # PX4 is not reading: it will get the next step
+            except OSError:
+                self._drop(link)
+
+    # -- what PX4 is sent ---------------------------------------------------------------------------
+    def _sensors(self, name: str) -> bytes:
+        link = self._links[name]
+        b = self.world.vehicles[name].body
+        usec = int(round(self.time * 1e6))
+        g = self._rng.gauss
+        acc = tuple(a + g(0.0, ACCEL_NOISE) for a in b.accel_body)
+        gyro = tuple(w + g(0.0, GYRO_NOISE) for w in b.gyro)
+        mav = link.mav
+        sensor = mav.hil_sensor_encode(usec, *acc, *gyro, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0,
+                                       0b111111, 0)
+        lat0, lon0, alt0 = self.origin
+        n, e, d = b.position
+        lat = lat0 + math.degrees(n / EARTH_RADIUS)
+        lon = lon0 + math.degrees(e / (EARTH_RADIUS * math.cos(math.radians(lat0))))
+        vn, ve, vd = b.velocity
+        milli_g = [int(round(a / GRAVITY * 1000.0)) for a in b.accel_body]
+        state = mav.hil_state_quaternion_encode(
+            usec, [float(q) for q in b.attitude], *b.gyro, int(round(lat * 1e7)), int(round(lon * 1e7)),
+            int(round((alt0 - d) * 1000.0)), int(round(vn * 100)), int(round(ve * 100)), int(round(vd * 100)),
+            0, 0, *(max(-32768, min(32767, a)) for a in milli_g))
+        return sensor.pack(mav) + state.pack(mav)
