@@ -22,8 +22,11 @@ Firmware = Literal["ardupilot", "px4"]
 # PX4's SITL quad (airframe 10040): X frame, linear thrust, hovering at MPC_THR_HOVER 0.5
 PX4_QUAD = QuadParams(hover_thrust=0.5, motors=X_MOTORS_PX4)
 # PX4's Ackermann rover (airframe 10045): steering on output 1, throttle on output 2; full
-# throttle is RO_MAX_THR_SPEED (3.2 m/s); wheel base 0.321 m at RA_MAX_STR_ANG 30 degrees
-PX4_ROVER = GroundParams(max_speed=3.2, max_accel=6.0, turning_circle=2 * 0.321 / math.tan(math.radians(30)),
+# throttle is RO_MAX_THR_SPEED (3.2 m/s), the speed its throttle feed-forward assumes, with little
+# rolling resistance (its speed loop's gains, RO_SPEED_P/I 0.001, barely correct a shortfall);
+# wheel base 0.321 m at RA_MAX_STR_ANG 30 degrees
+PX4_ROVER = GroundParams(max_speed=3.2, max_accel=6.0, rolling=0.05,
+                         turning_circle=2 * 0.321 / math.tan(math.radians(30)),
                          max_wheel_turn=30.0, steering_channel=1, throttle_channel=2)
 PX4_SIMULATOR = "rotorpy"  # PX4's name for an external simulator with GPS, baro and mag simulated inside
 

@@ -19,6 +19,7 @@ import time
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
+from typing import Any
 
 from sitl.firmware import FirmwareFleet, FirmwareVehicle, find_px4
 from sitl.json_physics import Deck, JsonWorld
@@ -122,18 +123,23 @@ def px4_deck_fleet(n_rovers: int = 3, speedup: float = DECK_SPEEDUP,
 PX4_TIMING = {"max_speed": 5.0, "accel": 3.0}
 
 
-def mission_yaml(tasks: Sequence[tuple[float, float, float]] = TASKS, *, n_rovers: int = 3,
+def _task_id(i: int, task: Sequence[Any]) -> str:
+    return str(task[0]) if len(task) == 4 else f"t{i + 1}"
+
+
+def mission_yaml(tasks: Sequence[Sequence[Any]] = TASKS, *, n_rovers: int = 3,
                  extra_rovers: str = "", timing: dict[str, float] | None = None,
                  deploy_range: float | None = None, extra: str = "",
-                 deck_height: float | None = None) -> str:
-    """A mission for the PX4 fleet (``deploy_range`` default: every task within reach of the
-    carrier's start; ``extra``: more top-level keys; ``deck_height``: the carrier's deck above
-    its reference point, :data:`DECK` for :func:`px4_deck_fleet`)."""
+                 deck_height: float | None = None, endurance_range: float = 3000.0) -> str:
+    """A mission for the PX4 fleet. ``tasks``: (east, north, up) or (id, east, north, up);
+    ``deploy_range`` default: every task within reach of the carrier's start; ``extra``: more
+    top-level keys; ``deck_height``: the carrier's deck above its reference point (:data:`DECK`
+    for :func:`px4_deck_fleet`)."""
     t = {**PX4_TIMING, **(timing or {})}
     lat, lon, alt, _ = HOME
-    task_lines = "".join(f"  - {{id: t{i + 1}, position: [{x:g}, {y:g}, {z:g}]}}\n"
-                         for i, (x, y, z) in enumerate(tasks))
-    reach = deploy_range or max(math.hypot(x, y) for x, y, _z in tasks) + 10.0
+    task_lines = "".join(f"  - {{id: {_task_id(i, p)}, position: [{p[-3]:g}, {p[-2]:g}, {p[-1]:g}]}}\n"
+                         for i, p in enumerate(tasks))
+    reach = deploy_range or max(math.hypot(p[-3], p[-2]) for p in tasks) + 10.0
     deck = "" if deck_height is None else f"  deck_height: {deck_height:g}\n"
     return f"""name: px4-sitl
 origin: {{lat: {lat}, lon: {lon}, alt: {alt}}}
@@ -153,7 +159,7 @@ carrier:
   climb_rate: 1.5            # MPC_TKO_SPEED
   land_speed: 0.7            # MPC_LAND_SPEED
   deploy_range: {reach:g}
-  endurance_range: 3000.0
+  endurance_range: {endurance_range:g}
   reserve: 0.1
   fleet: {{count: {n_rovers}, sysid_start: 11}}
 {extra_rovers}{extra}tasks:

@@ -1,0 +1,171 @@
+"""PX4's simulator interface of ``sitl.json_physics`` against a scripted PX4 end: a TCP client that
+speaks MAVLink 2 as ``simulator_mavlink`` does (connects, reads HIL_SENSOR and HIL_STATE_QUATERNION,
+answers with HIL_ACTUATOR_CONTROLS stamped with the time it was sent)."""
+
+from __future__ import annotations
+
+import math
+import socket
+import time
+from collections.abc import Iterator
+from contextlib import contextmanager
+
+import pytest
+from pymavlink.dialects.v20 import common as mavlink2
+
+from sitl.json_physics import Deck
+from sitl.json_physics.api import PX4_QUAD, PX4_ROVER
+from sitl.json_physics.multicopter import X_MOTORS_PX4, Multicopter
+from sitl.json_physics.px4_hil import Px4HilServer
+from sitl.json_physics.rigid import GRAVITY, euler
+from sitl.json_physics.world import World
+
+ORIGIN = (47.397742, 8.545594, 488.0)
+EARTH_RADIUS = 6378137.0
+ARMED = mavlink2.MAV_MODE_FLAG_SAFETY_ARMED
+
+
+class FakePx4:
+    """One firmware's end of the link."""
+
+    def __init__(self, port: int) -> None:
+        deadline = time.monotonic() + 5.0
+        while True:
+            try:
+                self.sock = socket.create_connection(("127.0.0.1", port), timeout=2.0)
+                break
+            except ConnectionRefusedError:
+                if time.monotonic() > deadline:
+                    raise
+                time.sleep(0.05)
+        self.mav = mavlink2.MAVLink(None, 1, 1)
+        self.mav.robust_parsing = True
+        self.pending: list[object] = []
+
+    def recv(self, kind: str, timeout: float = 5.0) -> mavlink2.MAVLink_message:
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            while self.pending:
+                m = self.pending.pop(0)
+                assert isinstance(m, mavlink2.MAVLink_message)
+                if m.get_type() == kind:
+                    return m
+            data = self.sock.recv(65536)
+            assert data, "the world closed the link"
+            self.pending += self.mav.parse_buffer(data) or []
+        raise AssertionError(f"no {kind} within {timeout} s")
+
+    def answer(self, controls: list[float], armed: bool = True) -> None:
+        """Controls for the latest sensor step (stamped with its time)."""
+        t = self.recv("HIL_SENSOR").time_usec
+        msg = self.mav.hil_actuator_controls_encode(t, controls + [0.0] * (16 - len(controls)),
+                                                    ARMED if armed else 0, 1)
+        self.sock.sendall(msg.pack(self.mav))
+
+    def close(self) -> None:
+        self.sock.close()
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+@contextmanager
+def served(world: World, speed: float = 20.0) -> Iterator[Px4HilServer]:
+    ports = {name: _free_port() for name in world.vehicles}
+    server = Px4HilServer(world, ORIGIN, ports=ports, speed=speed).start()
+    try:
+        yield server
+    finally:
+        server.stop()
+
+
+def test_a_quad_is_sent_its_imu_and_ground_truth_on_one_clock() -> None:
+    world = World()
+    world.add_copter("r1", 0, north=10.0, east=5.0, params=PX4_QUAD)
+    with served(world) as server:
+        px4 = FakePx4(server.ports["r1"])
+        try:
+            first = px4.recv("HIL_SENSOR")
+            state = px4.recv("HIL_STATE_QUATERNION")
+            later = px4.recv("HIL_SENSOR")
+        finally:
+            px4.close()
+    assert later.time_usec > first.time_usec > 0
+    assert first.fields_updated == 0b111111  # accelerometer and gyroscope: PX4 simulates the rest
+    assert first.zacc == pytest.approx(-GRAVITY, abs=0.1) and abs(first.xacc) < 0.1  # standing, level
+    assert state.lat == round((ORIGIN[0] + math.degrees(10.0 / EARTH_RADIUS)) * 1e7)
+    lon = ORIGIN[1] + math.degrees(5.0 / (EARTH_RADIUS * math.cos(math.radians(ORIGIN[0]))))
+    assert state.lon == round(lon * 1e7)
+    assert state.alt == round(ORIGIN[2] * 1000)
+    assert list(state.attitude_quaternion) == pytest.approx([1.0, 0.0, 0.0, 0.0])
+
+
+def _fly(world: World, controls: list[float], armed: bool, steps: int) -> None:
+    with served(world) as server:
+        px4 = FakePx4(server.ports["r1"])
+        try:
+            for _ in range(steps):
+                px4.answer(controls, armed)
+        finally:
+            px4.close()
+
+
+def test_armed_controls_above_hover_lift_the_quad_and_disarmed_ones_do_not() -> None:
+    lift = [0.6] * 4  # PX4's quad hovers at 0.5
+    world = World()
+    world.add_copter("r1", 0, params=PX4_QUAD)
+    _fly(world, lift, armed=True, steps=300)
+    assert world.vehicles["r1"].body.position[2] < -0.3 and world.on_deck("r1") is None
+
+    world = World()
+    world.add_copter("r1", 0, params=PX4_QUAD)
+    _fly(world, lift, armed=False, steps=300)
+    assert world.vehicles["r1"].body.position[2] == 0.0
+
+
+def test_the_px4_quad_x_rolls_and_turns_as_its_outputs_say() -> None:
+    """PX4's rotor order (CA_ROTOR0..3: front right, back left, front left, back right; the first
+    two spin CCW): more thrust on the left rotors rolls it right, on the CCW rotors turns it right."""
+    assert X_MOTORS_PX4 == PX4_QUAD.motors
+    for outputs, axis in (([0.5, 0.6, 0.6, 0.5], 0), ([0.6, 0.6, 0.5, 0.5], 2)):
+        quad = Multicopter(PX4_QUAD)
+        for _ in range(100):
+            quad.drive(outputs, 0.004)
+            quad.fly(0.004)
+        angles = euler(quad.body.attitude)
+        assert angles[axis] > 0.01, (outputs, angles)
+
+
+def test_the_px4_rover_drives_on_its_throttle_output_and_carries_its_deck() -> None:
+    world = World()
+    world.add_ground_vehicle("carrier", 0, deck=Deck(0.5, 1.5), params=PX4_ROVER)
+    world.add_copter("r1", 1, north=0.5, on_deck_of="carrier", params=PX4_QUAD)
+    for _ in range(1000):  # 4 s at half throttle, straight (steering output 1, throttle output 2)
+        world.step_controls("carrier", [0.0, 0.5], 0.004)
+        world.step_controls("r1", [0.0] * 4, 0.004)
+    carrier = world.vehicles["carrier"].body.position
+    assert carrier[0] > 3.0 and abs(carrier[1]) < 1e-6
+    assert world.on_deck("r1") == "carrier"
+    assert world.vehicles["r1"].body.position == pytest.approx((carrier[0] + 0.5, 0.0, -0.5))
+
+
+def test_a_firmware_whose_link_closes_has_its_motors_stopped() -> None:
+    world = World()
+    world.add_copter("r1", 0, params=PX4_QUAD)
+    with served(world) as server:
+        px4 = FakePx4(server.ports["r1"])
+        for _ in range(300):
+            px4.answer([0.6] * 4)
+        px4.close()
+        deadline = time.monotonic() + 10.0
+        while server.stats["r1"].connects and time.monotonic() < deadline:
+            with server.lock:
+                if world.vehicles["r1"].support is not None:  # it fell back to the ground
+                    break
+            time.sleep(0.05)
+        with server.lock:
+            assert world.vehicles["r1"].support is not None
+            assert world.vehicles["r1"].model.thrusts == pytest.approx([0.0] * 4, abs=0.01)
