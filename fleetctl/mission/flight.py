@@ -9,7 +9,8 @@ rover's acceleration (eq. 4.2, ``T``); the landing descends at ``land_speed``:
 
     takeoff_time = T(TAKEOFF_HEIGHT; climb_rate, accel) + TAKEOFF_SETTLE
                    (TAKEOFF_HEIGHT / climb_rate + TAKEOFF_SETTLE when accel is None)
-    land_time    = MEET_HEIGHT / land_speed + LAND_SETTLE
+    land_time    = descent(deck_height) / land_speed + LAND_SETTLE
+    descent      = MEET_HEIGHT - deck_height (the deck deck_height above the ground, at least 0)
 """
 
 from __future__ import annotations
@@ -31,9 +32,15 @@ def default_takeoff_time(climb_rate: float, accel: float | None = None) -> float
     return travel_time(TAKEOFF_HEIGHT, Motion(climb_rate, accel)) + TAKEOFF_SETTLE
 
 
-def default_land_time(land_speed: float) -> float:
+def descent(deck_height: float = 0.0) -> float:
+    """Metres a rover comes down from ``MEET_HEIGHT`` above a collection stop onto a deck
+    ``deck_height`` above the carrier's reported position (``carrier.deck_height``)."""
+    return max(0.0, MEET_HEIGHT - deck_height)
+
+
+def default_land_time(land_speed: float, deck_height: float = 0.0) -> float:
     """Seconds from a rover above its stop (with the carrier there) to it loaded on the deck."""
-    return MEET_HEIGHT / land_speed + LAND_SETTLE
+    return descent(deck_height) / land_speed + LAND_SETTLE
 
 
 # carrier.firmware_speeds / rovers.firmware_speeds: write the mission's speeds to the autopilot's
@@ -41,4 +48,4 @@ def default_land_time(land_speed: float) -> float:
 FIRMWARE_SPEEDS = ("set", "keep")
 
 __all__ = ["DEFAULT_ENDURANCE", "FIRMWARE_SPEEDS", "GROUND_HEIGHT", "LAND_SETTLE", "MEET_HEIGHT",
-           "TAKEOFF_HEIGHT", "TAKEOFF_SETTLE", "default_land_time", "default_takeoff_time"]
+           "TAKEOFF_HEIGHT", "TAKEOFF_SETTLE", "default_land_time", "default_takeoff_time", "descent"]

@@ -365,7 +365,8 @@ def _build(ctx: Ctx, data: Any, path: Path | None) -> Mission:
         origin=origin,
         carrier=_carrier_config(carrier),
         rovers=RoversConfig(r["max_speed"], r["accel"], deploy_range, endurance, r["reserve"], units, energy,
-                            **_flight_times(r), firmware_speeds=_firmware_speeds(r, carrier["connection"]),
+                            **_flight_times(r, carrier["deck_height"]),
+                            firmware_speeds=_firmware_speeds(r, carrier["connection"]),
                             handling_given=(r["takeoff_time"] is not None, r["land_time"] is not None),
                             work=r["work"]),
         tasks=tasks,
@@ -416,13 +417,14 @@ def _tasks_and_collection(
     return tasks, collection
 
 
-def _flight_times(r: dict[str, Any]) -> dict[str, float]:
+def _flight_times(r: dict[str, Any], deck_height: float) -> dict[str, float]:
     """Climb and landing speeds (default: the cruise speed) and the time model's take-off (a climb at
-    the rovers' acceleration) and touch-down times (default: fleetctl.mission.flight)."""
+    the rovers' acceleration) and touch-down times (default: fleetctl.mission.flight; the descent
+    onto a deck ``deck_height`` up)."""
     climb = r["climb_rate"] if r["climb_rate"] is not None else r["max_speed"]
     land = r["land_speed"] if r["land_speed"] is not None else climb
     takeoff = r["takeoff_time"] if r["takeoff_time"] is not None else default_takeoff_time(climb, r["accel"])
-    touch = r["land_time"] if r["land_time"] is not None else default_land_time(land)
+    touch = r["land_time"] if r["land_time"] is not None else default_land_time(land, deck_height)
     return {"climb_rate": climb, "land_speed": land, "takeoff_time": takeoff, "land_time": touch}
 
 

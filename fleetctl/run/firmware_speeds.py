@@ -94,8 +94,9 @@ def fitted_handling(mission: Mission, autopilots: list[Autopilot],
     nothing changes."""
     out = mission
     r = mission.rovers
-    load = mission.carrier.load_time
-    fits = [t for ap in autopilots if (t := ap.handling_times(r.climb_rate, r.land_speed, load)) is not None]
+    load, deck = mission.carrier.load_time, mission.carrier.deck_height
+    fits = [t for ap in autopilots
+            if (t := ap.handling_times(r.climb_rate, r.land_speed, load, deck)) is not None]
     if fits:
         takeoff_given, land_given = r.handling_given
         takeoff = r.takeoff_time if takeoff_given else max(t for t, _ in fits)

@@ -70,9 +70,11 @@ def _takeoff_time(cell: str) -> None:
 
 
 def _land_time(cell: str) -> None:
-    height, settle = _numbers(r"^([\d.]+) m / `land_speed` \+ ([\d.]+) s", cell)
+    height, settle = _numbers(r"^\(([\d.]+) m − `carrier\.deck_height`\) / `land_speed` \+ ([\d.]+) s", cell)
     for land in (0.5, 2.0):
-        assert _load(rovers={"land_speed": land}).rovers.land_time == pytest.approx(height / land + settle)
+        for deck in (0.0, 0.5):
+            m = _load(rovers={"land_speed": land}, carrier={"deck_height": deck})
+            assert m.rovers.land_time == pytest.approx((height - deck) / land + settle)
 
 
 def _climb_rate(cell: str) -> None:

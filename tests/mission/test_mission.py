@@ -312,6 +312,9 @@ def test_takeoff_and_land_times_from_the_vertical_speeds_or_given(tmp_path: Path
     r = load(tmp_path, data).rovers
     assert r.takeoff_time == pytest.approx(TAKEOFF_HEIGHT / 2.0 + TAKEOFF_SETTLE)
     assert r.land_time == pytest.approx(MEET_HEIGHT / 0.5 + LAND_SETTLE)
+    deck = with_("rovers", climb_rate=2.0, land_speed=0.5)
+    deck["carrier"]["deck_height"] = 0.5  # the descent onto a deck 0.5 m up: 2.5 m
+    assert load(tmp_path, deck).rovers.land_time == pytest.approx((MEET_HEIGHT - 0.5) / 0.5 + LAND_SETTLE)
     data = with_("rovers", takeoff_time=0, land_time=2.5)
     m = load(tmp_path, data)
     assert (m.rovers.takeoff_time, m.rovers.land_time) == (0.0, 2.5)

@@ -44,6 +44,10 @@ def test_the_plan_takes_the_copters_measured_handling_where_the_file_is_silent(t
     # the carrier's load_time (2 s, from the touch-down) covers most of the auto-disarm
     disarm_left = max(0.0, apm.COPTER_DISARM_DELAY - m.carrier.load_time)
     assert r.land_time == pytest.approx(MEET_HEIGHT / 1.0 + apm.COPTER_TOUCHDOWN_OVERHEAD + disarm_left)
+    d["carrier"]["deck_height"] = 0.5  # the descent onto a deck 0.5 m up: 2.5 m
+    deck = fitted_handling(mission_from(d, tmp_path), [ArduPilot()])
+    assert deck is not None and deck.rovers.land_time == pytest.approx(r.land_time - 0.5 / 1.0)
+    del d["carrier"]["deck_height"]
     assert r.accel == pytest.approx(5.0 / (5.0 / 2.5 + apm.COPTER_LEG_OVERHEAD)) and r.accel < 2.5
     d["rovers"].update(takeoff_time=1.5, land_time=2.5)  # given in the file: kept
     kept = fitted_handling(mission_from(d, tmp_path), [ArduPilot()])
@@ -136,9 +140,14 @@ def test_px4_handling_is_planned_and_documented(tmp_path: Path) -> None:
     assert r.land_time == pytest.approx(MEET_HEIGHT / 0.7 + px4.MC_TOUCHDOWN_OVERHEAD)
     assert r.accel == pytest.approx(5.0 / (5.0 / 3.0 + px4.MC_LEG_OVERHEAD))
     assert px4.Px4(M.MAV_TYPE_GROUND_ROVER).handling_times(1.5, 0.7) is None  # a carrier: none
+    # a deck 0.5 m up: the rover comes down 2.5 m from the approach height, not 3
+    d["carrier"]["deck_height"] = 0.5
+    on_deck = fitted_handling(mission_from(d, tmp_path), [px4.Px4(M.MAV_TYPE_QUADROTOR)])
+    assert on_deck is not None
+    assert on_deck.rovers.land_time == pytest.approx((MEET_HEIGHT - 0.5) / 0.7 + px4.MC_TOUCHDOWN_OVERHEAD)
     text = DOC.read_text()
     assert f"`TAKEOFF_HEIGHT / climb_rate + {px4.MC_TAKEOFF_OVERHEAD:.1f} s`" in text
-    assert f"`MEET_HEIGHT / land_speed + {px4.MC_TOUCHDOWN_OVERHEAD:.1f} s`" in text
+    assert f"`descent / land_speed + {px4.MC_TOUCHDOWN_OVERHEAD:.1f} s`" in text
     assert f"`v / (v/a + {px4.MC_LEG_OVERHEAD:.1f} s)`" in text
     names = documented_params(text)
     for p in (*px4.MC_SPEED_PARAMS, *px4.ROVER_SPEED_PARAMS):

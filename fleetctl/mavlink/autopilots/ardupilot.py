@@ -17,7 +17,7 @@ from fleetctl.mavlink.autopilots.base import (
     code,
     seconds,
 )
-from fleetctl.mission.flight import MEET_HEIGHT, TAKEOFF_HEIGHT
+from fleetctl.mission.flight import TAKEOFF_HEIGHT, descent
 
 M = mavlink2
 # ArduCopter FS_GCS_ENABLE (after FS_GCS_TIMEOUT s; FS_OPTIONS bit 1 = 2: continue a mission in AUTO)
@@ -148,14 +148,14 @@ class ArduPilot(Autopilot):
     def planned_turn_rate(self, turn_rate: float | None) -> float | None:
         return 1.0 / ROVER_TURN_COST if self.ground else turn_rate
 
-    def handling_times(self, climb_rate: float, land_speed: float,
-                       load_time: float = 0.0) -> tuple[float, float] | None:
+    def handling_times(self, climb_rate: float, land_speed: float, load_time: float = 0.0,
+                       deck_height: float = 0.0) -> tuple[float, float] | None:
         if self.ground:
             return None
         land = min(max(land_speed, LAND_SPEED_RANGE[0]), LAND_SPEED_RANGE[1])
         disarm_left = max(0.0, COPTER_DISARM_DELAY - load_time)  # what load_time does not cover
         return (TAKEOFF_HEIGHT / climb_rate + COPTER_TAKEOFF_OVERHEAD,
-                MEET_HEIGHT / land + COPTER_TOUCHDOWN_OVERHEAD + disarm_left)
+                descent(deck_height) / land + COPTER_TOUCHDOWN_OVERHEAD + disarm_left)
 
     # -- arming, take-off and mission start -----------------------------------------------------------
     async def arm(self, vehicle: Vehicle, force_param: float = 0.0) -> None:

@@ -208,14 +208,15 @@ class Autopilot:
         change between two legs costs it as it drives them; ``turn_rate`` unless measured otherwise."""
         return turn_rate
 
-    def handling_times(self, climb_rate: float, land_speed: float,
-                       load_time: float = 0.0) -> tuple[float, float] | None:
+    def handling_times(self, climb_rate: float, land_speed: float, load_time: float = 0.0,
+                       deck_height: float = 0.0) -> tuple[float, float] | None:
         """The time model's take-off clearance and touch-down (``rovers.takeoff_time``,
-        ``rovers.land_time``, s) as this firmware flies them with these vertical speeds; None =
-        not measured (the mission's defaults stand). The time model adds the carrier's
-        ``load_time`` after the touch-down term, while the run counts it from the touch-down, as
-        the autopilot disarms the rover: the touch-down term holds only the part of that disarm
-        ``load_time`` does not cover."""
+        ``rovers.land_time``, s) as this firmware flies them with these vertical speeds, the
+        touch-down on a deck ``deck_height`` above the carrier's position (a descent of
+        ``flight.descent(deck_height)``); None = not measured (the mission's defaults stand). The
+        time model adds the carrier's ``load_time`` after the touch-down term, while the run counts
+        it from the touch-down, as the autopilot disarms the rover: the touch-down term holds only
+        the part of that disarm ``load_time`` does not cover."""
         return None
 
     # -- firmware-specific sequences ------------------------------------------------------------------

@@ -17,7 +17,7 @@ from fleetctl.mavlink.autopilots.base import (
     code,
     seconds,
 )
-from fleetctl.mission.flight import MEET_HEIGHT, TAKEOFF_HEIGHT
+from fleetctl.mission.flight import TAKEOFF_HEIGHT, descent
 
 M = mavlink2
 
@@ -219,13 +219,13 @@ class Px4(Autopilot):
             return accel
         return speed / (speed / accel + MC_LEG_OVERHEAD)
 
-    def handling_times(self, climb_rate: float, land_speed: float,
-                       load_time: float = 0.0) -> tuple[float, float] | None:
+    def handling_times(self, climb_rate: float, land_speed: float, load_time: float = 0.0,
+                       deck_height: float = 0.0) -> tuple[float, float] | None:
         if self.ground:
             return None
         # disarmed at once when landed (disarm_when_landed): load_time has no disarm to cover
         return (TAKEOFF_HEIGHT / climb_rate + MC_TAKEOFF_OVERHEAD,
-                MEET_HEIGHT / land_speed + MC_TOUCHDOWN_OVERHEAD)
+                descent(deck_height) / land_speed + MC_TOUCHDOWN_OVERHEAD)
 
     # -- telemetry rates ------------------------------------------------------------------------------
     def stream_rates(self, position_hz: float, status_hz: float) -> dict[str, float]:
