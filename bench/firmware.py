@@ -64,10 +64,14 @@ def percent(cell: dict[str, Any]) -> str:
     return "-" if not p or f is None else f"{100.0 * (f - p) / p:+.1f} %"
 
 
-def seed_args(doc: str, port: int, instance_base: int) -> argparse.Namespace:
+def seed_args(doc: str, port: int, instance_base: int,
+              flags: Sequence[tuple[str, str]] = ()) -> argparse.Namespace:
     """The command line of a bench that flies one firmware team per seed (this one and
-    ``bench/firmware_deck.py``): seeds, ports, where the rows and the run folders go."""
+    ``bench/firmware_deck.py``): seeds, ports, where the rows and the run folders go, and the
+    bench's own on/off ``flags`` (name, help)."""
     ap = argparse.ArgumentParser(description=doc.split("\n\n")[0])
+    for name, text in flags:
+        ap.add_argument(name, action="store_true", help=text)
     ap.add_argument("--seeds", default="1,2,3", help="comma-separated task seeds (default 1,2,3)")
     ap.add_argument("--port", type=int, default=port, help=f"the ground-station UDP port (default {port})")
     ap.add_argument("--instance-base", type=int, default=instance_base,

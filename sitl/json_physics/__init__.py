@@ -1,4 +1,5 @@
-"""Physics for ArduPilot's JSON SITL interface (``--model JSON``), with the marsupial deck.
+"""Physics for ArduPilot's JSON SITL interface (``--model JSON``) and PX4's simulator interface
+(``simulator_mavlink``), with the marsupial deck.
 
 Real ArduCopter and ArduRover firmware fly on physics computed here: a quadcopter in the ``+``
 frame (:mod:`.multicopter`), a car-like ground vehicle (:mod:`.ground_vehicle`), and carriers'
@@ -24,6 +25,11 @@ The firmware vehicles get ``--model JSON`` and a ``--home`` at their start posit
 on a deck: the deck's height above the origin). Start the world before the firmware (it answers
 the first servo packet) and use the same ``instance_base`` for both.
 
+PX4 (its quadcopter X and Ackermann rover airframes, 10040 and 10045) flies the same world with
+``JsonWorld(origin, firmware="px4", speed=S)``: the firmware connects to TCP ``4560 + instance``
+and is sent its IMU and ground truth in lockstep (:mod:`.px4_hil`); ``firmware_vehicles()`` start
+it with ``PX4_SIMULATOR=rotorpy`` (GPS, barometer and magnetometer simulated inside PX4).
+
 From the command line (then start each firmware with ``--model JSON --instance I --home ...``
 as printed)::
 
@@ -35,8 +41,9 @@ from .api import JsonWorld
 from .body import Body
 from .ground_vehicle import GroundParams, GroundVehicle
 from .multicopter import Multicopter, QuadParams
+from .px4_hil import Px4HilServer, hil_port
 from .server import JsonServer, servo_port
 from .world import Deck, World
 
 __all__ = ["Body", "Deck", "GroundParams", "GroundVehicle", "JsonServer", "JsonWorld", "Multicopter",
-           "QuadParams", "World", "servo_port"]
+           "Px4HilServer", "QuadParams", "World", "hil_port", "servo_port"]

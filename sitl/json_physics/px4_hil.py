@@ -6,7 +6,10 @@ magnetometer simulated inside PX4 from the ground truth it is sent) connects ove
 ``1 / rate`` simulated seconds:
 
 - ``HIL_SENSOR``: the accelerometer and gyroscope (body FRD, m/s^2 and rad/s, with a little
-  noise: PX4 flags a sensor whose readings repeat exactly as stale);
+  noise: PX4 flags a sensor whose readings repeat exactly as stale; and the vibration of a ground
+  vehicle that drives, felt by the copters on its deck too: PX4 takes a landed vehicle whose IMU
+  is quiet to be at rest, holds its estimate still and fails its GPS drift checks when it moves,
+  so a copter riding a smooth simulated deck could not be armed at the next stop);
 - ``HIL_STATE_QUATERNION``: the ground truth (attitude, position, velocity) from which PX4's
   own ``sensor_gps_sim``, ``sensor_baro_sim`` and ``sensor_mag_sim`` compute those sensors;
 
@@ -44,6 +47,9 @@ REPLY_TIMEOUT = 0.05       # wall s a step waits for a firmware's controls
 MAX_LAG = 0.02             # simulated s a firmware's controls may lag the world without a wait
 ACCEL_NOISE = 0.02         # m/s^2 (1 sigma)
 GYRO_NOISE = 0.002         # rad/s
+VIBRATION_ACCEL = 1.0      # m/s^2 (1 sigma) more on a ground vehicle driving at VIBRATION_SPEED or faster
+VIBRATION_GYRO = 0.1       # rad/s more, likewise
+VIBRATION_SPEED = 1.0      # m/s
 MAX_READ = 65536           # bytes read from one firmware per pass
 EARTH_RADIUS = 6378137.0
 
@@ -236,8 +242,9 @@ class Px4HilServer:
         b = self.world.vehicles[name].body
         usec = int(round(self.time * 1e6))
         g = self._rng.gauss
-        acc = tuple(a + g(0.0, ACCEL_NOISE) for a in b.accel_body)
-        gyro = tuple(w + g(0.0, GYRO_NOISE) for w in b.gyro)
+        shake = min(1.0, self.world.ground_speed(name) / VIBRATION_SPEED)
+        acc = tuple(a + g(0.0, ACCEL_NOISE + VIBRATION_ACCEL * shake) for a in b.accel_body)
+        gyro = tuple(w + g(0.0, GYRO_NOISE + VIBRATION_GYRO * shake) for w in b.gyro)
         mav = link.mav
         sensor = mav.hil_sensor_encode(usec, *acc, *gyro, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0,
                                        0b111111, 0)

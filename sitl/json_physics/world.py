@@ -212,6 +212,15 @@ class World:
         b.set_specific_force(accel)
 
     # -- queries ----------------------------------------------------------------------------
+    def ground_speed(self, name: str) -> float:
+        """How fast the ground under ``name`` moves: a ground vehicle's own speed, the speed of the
+        carrier whose deck holds a copter, else 0 (m/s)."""
+        v = self.vehicles[name]
+        if isinstance(v.model, GroundVehicle):
+            return abs(v.model.speed)
+        carrier = self.on_deck(name)
+        return self.ground_speed(carrier) if carrier is not None else 0.0
+
     def on_deck(self, name: str) -> str | None:
         """The carrier whose deck holds ``name``, or None."""
         s = self.vehicles[name].support

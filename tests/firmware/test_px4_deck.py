@@ -5,8 +5,9 @@ truth), the quadcopters riding on the carrier's deck (0.5 m up, 1.5 m radius).
 
 fleetctl's command line flies a deployment with several carrier stops (two groups of tasks 70 m
 apart, ``rovers.deploy_range`` 25 m): the carrier drives with the rovers on its deck, they take off
-from the deck at its stops and reach their tasks; the collection brings every rover down on the
-deck, disarmed. Skipped with one line without ``FLEETCTL_PX4_DIR``.
+from the deck at its stops and reach their tasks. The rovers then land where they are and wait
+for the collection on the ground (their battery, ``endurance_range`` 100 m, would not last the
+wait in the air); the collection brings every rover down on the deck, disarmed. Skipped with one line without ``FLEETCTL_PX4_DIR``.
 """
 
 from __future__ import annotations
@@ -18,7 +19,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from ardupilot_team import horizontal, probe
+from ardupilot_team import horizontal, land_where_they_are, probe
 from deck_team import TASKS, Rides, ne_to_enu
 from px4_fleet import (
     DECK,
@@ -41,6 +42,9 @@ if find_px4() is None:
     pytest.skip(SKIP_REASON, allow_module_level=True)
 
 AT_TASK = 2.0  # m from the task, horizontally
+# m from the task's height: PX4's altitude is its estimate from the barometer and GPS it simulates
+# itself (noise and drift: 0.56 m off measured here, up to 1.5 m on SIH - docs/autopilots.md)
+AT_HEIGHT = 1.0
 
 
 def _fly(mission: Path, tmp_path: Path, command: str) -> tuple[dict[str, Any], str]:
@@ -79,8 +83,9 @@ def test_multi_stop_deploy_and_collect_on_the_px4_deck(tmp_path: Path) -> None:
         for task, rover in deploy["assignment"].items():  # the physics' positions, not PX4's estimate
             p = ne_to_enu(world.state(rover).position)
             assert world.on_deck(rover) is None and horizontal(p, where[task]) < AT_TASK, (rover, task, p)
-            assert abs(p[2] - where[task][2]) < 0.5, (rover, task, p)
+            assert abs(p[2] - where[task][2]) < AT_HEIGHT, (rover, task, p)
 
+        land_where_they_are(GCS_PORT, [11 + k for k in range(len(rovers))])
         w1 = time.monotonic()
         with Rides(world, rovers) as ride_collect:
             collect, text = _fly(mission, tmp_path, "collect")

@@ -169,3 +169,25 @@ def test_a_firmware_whose_link_closes_has_its_motors_stopped() -> None:
         with server.lock:
             assert world.vehicles["r1"].support is not None
             assert world.vehicles["r1"].model.thrusts == pytest.approx([0.0] * 4, abs=0.01)
+
+
+def test_the_docs_state_the_interface_as_built() -> None:
+    from pathlib import Path
+
+    from sitl.json_physics import px4_hil
+    from sitl.json_physics.api import PX4_SIMULATOR
+
+    text = (Path(__file__).resolve().parents[2] / "docs" / "autopilots.md").read_text()
+    assert f"TCP port `{px4_hil.BASE_PORT} + instance`" in text
+    assert f"`PX4_SIMULATOR={PX4_SIMULATOR}`" in text
+    assert f"lag the world by more than {px4_hil.MAX_LAG * 1000:.0f} ms" in text
+    assert f"four vehicles at {px4_hil.RATE} Hz" in text
+    assert px4_hil.hil_port(3) == px4_hil.BASE_PORT + 3
+    import importlib.util
+
+    path = Path(__file__).parents[1] / "firmware" / "px4_fleet.py"
+    spec = importlib.util.spec_from_file_location("px4_fleet", path)
+    assert spec is not None and spec.loader is not None
+    fleet = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(fleet)
+    assert f"time, {fleet.DECK_SPEEDUP:g} in the tests" in text
