@@ -45,6 +45,7 @@ BASE_PORT = 4560
 RATE = 250                 # Hz: PX4's IMU_INTEG_RATE for its simulator airframes
 REPLY_TIMEOUT = 0.05       # wall s a step waits for a firmware's controls
 MAX_LAG = 0.02             # simulated s a firmware's controls may lag the world without a wait
+MAX_BEHIND = 1.0           # wall s the world may fall behind its pace and still catch up
 ACCEL_NOISE = 0.02         # m/s^2 (1 sigma)
 GYRO_NOISE = 0.002         # rad/s
 VIBRATION_ACCEL = 1.0      # m/s^2 (1 sigma) more on a ground vehicle driving at VIBRATION_SPEED or faster
@@ -78,6 +79,26 @@ class _Link:
     controls: tuple[float, ...] = (0.0,) * 16
     answered_at: float = -1.0  # the firmware's own time (s) in its last controls
     lockstep: bool = False     # it answers: a step waits for it when it lags
+
+
+@dataclass
+class _Pace:
+    """The world's clock against the wall clock: ``speed`` simulated seconds per wall second from
+    (``wall0``, ``sim0``)."""
+
+    speed: float
+    wall0: float
+    sim0: float
+
+    def ahead(self, sim: float, now: float) -> float:
+        """Wall seconds the world at ``sim`` is ahead of its pace (negative: behind)."""
+        return (sim - self.sim0) / self.speed - (now - self.wall0)
+
+    def keep_up(self, sim: float, now: float) -> None:
+        """A world more than MAX_BEHIND wall seconds behind (a loaded machine) takes up its pace
+        from here instead of racing to catch up."""
+        if self.ahead(sim, now) < -MAX_BEHIND:
+            self.wall0, self.sim0 = now, sim
 
 
 class Px4HilServer:
@@ -138,36 +159,41 @@ class Px4HilServer:
         self._selector.close()
 
     # -- the loop ---------------------------------------------------------------------------------
+    def _run(self) -> None:
+        pace = _Pace(self.speed, time.monotonic(), self.time)
+        stepped = time.monotonic()
+        while not self._stop.is_set():
+            ahead = pace.ahead(self.time, time.monotonic())
+            self._serve_io(0.002 if self._lagging() else max(0.0, min(ahead, 0.01)))
+            now = time.monotonic()
+            if pace.ahead(self.time, now) > 0.0 or not self._answered(now - stepped):
+                continue
+            pace.keep_up(self.time, now)
+            self._step()
+            stepped = time.monotonic()
+
+    def _serve_io(self, timeout: float) -> None:
+        for key, _ in self._selector.select(timeout=timeout):
+            link, listening = key.data
+            if listening:
+                self._accept(link)
+            else:
+                self._read(link)
+
     def _lagging(self) -> list[_Link]:
         return [k for k in self._links.values()
                 if k.conn is not None and k.lockstep and k.answered_at < self.time - MAX_LAG - 1e-9]
 
-    def _run(self) -> None:
-        wall0, sim0 = time.monotonic(), self.time
-        stepped = time.monotonic()
-        while not self._stop.is_set():
-            now = time.monotonic()
-            ahead = (self.time - sim0) / self.speed - (now - wall0)
-            wait = 0.002 if self._lagging() else max(0.0, min(ahead, 0.01))
-            for key, _ in self._selector.select(timeout=wait):
-                link, listening = key.data
-                if listening:
-                    self._accept(link)
-                else:
-                    self._read(link)
-            now = time.monotonic()
-            if (self.time - sim0) / self.speed > now - wall0:
-                continue  # ahead of the wall clock
-            lagging = self._lagging()
-            if lagging and now - stepped < self.reply_timeout:
-                continue
-            for k in lagging:  # silent too long: not waited for until it answers again
-                k.stats.waits += 1
-                k.lockstep = False
-            if (self.time - sim0) / self.speed < now - wall0 - 1.0:
-                wall0, sim0 = now, self.time  # fell behind by more than a second: do not race to catch up
-            self._step()
-            stepped = time.monotonic()
+    def _answered(self, waited: float) -> bool:
+        """Whether the next step may run: no firmware lags, or the lagging ones were waited for
+        ``reply_timeout`` (then they are not waited for again until they answer)."""
+        lagging = self._lagging()
+        if lagging and waited < self.reply_timeout:
+            return False
+        for k in lagging:
+            k.stats.waits += 1
+            k.lockstep = False
+        return True
 
     def _accept(self, link: _Link) -> None:
         try:

@@ -191,3 +191,37 @@ def test_the_docs_state_the_interface_as_built() -> None:
     fleet = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(fleet)
     assert f"time, {fleet.DECK_SPEEDUP:g} in the tests" in text
+
+
+def test_a_copter_riding_a_driving_carrier_feels_it_shake() -> None:
+    """PX4 takes a landed vehicle with a quiet IMU to be at rest (it then holds its estimate still
+    and fails its GPS drift check as the deck moves): the carrier's vibration reaches the copters
+    on its deck while it drives, and stops with it."""
+    world = World()
+    world.add_ground_vehicle("carrier", 0, deck=Deck(0.5, 1.5), params=PX4_ROVER)
+    world.add_copter("r1", 1, on_deck_of="carrier", params=PX4_QUAD)
+    world.add_copter("r2", 2, north=20.0, params=PX4_QUAD)
+    assert world.ground_speed("r1") == world.ground_speed("r2") == 0.0
+
+    server = Px4HilServer(world, ORIGIN, ports={n: _free_port() for n in world.vehicles})
+    mav = mavlink2.MAVLink(None, 1, 1)
+
+    def xacc(payload: bytes) -> float:
+        return next(m.xacc for m in mav.parse_buffer(payload) or [] if m.get_type() == "HIL_SENSOR")
+
+    def spread(name: str) -> float:
+        xs = [xacc(server._sensors(name)) for _ in range(200)]
+        mean = sum(xs) / len(xs)
+        return math.sqrt(sum((x - mean) ** 2 for x in xs) / len(xs))
+
+    server.start()
+    try:
+        with server.lock:
+            quiet = spread("r1")
+            world.vehicles["carrier"].model.speed = 1.5  # type: ignore[union-attr]
+            assert world.ground_speed("r1") == 1.5 and world.ground_speed("r2") == 0.0
+            assert spread("r1") > 10 * quiet and spread("carrier") > 10 * quiet
+            assert spread("r2") < 2 * quiet
+    finally:
+        server.stop()
+
