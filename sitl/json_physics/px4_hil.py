@@ -39,6 +39,7 @@ from dataclasses import dataclass, field
 from pymavlink.dialects.v20 import common as mavlink2
 
 from .rigid import GRAVITY
+from .sockets import ServingThread, listen_all
 from .world import World
 
 BASE_PORT = 4560
@@ -101,7 +102,7 @@ class _Pace:
             self.wall0, self.sim0 = now, sim
 
 
-class Px4HilServer:
+class Px4HilServer(ServingThread):
     """Serves the PX4 firmware of ``world`` from a background thread (``start``/``stop``).
     ``origin`` is the (lat, lon, AMSL alt) of the world's north = east = 0 on the ground.
     ``lock`` guards the world."""
@@ -121,37 +122,19 @@ class Px4HilServer:
         self.time = 0.0
         self._rng = random.Random(seed)
         self._links: dict[str, _Link] = {}
-        self._selector = selectors.DefaultSelector()
-        self._stop = threading.Event()
-        self._thread: threading.Thread | None = None
+        super().__init__("px4-hil")
 
     # -- life -----------------------------------------------------------------------------------
     def start(self) -> Px4HilServer:
-        for name, port in self.ports.items():
-            s = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
-            s.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
-            try:
-                s.bind((self.host, port))
-            except OSError as exc:
-                s.close()
-                self.stop()
-                raise OSError(exc.errno, f"{name}: cannot listen on TCP {self.host}:{port} for its PX4 "
-                              f"firmware ({exc.strerror}): another simulator holds it; pick another "
-                              "instance number") from exc
-            s.listen(1)
-            s.setblocking(False)
+        for name, s in listen_all(socket.SOCK_STREAM, self.host, self.ports, "its PX4 firmware").items():
             link = _Link(name, s, self.stats[name])
             self._links[name] = link
             self._selector.register(s, selectors.EVENT_READ, (link, True))
-        self._thread = threading.Thread(target=self._run, name="px4-hil", daemon=True)
-        self._thread.start()
+        self._launch()
         return self
 
     def stop(self) -> None:
-        self._stop.set()
-        if self._thread is not None:
-            self._thread.join(5.0)
-            self._thread = None
+        self._halt()
         for link in self._links.values():
             self._drop(link)
             link.listener.close()
@@ -162,7 +145,7 @@ class Px4HilServer:
     def _run(self) -> None:
         pace = _Pace(self.speed, time.monotonic(), self.time)
         stepped = time.monotonic()
-        while not self._stop.is_set():
+        while not self._stopping.is_set():
             ahead = pace.ahead(self.time, time.monotonic())
             self._serve_io(0.002 if self._lagging() else max(0.0, min(ahead, 0.01)))
             now = time.monotonic()

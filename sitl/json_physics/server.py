@@ -25,6 +25,7 @@ import time
 from dataclasses import dataclass
 
 from .protocol import encode_state, parse_servo
+from .sockets import ServingThread, listen_all
 from .world import World
 
 BASE_PORT = 9002
@@ -59,7 +60,7 @@ class _Link:
     offset: float = 0.0   # world time at which this firmware's clock started
 
 
-class JsonServer:
+class JsonServer(ServingThread):
     """Serves the firmware instances of ``world`` from a background thread (``start``/``stop``).
     ``lock`` guards the world: hold it to read vehicle states from another thread."""
 
@@ -73,40 +74,26 @@ class JsonServer:
         self.lock = threading.Lock()
         self.stats = {n: LinkStats() for n in world.vehicles}
         self._links: list[_Link] = []
-        self._selector = selectors.DefaultSelector()
-        self._stop = threading.Event()
-        self._thread: threading.Thread | None = None
+        super().__init__("json-physics")
 
     def start(self) -> JsonServer:
-        for name, port in self.ports.items():
-            s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-            try:
-                s.bind((self.host, port))
-            except OSError as exc:
-                s.close()
-                self.stop()  # the ports already bound are released, not leaked
-                raise OSError(exc.errno, f"{name}: cannot listen on UDP {self.host}:{port} for its "
-                              f"firmware's servo packets ({exc.strerror}): another physics server "
-                              "or simulator holds it; pick another instance number") from exc
-            s.setblocking(False)
+        socks = listen_all(socket.SOCK_DGRAM, self.host, self.ports, "its firmware's servo packets")
+        for name, s in socks.items():
             link = _Link(name, s, self.stats[name])
             self._links.append(link)
             self._selector.register(s, selectors.EVENT_READ, link)
-        self._thread = threading.Thread(target=self._run, name="json-physics", daemon=True)
-        self._thread.start()
+        self._launch()
         return self
 
     def stop(self) -> None:
-        self._stop.set()
-        if self._thread is not None:
-            self._thread.join(5.0)
+        self._halt()
         self._selector.close()
         for link in self._links:
             link.sock.close()
         self._links.clear()
 
     def _run(self) -> None:
-        while not self._stop.is_set():
+        while not self._stopping.is_set():
             waiting = any(link.pending is not None for link in self._links)
             for key, _ in self._selector.select(timeout=0.05 if waiting else 0.2):
                 link: _Link = key.data

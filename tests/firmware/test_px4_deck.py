@@ -7,7 +7,8 @@ fleetctl's command line flies a deployment with several carrier stops (two group
 apart, ``rovers.deploy_range`` 25 m): the carrier drives with the rovers on its deck, they take off
 from the deck at its stops and reach their tasks. The rovers then land where they are and wait
 for the collection on the ground (their battery, ``endurance_range`` 100 m, would not last the
-wait in the air); the collection brings every rover down on the deck, disarmed. Skipped with one line without ``FLEETCTL_PX4_DIR``.
+wait in the air); the collection brings every rover down on the deck, disarmed. Skipped with one
+line without ``FLEETCTL_PX4_DIR``.
 """
 
 from __future__ import annotations

@@ -225,3 +225,14 @@ def test_a_copter_riding_a_driving_carrier_feels_it_shake() -> None:
     finally:
         server.stop()
 
+
+
+def test_a_taken_port_is_named_with_its_vehicle() -> None:
+    world = World()
+    world.add_copter("r1", 0, params=PX4_QUAD)
+    with socket.socket() as busy:
+        busy.bind(("127.0.0.1", 0))
+        busy.listen(1)
+        port = busy.getsockname()[1]
+        with pytest.raises(OSError, match=f"r1: cannot listen on TCP 127.0.0.1:{port} for its PX4 firmware"):
+            Px4HilServer(world, ORIGIN, ports={"r1": port}).start()
