@@ -14,13 +14,20 @@ from .body import Body
 from .ground_vehicle import GroundParams, GroundVehicle
 from .multicopter import X_MOTORS_PX4, QuadParams
 from .px4_hil import HilStats, Px4HilServer
+from .rigid import GRAVITY
 from .server import JsonServer, LinkStats
 from .world import Deck, World
 
 EARTH_RADIUS = 6378137.0  # m, as ArduPilot's Location offsets
 Firmware = Literal["ardupilot", "px4"]
-# PX4's SITL quad (airframe 10040): X frame, linear thrust, hovering at MPC_THR_HOVER 0.5
-PX4_QUAD = QuadParams(hover_thrust=0.5, motors=X_MOTORS_PX4)
+# PX4's SITL quad (airframe 10040) as PX4's own SIH simulates it by default: 1 kg (SIH_MASS),
+# 5 N full thrust per rotor (SIH_T_MAX: hovering at 0.49, linear in the output), 0.1 N m of rotor
+# torque (SIH_Q_MAX), arms 0.2 m from the roll and pitch axes (SIH_L_ROLL, SIH_L_PITCH), inertia
+# SIH_IXX/IYY/IZZ, first-order drag 1 N per m/s (SIH_KDV) and angular damping 0.025 N m per rad/s
+# (SIH_KDW), motor time constant 0.05 s (SIH_T_TAU); the X frame of its CA_ROTOR geometry
+PX4_QUAD = QuadParams(mass=1.0, arm=0.2 * math.sqrt(2.0), inertia=(0.025, 0.025, 0.03),
+                      hover_thrust=1.0 * GRAVITY / (4 * 5.0), yaw_moment=0.1 / 5.0, motor_tau=0.05,
+                      drag=0.0, linear_drag=1.0, rot_damping=(0.025, 0.025, 0.025), motors=X_MOTORS_PX4)
 # PX4's Ackermann rover (airframe 10045): steering on output 1, throttle on output 2; full
 # throttle is RO_MAX_THR_SPEED (3.2 m/s), the speed its throttle feed-forward assumes, with little
 # rolling resistance (its speed loop's gains, RO_SPEED_P/I 0.001, barely correct a shortfall);

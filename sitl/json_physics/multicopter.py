@@ -47,6 +47,7 @@ class QuadParams:
     yaw_moment: float = 0.05            # rotor drag torque per newton of thrust (m)
     motor_tau: float = 0.03             # motor time constant (s)
     drag: float = 0.04                  # quadratic drag (N per (m/s)^2)
+    linear_drag: float = 0.0            # first-order drag (N per m/s)
     rot_damping: Vec = (0.003, 0.003, 0.02)  # N m per rad/s
     thrust_expo: float = 0.65           # MOT_THST_EXPO
     spin_min: float = 0.15              # MOT_SPIN_MIN
@@ -128,7 +129,7 @@ class Multicopter:
         b.gyro = add(w, scale(wdot, dt))
         b.attitude = integrate(b.attitude, b.gyro, dt)
         v = b.velocity
-        drag = scale(v, -p.drag * norm(v) / p.mass)
+        drag = scale(v, -(p.drag * norm(v) + p.linear_drag) / p.mass)
         thrust = rotate(b.attitude, (0.0, 0.0, -self.total_thrust() / p.mass))
         accel = (thrust[0] + drag[0], thrust[1] + drag[1], thrust[2] + drag[2] + GRAVITY)
         b.velocity = add(v, scale(accel, dt))

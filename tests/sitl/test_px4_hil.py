@@ -114,7 +114,7 @@ def _fly(world: World, controls: list[float], armed: bool, steps: int) -> None:
 
 
 def test_armed_controls_above_hover_lift_the_quad_and_disarmed_ones_do_not() -> None:
-    lift = [0.6] * 4  # PX4's quad hovers at 0.5
+    lift = [0.6] * 4  # PX4's quad hovers at 0.49
     world = World()
     world.add_copter("r1", 0, params=PX4_QUAD)
     _fly(world, lift, armed=True, steps=300)
