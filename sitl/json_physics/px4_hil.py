@@ -5,8 +5,8 @@ magnetometer simulated inside PX4 from the ground truth it is sent) connects ove
 ``4560 + instance`` and speaks MAVLink 2 there. The world answers with, each step of
 ``1 / rate`` simulated seconds:
 
-- ``HIL_SENSOR``: the accelerometer and gyroscope (body FRD, m/s^2 and rad/s, with the noise of
-  PX4's own SIH simulation: larger while the firmware is armed; and the vibration of a ground
+- ``HIL_SENSOR``: the accelerometer and gyroscope (body FRD, m/s^2 and rad/s, with a little
+  noise: PX4 flags a sensor whose readings repeat exactly as stale; and the vibration of a ground
   vehicle that drives, felt by the copters on its deck too: PX4 takes a landed vehicle whose IMU
   is quiet to be at rest, holds its estimate still and fails its GPS drift checks when it moves,
   so a copter riding a smooth simulated deck could not be armed at the next stop);
@@ -47,11 +47,8 @@ RATE = 250                 # Hz: PX4's IMU_INTEG_RATE for its simulator airframe
 REPLY_TIMEOUT = 0.05       # wall s a step waits for a firmware's controls
 MAX_LAG = 0.02             # simulated s a firmware's controls may lag the world without a wait
 MAX_BEHIND = 1.0           # wall s the world may fall behind its pace and still catch up
-# IMU noise (1 sigma per body axis) as PX4's SIH adds it: armed (motors running), and disarmed
-ACCEL_NOISE_ARMED = (0.5, 1.7, 1.4)     # m/s^2
-GYRO_NOISE_ARMED = (0.14, 0.07, 0.03)   # rad/s
-ACCEL_NOISE = (0.1, 0.1, 0.1)
-GYRO_NOISE = (0.01, 0.01, 0.01)
+ACCEL_NOISE = 0.02         # m/s^2 (1 sigma)
+GYRO_NOISE = 0.002         # rad/s
 VIBRATION_ACCEL = 1.0      # m/s^2 (1 sigma) more on a ground vehicle driving at VIBRATION_SPEED or faster
 VIBRATION_GYRO = 0.1       # rad/s more, likewise
 VIBRATION_SPEED = 1.0      # m/s
@@ -82,7 +79,6 @@ class _Link:
     mav: mavlink2.MAVLink = field(default_factory=lambda: mavlink2.MAVLink(None, 1, 51))
     controls: tuple[float, ...] = (0.0,) * 16
     answered_at: float = -1.0  # the firmware's own time (s) in its last controls
-    armed: bool = False        # as its last controls say
     lockstep: bool = False     # it answers: a step waits for it when it lags
 
 
@@ -193,7 +189,7 @@ class Px4HilServer(ServingThread):
         link.conn = conn
         link.mav = mavlink2.MAVLink(None, 1, 51)
         link.mav.robust_parsing = True
-        link.controls, link.answered_at, link.lockstep, link.armed = (0.0,) * 16, -1.0, False, False
+        link.controls, link.answered_at, link.lockstep = (0.0,) * 16, -1.0, False
         link.stats.connects += 1
         self._selector.register(conn, selectors.EVENT_READ, (link, False))
 
@@ -205,7 +201,7 @@ class Px4HilServer(ServingThread):
                 pass
             link.conn.close()
             link.conn = None
-        link.controls, link.lockstep, link.answered_at, link.armed = (0.0,) * 16, False, -1.0, False
+        link.controls, link.lockstep, link.answered_at = (0.0,) * 16, False, -1.0
 
     def _read(self, link: _Link) -> None:
         assert link.conn is not None
@@ -226,8 +222,7 @@ class Px4HilServer(ServingThread):
         for m in msgs:
             if m.get_type() == "HIL_ACTUATOR_CONTROLS":
                 c = tuple(float(x) if math.isfinite(x) else 0.0 for x in m.controls)
-                link.armed = bool(m.mode & mavlink2.MAV_MODE_FLAG_SAFETY_ARMED)
-                link.controls = c if link.armed else (0.0,) * 16
+                link.controls = c if m.mode & mavlink2.MAV_MODE_FLAG_SAFETY_ARMED else (0.0,) * 16
                 link.answered_at, link.lockstep = m.time_usec * 1e-6, True
                 link.stats.controls += 1
             elif m.get_type() == "BAD_DATA":
@@ -251,24 +246,14 @@ class Px4HilServer(ServingThread):
                 self._drop(link)
 
     # -- what PX4 is sent ---------------------------------------------------------------------------
-    def _imu(self, name: str, armed: bool) -> tuple[tuple[float, ...], tuple[float, ...]]:
-        """The accelerometer and gyroscope of ``name``: its body's, with SIH's noise and the
-        vibration of the ground under it."""
-        b = self.world.vehicles[name].body
-        g = self._rng.gauss
-        shake = min(1.0, self.world.ground_speed(name) / VIBRATION_SPEED)
-        base_acc, base_gyro = (ACCEL_NOISE_ARMED, GYRO_NOISE_ARMED) if armed else (ACCEL_NOISE, GYRO_NOISE)
-        acc_sd = [s + VIBRATION_ACCEL * shake for s in base_acc]
-        gyro_sd = [s + VIBRATION_GYRO * shake for s in base_gyro]
-        acc = tuple(a + g(0.0, s) for a, s in zip(b.accel_body, acc_sd, strict=True))
-        gyro = tuple(w + g(0.0, s) for w, s in zip(b.gyro, gyro_sd, strict=True))
-        return acc, gyro
-
     def _sensors(self, name: str) -> bytes:
         link = self._links[name]
         b = self.world.vehicles[name].body
         usec = int(round(self.time * 1e6))
-        acc, gyro = self._imu(name, link.armed)
+        g = self._rng.gauss
+        shake = min(1.0, self.world.ground_speed(name) / VIBRATION_SPEED)
+        acc = tuple(a + g(0.0, ACCEL_NOISE + VIBRATION_ACCEL * shake) for a in b.accel_body)
+        gyro = tuple(w + g(0.0, GYRO_NOISE + VIBRATION_GYRO * shake) for w in b.gyro)
         mav = link.mav
         sensor = mav.hil_sensor_encode(usec, *acc, *gyro, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0,
                                        0b111111, 0)
