@@ -13,7 +13,7 @@ from contextlib import contextmanager
 import pytest
 from pymavlink.dialects.v20 import common as mavlink2
 
-from sitl.json_physics import Deck
+from sitl.json_physics import Deck, px4_hil
 from sitl.json_physics.api import PX4_QUAD, PX4_ROVER
 from sitl.json_physics.multicopter import X_MOTORS_PX4, Multicopter
 from sitl.json_physics.px4_hil import Px4HilServer
@@ -236,3 +236,15 @@ def test_a_taken_port_is_named_with_its_vehicle() -> None:
         port = busy.getsockname()[1]
         with pytest.raises(OSError, match=f"r1: cannot listen on TCP 127.0.0.1:{port} for its PX4 firmware"):
             Px4HilServer(world, ORIGIN, ports={"r1": port}).start()
+
+
+def test_the_px4_quad_is_sihs() -> None:
+    """PX4's handling terms were measured on its SIH quadcopter: the deck's quad has its constants
+    (SIH_MASS 1 kg, SIH_T_MAX 5 N, SIH_KDV 1 N per m/s), as docs/autopilots.md says."""
+    from pathlib import Path
+
+    assert PX4_QUAD.mass == 1.0 and PX4_QUAD.linear_drag == 1.0 and PX4_QUAD.drag == 0.0
+    assert PX4_QUAD.max_thrust == pytest.approx(5.0)
+    text = (Path(__file__).resolve().parents[2] / "docs" / "autopilots.md").read_text()
+    assert "(1 kg, 5 N per rotor, first-order drag 1 N per m/s" in text
+    assert f"({px4_hil.VIBRATION_ACCEL:g} m/s² more noise at\n{px4_hil.VIBRATION_SPEED:g} m/s)" in text
