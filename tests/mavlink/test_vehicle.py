@@ -263,7 +263,7 @@ class _CountingPx4Link(_Px4SetCurrentLink):
         from fleetctl.mavlink.link import CommandAck
 
         self.commands.append(command)
-        if command == self.M.MAV_CMD_DO_SET_MODE:
+        if command in (self.M.MAV_CMD_DO_SET_MODE, self.M.MAV_CMD_COMPONENT_ARM_DISARM):
             return CommandAck(sysid, command, self.M.MAV_RESULT_ACCEPTED, 1)
         return await super().command(sysid, command, params, **kw)
 
@@ -336,3 +336,20 @@ async def test_px4_new_mission_starts_at_its_first_item_by_one_mode_switch(
     await v.start_mission()
     assert link.sent == ["MISSION_SET_CURRENT", "MISSION_SET_CURRENT"]
     assert link.commands == [link.M.MAV_CMD_DO_SET_MODE]
+
+
+@pytest.mark.parametrize("mode", ["MISSION", "HOLD"])
+async def test_a_px4_copter_left_in_mission_mode_is_armed_in_hold(mode: str) -> None:
+    """PX4 flies the mission of a multicopter armed in mission mode at once: a rover armed ahead of
+    its release on the ground is switched to HOLD first, so that its mission starts at the release."""
+    link = _CountingPx4Link()
+    v = _px4_vehicle(link)
+    main = 4 << 16  # PX4 custom mode: AUTO, sub-mode MISSION (4) or LOITER (3)
+    sub_mode = {"MISSION": 4, "HOLD": 3}[mode] << 24
+    M = link.M
+    link.feed(M.MAVLink_heartbeat_message(M.MAV_TYPE_QUADROTOR, M.MAV_AUTOPILOT_PX4,
+                                          M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, main | sub_mode, 3, 3))
+    assert v.mode == mode and not v.armed
+    await v.arm()
+    arm = link.M.MAV_CMD_COMPONENT_ARM_DISARM
+    assert link.commands == ([link.M.MAV_CMD_DO_SET_MODE, arm] if mode == "MISSION" else [arm])

@@ -150,6 +150,15 @@ class Px4(Autopilot):
         main, sub = self._SET[key]
         return float(CUSTOM), float(main), float(sub)
 
+    async def arm(self, vehicle: Vehicle, force_param: float = 0.0) -> None:
+        # a multicopter armed in mission mode flies its mission at once (SITL v1.18: a rover on the
+        # ground armed ahead of its timed release, still in MISSION from its last flight, took off
+        # 5.8 s early, and the start at its release sent it back to its first item: +10.7 %): it is
+        # armed in HOLD, and its start is the switch to MISSION
+        if not self.ground and not vehicle.armed and vehicle.mode == "MISSION":
+            await vehicle.set_mode("HOLD")
+        await super().arm(vehicle, force_param)
+
     async def takeoff(self, vehicle: Vehicle, height: float) -> None:
         home = vehicle.home_amsl
         if home is None:
