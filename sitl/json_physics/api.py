@@ -12,13 +12,13 @@ from typing import Literal
 from ..firmware import FirmwareVehicle, Frame
 from .body import Body
 from .ground_vehicle import GroundParams, GroundVehicle
+from .location import offset
 from .multicopter import X_MOTORS_PX4, QuadParams
 from .px4_hil import HilStats, Px4HilServer
 from .rigid import GRAVITY
 from .server import JsonServer, LinkStats
 from .world import Deck, World
 
-EARTH_RADIUS = 6378137.0  # m, as ArduPilot's Location offsets
 Firmware = Literal["ardupilot", "px4"]
 # PX4's SITL quad (airframe 10040) as PX4's own SIH simulates it by default: 1 kg (SIH_MASS),
 # 5 N full thrust per rotor (SIH_T_MAX: hovering at 0.49, linear in the output), 0.1 N m of rotor
@@ -82,11 +82,8 @@ class JsonWorld:
     def home(self, name: str) -> tuple[float, float, float, float]:
         """The firmware ``--home`` (lat, lon, AMSL alt, heading degrees) of a vehicle's start."""
         v = self.world.vehicles[name]
-        lat0, lon0, alt0 = self.origin
-        n, e, d = v.start
-        lat = lat0 + math.degrees(n / EARTH_RADIUS)
-        lon = lon0 + math.degrees(e / (EARTH_RADIUS * math.cos(math.radians(lat0))))
-        return (lat, lon, alt0 - d, math.degrees(v.start_yaw) % 360.0)
+        lat, lon, alt = offset(self.origin, *v.start)
+        return (lat, lon, alt, math.degrees(v.start_yaw) % 360.0)
 
     def firmware_vehicles(self) -> list[FirmwareVehicle]:
         """The vehicles for a ``FirmwareFleet(..., instance_base=self.instance_base)``, in order."""

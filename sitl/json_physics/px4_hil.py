@@ -38,6 +38,7 @@ from dataclasses import dataclass, field
 
 from pymavlink.dialects.v20 import common as mavlink2
 
+from ..geo import LocalFrame
 from .rigid import GRAVITY
 from .sockets import ServingThread, listen_all
 from .world import World
@@ -53,7 +54,6 @@ VIBRATION_ACCEL = 1.0      # m/s^2 (1 sigma) more on a ground vehicle driving at
 VIBRATION_GYRO = 0.1       # rad/s more, likewise
 VIBRATION_SPEED = 1.0      # m/s
 MAX_READ = 65536           # bytes read from one firmware per pass
-EARTH_RADIUS = 6378137.0
 
 
 def hil_port(instance: int) -> int:
@@ -121,6 +121,7 @@ class Px4HilServer(ServingThread):
         self.stats = {n: HilStats() for n in world.vehicles}
         self.time = 0.0
         self._rng = random.Random(seed)
+        self._per_metre = LocalFrame(*origin).degrees_per_metre()  # WGS84 as sitl.geo has it
         self._links: dict[str, _Link] = {}
         super().__init__("px4-hil")
 
@@ -257,14 +258,13 @@ class Px4HilServer(ServingThread):
         mav = link.mav
         sensor = mav.hil_sensor_encode(usec, *acc, *gyro, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0,
                                        0b111111, 0)
-        lat0, lon0, alt0 = self.origin
         n, e, d = b.position
-        lat = lat0 + math.degrees(n / EARTH_RADIUS)
-        lon = lon0 + math.degrees(e / (EARTH_RADIUS * math.cos(math.radians(lat0))))
+        lat0, lon0, alt0 = self.origin
+        lat, lon, alt = lat0 + n * self._per_metre[0], lon0 + e * self._per_metre[1], alt0 - d
         vn, ve, vd = b.velocity
         milli_g = [int(round(a / GRAVITY * 1000.0)) for a in b.accel_body]
         state = mav.hil_state_quaternion_encode(
             usec, [float(q) for q in b.attitude], *b.gyro, int(round(lat * 1e7)), int(round(lon * 1e7)),
-            int(round((alt0 - d) * 1000.0)), int(round(vn * 100)), int(round(ve * 100)), int(round(vd * 100)),
+            int(round(alt * 1000.0)), int(round(vn * 100)), int(round(ve * 100)), int(round(vd * 100)),
             0, 0, *(max(-32768, min(32767, a)) for a in milli_g))
         return sensor.pack(mav) + state.pack(mav)

@@ -13,6 +13,7 @@ from contextlib import contextmanager
 import pytest
 from pymavlink.dialects.v20 import common as mavlink2
 
+from sitl.geo import LocalFrame
 from sitl.json_physics import Deck, px4_hil
 from sitl.json_physics.api import PX4_QUAD, PX4_ROVER
 from sitl.json_physics.multicopter import X_MOTORS_PX4, Multicopter
@@ -21,7 +22,6 @@ from sitl.json_physics.rigid import GRAVITY, euler
 from sitl.json_physics.world import World
 
 ORIGIN = (47.397742, 8.545594, 488.0)
-EARTH_RADIUS = 6378137.0
 ARMED = mavlink2.MAV_MODE_FLAG_SAFETY_ARMED
 
 
@@ -96,10 +96,9 @@ def test_a_quad_is_sent_its_imu_and_ground_truth_on_one_clock() -> None:
     assert later.time_usec > first.time_usec > 0
     assert first.fields_updated == 0b111111  # accelerometer and gyroscope: PX4 simulates the rest
     assert first.zacc == pytest.approx(-GRAVITY, abs=0.1) and abs(first.xacc) < 0.1  # standing, level
-    assert state.lat == round((ORIGIN[0] + math.degrees(10.0 / EARTH_RADIUS)) * 1e7)
-    lon = ORIGIN[1] + math.degrees(5.0 / (EARTH_RADIUS * math.cos(math.radians(ORIGIN[0]))))
-    assert state.lon == round(lon * 1e7)
-    assert state.alt == round(ORIGIN[2] * 1000)
+    lat, lon, alt = LocalFrame(*ORIGIN).to_geodetic(5.0, 10.0, 0.0)  # east, north, up (pymap3d)
+    assert abs(state.lat - lat * 1e7) <= 1 and abs(state.lon - lon * 1e7) <= 1  # within 1e-7 degree
+    assert abs(state.alt - alt * 1000) <= 1
     assert list(state.attitude_quaternion) == pytest.approx([1.0, 0.0, 0.0, 0.0])
 
 
@@ -248,3 +247,12 @@ def test_the_px4_quad_is_sihs() -> None:
     text = (Path(__file__).resolve().parents[2] / "docs" / "autopilots.md").read_text()
     assert "(1 kg, 5 N per rotor, first-order drag 1 N per m/s" in text
     assert f"({px4_hil.VIBRATION_ACCEL:g} m/s² more noise at\n{px4_hil.VIBRATION_SPEED:g} m/s)" in text
+
+
+def test_the_first_order_frame_stays_within_a_millimetre_at_100_m() -> None:
+    frame = LocalFrame(*ORIGIN)
+    dlat, dlon = frame.degrees_per_metre()
+    for east, north in ((100.0, 0.0), (0.0, -100.0), (70.0, 70.0)):
+        lat, lon, _ = frame.to_geodetic(east, north, 0.0)
+        assert abs(ORIGIN[0] + north * dlat - lat) * 111_000 < 1e-3
+        assert abs(ORIGIN[1] + east * dlon - lon) * 111_000 * math.cos(math.radians(ORIGIN[0])) < 1e-3
