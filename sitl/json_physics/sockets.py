@@ -1,10 +1,12 @@
-"""The ports a world's servers listen on, with an error that says whose port it is."""
+"""What the world's servers share: the ports they listen on (with an error that says whose port it
+is) and their background thread."""
 
 from __future__ import annotations
 
 import selectors
 import socket
 import threading
+from abc import ABC, abstractmethod
 from collections.abc import Mapping
 
 
@@ -42,7 +44,7 @@ def listen_all(kind: socket.SocketKind, host: str, ports: Mapping[str, int],
     return out
 
 
-class ServingThread:
+class ServingThread(ABC):
     """A server's background thread: ``_run`` serves ``_selector`` until ``_stopping`` is set."""
 
     def __init__(self, thread_name: str) -> None:
@@ -51,8 +53,9 @@ class ServingThread:
         self._thread: threading.Thread | None = None
         self._thread_name = thread_name
 
+    @abstractmethod
     def _run(self) -> None:
-        raise NotImplementedError
+        """The thread's loop (the server's own)."""
 
     def _launch(self) -> None:
         self._thread = threading.Thread(target=self._run, name=self._thread_name, daemon=True)
