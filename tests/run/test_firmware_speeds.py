@@ -145,7 +145,14 @@ def test_px4_handling_is_planned_and_documented(tmp_path: Path) -> None:
     on_deck = fitted_handling(mission_from(d, tmp_path), [px4.Px4(M.MAV_TYPE_QUADROTOR)])
     assert on_deck is not None
     assert on_deck.rovers.land_time == pytest.approx((MEET_HEIGHT - 0.5) / 0.7 + px4.MC_TOUCHDOWN_OVERHEAD)
+    # an Ackermann carrier turns at what its legs cost per radian, whatever the mission said; its
+    # legs keep the mission's acceleration
+    carrier = fitted_handling(mission_from(d, tmp_path), [], px4.Px4(M.MAV_TYPE_GROUND_ROVER))
+    c = mission_from(d, tmp_path).carrier
+    assert carrier is not None and carrier.carrier.accel == c.accel
+    assert carrier.carrier.turn_rate == pytest.approx(1.0 / px4.ROVER_TURN_COST) != c.turn_rate
     text = DOC.read_text()
+    assert f"1 / ({px4.ROVER_TURN_COST:.1f} s per radian)" in text
     assert f"`TAKEOFF_HEIGHT / climb_rate + {px4.MC_TAKEOFF_OVERHEAD:.1f} s`" in text
     assert f"`descent / land_speed + {px4.MC_TOUCHDOWN_OVERHEAD:.1f} s`" in text
     assert f"`v / (v/a + {px4.MC_LEG_OVERHEAD:.1f} s)`" in text

@@ -104,6 +104,17 @@ ROVER_SPEED_PARAMS = (
 MC_TAKEOFF_OVERHEAD = 2.7  # s
 MC_TOUCHDOWN_OVERHEAD = 3.4  # s approach waypoint -> landed and disarmed, beyond 3 m / MPC_LAND_SPEED
 MC_LEG_OVERHEAD = 2.5  # s a waypoint leg from rest takes beyond S/v + v/a
+# An Ackermann carrier (10045) cannot turn on the spot: it steers onto a new heading while it drives
+# and slows into the turn. Its legs, planned with instantaneous turns, were flown late by about
+# ROVER_TURN_COST per radian of heading change into them (least squares through the origin,
+# bench/firmware_legs.py): 102 legs of 1.4 - 65 m turning 0 - 179 deg on sitl.json_physics (PX4 1.18,
+# RO_SPEED_LIM 1 m/s, RO_ACCEL_LIM 1 m/s^2; the deck series of bench/firmware_px4.py --deck and
+# bench/firmware_deck.py --px4): 0.78 s per rad, 0.87 s rms against 1.73 s without it, up to 5.1 s
+# late after turning about. On SIH (78 collection legs of 0.6 - 8.6 m) the fit beside the length is
+# 0.37 s per rad: SIH's rover drives faster than its speed limit (7.5 m straight in 6.4 s, where the
+# trapezoid at 1 m/s takes 8.5 s) and arrives 1.5 s early on average either way. Legs from rest are
+# otherwise the trapezoid: no overhead fits
+ROVER_TURN_COST = 0.8  # s per rad
 WAYPOINT_RADIUS = 1.0  # m: param2 of compiled waypoints ("reached" = at the point, not 10 m early)
 _WORDS = {"none": "no action", "hold": "hold", "rtl": "RTL", "land": "land",
           "terminate": "flight termination", "lockdown": "lockdown (motors off)"}
@@ -227,6 +238,9 @@ class Px4(Autopilot):
         if self.ground or accel is None:
             return accel
         return speed / (speed / accel + MC_LEG_OVERHEAD)
+
+    def planned_turn_rate(self, turn_rate: float | None) -> float | None:
+        return 1.0 / ROVER_TURN_COST if self.ground else turn_rate
 
     def handling_times(self, climb_rate: float, land_speed: float, load_time: float = 0.0,
                        deck_height: float = 0.0) -> tuple[float, float] | None:
