@@ -8,13 +8,26 @@ from collections.abc import Iterable
 from dataclasses import replace
 from typing import Any
 
-from fleetctl.mission.model import Mission, MissionError, RoverUnit, TeamConfig
+from fleetctl.mission.flight import descent
+from fleetctl.mission.model import CarrierConfig, Mission, MissionError, RoverUnit, TeamConfig
 from planners.teams import TeamsProblem
 
 
 def mission_teams(mission: Mission) -> tuple[TeamConfig, ...]:
     """Every carrier with the rover ids on its deck, in the order of the mission file."""
     return mission.teams or (TeamConfig(mission.carrier, mission.rovers.ids),)
+
+
+def own_mission(mission: Mission, carrier: CarrierConfig) -> Mission:
+    """The mission as if ``carrier`` were its only one. A touch-down term the mission file does not
+    give was worked out for the first carrier's deck (``carrier.deck_height``): it is moved to
+    this carrier's descent, so a team whose deck stands higher or lower plans its own landings."""
+    own = replace(mission, carrier=carrier)
+    r = mission.rovers
+    if r.handling_given[1] or carrier.deck_height == mission.carrier.deck_height:
+        return own
+    shift = (descent(carrier.deck_height) - descent(mission.carrier.deck_height)) / r.land_speed
+    return replace(own, rovers=replace(r, land_time=r.land_time + shift))
 
 
 def several_teams(mission: Mission) -> bool:
@@ -26,7 +39,7 @@ def teams_problem(mission: Mission, phase: str) -> TeamsProblem:
     start, heading and deck, the mission's whole pool of tasks or rovers to collect."""
     problems = []
     for team in mission_teams(mission):
-        own = replace(mission, carrier=team.carrier)  # the mission as if this carrier were its only one
+        own = own_mission(mission, team.carrier)
         problems.append(replace(own.deploy_problem(), rovers=team.rovers) if phase == "deploy"
                         else own.collect_problem())
     return TeamsProblem(tuple(t.carrier.id for t in mission_teams(mission)), tuple(problems))
@@ -63,7 +76,8 @@ def team_mission(mission: Mission, team_id: str, tasks: Iterable[str] | None = N
     ours = {team_id} | set(ids)  # a simulator of this team alone knows only its own vehicles' faults
     faults = tuple(f for f in mission.sim.faults if f.vehicle in ours or f.vehicle is None)
     sim = replace(mission.sim, faults=faults)
-    return replace(mission, carrier=team.carrier, rovers=replace(mission.rovers, units=units),
+    own = own_mission(mission, team.carrier)
+    return replace(own, rovers=replace(own.rovers, units=units),
                    tasks=own_tasks, collection=collection, teams=(), sim=sim,
                    raw=_one_team_raw(mission.raw, team_id, units))
 

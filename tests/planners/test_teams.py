@@ -490,3 +490,26 @@ def test_team_mission_keeps_its_own_vehicles_sim_faults(tmp_path: Path) -> None:
         own = team_mission(m, team)
         assert [f.get("vehicle") for f in own.raw["sim"]["faults"]] == kept
         FleetConfig.from_mission_dict(sim_mission_dict(own, "deploy"))  # that team's simulator starts
+
+
+def test_each_team_plans_the_touch_down_onto_its_own_deck(tmp_path: Path) -> None:
+    import yaml
+
+    from fleetctl.mission.flight import LAND_SETTLE, descent
+    from fleetctl.mission.teams import team_mission
+
+    d = yaml.safe_load(TWO.read_text())
+    d["carriers"][1]["deck_height"] = 1.0  # c2's deck stands 1 m up, c1's on the ground
+    path = tmp_path / "decks.yaml"
+    path.write_text(yaml.safe_dump(d), encoding="utf-8")
+    m = load_mission(path)
+    land = m.rovers.land_speed
+    ones = {team.carrier.id: p for team, p in zip(mission_teams(m), teams_problem(m, "collect").problems,
+                                                  strict=True)}
+    assert ones["c1"].carrier.land_time == pytest.approx(descent(0.0) / land + LAND_SETTLE)
+    assert ones["c2"].carrier.land_time == pytest.approx(descent(1.0) / land + LAND_SETTLE)
+    assert team_mission(m, "c2").rovers.land_time == pytest.approx(descent(1.0) / land + LAND_SETTLE)
+    d["rovers"]["land_time"] = 4.0  # given in the file: every team's, whatever its deck
+    path.write_text(yaml.safe_dump(d), encoding="utf-8")
+    given = load_mission(path)
+    assert {p.carrier.land_time for p in teams_problem(given, "collect").problems} == {4.0}

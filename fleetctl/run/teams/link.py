@@ -21,7 +21,6 @@ import logging
 import time
 import uuid
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import replace
 from typing import TYPE_CHECKING, Any
 
 from fleetctl.bus.teams.board import HANDOVER_GRACE, ClaimBoard
@@ -37,7 +36,7 @@ from fleetctl.bus.teams.protocol import (
     parse_status,
 )
 from fleetctl.mission import Mission
-from fleetctl.mission.teams import mission_teams, team_of
+from fleetctl.mission.teams import mission_teams, own_mission, team_of
 from fleetctl.run.kinds import Ev, VehicleStatus
 from fleetctl.run.task_board import TaskStatus
 from planners.core.problem import CarrierSpec
@@ -457,11 +456,11 @@ def _gone_unix(gone_since: float | None, now: float, t: float) -> float | None:
 
 
 def _carrier_spec(mission: Mission, team: str) -> CarrierSpec:
-    return replace(mission, carrier=team_of(mission, team).carrier).deploy_problem().carrier
+    return own_mission(mission, team_of(mission, team).carrier).deploy_problem().carrier
 
 
 def _start(mission: Mission, team: str) -> tuple[float, float, float]:
-    x, y, z = replace(mission, carrier=team_of(mission, team).carrier).deploy_problem().start
+    x, y, z = own_mission(mission, team_of(mission, team).carrier).deploy_problem().start
     return float(x), float(y), float(z)
 
 
