@@ -353,3 +353,37 @@ async def test_a_px4_copter_left_in_mission_mode_is_armed_in_hold(mode: str) -> 
     await v.arm()
     arm = link.M.MAV_CMD_COMPONENT_ARM_DISARM
     assert link.commands == ([link.M.MAV_CMD_DO_SET_MODE, arm] if mode == "MISSION" else [arm])
+
+
+class _TakeoffPx4Link(_CountingPx4Link):
+    """A PX4 that accepts NAV_TAKEOFF and keeps its parameters."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.params: list[tuple[float, ...]] = []
+
+    async def command(self, sysid, command, params, **kw):  # type: ignore[no-untyped-def]
+        from fleetctl.mavlink.link import CommandAck
+
+        if command == self.M.MAV_CMD_NAV_TAKEOFF:
+            self.commands.append(command)
+            self.params.append(tuple(params))
+            return CommandAck(sysid, command, self.M.MAV_RESULT_ACCEPTED, 1)
+        return await super().command(sysid, command, params, **kw)
+
+
+@pytest.mark.parametrize("landed", ["ON_GROUND", "IN_AIR"])
+async def test_a_px4_copter_on_the_ground_takes_off_from_where_it_stands(landed: str) -> None:
+    """PX4 takes off to an AMSL altitude and homes where it is armed: a rover standing 1 m above its
+    last reported home (landed beside the deck; the new home arrives after the arm) climbs the
+    height from where it stands; one in the air, from its home."""
+    link = _TakeoffPx4Link()
+    v = _px4_vehicle(link)
+    M = link.M
+    link.feed(M.MAVLink_home_position_message(473977420, 85455940, 487484, 0, 0, 0, [1, 0, 0, 0], 0, 0, 0))
+    link.feed(M.MAVLink_global_position_int_message(0, 473977420, 85455940, 488484, 1000, 0, 0, 0, 0))
+    state = getattr(M, f"MAV_LANDED_STATE_{landed}")
+    link.feed(M.MAVLink_extended_sys_state_message(M.MAV_VTOL_STATE_UNDEFINED, state))
+    await v.takeoff(3.0)
+    assert link.commands == [M.MAV_CMD_NAV_TAKEOFF]
+    assert link.params[0][6] == pytest.approx(491.484 if landed == "ON_GROUND" else 490.484)

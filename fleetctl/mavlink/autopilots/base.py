@@ -43,6 +43,7 @@ class Vehicle(Protocol):
     armed: bool
     mission_current: int | None
     mission_current_reports: int
+    alt: float | None  # metres AMSL (GLOBAL_POSITION_INT.alt)
 
     @property
     def home_amsl(self) -> float | None: ...

@@ -171,7 +171,13 @@ class Px4(Autopilot):
         await super().arm(vehicle, force_param)
 
     async def takeoff(self, vehicle: Vehicle, height: float) -> None:
-        home = vehicle.home_amsl
+        # PX4 takes off to an AMSL altitude and moves its home to where it is armed. A vehicle on the
+        # ground climbs from where it stands: its HOME_POSITION of the arming arrives about 0.5 s
+        # after it, and the home reported before can be another ground's (SITL v1.18 SIH: a rover
+        # landed beside the deck, its altitude 1 m above its first home, armed and sent up to that
+        # home + 3 m hovered 2 m above its new home: collection incomplete)
+        standing = vehicle.on_ground is True and vehicle.alt is not None
+        home = vehicle.alt if standing else vehicle.home_amsl
         if home is None:
             raise RuntimeError(f"{vehicle.name}: home altitude unknown (no GLOBAL_POSITION_INT yet)")
         nan = math.nan
