@@ -356,7 +356,7 @@ class CarrierControl:
     @property
     def stands_disarmed(self) -> bool:
         """The carrier's firmware does not stand it still on its own and it is held disarmed on its
-        collection stops (``Autopilot.stands_disarmed``: PX4's ground vehicles)."""
+        stops once it stands there (``Autopilot.stands_disarmed``: PX4's ground vehicles)."""
         ap = self.vehicle.autopilot
         return ap is not None and ap.stands_disarmed
 

@@ -222,9 +222,7 @@ class DeployPhase:
         last = len(plan.stops) - 1
         prev = 0.0
         for k, (stop, items) in enumerate(zip(plan.stops, compiled.stops, strict=True)):
-            ok, arrived = await race(
-                q, self.carrier.reach_stop(k, items.arrive_seq, stop.arrive - prev), self.handle
-            )
+            ok, arrived = await race(q, self._arrive(k, items.arrive_seq, stop.arrive - prev), self.handle)
             if not ok or arrived is None:
                 return  # the rest of the route is thrown away
             prev = stop.depart
@@ -241,6 +239,22 @@ class DeployPhase:
             if drain(q, self.handle) and k < last or board.pooled() and k == last:
                 return  # replan from this stop (the carrier holds here)
             await self.carrier.release(k, items.release_seq)
+
+    async def _arrive(self, k: int, seq: int, planned_leg: float) -> float:
+        """Wait for the carrier at stop ``k`` (its arrive item ``seq``), standing: the rovers leave
+        a deck that does not move. Returns when it reached the stop (mission clock). A carrier that
+        reaches its item still driving is waited for (:meth:`CarrierControl.parked`) and, where its
+        firmware does not stand it still (:attr:`CarrierControl.stands_disarmed`), held disarmed
+        as soon as it stands: PX4 1.18's Ackermann carrier passed its stop item at 1 m/s and wandered
+        up to 1.2 m about it for up to 7 s, while its rovers took off from the deck (one was held
+        on it for 5 s, its velocity estimate swinging)."""
+        arrived = await self.carrier.reach_stop(k, seq, planned_leg)
+        if not self.carrier.is_parked(seq):
+            try:
+                await self.carrier.parked(k, seq, hold=self.carrier.stands_disarmed)
+            except TimeoutError as exc:
+                raise ExecutionError(f"the carrier did not stand on stop {k + 1}: {exc}") from None
+        return arrived
 
     def _predict(self, plan: Plan, k: int, arrived: float) -> None:
         """The live makespan prediction once the carrier is at stop ``k``: the plan shifted by

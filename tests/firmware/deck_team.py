@@ -95,12 +95,14 @@ def plan_stops(summary: dict[str, Any]) -> int:
 
 class Rides:
     """Samples the physics from a thread while a command runs: how far the carrier drove each
-    rover while it sat on the deck, and which rovers boarded (came down on the deck)."""
+    rover while it sat on the deck, which rovers boarded (came down on the deck), and how fast the
+    carrier drove when each rover left its deck (m/s)."""
 
     def __init__(self, world: JsonWorld, rovers: list[str]) -> None:
         self.world, self.rovers = world, rovers
         self.carried = dict.fromkeys(rovers, 0.0)
         self.boarded: set[str] = set()
+        self.left_at: dict[str, float] = {}
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, daemon=True)
 
@@ -108,7 +110,8 @@ class Rides:
         last = self.world.state("carrier").position
         aboard = {r: self.world.on_deck(r) == "carrier" for r in self.rovers}
         while not self._stop.wait(0.1):
-            c = self.world.state("carrier").position
+            body = self.world.state("carrier")
+            c, speed = body.position, math.hypot(body.velocity[0], body.velocity[1])
             step = math.hypot(c[0] - last[0], c[1] - last[1])
             for r in self.rovers:
                 now = self.world.on_deck(r) == "carrier"
@@ -116,6 +119,8 @@ class Rides:
                     self.carried[r] += step
                 if now and not aboard[r]:
                     self.boarded.add(r)
+                if aboard[r] and not now:
+                    self.left_at[r] = speed
                 aboard[r] = now
             last = c
 

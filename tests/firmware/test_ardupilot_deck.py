@@ -24,6 +24,7 @@ from pymavlink.dialects.v20 import ardupilotmega as M
 pytestmark = pytest.mark.firmware
 
 AT_TASK = 2.0  # m from the task, horizontally
+STANDING = 0.3  # m/s: the carrier stands (fleetctl.run.carrier.STAY_SPEED)
 
 
 def test_multi_stop_deploy_and_collect_on_the_deck(tmp_path: Path) -> None:
@@ -38,6 +39,9 @@ def test_multi_stop_deploy_and_collect_on_the_deck(tmp_path: Path) -> None:
         assert plan_stops(deploy) >= 2
         launched_later = [r for t, r in deploy["assignment"].items() if t.startswith("b")]
         assert all(ride_deploy.carried[r] > 30.0 for r in launched_later), ride_deploy.carried  # via stop 1
+        # every rover took off from a carrier standing on its stop (the physics' speed when it left)
+        assert set(ride_deploy.left_at) == set(deploy["assignment"].values()), ride_deploy.left_at
+        assert all(v <= STANDING for v in ride_deploy.left_at.values()), ride_deploy.left_at
         tasks = dict(TASKS)
         for task, rover in deploy["assignment"].items():   # the physics' positions, not the EKF's
             p = ne_to_enu(world.state(rover).position)

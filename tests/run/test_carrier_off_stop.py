@@ -410,3 +410,50 @@ def test_the_docs_state_the_park_terms() -> None:
                    f"it moved at most {HOLD_SPEED_MAX * HOLD_WINDOW:g} m;",
                    f"stopped within {STAY_RADIUS:g} m of it, `STAY_RADIUS`"):
         assert phrase in section, phrase
+
+
+class _ArrivingCtx(_ScriptedCtx):
+    """:class:`_ScriptedCtx` with what ``CarrierControl.parked`` journals and waits with."""
+
+    def __init__(self, carrier: Vehicle, reports: list[tuple[float, float]]) -> None:
+        super().__init__(carrier, reports)
+        self.records: list[str] = []
+
+    def record(self, kind: str, **data: Any) -> None:
+        self.records.append(kind)
+
+    def late(self, mission_seconds: float) -> float:
+        return mission_seconds
+
+
+@pytest.mark.parametrize("autopilot, held", [("px4", True), ("ardupilot", False)])
+def test_a_deployment_launches_only_from_a_carrier_standing_on_its_stop(autopilot: str, held: bool) -> None:
+    """PX4 1.18's Ackermann carrier passed its deployment stop's item at 1 m/s and wandered about it
+    for up to 7 s while its rovers took off from the deck: the stop's rovers wait until it stands
+    there - held disarmed the moment it stands where its firmware does not stand it still
+    (``Autopilot.stands_disarmed``), parked (stopped within PARK_RADIUS) elsewhere."""
+    from types import SimpleNamespace
+
+    from pymavlink.dialects.v20 import ardupilotmega as M
+
+    from fleetctl.mavlink.autopilots import ArduPilot, Px4
+    from fleetctl.run.carrier import CarrierControl
+    from fleetctl.run.deploy import DeployPhase
+
+    c = _carrier(0.4, 1.0)  # on its stop's item, still driving
+    c.autopilot = Px4(M.MAV_TYPE_GROUND_ROVER) if autopilot == "px4" else ArduPilot(M.MAV_TYPE_GROUND_ROVER)
+    c.armed = True
+    # it slows through HOLD_SPEED_MAX, then through STAY_SPEED, the reports after are never read
+    ctx = _ArrivingCtx(c, [(0.6, 0.45), (0.7, 0.2), (3.5, 1.0)])
+
+    class Reaching(CarrierControl):
+        async def reach_stop(self, k: int, arrive_seq: int, planned_leg: float) -> float:
+            return 12.5  # the stop item reached (mission s)
+
+    cc = Reaching(ctx)  # type: ignore[arg-type]
+    phase = SimpleNamespace(carrier=cc)
+    assert asyncio.run(DeployPhase._arrive(phase, 0, 0, 10.0)) == 12.5  # type: ignore[arg-type]
+    assert cc.held_on_stop is held and cc.is_parked(0)
+    assert ctx.commands == ([("hold_on_stop", {"stop": 1})] if held else [])
+    assert ctx.records == ["carrier_off_stop"]  # journalled: it reached the stop not yet standing
+    assert c.ground_speed == pytest.approx(0.45 if held else 0.2)  # returned as soon as it stood

@@ -170,8 +170,8 @@ class Autopilot:
     @property
     def stands_disarmed(self) -> bool:
         """A ground vehicle of this firmware does not stand still on its own at a mission stop: it is
-        disarmed while rovers land on it at a collection stop and armed again when it leaves
-        (:meth:`fleetctl.run.carrier.CarrierControl.hold_on_stop`)."""
+        disarmed once it stands on a stop, while rovers take off from it or land on it, and armed
+        again when it leaves (:meth:`fleetctl.run.carrier.CarrierControl.hold_on_stop`)."""
         return False
 
     @property
