@@ -110,4 +110,5 @@ def test_multi_stop_deploy_and_collect_on_the_px4_deck(tmp_path: Path) -> None:
               f"({_stops(collect)} stops) {collect['makespan_flown']:.1f} s vs "
               f"{collect['makespan_planned']:.1f} s; wall: deploy {w1 - w0:.0f} s, collect {w2 - w1:.0f} s "
               f"(--speedup {DECK_SPEEDUP:g}); carried on the deck (m): "
-              f"{ {r: round(d, 1) for r, d in ride_deploy.carried.items()} }")
+              f"{ {r: round(d, 1) for r, d in ride_deploy.carried.items()} }; the carrier's speed as each "
+              f"left the deck (m/s): { {r: round(v, 2) for r, v in ride_deploy.left_at.items()} }")
