@@ -133,6 +133,20 @@ class Rides:
         self._thread.join(2.0)
 
 
+STANDING = 0.3  # m/s: a carrier this slow stands (fleetctl.run.carrier.STAY_SPEED)
+
+
+def check_deploy_rides(deploy: dict[str, Any], ride: Rides) -> None:
+    """A deployment of ``TASKS`` that used several stops: every task reached, the rovers of the
+    second group (``b…``) carried on the deck from the first stop (more than 30 m), and every rover
+    took off from a carrier standing on its stop (the physics' speed as it left the deck)."""
+    assert sorted(deploy["tasks_reached"]) == sorted(t for t, _ in TASKS)
+    launched_later = [r for t, r in deploy["assignment"].items() if t.startswith("b")]
+    assert all(ride.carried[r] > 30.0 for r in launched_later), ride.carried  # via stop 1
+    assert set(ride.left_at) == set(deploy["assignment"].values()), ride.left_at
+    assert all(v <= STANDING for v in ride.left_at.values()), ride.left_at
+
+
 def sim_time(world: JsonWorld) -> float:
     """The world's clock: the carrier's simulated seconds (the server keeps every firmware on it)."""
     return world.world.vehicles["carrier"].time
