@@ -29,8 +29,9 @@ PX4_QUAD = QuadParams(mass=1.0, arm=0.2 * math.sqrt(2.0), inertia=(0.025, 0.025,
                       hover_thrust=1.0 * GRAVITY / (4 * 5.0), yaw_moment=0.1 / 5.0, motor_tau=0.05,
                       drag=0.0, linear_drag=1.0, rot_damping=(0.025, 0.025, 0.025), motors=X_MOTORS_PX4)
 # PX4's Ackermann rover (airframe 10045): steering on output 1, throttle on output 2; full
-# throttle is RO_MAX_THR_SPEED (3.2 m/s), the speed its throttle feed-forward assumes, with little
-# rolling resistance (its speed loop's gains, RO_SPEED_P/I 0.001, barely correct a shortfall);
+# throttle is RO_MAX_THR_SPEED (3.2 m/s), the speed its throttle feed-forward assumes (its speed
+# loop's gains, RO_SPEED_P/I 0.001, barely correct a shortfall), with little rolling resistance
+# unpowered;
 # wheel base 0.321 m at RA_MAX_STR_ANG 30 degrees
 PX4_ROVER = GroundParams(max_speed=3.2, max_accel=6.0, rolling=0.05,
                          turning_circle=2 * 0.321 / math.tan(math.radians(30)),

@@ -1,8 +1,13 @@
 """A car-like ground vehicle (ArduRover's default: steering servo on channel 1, throttle on
 channel 3, both 1000..2000 us around 1500), after ArduPilot's own ``SIM_Rover``: the speed
-relaxes towards ``throttle * max_speed`` with ``max_accel`` at a standing start (less a
-little rolling resistance, which brings it to a stop), the turn rate
-is that of a bicycle whose full-lock turning circle is ``turning_circle`` metres across."""
+relaxes towards ``throttle * max_speed`` with ``max_accel`` at a standing start, the turn rate
+is that of a bicycle whose full-lock turning circle is ``turning_circle`` metres across.
+
+As in ``SIM_Rover``, any throttle moves it, from rest too: there is no static friction for a
+speed controller to overcome. (A standstill deadband once held an ArduRover carrier 17 s at a
+stop: its waypoint controller advances its target only as the vehicle moves, so its speed demand
+stayed near zero until the throttle's I term crept past the deadband.) Only unpowered -- the
+throttle at trim -- does ``rolling`` resistance bring it to rest."""
 
 from __future__ import annotations
 
@@ -16,13 +21,16 @@ from .rigid import GRAVITY, from_yaw, yaw_of
 
 @dataclass(frozen=True)
 class GroundParams:
-    max_speed: float = 20.0        # m/s at full throttle (CRUISE_SPEED 5 at CRUISE_THROTTLE 30)
+    max_speed: float = 20.0        # m/s at full throttle (SIM_Rover's: 6 m/s at 30 %)
     max_accel: float = 10.0        # m/s^2 from standstill at full throttle
     turning_circle: float = 1.8    # m, diameter at full steering
     max_wheel_turn: float = 35.0   # degrees at full steering
-    rolling: float = 0.5           # m/s^2 of rolling resistance (it comes to a stop)
+    rolling: float = 0.5           # m/s^2 of rolling resistance when unpowered (it comes to rest)
     steering_channel: int = 1
     throttle_channel: int = 3
+
+
+IDLE = 0.002  # |throttle| at or below this is trim (1 us of PWM): unpowered
 
 
 def _servo(pwm: Sequence[int], channel: int) -> float:
@@ -54,14 +62,12 @@ class GroundVehicle:
     def drive(self, steering: float, throttle: float, dt: float) -> None:
         """One step with ``steering`` and ``throttle`` in -1..1."""
         p, b = self.params, self.body
-        drive = p.max_accel * (throttle - self.speed / p.max_speed)
+        accel = p.max_accel * (throttle - self.speed / p.max_speed)
         before = self.speed
-        if before == 0.0 and abs(drive) <= p.rolling:
-            accel = 0.0
-        else:
-            accel = drive - math.copysign(p.rolling, before if before != 0.0 else drive)
+        if abs(throttle) <= IDLE and before != 0.0:
+            accel -= math.copysign(p.rolling, before)
         self.speed += accel * dt
-        if before != 0.0 and self.speed * before < 0.0 and abs(drive) <= p.rolling:
+        if self.speed * before < 0.0 and abs(throttle) <= IDLE:
             self.speed, accel = 0.0, -before / dt   # friction stops it, it does not reverse it
         self.yaw_rate = self.turn_rate(steering, self.speed)
         yaw = yaw_of(b.attitude) + self.yaw_rate * dt

@@ -131,13 +131,27 @@ def test_ground_vehicle_drives_and_turns() -> None:
     w.add_ground_vehicle("c", 20)
     for _ in range(8000):
         b = w.step("c", drive(1650), DT)
-    assert b.velocity[0] == pytest.approx(0.3 * 20.0 - 0.5 * 2.0, rel=0.01)  # 30 %: 6 m/s less rolling
+    assert b.velocity[0] == pytest.approx(0.3 * 20.0, rel=0.01)  # 30 % of SIM_Rover's 20 m/s
     for _ in range(200):
         b = w.step("c", drive(1650, 1800), DT)
     assert b.gyro[2] > 0.5 and yaw_of(b.attitude) > 0.3            # steering right turns right
     for _ in range(4000):
         b = w.step("c", drive(1500, 1500), DT)
     assert b.velocity == (0.0, 0.0, 0.0)
+
+
+def test_ground_vehicle_moves_from_rest_on_any_throttle() -> None:
+    """As ArduPilot's SIM_Rover: no static friction holds it, forwards or back -- a speed
+    controller whose demand starts near zero still moves it -- and unpowered it comes to rest."""
+    for pwm, sign in ((1510, 1.0), (1490, -1.0)):  # 2 % of throttle either way
+        w = World()
+        w.add_ground_vehicle("c", 20)
+        for _ in range(400):
+            b = w.step("c", drive(pwm), DT)
+        assert sign * b.velocity[0] > 0.1  # 0.16 m/s after 1 s, on its way to 0.4
+        for _ in range(2000):
+            b = w.step("c", drive(1500), DT)
+        assert b.velocity == (0.0, 0.0, 0.0)
 
 
 def test_copter_on_deck_follows_a_driving_carrier() -> None:
