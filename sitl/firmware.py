@@ -141,7 +141,8 @@ class FirmwareFleet:
         self.speedup = speedup
         self.instance_base = instance_base
         self._own_workdir = workdir is None
-        self.workdir = workdir or Path(tempfile.mkdtemp(prefix=f"fleetctl-{build.name}-"))
+        # absolute: each firmware runs in its own folder and reads its parameter file from there
+        self.workdir = (workdir or Path(tempfile.mkdtemp(prefix=f"fleetctl-{build.name}-"))).absolute()
         self.procs: dict[str, subprocess.Popen[bytes]] = {}
 
     @property
