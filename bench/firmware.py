@@ -91,7 +91,7 @@ def fly_seeds(args: argparse.Namespace, fly: Callable[[int, int, int, Path | Non
     print("|" + "---|" * len(columns))
     rows = []
     for seed in (int(s) for s in args.seeds.split(",")):
-        rows.append(fly(seed, args.port, args.instance_base, Path(args.runs) if args.runs else None))
+        rows.append(fly(seed, args.port, args.instance_base, Path(args.runs).absolute() if args.runs else None))
         print(line(rows[-1]), flush=True)
     if args.json:
         Path(args.json).write_text(json.dumps(rows, indent=1))

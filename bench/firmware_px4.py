@@ -163,7 +163,7 @@ def main() -> int:
           "| vs planned |")
     print("|---|---|---|---|---|---|---|---|")
     with tempfile.TemporaryDirectory() as tmp:
-        runs = Path(args.runs or Path(tmp) / "runs")
+        runs = Path(args.runs or Path(tmp) / "runs").absolute()  # fleetctl runs in the repository
         runs.mkdir(parents=True, exist_ok=True)
         # kept runs keep their mission beside them (bench/firmware_stops.py reads its origin)
         mission = (runs if args.runs else Path(tmp)) / "mission.yaml"
