@@ -90,8 +90,9 @@ def fly_seeds(args: argparse.Namespace, fly: Callable[[int, int, int, Path | Non
     print("| " + " | ".join(columns) + " |")
     print("|" + "---|" * len(columns))
     rows = []
+    runs = Path(args.runs).absolute() if args.runs else None
     for seed in (int(s) for s in args.seeds.split(",")):
-        rows.append(fly(seed, args.port, args.instance_base, Path(args.runs).absolute() if args.runs else None))
+        rows.append(fly(seed, args.port, args.instance_base, runs))
         print(line(rows[-1]), flush=True)
     if args.json:
         Path(args.json).write_text(json.dumps(rows, indent=1))
